@@ -1,0 +1,116 @@
+//! The light-space data an estimator asks for, and nothing more (model only what a scene needs):
+//! the fitted light view, k peeled depth layers, optional midpoint layers, and optional MSSM,
+//! dual-grid MSSM and min/max pyramid over layer 0.
+use crate::{
+    light_view::{FitReport, LightView},
+    mssm::{DualMssm, MinMaxPyramid, Mssm},
+    peeling::{midpoints, peel},
+    raster::{DepthMap, PreparedScene, RasterOptions},
+    receivers::Receivers,
+    scene::Scene,
+    Result,
+};
+use glam::Vec2;
+
+/// What an estimator needs built for a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightSpaceRequest {
+    /// Shadow-map resolution r.
+    pub resolution: u32,
+    /// Depth layers to peel (>= 1).
+    pub layers: u32,
+    /// Midpoint layers with this maximum bias (world units); needs one extra peeled layer.
+    pub midpoints: Option<f32>,
+    /// Build the anchored MSSM up to this level (inclusive).
+    pub mssm_levels: Option<u32>,
+    /// Build the dual-grid MSSM up to this level (inclusive).
+    pub dual_mssm_levels: Option<u32>,
+    /// Build the min/max mip pyramid (HSM).
+    pub pyramid: bool,
+    /// Rasteriser bias and culling.
+    pub raster: RasterOptions,
+}
+
+impl LightSpaceRequest {
+    /// A single plain shadow map of resolution `r`.
+    pub fn single(r: u32) -> Self {
+        LightSpaceRequest {
+            resolution: r,
+            layers: 1,
+            midpoints: None,
+            mssm_levels: None,
+            dual_mssm_levels: None,
+            pyramid: false,
+            raster: RasterOptions::default(),
+        }
+    }
+}
+
+/// Light-space data for one view.
+#[derive(Debug, Clone)]
+pub struct LightSpace {
+    /// The view the maps were rendered with.
+    pub view: LightView,
+    /// Fit statistics.
+    pub fit: FitReport,
+    /// Peeled layers, nearest first (`layers[0]` is the ordinary shadow map).
+    pub layers: Vec<DepthMap>,
+    /// Midpoint layers, when requested.
+    pub midpoints: Vec<DepthMap>,
+    /// Anchored MSSM of layer 0, when requested.
+    pub mssm: Option<Mssm>,
+    /// Dual-grid MSSM of layer 0, when requested.
+    pub dual_mssm: Option<DualMssm>,
+    /// Min/max pyramid of layer 0, when requested.
+    pub pyramid: Option<MinMaxPyramid>,
+}
+
+impl LightSpace {
+    /// Fits a view at the light centre to the receivers (see [`LightView::fit`]) and builds what
+    /// `req` asks for.
+    pub fn build(scene: &Scene, receivers: &Receivers, req: &LightSpaceRequest) -> Result<Self> {
+        let light = &scene.light;
+        let (view, fit) =
+            LightView::fit(scene, receivers, light.frame(), light.half_extent(), req.resolution)?;
+        Ok(Self::build_in_view(scene, view, fit, req))
+    }
+
+    /// Fits a view whose centre of projection is the point `at` of the light plane (light-space
+    /// x, y), axes parallel to the light frame, for a point light there (multi-view methods).
+    pub fn build_point(
+        scene: &Scene,
+        receivers: &Receivers,
+        at: Vec2,
+        req: &LightSpaceRequest,
+    ) -> Result<Self> {
+        let mut frame = scene.light.frame();
+        frame.origin = frame.to_world(at.extend(0.0));
+        let (view, fit) = LightView::fit(scene, receivers, frame, Vec2::ZERO, req.resolution)?;
+        Ok(Self::build_in_view(scene, view, fit, req))
+    }
+
+    /// Builds the maps in a given view.
+    pub fn build_in_view(scene: &Scene, view: LightView, fit: FitReport, req: &LightSpaceRequest) -> Self {
+        let prepared = PreparedScene::new(scene, &view, req.raster.cull);
+        let k = req.layers.max(1) + u32::from(req.midpoints.is_some());
+        let mut layers = peel(&prepared, req.raster.bias, k);
+        let mids = match req.midpoints {
+            Some(max_bias) => midpoints(&layers, max_bias),
+            None => Vec::new(),
+        };
+        layers.truncate(req.layers.max(1) as usize);
+        let l0 = &layers[0];
+        let mssm = req.mssm_levels.map(|l| Mssm::build(&l0.depth, l0.size, l));
+        let dual_mssm = req.dual_mssm_levels.map(|l| DualMssm::build(&l0.depth, l0.size, l));
+        let pyramid = req.pyramid.then(|| MinMaxPyramid::build(&l0.depth, l0.size));
+        LightSpace { view, fit, layers, midpoints: mids, mssm, dual_mssm, pyramid }
+    }
+
+    /// Bytes held by the maps (what `report` lists as light-space memory).
+    pub fn bytes(&self) -> usize {
+        self.layers.iter().chain(&self.midpoints).map(DepthMap::bytes).sum::<usize>()
+            + self.mssm.as_ref().map_or(0, Mssm::bytes)
+            + self.dual_mssm.as_ref().map_or(0, DualMssm::bytes)
+            + self.pyramid.as_ref().map_or(0, MinMaxPyramid::bytes)
+    }
+}

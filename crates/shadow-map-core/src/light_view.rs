@@ -1,0 +1,187 @@
+//! The light view: a perspective projection through the light centre onto the shadow-map plane
+//! z = n (the papers' convention, background.md §1), fitted tightly to what the receivers need
+//! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
+use crate::{light::LightFrame, receivers::Receivers, scene::Scene, Error, Result};
+use glam::{Vec2, Vec3};
+
+/// Largest shadow-map resolution the CPU core accepts (texels per side).
+pub const MAX_RESOLUTION: u32 = 16384;
+
+/// Largest |x/z| (tangent of the half angle from the light axis) the light frustum may reach:
+/// tan(87.1 deg). Receivers beyond it are out of the frustum and reported, not silently lit.
+pub const MAX_TAN: f32 = 20.0;
+
+/// A fitted light view. Light-space coordinates are those of [`LightFrame`]; the shadow-map
+/// plane is z = n and the map's window on it is the square `[x0, x0 + w] x [y0, y0 + w]`, split in
+/// `r x r` texels of pitch `delta = w / r`. Continuous texel coordinates of a light-space point:
+///
+/// `u = (n x / z - x0) / delta`, `v = (n y / z - y0) / delta`
+///
+/// (texel (i, j) = (floor u, floor v), centre (i + 1/2, j + 1/2); background.md §1, with an
+/// off-centre window so the frustum covers what the receivers need and no more).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightView {
+    /// Light-space frame (origin at the centre of projection).
+    pub frame: LightFrame,
+    /// Near plane and shadow-map plane distance n > 0.
+    pub n: f32,
+    /// Far plane: the largest light-space depth the map needs.
+    pub far: f32,
+    /// Window corner (x0, y0) on the plane z = n.
+    pub window_min: Vec2,
+    /// Window side w on the plane z = n.
+    pub w: f32,
+    /// Resolution r (texels per side).
+    pub r: u32,
+}
+
+/// Statistics of a fit, reported by `--stats`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FitReport {
+    /// Active receivers behind or in the light plane (z <= 0 in light space).
+    pub behind: usize,
+    /// Active receivers in front of the light but outside the frustum (beyond [`MAX_TAN`]).
+    pub out_of_frustum: usize,
+}
+
+impl LightView {
+    /// Texel pitch on the plane z = n: `delta = w / r`.
+    #[inline]
+    pub fn delta(&self) -> f32 {
+        self.w / self.r as f32
+    }
+    /// Yang's scale from light space to texels, `alpha = n r / w`: `u - u_p = alpha (x/z - x_p/z_p)`.
+    #[inline]
+    pub fn alpha(&self) -> f32 {
+        self.n * self.r as f32 / self.w
+    }
+    /// Continuous texel coordinates (u, v) of a light-space point with z > 0.
+    #[inline]
+    pub fn project(&self, p: Vec3) -> Vec2 {
+        (Vec2::new(p.x, p.y) * (self.n / p.z) - self.window_min) / self.delta()
+    }
+    /// Light-space direction through continuous texel coordinates (u, v), scaled so that z = 1.
+    #[inline]
+    pub fn unproject_dir(&self, uv: Vec2) -> Vec3 {
+        let xy = (uv * self.delta() + self.window_min) / self.n;
+        Vec3::new(xy.x, xy.y, 1.0)
+    }
+    /// True when the continuous texel coordinates fall inside the map.
+    #[inline]
+    pub fn contains(&self, uv: Vec2) -> bool {
+        uv.x >= 0.0 && uv.y >= 0.0 && uv.x < self.r as f32 && uv.y < self.r as f32
+    }
+
+    /// Fits a view at `frame` (the light centre for area-light estimators, a point on the light for
+    /// multi-view ones) to the active receivers.
+    ///
+    /// Window: an occluder that can shadow receiver p lies in the pyramid between p and the light.
+    /// Projected from the centre onto z = n (the near plane: nothing nearer is recorded), that
+    /// pyramid covers `q +- (1 - n/z_p) h` where `q = n p_xy / z_p` and h is the light's half
+    /// extent in the frame's x and y (background.md §1 "Coverage", §2 "Search area"). The window is
+    /// the bounding square of these footprints over all receivers (in `x/z` space, clamped to
+    /// [`MAX_TAN`]), so the frustum covers what the receivers need and no more.
+    ///
+    /// Near and far: the papers' recommendation (common-techniques, "near and far planes"): the
+    /// light frustum intersected with the scene bounds. n starts at the nearest scene vertex in
+    /// front of the light, the window is fitted, n is raised to the nearest vertex of the triangles
+    /// that overlap the window, and the window refitted (it can only shrink, so every triangle in it
+    /// still lies at z >= n). n never exceeds the nearest receiver, and is at least
+    /// `1e-4` times the farthest receiver depth (geometry nearer than that is clipped).
+    pub fn fit(
+        scene: &Scene,
+        receivers: &Receivers,
+        frame: LightFrame,
+        light_half: Vec2,
+        r: u32,
+    ) -> Result<(LightView, FitReport)> {
+        if r == 0 || r > MAX_RESOLUTION {
+            return Err(Error::Limit { what: "shadow-map resolution", requested: r as u64, max: MAX_RESOLUTION as u64 });
+        }
+        let mut rep = FitReport::default();
+        let scale = scene.bounds().diagonal().max(1e-6);
+        let z_eps = 1e-6 * scale;
+        // Receivers in tan space.
+        let mut rec: Vec<(Vec2, f32)> = Vec::new();
+        for (k, p) in receivers.position.iter().enumerate() {
+            if !receivers.active[k] {
+                continue;
+            }
+            let q = frame.to_light(*p);
+            if q.z <= z_eps {
+                rep.behind += 1;
+                continue;
+            }
+            let t = Vec2::new(q.x, q.y) / q.z;
+            if t.abs().max_element() > MAX_TAN {
+                rep.out_of_frustum += 1;
+                continue;
+            }
+            rec.push((t, q.z));
+        }
+        if rec.is_empty() {
+            return Err(Error::LightView("no receiver lies in front of the light".into()));
+        }
+        let zr_min = rec.iter().map(|r| r.1).fold(f32::INFINITY, f32::min);
+        let zr_max = rec.iter().map(|r| r.1).fold(0.0f32, f32::max);
+        let n_floor = (1e-4 * zr_max).max(z_eps);
+
+        let tris: Vec<[Vec3; 3]> =
+            scene.triangles.iter().map(|t| t.map(|v| frame.to_light(v))).collect();
+        let window = |n: f32| -> (Vec2, Vec2) {
+            let mut lo = Vec2::splat(f32::INFINITY);
+            let mut hi = Vec2::splat(f32::NEG_INFINITY);
+            for &(t, z) in &rec {
+                let f = light_half * (1.0 / n - 1.0 / z).max(0.0);
+                lo = lo.min(t - f);
+                hi = hi.max(t + f);
+            }
+            (lo.max(Vec2::splat(-MAX_TAN)), hi.min(Vec2::splat(MAX_TAN)))
+        };
+        // Nearest and farthest geometry overlapping a tan-space window.
+        let geometry_range = |lo: Vec2, hi: Vec2| -> (f32, f32) {
+            let mut zmin = f32::INFINITY;
+            let mut zmax = 0.0f32;
+            for t in &tris {
+                let zlo = t.iter().map(|v| v.z).fold(f32::INFINITY, f32::min);
+                let zhi = t.iter().map(|v| v.z).fold(f32::NEG_INFINITY, f32::max);
+                if zhi <= n_floor {
+                    continue;
+                }
+                if zlo > n_floor {
+                    let mut tlo = Vec2::splat(f32::INFINITY);
+                    let mut thi = Vec2::splat(f32::NEG_INFINITY);
+                    for v in t {
+                        let tv = Vec2::new(v.x, v.y) / v.z;
+                        tlo = tlo.min(tv);
+                        thi = thi.max(tv);
+                    }
+                    if tlo.x > hi.x || tlo.y > hi.y || thi.x < lo.x || thi.y < lo.y {
+                        continue;
+                    }
+                }
+                zmin = zmin.min(zlo.max(n_floor));
+                zmax = zmax.max(zhi);
+            }
+            (zmin, zmax)
+        };
+        let (n0, _) = geometry_range(Vec2::splat(-MAX_TAN), Vec2::splat(MAX_TAN));
+        let n0 = n0.min(zr_min * 0.999).max(n_floor);
+        let (lo, hi) = window(n0);
+        let (n1, far) = geometry_range(lo, hi);
+        let n = if n1.is_finite() { n1.min(zr_min * 0.999).max(n0) } else { n0 };
+        let (lo, hi) = window(n);
+        let far = far.max(zr_max);
+        let side = (hi - lo).max_element().max(1e-6);
+        let centre = (lo + hi) * 0.5;
+        let view = LightView {
+            frame,
+            n,
+            far,
+            window_min: (centre - Vec2::splat(side * 0.5)) * n,
+            w: side * n,
+            r,
+        };
+        Ok((view, rep))
+    }
+}

@@ -1,0 +1,59 @@
+//! Depth peeling (Bavoil, Callahan, Silva 2008, §4.1; Everitt 2001): k layers per texel, nearest
+//! first, layer m+1 the nearest surface strictly behind layer m, `z > z_m (1 + PEEL_EPS_REL)`
+//! (see [`crate::raster::PEEL_EPS_REL`]). One rasterisation pass per layer, as on a GPU.
+use crate::raster::{DepthBias, DepthMap, PreparedScene};
+
+/// Peels `k` layers (k >= 1). Layer 0 is the ordinary shadow map. Texels with fewer than m+1
+/// surfaces hold +inf in layer m.
+pub fn peel(prepared: &PreparedScene, bias: DepthBias, k: u32) -> Vec<DepthMap> {
+    let mut layers: Vec<DepthMap> = Vec::with_capacity(k as usize);
+    for m in 0..k {
+        let layer = prepared.rasterize(bias, layers.last());
+        let empty = layer.depth.iter().all(|d| d.is_infinite());
+        layers.push(layer);
+        if empty {
+            // Every further layer is empty too: no need to rasterise them.
+            let size = layers[0].size;
+            for _ in m + 1..k {
+                layers.push(DepthMap::empty(size));
+            }
+            break;
+        }
+    }
+    layers
+}
+
+/// Midpoint layers (Bavoil §4.2, after Woo 1992): `M_m = min((L_m + L_{m+1}) / 2, L_m + max_bias)`
+/// per texel, with `L_{m+1} = +inf` where there is no next layer, so a lone surface gets
+/// `L_m + max_bias` (the maximum-bias clamp keeps thick occluders from shifting their shadow far
+/// behind them). Needs `layers.len() >= k + 1` to give k midpoint layers (the last given layer is
+/// only used as the upper neighbour).
+pub fn midpoints(layers: &[DepthMap], max_bias: f32) -> Vec<DepthMap> {
+    let k = layers.len().saturating_sub(1);
+    (0..k)
+        .map(|m| {
+            let (a, b) = (&layers[m], &layers[m + 1]);
+            let depth = a
+                .depth
+                .iter()
+                .zip(&b.depth)
+                .map(|(&za, &zb)| midpoint(za, zb, max_bias))
+                .collect();
+            DepthMap { size: a.size, depth }
+        })
+        .collect()
+}
+
+/// One midpoint: `min((a + b)/2, a + max_bias)`; +inf when `a` is empty.
+#[inline]
+pub fn midpoint(a: f32, b: f32, max_bias: f32) -> f32 {
+    if a.is_infinite() {
+        return f32::INFINITY;
+    }
+    let clamp = a + max_bias;
+    if b.is_infinite() {
+        clamp
+    } else {
+        (0.5 * (a + b)).min(clamp)
+    }
+}

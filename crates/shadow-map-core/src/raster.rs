@@ -1,0 +1,279 @@
+//! The CPU shadow-map rasteriser: nearest linear light-space depth per texel.
+//!
+//! **Fill rule.** A texel is covered when its centre `(i + 1/2, j + 1/2)` lies inside the
+//! triangle's projection. Centres exactly on an edge follow the top-left rule (as Vulkan and D3D
+//! do): with u to the right and v down the rows, and the triangle ordered so that its signed area
+//! is positive, an edge `(du, dv)` owns its centres when it is a left edge (`dv < 0`) or a top edge
+//! (`dv == 0 && du > 0`). Two triangles sharing an edge therefore never both cover, nor both miss,
+//! a centre on it.
+//!
+//! **Depth.** Linear light-space z, interpolated perspective-correctly (1/z is affine in u, v),
+//! stored in f32; +inf marks an empty texel. Triangles are clipped to the near plane z = n.
+//!
+//! **Bias.** Optional `constant + slope * max(|dz/du|, |dz/dv|)` added to the stored depth, in
+//! world units (slope: world units per unit of texel slope; common-techniques, "slope-scaled
+//! bias").
+//!
+//! **Culling.** Facing is taken from the triangle's winding (its geometric normal), as on a GPU:
+//! a triangle is front-facing when its normal points towards the centre of projection.
+use crate::{light_view::LightView, scene::Scene};
+use glam::{DVec2, Vec3};
+use rayon::prelude::*;
+
+/// Which faces, as seen from the light, are skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Cull {
+    /// Rasterise every triangle.
+    #[default]
+    None,
+    /// Skip triangles facing away from the light.
+    Back,
+    /// Skip triangles facing the light (keeps second surfaces: fewer acne, more peter-panning).
+    Front,
+}
+
+/// Depth bias added to stored depths.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DepthBias {
+    /// Constant term, world units.
+    pub constant: f32,
+    /// Slope-scale term: multiplies `max(|dz/du|, |dz/dv|)` (world units per texel).
+    pub slope: f32,
+}
+
+/// Rasteriser options.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RasterOptions {
+    /// Depth bias.
+    pub bias: DepthBias,
+    /// Face culling.
+    pub cull: Cull,
+}
+
+/// An `r x r` map of linear light-space depths; texel (i, j) at index `j * r + i`, +inf = empty.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthMap {
+    /// Side in texels.
+    pub size: u32,
+    /// Depths.
+    pub depth: Vec<f32>,
+}
+
+impl DepthMap {
+    /// An empty map (all +inf).
+    pub fn empty(size: u32) -> Self {
+        DepthMap { size, depth: vec![f32::INFINITY; size as usize * size as usize] }
+    }
+    /// Depth at texel (i, j); +inf outside the map (samples outside the map are non-occluders,
+    /// background.md §1 "Coverage").
+    #[inline]
+    pub fn at(&self, i: i32, j: i32) -> f32 {
+        if i < 0 || j < 0 || i >= self.size as i32 || j >= self.size as i32 {
+            f32::INFINITY
+        } else {
+            self.depth[j as usize * self.size as usize + i as usize]
+        }
+    }
+    /// Bytes of storage.
+    pub fn bytes(&self) -> usize {
+        self.depth.len() * 4
+    }
+}
+
+/// Relative epsilon of depth peeling: layer k+1 keeps the nearest fragment with
+/// `z > z_k * (1 + PEEL_EPS_REL)` (about 84 f32 ulps), so coincident or nearly coincident
+/// surfaces do not come back as a new layer (Bavoil §4.1, "strictly behind").
+pub const PEEL_EPS_REL: f32 = 1e-5;
+
+/// A triangle prepared for rasterisation: light-space vertices after near-plane clipping,
+/// projected to (u, v) with 1/z per vertex.
+#[derive(Debug, Clone, Copy)]
+struct Prepared {
+    uv: [DVec2; 3],
+    inv_z: [f64; 3],
+}
+
+/// Light-space triangles of a scene for one view, clipped and projected once and reused by every
+/// peeling pass.
+pub struct PreparedScene {
+    tris: Vec<Prepared>,
+    r: u32,
+}
+
+impl PreparedScene {
+    /// Transforms, culls, clips (z >= n) and projects the scene's triangles.
+    pub fn new(scene: &Scene, view: &LightView, cull: Cull) -> Self {
+        let mut tris = Vec::with_capacity(scene.triangles.len());
+        let n = view.n as f64;
+        let delta = view.delta() as f64;
+        let x0 = DVec2::new(view.window_min.x as f64, view.window_min.y as f64);
+        let r = view.r as f64;
+        for t in &scene.triangles {
+            let l: [Vec3; 3] = t.map(|v| view.frame.to_light(v));
+            let l = l.map(|v| v.as_dvec3());
+            let normal = (l[1] - l[0]).cross(l[2] - l[0]);
+            let facing_light = normal.dot(l[0]) < 0.0;
+            match cull {
+                Cull::Back if !facing_light => continue,
+                Cull::Front if facing_light => continue,
+                _ => {}
+            }
+            // Clip the polygon against z >= n (Sutherland-Hodgman on one plane).
+            let mut poly: [glam::DVec3; 4] = [glam::DVec3::ZERO; 4];
+            let mut m = 0;
+            for k in 0..3 {
+                let a = l[k];
+                let b = l[(k + 1) % 3];
+                let (ina, inb) = (a.z >= n, b.z >= n);
+                if ina {
+                    poly[m] = a;
+                    m += 1;
+                }
+                if ina != inb {
+                    let s = (n - a.z) / (b.z - a.z);
+                    let mut p = a + (b - a) * s;
+                    p.z = n;
+                    poly[m] = p;
+                    m += 1;
+                }
+            }
+            if m < 3 {
+                continue;
+            }
+            let proj = |p: glam::DVec3| -> (DVec2, f64) {
+                let uv = (DVec2::new(p.x, p.y) * (n / p.z) - x0) / delta;
+                (uv, 1.0 / p.z)
+            };
+            let pts: Vec<(DVec2, f64)> = poly[..m].iter().map(|&p| proj(p)).collect();
+            for k in 1..m - 1 {
+                let tri = [pts[0], pts[k], pts[k + 1]];
+                // Quick reject outside the map.
+                let lo = tri[0].0.min(tri[1].0).min(tri[2].0);
+                let hi = tri[0].0.max(tri[1].0).max(tri[2].0);
+                if hi.x < 0.0 || hi.y < 0.0 || lo.x > r || lo.y > r || !lo.is_finite() || !hi.is_finite() {
+                    continue;
+                }
+                tris.push(Prepared { uv: tri.map(|p| p.0), inv_z: tri.map(|p| p.1) });
+            }
+        }
+        PreparedScene { tris, r: view.r }
+    }
+
+    /// Number of prepared (clipped, possibly split) triangles.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+    /// No triangle survived culling and clipping.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// Rasterises the nearest depth per texel. With `behind = Some(prev)`, only fragments strictly
+    /// behind `prev` (`z > prev * (1 + PEEL_EPS_REL)`) count: one depth-peeling pass (Bavoil §4.1).
+    pub fn rasterize(&self, bias: DepthBias, behind: Option<&DepthMap>) -> DepthMap {
+        let r = self.r as usize;
+        let band = 16usize;
+        let nb = r.div_ceil(band);
+        // Bin triangles by row band.
+        let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nb];
+        for (k, t) in self.tris.iter().enumerate() {
+            let vlo = t.uv[0].y.min(t.uv[1].y).min(t.uv[2].y);
+            let vhi = t.uv[0].y.max(t.uv[1].y).max(t.uv[2].y);
+            let j0 = ((vlo - 0.5).ceil().max(0.0) as usize).min(r);
+            let j1 = (((vhi - 0.5).floor() + 1.0).max(0.0) as usize).min(r);
+            if j0 >= j1 {
+                continue;
+            }
+            for b in j0 / band..=(j1 - 1) / band {
+                bins[b].push(k as u32);
+            }
+        }
+        let mut out = DepthMap::empty(self.r);
+        out.depth.par_chunks_mut(band * r).enumerate().for_each(|(b, rows)| {
+            let row0 = b * band;
+            let nrows = rows.len() / r;
+            for &k in &bins[b] {
+                raster_triangle(&self.tris[k as usize], r, row0, nrows, rows, bias, behind);
+            }
+        });
+        out
+    }
+}
+
+#[inline]
+fn owns_ties(du: f64, dv: f64) -> bool {
+    dv < 0.0 || (dv == 0.0 && du > 0.0)
+}
+
+fn raster_triangle(
+    t: &Prepared,
+    r: usize,
+    row0: usize,
+    nrows: usize,
+    rows: &mut [f32],
+    bias: DepthBias,
+    behind: Option<&DepthMap>,
+) {
+    let [mut a, mut b, c] = t.uv;
+    let [mut za, mut zb, zc] = t.inv_z;
+    let mut area = (b - a).perp_dot(c - a);
+    if area == 0.0 || !area.is_finite() {
+        return;
+    }
+    if area < 0.0 {
+        std::mem::swap(&mut a, &mut b);
+        std::mem::swap(&mut za, &mut zb);
+        area = -area;
+    }
+    // Plane of 1/z over (u, v): iz(p) = za + gu (u - a.u) + gv (v - a.v).
+    let e1 = b - a;
+    let e2 = c - a;
+    let gu = ((zb - za) * e2.y - (zc - za) * e1.y) / area;
+    let gv = ((zc - za) * e1.x - (zb - za) * e2.x) / area;
+    let lo = a.min(b).min(c);
+    let hi = a.max(b).max(c);
+    let i0 = ((lo.x - 0.5).ceil().max(0.0) as usize).min(r);
+    let i1 = (((hi.x - 0.5).floor() + 1.0).max(0.0) as usize).min(r);
+    let j0 = ((lo.y - 0.5).ceil().max(row0 as f64) as usize).min(row0 + nrows);
+    let j1 = (((hi.y - 0.5).floor() + 1.0).max(0.0) as usize).min(row0 + nrows);
+    let edges = [(a, b), (b, c), (c, a)];
+    let own = edges.map(|(p, q)| owns_ties(q.x - p.x, q.y - p.y));
+    for j in j0..j1 {
+        let pv = j as f64 + 0.5;
+        for i in i0..i1 {
+            let p = DVec2::new(i as f64 + 0.5, pv);
+            let mut inside = true;
+            for (k, (s, e)) in edges.iter().enumerate() {
+                let ef = (*e - *s).perp_dot(p - *s);
+                if ef < 0.0 || (ef == 0.0 && !own[k]) {
+                    inside = false;
+                    break;
+                }
+            }
+            if !inside {
+                continue;
+            }
+            let iz = za + gu * (p.x - a.x) + gv * (p.y - a.y);
+            if !(iz > 0.0) {
+                continue;
+            }
+            let z = 1.0 / iz;
+            let mut zs = z as f32;
+            if bias.constant != 0.0 || bias.slope != 0.0 {
+                // dz/du = -z^2 d(1/z)/du.
+                let slope = (z * z * gu.abs().max(gv.abs())) as f32;
+                zs += bias.constant + bias.slope * slope;
+            }
+            let idx = (j - row0) * r + i;
+            if let Some(prev) = behind {
+                let pz = prev.depth[j * r + i];
+                if !(zs > pz * (1.0 + PEEL_EPS_REL)) {
+                    continue;
+                }
+            }
+            if zs < rows[idx] {
+                rows[idx] = zs;
+            }
+        }
+    }
+}

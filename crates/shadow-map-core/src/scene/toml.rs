@@ -1,0 +1,203 @@
+//! The scene TOML of `contract.md`, parsed with `toml` + `serde` and validated key by key.
+use super::Scene;
+use crate::{
+    camera::Camera,
+    light::{default_tangent, Light, LightShape},
+    Error, Result,
+};
+use glam::Vec3;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    camera: CameraFile,
+    light: LightFile,
+    #[serde(default)]
+    mesh: Vec<MeshFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraFile {
+    eye: [f32; 3],
+    target: [f32; 3],
+    up: [f32; 3],
+    fov_y_deg: f32,
+    width: u32,
+    height: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightFile {
+    shape: String,
+    center: [f32; 3],
+    normal: [f32; 3],
+    tangent: Option<[f32; 3]>,
+    size: Option<[f32; 2]>,
+    radius: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshFile {
+    path: String,
+    scale: Option<f32>,
+    rotate_y_deg: Option<f32>,
+    translate: Option<[f32; 3]>,
+    opacity: Option<f32>,
+}
+
+/// Largest image side the loader accepts.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+struct Ctx<'a> {
+    path: &'a Path,
+}
+
+impl Ctx<'_> {
+    fn err(&self, key: &str, reason: impl Into<String>) -> Error {
+        Error::Scene { path: self.path.to_path_buf(), key: Some(key.to_string()), reason: reason.into() }
+    }
+    fn finite<const N: usize>(&self, key: &str, v: [f32; N]) -> Result<[f32; N]> {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(v)
+        } else {
+            Err(self.err(key, format!("every number must be finite, got {v:?}")))
+        }
+    }
+    fn vec3(&self, key: &str, v: [f32; 3]) -> Result<Vec3> {
+        Ok(Vec3::from_array(self.finite(key, v)?))
+    }
+    fn unit(&self, key: &str, v: [f32; 3]) -> Result<Vec3> {
+        self.vec3(key, v)?.try_normalize().ok_or_else(|| self.err(key, "must not be the zero vector"))
+    }
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+pub(super) fn load(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let file: SceneFile = ::toml::from_str(&text).map_err(|e| {
+        let line = e.span().map(|s| format!("line {}: ", line_of(&text, s.start))).unwrap_or_default();
+        Error::Scene {
+            path: path.to_path_buf(),
+            key: None,
+            reason: format!("{line}{}", e.message().replace('\n', " ")),
+        }
+    })?;
+    let cx = Ctx { path };
+
+    // Camera.
+    let c = &file.camera;
+    let eye = cx.vec3("camera.eye", c.eye)?;
+    let target = cx.vec3("camera.target", c.target)?;
+    let up = cx.unit("camera.up", c.up)?;
+    if (target - eye).length() <= 0.0 {
+        return Err(cx.err("camera.target", "must differ from camera.eye"));
+    }
+    let forward = (target - eye).normalize();
+    if forward.cross(up).length() < 1e-6 {
+        return Err(cx.err("camera.up", "must not be parallel to the view direction"));
+    }
+    if !(c.fov_y_deg.is_finite() && c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+        return Err(cx.err("camera.fov_y_deg", format!("must be in (0, 180), got {}", c.fov_y_deg)));
+    }
+    for (k, v) in [("camera.width", c.width), ("camera.height", c.height)] {
+        if v == 0 || v > MAX_IMAGE_SIDE {
+            return Err(cx.err(k, format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}")));
+        }
+    }
+    let camera = Camera { eye, target, up, fov_y_deg: c.fov_y_deg, width: c.width, height: c.height };
+
+    // Light.
+    let l = &file.light;
+    let center = cx.vec3("light.center", l.center)?;
+    let normal = cx.unit("light.normal", l.normal)?;
+    let positive = |key: &str, v: f32| -> Result<f32> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(cx.err(key, format!("must be a finite number > 0, got {v}")))
+        }
+    };
+    let (shape, tangent) = match l.shape.as_str() {
+        "rect" => {
+            if l.radius.is_some() {
+                return Err(cx.err("light.radius", "not used by rect lights (use `size`)"));
+            }
+            let size = l.size.ok_or_else(|| cx.err("light.size", "missing (required for rect lights)"))?;
+            let size = [positive("light.size", size[0])?, positive("light.size", size[1])?];
+            let t = l.tangent.ok_or_else(|| cx.err("light.tangent", "missing (required for rect lights)"))?;
+            let t = cx.unit("light.tangent", t)?;
+            let ortho = t - t.dot(normal) * normal;
+            let t = ortho
+                .try_normalize()
+                .filter(|_| ortho.length() > 1e-4)
+                .ok_or_else(|| cx.err("light.tangent", "must not be parallel to light.normal"))?;
+            (LightShape::Rect { size }, t)
+        }
+        "disk" | "sphere" => {
+            for (k, present) in [("light.size", l.size.is_some()), ("light.tangent", l.tangent.is_some())] {
+                if present {
+                    return Err(cx.err(k, format!("not used by {} lights (use `radius`)", l.shape)));
+                }
+            }
+            let r = l.radius.ok_or_else(|| cx.err("light.radius", format!("missing (required for {} lights)", l.shape)))?;
+            let r = positive("light.radius", r)?;
+            let shape = if l.shape == "disk" { LightShape::Disk { radius: r } } else { LightShape::Sphere { radius: r } };
+            (shape, default_tangent(normal))
+        }
+        other => {
+            return Err(cx.err("light.shape", format!("must be \"rect\", \"disk\" or \"sphere\", got {other:?}")))
+        }
+    };
+    let light = Light { shape, center, normal, tangent };
+
+    let mut scene = Scene {
+        path: path.to_path_buf(),
+        camera,
+        light,
+        triangles: Vec::new(),
+        triangle_mesh: Vec::new(),
+        meshes: Vec::new(),
+        skipped_degenerate: 0,
+    };
+    if file.mesh.is_empty() {
+        return Err(cx.err("mesh", "the scene has no [[mesh]] entries"));
+    }
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    for (k, m) in file.mesh.iter().enumerate() {
+        let key = |f: &str| format!("mesh[{k}].{f}");
+        let scale = m.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale != 0.0) {
+            return Err(cx.err(&key("scale"), format!("must be finite and non-zero, got {scale}")));
+        }
+        let rot = m.rotate_y_deg.unwrap_or(0.0);
+        if !rot.is_finite() {
+            return Err(cx.err(&key("rotate_y_deg"), format!("must be finite, got {rot}")));
+        }
+        let translate = cx.vec3(&key("translate"), m.translate.unwrap_or([0.0; 3]))?;
+        let opacity = m.opacity.unwrap_or(1.0);
+        if !(0.0..=1.0).contains(&opacity) {
+            return Err(cx.err(&key("opacity"), format!("must be in [0, 1], got {opacity}")));
+        }
+        let obj_path: PathBuf = dir.join(&m.path);
+        let local = super::obj::load_obj_triangles(&obj_path)?;
+        let rotation = glam::Quat::from_rotation_y(rot.to_radians());
+        let tris = local
+            .into_iter()
+            .map(|t| t.map(|v| rotation * (v * scale) + translate))
+            .collect();
+        scene.push_mesh(obj_path, opacity, tris);
+    }
+    if scene.triangles.is_empty() {
+        return Err(Error::EmptyScene { path: path.to_path_buf(), skipped: scene.skipped_degenerate });
+    }
+    Ok(scene)
+}
