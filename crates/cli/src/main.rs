@@ -1,1 +1,196 @@
-fn main() {}
+//! `softshadow`: render a scene's visibility with any estimator, list the estimators, score an
+//! image against a reference (contract.md, "The command line").
+mod exr_io;
+mod score;
+
+use clap::{Parser, Subcommand};
+use serde_json::{json, Map, Value};
+use shadow_map_core::{Backend, Receivers, Scene, SceneBvh};
+use softshadow::{estimator, registry};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "softshadow", version, about = "Physically based soft shadows, measured against a ray-traced ground truth")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Render the visibility image V (and view depth Z) of a scene with one estimator.
+    #[command(after_help = algos_help())]
+    Render {
+        /// Scene file (TOML, see contract.md).
+        scene: PathBuf,
+        /// Estimator name (`softshadow algos` lists them).
+        #[arg(long)]
+        algo: String,
+        /// Backend.
+        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
+        backend: String,
+        /// Estimator parameter KEY=VALUE (repeatable).
+        #[arg(long = "param", value_name = "KEY=VALUE")]
+        params: Vec<String>,
+        /// Output OpenEXR (channels V and Z).
+        #[arg(long)]
+        out: PathBuf,
+        /// Optional PNG preview of V.
+        #[arg(long)]
+        png: Option<PathBuf>,
+        /// Print one JSON line with the algorithm, backend, parameters and stage times.
+        #[arg(long)]
+        stats: bool,
+    },
+    /// List every estimator with its parameters, defaults, ranges and a description.
+    Algos {
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Compare a candidate EXR with a reference EXR; prints one JSON line.
+    Score {
+        /// Candidate image.
+        candidate: PathBuf,
+        /// Reference image.
+        reference: PathBuf,
+        /// Write a false-colour error image (blue: too dark, red: too bright).
+        #[arg(long)]
+        err_png: Option<PathBuf>,
+    },
+}
+
+fn algos_help() -> String {
+    let mut s = String::from("Estimators and their parameters:\n");
+    if let Ok(all) = registry() {
+        for e in all {
+            s.push_str(&format!("  {}: {}\n", e.name(), e.description()));
+            for p in e.params().specs() {
+                s.push_str(&format!("      {}={} ({}): {}\n", p.key, p.default, p.range(), p.help));
+            }
+        }
+    }
+    s
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.cmd {
+        Cmd::Render { scene, algo, backend, params, out, png, stats } => {
+            render(&scene, &algo, &backend, &params, &out, png.as_deref(), stats)
+        }
+        Cmd::Algos { json } => algos(json),
+        Cmd::Score { candidate, reference, err_png } => score_cmd(&candidate, &reference, err_png.as_deref()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("softshadow: {}", e.replace('\n', " "));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn render(
+    scene_path: &std::path::Path,
+    algo: &str,
+    backend: &str,
+    params: &[String],
+    out: &std::path::Path,
+    png: Option<&std::path::Path>,
+    stats: bool,
+) -> Result<(), String> {
+    let t_all = Instant::now();
+    let backend = if backend == "gpu" { Backend::Gpu } else { Backend::Cpu };
+    let mut est = estimator(algo, backend).map_err(|e| e.to_string())?;
+    for kv in params {
+        let (k, v) = shadow_map_core::params::parse_assignment(kv).map_err(|e| e.to_string())?;
+        est.set_param(k, v).map_err(|e| e.to_string())?;
+    }
+    let mut stages: Vec<(String, f64)> = Vec::new();
+    let t = Instant::now();
+    let scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
+    stages.push(("load".into(), ms(t)));
+    let t = Instant::now();
+    let bvh = SceneBvh::new(&scene);
+    let receivers = Receivers::from_camera(&scene, &bvh);
+    stages.push(("gbuffer".into(), ms(t)));
+    let (v, report) = shadow_map_core::run(est.as_mut(), &scene, &receivers).map_err(|e| e.to_string())?;
+    stages.extend(report.stages.iter().cloned());
+    let t = Instant::now();
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let z: Vec<f32> = receivers.view_depth.clone().unwrap_or_else(|| vec![f32::INFINITY; w * h]);
+    let mut img = exr_io::VisibilityImage::new(w, h);
+    img.push_channel("V", v.clone()).map_err(|e| e.to_string())?;
+    img.push_channel("Z", z).map_err(|e| e.to_string())?;
+    exr_io::write_exr(out, &img).map_err(|e| e.to_string())?;
+    if let Some(p) = png {
+        exr_io::write_png_preview(p, w, h, &v).map_err(|e| e.to_string())?;
+    }
+    stages.push(("write".into(), ms(t)));
+    if stats {
+        let mut st = Map::new();
+        for (k, v) in &stages {
+            let e = st.entry(k.clone()).or_insert(json!(0.0));
+            *e = json!(e.as_f64().unwrap_or(0.0) + v);
+        }
+        let params: Map<String, Value> = est.params().iter().map(|(k, v)| (k.to_string(), json!(v.to_string()))).collect();
+        let notes: Map<String, Value> = report.notes.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
+        let line = json!({
+            "algo": est.name(),
+            "backend": est.backend().to_string(),
+            "scene": scene_path.display().to_string(),
+            "width": w, "height": h,
+            "receivers": receivers.active_count(),
+            "triangles": scene.triangles.len(),
+            "skipped_degenerate_triangles": scene.skipped_degenerate,
+            "params": params,
+            "stages_ms": st,
+            "total_ms": ms(t_all),
+            "light_space_bytes": report.light_space_bytes,
+            "notes": notes,
+        });
+        println!("{line}");
+    }
+    Ok(())
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn algos(as_json: bool) -> Result<(), String> {
+    let all = registry().map_err(|e| e.to_string())?;
+    if as_json {
+        let list: Vec<Value> = all
+            .iter()
+            .map(|e| {
+                json!({
+                    "name": e.name(),
+                    "description": e.description(),
+                    "backends": ["cpu"],
+                    "params": e.params().specs().iter().map(|p| json!({
+                        "key": p.key, "default": p.default, "range": p.range(), "help": p.help
+                    })).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        println!("{}", Value::Array(list));
+    } else {
+        print!("{}", algos_help());
+    }
+    Ok(())
+}
+
+fn score_cmd(cand: &std::path::Path, reference: &std::path::Path, err_png: Option<&std::path::Path>) -> Result<(), String> {
+    let c = exr_io::read_exr(cand).map_err(|e| e.to_string())?;
+    let r = exr_io::read_exr(reference).map_err(|e| e.to_string())?;
+    let s = score::score(&c, &r).map_err(|e| e.to_string())?;
+    if let Some(p) = err_png {
+        score::write_error_png(p, &c, &r).map_err(|e| e.to_string())?;
+    }
+    println!("{}", score::score_json(&s));
+    Ok(())
+}

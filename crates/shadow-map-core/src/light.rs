@@ -278,3 +278,30 @@ mod tests {
         }
     }
 }
+
+impl Light {
+    /// Fraction of the light's area in front of the tangent plane of a world point `p` with unit
+    /// normal `n` (see [`front_fraction`]). For rect and disk lights, 0 when p is behind or in the
+    /// light plane (one-sided emitters). For a sphere light the area is that of the contract's
+    /// silhouette disk (through the centre, perpendicular to p -> centre).
+    pub fn front_fraction_world(&self, p: Vec3, n: Vec3) -> f32 {
+        match self.shape {
+            LightShape::Rect { .. } | LightShape::Disk { .. } => {
+                let f = self.frame();
+                let pl = f.to_light(p);
+                if pl.z <= 0.0 {
+                    return 0.0;
+                }
+                front_fraction(&self.shape, pl, f.dir_to_light(n))
+            }
+            LightShape::Sphere { .. } => {
+                let d = self.center - p;
+                let Some(dz) = (-d).try_normalize() else { return 0.0 };
+                // Frame at the centre whose z axis points from the light towards p.
+                let ex = default_tangent(dz);
+                let f = LightFrame { origin: self.center, ex, ey: dz.cross(ex), ez: dz };
+                front_fraction(&self.shape, f.to_light(p), f.dir_to_light(n))
+            }
+        }
+    }
+}

@@ -2,7 +2,7 @@
 //! z = n (the papers' convention, background.md §1), fitted tightly to what the receivers need
 //! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
 use crate::{light::LightFrame, receivers::Receivers, scene::Scene, Error, Result};
-use glam::{Vec2, Vec3};
+use glam::{DVec2, Vec2, Vec3};
 
 /// Largest shadow-map resolution the CPU core accepts (texels per side).
 pub const MAX_RESOLUTION: u32 = 16384;
@@ -102,7 +102,7 @@ impl LightView {
         let scale = scene.bounds().diagonal().max(1e-6);
         let z_eps = 1e-6 * scale;
         // Receivers in tan space.
-        let mut rec: Vec<(Vec2, f32)> = Vec::new();
+        let mut rec: Vec<(DVec2, f64)> = Vec::new();
         for (k, p) in receivers.position.iter().enumerate() {
             if !receivers.active[k] {
                 continue;
@@ -112,34 +112,37 @@ impl LightView {
                 rep.behind += 1;
                 continue;
             }
-            let t = Vec2::new(q.x, q.y) / q.z;
-            if t.abs().max_element() > MAX_TAN {
+            let t = DVec2::new(q.x as f64, q.y as f64) / q.z as f64;
+            if t.abs().max_element() > MAX_TAN as f64 {
                 rep.out_of_frustum += 1;
                 continue;
             }
-            rec.push((t, q.z));
+            rec.push((t, q.z as f64));
         }
         if rec.is_empty() {
             return Err(Error::LightView("no receiver lies in front of the light".into()));
         }
-        let zr_min = rec.iter().map(|r| r.1).fold(f32::INFINITY, f32::min);
-        let zr_max = rec.iter().map(|r| r.1).fold(0.0f32, f32::max);
+        let zr_min = rec.iter().map(|r| r.1).fold(f64::INFINITY, f64::min) as f32;
+        let zr_max = rec.iter().map(|r| r.1).fold(0.0f64, f64::max) as f32;
         let n_floor = (1e-4 * zr_max).max(z_eps);
 
         let tris: Vec<[Vec3; 3]> =
             scene.triangles.iter().map(|t| t.map(|v| frame.to_light(v))).collect();
-        let window = |n: f32| -> (Vec2, Vec2) {
-            let mut lo = Vec2::splat(f32::INFINITY);
-            let mut hi = Vec2::splat(f32::NEG_INFINITY);
+        let half = light_half.as_dvec2();
+        let window = |n: f32| -> (DVec2, DVec2) {
+            let mut lo = DVec2::splat(f64::INFINITY);
+            let mut hi = DVec2::splat(f64::NEG_INFINITY);
             for &(t, z) in &rec {
-                let f = light_half * (1.0 / n - 1.0 / z).max(0.0);
+                let f = half * (1.0 / n as f64 - 1.0 / z).max(0.0);
                 lo = lo.min(t - f);
                 hi = hi.max(t + f);
             }
-            (lo.max(Vec2::splat(-MAX_TAN)), hi.min(Vec2::splat(MAX_TAN)))
+            let m = MAX_TAN as f64;
+            (lo.max(DVec2::splat(-m)), hi.min(DVec2::splat(m)))
         };
         // Nearest and farthest geometry overlapping a tan-space window.
-        let geometry_range = |lo: Vec2, hi: Vec2| -> (f32, f32) {
+        let geometry_range = |lo: DVec2, hi: DVec2| -> (f32, f32) {
+            let (lo, hi) = (lo.as_vec2(), hi.as_vec2());
             let mut zmin = f32::INFINITY;
             let mut zmax = 0.0f32;
             for t in &tris {
@@ -165,21 +168,23 @@ impl LightView {
             }
             (zmin, zmax)
         };
-        let (n0, _) = geometry_range(Vec2::splat(-MAX_TAN), Vec2::splat(MAX_TAN));
+        let (n0, _) = geometry_range(DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
         let n0 = n0.min(zr_min * 0.999).max(n_floor);
         let (lo, hi) = window(n0);
         let (n1, far) = geometry_range(lo, hi);
         let n = if n1.is_finite() { n1.min(zr_min * 0.999).max(n0) } else { n0 };
         let (lo, hi) = window(n);
         let far = far.max(zr_max);
-        let side = (hi - lo).max_element().max(1e-6);
+        // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.
+        let side = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-6);
         let centre = (lo + hi) * 0.5;
+        let nd = n as f64;
         let view = LightView {
             frame,
             n,
             far,
-            window_min: (centre - Vec2::splat(side * 0.5)) * n,
-            w: side * n,
+            window_min: ((centre - DVec2::splat(side * 0.5)) * nd).as_vec2(),
+            w: (side * nd) as f32,
             r,
         };
         Ok((view, rep))

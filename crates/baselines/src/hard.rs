@@ -1,0 +1,33 @@
+//! The hard shadow map (Williams 1978): one binary depth test at the receiver's texel, the
+//! point-light limit every soft estimator must reach as the light shrinks (background.md §10.4).
+use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
+use glam::Vec3;
+use shadow_map_core::{light_space::LightSpace, Light, ParamSpec, Params};
+
+/// The hard test: `V = [z_p - eps <= D(floor u, floor v)]`, and 0 when the light centre is
+/// behind the receiver's tangent plane.
+pub struct Hard;
+
+/// The hard shadow-map estimator.
+pub type HardShadow = MapEstimator<Hard>;
+
+impl Filter for Hard {
+    const NAME: &'static str = "hard";
+    const DESCRIPTION: &'static str = "hard shadow map: one binary depth test from the light centre (Williams 1978)";
+    const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL];
+    fn from_params(_: &Params) -> Self {
+        Hard
+    }
+    fn visibility(&self, ls: &LightSpace, _: &Light, r: &ReceiverSample) -> f32 {
+        lit(ls, r.uv.x.floor() as i32, r.uv.y.floor() as i32, r.p.z, r.eps)
+    }
+    fn facing(&self, light: &Light, p: Vec3, n: Vec3) -> f32 {
+        let behind = light.one_sided() && (p - light.center).dot(light.normal) <= 0.0;
+        if behind || n.dot(light.center - p) <= 0.0 {
+            0.0
+        } else {
+            1.0
+        }
+    }
+}

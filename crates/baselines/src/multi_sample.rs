@@ -1,0 +1,157 @@
+//! Multi-sample shadows (Heckbert & Herf 1997; background.md §6): the average of S x S hard
+//! shadow maps rendered from jittered stratified points on the light, the papers' brute-force
+//! reference. Only one map is alive at a time.
+use crate::common::{self, receiver_bias, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use glam::Vec2;
+use rayon::prelude::*;
+use shadow_map_core::{
+    light_space::{LightSpace, LightSpaceRequest},
+    Backend, Error, LightShape, ParamKind, ParamSpec, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
+};
+
+const SPECS: &[ParamSpec] = &[
+    RESOLUTION,
+    BIAS,
+    SLOPE_BIAS,
+    CULL,
+    ParamSpec { key: "sublights", kind: ParamKind::Int { min: 1, max: 64 }, default: "4", help: "S: S x S light samples, one hard shadow map each" },
+    ParamSpec { key: "seed", kind: ParamKind::Int { min: 0, max: 1 << 31 }, default: "7", help: "seed of the stratum jitter (fixed, so images are deterministic)" },
+];
+
+/// `V(p) = (1/N) sum_k [y_k in front of p's tangent plane] [z_k(p) - eps_k <= D_k(u_k(p))]`
+/// over N = S^2 jittered strata y_k of the light (concentric-mapped for disks). Each map has its
+/// centre of projection at y_k with axes parallel to the light frame and its own fitted window.
+///
+/// Sphere lights: the samples lie on the disk through the centre perpendicular to the light
+/// normal, which equals the contract's silhouette disk only for receivers on the light axis
+/// (an approximation, labelled in `--stats`).
+pub struct MultiSample {
+    params: Params,
+    report: Report,
+}
+
+impl MultiSample {
+    /// With default parameters.
+    pub fn new() -> Result<Self> {
+        Ok(MultiSample { params: Params::new(SPECS)?, report: Report::default() })
+    }
+}
+
+/// Splitmix64: the jitter of stratum `k` under `seed`, in [0, 1)^2.
+pub fn jitter(seed: u64, k: u32) -> Vec2 {
+    let mut x = seed ^ ((k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let mut next = || {
+        x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = x;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 40) as f32 / (1u64 << 24) as f32
+    };
+    Vec2::new(next(), next())
+}
+
+impl SoftShadowEstimator for MultiSample {
+    fn name(&self) -> &'static str {
+        "multi-sample"
+    }
+    fn description(&self) -> &'static str {
+        "average of S x S hard shadow maps from jittered points on the light (Heckbert & Herf 1997)"
+    }
+    fn backend(&self) -> Backend {
+        Backend::Cpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
+        // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
+        self.report = Report::default();
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        common::check_len(receivers, v)?;
+        let s = self.params.int("sublights") as u32;
+        let seed = self.params.int("seed") as u64;
+        let (b0, b1) = (self.params.float("bias") as f32, self.params.float("slope_bias") as f32);
+        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
+        req.raster = common::raster_options(&self.params);
+        let light = scene.light;
+        let points = light.stratified_points(s, |k| jitter(seed, k));
+        let frame = light.frame();
+        let mut acc = vec![0.0f32; receivers.len()];
+        let (mut t_build, mut t_est) = (0.0, 0.0);
+        let mut peak = 0usize;
+        let mut behind = 0usize;
+        for y in &points {
+            let t = std::time::Instant::now();
+            let ls = match LightSpace::build_point(scene, receivers, *y, &req) {
+                Ok(ls) => ls,
+                // No receiver in front of this light point: it lights nothing.
+                Err(Error::LightView(_)) => continue,
+                Err(e) => return Err(e),
+            };
+            t_build += t.elapsed().as_secs_f64() * 1e3;
+            peak = peak.max(ls.bytes());
+            behind = behind.max(ls.fit.out_of_frustum);
+            let t = std::time::Instant::now();
+            let yw = frame.to_world(y.extend(0.0));
+            let view = &ls.view;
+            acc.par_iter_mut().enumerate().for_each(|(k, a)| {
+                if !receivers.active[k] {
+                    return;
+                }
+                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+                if nw.dot(yw - pw) <= 0.0 {
+                    return; // the sample is behind the receiver's tangent plane
+                }
+                let p = view.frame.to_light(pw);
+                if p.z <= 0.0 {
+                    return; // behind this light point: no light from it
+                }
+                if p.z <= view.n {
+                    *a += 1.0;
+                    return;
+                }
+                let uv = view.project(p);
+                if !view.contains(uv) {
+                    *a += 1.0;
+                    return;
+                }
+                let n = view.frame.dir_to_light(nw);
+                let eps = receiver_bias(view, p, n, b0, b1);
+                if ls.layers[0].at(uv.x.floor() as i32, uv.y.floor() as i32) >= p.z - eps {
+                    *a += 1.0;
+                }
+            });
+            t_est += t.elapsed().as_secs_f64() * 1e3;
+        }
+        let inv = 1.0 / points.len().max(1) as f32;
+        let one_sided = light.one_sided();
+        for (k, out) in v.iter_mut().enumerate() {
+            *out = if !receivers.active[k] {
+                f32::NAN
+            } else if one_sided && frame.to_light(receivers.position[k]).z <= 0.0 {
+                0.0
+            } else {
+                (acc[k] * inv).clamp(0.0, 1.0)
+            };
+        }
+        self.report.stages.push(("build".into(), t_build));
+        self.report.stages.push(("estimate".into(), t_est));
+        self.report.light_space_bytes = peak;
+        self.report.note("sublights", s * s);
+        self.report.note("out_of_frustum", behind);
+        if matches!(light.shape, LightShape::Sphere { .. }) {
+            self.report.note("approximation", "sphere sampled on the disk perpendicular to the light normal");
+        }
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}

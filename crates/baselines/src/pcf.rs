@@ -1,0 +1,39 @@
+//! Percentage-closer filtering (Reeves, Salesin, Cook 1987; background.md §5): compare first, then
+//! filter, over an N x N block of texels centred on the receiver's texel.
+use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
+use shadow_map_core::{light_space::LightSpace, Light, ParamKind, ParamSpec, Params};
+
+/// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`.
+pub struct Pcf {
+    half: i32,
+}
+
+/// The PCF estimator.
+pub type PcfShadow = MapEstimator<Pcf>;
+
+impl Filter for Pcf {
+    const NAME: &'static str = "pcf";
+    const DESCRIPTION: &'static str = "percentage-closer filtering over an N x N texel block (Reeves et al. 1987)";
+    const SPECS: &'static [ParamSpec] = &[
+        RESOLUTION,
+        BIAS,
+        SLOPE_BIAS,
+        CULL,
+        ParamSpec { key: "kernel", kind: ParamKind::Int { min: 1, max: 63 }, default: "5", help: "filter size N (texels per side; even N rounds up to N+1)" },
+    ];
+    fn from_params(p: &Params) -> Self {
+        Pcf { half: (p.int("kernel") as i32) / 2 }
+    }
+    fn visibility(&self, ls: &LightSpace, _: &Light, r: &ReceiverSample) -> f32 {
+        let (i0, j0) = (r.uv.x.floor() as i32, r.uv.y.floor() as i32);
+        let mut sum = 0.0;
+        for dj in -self.half..=self.half {
+            for di in -self.half..=self.half {
+                sum += lit(ls, i0 + di, j0 + dj, r.p.z, r.eps);
+            }
+        }
+        let side = (2 * self.half + 1) as f32;
+        sum / (side * side)
+    }
+}

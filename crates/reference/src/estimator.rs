@@ -1,0 +1,130 @@
+//! The reference as a [`SoftShadowEstimator`] (`--algo reference`).
+use crate::trace::{visibility, TraceOptions};
+use shadow_map_core::{
+    estimator::{Backend, Report, SoftShadowEstimator},
+    Error, ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
+};
+
+/// The reference's parameters.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        key: "spp",
+        kind: ParamKind::Int { min: 1, max: 65536 },
+        default: "1024",
+        help: "light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))), \
+               the count used is reported in the notes",
+    },
+    ParamSpec {
+        key: "seed",
+        kind: ParamKind::Int { min: 0, max: 1 << 31 },
+        default: "1",
+        help: "seed of the deterministic sample jitter (same seed, same V bit for bit)",
+    },
+];
+
+/// Ray-traced ground truth: stratified light samples through the scene's BVH, with transmittance
+/// for semi-transparent meshes ([`crate::trace`]).
+///
+/// `build` builds the [`SceneBvh`] (stage `build`); `estimate` traces (stage `estimate`). Notes:
+/// `spp` (the sample count actually used, a square), `samples_per_side`, `seed`,
+/// `active_receivers`, `triangles`.
+pub struct ReferenceEstimator {
+    params: Params,
+    bvh: Option<SceneBvh>,
+    report: Report,
+    progress: bool,
+}
+
+impl std::fmt::Debug for ReferenceEstimator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReferenceEstimator")
+            .field("params", &self.params)
+            .field("built", &self.bvh.is_some())
+            .field("progress", &self.progress)
+            .finish()
+    }
+}
+
+impl ReferenceEstimator {
+    /// The reference at its defaults (1024 samples per receiver, seed 1), progress bar off. Fails
+    /// only if a declared default does not parse (a bug).
+    pub fn new() -> Result<Self> {
+        Ok(ReferenceEstimator {
+            params: Params::new(PARAMS)?,
+            bvh: None,
+            report: Report::default(),
+            progress: false,
+        })
+    }
+    /// Turns the progress bar (standard error, large receiver sets only) on or off.
+    pub fn with_progress(mut self, on: bool) -> Self {
+        self.progress = on;
+        self
+    }
+    /// Turns the progress bar on or off in place.
+    pub fn set_progress(&mut self, on: bool) {
+        self.progress = on;
+    }
+    /// The trace options the current parameters give (`s = ceil(sqrt(spp))`).
+    pub fn options(&self) -> TraceOptions {
+        let spp = self.params.int("spp").clamp(1, u32::MAX as i64) as u32;
+        TraceOptions::from_spp(spp, self.params.int("seed").max(0) as u64)
+    }
+}
+
+impl SoftShadowEstimator for ReferenceEstimator {
+    fn name(&self) -> &'static str {
+        "reference"
+    }
+    fn description(&self) -> &'static str {
+        "ray-traced ground truth: stratified light samples through the BVH (transmittance for \
+         semi-transparent meshes)"
+    }
+    fn backend(&self) -> Backend {
+        Backend::Cpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        let bvh = self.report.time("build", || SceneBvh::new(scene));
+        self.report.note("triangles", scene.triangles.len());
+        self.bvh = Some(bvh);
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        if v.len() != receivers.len() {
+            return Err(Error::Receivers(format!(
+                "{} output slots for {} receivers",
+                v.len(),
+                receivers.len()
+            )));
+        }
+        if self.bvh.is_none() {
+            // `estimate` without `build`: build now (timed as a stage of its own).
+            let bvh = self.report.time("build", || SceneBvh::new(scene));
+            self.bvh = Some(bvh);
+        }
+        let opts = self.options();
+        let progress = self.progress;
+        let mut out = Ok(());
+        if let Some(bvh) = self.bvh.as_ref() {
+            out = self
+                .report
+                .time("estimate", || visibility(scene, bvh, receivers, &opts, v, progress));
+        }
+        out?;
+        self.report.note("spp", opts.samples());
+        self.report.note("samples_per_side", opts.samples_per_side);
+        self.report.note("seed", opts.seed);
+        self.report.note("active_receivers", receivers.active_count());
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
