@@ -31,7 +31,10 @@ pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstim
         "pcss" => Box::new(baselines::PcssShadow::new()?),
         "multi-sample" => Box::new(baselines::MultiSample::new()?),
         other => {
-            return Err(Error::param("algo", format!("unknown estimator {other:?} (known: {})", ALGOS.join(", "))))
+            return Err(Error::param(
+                "algo",
+                format!("unknown estimator {other:?} (known: {})", ALGOS.join(", ")),
+            ))
         }
     })
 }

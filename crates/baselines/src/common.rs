@@ -10,14 +10,20 @@ use shadow_map_core::{
 /// `resolution`: shadow-map side in texels.
 pub const RESOLUTION: ParamSpec = ParamSpec {
     key: "resolution",
-    kind: ParamKind::Int { min: 1, max: shadow_map_core::light_view::MAX_RESOLUTION as i64 },
+    kind: ParamKind::Int {
+        min: 1,
+        max: shadow_map_core::light_view::MAX_RESOLUTION as i64,
+    },
     default: "1024",
     help: "shadow-map resolution r (texels per side)",
 };
 /// `bias`: constant receiver bias in texel footprints.
 pub const BIAS: ParamSpec = ParamSpec {
     key: "bias",
-    kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+    kind: ParamKind::Float {
+        min: 0.0,
+        max: 1000.0,
+    },
     default: "1.0",
     help: "constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
 };
@@ -44,7 +50,10 @@ pub fn raster_options(p: &Params) -> RasterOptions {
         "front" => Cull::Front,
         _ => Cull::None,
     };
-    RasterOptions { bias: DepthBias::default(), cull }
+    RasterOptions {
+        bias: DepthBias::default(),
+        cull,
+    }
 }
 
 /// Receiver-side depth bias in world units (background.md §2, "Self-shadowing"):

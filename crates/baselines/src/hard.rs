@@ -14,13 +14,20 @@ pub type HardShadow = MapEstimator<Hard>;
 
 impl Filter for Hard {
     const NAME: &'static str = "hard";
-    const DESCRIPTION: &'static str = "hard shadow map: one binary depth test from the light centre (Williams 1978)";
+    const DESCRIPTION: &'static str =
+        "hard shadow map: one binary depth test from the light centre (Williams 1978)";
     const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL];
     fn from_params(_: &Params) -> Self {
         Hard
     }
     fn visibility(&self, ls: &LightSpace, _: &Light, r: &ReceiverSample) -> f32 {
-        lit(ls, r.uv.x.floor() as i32, r.uv.y.floor() as i32, r.p.z, r.eps)
+        lit(
+            ls,
+            r.uv.x.floor() as i32,
+            r.uv.y.floor() as i32,
+            r.p.z,
+            r.eps,
+        )
     }
     fn facing(&self, light: &Light, p: Vec3, n: Vec3) -> f32 {
         let behind = light.one_sided() && (p - light.center).dot(light.normal) <= 0.0;

@@ -55,7 +55,12 @@ pub struct MapEstimator<F: Filter> {
 impl<F: Filter> MapEstimator<F> {
     /// With default parameters.
     pub fn new() -> Result<Self> {
-        Ok(MapEstimator { params: Params::new(F::SPECS)?, ls: None, report: Report::default(), _f: Default::default() })
+        Ok(MapEstimator {
+            params: Params::new(F::SPECS)?,
+            ls: None,
+            report: Report::default(),
+            _f: Default::default(),
+        })
     }
     /// The light-space data of the last build (for tests and the GPU twin).
     pub fn light_space(&self) -> Option<&LightSpace> {
@@ -83,16 +88,24 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
         self.report = Report::default();
         let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
         req.raster = common::raster_options(&self.params);
-        let ls = self.report.time("build", || LightSpace::build(scene, receivers, &req))?;
+        let ls = self
+            .report
+            .time("build", || LightSpace::build(scene, receivers, &req))?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         common::check_len(receivers, v)?;
-        let ls = self.ls.as_ref().ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let ls = self
+            .ls
+            .as_ref()
+            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
         let filter = F::from_params(&self.params);
-        let (b0, b1) = (self.params.float("bias") as f32, self.params.float("slope_bias") as f32);
+        let (b0, b1) = (
+            self.params.float("bias") as f32,
+            self.params.float("slope_bias") as f32,
+        );
         let light = &scene.light;
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
@@ -119,11 +132,16 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
             let eps = receiver_bias(view, p, n, b0, b1);
             facing * filter.visibility(ls, light, &ReceiverSample { p, n, uv, eps })
         });
-        self.report.stages.push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.report
+            .stages
+            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         self.report.note("resolution", view.r);
         self.report.note("near", view.n);
         self.report.note("far", view.far);
-        self.report.note("out_of_frustum", outside.into_inner() + ls.fit.out_of_frustum);
+        self.report.note(
+            "out_of_frustum",
+            outside.into_inner() + ls.fit.out_of_frustum,
+        );
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
         }

@@ -15,8 +15,21 @@ const SPECS: &[ParamSpec] = &[
     BIAS,
     SLOPE_BIAS,
     CULL,
-    ParamSpec { key: "sublights", kind: ParamKind::Int { min: 1, max: 64 }, default: "4", help: "S: S x S light samples, one hard shadow map each" },
-    ParamSpec { key: "seed", kind: ParamKind::Int { min: 0, max: 1 << 31 }, default: "7", help: "seed of the stratum jitter (fixed, so images are deterministic)" },
+    ParamSpec {
+        key: "sublights",
+        kind: ParamKind::Int { min: 1, max: 64 },
+        default: "4",
+        help: "S: S x S light samples, one hard shadow map each",
+    },
+    ParamSpec {
+        key: "seed",
+        kind: ParamKind::Int {
+            min: 0,
+            max: 1 << 31,
+        },
+        default: "7",
+        help: "seed of the stratum jitter (fixed, so images are deterministic)",
+    },
 ];
 
 /// `V(p) = (1/N) sum_k [y_k in front of p's tangent plane] [z_k(p) - eps_k <= D_k(u_k(p))]`
@@ -34,7 +47,10 @@ pub struct MultiSample {
 impl MultiSample {
     /// With default parameters.
     pub fn new() -> Result<Self> {
-        Ok(MultiSample { params: Params::new(SPECS)?, report: Report::default() })
+        Ok(MultiSample {
+            params: Params::new(SPECS)?,
+            report: Report::default(),
+        })
     }
 }
 
@@ -77,7 +93,10 @@ impl SoftShadowEstimator for MultiSample {
         common::check_len(receivers, v)?;
         let s = self.params.int("sublights") as u32;
         let seed = self.params.int("seed") as u64;
-        let (b0, b1) = (self.params.float("bias") as f32, self.params.float("slope_bias") as f32);
+        let (b0, b1) = (
+            self.params.float("bias") as f32,
+            self.params.float("slope_bias") as f32,
+        );
         let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
         req.raster = common::raster_options(&self.params);
         let light = scene.light;
@@ -147,7 +166,10 @@ impl SoftShadowEstimator for MultiSample {
         self.report.note("sublights", s * s);
         self.report.note("out_of_frustum", behind);
         if matches!(light.shape, LightShape::Sphere { .. }) {
-            self.report.note("approximation", "sphere sampled on the disk perpendicular to the light normal");
+            self.report.note(
+                "approximation",
+                "sphere sampled on the disk perpendicular to the light normal",
+            );
         }
         Ok(())
     }

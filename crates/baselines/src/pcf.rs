@@ -14,16 +14,24 @@ pub type PcfShadow = MapEstimator<Pcf>;
 
 impl Filter for Pcf {
     const NAME: &'static str = "pcf";
-    const DESCRIPTION: &'static str = "percentage-closer filtering over an N x N texel block (Reeves et al. 1987)";
+    const DESCRIPTION: &'static str =
+        "percentage-closer filtering over an N x N texel block (Reeves et al. 1987)";
     const SPECS: &'static [ParamSpec] = &[
         RESOLUTION,
         BIAS,
         SLOPE_BIAS,
         CULL,
-        ParamSpec { key: "kernel", kind: ParamKind::Int { min: 1, max: 63 }, default: "5", help: "filter size N (texels per side; even N rounds up to N+1)" },
+        ParamSpec {
+            key: "kernel",
+            kind: ParamKind::Int { min: 1, max: 63 },
+            default: "5",
+            help: "filter size N (texels per side; even N rounds up to N+1)",
+        },
     ];
     fn from_params(p: &Params) -> Self {
-        Pcf { half: (p.int("kernel") as i32) / 2 }
+        Pcf {
+            half: (p.int("kernel") as i32) / 2,
+        }
     }
     fn visibility(&self, ls: &LightSpace, _: &Light, r: &ReceiverSample) -> f32 {
         let (i0, j0) = (r.uv.x.floor() as i32, r.uv.y.floor() as i32);

@@ -25,16 +25,24 @@ pub type PcssShadow = MapEstimator<Pcss>;
 
 impl Filter for Pcss {
     const NAME: &'static str = "pcss";
-    const DESCRIPTION: &'static str = "percentage-closer soft shadows: blocker search, penumbra estimate, PCF (Fernando 2005)";
+    const DESCRIPTION: &'static str =
+        "percentage-closer soft shadows: blocker search, penumbra estimate, PCF (Fernando 2005)";
     const SPECS: &'static [ParamSpec] = &[
         RESOLUTION,
         BIAS,
         SLOPE_BIAS,
         CULL,
-        ParamSpec { key: "max_taps", kind: ParamKind::Int { min: 1, max: 1024 }, default: "32", help: "most samples per side in the blocker search and in the filter" },
+        ParamSpec {
+            key: "max_taps",
+            kind: ParamKind::Int { min: 1, max: 1024 },
+            default: "32",
+            help: "most samples per side in the blocker search and in the filter",
+        },
     ];
     fn from_params(p: &Params) -> Self {
-        Pcss { max_taps: p.int("max_taps") as u32 }
+        Pcss {
+            max_taps: p.int("max_taps") as u32,
+        }
     }
     fn visibility(&self, ls: &LightSpace, light: &Light, r: &ReceiverSample) -> f32 {
         let view = &ls.view;
@@ -45,40 +53,63 @@ impl Filter for Pcss {
         let ws = l * ((zr - view.n) / zr) * to_texels;
         let (mut sum, mut count) = (0.0f64, 0.0f64);
         let d = &ls.layers[0];
-        cells(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, self.max_taps, |j, wy| {
-            cells(r.uv.x - 0.5 * ws.x, r.uv.x + 0.5 * ws.x, self.max_taps, |i, wx| {
-                let z = d.at(i, j);
-                if z < zr - r.eps {
-                    let w = (wx * wy) as f64;
-                    sum += w * z as f64;
-                    count += w;
-                }
-            })
-        });
+        cells(
+            r.uv.y - 0.5 * ws.y,
+            r.uv.y + 0.5 * ws.y,
+            self.max_taps,
+            |j, wy| {
+                cells(
+                    r.uv.x - 0.5 * ws.x,
+                    r.uv.x + 0.5 * ws.x,
+                    self.max_taps,
+                    |i, wx| {
+                        let z = d.at(i, j);
+                        if z < zr - r.eps {
+                            let w = (wx * wy) as f64;
+                            sum += w * z as f64;
+                            count += w;
+                        }
+                    },
+                )
+            },
+        );
         if count <= 0.0 {
             return 1.0;
         }
         let z_avg = (sum / count) as f32;
         // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
         let wf: Vec2 = l * ((zr - z_avg) / z_avg) * (view.n / zr) * to_texels;
-        let disk = matches!(light.shape, LightShape::Disk { .. } | LightShape::Sphere { .. });
+        let disk = matches!(
+            light.shape,
+            LightShape::Disk { .. } | LightShape::Sphere { .. }
+        );
         let (mut lit, mut total) = (0.0f64, 0.0f64);
         let rad2 = (0.5 * wf.x).powi(2);
-        cells(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, self.max_taps, |j, wy| {
-            cells(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, self.max_taps, |i, wx| {
-                if disk && wf.x > 1.0 {
-                    let c = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - r.uv;
-                    if c.length_squared() > rad2 {
-                        return;
-                    }
-                }
-                let w = (wx * wy) as f64;
-                total += w;
-                if d.at(i, j) >= zr - r.eps {
-                    lit += w;
-                }
-            })
-        });
+        cells(
+            r.uv.y - 0.5 * wf.y,
+            r.uv.y + 0.5 * wf.y,
+            self.max_taps,
+            |j, wy| {
+                cells(
+                    r.uv.x - 0.5 * wf.x,
+                    r.uv.x + 0.5 * wf.x,
+                    self.max_taps,
+                    |i, wx| {
+                        if disk && wf.x > 1.0 {
+                            let c = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - r.uv;
+                            if c.length_squared() > rad2 {
+                                return;
+                            }
+                        }
+                        let w = (wx * wy) as f64;
+                        total += w;
+                        if d.at(i, j) >= zr - r.eps {
+                            lit += w;
+                        }
+                    },
+                )
+            },
+        );
         if total <= 0.0 {
             return 1.0;
         }

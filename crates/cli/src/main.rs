@@ -12,7 +12,11 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "softshadow", version, about = "Physically based soft shadows, measured against a ray-traced ground truth")]
+#[command(
+    name = "softshadow",
+    version,
+    about = "Physically based soft shadows, measured against a ray-traced ground truth"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -68,7 +72,13 @@ fn algos_help() -> String {
         for e in all {
             s.push_str(&format!("  {}: {}\n", e.name(), e.description()));
             for p in e.params().specs() {
-                s.push_str(&format!("      {}={} ({}): {}\n", p.key, p.default, p.range(), p.help));
+                s.push_str(&format!(
+                    "      {}={} ({}): {}\n",
+                    p.key,
+                    p.default,
+                    p.range(),
+                    p.help
+                ));
             }
         }
     }
@@ -78,11 +88,29 @@ fn algos_help() -> String {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.cmd {
-        Cmd::Render { scene, algo, backend, params, out, png, stats } => {
-            render(&scene, &algo, &backend, &params, &out, png.as_deref(), stats)
-        }
+        Cmd::Render {
+            scene,
+            algo,
+            backend,
+            params,
+            out,
+            png,
+            stats,
+        } => render(
+            &scene,
+            &algo,
+            &backend,
+            &params,
+            &out,
+            png.as_deref(),
+            stats,
+        ),
         Cmd::Algos { json } => algos(json),
-        Cmd::Score { candidate, reference, err_png } => score_cmd(&candidate, &reference, err_png.as_deref()),
+        Cmd::Score {
+            candidate,
+            reference,
+            err_png,
+        } => score_cmd(&candidate, &reference, err_png.as_deref()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -103,7 +131,11 @@ fn render(
     stats: bool,
 ) -> Result<(), String> {
     let t_all = Instant::now();
-    let backend = if backend == "gpu" { Backend::Gpu } else { Backend::Cpu };
+    let backend = if backend == "gpu" {
+        Backend::Gpu
+    } else {
+        Backend::Cpu
+    };
     let mut est = estimator(algo, backend).map_err(|e| e.to_string())?;
     for kv in params {
         let (k, v) = shadow_map_core::params::parse_assignment(kv).map_err(|e| e.to_string())?;
@@ -117,13 +149,18 @@ fn render(
     let bvh = SceneBvh::new(&scene);
     let receivers = Receivers::from_camera(&scene, &bvh);
     stages.push(("gbuffer".into(), ms(t)));
-    let (v, report) = shadow_map_core::run(est.as_mut(), &scene, &receivers).map_err(|e| e.to_string())?;
+    let (v, report) =
+        shadow_map_core::run(est.as_mut(), &scene, &receivers).map_err(|e| e.to_string())?;
     stages.extend(report.stages.iter().cloned());
     let t = Instant::now();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    let z: Vec<f32> = receivers.view_depth.clone().unwrap_or_else(|| vec![f32::INFINITY; w * h]);
+    let z: Vec<f32> = receivers
+        .view_depth
+        .clone()
+        .unwrap_or_else(|| vec![f32::INFINITY; w * h]);
     let mut img = exr_io::VisibilityImage::new(w, h);
-    img.push_channel("V", v.clone()).map_err(|e| e.to_string())?;
+    img.push_channel("V", v.clone())
+        .map_err(|e| e.to_string())?;
     img.push_channel("Z", z).map_err(|e| e.to_string())?;
     exr_io::write_exr(out, &img).map_err(|e| e.to_string())?;
     if let Some(p) = png {
@@ -136,8 +173,16 @@ fn render(
             let e = st.entry(k.clone()).or_insert(json!(0.0));
             *e = json!(e.as_f64().unwrap_or(0.0) + v);
         }
-        let params: Map<String, Value> = est.params().iter().map(|(k, v)| (k.to_string(), json!(v.to_string()))).collect();
-        let notes: Map<String, Value> = report.notes.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
+        let params: Map<String, Value> = est
+            .params()
+            .iter()
+            .map(|(k, v)| (k.to_string(), json!(v.to_string())))
+            .collect();
+        let notes: Map<String, Value> = report
+            .notes
+            .iter()
+            .map(|(k, v)| (k.clone(), json!(v)))
+            .collect();
         let line = json!({
             "algo": est.name(),
             "backend": est.backend().to_string(),
@@ -184,9 +229,13 @@ fn algos(as_json: bool) -> Result<(), String> {
     Ok(())
 }
 
-fn score_cmd(cand: &std::path::Path, reference: &std::path::Path, err_png: Option<&std::path::Path>) -> Result<(), String> {
-    let c = exr_io::read_exr(cand).map_err(|e| e.to_string())?;
-    let r = exr_io::read_exr(reference).map_err(|e| e.to_string())?;
+fn score_cmd(
+    cand: &std::path::Path,
+    reference: &std::path::Path,
+    err_png: Option<&std::path::Path>,
+) -> Result<(), String> {
+    let c = exr_io::read_visibility_exr(cand).map_err(|e| e.to_string())?;
+    let r = exr_io::read_visibility_exr(reference).map_err(|e| e.to_string())?;
     let s = score::score(&c, &r).map_err(|e| e.to_string())?;
     if let Some(p) = err_png {
         score::write_error_png(p, &c, &r).map_err(|e| e.to_string())?;

@@ -11,12 +11,16 @@ pub const PARAMS: &[ParamSpec] = &[
         key: "spp",
         kind: ParamKind::Int { min: 1, max: 65536 },
         default: "1024",
-        help: "light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))), \
+        help:
+            "light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))), \
                the count used is reported in the notes",
     },
     ParamSpec {
         key: "seed",
-        kind: ParamKind::Int { min: 0, max: 1 << 31 },
+        kind: ParamKind::Int {
+            min: 0,
+            max: 1 << 31,
+        },
         default: "1",
         help: "seed of the deterministic sample jitter (same seed, same V bit for bit)",
     },
@@ -113,15 +117,16 @@ impl SoftShadowEstimator for ReferenceEstimator {
         let progress = self.progress;
         let mut out = Ok(());
         if let Some(bvh) = self.bvh.as_ref() {
-            out = self
-                .report
-                .time("estimate", || visibility(scene, bvh, receivers, &opts, v, progress));
+            out = self.report.time("estimate", || {
+                visibility(scene, bvh, receivers, &opts, v, progress)
+            });
         }
         out?;
         self.report.note("spp", opts.samples());
         self.report.note("samples_per_side", opts.samples_per_side);
         self.report.note("seed", opts.seed);
-        self.report.note("active_receivers", receivers.active_count());
+        self.report
+            .note("active_receivers", receivers.active_count());
         Ok(())
     }
     fn report(&self) -> Report {

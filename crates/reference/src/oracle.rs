@@ -40,8 +40,11 @@ pub fn projection_scale(z_p: f64, z_o: f64) -> f64 {
 /// y is the union of the y intervals of the rectangles spanning the slab. `O(n^2 log n)`.
 /// Empty or inverted rectangles contribute nothing.
 pub fn union_area(rects: &[[f64; 4]]) -> f64 {
-    let rects: Vec<[f64; 4]> =
-        rects.iter().copied().filter(|r| r[1] > r[0] && r[3] > r[2]).collect();
+    let rects: Vec<[f64; 4]> = rects
+        .iter()
+        .copied()
+        .filter(|r| r[1] > r[0] && r[3] > r[2])
+        .collect();
     let mut xs: Vec<f64> = rects.iter().flat_map(|r| [r[0], r[1]]).collect();
     xs.sort_by(f64::total_cmp);
     xs.dedup();
@@ -50,7 +53,12 @@ pub fn union_area(rects: &[[f64; 4]]) -> f64 {
     for w in xs.windows(2) {
         let (xa, xb) = (w[0], w[1]);
         spans.clear();
-        spans.extend(rects.iter().filter(|r| r[0] <= xa && r[1] >= xb).map(|r| (r[2], r[3])));
+        spans.extend(
+            rects
+                .iter()
+                .filter(|r| r[0] <= xa && r[1] >= xb)
+                .map(|r| (r[2], r[3])),
+        );
         if spans.is_empty() {
             continue;
         }
@@ -102,7 +110,12 @@ pub fn rect_occluder_visibility(light_half: Vec2, occluders: &[RectOccluder], p:
             let x1 = px + (o.max.x as f64 - px) * s;
             let y0 = py + (o.min.y as f64 - py) * s;
             let y1 = py + (o.max.y as f64 - py) * s;
-            [x0.min(x1).max(-hx), x0.max(x1).min(hx), y0.min(y1).max(-hy), y0.max(y1).min(hy)]
+            [
+                x0.min(x1).max(-hx),
+                x0.max(x1).min(hx),
+                y0.min(y1).max(-hy),
+                y0.max(y1).min(hy),
+            ]
         })
         .collect();
     (1.0 - union_area(&clipped) / light_area).clamp(0.0, 1.0)
@@ -129,8 +142,12 @@ pub fn lens_area(r1: f64, r2: f64, d: f64) -> f64 {
         let r = r1.min(r2);
         return PI * r * r;
     }
-    let a1 = ((d * d + r1 * r1 - r2 * r2) / (2.0 * d * r1)).clamp(-1.0, 1.0).acos();
-    let a2 = ((d * d + r2 * r2 - r1 * r1) / (2.0 * d * r2)).clamp(-1.0, 1.0).acos();
+    let a1 = ((d * d + r1 * r1 - r2 * r2) / (2.0 * d * r1))
+        .clamp(-1.0, 1.0)
+        .acos();
+    let a2 = ((d * d + r2 * r2 - r1 * r1) / (2.0 * d * r2))
+        .clamp(-1.0, 1.0)
+        .acos();
     let k = (-d + r1 + r2) * (d + r1 - r2) * (d - r1 + r2) * (d + r1 + r2);
     (r1 * r1 * a1 + r2 * r2 * a2 - 0.5 * k.max(0.0).sqrt()).max(0.0)
 }
@@ -241,7 +258,10 @@ pub fn polygon_occluder_disk_visibility(
     }
     let s = projection_scale(pz, zo);
     let pxy = DVec2::new(p.x as f64, p.y as f64);
-    let proj: Vec<DVec2> = polygon.iter().map(|v| pxy + (v.as_dvec2() - pxy) * s).collect();
+    let proj: Vec<DVec2> = polygon
+        .iter()
+        .map(|v| pxy + (v.as_dvec2() - pxy) * s)
+        .collect();
     (1.0 - polygon_disk_area(&proj, r_l) / (PI * r_l * r_l)).clamp(0.0, 1.0)
 }
 
@@ -314,7 +334,11 @@ mod tests {
         let a = union_area(&[[0.0, 1.0, 0.0, 1.0], [0.5, 1.5, 0.5, 1.5]]);
         assert!((a - 1.75).abs() < 1e-15, "{a}");
         // Nested, disjoint and a cross.
-        let a = union_area(&[[0.0, 4.0, 0.0, 4.0], [1.0, 2.0, 1.0, 2.0], [10.0, 11.0, 0.0, 1.0]]);
+        let a = union_area(&[
+            [0.0, 4.0, 0.0, 4.0],
+            [1.0, 2.0, 1.0, 2.0],
+            [10.0, 11.0, 0.0, 1.0],
+        ]);
         assert!((a - 17.0).abs() < 1e-12, "{a}");
         let a = union_area(&[[0.0, 3.0, 1.0, 2.0], [1.0, 2.0, 0.0, 3.0]]);
         assert!((a - 5.0).abs() < 1e-12, "{a}");
@@ -324,13 +348,29 @@ mod tests {
     fn rect_oracle_matches_brute_force() {
         let half = Vec2::new(0.6, 0.4);
         let occ = [
-            RectOccluder { min: Vec2::new(-0.4, -0.3), max: Vec2::new(0.6, 0.5), z: 1.5 },
-            RectOccluder { min: Vec2::new(0.2, -1.0), max: Vec2::new(0.9, -0.1), z: 0.8 },
-            RectOccluder { min: Vec2::new(-2.0, 0.7), max: Vec2::new(-0.5, 1.2), z: 2.2 },
+            RectOccluder {
+                min: Vec2::new(-0.4, -0.3),
+                max: Vec2::new(0.6, 0.5),
+                z: 1.5,
+            },
+            RectOccluder {
+                min: Vec2::new(0.2, -1.0),
+                max: Vec2::new(0.9, -0.1),
+                z: 0.8,
+            },
+            RectOccluder {
+                min: Vec2::new(-2.0, 0.7),
+                max: Vec2::new(-0.5, 1.2),
+                z: 2.2,
+            },
         ];
         let mut worst = 0.0f64;
         for k in 0..60 {
-            let p = Vec3::new(-2.0 + k as f32 * 0.07, 0.3 - k as f32 * 0.02, 2.5 + (k % 5) as f32 * 0.3);
+            let p = Vec3::new(
+                -2.0 + k as f32 * 0.07,
+                0.3 - k as f32 * 0.02,
+                2.5 + (k % 5) as f32 * 0.3,
+            );
             let v = rect_occluder_visibility(half, &occ, p);
             let b = brute_rect(half, &occ, p, 600);
             worst = worst.max((v - b).abs());
@@ -342,18 +382,42 @@ mod tests {
     #[test]
     fn rect_oracle_edge_cases() {
         let half = Vec2::splat(0.5);
-        let occ = [RectOccluder { min: Vec2::splat(-10.0), max: Vec2::splat(10.0), z: 1.0 }];
-        assert_eq!(rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0)), 0.0);
+        let occ = [RectOccluder {
+            min: Vec2::splat(-10.0),
+            max: Vec2::splat(10.0),
+            z: 1.0,
+        }];
+        assert_eq!(
+            rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0)),
+            0.0
+        );
         // Behind the receiver: no effect.
-        assert_eq!(rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 0.5)), 1.0);
+        assert_eq!(
+            rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 0.5)),
+            1.0
+        );
         // Receiver behind the light.
-        assert_eq!(rect_occluder_visibility(half, &[], Vec3::new(0.0, 0.0, -1.0)), 0.0);
-        assert_eq!(rect_occluder_visibility(half, &[], Vec3::new(0.0, 0.0, 1.0)), 1.0);
+        assert_eq!(
+            rect_occluder_visibility(half, &[], Vec3::new(0.0, 0.0, -1.0)),
+            0.0
+        );
+        assert_eq!(
+            rect_occluder_visibility(half, &[], Vec3::new(0.0, 0.0, 1.0)),
+            1.0
+        );
         // Concentric half-width occluder halfway: projection doubles, covers everything.
-        let occ = [RectOccluder { min: Vec2::splat(-0.25), max: Vec2::splat(0.25), z: 1.0 }];
+        let occ = [RectOccluder {
+            min: Vec2::splat(-0.25),
+            max: Vec2::splat(0.25),
+            z: 1.0,
+        }];
         assert!(rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0)).abs() < 1e-12);
         // Quarter-width occluder: covers (0.5 / 1)^2 = 1/4 of the light.
-        let occ = [RectOccluder { min: Vec2::splat(-0.125), max: Vec2::splat(0.125), z: 1.0 }];
+        let occ = [RectOccluder {
+            min: Vec2::splat(-0.125),
+            max: Vec2::splat(0.125),
+            z: 1.0,
+        }];
         let v = rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0));
         assert!((v - 0.75).abs() < 1e-12, "{v}");
     }
@@ -365,7 +429,10 @@ mod tests {
         assert!((lens_area(1.0, 0.5, 0.2) - PI * 0.25).abs() < 1e-12);
         // Two unit disks at distance 1: 2 pi / 3 - sqrt(3) / 2.
         let a = lens_area(1.0, 1.0, 1.0);
-        assert!((a - (2.0 * PI / 3.0 - 3f64.sqrt() / 2.0)).abs() < 1e-12, "{a}");
+        assert!(
+            (a - (2.0 * PI / 3.0 - 3f64.sqrt() / 2.0)).abs() < 1e-12,
+            "{a}"
+        );
         // Continuous at both ends.
         assert!(lens_area(1.0, 0.5, 1.5 - 1e-9) < 1e-6);
         assert!((lens_area(1.0, 0.5, 0.5 + 1e-9) - PI * 0.25).abs() < 1e-6);
@@ -376,7 +443,12 @@ mod tests {
     #[test]
     fn lens_matches_polygon_disk() {
         // A fine polygon for the second disk gives nearly the lens area.
-        for &(r1, r2, d) in &[(1.0, 1.0, 1.0), (1.0, 0.4, 0.9), (0.6, 1.2, 1.1), (1.0, 0.3, 0.2)] {
+        for &(r1, r2, d) in &[
+            (1.0, 1.0, 1.0),
+            (1.0, 0.4, 0.9),
+            (0.6, 1.2, 1.1),
+            (1.0, 0.3, 0.2),
+        ] {
             let n = 20000;
             let poly: Vec<DVec2> = (0..n)
                 .map(|k| {
@@ -392,7 +464,14 @@ mod tests {
 
     #[test]
     fn polygon_disk_cases() {
-        let sq = |h: f64| vec![DVec2::new(-h, -h), DVec2::new(h, -h), DVec2::new(h, h), DVec2::new(-h, h)];
+        let sq = |h: f64| {
+            vec![
+                DVec2::new(-h, -h),
+                DVec2::new(h, -h),
+                DVec2::new(h, h),
+                DVec2::new(-h, h),
+            ]
+        };
         // Square inside the disk, disk inside the square, reversed orientation.
         assert!((polygon_disk_area(&sq(0.5), 1.0) - 1.0).abs() < 1e-12);
         assert!((polygon_disk_area(&sq(2.0), 1.0) - PI).abs() < 1e-12);
@@ -400,7 +479,12 @@ mod tests {
         rev.reverse();
         assert!((polygon_disk_area(&rev, 1.0) - 1.0).abs() < 1e-12);
         // Half plane x > 0 of the unit disk.
-        let half = vec![DVec2::new(0.0, -2.0), DVec2::new(2.0, -2.0), DVec2::new(2.0, 2.0), DVec2::new(0.0, 2.0)];
+        let half = vec![
+            DVec2::new(0.0, -2.0),
+            DVec2::new(2.0, -2.0),
+            DVec2::new(2.0, 2.0),
+            DVec2::new(0.0, 2.0),
+        ];
         assert!((polygon_disk_area(&half, 1.0) - PI / 2.0).abs() < 1e-12);
         // Far away.
         let far: Vec<DVec2> = sq(0.5).iter().map(|v| *v + DVec2::new(5.0, 0.0)).collect();
@@ -414,8 +498,14 @@ mod tests {
         assert!((v - 0.75).abs() < 1e-12, "{v}");
         let v = disk_occluder_visibility(1.0, Vec2::ZERO, 0.6, 1.0, Vec3::new(0.0, 0.0, 2.0));
         assert!(v.abs() < 1e-12, "{v}");
-        assert_eq!(disk_occluder_visibility(1.0, Vec2::ZERO, 0.6, 1.0, Vec3::new(0.0, 0.0, -1.0)), 0.0);
-        assert_eq!(disk_occluder_visibility(1.0, Vec2::ZERO, 0.6, 3.0, Vec3::new(0.0, 0.0, 2.0)), 1.0);
+        assert_eq!(
+            disk_occluder_visibility(1.0, Vec2::ZERO, 0.6, 1.0, Vec3::new(0.0, 0.0, -1.0)),
+            0.0
+        );
+        assert_eq!(
+            disk_occluder_visibility(1.0, Vec2::ZERO, 0.6, 3.0, Vec3::new(0.0, 0.0, 2.0)),
+            1.0
+        );
         // Agrees with the exact polygon oracle for a fine polygon.
         let poly: Vec<Vec2> = (0..4096)
             .map(|k| {
@@ -424,7 +514,11 @@ mod tests {
             })
             .collect();
         for k in 0..20 {
-            let p = Vec3::new(-1.0 + 0.1 * k as f32, 0.05 * k as f32, 2.0 + 0.05 * k as f32);
+            let p = Vec3::new(
+                -1.0 + 0.1 * k as f32,
+                0.05 * k as f32,
+                2.0 + 0.05 * k as f32,
+            );
             let a = disk_occluder_visibility(0.5, Vec2::new(0.1, -0.2), 0.3, 1.2, p);
             let b = polygon_occluder_disk_visibility(0.5, &poly, 1.2, p);
             assert!((a - b).abs() < 1e-4, "{p}: {a} vs {b}");

@@ -37,7 +37,9 @@
 use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
-use shadow_map_core::{light::default_tangent, Error, Light, LightShape, Receivers, Result, Scene, SceneBvh};
+use shadow_map_core::{
+    light::default_tangent, Error, Light, LightShape, Receivers, Result, Scene, SceneBvh,
+};
 
 /// Default samples per side of the stratified grid: `32 * 32 = 1024` samples per receiver.
 pub const DEFAULT_SAMPLES_PER_SIDE: u32 = 32;
@@ -66,7 +68,10 @@ pub struct TraceOptions {
 impl Default for TraceOptions {
     /// `s = 32` (1024 samples per receiver), seed 1.
     fn default() -> Self {
-        TraceOptions { samples_per_side: DEFAULT_SAMPLES_PER_SIDE, seed: 1 }
+        TraceOptions {
+            samples_per_side: DEFAULT_SAMPLES_PER_SIDE,
+            seed: 1,
+        }
     }
 }
 
@@ -79,7 +84,10 @@ impl TraceOptions {
         while s.saturating_mul(s) < spp {
             s += 1;
         }
-        TraceOptions { samples_per_side: s.clamp(1, MAX_SAMPLES_PER_SIDE), seed }
+        TraceOptions {
+            samples_per_side: s.clamp(1, MAX_SAMPLES_PER_SIDE),
+            seed,
+        }
     }
     /// Samples per receiver, `s * s`.
     pub fn samples(&self) -> u32 {
@@ -89,7 +97,10 @@ impl TraceOptions {
         if self.samples_per_side == 0 || self.samples_per_side > MAX_SAMPLES_PER_SIDE {
             return Err(Error::param(
                 "samples_per_side",
-                format!("{} is out of range 1..={MAX_SAMPLES_PER_SIDE}", self.samples_per_side),
+                format!(
+                    "{} is out of range 1..={MAX_SAMPLES_PER_SIDE}",
+                    self.samples_per_side
+                ),
             ));
         }
         Ok(())
@@ -235,7 +246,12 @@ struct Sampler {
 impl Sampler {
     fn new(seed: u64, receiver: u64, s: u32) -> Self {
         let key = hash2(seed, receiver);
-        Sampler { key, s, sub_col: permutation(s, hash2(key, 0x5ca1ab1e)), sub_row: permutation(s, hash2(key, 0x0ddba11)) }
+        Sampler {
+            key,
+            s,
+            sub_col: permutation(s, hash2(key, 0x5ca1ab1e)),
+            sub_row: permutation(s, hash2(key, 0x0ddba11)),
+        }
     }
     /// Offset in `[0, 1)^2` within stratum `k = b * s + a`.
     fn jitter(&self, k: u32) -> Vec2 {
@@ -245,7 +261,10 @@ impl Sampler {
         let sc = self.sub_col.get(b).copied().unwrap_or(0) as f32;
         let sr = self.sub_row.get(a).copied().unwrap_or(0) as f32;
         let s = self.s as f32;
-        Vec2::new(((sc + xi) / s).min(ONE_MINUS), ((sr + eta) / s).min(ONE_MINUS))
+        Vec2::new(
+            ((sc + xi) / s).min(ONE_MINUS),
+            ((sr + eta) / s).min(ONE_MINUS),
+        )
     }
 }
 
@@ -275,7 +294,9 @@ fn mix64(mut z: u64) -> u64 {
 
 #[inline]
 fn hash2(a: u64, b: u64) -> u64 {
-    mix64(mix64(a.wrapping_add(GOLDEN)) ^ b.wrapping_mul(GOLDEN).wrapping_add(0x6A09_E667_F3BC_C909))
+    mix64(
+        mix64(a.wrapping_add(GOLDEN)) ^ b.wrapping_mul(GOLDEN).wrapping_add(0x6A09_E667_F3BC_C909),
+    )
 }
 
 /// The top 24 bits of `h` as a float in `[0, 1)`.
@@ -328,6 +349,9 @@ mod tests {
         assert_eq!(TraceOptions::from_spp(1024, 0).samples(), 1024);
         assert_eq!(TraceOptions::from_spp(1025, 0).samples_per_side, 33);
         assert_eq!(TraceOptions::from_spp(65536, 0).samples_per_side, 256);
-        assert_eq!(TraceOptions::from_spp(u32::MAX, 0).samples_per_side, MAX_SAMPLES_PER_SIDE);
+        assert_eq!(
+            TraceOptions::from_spp(u32::MAX, 0).samples_per_side,
+            MAX_SAMPLES_PER_SIDE
+        );
     }
 }

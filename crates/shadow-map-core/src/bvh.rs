@@ -35,11 +35,26 @@ impl SceneBvh {
         let tris: Vec<Triangle> = scene
             .triangles
             .iter()
-            .map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() })
+            .map(|t| Triangle {
+                v0: t[0].into(),
+                v1: t[1].into(),
+                v2: t[2].into(),
+            })
             .collect();
-        let bvh = build_bvh2_from_tris(&tris, BvhBuildParams::medium_build(), &mut Default::default());
-        let opacity = (0..scene.triangles.len()).map(|i| scene.triangle_opacity(i)).collect();
-        SceneBvh { bvh, tris, opacity, scale: scene.bounds().diagonal().max(1e-6) }
+        let bvh = build_bvh2_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Default::default(),
+        );
+        let opacity = (0..scene.triangles.len())
+            .map(|i| scene.triangle_opacity(i))
+            .collect();
+        SceneBvh {
+            bvh,
+            tris,
+            opacity,
+            scale: scene.bounds().diagonal().max(1e-6),
+        }
     }
 
     /// Closest hit of the ray `origin + t dir`, `t in (t_min, t_max)`.
@@ -51,7 +66,10 @@ impl SceneBvh {
             self.tris[tri].intersect(r)
         });
         if found && hit.t.is_finite() {
-            Some(Hit { t: hit.t, triangle: self.bvh.primitive_indices[hit.primitive_id as usize] as usize })
+            Some(Hit {
+                t: hit.t,
+                triangle: self.bvh.primitive_indices[hit.primitive_id as usize] as usize,
+            })
         } else {
             None
         }
@@ -85,7 +103,10 @@ impl SceneBvh {
         if opaque {
             return 0.0;
         }
-        crossed.iter().map(|&t| 1.0 - self.opacity[t as usize]).product()
+        crossed
+            .iter()
+            .map(|&t| 1.0 - self.opacity[t as usize])
+            .product()
     }
 
     /// Geometric unit normal of a triangle (from its winding).

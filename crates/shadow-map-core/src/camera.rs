@@ -35,7 +35,11 @@ impl Camera {
         let forward = (self.target - self.eye).normalize();
         let right = forward.cross(self.up).normalize();
         let true_up = right.cross(forward);
-        CameraBasis { forward, right, true_up }
+        CameraBasis {
+            forward,
+            right,
+            true_up,
+        }
     }
 
     /// Unit direction of the ray through the centre of pixel (i, j): i the column from the left,

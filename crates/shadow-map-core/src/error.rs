@@ -78,6 +78,9 @@ pub enum Error {
 impl Error {
     /// Shorthand for a [`Error::Param`].
     pub fn param(key: impl Into<String>, reason: impl Into<String>) -> Self {
-        Error::Param { key: key.into(), reason: reason.into() }
+        Error::Param {
+            key: key.into(),
+            reason: reason.into(),
+        }
     }
 }

@@ -37,7 +37,8 @@ impl Report {
     pub fn time<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
         let out = f();
-        self.stages.push((name.to_string(), t.elapsed().as_secs_f64() * 1e3));
+        self.stages
+            .push((name.to_string(), t.elapsed().as_secs_f64() * 1e3));
         out
     }
     /// Adds a note.
@@ -46,7 +47,11 @@ impl Report {
     }
     /// Total milliseconds of the stages whose name starts with `prefix`.
     pub fn total_ms(&self, prefix: &str) -> f64 {
-        self.stages.iter().filter(|s| s.0.starts_with(prefix)).map(|s| s.1).sum()
+        self.stages
+            .iter()
+            .filter(|s| s.0.starts_with(prefix))
+            .map(|s| s.1)
+            .sum()
     }
 }
 

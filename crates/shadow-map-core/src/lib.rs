@@ -6,6 +6,8 @@
 //! tightly), the CPU rasteriser with its fill rule, bias and culling, depth peeling, midpoint
 //! layers, the MSSM family, estimator parameters and the [`SoftShadowEstimator`] trait.
 #![warn(missing_docs)]
+// `!(a > b)` is deliberate throughout: it is true for NaN, which must take the safe branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bvh;
 pub mod camera;

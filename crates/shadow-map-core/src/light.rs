@@ -99,7 +99,12 @@ impl Light {
     pub fn frame(&self) -> LightFrame {
         let ez = self.normal;
         let ex = self.tangent;
-        LightFrame { origin: self.center, ex, ey: ez.cross(ex), ez }
+        LightFrame {
+            origin: self.center,
+            ex,
+            ey: ez.cross(ex),
+            ez,
+        }
     }
     /// Area of the emitting surface (for a sphere: of its silhouette disk, per the contract).
     pub fn area(&self) -> f32 {
@@ -131,7 +136,9 @@ impl Light {
     /// The same light scaled down or up by `f` (used by convergence tests: light size to 0).
     pub fn scaled(&self, f: f32) -> Light {
         let shape = match self.shape {
-            LightShape::Rect { size } => LightShape::Rect { size: [size[0] * f, size[1] * f] },
+            LightShape::Rect { size } => LightShape::Rect {
+                size: [size[0] * f, size[1] * f],
+            },
             LightShape::Disk { radius } => LightShape::Disk { radius: radius * f },
             LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * f },
         };
@@ -174,7 +181,10 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     let (r, theta) = if o.x.abs() > o.y.abs() {
         (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
     } else {
-        (o.y, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y))
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
     };
     Vec2::new(r * theta.cos(), r * theta.sin())
 }
@@ -198,7 +208,12 @@ pub fn front_fraction(shape: &LightShape, p: Vec3, n: Vec3) -> f32 {
                 return if 0.0 > c { 1.0 } else { 0.0 };
             }
             // Clip the rectangle polygon by the half-plane a.y > c.
-            let poly = [Vec2::new(-hx, -hy), Vec2::new(hx, -hy), Vec2::new(hx, hy), Vec2::new(-hx, hy)];
+            let poly = [
+                Vec2::new(-hx, -hy),
+                Vec2::new(hx, -hy),
+                Vec2::new(hx, hy),
+                Vec2::new(-hx, hy),
+            ];
             let mut area = 0.0f64;
             let f = |q: Vec2| (a.dot(q) - c) as f64;
             let mut clipped: Vec<Vec2> = Vec::with_capacity(6);
@@ -241,6 +256,40 @@ pub fn front_fraction(shape: &LightShape, p: Vec3, n: Vec3) -> f32 {
     }
 }
 
+impl Light {
+    /// Fraction of the light's area in front of the tangent plane of a world point `p` with unit
+    /// normal `n` (see [`front_fraction`]). For rect and disk lights, 0 when p is behind or in the
+    /// light plane (one-sided emitters). For a sphere light the area is that of the contract's
+    /// silhouette disk (through the centre, perpendicular to p -> centre).
+    pub fn front_fraction_world(&self, p: Vec3, n: Vec3) -> f32 {
+        match self.shape {
+            LightShape::Rect { .. } | LightShape::Disk { .. } => {
+                let f = self.frame();
+                let pl = f.to_light(p);
+                if pl.z <= 0.0 {
+                    return 0.0;
+                }
+                front_fraction(&self.shape, pl, f.dir_to_light(n))
+            }
+            LightShape::Sphere { .. } => {
+                let d = self.center - p;
+                let Some(dz) = (-d).try_normalize() else {
+                    return 0.0;
+                };
+                // Frame at the centre whose z axis points from the light towards p.
+                let ex = default_tangent(dz);
+                let f = LightFrame {
+                    origin: self.center,
+                    ex,
+                    ey: dz.cross(ex),
+                    ez: dz,
+                };
+                front_fraction(&self.shape, f.to_light(p), f.dir_to_light(n))
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -274,33 +323,6 @@ mod tests {
             for j in 0..=20 {
                 let d = concentric_disk(Vec2::new(i as f32 / 20.0, j as f32 / 20.0));
                 assert!(d.length() <= 1.0 + 1e-6);
-            }
-        }
-    }
-}
-
-impl Light {
-    /// Fraction of the light's area in front of the tangent plane of a world point `p` with unit
-    /// normal `n` (see [`front_fraction`]). For rect and disk lights, 0 when p is behind or in the
-    /// light plane (one-sided emitters). For a sphere light the area is that of the contract's
-    /// silhouette disk (through the centre, perpendicular to p -> centre).
-    pub fn front_fraction_world(&self, p: Vec3, n: Vec3) -> f32 {
-        match self.shape {
-            LightShape::Rect { .. } | LightShape::Disk { .. } => {
-                let f = self.frame();
-                let pl = f.to_light(p);
-                if pl.z <= 0.0 {
-                    return 0.0;
-                }
-                front_fraction(&self.shape, pl, f.dir_to_light(n))
-            }
-            LightShape::Sphere { .. } => {
-                let d = self.center - p;
-                let Some(dz) = (-d).try_normalize() else { return 0.0 };
-                // Frame at the centre whose z axis points from the light towards p.
-                let ex = default_tangent(dz);
-                let f = LightFrame { origin: self.center, ex, ey: dz.cross(ex), ez: dz };
-                front_fraction(&self.shape, f.to_light(p), f.dir_to_light(n))
             }
         }
     }

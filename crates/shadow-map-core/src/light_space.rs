@@ -70,8 +70,13 @@ impl LightSpace {
     /// `req` asks for.
     pub fn build(scene: &Scene, receivers: &Receivers, req: &LightSpaceRequest) -> Result<Self> {
         let light = &scene.light;
-        let (view, fit) =
-            LightView::fit(scene, receivers, light.frame(), light.half_extent(), req.resolution)?;
+        let (view, fit) = LightView::fit(
+            scene,
+            receivers,
+            light.frame(),
+            light.half_extent(),
+            req.resolution,
+        )?;
         Ok(Self::build_in_view(scene, view, fit, req))
     }
 
@@ -90,7 +95,12 @@ impl LightSpace {
     }
 
     /// Builds the maps in a given view.
-    pub fn build_in_view(scene: &Scene, view: LightView, fit: FitReport, req: &LightSpaceRequest) -> Self {
+    pub fn build_in_view(
+        scene: &Scene,
+        view: LightView,
+        fit: FitReport,
+        req: &LightSpaceRequest,
+    ) -> Self {
         let prepared = PreparedScene::new(scene, &view, req.raster.cull);
         let k = req.layers.max(1) + u32::from(req.midpoints.is_some());
         let mut layers = peel(&prepared, req.raster.bias, k);
@@ -101,14 +111,30 @@ impl LightSpace {
         layers.truncate(req.layers.max(1) as usize);
         let l0 = &layers[0];
         let mssm = req.mssm_levels.map(|l| Mssm::build(&l0.depth, l0.size, l));
-        let dual_mssm = req.dual_mssm_levels.map(|l| DualMssm::build(&l0.depth, l0.size, l));
-        let pyramid = req.pyramid.then(|| MinMaxPyramid::build(&l0.depth, l0.size));
-        LightSpace { view, fit, layers, midpoints: mids, mssm, dual_mssm, pyramid }
+        let dual_mssm = req
+            .dual_mssm_levels
+            .map(|l| DualMssm::build(&l0.depth, l0.size, l));
+        let pyramid = req
+            .pyramid
+            .then(|| MinMaxPyramid::build(&l0.depth, l0.size));
+        LightSpace {
+            view,
+            fit,
+            layers,
+            midpoints: mids,
+            mssm,
+            dual_mssm,
+            pyramid,
+        }
     }
 
     /// Bytes held by the maps (what `report` lists as light-space memory).
     pub fn bytes(&self) -> usize {
-        self.layers.iter().chain(&self.midpoints).map(DepthMap::bytes).sum::<usize>()
+        self.layers
+            .iter()
+            .chain(&self.midpoints)
+            .map(DepthMap::bytes)
+            .sum::<usize>()
             + self.mssm.as_ref().map_or(0, Mssm::bytes)
             + self.dual_mssm.as_ref().map_or(0, DualMssm::bytes)
             + self.pyramid.as_ref().map_or(0, MinMaxPyramid::bytes)

@@ -96,7 +96,11 @@ impl LightView {
         r: u32,
     ) -> Result<(LightView, FitReport)> {
         if r == 0 || r > MAX_RESOLUTION {
-            return Err(Error::Limit { what: "shadow-map resolution", requested: r as u64, max: MAX_RESOLUTION as u64 });
+            return Err(Error::Limit {
+                what: "shadow-map resolution",
+                requested: r as u64,
+                max: MAX_RESOLUTION as u64,
+            });
         }
         let mut rep = FitReport::default();
         let scale = scene.bounds().diagonal().max(1e-6);
@@ -120,14 +124,19 @@ impl LightView {
             rec.push((t, q.z as f64));
         }
         if rec.is_empty() {
-            return Err(Error::LightView("no receiver lies in front of the light".into()));
+            return Err(Error::LightView(
+                "no receiver lies in front of the light".into(),
+            ));
         }
         let zr_min = rec.iter().map(|r| r.1).fold(f64::INFINITY, f64::min) as f32;
         let zr_max = rec.iter().map(|r| r.1).fold(0.0f64, f64::max) as f32;
         let n_floor = (1e-4 * zr_max).max(z_eps);
 
-        let tris: Vec<[Vec3; 3]> =
-            scene.triangles.iter().map(|t| t.map(|v| frame.to_light(v))).collect();
+        let tris: Vec<[Vec3; 3]> = scene
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| frame.to_light(v)))
+            .collect();
         let half = light_half.as_dvec2();
         let window = |n: f32| -> (DVec2, DVec2) {
             let mut lo = DVec2::splat(f64::INFINITY);
@@ -172,7 +181,11 @@ impl LightView {
         let n0 = n0.min(zr_min * 0.999).max(n_floor);
         let (lo, hi) = window(n0);
         let (n1, far) = geometry_range(lo, hi);
-        let n = if n1.is_finite() { n1.min(zr_min * 0.999).max(n0) } else { n0 };
+        let n = if n1.is_finite() {
+            n1.min(zr_min * 0.999).max(n0)
+        } else {
+            n0
+        };
         let (lo, hi) = window(n);
         let far = far.max(zr_max);
         // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.

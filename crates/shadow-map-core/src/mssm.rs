@@ -471,8 +471,7 @@ impl Mssm {
             return 0;
         }
         let (_, h) = self.query_level(&r);
-        let n = window_start_count(r[0], r[2], h)
-            .saturating_mul(window_start_count(r[1], r[3], h));
+        let n = window_start_count(r[0], r[2], h).saturating_mul(window_start_count(r[1], r[3], h));
         u32::try_from(n).unwrap_or(u32::MAX)
     }
 
@@ -624,8 +623,7 @@ impl DualMssm {
         let Some((r, _, h)) = self.plan(cx0, cy0, cx1, cy1) else {
             return 0;
         };
-        let n = window_start_count(r[0], r[2], h)
-            .saturating_mul(window_start_count(r[1], r[3], h));
+        let n = window_start_count(r[0], r[2], h).saturating_mul(window_start_count(r[1], r[3], h));
         u32::try_from(n).unwrap_or(u32::MAX)
     }
 
@@ -1034,11 +1032,23 @@ mod tests {
         assert_eq!(e.union(a), a);
         assert_eq!(a.union(e), a);
         let inf = MinMax::from_depth(f32::INFINITY);
-        assert_eq!(inf, MinMax { min: f32::INFINITY, max: f32::INFINITY });
+        assert_eq!(
+            inf,
+            MinMax {
+                min: f32::INFINITY,
+                max: f32::INFINITY
+            }
+        );
         assert!(!inf.is_empty());
         assert!(inf.is_unoccupied());
         assert_eq!(inf.union(inf), inf);
-        assert_eq!(a.union(inf), MinMax { min: 2.0, max: f32::INFINITY });
+        assert_eq!(
+            a.union(inf),
+            MinMax {
+                min: 2.0,
+                max: f32::INFINITY
+            }
+        );
         assert_eq!(MinMax::from_depth(f32::NAN), inf);
         assert!(a.contains(&e));
     }
@@ -1047,7 +1057,10 @@ mod tests {
     fn all_empty_map_gives_inf_inf() {
         let s = 9u32;
         let d = vec![f32::INFINITY; 81];
-        let inf = MinMax { min: f32::INFINITY, max: f32::INFINITY };
+        let inf = MinMax {
+            min: f32::INFINITY,
+            max: f32::INFINITY,
+        };
         assert_eq!(brute_force(&d, s, 0, 0, 9, 9), inf);
         assert_eq!(Mssm::build(&d, s, 10).query(1, 2, 7, 5), inf);
         assert_eq!(DualMssm::build(&d, s, 10).query_cells(1, 2, 7, 5), inf);
@@ -1077,13 +1090,25 @@ mod tests {
         let short = [1.0f32, 2.0, 3.0];
         let m = Mssm::build(&short, 2, 1);
         assert_eq!(m.fetch(0, 1, 1), MinMax::from_depth(f32::INFINITY));
-        assert_eq!(m.query(0, 0, 2, 2), MinMax { min: 1.0, max: f32::INFINITY });
+        assert_eq!(
+            m.query(0, 0, 2, 2),
+            MinMax {
+                min: 1.0,
+                max: f32::INFINITY
+            }
+        );
         assert_eq!(brute_force(&short, 2, 0, 0, 2, 2), m.query(0, 0, 2, 2));
         let long = [1.0f32, 2.0, 3.0, 4.0, -100.0];
         let m = Mssm::build(&long, 2, 1);
         assert_eq!(m.query(0, 0, 2, 2), MinMax { min: 1.0, max: 4.0 });
-        assert_eq!(MinMaxPyramid::build(&long, 2).query(0, 0, 2, 2), MinMax { min: 1.0, max: 4.0 });
-        assert_eq!(DualMssm::build(&long, 2, 3).query_cells(0, 0, 1, 1), MinMax { min: 1.0, max: 4.0 });
+        assert_eq!(
+            MinMaxPyramid::build(&long, 2).query(0, 0, 2, 2),
+            MinMax { min: 1.0, max: 4.0 }
+        );
+        assert_eq!(
+            DualMssm::build(&long, 2, 3).query_cells(0, 0, 1, 1),
+            MinMax { min: 1.0, max: 4.0 }
+        );
 
         // Unaddressable size: empty structure instead of a panic.
         if usize::BITS == 64 {
@@ -1098,8 +1123,20 @@ mod tests {
         assert_eq!(m.levels(), 3);
         assert_eq!(m.fetch(3, 0, 0), MinMax::EMPTY);
         assert_eq!(m.fetch(0, 4, 0), MinMax::EMPTY);
-        assert_eq!(m.fetch(2, 0, 0), MinMax { min: 0.0, max: 15.0 });
-        assert_eq!(m.query(i32::MIN, i32::MIN, i32::MAX, i32::MAX), MinMax { min: 0.0, max: 15.0 });
+        assert_eq!(
+            m.fetch(2, 0, 0),
+            MinMax {
+                min: 0.0,
+                max: 15.0
+            }
+        );
+        assert_eq!(
+            m.query(i32::MIN, i32::MIN, i32::MAX, i32::MAX),
+            MinMax {
+                min: 0.0,
+                max: 15.0
+            }
+        );
         assert_eq!(m.query(3, 3, 1, 1), MinMax::EMPTY);
         assert_eq!(m.query(-5, -5, 0, 0), MinMax::EMPTY);
         assert_eq!(m.query(4, 0, 9, 4), MinMax::EMPTY);

@@ -69,14 +69,18 @@ impl ParamSpec {
         let bad = |why: String| Error::param(self.key, why);
         match self.kind {
             ParamKind::Int { min, max } => {
-                let v: i64 = s.parse().map_err(|_| bad(format!("expected an integer, got {s:?}")))?;
+                let v: i64 = s
+                    .parse()
+                    .map_err(|_| bad(format!("expected an integer, got {s:?}")))?;
                 if v < min || v > max {
                     return Err(bad(format!("{v} is out of range {min}..={max}")));
                 }
                 Ok(ParamValue::Int(v))
             }
             ParamKind::Float { min, max } => {
-                let v: f64 = s.parse().map_err(|_| bad(format!("expected a number, got {s:?}")))?;
+                let v: f64 = s
+                    .parse()
+                    .map_err(|_| bad(format!("expected a number, got {s:?}")))?;
                 if !v.is_finite() || v < min || v > max {
                     return Err(bad(format!("{v} is out of range [{min}, {max}]")));
                 }
@@ -116,7 +120,10 @@ impl Params {
     /// All parameters at their defaults. Fails only if a default does not parse (a bug the
     /// estimator registry test catches).
     pub fn new(specs: &'static [ParamSpec]) -> Result<Self> {
-        let values = specs.iter().map(|s| s.parse(s.default)).collect::<Result<_>>()?;
+        let values = specs
+            .iter()
+            .map(|s| s.parse(s.default))
+            .collect::<Result<_>>()?;
         Ok(Params { specs, values })
     }
     /// The declarations.
@@ -125,10 +132,17 @@ impl Params {
     }
     /// Sets `key` from a string.
     pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
-        let k = self.specs.iter().position(|s| s.key == key).ok_or_else(|| {
-            let known: Vec<&str> = self.specs.iter().map(|s| s.key).collect();
-            Error::param(key, format!("unknown parameter (known: {})", known.join(", ")))
-        })?;
+        let k = self
+            .specs
+            .iter()
+            .position(|s| s.key == key)
+            .ok_or_else(|| {
+                let known: Vec<&str> = self.specs.iter().map(|s| s.key).collect();
+                Error::param(
+                    key,
+                    format!("unknown parameter (known: {})", known.join(", ")),
+                )
+            })?;
         self.values[k] = self.specs[k].parse(value)?;
         Ok(())
     }
@@ -139,7 +153,10 @@ impl Params {
     }
     /// The value of `key`, if declared.
     pub fn get(&self, key: &str) -> Option<ParamValue> {
-        self.specs.iter().position(|s| s.key == key).map(|k| self.values[k])
+        self.specs
+            .iter()
+            .position(|s| s.key == key)
+            .map(|k| self.values[k])
     }
     /// Integer value of `key` (0 if undeclared or not an integer).
     pub fn int(&self, key: &str) -> i64 {
@@ -169,7 +186,10 @@ impl Params {
     }
     /// `(key, value)` pairs in declaration order.
     pub fn iter(&self) -> impl Iterator<Item = (&'static str, ParamValue)> + '_ {
-        self.specs.iter().zip(&self.values).map(|(s, v)| (s.key, *v))
+        self.specs
+            .iter()
+            .zip(&self.values)
+            .map(|(s, v)| (s.key, *v))
     }
 }
 

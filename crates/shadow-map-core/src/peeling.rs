@@ -39,7 +39,10 @@ pub fn midpoints(layers: &[DepthMap], max_bias: f32) -> Vec<DepthMap> {
                 .zip(&b.depth)
                 .map(|(&za, &zb)| midpoint(za, zb, max_bias))
                 .collect();
-            DepthMap { size: a.size, depth }
+            DepthMap {
+                size: a.size,
+                depth,
+            }
         })
         .collect()
 }

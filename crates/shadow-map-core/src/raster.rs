@@ -62,7 +62,10 @@ pub struct DepthMap {
 impl DepthMap {
     /// An empty map (all +inf).
     pub fn empty(size: u32) -> Self {
-        DepthMap { size, depth: vec![f32::INFINITY; size as usize * size as usize] }
+        DepthMap {
+            size,
+            depth: vec![f32::INFINITY; size as usize * size as usize],
+        }
     }
     /// Depth at texel (i, j); +inf outside the map (samples outside the map are non-occluders,
     /// background.md §1 "Coverage").
@@ -150,10 +153,19 @@ impl PreparedScene {
                 // Quick reject outside the map.
                 let lo = tri[0].0.min(tri[1].0).min(tri[2].0);
                 let hi = tri[0].0.max(tri[1].0).max(tri[2].0);
-                if hi.x < 0.0 || hi.y < 0.0 || lo.x > r || lo.y > r || !lo.is_finite() || !hi.is_finite() {
+                if hi.x < 0.0
+                    || hi.y < 0.0
+                    || lo.x > r
+                    || lo.y > r
+                    || !lo.is_finite()
+                    || !hi.is_finite()
+                {
                     continue;
                 }
-                tris.push(Prepared { uv: tri.map(|p| p.0), inv_z: tri.map(|p| p.1) });
+                tris.push(Prepared {
+                    uv: tri.map(|p| p.0),
+                    inv_z: tri.map(|p| p.1),
+                });
             }
         }
         PreparedScene { tris, r: view.r }
@@ -184,18 +196,21 @@ impl PreparedScene {
             if j0 >= j1 {
                 continue;
             }
-            for b in j0 / band..=(j1 - 1) / band {
-                bins[b].push(k as u32);
+            for bin in &mut bins[j0 / band..=(j1 - 1) / band] {
+                bin.push(k as u32);
             }
         }
         let mut out = DepthMap::empty(self.r);
-        out.depth.par_chunks_mut(band * r).enumerate().for_each(|(b, rows)| {
-            let row0 = b * band;
-            let nrows = rows.len() / r;
-            for &k in &bins[b] {
-                raster_triangle(&self.tris[k as usize], r, row0, nrows, rows, bias, behind);
-            }
-        });
+        out.depth
+            .par_chunks_mut(band * r)
+            .enumerate()
+            .for_each(|(b, rows)| {
+                let row0 = b * band;
+                let nrows = rows.len() / r;
+                for &k in &bins[b] {
+                    raster_triangle(&self.tris[k as usize], r, row0, nrows, rows, bias, behind);
+                }
+            });
         out
     }
 }

@@ -56,7 +56,13 @@ impl Receivers {
                 .ok_or_else(|| Error::Receivers(format!("normal {k} is zero or not finite")))?;
         }
         let len = position.len();
-        Ok(Receivers { position, normal: n, active: vec![true; len], view_depth: None, layout: None })
+        Ok(Receivers {
+            position,
+            normal: n,
+            active: vec![true; len],
+            view_depth: None,
+            layout: None,
+        })
     }
 
     /// Attaches an image layout (`width * height` must equal the receiver count).
@@ -102,7 +108,10 @@ impl Receivers {
             normal: Vec::with_capacity(px.len()),
             active: Vec::with_capacity(px.len()),
             view_depth: Some(Vec::with_capacity(px.len())),
-            layout: Some(ImageLayout { width: w, height: h }),
+            layout: Some(ImageLayout {
+                width: w,
+                height: h,
+            }),
         };
         for (p, n, a, z) in px {
             r.position.push(p);

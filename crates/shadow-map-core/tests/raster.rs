@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)] // texel loops read clearer with indices
 //! The CPU shadow-map core: fill rule, orientation, perspective-correct linear depth, bias,
 //! culling, peeling, midpoints and the light-view fit.
 use glam::{Vec2, Vec3};
@@ -10,22 +11,45 @@ use shadow_map_core::{
 };
 
 fn camera() -> Camera {
-    Camera { eye: Vec3::new(0.0, 5.0, 5.0), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 40.0, width: 8, height: 8 }
+    Camera {
+        eye: Vec3::new(0.0, 5.0, 5.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        width: 8,
+        height: 8,
+    }
 }
 
 /// Light at the origin looking down +z (light space = world space).
 fn light() -> Light {
-    Light { shape: LightShape::Rect { size: [1.0, 1.0] }, center: Vec3::ZERO, normal: Vec3::Z, tangent: Vec3::X }
+    Light {
+        shape: LightShape::Rect { size: [1.0, 1.0] },
+        center: Vec3::ZERO,
+        normal: Vec3::Z,
+        tangent: Vec3::X,
+    }
 }
 
 fn scene(meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
-    Scene::from_meshes("test", camera(), light(), meshes.into_iter().map(|m| (m, 1.0)).collect()).unwrap()
+    Scene::from_meshes(
+        "test",
+        camera(),
+        light(),
+        meshes.into_iter().map(|m| (m, 1.0)).collect(),
+    )
+    .unwrap()
 }
 
 /// A view with n = 1 and the window [0, r] x [0, r]: at z = 1, texel coordinates equal x and y.
 fn unit_view(r: u32) -> LightView {
     LightView {
-        frame: LightFrame { origin: Vec3::ZERO, ex: Vec3::X, ey: Vec3::Y, ez: Vec3::Z },
+        frame: LightFrame {
+            origin: Vec3::ZERO,
+            ex: Vec3::X,
+            ey: Vec3::Y,
+            ez: Vec3::Z,
+        },
         n: 1.0,
         far: 100.0,
         window_min: Vec2::ZERO,
@@ -35,7 +59,12 @@ fn unit_view(r: u32) -> LightView {
 }
 
 fn quad(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Vec3; 3]> {
-    let (a, b, c, d) = (Vec3::new(x0, y0, z), Vec3::new(x1, y0, z), Vec3::new(x1, y1, z), Vec3::new(x0, y1, z));
+    let (a, b, c, d) = (
+        Vec3::new(x0, y0, z),
+        Vec3::new(x1, y0, z),
+        Vec3::new(x1, y1, z),
+        Vec3::new(x0, y1, z),
+    );
     // Winding with normal -z: facing the light at the origin.
     vec![[a, c, b], [a, d, c]]
 }
@@ -46,15 +75,27 @@ fn quad_uv(u0: f32, v0: f32, u1: f32, v1: f32, z: f32) -> Vec<[Vec3; 3]> {
 }
 
 fn covered(s: &Scene, view: &LightView) -> Vec<bool> {
-    PreparedScene::new(s, view, Cull::None).rasterize(DepthBias::default(), None).depth.iter().map(|d| d.is_finite()).collect()
+    PreparedScene::new(s, view, Cull::None)
+        .rasterize(DepthBias::default(), None)
+        .depth
+        .iter()
+        .map(|d| d.is_finite())
+        .collect()
 }
 
 #[test]
 fn off_centre_triangle_orientation() {
     // A small triangle at x in [5, 7], y in [1, 2]: texels with u along +x, v along +y.
-    let s = scene(vec![vec![[Vec3::new(5.0, 1.0, 1.0), Vec3::new(7.0, 1.0, 1.0), Vec3::new(5.0, 2.0, 1.0)]]]);
+    let s = scene(vec![vec![[
+        Vec3::new(5.0, 1.0, 1.0),
+        Vec3::new(7.0, 1.0, 1.0),
+        Vec3::new(5.0, 2.0, 1.0),
+    ]]]);
     let cov = covered(&s, &unit_view(8));
-    let set: Vec<(usize, usize)> = (0..64).filter(|k| cov[*k]).map(|k| (k % 8, k / 8)).collect();
+    let set: Vec<(usize, usize)> = (0..64)
+        .filter(|k| cov[*k])
+        .map(|k| (k % 8, k / 8))
+        .collect();
     // Centres (5.5, 1.5) inside (x + 2y <= 9 at the hypotenuse: 5.5 + 2*1.5*... ) only.
     assert_eq!(set, vec![(5, 1)]);
 }
@@ -69,7 +110,11 @@ fn shared_edge_centres_are_covered_exactly_once() {
         let a = covered(&scene(vec![vec![q[order[0]]]]), &view);
         let b = covered(&scene(vec![vec![q[order[1]]]]), &view);
         for k in 0..64 {
-            assert!(a[k] ^ b[k], "texel {k} covered {} times", a[k] as u8 + b[k] as u8);
+            assert!(
+                a[k] ^ b[k],
+                "texel {k} covered {} times",
+                a[k] as u8 + b[k] as u8
+            );
         }
     }
     // Two quads sharing a vertical edge at x = 4 (centres never on it), and a horizontal one at
@@ -88,7 +133,11 @@ fn top_left_rule_on_texel_aligned_edges() {
     let cov = covered(&s, &unit_view(8));
     for k in 0..64 {
         let (i, j) = (k % 8, k / 8);
-        assert_eq!(cov[k], (2..=4).contains(&i) && (2..=4).contains(&j), "texel ({i},{j})");
+        assert_eq!(
+            cov[k],
+            (2..=4).contains(&i) && (2..=4).contains(&j),
+            "texel ({i},{j})"
+        );
     }
 }
 
@@ -96,7 +145,11 @@ fn top_left_rule_on_texel_aligned_edges() {
 fn depth_is_linear_light_space_z_perspective_correct() {
     // A plane tilted in x: z = 2 + 0.5 x. The depth at each texel centre must be the z where the
     // centre's ray meets the plane (not an affine interpolation of z).
-    let tri = [Vec3::new(-1.0, -1.0, 1.5), Vec3::new(6.0, -1.0, 5.0), Vec3::new(-1.0, 6.0, 1.5)];
+    let tri = [
+        Vec3::new(-1.0, -1.0, 1.5),
+        Vec3::new(6.0, -1.0, 5.0),
+        Vec3::new(-1.0, 6.0, 1.5),
+    ];
     let s = scene(vec![vec![tri, [tri[1], Vec3::new(6.0, 6.0, 5.0), tri[2]]]]);
     let view = unit_view(8);
     let d = PreparedScene::new(&s, &view, Cull::None).rasterize(DepthBias::default(), None);
@@ -118,9 +171,17 @@ fn depth_is_linear_light_space_z_perspective_correct() {
 #[test]
 fn near_plane_clipping_keeps_the_far_part() {
     // A triangle crossing z = n = 1: only the part at z >= 1 is recorded, never a depth below n.
-    let s = scene(vec![vec![[Vec3::new(0.0, 0.0, 0.5), Vec3::new(8.0, 0.0, 3.0), Vec3::new(0.0, 8.0, 3.0)]]]);
+    let s = scene(vec![vec![[
+        Vec3::new(0.0, 0.0, 0.5),
+        Vec3::new(8.0, 0.0, 3.0),
+        Vec3::new(0.0, 8.0, 3.0),
+    ]]]);
     let d = PreparedScene::new(&s, &unit_view(8), Cull::None).rasterize(DepthBias::default(), None);
-    assert!(d.depth.iter().filter(|z| z.is_finite()).all(|&z| z >= 1.0 - 1e-6));
+    assert!(d
+        .depth
+        .iter()
+        .filter(|z| z.is_finite())
+        .all(|&z| z >= 1.0 - 1e-6));
     assert!(d.depth.iter().any(|z| z.is_finite()));
 }
 
@@ -130,25 +191,49 @@ fn slope_scaled_bias() {
     let view = unit_view(8);
     let p = PreparedScene::new(&flat, &view, Cull::None);
     let d0 = p.rasterize(DepthBias::default(), None);
-    let d1 = p.rasterize(DepthBias { constant: 0.25, slope: 10.0 }, None);
+    let d1 = p.rasterize(
+        DepthBias {
+            constant: 0.25,
+            slope: 10.0,
+        },
+        None,
+    );
     // Fronto-parallel: zero slope, only the constant.
     for (a, b) in d0.depth.iter().zip(&d1.depth) {
         assert!((b - a - 0.25).abs() < 1e-6);
     }
     // Tilted: the slope term adds more where |dz/du| is larger.
-    let tri = [Vec3::new(0.0, 0.0, 2.0), Vec3::new(8.0, 0.0, 6.0), Vec3::new(0.0, 8.0, 2.0)];
+    let tri = [
+        Vec3::new(0.0, 0.0, 2.0),
+        Vec3::new(8.0, 0.0, 6.0),
+        Vec3::new(0.0, 8.0, 2.0),
+    ];
     let tilted = scene(vec![vec![tri]]);
     let p = PreparedScene::new(&tilted, &view, Cull::None);
     let a = p.rasterize(DepthBias::default(), None);
-    let b = p.rasterize(DepthBias { constant: 0.0, slope: 1.0 }, None);
+    let b = p.rasterize(
+        DepthBias {
+            constant: 0.0,
+            slope: 1.0,
+        },
+        None,
+    );
     let k = 0;
-    assert!(b.depth[k] > a.depth[k] + 0.1, "{} vs {}", b.depth[k], a.depth[k]);
+    assert!(
+        b.depth[k] > a.depth[k] + 0.1,
+        "{} vs {}",
+        b.depth[k],
+        a.depth[k]
+    );
 }
 
 #[test]
 fn face_culling_uses_winding_as_seen_from_the_light() {
     let facing = scene(vec![quad(0.0, 0.0, 8.0, 8.0, 2.0)]);
-    let away: Vec<[Vec3; 3]> = quad(0.0, 0.0, 8.0, 8.0, 3.0).into_iter().map(|[a, b, c]| [a, c, b]).collect();
+    let away: Vec<[Vec3; 3]> = quad(0.0, 0.0, 8.0, 8.0, 3.0)
+        .into_iter()
+        .map(|[a, b, c]| [a, c, b])
+        .collect();
     let away = scene(vec![away]);
     let view = unit_view(8);
     let count = |s: &Scene, c: Cull| PreparedScene::new(s, &view, c).len();
@@ -173,10 +258,18 @@ fn peeling_returns_layers_nearest_first_and_merges_coincident_surfaces() {
     for j in 0..8 {
         for i in 0..8 {
             let k = j * 8 + i;
-            let expect: [f32; 4] = if i < 4 { [2.0, 3.0, 4.0, f32::INFINITY] } else { [2.0, 4.0, f32::INFINITY, f32::INFINITY] };
+            let expect: [f32; 4] = if i < 4 {
+                [2.0, 3.0, 4.0, f32::INFINITY]
+            } else {
+                [2.0, 4.0, f32::INFINITY, f32::INFINITY]
+            };
             for m in 0..4 {
                 let got = layers[m].depth[k];
-                assert!(got == expect[m] || (got - expect[m]).abs() < 1e-5, "({i},{j}) layer {m}: {got} vs {}", expect[m]);
+                assert!(
+                    got == expect[m] || (got - expect[m]).abs() < 1e-5,
+                    "({i},{j}) layer {m}: {got} vs {}",
+                    expect[m]
+                );
             }
         }
     }
@@ -191,12 +284,28 @@ fn peeling_returns_layers_nearest_first_and_merges_coincident_surfaces() {
 
 fn ground_scene(light: Light) -> Scene {
     let g = vec![
-        [Vec3::new(-4.0, 0.0, -4.0), Vec3::new(-4.0, 0.0, 4.0), Vec3::new(4.0, 0.0, 4.0)],
-        [Vec3::new(-4.0, 0.0, -4.0), Vec3::new(4.0, 0.0, 4.0), Vec3::new(4.0, 0.0, -4.0)],
+        [
+            Vec3::new(-4.0, 0.0, -4.0),
+            Vec3::new(-4.0, 0.0, 4.0),
+            Vec3::new(4.0, 0.0, 4.0),
+        ],
+        [
+            Vec3::new(-4.0, 0.0, -4.0),
+            Vec3::new(4.0, 0.0, 4.0),
+            Vec3::new(4.0, 0.0, -4.0),
+        ],
     ];
     let occ = vec![
-        [Vec3::new(-0.5, 1.0, -0.5), Vec3::new(0.5, 1.0, 0.5), Vec3::new(-0.5, 1.0, 0.5)],
-        [Vec3::new(-0.5, 1.0, -0.5), Vec3::new(0.5, 1.0, -0.5), Vec3::new(0.5, 1.0, 0.5)],
+        [
+            Vec3::new(-0.5, 1.0, -0.5),
+            Vec3::new(0.5, 1.0, 0.5),
+            Vec3::new(-0.5, 1.0, 0.5),
+        ],
+        [
+            Vec3::new(-0.5, 1.0, -0.5),
+            Vec3::new(0.5, 1.0, -0.5),
+            Vec3::new(0.5, 1.0, 0.5),
+        ],
     ];
     Scene::from_meshes("ground", camera(), light, vec![(g, 1.0), (occ, 1.0)]).unwrap()
 }

@@ -91,7 +91,10 @@ fn zero_size_and_degenerate_lights() {
     expect_err(&t, QUAD, &["light.normal", "zero"]);
     let disk = GOOD
         .replace("shape = \"rect\"", "shape = \"disk\"")
-        .replace("tangent = [1.0, 0.0, 0.0]\nsize = [2.0, 2.0]", "radius = -1.0");
+        .replace(
+            "tangent = [1.0, 0.0, 0.0]\nsize = [2.0, 2.0]",
+            "radius = -1.0",
+        );
     expect_err(&disk, QUAD, &["light.radius"]);
     let t = GOOD.replace("shape = \"rect\"", "shape = \"tube\"");
     expect_err(&t, QUAD, &["light.shape", "tube"]);
@@ -101,15 +104,35 @@ fn zero_size_and_degenerate_lights() {
 
 #[test]
 fn bad_camera() {
-    expect_err(&GOOD.replace("width = 32", "width = 0"), QUAD, &["camera.width"]);
-    expect_err(&GOOD.replace("up = [0.0, 1.0, 0.0]", "up = [0.0, 2.5, 6.0]"), QUAD, &["camera.up", "parallel"]);
-    expect_err(&GOOD.replace("target = [0.0, 0.5, 0.0]", "target = [0.0, 3.0, 6.0]"), QUAD, &["camera.target"]);
+    expect_err(
+        &GOOD.replace("width = 32", "width = 0"),
+        QUAD,
+        &["camera.width"],
+    );
+    expect_err(
+        &GOOD.replace("up = [0.0, 1.0, 0.0]", "up = [0.0, 2.5, 6.0]"),
+        QUAD,
+        &["camera.up", "parallel"],
+    );
+    expect_err(
+        &GOOD.replace("target = [0.0, 0.5, 0.0]", "target = [0.0, 3.0, 6.0]"),
+        QUAD,
+        &["camera.target"],
+    );
 }
 
 #[test]
 fn bad_mesh_keys() {
-    expect_err(&GOOD.replace("path = \"quad.obj\"", "path = \"quad.obj\"\nopacity = 1.5"), QUAD, &["mesh[0].opacity"]);
-    expect_err(&GOOD.replace("path = \"quad.obj\"", "path = \"quad.obj\"\nscale = 0.0"), QUAD, &["mesh[0].scale"]);
+    expect_err(
+        &GOOD.replace("path = \"quad.obj\"", "path = \"quad.obj\"\nopacity = 1.5"),
+        QUAD,
+        &["mesh[0].opacity"],
+    );
+    expect_err(
+        &GOOD.replace("path = \"quad.obj\"", "path = \"quad.obj\"\nscale = 0.0"),
+        QUAD,
+        &["mesh[0].scale"],
+    );
     let t = GOOD.replace("[[mesh]]\npath = \"quad.obj\"\n", "");
     expect_err(&t, QUAD, &["mesh", "no [[mesh]]"]);
 }
@@ -118,15 +141,35 @@ fn bad_mesh_keys() {
 fn unreadable_files() {
     let e = Scene::load("/nonexistent/dir/scene.toml").unwrap_err();
     assert!(e.to_string().contains("/nonexistent/dir/scene.toml"));
-    expect_err(&GOOD.replace("quad.obj", "missing.obj"), QUAD, &["missing.obj", "cannot read"]);
+    expect_err(
+        &GOOD.replace("quad.obj", "missing.obj"),
+        QUAD,
+        &["missing.obj", "cannot read"],
+    );
 }
 
 #[test]
 fn malformed_obj_names_the_line() {
-    expect_err(GOOD, "v 0 0 0\nv 1 0 0\nv 0 0 x\nf 1 2 3\n", &["quad.obj:3", "not a finite number"]);
-    expect_err(GOOD, "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 9\n", &["quad.obj:4", "out of range"]);
-    expect_err(GOOD, "v 0 0 0\nv 1 0 0\nv 0 0 nan\nf 1 2 3\n", &["quad.obj:3"]);
-    expect_err(GOOD, "v 0 0 0\nv 1 0 0\nf 1 2\n", &["quad.obj:3", "at least 3"]);
+    expect_err(
+        GOOD,
+        "v 0 0 0\nv 1 0 0\nv 0 0 x\nf 1 2 3\n",
+        &["quad.obj:3", "not a finite number"],
+    );
+    expect_err(
+        GOOD,
+        "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 9\n",
+        &["quad.obj:4", "out of range"],
+    );
+    expect_err(
+        GOOD,
+        "v 0 0 0\nv 1 0 0\nv 0 0 nan\nf 1 2 3\n",
+        &["quad.obj:3"],
+    );
+    expect_err(
+        GOOD,
+        "v 0 0 0\nv 1 0 0\nf 1 2\n",
+        &["quad.obj:3", "at least 3"],
+    );
     expect_err(GOOD, "# nothing\n", &["quad.obj", "no faces"]);
 }
 
@@ -142,13 +185,21 @@ fn zero_area_triangles_are_skipped_and_counted() {
 
 #[test]
 fn only_degenerate_triangles_is_an_empty_scene() {
-    let e = expect_err(GOOD, "v 0 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\n", &["no triangles", "1 degenerate"]);
+    let e = expect_err(
+        GOOD,
+        "v 0 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\n",
+        &["no triangles", "1 degenerate"],
+    );
     assert!(matches!(e, Error::EmptyScene { skipped: 1, .. }));
 }
 
 #[test]
 fn polygons_are_triangulated() {
     let dir = tempfile::tempdir().unwrap();
-    let p = write_scene(dir.path(), GOOD, "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nf 1 2 3 4\n");
+    let p = write_scene(
+        dir.path(),
+        GOOD,
+        "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nf 1 2 3 4\n",
+    );
     assert_eq!(Scene::load(&p).unwrap().triangles.len(), 2);
 }

@@ -51,7 +51,10 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (min = +inf, max = -inf).
-    pub const EMPTY: Aabb = Aabb { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::INFINITY,
+        max: Vec3::NEG_INFINITY,
+    };
     /// Grows the box by a point.
     pub fn grow(&mut self, p: Vec3) {
         self.min = self.min.min(p);
@@ -105,7 +108,10 @@ impl Scene {
             scene.push_mesh(PathBuf::from(format!("{name}#mesh{k}")), opacity, tris);
         }
         if scene.triangles.is_empty() {
-            return Err(crate::Error::EmptyScene { path: scene.path, skipped: scene.skipped_degenerate });
+            return Err(crate::Error::EmptyScene {
+                path: scene.path,
+                skipped: scene.skipped_degenerate,
+            });
         }
         Ok(scene)
     }
@@ -124,16 +130,19 @@ impl Scene {
         let id = self.meshes.len() as u32;
         for t in tris {
             let area2 = (t[1] - t[0]).cross(t[2] - t[0]).length();
-            if !(t[0].is_finite() && t[1].is_finite() && t[2].is_finite())
-                || !(area2 > DEGENERATE_REL * diag * diag)
-            {
+            let finite = t[0].is_finite() && t[1].is_finite() && t[2].is_finite();
+            if !(finite && area2 > DEGENERATE_REL * diag * diag) {
                 self.skipped_degenerate += 1;
                 continue;
             }
             self.triangles.push(t);
             self.triangle_mesh.push(id);
         }
-        self.meshes.push(MeshInfo { source, opacity, triangles: start..self.triangles.len() });
+        self.meshes.push(MeshInfo {
+            source,
+            opacity,
+            triangles: start..self.triangles.len(),
+        });
     }
 
     /// Bounds of all triangles.

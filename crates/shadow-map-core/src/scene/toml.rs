@@ -59,7 +59,11 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn err(&self, key: &str, reason: impl Into<String>) -> Error {
-        Error::Scene { path: self.path.to_path_buf(), key: Some(key.to_string()), reason: reason.into() }
+        Error::Scene {
+            path: self.path.to_path_buf(),
+            key: Some(key.to_string()),
+            reason: reason.into(),
+        }
     }
     fn finite<const N: usize>(&self, key: &str, v: [f32; N]) -> Result<[f32; N]> {
         if v.iter().all(|x| x.is_finite()) {
@@ -72,19 +76,30 @@ impl Ctx<'_> {
         Ok(Vec3::from_array(self.finite(key, v)?))
     }
     fn unit(&self, key: &str, v: [f32; 3]) -> Result<Vec3> {
-        self.vec3(key, v)?.try_normalize().ok_or_else(|| self.err(key, "must not be the zero vector"))
+        self.vec3(key, v)?
+            .try_normalize()
+            .ok_or_else(|| self.err(key, "must not be the zero vector"))
     }
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+    text[..offset.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
 }
 
 pub(super) fn load(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let file: SceneFile = ::toml::from_str(&text).map_err(|e| {
-        let line = e.span().map(|s| format!("line {}: ", line_of(&text, s.start))).unwrap_or_default();
+        let line = e
+            .span()
+            .map(|s| format!("line {}: ", line_of(&text, s.start)))
+            .unwrap_or_default();
         Error::Scene {
             path: path.to_path_buf(),
             key: None,
@@ -106,14 +121,24 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
         return Err(cx.err("camera.up", "must not be parallel to the view direction"));
     }
     if !(c.fov_y_deg.is_finite() && c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
-        return Err(cx.err("camera.fov_y_deg", format!("must be in (0, 180), got {}", c.fov_y_deg)));
+        return Err(cx.err(
+            "camera.fov_y_deg",
+            format!("must be in (0, 180), got {}", c.fov_y_deg),
+        ));
     }
     for (k, v) in [("camera.width", c.width), ("camera.height", c.height)] {
         if v == 0 || v > MAX_IMAGE_SIDE {
             return Err(cx.err(k, format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}")));
         }
     }
-    let camera = Camera { eye, target, up, fov_y_deg: c.fov_y_deg, width: c.width, height: c.height };
+    let camera = Camera {
+        eye,
+        target,
+        up,
+        fov_y_deg: c.fov_y_deg,
+        width: c.width,
+        height: c.height,
+    };
 
     // Light.
     let l = &file.light;
@@ -131,9 +156,16 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
             if l.radius.is_some() {
                 return Err(cx.err("light.radius", "not used by rect lights (use `size`)"));
             }
-            let size = l.size.ok_or_else(|| cx.err("light.size", "missing (required for rect lights)"))?;
-            let size = [positive("light.size", size[0])?, positive("light.size", size[1])?];
-            let t = l.tangent.ok_or_else(|| cx.err("light.tangent", "missing (required for rect lights)"))?;
+            let size = l
+                .size
+                .ok_or_else(|| cx.err("light.size", "missing (required for rect lights)"))?;
+            let size = [
+                positive("light.size", size[0])?,
+                positive("light.size", size[1])?,
+            ];
+            let t = l
+                .tangent
+                .ok_or_else(|| cx.err("light.tangent", "missing (required for rect lights)"))?;
             let t = cx.unit("light.tangent", t)?;
             let ortho = t - t.dot(normal) * normal;
             let t = ortho
@@ -143,21 +175,41 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
             (LightShape::Rect { size }, t)
         }
         "disk" | "sphere" => {
-            for (k, present) in [("light.size", l.size.is_some()), ("light.tangent", l.tangent.is_some())] {
+            for (k, present) in [
+                ("light.size", l.size.is_some()),
+                ("light.tangent", l.tangent.is_some()),
+            ] {
                 if present {
                     return Err(cx.err(k, format!("not used by {} lights (use `radius`)", l.shape)));
                 }
             }
-            let r = l.radius.ok_or_else(|| cx.err("light.radius", format!("missing (required for {} lights)", l.shape)))?;
+            let r = l.radius.ok_or_else(|| {
+                cx.err(
+                    "light.radius",
+                    format!("missing (required for {} lights)", l.shape),
+                )
+            })?;
             let r = positive("light.radius", r)?;
-            let shape = if l.shape == "disk" { LightShape::Disk { radius: r } } else { LightShape::Sphere { radius: r } };
+            let shape = if l.shape == "disk" {
+                LightShape::Disk { radius: r }
+            } else {
+                LightShape::Sphere { radius: r }
+            };
             (shape, default_tangent(normal))
         }
         other => {
-            return Err(cx.err("light.shape", format!("must be \"rect\", \"disk\" or \"sphere\", got {other:?}")))
+            return Err(cx.err(
+                "light.shape",
+                format!("must be \"rect\", \"disk\" or \"sphere\", got {other:?}"),
+            ))
         }
     };
-    let light = Light { shape, center, normal, tangent };
+    let light = Light {
+        shape,
+        center,
+        normal,
+        tangent,
+    };
 
     let mut scene = Scene {
         path: path.to_path_buf(),
@@ -176,7 +228,10 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
         let key = |f: &str| format!("mesh[{k}].{f}");
         let scale = m.scale.unwrap_or(1.0);
         if !(scale.is_finite() && scale != 0.0) {
-            return Err(cx.err(&key("scale"), format!("must be finite and non-zero, got {scale}")));
+            return Err(cx.err(
+                &key("scale"),
+                format!("must be finite and non-zero, got {scale}"),
+            ));
         }
         let rot = m.rotate_y_deg.unwrap_or(0.0);
         if !rot.is_finite() {
@@ -197,7 +252,10 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
         scene.push_mesh(obj_path, opacity, tris);
     }
     if scene.triangles.is_empty() {
-        return Err(Error::EmptyScene { path: path.to_path_buf(), skipped: scene.skipped_degenerate });
+        return Err(Error::EmptyScene {
+            path: path.to_path_buf(),
+            skipped: scene.skipped_degenerate,
+        });
     }
     Ok(scene)
 }
