@@ -65,6 +65,25 @@ pub enum Error {
     /// The light view cannot be fitted (no receiver in front of the light, degenerate frame).
     #[error("light view: {0}")]
     LightView(String),
+    /// No Vulkan adapter was found (wgpu is asked for Vulkan only: never a silent GL fall-back).
+    #[error(
+        "no Vulkan adapter: {0} (install mesa-vulkan-drivers for lavapipe, or use --backend cpu)"
+    )]
+    NoAdapter(String),
+    /// The GPU device was lost.
+    #[error("GPU device lost: {0}")]
+    DeviceLost(String),
+    /// The GPU ran out of memory.
+    #[error("GPU out of memory: {0}")]
+    OutOfMemory(String),
+    /// Any other GPU error (validation of a pipeline, buffer mapping...).
+    #[error("GPU error in {stage}: {reason}")]
+    Gpu {
+        /// The stage (pipeline or pass label).
+        stage: String,
+        /// What went wrong.
+        reason: String,
+    },
     /// An I/O error on a named file.
     #[error("{}: {source}", path.display())]
     Io {

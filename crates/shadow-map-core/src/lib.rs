@@ -34,3 +34,5 @@ pub use params::{ParamKind, ParamSpec, ParamValue, Params};
 pub use raster::{Cull, DepthBias, DepthMap, RasterOptions};
 pub use receivers::{ImageLayout, Receivers};
 pub use scene::Scene;
+#[cfg(feature = "gpu")]
+pub mod gpu;

@@ -1,0 +1,191 @@
+//! The wgpu backend of the shadow-map core (cargo feature `gpu`).
+//!
+//! A [`GpuContext`] either creates its own headless device (Vulkan requested explicitly: wgpu never
+//! falls back to GL silently, `gpu.md`) or wraps a user's `wgpu::Device` and `wgpu::Queue`, so the
+//! estimators can run inside someone else's renderer.
+use crate::{Error, Result};
+use std::sync::{Arc, Mutex, OnceLock};
+
+pub mod shared;
+
+/// A device and queue, owned or borrowed, with what the backend needs to know about them.
+#[derive(Debug, Clone)]
+pub struct GpuContext {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// Adapter description (None for a user's device, where wgpu does not expose it).
+    pub adapter: Option<wgpu::AdapterInfo>,
+    /// Set by the device-lost callback; checked by [`GpuContext::check_lost`].
+    lost: Arc<Mutex<Option<String>>>,
+}
+
+/// Environment variable that turns a missing adapter in GPU tests from a loud skip into a failure.
+pub const REQUIRE_GPU_ENV: &str = "SOFTSHADOW_REQUIRE_GPU";
+
+impl GpuContext {
+    /// Creates a headless device on the first Vulkan adapter, with the adapter's own limits (so the
+    /// largest textures and storage bindings it supports are usable) and the features the backend
+    /// uses when available (timestamp queries).
+    pub fn new() -> Result<Self> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        desc.backends = wgpu::Backends::VULKAN;
+        let instance = wgpu::Instance::new(desc);
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            ..Default::default()
+        }))
+        .map_err(|e| Error::NoAdapter(e.to_string()))?;
+        let wanted =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        let features = adapter.features() & wanted;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("softshadow"),
+            required_features: features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::NoAdapter(format!("request_device: {e}")))?;
+        let mut ctx = Self::from_device(device, queue);
+        ctx.adapter = Some(adapter.get_info());
+        Ok(ctx)
+    }
+
+    /// Wraps a user's device and queue. Nothing is created or changed on them, except that a
+    /// device-lost callback is installed so losses come back as [`Error::DeviceLost`].
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let lost = Arc::new(Mutex::new(None));
+        let l = lost.clone();
+        device.set_device_lost_callback(move |reason, msg| {
+            if let Ok(mut g) = l.lock() {
+                *g = Some(format!("{reason:?}: {msg}"));
+            }
+        });
+        GpuContext {
+            device,
+            queue,
+            adapter: None,
+            lost,
+        }
+    }
+
+    /// One context per process, created on first use (tests and the CLI share it).
+    pub fn shared() -> Result<Arc<GpuContext>> {
+        static CTX: OnceLock<std::result::Result<Arc<GpuContext>, String>> = OnceLock::new();
+        CTX.get_or_init(|| GpuContext::new().map(Arc::new).map_err(|e| e.to_string()))
+            .clone()
+            .map_err(Error::NoAdapter)
+    }
+
+    /// The device's limits.
+    pub fn limits(&self) -> wgpu::Limits {
+        self.device.limits()
+    }
+
+    /// A one-line description of the adapter ("lavapipe (Vulkan, Cpu)").
+    pub fn describe(&self) -> String {
+        match &self.adapter {
+            Some(a) => format!("{} ({:?}, {:?})", a.name, a.backend, a.device_type),
+            None => "user-provided device".into(),
+        }
+    }
+
+    /// Fails with [`Error::DeviceLost`] once the device has been lost.
+    pub fn check_lost(&self) -> Result<()> {
+        match self.lost.lock().ok().and_then(|g| g.clone()) {
+            Some(m) => Err(Error::DeviceLost(m)),
+            None => Ok(()),
+        }
+    }
+
+    /// Runs `f` inside validation and out-of-memory error scopes, turning wgpu's asynchronous
+    /// errors into typed ones named after `stage`.
+    pub fn scoped<T>(&self, stage: &str, f: impl FnOnce() -> T) -> Result<T> {
+        self.check_lost()?;
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let val = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = f();
+        let v = pollster::block_on(val.pop());
+        let o = pollster::block_on(oom.pop());
+        if let Some(e) = o {
+            return Err(Error::OutOfMemory(format!("{stage}: {e}")));
+        }
+        if let Some(e) = v {
+            return Err(Error::Gpu {
+                stage: stage.to_string(),
+                reason: e.to_string().replace('\n', " "),
+            });
+        }
+        self.check_lost()?;
+        Ok(out)
+    }
+
+    /// Blocks until all submitted work is done.
+    pub fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| Error::Gpu {
+                stage: "poll".into(),
+                reason: e.to_string(),
+            })
+    }
+
+    /// Copies a buffer back to the CPU as `T`s (a staging buffer, one submit, one wait).
+    pub fn read_buffer<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(src, 0, &staging, 0, bytes);
+        self.queue.submit([enc.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .map_err(|e| Error::Gpu {
+                stage: "readback".into(),
+                reason: e.to_string(),
+            })?
+            .map_err(|e| Error::Gpu {
+                stage: "readback".into(),
+                reason: e.to_string(),
+            })?;
+        let data = slice.get_mapped_range().map_err(|e| Error::Gpu {
+            stage: "readback".into(),
+            reason: format!("{e:?}"),
+        })?;
+        let out = bytemuck::cast_slice::<u8, T>(&data).to_vec();
+        drop(data);
+        staging.unmap();
+        Ok(out)
+    }
+}
+
+/// For GPU tests: the shared context, or `None` after printing a loud skip message. With
+/// `SOFTSHADOW_REQUIRE_GPU=1` a missing adapter is a failure (an `Err`), never a skip.
+pub fn context_for_tests(test: &str) -> Result<Option<Arc<GpuContext>>> {
+    match GpuContext::shared() {
+        Ok(c) => Ok(Some(c)),
+        Err(e) => {
+            if std::env::var(REQUIRE_GPU_ENV)
+                .map(|v| v == "1")
+                .unwrap_or(false)
+            {
+                Err(e)
+            } else {
+                eprintln!("SKIPPED (no Vulkan adapter): {test}: {e}");
+                Ok(None)
+            }
+        }
+    }
+}

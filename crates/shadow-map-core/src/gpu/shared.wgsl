@@ -1,0 +1,37 @@
+// Mirrors crates/shadow-map-core/src/gpu/shared.rs field for field (checked by tests/layouts.rs).
+
+struct LightViewUniform {
+    origin: vec3<f32>,
+    n: f32,
+    ex: vec3<f32>,
+    w: f32,
+    ey: vec3<f32>,
+    far: f32,
+    ez: vec3<f32>,
+    r: u32,
+    window_min: vec2<f32>,
+    delta: f32,
+    _pad0: f32,
+}
+
+struct ReceiverGpu {
+    position: vec3<f32>,
+    active: u32,
+    normal: vec3<f32>,
+    _pad0: f32,
+}
+
+// shadow_map_core::light::LightFrame::to_light
+fn to_light(v: LightViewUniform, p: vec3<f32>) -> vec3<f32> {
+    let d = p - v.origin;
+    return vec3<f32>(dot(d, v.ex), dot(d, v.ey), dot(d, v.ez));
+}
+
+fn dir_to_light(v: LightViewUniform, d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(d, v.ex), dot(d, v.ey), dot(d, v.ez));
+}
+
+// shadow_map_core::light_view::LightView::project: continuous texel coordinates.
+fn project(v: LightViewUniform, p: vec3<f32>) -> vec2<f32> {
+    return (vec2<f32>(p.x, p.y) * (v.n / p.z) - v.window_min) / v.delta;
+}
