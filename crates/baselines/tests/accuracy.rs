@@ -1,0 +1,255 @@
+//! CPU baselines against closed forms and their limits (background.md §5, §6, §10).
+use baselines::{HardShadow, MultiSample, PcfShadow, PcssShadow};
+use glam::{Vec2, Vec3};
+use reference::oracle::{rect_occluder_visibility, RectOccluder};
+use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
+
+fn camera() -> Camera {
+    Camera {
+        eye: Vec3::new(0.0, 4.0, 5.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        width: 8,
+        height: 8,
+    }
+}
+
+/// A horizontal quad at height y, facing up (+y).
+fn quad(x0: f32, z0: f32, x1: f32, z1: f32, y: f32) -> Vec<[Vec3; 3]> {
+    let (a, b, c, d) = (
+        Vec3::new(x0, y, z0),
+        Vec3::new(x0, y, z1),
+        Vec3::new(x1, y, z1),
+        Vec3::new(x1, y, z0),
+    );
+    vec![[a, b, c], [a, c, d]]
+}
+
+/// Rect light `l x l` at height 3 pointing down, over a square occluder at 1.5 (its +x edge
+/// deliberately off the texel grid) and a ground.
+fn parallel_squares(l: f32) -> Scene {
+    let light = Light {
+        shape: LightShape::Rect { size: [l, l] },
+        center: Vec3::new(0.0, 3.0, 0.0),
+        normal: -Vec3::Y,
+        tangent: Vec3::X,
+    };
+    Scene::from_meshes(
+        "parallel-squares",
+        camera(),
+        light,
+        vec![
+            (quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0),
+            (quad(-0.5, -0.5, 0.5123, 0.5, 1.5), 1.0),
+        ],
+    )
+    .unwrap()
+}
+
+/// Ground receivers on a line through the umbra, penumbra and lit region.
+fn line_receivers() -> Receivers {
+    let pos: Vec<Vec3> = (0..241)
+        .map(|k| Vec3::new(-1.5 + k as f32 * 0.0125, 0.0, 0.13))
+        .collect();
+    Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap()
+}
+
+fn oracle(scene: &Scene, r: &Receivers) -> Vec<f64> {
+    let f = scene.light.frame();
+    let c = [Vec3::new(-0.5, 1.5, -0.5), Vec3::new(0.5123, 1.5, 0.5)].map(|c| f.to_light(c));
+    let (a, b) = (Vec2::new(c[0].x, c[0].y), Vec2::new(c[1].x, c[1].y));
+    let occ = RectOccluder {
+        min: a.min(b),
+        max: a.max(b),
+        z: c[0].z,
+    };
+    r.position
+        .iter()
+        .map(|p| rect_occluder_visibility(scene.light.half_extent(), &[occ], f.to_light(*p)))
+        .collect()
+}
+
+fn estimate(est: &mut dyn SoftShadowEstimator, scene: &Scene, r: &Receivers) -> Vec<f32> {
+    run(est, scene, r).unwrap().0
+}
+
+fn errors(v: &[f32], o: &[f64]) -> (f64, f64) {
+    let d: Vec<f64> = v
+        .iter()
+        .zip(o)
+        .map(|(a, b)| (*a as f64 - b).abs())
+        .collect();
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+    (rms, d.iter().cloned().fold(0.0, f64::max))
+}
+
+/// PCSS is exact for one planar blocker parallel to the light (background.md §5), up to the
+/// rasterisation of the occluder's edge, which the map places within half a texel.
+#[test]
+fn pcss_matches_the_parallel_plane_closed_form() {
+    let s = parallel_squares(1.0);
+    let r = line_receivers();
+    let o = oracle(&s, &r);
+    let mut prev = f64::INFINITY;
+    for res in [128, 512, 2048] {
+        let mut pcss = PcssShadow::new().unwrap();
+        pcss.set_param("resolution", &res.to_string()).unwrap();
+        pcss.set_param("max_taps", "1024").unwrap();
+        let v = estimate(&mut pcss, &s, &r);
+        let (rms, max) = errors(&v, &o);
+        eprintln!("pcss r={res}: rms {rms:.5} max {max:.5}");
+        // The penumbra on the ground is 1 world unit wide and V changes by 1 per world unit across
+        // it; the occluder's rasterised edge is off by at most half a texel, a world distance of
+        // about 1.2 / r here, so |dV| <= ~1.2 / r plus float noise. Allow 3 / r + 0.01.
+        assert!(max <= 0.01 + 3.0 / res as f64, "r={res}: max error {max}");
+        assert!(
+            rms <= prev * 1.01,
+            "error must not grow with resolution: {rms} after {prev}"
+        );
+        prev = rms;
+    }
+}
+
+/// As the light shrinks, PCSS and multi-sample converge to the hard shadow map
+/// (background.md §10.4) away from the hard edge.
+#[test]
+fn tiny_light_converges_to_the_hard_shadow() {
+    let s = parallel_squares(1e-4);
+    let r = line_receivers();
+    let mut hard = HardShadow::new().unwrap();
+    let vh = estimate(&mut hard, &s, &r);
+    let o = oracle(&s, &r);
+    let mut pcss = PcssShadow::new().unwrap();
+    let vp = estimate(&mut pcss, &s, &r);
+    let mut ms = MultiSample::new().unwrap();
+    ms.set_param("sublights", "2").unwrap();
+    let vm = estimate(&mut ms, &s, &r);
+    for k in 0..r.len() {
+        let x = r.position[k].x;
+        // More than a texel footprint away from the hard edges at x = -1 and x = 1.0246.
+        if (x + 1.0).abs() > 0.02 && (x - 1.0246).abs() > 0.02 {
+            assert!(
+                (vh[k] as f64 - o[k]).abs() < 1e-3,
+                "hard at x={x}: {} vs {}",
+                vh[k],
+                o[k]
+            );
+            assert_eq!(vp[k], vh[k], "pcss at x={x}");
+            assert_eq!(vm[k], vh[k], "multi-sample at x={x}");
+        }
+    }
+}
+
+/// Multi-sample shadows converge to the closed form as S grows (background.md §6: jittered strata).
+#[test]
+fn multi_sample_converges_with_more_sub_lights() {
+    let s = parallel_squares(1.0);
+    let r = line_receivers();
+    let o = oracle(&s, &r);
+    let mut last = f64::INFINITY;
+    for sub in [2, 4, 8] {
+        let mut ms = MultiSample::new().unwrap();
+        ms.set_param("sublights", &sub.to_string()).unwrap();
+        ms.set_param("resolution", "512").unwrap();
+        let (rms, _) = errors(&estimate(&mut ms, &s, &r), &o);
+        eprintln!("multi-sample S={sub}: rms {rms:.5}");
+        assert!(rms < last, "S={sub}: {rms} not below {last}");
+        last = rms;
+    }
+    assert!(last < 0.02);
+}
+
+fn all() -> Vec<Box<dyn SoftShadowEstimator>> {
+    vec![
+        Box::new(HardShadow::new().unwrap()),
+        Box::new(PcfShadow::new().unwrap()),
+        Box::new(PcssShadow::new().unwrap()),
+        Box::new(MultiSample::new().unwrap()),
+    ]
+}
+
+/// Without occluders every receiver facing the light sees all of it: V = 1 exactly.
+#[test]
+fn empty_scene_is_fully_lit() {
+    let light = Light {
+        shape: LightShape::Rect { size: [1.0, 1.0] },
+        center: Vec3::new(0.0, 3.0, 0.0),
+        normal: -Vec3::Y,
+        tangent: Vec3::X,
+    };
+    let s = Scene::from_meshes(
+        "ground",
+        camera(),
+        light,
+        vec![(quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0)],
+    )
+    .unwrap();
+    let r = line_receivers();
+    for mut e in all() {
+        let v = estimate(e.as_mut(), &s, &r);
+        assert!(
+            v.iter().all(|&x| x == 1.0),
+            "{}: {:?}",
+            e.name(),
+            v.iter().find(|&&x| x != 1.0)
+        );
+    }
+}
+
+/// Receivers behind the (one-sided) light get 0, inactive slots NaN, umbra 0.
+#[test]
+fn behind_inactive_and_umbra() {
+    let s = parallel_squares(1.0);
+    let mut r = Receivers::from_points(
+        vec![
+            Vec3::new(0.0, 0.0, 2.0),
+            Vec3::new(0.0, 5.0, 0.0),
+            Vec3::new(3.0, 0.0, 0.0),
+            Vec3::new(0.2, 0.0, 0.0),
+        ],
+        vec![Vec3::Y; 4],
+    )
+    .unwrap();
+    r.active[2] = false;
+    for mut e in all() {
+        let v = estimate(e.as_mut(), &s, &r);
+        assert_eq!(v[1], 0.0, "{}: receiver above the light", e.name());
+        assert!(v[2].is_nan(), "{}: inactive slot", e.name());
+        assert_eq!(v[3], 0.0, "{}: umbra receiver", e.name());
+        assert!((0.0..=1.0).contains(&v[0]));
+    }
+}
+
+/// Bad parameters are errors naming the key, never panics.
+#[test]
+fn bad_parameters() {
+    for mut e in all() {
+        for (k, v, needle) in [
+            ("resolution", "0", "out of range"),
+            ("resolution", "99999", "out of range"),
+            ("bias", "nan", "out of range"),
+            ("nope", "1", "unknown parameter"),
+            ("cull", "sideways", "expected one of"),
+        ] {
+            let err = e.set_param(k, v).unwrap_err().to_string();
+            assert!(
+                err.contains(k) && err.contains(needle),
+                "{}: {err}",
+                e.name()
+            );
+        }
+    }
+}
+
+/// The trait's estimate must be given a slice of the right length.
+#[test]
+fn output_length_is_checked() {
+    let s = parallel_squares(1.0);
+    let r = line_receivers();
+    for mut e in all() {
+        e.build(&s, &r).unwrap();
+        let mut v = vec![0.0; r.len() - 1];
+        assert!(e.estimate(&s, &r, &mut v).is_err());
+    }
+}

@@ -1,0 +1,201 @@
+//! The `softshadow` command line as the contract defines it: render, algos, score, and one-line
+//! errors with nothing written on bad input.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_softshadow"))
+}
+
+fn fixture(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(rel)
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let out = bin().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Runs, expects failure, returns stderr (which must be one line).
+fn run_err(args: &[&str]) -> String {
+    let out = bin().args(args).output().unwrap();
+    assert!(!out.status.success(), "{args:?} should fail");
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    err
+}
+
+#[test]
+fn render_stats_and_score() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = fixture("parallel-squares/parallel-squares.toml");
+    let pcss = dir.path().join("pcss.exr");
+    let refr = dir.path().join("ref.exr");
+    let png = dir.path().join("pcss.png");
+    let stats = run_ok(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--algo",
+        "pcss",
+        "--param",
+        "resolution=256",
+        "--out",
+        pcss.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+        "--stats",
+    ]);
+    let j: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
+    assert_eq!(j["algo"], "pcss");
+    assert_eq!(j["backend"], "cpu");
+    assert_eq!(j["params"]["resolution"], "256");
+    assert!(j["stages_ms"]["build"].as_f64().unwrap() >= 0.0);
+    assert!(j["stages_ms"]["estimate"].as_f64().unwrap() >= 0.0);
+    assert!(png.exists());
+    run_ok(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--algo",
+        "reference",
+        "--param",
+        "spp=64",
+        "--out",
+        refr.to_str().unwrap(),
+    ]);
+    let s: serde_json::Value = serde_json::from_str(
+        run_ok(&["score", pcss.to_str().unwrap(), refr.to_str().unwrap()]).trim(),
+    )
+    .unwrap();
+    assert_eq!(s["matched_fraction"], 1.0);
+    assert!(s["rmse"].as_f64().unwrap() < 0.05, "{s}");
+    assert_eq!(s["nonfinite_v"], 0);
+    // An image against itself scores zero, and the error image is written.
+    let err_png = dir.path().join("err.png");
+    let s: serde_json::Value = serde_json::from_str(
+        run_ok(&[
+            "score",
+            pcss.to_str().unwrap(),
+            pcss.to_str().unwrap(),
+            "--err-png",
+            err_png.to_str().unwrap(),
+        ])
+        .trim(),
+    )
+    .unwrap();
+    assert_eq!(s["rmse"], 0.0);
+    assert!(err_png.exists());
+}
+
+#[test]
+fn algos_lists_every_estimator_with_parameters() {
+    let text = run_ok(&["algos"]);
+    for name in ["reference", "hard", "pcf", "pcss", "multi-sample"] {
+        assert!(
+            text.contains(&format!("{name}:")),
+            "{name} missing from {text}"
+        );
+    }
+    let j: serde_json::Value = serde_json::from_str(run_ok(&["algos", "--json"]).trim()).unwrap();
+    let pcss = j
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == "pcss")
+        .unwrap();
+    assert!(pcss["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|p| p["key"] == "resolution" && p["default"] == "1024"));
+    let help = run_ok(&["render", "--help"]);
+    assert!(
+        help.contains("max_taps"),
+        "render --help must list parameters"
+    );
+}
+
+#[test]
+fn bad_input_is_one_line_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.exr");
+    let o = out.to_str().unwrap();
+    let scene = fixture("parallel-squares/parallel-squares.toml");
+    let s = scene.to_str().unwrap();
+    let e = run_err(&[
+        "render",
+        "/no/such/scene.toml",
+        "--algo",
+        "pcss",
+        "--out",
+        o,
+    ]);
+    assert!(e.contains("/no/such/scene.toml"), "{e}");
+    let e = run_err(&[
+        "render",
+        s,
+        "--algo",
+        "pcss",
+        "--param",
+        "resolution=0",
+        "--out",
+        o,
+    ]);
+    assert!(
+        e.contains("resolution") && e.contains("out of range"),
+        "{e}"
+    );
+    let e = run_err(&[
+        "render",
+        s,
+        "--algo",
+        "pcss",
+        "--param",
+        "resolution",
+        "--out",
+        o,
+    ]);
+    assert!(e.contains("KEY=VALUE"), "{e}");
+    let e = run_err(&["render", s, "--algo", "nope", "--out", o]);
+    assert!(e.contains("nope"), "{e}");
+    let e = run_err(&[
+        "render",
+        s,
+        "--algo",
+        "pcss",
+        "--out",
+        "/no/such/dir/out.exr",
+    ]);
+    assert!(e.contains("/no/such/dir/out.exr"), "{e}");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        std::fs::read_to_string(&scene)
+            .unwrap()
+            .replace("fov_y_deg", "fov"),
+    )
+    .unwrap();
+    let e = run_err(&[
+        "render",
+        bad.to_str().unwrap(),
+        "--algo",
+        "pcss",
+        "--out",
+        o,
+    ]);
+    assert!(e.contains("bad.toml"), "{e}");
+    let e = run_err(&["score", "/no/such/a.exr", "/no/such/b.exr"]);
+    assert!(e.contains("/no/such/a.exr"), "{e}");
+    assert!(!out.exists(), "nothing may be written on bad input");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "no temporary files left behind"
+    );
+}
