@@ -83,11 +83,12 @@ impl LightView {
     /// [`MAX_TAN`]), so the frustum covers what the receivers need and no more.
     ///
     /// Near and far: the papers' recommendation (common-techniques, "near and far planes"): the
-    /// light frustum intersected with the scene bounds. n starts at the nearest scene vertex in
-    /// front of the light, the window is fitted, n is raised to the nearest vertex of the triangles
-    /// that overlap the window, and the window refitted (it can only shrink, so every triangle in it
-    /// still lies at z >= n). n never exceeds the nearest receiver, and is at least
-    /// `1e-4` times the farthest receiver depth (geometry nearer than that is clipped).
+    /// light frustum intersected with the scene bounds. n0 is the nearest scene vertex in front of
+    /// the light; the square window is fitted at n0, n is raised to the nearest vertex of the
+    /// triangles overlapping it, and the raise is kept only if the window refitted at the new n
+    /// overlaps nothing nearer, so every triangle in the final frustum lies at z >= n. n never
+    /// exceeds the nearest receiver, and is at least `1e-4` times the farthest receiver depth
+    /// (geometry nearer than that is clipped). far is the farthest vertex in the window.
     pub fn fit(
         scene: &Scene,
         receivers: &Receivers,
@@ -179,17 +180,34 @@ impl LightView {
         };
         let (n0, _) = geometry_range(DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
         let n0 = n0.min(zr_min * 0.999).max(n_floor);
-        let (lo, hi) = window(n0);
-        let (n1, far) = geometry_range(lo, hi);
-        let n = if n1.is_finite() {
-            n1.min(zr_min * 0.999).max(n0)
-        } else {
-            n0
+        // The square window (texels are square) fitted at a given n, in x/z space.
+        let square = |n: f32| -> (DVec2, DVec2) {
+            let (lo, hi) = window(n);
+            // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.
+            let side = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-6);
+            let c = (lo + hi) * 0.5;
+            (c - DVec2::splat(side * 0.5), c + DVec2::splat(side * 0.5))
         };
-        let (lo, hi) = window(n);
+        // Raise n from n0 (below every triangle in front of the light) to the nearest geometry
+        // inside the square window fitted at n0, and keep it only if the window refitted at the
+        // raised n (which can shift when it is squared) holds nothing nearer.
+        let mut n = n0;
+        let (z1, _) = {
+            let (lo, hi) = square(n0);
+            geometry_range(lo, hi)
+        };
+        if z1.is_finite() {
+            let raised = z1.min(zr_min * 0.999).max(n0);
+            let (lo, hi) = square(raised);
+            let (z2, _) = geometry_range(lo, hi);
+            if !(z2 < raised) {
+                n = raised;
+            }
+        }
+        let (lo, hi) = square(n);
+        let (_, far) = geometry_range(lo, hi);
         let far = far.max(zr_max);
-        // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.
-        let side = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-6);
+        let side = hi.x - lo.x;
         let centre = (lo + hi) * 0.5;
         let nd = n as f64;
         let view = LightView {

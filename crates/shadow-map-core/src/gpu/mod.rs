@@ -3,10 +3,43 @@
 //! A [`GpuContext`] either creates its own headless device (Vulkan requested explicitly: wgpu never
 //! falls back to GL silently, `gpu.md`) or wraps a user's `wgpu::Device` and `wgpu::Queue`, so the
 //! estimators can run inside someone else's renderer.
+//!
+//! Stages, each a module with its WGSL beside it (listed in [`SHADERS`]) and a CPU twin:
+//!
+//! | module | GPU | CPU twin |
+//! |---|---|---|
+//! | [`raster`] (`raster.wgsl`) | [`GpuShadowMapper`], [`GpuScene`]: peeled layers | [`crate::raster`], [`crate::peeling::peel`] |
+//! | [`midpoint`] (`midpoint.wgsl`) | midpoint layers (compute) | [`crate::peeling::midpoints`] |
+//! | [`mssm`] (`mssm.wgsl`) | [`GpuMssmBuilder`]: MSSM, dual MSSM, pyramid | [`crate::mssm`] |
+//! | [`depth_map`] | [`GpuDepthMap`], upload / readback | [`crate::DepthMap`] |
+//! | [`light_space`] | [`GpuLightSpace`] | [`crate::LightSpace`] |
+//! | [`receivers`] | [`GpuReceivers`] | [`crate::Receivers`] |
+//! | [`shared`] (`shared.wgsl`) | structs both sides read | |
 use crate::{Error, Result};
 use std::sync::{Arc, Mutex, OnceLock};
 
+pub mod depth_map;
+pub mod light_space;
+pub mod midpoint;
+pub mod mssm;
+pub mod raster;
+pub mod receivers;
 pub mod shared;
+
+pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
+pub use light_space::GpuLightSpace;
+pub use mssm::{GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder};
+pub use raster::{GpuScene, GpuShadowMapper};
+pub use receivers::GpuReceivers;
+
+/// Every WGSL shader of the crate as `(name, complete source)`, shared structs prepended where a
+/// stage uses them. A unit test validates each with naga, so a WGSL error fails CPU-only CI.
+pub const SHADERS: &[(&str, &str)] = &[
+    ("shared", shared::SHARED_WGSL),
+    ("raster", raster::RASTER_WGSL),
+    ("midpoint", midpoint::MIDPOINT_WGSL),
+    ("mssm", mssm::MSSM_WGSL),
+];
 
 /// A device and queue, owned or borrowed, with what the backend needs to know about them.
 #[derive(Debug, Clone)]
@@ -75,9 +108,14 @@ impl GpuContext {
     /// One context per process, created on first use (tests and the CLI share it).
     pub fn shared() -> Result<Arc<GpuContext>> {
         static CTX: OnceLock<std::result::Result<Arc<GpuContext>, String>> = OnceLock::new();
-        CTX.get_or_init(|| GpuContext::new().map(Arc::new).map_err(|e| e.to_string()))
-            .clone()
-            .map_err(Error::NoAdapter)
+        CTX.get_or_init(|| {
+            GpuContext::new().map(Arc::new).map_err(|e| match e {
+                Error::NoAdapter(m) => m,
+                other => other.to_string(),
+            })
+        })
+        .clone()
+        .map_err(Error::NoAdapter)
     }
 
     /// The device's limits.
@@ -164,7 +202,11 @@ impl GpuContext {
             stage: "readback".into(),
             reason: format!("{e:?}"),
         })?;
-        let out = bytemuck::cast_slice::<u8, T>(&data).to_vec();
+        // Copy into a `Vec<T>` rather than casting the mapping, which need not be aligned for `T`.
+        let n = data.len() / std::mem::size_of::<T>().max(1);
+        let mut out = vec![T::zeroed(); n];
+        bytemuck::cast_slice_mut::<T, u8>(&mut out)
+            .copy_from_slice(&data[..n * std::mem::size_of::<T>()]);
         drop(data);
         staging.unmap();
         Ok(out)
@@ -187,5 +229,41 @@ pub fn context_for_tests(test: &str) -> Result<Option<Arc<GpuContext>>> {
                 Ok(None)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::SHADERS;
+
+    /// Every shader of the crate parses and validates with naga (no device needed, so a WGSL
+    /// error fails CPU-only CI), and every `.wgsl` file beside this module is part of one.
+    #[test]
+    fn every_shader_validates_with_naga() {
+        for (name, src) in SHADERS {
+            let module = naga::front::wgsl::parse_str(src)
+                .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(src)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::all(),
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(src)));
+        }
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/gpu");
+        let mut files = 0;
+        for entry in std::fs::read_dir(&dir).expect("src/gpu is readable") {
+            let path = entry.expect("directory entry").path();
+            if path.extension().is_some_and(|e| e == "wgsl") {
+                files += 1;
+                let text = std::fs::read_to_string(&path).expect("wgsl is readable");
+                assert!(
+                    SHADERS.iter().any(|(_, src)| src.contains(text.as_str())),
+                    "{} is not part of gpu::SHADERS",
+                    path.display()
+                );
+            }
+        }
+        assert!(files >= SHADERS.len());
     }
 }

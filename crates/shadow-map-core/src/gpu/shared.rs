@@ -8,7 +8,10 @@ use bytemuck::{Pod, Zeroable};
 pub const SHARED_WGSL: &str = include_str!("shared.wgsl");
 
 /// The light view as shaders see it (see [`LightView`] for the meaning of every field).
-#[repr(C)]
+///
+/// Aligned to 16 bytes like its WGSL twin (whose `vec3<f32>` members align it to 16), so
+/// `align_of` equals naga's alignment (`tests/layouts.rs`).
+#[repr(C, align(16))]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct LightViewUniform {
     /// Centre of projection (world).
@@ -53,8 +56,8 @@ impl From<&LightView> for LightViewUniform {
     }
 }
 
-/// One receiver as shaders see it.
-#[repr(C)]
+/// One receiver as shaders see it (32 bytes, aligned to 16 like its WGSL twin).
+#[repr(C, align(16))]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct ReceiverGpu {
     /// World position.

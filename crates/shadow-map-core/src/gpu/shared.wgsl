@@ -14,9 +14,11 @@ struct LightViewUniform {
     _pad0: f32,
 }
 
+// `active` is a reserved word in WGSL: the Rust field `active` is `is_active` here (the only name
+// that differs; tests/layouts.rs maps it).
 struct ReceiverGpu {
     position: vec3<f32>,
-    active: u32,
+    is_active: u32,
     normal: vec3<f32>,
     _pad0: f32,
 }

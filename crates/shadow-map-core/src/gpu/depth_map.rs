@@ -1,0 +1,190 @@
+//! Depth maps on the GPU: one `R32Float` texture of linear light-space depths, the twin of
+//! [`DepthMap`] (texel (i, j) at texture coordinate (i, j), row j = v; +inf = empty).
+//!
+//! Textures rather than storage buffers, because the rasteriser renders into them; the same
+//! texture is read by later passes with `textureLoad` (R32Float is unfilterable without an
+//! optional feature, so nothing here samples it) and written by compute passes as a storage
+//! texture (midpoint layers).
+use super::GpuContext;
+use crate::{raster::DepthMap, Error, Result};
+
+/// Format of every depth map on the GPU.
+pub const DEPTH_MAP_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+
+/// Usages of every depth-map texture: rendered to (peeling), read (`textureLoad`), written by a
+/// compute pass (midpoints), and copied in and out.
+pub const DEPTH_MAP_USAGE: wgpu::TextureUsages = wgpu::TextureUsages::RENDER_ATTACHMENT
+    .union(wgpu::TextureUsages::TEXTURE_BINDING)
+    .union(wgpu::TextureUsages::STORAGE_BINDING)
+    .union(wgpu::TextureUsages::COPY_SRC)
+    .union(wgpu::TextureUsages::COPY_DST);
+
+/// An `r x r` map of linear light-space depths on the GPU (`R32Float`, +inf = empty); the twin
+/// of [`DepthMap`].
+#[derive(Debug, Clone)]
+pub struct GpuDepthMap {
+    /// Side in texels.
+    pub size: u32,
+    /// The texture ([`DEPTH_MAP_FORMAT`], usages [`DEPTH_MAP_USAGE`]).
+    pub texture: wgpu::Texture,
+    /// A default view of the whole texture.
+    pub view: wgpu::TextureView,
+}
+
+impl GpuDepthMap {
+    /// Allocates an uninitialised map of side `size`, labelled `label`. Fails with
+    /// [`Error::Limit`] when `size` is 0 or beyond the device's `max_texture_dimension_2d`.
+    pub fn new(ctx: &GpuContext, size: u32, label: &str) -> Result<Self> {
+        check_size(ctx, size)?;
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: extent(size),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_MAP_FORMAT,
+            usage: DEPTH_MAP_USAGE,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some(label),
+            ..Default::default()
+        });
+        Ok(GpuDepthMap {
+            size,
+            texture,
+            view,
+        })
+    }
+
+    /// Bytes of texture storage (`size^2 * 4`), as [`DepthMap::bytes`] counts them.
+    pub fn bytes(&self) -> usize {
+        self.size as usize * self.size as usize * 4
+    }
+}
+
+/// The texture size of a square map.
+pub(crate) fn extent(size: u32) -> wgpu::Extent3d {
+    wgpu::Extent3d {
+        width: size,
+        height: size,
+        depth_or_array_layers: 1,
+    }
+}
+
+/// Fails with [`Error::Limit`] when a square texture of side `size` cannot be created.
+pub(crate) fn check_size(ctx: &GpuContext, size: u32) -> Result<()> {
+    let max = ctx.limits().max_texture_dimension_2d;
+    if size == 0 || size > max {
+        return Err(Error::Limit {
+            what: "shadow-map resolution (GPU max_texture_dimension_2d)",
+            requested: size as u64,
+            max: max as u64,
+        });
+    }
+    Ok(())
+}
+
+/// Uploads a CPU depth map (bit for bit). Fails with [`Error::Limit`] when its side is 0 or
+/// beyond `max_texture_dimension_2d`, and with [`Error::Gpu`] when `depth.len() != size^2`.
+pub fn upload_depth_map(ctx: &GpuContext, map: &DepthMap) -> Result<GpuDepthMap> {
+    let n = map.size as usize * map.size as usize;
+    if map.depth.len() != n {
+        return Err(Error::Gpu {
+            stage: "depth-map upload".into(),
+            reason: format!(
+                "{} depths for a {}x{} map",
+                map.depth.len(),
+                map.size,
+                map.size
+            ),
+        });
+    }
+    ctx.scoped("depth-map upload", || -> Result<GpuDepthMap> {
+        let gpu = GpuDepthMap::new(ctx, map.size, "depth-map upload")?;
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &gpu.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&map.depth),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(map.size * 4),
+                rows_per_image: Some(map.size),
+            },
+            extent(map.size),
+        );
+        Ok(gpu)
+    })?
+}
+
+/// Largest staging buffer one readback chunk uses (bytes).
+const READBACK_CHUNK_BYTES: u64 = 64 << 20;
+
+/// Reads a depth map back (bit for bit). The texture is copied to a staging buffer whose rows
+/// are padded to `COPY_BYTES_PER_ROW_ALIGNMENT` (256 bytes), in chunks of rows so no staging
+/// buffer exceeds 64 MiB or `max_buffer_size`, and the padding is dropped.
+pub fn read_depth_map(ctx: &GpuContext, map: &GpuDepthMap) -> Result<DepthMap> {
+    let size = map.size;
+    let row_bytes = size as u64 * 4;
+    let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64;
+    let padded = row_bytes.div_ceil(align) * align;
+    let cap = READBACK_CHUNK_BYTES.min(ctx.limits().max_buffer_size);
+    let rows_per_chunk = (cap / padded).clamp(1, size.max(1) as u64) as u32;
+    let mut depth = Vec::with_capacity(size as usize * size as usize);
+    let mut row0 = 0u32;
+    while row0 < size {
+        let rows = rows_per_chunk.min(size - row0);
+        let bytes = padded * rows as u64;
+        let staging = ctx.scoped("depth-map readback", || {
+            let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("depth-map readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("depth-map readback"),
+                });
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &map.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: 0,
+                        y: row0,
+                        z: 0,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &staging,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded as u32),
+                        rows_per_image: Some(rows),
+                    },
+                },
+                wgpu::Extent3d {
+                    width: size,
+                    height: rows,
+                    depth_or_array_layers: 1,
+                },
+            );
+            ctx.queue.submit([enc.finish()]);
+            staging
+        })?;
+        let data: Vec<f32> = ctx.read_buffer(&staging, bytes)?;
+        let stride = (padded / 4) as usize;
+        for r in 0..rows as usize {
+            depth.extend_from_slice(&data[r * stride..r * stride + size as usize]);
+        }
+        row0 += rows;
+    }
+    Ok(DepthMap { size, depth })
+}

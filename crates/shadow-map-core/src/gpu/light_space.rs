@@ -1,0 +1,92 @@
+//! Light-space data on the GPU, the twin of [`LightSpace`]: the view, peeled layers, midpoint
+//! layers and the MSSM family of layer 0, as rendered by
+//! [`GpuShadowMapper::render_layers`](super::GpuShadowMapper::render_layers).
+use super::{
+    depth_map::{read_depth_map, GpuDepthMap},
+    mssm::{GpuDualMssm, GpuMinMaxPyramid, GpuMssm},
+    GpuContext,
+};
+use crate::{
+    light_view::{FitReport, LightView},
+    mssm::{DualMssm, MinMaxPyramid, Mssm},
+    LightSpace, Result,
+};
+
+/// Light-space data for one view, on the GPU.
+#[derive(Debug, Clone)]
+pub struct GpuLightSpace {
+    /// The view the maps were rendered with.
+    pub view: LightView,
+    /// Fit statistics (default unless the view was fitted by
+    /// [`GpuShadowMapper::render`](super::GpuShadowMapper::render)).
+    pub fit: FitReport,
+    /// The view as a uniform buffer of [`super::shared::LightViewUniform`] (label `raster.view`,
+    /// usages `UNIFORM | COPY_DST | COPY_SRC`), ready to bind in later stages.
+    pub view_uniform: wgpu::Buffer,
+    /// Peeled layers, nearest first (`layers[0]` is the ordinary shadow map).
+    pub layers: Vec<GpuDepthMap>,
+    /// Midpoint layers, when requested.
+    pub midpoints: Vec<GpuDepthMap>,
+    /// Anchored MSSM of layer 0, when requested.
+    pub mssm: Option<GpuMssm>,
+    /// Dual-grid MSSM of layer 0, when requested.
+    pub dual_mssm: Option<GpuDualMssm>,
+    /// Min/max pyramid of layer 0, when requested.
+    pub pyramid: Option<GpuMinMaxPyramid>,
+}
+
+impl GpuLightSpace {
+    /// Bytes held by the maps, counted as [`LightSpace::bytes`] counts them (each structure's
+    /// depth-map level counted in it, although on the GPU the MSSM and the pyramid share one
+    /// buffer for it).
+    pub fn bytes(&self) -> usize {
+        self.layers
+            .iter()
+            .chain(&self.midpoints)
+            .map(GpuDepthMap::bytes)
+            .sum::<usize>()
+            + self.mssm.as_ref().map_or(0, GpuMssm::bytes)
+            + self.dual_mssm.as_ref().map_or(0, GpuDualMssm::bytes)
+            + self.pyramid.as_ref().map_or(0, GpuMinMaxPyramid::bytes)
+    }
+
+    /// Reads everything back into a [`LightSpace`]: layers and midpoints bit for bit. The MSSM
+    /// family is rebuilt on the CPU from the read-back layer 0 with the same number of levels,
+    /// because [`crate::mssm`] has no constructor from planes; the GPU planes are bit-identical
+    /// to that rebuild (`tests/gpu_maps.rs` checks it with `read_levels`).
+    pub fn to_cpu(&self, ctx: &GpuContext) -> Result<LightSpace> {
+        let layers = self
+            .layers
+            .iter()
+            .map(|l| read_depth_map(ctx, l))
+            .collect::<Result<Vec<_>>>()?;
+        let midpoints = self
+            .midpoints
+            .iter()
+            .map(|l| read_depth_map(ctx, l))
+            .collect::<Result<Vec<_>>>()?;
+        let (mssm, dual_mssm, pyramid) = match layers.first() {
+            Some(l0) => (
+                self.mssm
+                    .as_ref()
+                    .map(|m| Mssm::build(&l0.depth, l0.size, m.levels().saturating_sub(1))),
+                self.dual_mssm
+                    .as_ref()
+                    .map(|m| DualMssm::build(&l0.depth, l0.size, m.levels().saturating_sub(1))),
+                self.pyramid
+                    .as_ref()
+                    .map(|_| MinMaxPyramid::build(&l0.depth, l0.size)),
+            ),
+            None => (None, None, None),
+        };
+        Ok(LightSpace {
+            view: self.view,
+            fit: self.fit,
+            layers,
+            midpoints,
+            mssm,
+            dual_mssm,
+            pyramid,
+        })
+    }
+}

@@ -1,0 +1,170 @@
+//! Midpoint layers on the GPU (`midpoint.wgsl`), the twin of [`crate::peeling::midpoints`]:
+//! `M_m = min((L_m + L_{m+1}) / 2, L_m + max_bias)` per texel, one compute dispatch per layer,
+//! each reading two peeled layers and writing a storage texture. The arithmetic is the CPU's, in
+//! the same f32 order, so results are bit-identical for identical layers.
+use super::{
+    depth_map::{GpuDepthMap, DEPTH_MAP_FORMAT},
+    GpuContext,
+};
+use crate::Result;
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+/// WGSL source of the midpoint stage (it uses no shared struct, so nothing is prepended).
+pub const MIDPOINT_WGSL: &str = include_str!("midpoint.wgsl");
+
+/// Workgroup size (x and y) of the midpoint dispatch, passed as WGSL overrides `WG_X`, `WG_Y`.
+pub const MIDPOINT_WORKGROUP: u32 = 8;
+
+/// Uniform of one midpoint dispatch; mirrors `MidpointParams` in `midpoint.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct MidpointParams {
+    /// Map side.
+    pub size: u32,
+    /// Maximum bias (world units), the clamp of [`crate::peeling::midpoint`].
+    pub max_bias: f32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+}
+
+/// The midpoint compute pipeline, created once per context.
+#[derive(Debug, Clone)]
+pub struct GpuMidpoints {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl GpuMidpoints {
+    /// Compiles the pipeline (label `midpoint`).
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        ctx.scoped("midpoint", || {
+            let device = &ctx.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("midpoint"),
+                source: wgpu::ShaderSource::Wgsl(MIDPOINT_WGSL.into()),
+            });
+            let texture = |binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("midpoint"),
+                entries: &[
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Uniform,
+                            has_dynamic_offset: false,
+                            min_binding_size: None,
+                        },
+                        count: None,
+                    },
+                    texture(1),
+                    texture(2),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 3,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::StorageTexture {
+                            access: wgpu::StorageTextureAccess::WriteOnly,
+                            format: DEPTH_MAP_FORMAT,
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                        },
+                        count: None,
+                    },
+                ],
+            });
+            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("midpoint"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let wg = MIDPOINT_WORKGROUP as f64;
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("midpoint"),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some("midpoint_layer"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("WG_X", wg), ("WG_Y", wg)],
+                    ..Default::default()
+                },
+                cache: None,
+            });
+            GpuMidpoints { layout, pipeline }
+        })
+    }
+
+    /// Records one dispatch per midpoint layer: `out[m]` from `layers[m]` and `layers[m + 1]`
+    /// (`out.len() + 1 <= layers.len()`; all maps of one size).
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        layers: &[GpuDepthMap],
+        out: &[GpuDepthMap],
+        max_bias: f32,
+    ) {
+        let Some(first) = layers.first() else { return };
+        let size = first.size;
+        let params = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("midpoint"),
+                contents: bytemuck::bytes_of(&MidpointParams {
+                    size,
+                    max_bias,
+                    _pad0: 0,
+                    _pad1: 0,
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let groups: Vec<wgpu::BindGroup> = out
+            .iter()
+            .zip(layers.windows(2))
+            .map(|(o, pair)| {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("midpoint"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: wgpu::BindingResource::TextureView(&pair[0].view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(&pair[1].view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: wgpu::BindingResource::TextureView(&o.view),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("midpoint"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        let n = size.div_ceil(MIDPOINT_WORKGROUP);
+        for g in &groups {
+            pass.set_bind_group(0, g, &[]);
+            pass.dispatch_workgroups(n, n, 1);
+        }
+    }
+}

@@ -1,0 +1,134 @@
+// GPU twin of crates/shadow-map-core/src/mssm.rs: the anchored MSSM (Schwarz & Stamminger 2007),
+// the dual-grid MSSM (Yang et al. 2009, §4.2) and the min/max pyramid (Dmitriev & Uralsky 2007).
+// Loaded by gpu/mssm.rs. Every level is a pair of f32 storage buffers (min plane, max plane),
+// row-major. A dispatch handles a chunk of output rows [row0, row0 + rows); each buffer is bound
+// as a range starting at an aligned offset, and *_base is the element index of the chunk's first
+// row inside its range, so levels larger than a storage binding are built chunk by chunk.
+// min and max are exact, so results are bit-identical to the CPU.
+
+override WG_X: u32;
+override WG_Y: u32;
+
+// Mirrors gpu::mssm::MinMaxParams (checked by tests/layouts.rs).
+struct MinMaxParams {
+    // Side of the source level.
+    size: u32,
+    // Side of the output level (size, or ceil(size / 2) for a pyramid reduction).
+    out_size: u32,
+    // Window offset h = 2^l of an anchored step.
+    h: u32,
+    // First output row of the chunk, and the number of rows.
+    row0: u32,
+    rows: u32,
+    // Element index, in its bound range, of the chunk's first source row (row0, or 2 row0 for a
+    // reduction), of the first "bottom" row (row0 + h), and of the first output row.
+    top_base: u32,
+    bot_base: u32,
+    out_base: u32,
+    // The depth of an empty texel, +inf (WGSL has no infinity literal).
+    empty_depth: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: MinMaxParams;
+// load_depth: the depth map.
+@group(0) @binding(1) var depth_map: texture_2d<f32>;
+// anchored_step: rows [row0, row0 + rows) and [row0 + h, ...) of the source level;
+// reduce: rows [2 row0, 2 (row0 + rows)) of the source level (top_* only).
+@group(0) @binding(3) var<storage, read> top_min: array<f32>;
+@group(0) @binding(4) var<storage, read> top_max: array<f32>;
+@group(0) @binding(5) var<storage, read> bot_min: array<f32>;
+@group(0) @binding(6) var<storage, read> bot_max: array<f32>;
+// Output rows (load_depth writes out_min only).
+@group(0) @binding(7) var<storage, read_write> out_min: array<f32>;
+@group(0) @binding(8) var<storage, read_write> out_max: array<f32>;
+
+// mssm::sanitize: NaN is an empty texel. Tested on the bits, so no fast-math assumption can drop it.
+fn is_nan(d: f32) -> bool {
+    return (bitcast<u32>(d) & 0x7fffffffu) > 0x7f800000u;
+}
+
+// mssm::sanitized_level0: the depth map as a buffer, NaN -> +inf.
+@compute @workgroup_size(WG_X, WG_Y)
+fn load_depth(@builtin(global_invocation_id) id: vec3<u32>) {
+    let x = id.x;
+    let r = id.y;
+    if x >= params.size || r >= params.rows {
+        return;
+    }
+    var d = textureLoad(depth_map, vec2<u32>(x, params.row0 + r), 0).x;
+    if is_nan(d) {
+        d = params.empty_depth;
+    }
+    out_min[params.out_base + r * params.size + x] = d;
+}
+
+// mssm::anchored_step:
+//   out(x, y) = src(x, y) ∪ src(x+h, y) ∪ src(x, y+h) ∪ src(x+h, y+h), fetches outside the map skipped.
+@compute @workgroup_size(WG_X, WG_Y)
+fn anchored_step(@builtin(global_invocation_id) id: vec3<u32>) {
+    let s = params.size;
+    let h = params.h;
+    let x = id.x;
+    let r = id.y;
+    if x >= s || r >= params.rows {
+        return;
+    }
+    let y = params.row0 + r;
+    let right = x + h < s;
+    let t = params.top_base + r * s + x;
+    var mn = top_min[t];
+    var mx = top_max[t];
+    if right {
+        mn = min(mn, top_min[t + h]);
+        mx = max(mx, top_max[t + h]);
+    }
+    if y + h < s {
+        let b = params.bot_base + r * s + x;
+        var bmn = bot_min[b];
+        var bmx = bot_max[b];
+        if right {
+            bmn = min(bmn, bot_min[b + h]);
+            bmx = max(bmx, bot_max[b + h]);
+        }
+        mn = min(mn, bmn);
+        mx = max(mx, bmx);
+    }
+    let o = params.out_base + r * s + x;
+    out_min[o] = mn;
+    out_max[o] = mx;
+}
+
+// MinMaxPyramid::reduce: out(x, y) = ∪ of the 2x2 children (2x..2x+1, 2y..2y+1) inside the source.
+@compute @workgroup_size(WG_X, WG_Y)
+fn reduce(@builtin(global_invocation_id) id: vec3<u32>) {
+    let sp = params.size;
+    let x = id.x;
+    let r = id.y;
+    if x >= params.out_size || r >= params.rows {
+        return;
+    }
+    let y = params.row0 + r;
+    let c0 = 2u * x;
+    let has_right = c0 + 1u < sp;
+    var mn = top_min[params.top_base + 2u * r * sp + c0];
+    var mx = top_max[params.top_base + 2u * r * sp + c0];
+    if has_right {
+        mn = min(mn, top_min[params.top_base + 2u * r * sp + c0 + 1u]);
+        mx = max(mx, top_max[params.top_base + 2u * r * sp + c0 + 1u]);
+    }
+    if 2u * y + 1u < sp {
+        let b = params.top_base + (2u * r + 1u) * sp + c0;
+        mn = min(mn, top_min[b]);
+        mx = max(mx, top_max[b]);
+        if has_right {
+            mn = min(mn, top_min[b + 1u]);
+            mx = max(mx, top_max[b + 1u]);
+        }
+    }
+    let o = params.out_base + r * params.out_size + x;
+    out_min[o] = mn;
+    out_max[o] = mx;
+}

@@ -1,0 +1,514 @@
+//! The GPU shadow-map rasteriser and depth peeling (`raster.wgsl`), the twin of
+//! [`crate::raster`] and [`crate::peeling`].
+//!
+//! **Storage.** Layers are `R32Float` textures ([`GpuDepthMap`]) of linear light-space z, +inf
+//! where empty (the colour target is cleared to `f64::INFINITY`). Textures rather than buffers
+//! because they are render targets; later stages read them with `textureLoad`.
+//!
+//! **Fill rule.** The GPU's: a texel is covered when its centre is inside the projected
+//! triangle, with the rasteriser's tie rule (top-left on Vulkan), after snapping vertices to its
+//! sub-pixel grid (8 bits on lavapipe and NVIDIA). The CPU works in f64 without snapping, so
+//! texels whose centre lies within about 1/256 texel of an edge may differ (`tests/gpu_maps.rs`
+//! measures and bounds that fraction).
+//!
+//! **Projection.** `clip = (2 u z / r - z, z - 2 v z / r, n, z)` with `u z = (n x - x0 z) / delta`,
+//! `v z = (n y - y0 z) / delta` (the CPU's `u = (n x / z - x0) / delta`, times z). wgpu's
+//! framebuffer row 0 is NDC y = +1, so row j is texel row j (v). Depth is `n / z`: reversed with an
+//! infinite far plane (compare `Greater`, clear 0), and the clip volume `0 <= clip.z <= clip.w` is
+//! exactly the CPU's near-plane clip `z >= n`, with no far clip.
+//!
+//! **Depth.** The fragment writes the perspective-correct interpolated z plus the slope-scaled
+//! bias `constant + slope * max(|dz/du|, |dz/dv|)`, with `dz/du = -z^2 d(1/z)/du` and `d(1/z)/du`
+//! from `dpdx` of the fragment depth `n / z`, which is affine in screen space: the 2x2-quad
+//! difference equals the CPU's analytic plane gradient up to f32 rounding. With a bias, the
+//! fragment also writes `frag_depth = n / z_biased`, so the depth test keeps the smallest stored
+//! value, as the CPU's `min` does.
+//!
+//! **Culling.** The pipeline's cull mode, front face counter-clockwise in NDC. A triangle whose
+//! winding normal faces the light centre (the CPU's `facing_light`) is counter-clockwise on the
+//! plane z = n seen from the light with +x right and +y up; the framebuffer flip (row j = +v)
+//! flips it on screen but NDC keeps y up, so such a triangle is counter-clockwise in NDC: a
+//! front face. [`Cull::Back`] culls `Face::Back`, [`Cull::Front`] culls `Face::Front`.
+//!
+//! **Peeling.** Pass m binds layer m - 1 and discards fragments with
+//! `!(z > prev * (1 + PEEL_EPS_REL))`, `PEEL_EPS_REL` passed as a WGSL override constant from
+//! [`crate::raster::PEEL_EPS_REL`].
+use super::{
+    depth_map::{check_size, extent, GpuDepthMap, DEPTH_MAP_FORMAT},
+    light_space::GpuLightSpace,
+    midpoint::GpuMidpoints,
+    mssm::{GpuMssmBuilder, MinMaxRequest},
+    shared::LightViewUniform,
+    GpuContext,
+};
+use crate::{
+    light_view::{FitReport, LightView},
+    raster::{Cull, DepthBias, PEEL_EPS_REL},
+    receivers::Receivers,
+    scene::Scene,
+    Error, LightSpaceRequest, Result,
+};
+use bytemuck::{Pod, Zeroable};
+use std::collections::HashMap;
+use std::sync::Mutex;
+use wgpu::util::DeviceExt;
+
+/// WGSL source of the rasteriser: `shared.wgsl` followed by `raster.wgsl`.
+pub const RASTER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("raster.wgsl"));
+
+/// Format of the depth attachment used for the nearest-surface test.
+pub const DEPTH_TEST_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Uniform of the raster passes; mirrors `RasterParams` in `raster.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct RasterParams {
+    /// [`DepthBias::constant`].
+    pub bias_constant: f32,
+    /// [`DepthBias::slope`].
+    pub bias_slope: f32,
+    /// Padding.
+    pub _pad0: f32,
+    /// Padding.
+    pub _pad1: f32,
+}
+
+impl From<DepthBias> for RasterParams {
+    fn from(b: DepthBias) -> Self {
+        RasterParams {
+            bias_constant: b.constant,
+            bias_slope: b.slope,
+            _pad0: 0.0,
+            _pad1: 0.0,
+        }
+    }
+}
+
+/// A scene's world-space triangles on the GPU, uploaded once and rendered in any light view: a
+/// vertex buffer of `vec4<f32>` positions (w = 1), three per triangle, non-indexed.
+#[derive(Debug, Clone)]
+pub struct GpuScene {
+    /// The vertex buffer (label `raster.scene`, usages `VERTEX | STORAGE | COPY_DST`).
+    pub vertices: wgpu::Buffer,
+    /// Number of triangles.
+    pub triangles: u32,
+}
+
+impl GpuScene {
+    /// Uploads `scene.triangles`. Fails with [`Error::Limit`] when the buffer would exceed the
+    /// device's `max_buffer_size` or the vertex count `u32`.
+    pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<Self> {
+        let n = scene.triangles.len() as u64;
+        let max_tris = (ctx.limits().max_buffer_size / 48).min(u32::MAX as u64 / 3);
+        if n > max_tris {
+            return Err(Error::Limit {
+                what: "scene triangles on the GPU (max_buffer_size / 48 bytes)",
+                requested: n,
+                max: max_tris,
+            });
+        }
+        let mut verts: Vec<[f32; 4]> = Vec::with_capacity(3 * n as usize);
+        for t in &scene.triangles {
+            for v in t {
+                verts.push([v.x, v.y, v.z, 1.0]);
+            }
+        }
+        if verts.is_empty() {
+            verts.push([0.0; 4]);
+        }
+        ctx.scoped("raster.scene", || GpuScene {
+            vertices: ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("raster.scene"),
+                    contents: bytemuck::cast_slice(&verts),
+                    usage: wgpu::BufferUsages::VERTEX
+                        | wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST,
+                }),
+            triangles: n as u32,
+        })
+    }
+
+    /// Bytes of the vertex buffer.
+    pub fn bytes(&self) -> u64 {
+        self.vertices.size()
+    }
+}
+
+/// Pipeline variant: culling, peeling pass (m >= 1), bias.
+type PipelineKey = (u8, bool, bool);
+
+/// The GPU shadow-map core of one context: raster pipelines (created on first use per variant
+/// and cached), the midpoint pipeline and the MSSM builder.
+#[derive(Debug)]
+pub struct GpuShadowMapper {
+    module: wgpu::ShaderModule,
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    pipelines: Mutex<HashMap<PipelineKey, wgpu::RenderPipeline>>,
+    /// Bound as "layer m - 1" in pass 0, where the shader never reads it.
+    no_prev: wgpu::TextureView,
+    midpoints: GpuMidpoints,
+    mssm: GpuMssmBuilder,
+}
+
+fn cull_key(c: Cull) -> u8 {
+    match c {
+        Cull::None => 0,
+        Cull::Back => 1,
+        Cull::Front => 2,
+    }
+}
+
+fn lock_error<T>(_: T) -> Error {
+    Error::Gpu {
+        stage: "raster".into(),
+        reason: "pipeline cache lock poisoned".into(),
+    }
+}
+
+impl GpuShadowMapper {
+    /// Compiles the shaders and creates the layouts (label `raster`), the midpoint pipeline and
+    /// the MSSM pipelines.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let (module, layout, pipeline_layout, no_prev) = ctx.scoped("raster", || {
+            let device = &ctx.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("raster"),
+                source: wgpu::ShaderSource::Wgsl(RASTER_WGSL.into()),
+            });
+            let uniform = |binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("raster"),
+                entries: &[
+                    uniform(0),
+                    uniform(1),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 2,
+                        visibility: wgpu::ShaderStages::FRAGMENT,
+                        ty: wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                            multisampled: false,
+                        },
+                        count: None,
+                    },
+                ],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("raster"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let no_prev = device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("raster.no_prev"),
+                    size: extent(1),
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: DEPTH_MAP_FORMAT,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default());
+            (module, layout, pipeline_layout, no_prev)
+        })?;
+        Ok(GpuShadowMapper {
+            module,
+            layout,
+            pipeline_layout,
+            pipelines: Mutex::new(HashMap::new()),
+            no_prev,
+            midpoints: GpuMidpoints::new(ctx)?,
+            mssm: GpuMssmBuilder::new(ctx)?,
+        })
+    }
+
+    /// The MSSM builder (to build over depth maps that were not rendered here).
+    pub fn mssm_builder(&self) -> &GpuMssmBuilder {
+        &self.mssm
+    }
+
+    /// Caps the storage-binding size the MSSM builds plan chunks against (see
+    /// [`GpuMssmBuilder::with_max_binding_bytes`]); `None` restores the device limit.
+    pub fn set_max_binding_bytes(&mut self, bytes: Option<u64>) {
+        self.mssm.set_max_binding_bytes(bytes);
+    }
+
+    fn pipeline(&self, ctx: &GpuContext, key: PipelineKey) -> Result<wgpu::RenderPipeline> {
+        let mut cache = self.pipelines.lock().map_err(lock_error)?;
+        if let Some(p) = cache.get(&key) {
+            return Ok(p.clone());
+        }
+        let (cull, peel, biased) = key;
+        let label = format!(
+            "raster.{}{}{}",
+            ["cull_none", "cull_back", "cull_front"][cull as usize % 3],
+            if peel { ".peel" } else { ".first" },
+            if biased { ".biased" } else { "" }
+        );
+        let constants = [
+            ("PEEL_EPS_REL", PEEL_EPS_REL as f64),
+            ("PEEL", if peel { 1.0 } else { 0.0 }),
+        ];
+        let p = ctx.scoped("raster", || {
+            ctx.device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(&label),
+                    layout: Some(&self.pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &self.module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &constants,
+                            ..Default::default()
+                        },
+                        buffers: &[Some(wgpu::VertexBufferLayout {
+                            array_stride: 16,
+                            step_mode: wgpu::VertexStepMode::Vertex,
+                            attributes: &[wgpu::VertexAttribute {
+                                format: wgpu::VertexFormat::Float32x4,
+                                offset: 0,
+                                shader_location: 0,
+                            }],
+                        })],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology: wgpu::PrimitiveTopology::TriangleList,
+                        front_face: wgpu::FrontFace::Ccw,
+                        cull_mode: match cull {
+                            1 => Some(wgpu::Face::Back),
+                            2 => Some(wgpu::Face::Front),
+                            _ => None,
+                        },
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH_TEST_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Greater),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &self.module,
+                        entry_point: Some(if biased {
+                            "fs_layer_biased"
+                        } else {
+                            "fs_layer"
+                        }),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &constants,
+                            ..Default::default()
+                        },
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: DEPTH_MAP_FORMAT,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+        })?;
+        cache.insert(key, p.clone());
+        Ok(p)
+    }
+
+    /// Fits a view at the light centre to `receivers` (as [`crate::LightSpace::build`] does) and
+    /// renders what `req` asks for (see [`GpuShadowMapper::render_layers`]).
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        scene: &Scene,
+        gpu_scene: &GpuScene,
+        receivers: &Receivers,
+        req: &LightSpaceRequest,
+    ) -> Result<GpuLightSpace> {
+        let light = &scene.light;
+        let (view, fit) = LightView::fit(
+            scene,
+            receivers,
+            light.frame(),
+            light.half_extent(),
+            req.resolution,
+        )?;
+        let mut ls = self.render_layers(ctx, gpu_scene, &view, req)?;
+        ls.fit = fit;
+        Ok(ls)
+    }
+
+    /// Renders in `view` (its resolution `view.r`, as [`crate::LightSpace::build_in_view`] uses):
+    /// `req.layers` peeled layers (at least 1), plus one more when midpoints are requested, the
+    /// midpoint layers (compute pass), and the MSSM family over layer 0 as requested. All work is
+    /// recorded in one command encoder and submitted; nothing waits. The result's `fit` is
+    /// [`FitReport::default`].
+    ///
+    /// Errors: [`Error::Limit`] when `view.r` is 0 or beyond the device's
+    /// `max_texture_dimension_2d` (or an MSSM plane is beyond `max_buffer_size`); GPU validation
+    /// and out-of-memory errors as [`Error::Gpu`] / [`Error::OutOfMemory`] (stage `raster`).
+    pub fn render_layers(
+        &self,
+        ctx: &GpuContext,
+        scene: &GpuScene,
+        view: &LightView,
+        req: &LightSpaceRequest,
+    ) -> Result<GpuLightSpace> {
+        let r = view.r;
+        check_size(ctx, r)?;
+        let layers_out = req.layers.max(1);
+        let k = layers_out + u32::from(req.midpoints.is_some());
+        let cull = cull_key(req.raster.cull);
+        let bias = req.raster.bias;
+        let biased = bias.constant != 0.0 || bias.slope != 0.0;
+        let first = self.pipeline(ctx, (cull, false, biased))?;
+        let peel = if k > 1 {
+            Some(self.pipeline(ctx, (cull, true, biased))?)
+        } else {
+            None
+        };
+        ctx.scoped("raster", || -> Result<GpuLightSpace> {
+            let device = &ctx.device;
+            let view_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("raster.view"),
+                contents: bytemuck::bytes_of(&LightViewUniform::from(view)),
+                usage: wgpu::BufferUsages::UNIFORM
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+            });
+            let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("raster.params"),
+                contents: bytemuck::bytes_of(&RasterParams::from(bias)),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let depth_test = device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("raster.depth_test"),
+                    size: extent(r),
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: DEPTH_TEST_FORMAT,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default());
+            let mut layers = Vec::with_capacity(k as usize);
+            for m in 0..k {
+                layers.push(GpuDepthMap::new(ctx, r, &format!("raster.layer{m}"))?);
+            }
+            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("raster"),
+            });
+            for m in 0..k as usize {
+                let prev = if m == 0 {
+                    &self.no_prev
+                } else {
+                    &layers[m - 1].view
+                };
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("raster"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: view_uniform.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(prev),
+                        },
+                    ],
+                });
+                let label = format!("raster.layer{m}");
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some(&label),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &layers[m].view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: f64::INFINITY,
+                                g: 0.0,
+                                b: 0.0,
+                                a: 0.0,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &depth_test,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(0.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                if scene.triangles > 0 {
+                    let pipeline = match (&peel, m) {
+                        (Some(p), 1..) => p,
+                        _ => &first,
+                    };
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.set_vertex_buffer(0, scene.vertices.slice(..));
+                    pass.draw(0..3 * scene.triangles, 0..1);
+                }
+            }
+            let mut midpoints = Vec::new();
+            if let Some(max_bias) = req.midpoints {
+                for m in 0..k - 1 {
+                    midpoints.push(GpuDepthMap::new(ctx, r, &format!("midpoint.layer{m}"))?);
+                }
+                self.midpoints
+                    .encode(ctx, &mut enc, &layers, &midpoints, max_bias);
+            }
+            layers.truncate(layers_out as usize);
+            let set = match layers.first() {
+                Some(l0) => self.mssm.encode(
+                    ctx,
+                    &mut enc,
+                    l0,
+                    MinMaxRequest {
+                        mssm_levels: req.mssm_levels,
+                        dual_mssm_levels: req.dual_mssm_levels,
+                        pyramid: req.pyramid,
+                    },
+                )?,
+                None => Default::default(),
+            };
+            ctx.queue.submit([enc.finish()]);
+            Ok(GpuLightSpace {
+                view: *view,
+                fit: FitReport::default(),
+                view_uniform,
+                layers,
+                midpoints,
+                mssm: set.mssm,
+                dual_mssm: set.dual_mssm,
+                pyramid: set.pyramid,
+            })
+        })?
+    }
+}
