@@ -14,11 +14,13 @@
 //! | [`depth_map`] | [`GpuDepthMap`], upload / readback | [`crate::DepthMap`] |
 //! | [`light_space`] | [`GpuLightSpace`] | [`crate::LightSpace`] |
 //! | [`receivers`] | [`GpuReceivers`] | [`crate::Receivers`] |
+//! | [`gbuffer`] (`gbuffer.wgsl`) | [`GpuGBuffer`]: camera G-buffer | [`crate::Receivers::from_camera`] |
 //! | [`shared`] (`shared.wgsl`) | structs both sides read | |
 use crate::{Error, Result};
 use std::sync::{Arc, Mutex, OnceLock};
 
 pub mod depth_map;
+pub mod gbuffer;
 pub mod light_space;
 pub mod midpoint;
 pub mod mssm;
@@ -27,6 +29,7 @@ pub mod receivers;
 pub mod shared;
 
 pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
+pub use gbuffer::{GpuGBuffer, GpuGBufferImage};
 pub use light_space::GpuLightSpace;
 pub use mssm::{GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder};
 pub use raster::{GpuScene, GpuShadowMapper};
@@ -39,6 +42,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("raster", raster::RASTER_WGSL),
     ("midpoint", midpoint::MIDPOINT_WGSL),
     ("mssm", mssm::MSSM_WGSL),
+    ("gbuffer", gbuffer::GBUFFER_WGSL),
 ];
 
 /// A device and queue, owned or borrowed, with what the backend needs to know about them.

@@ -1,0 +1,479 @@
+//! The GPU camera G-buffer (`gpu::gbuffer`) against the CPU's [`Receivers::from_camera`] (rays
+//! through the BVH), on every fixture scene at reduced size, plus chunked resolves, limits and
+//! the shared struct layouts.
+//!
+//! Every GPU test takes the shared context from `context_for_tests`: without a Vulkan adapter it
+//! prints `SKIPPED (no Vulkan adapter): <test>` and returns, and under
+//! `SOFTSHADOW_REQUIRE_GPU=1` it fails instead.
+//!
+//! **What may differ.** The rasteriser decides coverage with vertices snapped to 1/256 pixel and
+//! its tie rule, the CPU with an f32 ray-triangle test, so hit/miss and the triangle seen may
+//! differ only at edges: every pixel whose hit status differs, or which hits two different
+//! triangles that are not coplanar, must have an 8-neighbour whose CPU hit status or CPU triangle
+//! differs from its own CPU one ("straddles"). Hit/miss must agree on at least
+//! [`HIT_AGREEMENT_MIN`] of the pixels. Where both hit the same triangle (or two coplanar ones),
+//! both intersect the same ray with the same plane: position within [`POS_TOL_REL`] of the scene
+//! diagonal, Z within [`Z_TOL_REL`] relative and unit normals within [`NORMAL_TOL`]. Measured
+//! fractions and maximum errors are printed.
+#![cfg(feature = "gpu")]
+
+use glam::Vec3;
+use shadow_map_core::{
+    gpu::{
+        context_for_tests,
+        gbuffer::{GBufferCamera, ResolveParams, NO_TRIANGLE},
+        shared::pack_receivers,
+        GpuContext, GpuGBuffer, GpuScene, SHADERS,
+    },
+    Camera, Error, Light, LightShape, Receivers, Scene, SceneBvh,
+};
+use std::mem::{align_of, offset_of, size_of};
+use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
+
+type TestResult = Result<(), Box<dyn std::error::Error>>;
+
+/// Least fraction of pixels whose hit status agrees.
+const HIT_AGREEMENT_MIN: f64 = 0.99;
+/// Position tolerance, relative to the scene diagonal.
+const POS_TOL_REL: f32 = 1e-3;
+/// Relative view-depth tolerance.
+const Z_TOL_REL: f32 = 1e-4;
+/// Tolerance on unit normals (per component).
+const NORMAL_TOL: f32 = 1e-4;
+
+type Gpu = (Arc<GpuContext>, Arc<GpuGBuffer>);
+
+/// The shared context and one G-buffer for the whole binary, or `None` after a loud skip.
+fn gpu(test: &str) -> Result<Option<Gpu>, Error> {
+    static GBUFFER: OnceLock<Result<Arc<GpuGBuffer>, String>> = OnceLock::new();
+    let Some(ctx) = context_for_tests(test)? else {
+        return Ok(None);
+    };
+    let g = GBUFFER
+        .get_or_init(|| {
+            GpuGBuffer::new(&ctx)
+                .map(Arc::new)
+                .map_err(|e| e.to_string())
+        })
+        .clone()
+        .map_err(|reason| Error::Gpu {
+            stage: "test gbuffer".into(),
+            reason,
+        })?;
+    Ok(Some((ctx, g)))
+}
+
+fn fixtures() -> Vec<PathBuf> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
+    let mut out = Vec::new();
+    for dir in std::fs::read_dir(&root).expect("fixtures/ is readable") {
+        let dir = dir.expect("directory entry").path();
+        if !dir.is_dir() {
+            continue;
+        }
+        for f in std::fs::read_dir(&dir).expect("fixture directory is readable") {
+            let f = f.expect("directory entry").path();
+            if f.extension().is_some_and(|e| e == "toml") {
+                out.push(f);
+            }
+        }
+    }
+    out.sort();
+    assert!(out.len() >= 6, "expected the fixture scenes, found {out:?}");
+    out
+}
+
+/// The CPU triangle index per pixel (`None` for background), rays exactly as `from_camera`.
+fn cpu_triangles(scene: &Scene, bvh: &SceneBvh) -> Vec<Option<usize>> {
+    let cam = &scene.camera;
+    let basis = cam.basis();
+    (0..cam.width * cam.height)
+        .map(|k| {
+            let d = cam.ray_dir(&basis, k % cam.width, k / cam.width);
+            bvh.closest_hit(cam.eye, d, 0.0, f32::INFINITY)
+                .map(|h| h.triangle)
+        })
+        .collect()
+}
+
+/// Whether two triangles lie in one plane (parallel normals, each one's corner on the other's
+/// plane, relative to the scene diagonal).
+fn coplanar(scene: &Scene, a: usize, b: usize, diag: f32) -> bool {
+    let (ta, tb) = (&scene.triangles[a], &scene.triangles[b]);
+    let na = (ta[1] - ta[0]).cross(ta[2] - ta[0]).normalize();
+    let nb = (tb[1] - tb[0]).cross(tb[2] - tb[0]).normalize();
+    na.cross(nb).length() < 1e-5 && (tb[0] - ta[0]).dot(na).abs() < 1e-6 * diag
+}
+
+/// Comparison of one GPU G-buffer with the CPU's.
+#[derive(Debug, Default)]
+struct Agreement {
+    pixels: usize,
+    cpu_hits: usize,
+    hit_agree: usize,
+    both_hit: usize,
+    same_triangle: usize,
+    same_plane: usize,
+    /// Mismatches (hit status, or non-coplanar triangles) that straddle an edge.
+    straddling: usize,
+    /// Mismatches that do not straddle (must be 0).
+    not_straddling: Vec<(u32, u32)>,
+    max_pos_err: f32,
+    max_z_rel: f32,
+    max_normal_err: f32,
+}
+
+fn compare(
+    scene: &Scene,
+    cpu: &Receivers,
+    cpu_tri: &[Option<usize>],
+    gpu: &Receivers,
+    gpu_tri: &[u32],
+) -> Agreement {
+    let (w, h) = (scene.camera.width as i64, scene.camera.height as i64);
+    let diag = scene.bounds().diagonal();
+    let mut a = Agreement {
+        pixels: cpu.len(),
+        ..Default::default()
+    };
+    let straddles = |i: i64, j: i64| {
+        let me = cpu_tri[(j * w + i) as usize];
+        (-1..=1).any(|dj| {
+            (-1..=1).any(|di| {
+                let (x, y) = (i + di, j + dj);
+                (0..w).contains(&x) && (0..h).contains(&y) && cpu_tri[(y * w + x) as usize] != me
+            })
+        })
+    };
+    let zc = cpu.view_depth.as_ref().expect("CPU view depth");
+    let zg = gpu.view_depth.as_ref().expect("GPU view depth");
+    for j in 0..h {
+        for i in 0..w {
+            let k = (j * w + i) as usize;
+            assert_eq!(cpu.active[k], cpu_tri[k].is_some());
+            assert_eq!(gpu.active[k], gpu_tri[k] != NO_TRIANGLE, "pixel ({i}, {j})");
+            a.cpu_hits += cpu.active[k] as usize;
+            if !gpu.active[k] {
+                assert_eq!(zg[k], f32::INFINITY, "background Z at ({i}, {j})");
+                assert_eq!(gpu.position[k], Vec3::ZERO);
+                assert_eq!(gpu.normal[k], Vec3::Z);
+            }
+            let mismatch = if cpu.active[k] != gpu.active[k] {
+                true
+            } else if let Some(ct) = cpu_tri[k] {
+                a.hit_agree += 1;
+                a.both_hit += 1;
+                let gt = gpu_tri[k] as usize;
+                let plane = gt == ct || coplanar(scene, ct, gt, diag);
+                a.same_triangle += (gt == ct) as usize;
+                if plane {
+                    a.same_plane += 1;
+                    let pe = (cpu.position[k] - gpu.position[k]).length() / diag;
+                    let ze = (zc[k] - zg[k]).abs() / zc[k];
+                    let ne = (cpu.normal[k] - gpu.normal[k]).abs().max_element();
+                    assert!(
+                        pe <= POS_TOL_REL && ze <= Z_TOL_REL && ne <= NORMAL_TOL,
+                        "{}: pixel ({i}, {j}), triangle {ct}: position {} vs {} ({pe:e} of the \
+                         diagonal), Z {} vs {} ({ze:e}), normal {} vs {}",
+                        scene.path.display(),
+                        cpu.position[k],
+                        gpu.position[k],
+                        zc[k],
+                        zg[k],
+                        cpu.normal[k],
+                        gpu.normal[k]
+                    );
+                    assert!((gpu.normal[k].length() - 1.0).abs() < 1e-5);
+                    a.max_pos_err = a.max_pos_err.max(pe);
+                    a.max_z_rel = a.max_z_rel.max(ze);
+                    a.max_normal_err = a.max_normal_err.max(ne);
+                }
+                !plane
+            } else {
+                a.hit_agree += 1;
+                false
+            };
+            if mismatch {
+                if straddles(i, j) {
+                    a.straddling += 1;
+                } else {
+                    a.not_straddling.push((i as u32, j as u32));
+                }
+            }
+        }
+    }
+    a
+}
+
+#[test]
+fn fixture_gbuffers_match_the_cpu_ray_cast() -> TestResult {
+    let Some((ctx, gb)) = gpu("fixture_gbuffers_match_the_cpu_ray_cast")? else {
+        return Ok(());
+    };
+    // 80x60 (the fixtures' 4:3) for speed, an odd 37x23 to catch off-by-one layouts, and the
+    // fixture's own size (0x0 here).
+    for (w, h) in [(80, 60), (37, 23), (0, 0)] {
+        for path in fixtures() {
+            let mut scene = Scene::load(&path)?;
+            if w > 0 {
+                scene.camera.width = w;
+                scene.camera.height = h;
+            }
+            let (w, h) = (scene.camera.width, scene.camera.height);
+            let bvh = SceneBvh::new(&scene);
+            let cpu = Receivers::from_camera(&scene, &bvh);
+            let cpu_tri = cpu_triangles(&scene, &bvh);
+            let gscene = GpuScene::upload(&ctx, &scene)?;
+            let img = gb.render(&ctx, &gscene, &scene.camera)?;
+            let gpu = img.read_back(&ctx)?;
+            let gpu_tri = img.read_triangles(&ctx)?;
+            assert_eq!(gpu.layout, cpu.layout);
+            assert_eq!(gpu.len(), cpu.len());
+            let a = compare(&scene, &cpu, &cpu_tri, &gpu, &gpu_tri);
+            let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("?");
+            let n = a.pixels as f64;
+            println!(
+                "{name:>16} {w}x{h}: hit/miss agree {:.4} ({} of {} differ, CPU hits {:.3}), \
+                 same triangle {:.4} / same plane {:.4} of both-hit, straddling mismatches {}, \
+                 max |dp|/diag {:.2e}, max dZ/Z {:.2e}, max |dn| {:.2e}",
+                a.hit_agree as f64 / n,
+                a.pixels - a.hit_agree,
+                a.pixels,
+                a.cpu_hits as f64 / n,
+                a.same_triangle as f64 / a.both_hit.max(1) as f64,
+                a.same_plane as f64 / a.both_hit.max(1) as f64,
+                a.straddling,
+                a.max_pos_err,
+                a.max_z_rel,
+                a.max_normal_err,
+            );
+            assert!(
+                a.not_straddling.is_empty(),
+                "{name} {w}x{h}: mismatches away from any edge at {:?}",
+                a.not_straddling
+            );
+            assert!(
+                a.hit_agree as f64 >= HIT_AGREEMENT_MIN * n,
+                "{name} {w}x{h}: hit/miss agree on only {} of {} pixels",
+                a.hit_agree,
+                a.pixels
+            );
+            assert!(a.cpu_hits > 0 && a.same_plane > 0);
+        }
+    }
+    Ok(())
+}
+
+/// A scene with one triangle in the top-left of the image and one in the bottom-right, facing
+/// away from the camera (its normal must be flipped), over nothing: orientation and background.
+#[test]
+fn orientation_background_and_flipped_normals() -> TestResult {
+    let Some((ctx, gb)) = gpu("orientation_background_and_flipped_normals")? else {
+        return Ok(());
+    };
+    let camera = Camera {
+        eye: Vec3::new(0.0, 0.0, 5.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 60.0,
+        width: 40,
+        height: 20,
+    };
+    // Top-left (x < 0, y > 0), wound counter-clockwise seen from the camera (normal +Z).
+    let tl = [
+        Vec3::new(-2.0, 0.5, 0.0),
+        Vec3::new(-1.0, 0.5, 0.0),
+        Vec3::new(-2.0, 1.5, 0.0),
+    ];
+    // Bottom-right, wound clockwise (normal -Z, away from the camera), nearer.
+    let br = [
+        Vec3::new(1.0, -0.5, 1.0),
+        Vec3::new(2.0, -0.5, 1.0),
+        Vec3::new(1.0, -1.5, 1.0),
+    ];
+    let light = Light {
+        shape: LightShape::Rect { size: [1.0, 1.0] },
+        center: Vec3::new(0.0, 5.0, 0.0),
+        normal: Vec3::NEG_Y,
+        tangent: Vec3::X,
+    };
+    let scene = Scene::from_meshes("orientation", camera, light, vec![(vec![tl, br], 1.0)])?;
+    let gscene = GpuScene::upload(&ctx, &scene)?;
+    let img = gb.render(&ctx, &gscene, &scene.camera)?;
+    let g = img.read_back(&ctx)?;
+    let tri = img.read_triangles(&ctx)?;
+    let (w, h) = (40usize, 20usize);
+    let z = g.view_depth.as_ref().expect("view depth");
+    let mut seen = [0usize; 2];
+    for k in 0..w * h {
+        let (i, j) = (k % w, k / w);
+        match tri[k] {
+            0 => {
+                assert!(i < w / 2 && j < h / 2, "triangle 0 at ({i}, {j})");
+                assert!((g.normal[k] - Vec3::Z).length() < 1e-6, "{}", g.normal[k]);
+                assert!((g.position[k].z).abs() < 1e-5 && (z[k] - 5.0).abs() < 1e-5);
+                seen[0] += 1;
+            }
+            1 => {
+                assert!(i >= w / 2 && j >= h / 2, "triangle 1 at ({i}, {j})");
+                // Wound clockwise as seen from the camera: flipped to face it.
+                assert!((g.normal[k] - Vec3::Z).length() < 1e-6, "{}", g.normal[k]);
+                assert!((g.position[k].z - 1.0).abs() < 1e-5 && (z[k] - 4.0).abs() < 1e-5);
+                seen[1] += 1;
+            }
+            NO_TRIANGLE => {
+                assert!(!g.active[k] && z[k] == f32::INFINITY);
+            }
+            other => panic!("unknown triangle {other}"),
+        }
+        assert_eq!(g.active[k], tri[k] != NO_TRIANGLE);
+    }
+    assert!(seen[0] > 4 && seen[1] > 4, "coverage {seen:?}");
+    let bvh = SceneBvh::new(&scene);
+    let cpu = Receivers::from_camera(&scene, &bvh);
+    assert_eq!(cpu.active, g.active);
+    Ok(())
+}
+
+/// A resolve split into many chunks (tiny binding cap) is bit-identical to one chunk.
+#[test]
+fn chunked_resolve_is_identical() -> TestResult {
+    let Some((ctx, _)) = gpu("chunked_resolve_is_identical")? else {
+        return Ok(());
+    };
+    let path = fixtures()
+        .into_iter()
+        .find(|p| p.ends_with("bunny/bunny.toml"))
+        .expect("bunny fixture");
+    let mut scene = Scene::load(&path)?;
+    scene.camera.width = 97;
+    scene.camera.height = 41;
+    let gscene = GpuScene::upload(&ctx, &scene)?;
+    let mut gb = GpuGBuffer::new(&ctx)?;
+    let one = gb.render(&ctx, &gscene, &scene.camera)?;
+    gb.set_max_binding_bytes(Some(4096));
+    let chunks = gb.chunks(&ctx, 97 * 41);
+    assert!(chunks.len() > 4, "{chunks:?}");
+    assert_eq!(chunks.first().map(|c| c.start), Some(0));
+    assert_eq!(chunks.last().map(|c| c.end), Some(97 * 41));
+    let align = ctx.limits().min_storage_buffer_offset_alignment;
+    for c in &chunks {
+        assert_eq!((c.start * 4) % align, 0);
+        assert!((c.end - c.start) as u64 * 32 <= 4096.max(align as u64 * 8));
+    }
+    let many = gb.render(&ctx, &gscene, &scene.camera)?;
+    let (a, b) = (one.read_back(&ctx)?, many.read_back(&ctx)?);
+    assert_eq!(pack_receivers(&a), pack_receivers(&b));
+    assert!(a.active_count() > 0 && a.active_count() < a.len());
+    let (za, zb) = (
+        a.view_depth.unwrap_or_default(),
+        b.view_depth.unwrap_or_default(),
+    );
+    assert_eq!(
+        za.iter().map(|z| z.to_bits()).collect::<Vec<_>>(),
+        zb.iter().map(|z| z.to_bits()).collect::<Vec<_>>()
+    );
+    assert_eq!(one.read_triangles(&ctx)?, many.read_triangles(&ctx)?);
+    Ok(())
+}
+
+#[test]
+fn oversized_images_and_degenerate_cameras_are_refused() -> TestResult {
+    let Some((ctx, gb)) = gpu("oversized_images_and_degenerate_cameras_are_refused")? else {
+        return Ok(());
+    };
+    let path = fixtures()
+        .into_iter()
+        .find(|p| p.ends_with("parallel-squares/parallel-squares.toml"))
+        .expect("parallel-squares fixture");
+    let scene = Scene::load(&path)?;
+    let gscene = GpuScene::upload(&ctx, &scene)?;
+    let side = ctx.limits().max_texture_dimension_2d;
+    let mut cam = scene.camera;
+    cam.width = side + 1;
+    cam.height = 2;
+    match gb.render(&ctx, &gscene, &cam) {
+        Err(Error::Limit { requested, max, .. }) => {
+            assert_eq!((requested, max), (side as u64 + 1, side as u64));
+        }
+        other => panic!("expected Error::Limit, got {other:?}"),
+    }
+    let mut cam = scene.camera;
+    cam.target = cam.eye;
+    assert!(matches!(
+        gb.render(&ctx, &gscene, &cam),
+        Err(Error::Receivers(_))
+    ));
+    let mut cam = scene.camera;
+    cam.height = 0;
+    assert!(matches!(
+        gb.render(&ctx, &gscene, &cam),
+        Err(Error::Receivers(_))
+    ));
+    Ok(())
+}
+
+/// naga's (span, alignment, [(member, offset, size)]) of struct `name` in the `gbuffer` shader.
+fn wgsl_struct(name: &str) -> (u32, u32, Vec<(String, u32, u32)>) {
+    let src = SHADERS
+        .iter()
+        .find(|(n, _)| *n == "gbuffer")
+        .expect("gbuffer is in SHADERS")
+        .1;
+    let module = naga::front::wgsl::parse_str(src)
+        .unwrap_or_else(|e| panic!("gbuffer: {}", e.emit_to_string(src)));
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).expect("layouter");
+    let (handle, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no struct {name}"));
+    let naga::TypeInner::Struct { members, span } = &ty.inner else {
+        panic!("{name} is not a struct");
+    };
+    let members = members
+        .iter()
+        .map(|m| {
+            (
+                m.name.clone().unwrap_or_default(),
+                m.offset,
+                layouter[m.ty].size,
+            )
+        })
+        .collect();
+    (*span, layouter[handle].alignment.round_up(1), members)
+}
+
+macro_rules! check_layout {
+    ($wgsl:literal, $rust:ty, [$($field:ident),* $(,)?]) => {{
+        let (span, align, members) = wgsl_struct($wgsl);
+        assert_eq!(span as usize, size_of::<$rust>(), "{}: span", $wgsl);
+        assert_eq!(align as usize, align_of::<$rust>(), "{}: alignment", $wgsl);
+        let zero: $rust = bytemuck::Zeroable::zeroed();
+        let rust: Vec<(&str, usize, usize)> = vec![
+            $((stringify!($field), offset_of!($rust, $field), std::mem::size_of_val(&zero.$field))),*
+        ];
+        assert_eq!(members.len(), rust.len(), "{}: member count", $wgsl);
+        for ((wname, woff, wsize), (rname, roff, rsize)) in members.iter().zip(&rust) {
+            assert_eq!(wname, rname, "{}: member order", $wgsl);
+            assert_eq!(*woff as usize, *roff, "{}.{}: offset", $wgsl, wname);
+            assert_eq!(*wsize as usize, *rsize, "{}.{}: size", $wgsl, wname);
+        }
+    }};
+}
+
+#[test]
+fn gbuffer_structs_match_wgsl() {
+    check_layout!(
+        "GBufferCamera",
+        GBufferCamera,
+        [eye, t, forward, aspect, right, near, true_up, width, height, _pad0, _pad1, _pad2,]
+    );
+    check_layout!(
+        "ResolveParams",
+        ResolveParams,
+        [width, first, count, background_z]
+    );
+}
