@@ -4,9 +4,7 @@
 //! Ids: `<algo>/cpu/<stage>/<fixture>`; throughput in receivers. Run:
 //! `cargo bench --bench estimate` (set `SOFTSHADOW_BENCH_FIXTURE` to another scene file).
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use shadow_map_core::{
-    LightSpace, LightSpaceRequest, Receivers, Scene, SceneBvh, SoftShadowEstimator,
-};
+use shadow_map_core::{LightSpace, LightSpaceRequest, Receivers, Scene, SceneBvh};
 use softshadow::{estimator, Backend};
 use std::hint::black_box;
 

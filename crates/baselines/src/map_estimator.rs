@@ -145,6 +145,12 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
         }
+        if matches!(light.shape, shadow_map_core::LightShape::Sphere { .. }) {
+            self.report.note(
+                "approximation",
+                "sphere light filtered as the disk perpendicular to the light normal (exact on the light axis)",
+            );
+        }
         Ok(())
     }
     fn report(&self) -> Report {

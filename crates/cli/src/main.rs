@@ -146,8 +146,7 @@ fn render(
     let scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
     stages.push(("load".into(), ms(t)));
     let t = Instant::now();
-    let bvh = SceneBvh::new(&scene);
-    let receivers = Receivers::from_camera(&scene, &bvh);
+    let receivers = camera_receivers(&scene, backend).map_err(|e| e.to_string())?;
     stages.push(("gbuffer".into(), ms(t)));
     let (v, report) =
         shadow_map_core::run(est.as_mut(), &scene, &receivers).map_err(|e| e.to_string())?;
@@ -200,6 +199,21 @@ fn render(
         println!("{line}");
     }
     Ok(())
+}
+
+/// The camera's G-buffer: rasterised on the GPU for `--backend gpu`, ray cast through the BVH
+/// otherwise.
+fn camera_receivers(scene: &Scene, backend: Backend) -> shadow_map_core::Result<Receivers> {
+    #[cfg(feature = "gpu")]
+    if backend == Backend::Gpu {
+        use shadow_map_core::gpu::{raster::GpuScene, GpuContext, GpuGBuffer};
+        let ctx = GpuContext::shared()?;
+        let gpu_scene = GpuScene::upload(&ctx, scene)?;
+        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &gpu_scene, &scene.camera)?;
+        return image.read_back(&ctx);
+    }
+    let _ = backend;
+    Ok(Receivers::from_camera(scene, &SceneBvh::new(scene)))
 }
 
 fn ms(t: Instant) -> f64 {

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The GPU bench (benches/gpu.rs) on a machine without a Rust toolchain, e.g. the H100 reached
+# through the `device` tool. Three steps:
+#
+#   scripts/gpu-bench-h100.sh build    # here: release-build the bench, copy it to .gpu-bench/gpu-bench
+#   scripts/gpu-bench-h100.sh loader   # here, once: download the Vulkan loader .debs into .gl/ (gpu.md)
+#   scripts/gpu-bench-h100.sh run      # there: unpack .gl/, point Vulkan at the NVIDIA ICD, run
+#
+# With the device tool: `run` with carry [".gpu-bench", ".gl"] and the command
+#   bash scripts/gpu-bench-h100.sh run
+# (the script travels with the working tree; .gpu-bench/ and .gl/ are git-ignored, so they must
+# be carried). Results: a markdown table on stdout, JSON in $OUT/gpu-bench.json.
+#
+# `run` defaults (override by setting them): SOFTSHADOW_BENCH_RES=2048,
+# SOFTSHADOW_BENCH_RECEIVERS=1920x1080, SOFTSHADOW_BENCH_FIXTURE=fixtures/bunny/bunny.toml.
+# Any other SOFTSHADOW_BENCH_* variable (benches/README.md) passes through.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+build() {
+  # The bench binary's path comes from cargo's JSON messages (its name carries a hash).
+  local exe
+  exe=$(cargo bench --bench gpu --features gpu --no-run --message-format=json-render-diagnostics |
+    jq -r 'select(.reason == "compiler-artifact" and .target.name == "gpu"
+                  and (.target.kind | index("bench")) and .executable != null) | .executable' |
+    tail -n 1)
+  if [ -z "$exe" ] || [ ! -x "$exe" ]; then
+    echo "gpu-bench-h100.sh: no bench executable in cargo's output" >&2
+    exit 1
+  fi
+  mkdir -p .gpu-bench
+  cp "$exe" .gpu-bench/gpu-bench
+  strip .gpu-bench/gpu-bench 2>/dev/null || true
+  echo "built $exe -> .gpu-bench/gpu-bench ($(du -h .gpu-bench/gpu-bench | cut -f1))"
+}
+
+loader() {
+  # gpu.md, "The NVIDIA H100 reached through the device tool": the loader and GL vendor-neutral
+  # libraries the NVIDIA ICD needs, as amd64 .debs unpacked there at run time.
+  if ls .gl/*.deb >/dev/null 2>&1; then
+    echo ".gl/ already holds $(ls .gl/*.deb | wc -l) packages"
+    return
+  fi
+  mkdir -p .gl /tmp/amd64/partial
+  local o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64)
+  apt-get "${o[@]}" update
+  (cd .gl && apt-get "${o[@]}" download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2)
+  echo "downloaded $(ls .gl/*.deb | wc -l) packages into .gl/"
+}
+
+run() {
+  if [ ! -x .gpu-bench/gpu-bench ]; then
+    echo "gpu-bench-h100.sh: .gpu-bench/gpu-bench is missing (run 'build' here and carry .gpu-bench)" >&2
+    exit 1
+  fi
+  if ls .gl/*.deb >/dev/null 2>&1; then
+    for f in .gl/*.deb; do dpkg -x "$f" /; done
+    ldconfig
+  fi
+  if [ -f /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ]; then
+    export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+  fi
+  export WGPU_BACKEND=vulkan XDG_RUNTIME_DIR=/tmp
+  export SOFTSHADOW_BENCH_RES=${SOFTSHADOW_BENCH_RES:-2048}
+  export SOFTSHADOW_BENCH_RECEIVERS=${SOFTSHADOW_BENCH_RECEIVERS:-1920x1080}
+  export SOFTSHADOW_BENCH_FIXTURE=${SOFTSHADOW_BENCH_FIXTURE:-fixtures/bunny/bunny.toml}
+  nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv 2>/dev/null || true
+  ./.gpu-bench/gpu-bench --bench
+}
+
+case "${1:-build}" in
+  build) build ;;
+  loader) loader ;;
+  run) run ;;
+  *)
+    echo "usage: $0 [build|loader|run]" >&2
+    exit 2
+    ;;
+esac
