@@ -1162,8 +1162,59 @@ fn cpu_stages(env: &StageEnv) -> Vec<Row> {
 /// fixed upper bound, named in the README), so the row reads as a fraction of the tap ceiling.
 /// The CPU twin goes in the same place with `Bound::CpuTaps`.
 fn estimate_stages(env: &StageEnv) -> BenchResult<Vec<Row>> {
-    let _ = (env.receivers, env.scene);
-    Ok(Vec::new())
+    use baselines::{gpu::GpuPcssShadow, PcssShadow};
+    use shadow_map_core::SoftShadowEstimator;
+    let r = env.cfg.res;
+    let name = &env.cfg.name;
+    let n = env.receivers.active_count() as f64;
+    let mut rows = Vec::new();
+    // Identical light-space data for both twins: the CPU map in the bench's view.
+    let ls = LightSpace::build_in_view(
+        env.scene,
+        env.view,
+        Default::default(),
+        &LightSpaceRequest::single(r),
+    );
+    let mut v = vec![0.0f32; env.receivers.len()];
+    let mut gpu = GpuPcssShadow::new(std::sync::Arc::new(env.g.ctx.clone()))?;
+    gpu.set_param("resolution", &r.to_string())?;
+    let mut failed = None;
+    let mut t = time_cpu(2000.0, || {
+        if let Err(e) = gpu.estimate_with(&ls, &env.scene.light, env.receivers, &mut v) {
+            failed = Some(e);
+        }
+    });
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    t.method = Method::WallCalls;
+    t.note = Some("whole estimate call: receiver upload, dispatch and V readback".into());
+    rows.push(Row {
+        id: format!("pcss/gpu/estimate/{r}@{name}"),
+        timing: t,
+        work: n,
+        unit: "receivers",
+        bound: None,
+    });
+    let mut cpu = PcssShadow::new()?;
+    cpu.set_param("resolution", &r.to_string())?;
+    cpu.build(env.scene, env.receivers)?;
+    let t = time_cpu(2000.0, || {
+        if let Err(e) = cpu.estimate(env.scene, env.receivers, &mut v) {
+            failed = Some(e);
+        }
+    });
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    rows.push(Row {
+        id: format!("pcss/cpu/estimate/{r}@{name}"),
+        timing: t,
+        work: n,
+        unit: "receivers",
+        bound: None,
+    });
+    Ok(rows)
 }
 
 // ---------------------------------------------------------------------------------------------

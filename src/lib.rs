@@ -7,7 +7,7 @@
 //! |---|---|
 //! | [`core`] (`shadow-map-core`) | scene model, receivers, light view, rasteriser, peeling, midpoints, MSSM, the [`SoftShadowEstimator`] trait |
 //! | [`reference`] | ray-traced ground truth and closed-form oracles |
-//! | [`baselines`] | hard, PCF, PCSS, multi-sample |
+//! | [`baselines`] | hard, PCF, PCSS, multi-sample, with wgpu twins (feature `gpu`) |
 pub use baselines;
 pub use reference;
 pub use shadow_map_core as core;
@@ -16,27 +16,60 @@ pub use shadow_map_core::{Backend, Error, Result, SoftShadowEstimator};
 /// Names of every registered estimator, in listing order.
 pub const ALGOS: &[&str] = &["reference", "hard", "pcf", "pcss", "multi-sample"];
 
-/// A fresh estimator by registry name and backend, with default parameters.
+/// A fresh estimator by registry name and backend, with default parameters. The GPU backend uses
+/// the process-wide [`core::gpu::GpuContext::shared`] device (Vulkan only).
 pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstimator>> {
-    if backend == Backend::Gpu {
+    if !ALGOS.contains(&name) {
         return Err(Error::param(
-            "backend",
-            format!("`{name}` has no gpu backend yet (the wgpu backends arrive with the GPU foundation); use --backend cpu"),
+            "algo",
+            format!("unknown estimator {name:?} (known: {})", ALGOS.join(", ")),
         ));
     }
+    match backend {
+        Backend::Cpu => Ok(match name {
+            "reference" => Box::new(reference::ReferenceEstimator::new()?),
+            "hard" => Box::new(baselines::HardShadow::new()?),
+            "pcf" => Box::new(baselines::PcfShadow::new()?),
+            "pcss" => Box::new(baselines::PcssShadow::new()?),
+            _ => Box::new(baselines::MultiSample::new()?),
+        }),
+        Backend::Gpu => gpu_estimator(name),
+    }
+}
+
+#[cfg(feature = "gpu")]
+fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
+    use baselines::gpu::{GpuHardShadow, GpuMultiSample, GpuPcfShadow, GpuPcssShadow};
+    if name == "reference" {
+        return Err(Error::param(
+            "backend",
+            "the ray-traced reference runs on the CPU only; use --backend cpu",
+        ));
+    }
+    let ctx = core::gpu::GpuContext::shared()?;
     Ok(match name {
-        "reference" => Box::new(reference::ReferenceEstimator::new()?),
-        "hard" => Box::new(baselines::HardShadow::new()?),
-        "pcf" => Box::new(baselines::PcfShadow::new()?),
-        "pcss" => Box::new(baselines::PcssShadow::new()?),
-        "multi-sample" => Box::new(baselines::MultiSample::new()?),
-        other => {
-            return Err(Error::param(
-                "algo",
-                format!("unknown estimator {other:?} (known: {})", ALGOS.join(", ")),
-            ))
-        }
+        "hard" => Box::new(GpuHardShadow::new(ctx)?),
+        "pcf" => Box::new(GpuPcfShadow::new(ctx)?),
+        "pcss" => Box::new(GpuPcssShadow::new(ctx)?),
+        _ => Box::new(GpuMultiSample::new(ctx)?),
     })
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
+    Err(Error::param(
+        "backend",
+        format!("`{name}`: this build has no GPU backend (cargo feature `gpu` is off)"),
+    ))
+}
+
+/// The backends each registered estimator has.
+pub fn backends(name: &str) -> &'static [&'static str] {
+    match name {
+        "reference" => &["cpu"],
+        _ if cfg!(feature = "gpu") => &["cpu", "gpu"],
+        _ => &["cpu"],
+    }
 }
 
 /// Every registered CPU estimator with default parameters.

@@ -31,6 +31,11 @@ pub mod multi_sample;
 pub mod pcf;
 pub mod pcss;
 
+#[cfg(feature = "gpu")]
+pub mod gpu;
+#[cfg(feature = "gpu")]
+pub use gpu::{GpuHardShadow, GpuMultiSample, GpuPcfShadow, GpuPcssShadow};
+
 pub use hard::HardShadow;
 pub use multi_sample::MultiSample;
 pub use pcf::PcfShadow;

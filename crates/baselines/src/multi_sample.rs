@@ -10,7 +10,14 @@ use shadow_map_core::{
     SoftShadowEstimator,
 };
 
-const SPECS: &[ParamSpec] = &[
+/// Registry name of multi-sample shadows (shared with the GPU twin).
+pub const NAME: &str = "multi-sample";
+/// One-line description (shared with the GPU twin).
+pub const DESCRIPTION: &str =
+    "average of S x S hard shadow maps from jittered points on the light (Heckbert & Herf 1997)";
+
+/// The parameters of multi-sample shadows (shared with the GPU twin).
+pub const SPECS: &[ParamSpec] = &[
     RESOLUTION,
     BIAS,
     SLOPE_BIAS,
@@ -70,10 +77,10 @@ pub fn jitter(seed: u64, k: u32) -> Vec2 {
 
 impl SoftShadowEstimator for MultiSample {
     fn name(&self) -> &'static str {
-        "multi-sample"
+        NAME
     }
     fn description(&self) -> &'static str {
-        "average of S x S hard shadow maps from jittered points on the light (Heckbert & Herf 1997)"
+        DESCRIPTION
     }
     fn backend(&self) -> Backend {
         Backend::Cpu

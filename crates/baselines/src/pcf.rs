@@ -12,6 +12,13 @@ pub struct Pcf {
 /// The PCF estimator.
 pub type PcfShadow = MapEstimator<Pcf>;
 
+impl Pcf {
+    /// `(N - 1) / 2` after rounding even N up: the block is `2 half + 1` texels per side.
+    pub fn half(&self) -> i32 {
+        self.half
+    }
+}
+
 impl Filter for Pcf {
     const NAME: &'static str = "pcf";
     const DESCRIPTION: &'static str =

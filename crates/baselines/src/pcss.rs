@@ -23,6 +23,13 @@ pub struct Pcss {
 /// The PCSS estimator.
 pub type PcssShadow = MapEstimator<Pcss>;
 
+impl Pcss {
+    /// Most samples per side in the blocker search and in the filter.
+    pub fn max_taps(&self) -> u32 {
+        self.max_taps
+    }
+}
+
 impl Filter for Pcss {
     const NAME: &'static str = "pcss";
     const DESCRIPTION: &'static str =

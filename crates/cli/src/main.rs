@@ -70,7 +70,12 @@ fn algos_help() -> String {
     let mut s = String::from("Estimators and their parameters:\n");
     if let Ok(all) = registry() {
         for e in all {
-            s.push_str(&format!("  {}: {}\n", e.name(), e.description()));
+            s.push_str(&format!(
+                "  {}: {} [backends: {}]\n",
+                e.name(),
+                e.description(),
+                softshadow::backends(e.name()).join(", ")
+            ));
             for p in e.params().specs() {
                 s.push_str(&format!(
                     "      {}={} ({}): {}\n",
@@ -229,7 +234,7 @@ fn algos(as_json: bool) -> Result<(), String> {
                 json!({
                     "name": e.name(),
                     "description": e.description(),
-                    "backends": ["cpu"],
+                    "backends": softshadow::backends(e.name()),
                     "params": e.params().specs().iter().map(|p| json!({
                         "key": p.key, "default": p.default, "range": p.range(), "help": p.help
                     })).collect::<Vec<_>>(),

@@ -13,8 +13,6 @@ use shadow_map_core::{
 
 /// |V - oracle| allowed at 1024 samples per receiver (sampling noise only).
 const TOL_1024: f64 = 0.01;
-/// |V - oracle| allowed at 256 samples per receiver.
-const TOL_256: f64 = 0.02;
 
 fn camera() -> Camera {
     Camera {
@@ -662,7 +660,10 @@ proptest! {
     })]
 
     /// Random rect lights, 1-3 random rect occluders, random receivers facing the light:
-    /// V in [0, 1], never NaN, within 0.02 of the closed form at 256 spp.
+    /// V in [0, 1], never NaN, within 0.02 of the closed form at 1024 spp. Up to three occluders put
+    /// up to 12 edges across the light; jittered sampling's error per edge is about 0.3 N^-3/4
+    /// (background.md §6), so 0.02 is about four standard deviations for the worst case (at 256
+    /// spp a run of this property once measured 0.021: the bound must hold at every seed).
     #[test]
     fn h_random_rect_configurations_match_closed_form(
         size in (0.3f32..2.0, 0.3f32..2.0),
@@ -680,11 +681,11 @@ proptest! {
         let lp: Vec<Vec3> = recv.iter().map(|&(x, y, z)| Vec3::new(x, y, z)).collect();
         let pos: Vec<Vec3> = lp.iter().map(|q| f.to_world(*q)).collect();
         let r = Receivers::from_points(pos, vec![-f.ez; lp.len()]).expect("receivers");
-        let v = trace(&scene, &r, TraceOptions::from_spp(256, seed));
+        let v = trace(&scene, &r, TraceOptions::from_spp(1024, seed));
         for (q, x) in lp.iter().zip(&v) {
             prop_assert!(!x.is_nan() && (0.0..=1.0).contains(x), "{q}: {x}");
             let o = rect_occluder_visibility(Vec2::new(size.0, size.1) * 0.5, &occ, *q);
-            prop_assert!((*x as f64 - o).abs() <= TOL_256, "{q}: V = {x}, oracle {o}");
+            prop_assert!((*x as f64 - o).abs() <= 2.0 * TOL_1024, "{q}: V = {x}, oracle {o}");
         }
     }
 }

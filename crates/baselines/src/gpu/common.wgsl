@@ -1,0 +1,226 @@
+// Twins of crates/baselines/src/common.rs (receiver_bias) and of the pieces of
+// shadow_map_core::light the baselines use (LightFrame::to_light, default_tangent, front_fraction,
+// Light::front_fraction_world), in f32 and in the CPU's operation order: glam's dot, cross and
+// normalize are written out rather than left to builtins whose order the driver picks.
+//
+// Known difference: front_fraction computes the clipped rect area and the disk segment in f64 on
+// the CPU; here they are f32 (about 1e-7 of the light area apart). The disk segment uses a
+// Cephes-style acos (about 1 ulp) rather than the driver's, whose accuracy WGSL leaves open.
+
+const PI_F32: f32 = 3.14159265358979;
+const HALF_PI_F32: f32 = 1.57079632679490;
+
+// glam::Vec3::dot: (x x') + (y y') + (z z').
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return (a.x * b.x) + (a.y * b.y) + (a.z * b.z);
+}
+
+// glam::Vec2::dot.
+fn dot2(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    return (a.x * b.x) + (a.y * b.y);
+}
+
+// glam::Vec3::cross.
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
+}
+
+// f32::is_finite, on the bits (immune to a compiler's finite-math assumptions).
+fn is_finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+// glam's length_recip (1 / sqrt(v.v)) when it is finite and positive, else 0: the test of
+// try_normalize and normalize_or.
+fn valid_rcp(v: vec3<f32>) -> f32 {
+    let len = sqrt(dot3(v, v));
+    if !(len > 0.0) {
+        return 0.0;
+    }
+    let rcp = 1.0 / len;
+    if rcp > 0.0 && is_finite(rcp) {
+        return rcp;
+    }
+    return 0.0;
+}
+
+// glam::Vec3::normalize_or_zero.
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let rcp = valid_rcp(v);
+    if rcp == 0.0 {
+        return vec3<f32>(0.0);
+    }
+    return v * rcp;
+}
+
+// shadow_map_core::light::LightFrame::to_light for the frame (origin, ex, ey, ez).
+fn frame_to_light(origin: vec3<f32>, ex: vec3<f32>, ey: vec3<f32>, ez: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
+    let d = p - origin;
+    return vec3<f32>(dot3(d, ex), dot3(d, ey), dot3(d, ez));
+}
+
+// shadow_map_core::light::LightFrame::dir_to_light.
+fn frame_dir_to_light(ex: vec3<f32>, ey: vec3<f32>, ez: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot3(d, ex), dot3(d, ey), dot3(d, ez));
+}
+
+// The light view's LightFrame::to_light (shared.wgsl's to_light with glam's dot order).
+fn view_to_light(v: LightViewUniform, p: vec3<f32>) -> vec3<f32> {
+    return frame_to_light(v.origin, v.ex, v.ey, v.ez, p);
+}
+
+fn view_dir_to_light(v: LightViewUniform, d: vec3<f32>) -> vec3<f32> {
+    return frame_dir_to_light(v.ex, v.ey, v.ez, d);
+}
+
+// shadow_map_core::light_view::LightView::contains.
+fn view_contains(v: LightViewUniform, uv: vec2<f32>) -> bool {
+    let r = f32(v.r);
+    return uv.x >= 0.0 && uv.y >= 0.0 && uv.x < r && uv.y < r;
+}
+
+// baselines::common::receiver_bias: eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10)).
+fn receiver_bias(v: LightViewUniform, p: vec3<f32>, n: vec3<f32>, b0: f32, b1: f32) -> f32 {
+    let texel = v.w * p.z / (v.n * f32(v.r));
+    let to_light = normalize_or_zero(-p);
+    let cos_t = max(abs(dot3(n, to_light)), 1e-6);
+    let tan_t = sqrt(max(1.0 - cos_t * cos_t, 0.0)) / cos_t;
+    return texel * (b0 + b1 * min(tan_t, 10.0));
+}
+
+// shadow_map_core::light::default_tangent.
+fn default_tangent(normal: vec3<f32>) -> vec3<f32> {
+    let n = abs(normal);
+    var a = vec3<f32>(0.0, 0.0, 1.0);
+    if n.x <= n.y && n.x <= n.z {
+        a = vec3<f32>(1.0, 0.0, 0.0);
+    } else if n.y <= n.z {
+        a = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let t = a - dot3(a, normal) * normal;
+    let rcp = valid_rcp(t);
+    if rcp == 0.0 {
+        return vec3<f32>(1.0, 0.0, 0.0);
+    }
+    return t * rcp;
+}
+
+// asin for |x| <= 1 after Cephes asinf (S. L. Moshier), about 1 ulp in f32.
+fn asin_f32(x: f32) -> f32 {
+    let a = abs(x);
+    let big = a > 0.5;
+    var z = a * a;
+    var y = a;
+    if big {
+        z = 0.5 * (1.0 - a);
+        y = sqrt(z);
+    }
+    var r = ((((4.2163199048e-2 * z + 2.4181311049e-2) * z + 4.5470025998e-2) * z
+        + 7.4953002686e-2) * z + 1.6666752422e-1) * z * y + y;
+    if big {
+        r = HALF_PI_F32 - (r + r);
+    }
+    return select(r, -r, x < 0.0);
+}
+
+// acos after Cephes acosf.
+fn acos_f32(x: f32) -> f32 {
+    if x < -0.5 {
+        return PI_F32 - 2.0 * asin_f32(sqrt(0.5 * (1.0 + x)));
+    }
+    if x > 0.5 {
+        return 2.0 * asin_f32(sqrt(0.5 * (1.0 - x)));
+    }
+    return HALF_PI_F32 - asin_f32(x);
+}
+
+// shadow_map_core::light::front_fraction: fraction of the light (rect or disk in the plane z = 0
+// of the frame p and n are given in) strictly in front of the tangent plane {y : n.(y - p) > 0}.
+// `size`: rect (width, height); disk and sphere (radius, radius).
+fn front_fraction(shape: u32, size: vec2<f32>, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let c = dot3(n, p);
+    let a = vec2<f32>(n.x, n.y);
+    let la = sqrt(dot2(a, a));
+    if shape == LIGHT_RECT {
+        let hx = 0.5 * size.x;
+        let hy = 0.5 * size.y;
+        if la < 1e-12 {
+            return select(0.0, 1.0, 0.0 > c);
+        }
+        // Clip the rectangle polygon by the half-plane a.y > c (Sutherland-Hodgman, one edge).
+        var poly = array<vec2<f32>, 4>(
+            vec2<f32>(-hx, -hy),
+            vec2<f32>(hx, -hy),
+            vec2<f32>(hx, hy),
+            vec2<f32>(-hx, hy),
+        );
+        var clipped: array<vec2<f32>, 8>;
+        var m = 0u;
+        for (var i = 0u; i < 4u; i++) {
+            let p0 = poly[i];
+            let p1 = poly[(i + 1u) % 4u];
+            let f0 = dot2(a, p0) - c;
+            let f1 = dot2(a, p1) - c;
+            if f0 > 0.0 {
+                clipped[m] = p0;
+                m += 1u;
+            }
+            if (f0 > 0.0) != (f1 > 0.0) {
+                let t = f0 / (f0 - f1);
+                clipped[m] = p0 + (p1 - p0) * t;
+                m += 1u;
+            }
+        }
+        var area = 0.0;
+        for (var i = 0u; i < m; i++) {
+            let p0 = clipped[i];
+            let p1 = clipped[(i + 1u) % m];
+            area += p0.x * p1.y - p1.x * p0.y;
+        }
+        let total = size.x * size.y;
+        if total <= 0.0 {
+            return select(0.0, 1.0, 0.0 > c);
+        }
+        return clamp((0.5 * area) / total, 0.0, 1.0);
+    }
+    // Disk (and a sphere's silhouette disk).
+    let radius = size.x;
+    if la < 1e-12 || radius <= 0.0 {
+        return select(0.0, 1.0, 0.0 > c);
+    }
+    // Signed distance of the line from the disk centre along a/|a|; the segment beyond t.
+    let d = c / la;
+    let t = clamp(d / radius, -1.0, 1.0);
+    // (acos t - t sqrt(1 - t^2)) / pi, with 1 - t^2 = (1 - t)(1 + t) (no cancellation at |t| ~ 1).
+    let seg = (acos_f32(t) - t * sqrt((1.0 - t) * (1.0 + t))) / PI_F32;
+    return clamp(seg, 0.0, 1.0);
+}
+
+// shadow_map_core::light::Light::front_fraction_world: the fraction of the light in front of the
+// tangent plane of world point p with unit normal n; 0 behind a one-sided emitter; for a sphere
+// over its silhouette disk (frame at the centre whose z axis points from the light towards p).
+fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let size = vec2<f32>(u.light_size_x, u.light_size_y);
+    if u.light_shape != LIGHT_SPHERE {
+        let pl = frame_to_light(u.light_center, u.light_ex, u.light_ey, u.light_ez, p);
+        if pl.z <= 0.0 {
+            return 0.0;
+        }
+        return front_fraction(u.light_shape, size, pl, frame_dir_to_light(u.light_ex, u.light_ey, u.light_ez, n));
+    }
+    let d = u.light_center - p;
+    let md = -d;
+    let rcp = valid_rcp(md);
+    if rcp == 0.0 {
+        return 0.0;
+    }
+    let dz = md * rcp;
+    let ex = default_tangent(dz);
+    let ey = cross3(dz, ex);
+    return front_fraction(
+        u.light_shape,
+        size,
+        frame_to_light(u.light_center, ex, ey, dz, p),
+        frame_dir_to_light(ex, ey, dz, n),
+    );
+}

@@ -1,0 +1,14 @@
+// Twin of crates/baselines/src/hard.rs: V = [z_p - eps <= D(floor u, floor v)], and 0 when the
+// light centre is behind the receiver's tangent plane (or the receiver behind a one-sided light).
+
+fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let behind = est.light_one_sided != 0u && dot3(p - est.light_center, est.light_ez) <= 0.0;
+    if behind || dot3(n, est.light_center - p) <= 0.0 {
+        return 0.0;
+    }
+    return 1.0;
+}
+
+fn visibility(r: ReceiverSample) -> f32 {
+    return lit(i32(floor(r.uv.x)), i32(floor(r.uv.y)), r.p.z, r.eps);
+}

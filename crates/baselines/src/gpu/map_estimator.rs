@@ -1,0 +1,291 @@
+//! GPU twin of [`crate::map_estimator`]: one shadow map at the light centre, filtered per receiver
+//! by a compute kernel (`map_estimator.wgsl` + the filter's WGSL), one invocation per receiver.
+use super::{
+    kernel::{self, ReceiverChunk},
+    maps::{GpuMaps, MapBuilder, MapOrigin},
+    shared::{self, EstimateUniform},
+};
+use crate::{common, map_estimator::Filter};
+use shadow_map_core::{
+    gpu::{
+        shared::{LightViewUniform, SHARED_WGSL},
+        GpuContext, GpuScene,
+    },
+    light_space::{LightSpace, LightSpaceRequest},
+    Backend, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+};
+use std::{marker::PhantomData, sync::Arc, time::Instant};
+use wgpu::util::DeviceExt;
+
+/// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point, `cells`).
+pub const MAP_ESTIMATOR_WGSL: &str = include_str!("map_estimator.wgsl");
+/// WGSL twins of `common.rs` and the core's light helpers.
+pub const COMMON_WGSL: &str = include_str!("common.wgsl");
+
+/// The GPU side of a [`Filter`]: WGSL defining `fn facing(p_world, n_world) -> f32` and
+/// `fn visibility(r: ReceiverSample) -> f32` exactly as the CPU filter computes them, and the
+/// filter's settings in the uniform.
+pub trait GpuFilter: Filter {
+    /// The filter's WGSL (appended after [`MAP_ESTIMATOR_WGSL`]).
+    const WGSL: &'static str;
+    /// Writes the filter's settings, parsed by the CPU filter's own `from_params`.
+    fn set_uniform(_p: &Params, _u: &mut EstimateUniform) {}
+}
+
+/// The WGSL parts of the kernel of filter `F`, in order.
+pub const fn shader_parts<F: GpuFilter>() -> [&'static str; 5] {
+    [
+        SHARED_WGSL,
+        shared::SHARED_WGSL,
+        COMMON_WGSL,
+        MAP_ESTIMATOR_WGSL,
+        F::WGSL,
+    ]
+}
+
+/// The GPU twin of [`MapEstimator`](crate::map_estimator::MapEstimator): same name, description and parameters; light-space data
+/// from [`MapBuilder`], V from one compute dispatch per chunk of receivers.
+pub struct GpuMapEstimator<F: GpuFilter> {
+    ctx: Arc<GpuContext>,
+    params: Params,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    maps: Option<GpuMaps>,
+    builder: MapBuilder,
+    report: Report,
+    chunk_cap: usize,
+    _f: PhantomData<fn() -> F>,
+}
+
+/// What one kernel run found besides V.
+struct RunStats {
+    outside: usize,
+    nonfinite: usize,
+    estimate_ms: f64,
+    readback_ms: f64,
+}
+
+impl<F: GpuFilter> GpuMapEstimator<F> {
+    /// With default parameters, compiling the kernel on `ctx`'s device.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
+        let label = format!("{} estimate", F::NAME);
+        let module = kernel::shader_module(&ctx, &label, &shader_parts::<F>())?;
+        let layout = kernel::bind_group_layout(&ctx, &label);
+        let pipeline = kernel::compute_pipeline(&ctx, &label, &module, &layout, "estimate")?;
+        let builder = MapBuilder::new(&ctx)?;
+        Ok(GpuMapEstimator {
+            builder,
+            params: Params::new(F::SPECS)?,
+            ctx,
+            layout,
+            pipeline,
+            maps: None,
+            report: Report::default(),
+            chunk_cap: usize::MAX,
+            _f: PhantomData,
+        })
+    }
+
+    /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
+    /// small caps to exercise the chunked path that large receiver counts take.
+    pub fn set_max_chunk(&mut self, receivers: usize) {
+        self.chunk_cap = receivers.max(1);
+    }
+
+    /// The light-space data of the last build.
+    pub fn maps(&self) -> Option<&GpuMaps> {
+        self.maps.as_ref()
+    }
+
+    /// Estimates V from given light-space data (its view and layer 0, uploaded here), so a test
+    /// can feed the CPU and GPU twins identical data. Replaces the report.
+    pub fn estimate_with(
+        &mut self,
+        ls: &LightSpace,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        common::check_len(receivers, v)?;
+        self.report = Report::default();
+        let t = Instant::now();
+        let maps = GpuMaps::upload(&self.ctx, ls)?;
+        self.report
+            .stages
+            .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.report.light_space_bytes = maps.bytes();
+        self.run(&maps, light, receivers, v)
+    }
+
+    /// Runs the kernel over all receivers and appends stages and notes to the report (as the
+    /// CPU twin's `estimate` does).
+    fn run(
+        &mut self,
+        maps: &GpuMaps,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        let mut u = EstimateUniform::new(
+            light,
+            self.params.float("bias") as f32,
+            self.params.float("slope_bias") as f32,
+        );
+        F::set_uniform(&self.params, &mut u);
+        let stats = self.dispatch(maps, &u, receivers, v)?;
+        let view = &maps.view;
+        self.report
+            .stages
+            .push(("estimate".into(), stats.estimate_ms));
+        self.report
+            .stages
+            .push(("readback".into(), stats.readback_ms));
+        self.report.note("resolution", view.r);
+        self.report.note("near", view.n);
+        self.report.note("far", view.far);
+        self.report
+            .note("out_of_frustum", stats.outside + maps.fit.out_of_frustum);
+        if stats.nonfinite > 0 {
+            self.report.note("nonfinite_replaced", stats.nonfinite);
+        }
+        Ok(())
+    }
+
+    fn dispatch(
+        &self,
+        maps: &GpuMaps,
+        u: &EstimateUniform,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<RunStats> {
+        let mut stats = RunStats {
+            outside: 0,
+            nonfinite: 0,
+            estimate_ms: 0.0,
+            readback_ms: 0.0,
+        };
+        if receivers.is_empty() {
+            return Ok(stats);
+        }
+        let ctx = &*self.ctx;
+        let label = format!("{} estimate", F::NAME);
+        let t = Instant::now();
+        let chunk = kernel::max_chunk(ctx, self.chunk_cap);
+        let (chunks, counters) =
+            ctx.scoped(&label, || -> Result<(Vec<ReceiverChunk>, wgpu::Buffer)> {
+                let view_buf =
+                    kernel::uniform(ctx, "light view", &LightViewUniform::from(&maps.view));
+                let est_buf = kernel::uniform(ctx, "estimate uniform", u);
+                let counters = ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("baselines counters"),
+                        contents: bytemuck::cast_slice(&[0u32; 2]),
+                        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    });
+                let chunks = kernel::upload_receivers(ctx, receivers, chunk, false);
+                let groups: Vec<wgpu::BindGroup> = chunks
+                    .iter()
+                    .map(|c| {
+                        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                            label: Some(&label),
+                            layout: &self.layout,
+                            entries: &[
+                                entry(0, view_buf.as_entire_binding()),
+                                entry(1, est_buf.as_entire_binding()),
+                                entry(2, wgpu::BindingResource::TextureView(&maps.depth.view)),
+                                entry(3, c.receivers.as_entire_binding()),
+                                entry(4, c.out.as_entire_binding()),
+                                entry(5, counters.as_entire_binding()),
+                            ],
+                        })
+                    })
+                    .collect();
+                let mut enc = ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some(&label),
+                    });
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some(&label),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&self.pipeline);
+                    for (c, g) in chunks.iter().zip(&groups) {
+                        pass.set_bind_group(0, g, &[]);
+                        pass.dispatch_workgroups(c.workgroups(), 1, 1);
+                    }
+                }
+                ctx.queue.submit([enc.finish()]);
+                ctx.wait()?;
+                Ok((chunks, counters))
+            })??;
+        stats.estimate_ms = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
+        kernel::read_v(ctx, &chunks, v)?;
+        let c: Vec<u32> = ctx.read_buffer(&counters, 8)?;
+        stats.outside = c.first().copied().unwrap_or(0) as usize;
+        stats.nonfinite = c.get(1).copied().unwrap_or(0) as usize;
+        stats.readback_ms = t.elapsed().as_secs_f64() * 1e3;
+        Ok(stats)
+    }
+}
+
+/// A bind-group entry.
+pub(crate) fn entry(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource }
+}
+
+impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
+    fn name(&self) -> &'static str {
+        F::NAME
+    }
+    fn description(&self) -> &'static str {
+        F::DESCRIPTION
+    }
+    fn backend(&self) -> Backend {
+        Backend::Gpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        self.maps = None;
+        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
+        req.raster = common::raster_options(&self.params);
+        let ctx = self.ctx.clone();
+        let builder = &self.builder;
+        let maps = self.report.time("build", || {
+            let gpu_scene = GpuScene::upload(&ctx, scene)?;
+            builder.build(
+                &ctx,
+                &gpu_scene,
+                scene,
+                receivers,
+                MapOrigin::LightCentre,
+                &req,
+            )
+        })?;
+        self.report.light_space_bytes = maps.bytes();
+        self.maps = Some(maps);
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        common::check_len(receivers, v)?;
+        let maps = self
+            .maps
+            .take()
+            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let out = self.run(&maps, &scene.light, receivers, v);
+        self.maps = Some(maps);
+        out
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}

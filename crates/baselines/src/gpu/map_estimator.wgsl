@@ -1,0 +1,137 @@
+// Twin of crates/baselines/src/map_estimator.rs: one shadow map at the light centre, filtered per
+// receiver. The filter file appended after this one defines
+//   fn facing(p_world: vec3<f32>, n_world: vec3<f32>) -> f32      (Filter::facing)
+//   fn visibility(r: ReceiverSample) -> f32                        (Filter::visibility)
+// One invocation per receiver of the chunk bound at `receivers`.
+
+@group(0) @binding(0) var<uniform> view: LightViewUniform;
+@group(0) @binding(1) var<uniform> est: EstimateUniform;
+// Layer 0 of the light-space data: linear light-space depth per texel, +inf where empty.
+@group(0) @binding(2) var depth_map: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read> receivers: array<ReceiverGpu>;
+// V per receiver as f32 bits (NaN for inactive receivers is written as bits, never computed).
+@group(0) @binding(4) var<storage, read_write> v_out: array<u32>;
+// [0]: receivers outside the light frustum (the CPU's `outside`), [1]: non-finite results.
+@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 2>;
+
+const NAN_BITS: u32 = 0x7fc00000u;
+
+// map_estimator::ReceiverSample.
+struct ReceiverSample {
+    p: vec3<f32>,
+    n: vec3<f32>,
+    uv: vec2<f32>,
+    eps: f32,
+}
+
+// DepthMap::at(i, j) < zt, with texels outside the map +inf (never occluding).
+fn occludes(i: i32, j: i32, zt: f32) -> bool {
+    let r = i32(view.r);
+    if i < 0 || j < 0 || i >= r || j >= r {
+        return false;
+    }
+    return textureLoad(depth_map, vec2<i32>(i, j), 0).x < zt;
+}
+
+// DepthMap::at for a texel inside the map.
+fn depth_at(i: i32, j: i32) -> f32 {
+    return textureLoad(depth_map, vec2<i32>(i, j), 0).x;
+}
+
+// map_estimator::lit: 1 when the sample at (i, j) does not occlude a receiver at depth z - eps.
+fn lit(i: i32, j: i32, z: f32, eps: f32) -> f32 {
+    return select(1.0, 0.0, occludes(i, j, z - eps));
+}
+
+// map_estimator::cells, as an indexable range: [a, b) split in whole texels clipped to the
+// interval when it spans at most `max` texels (mode 1), in `max` equal cells otherwise (mode 2),
+// or one cell of weight 1 at floor(a) when empty (mode 0).
+struct Cells {
+    a: f32,
+    b: f32,
+    first: f32,
+    count: u32,
+    mode: u32,
+    step: f32,
+}
+
+// One cell: texel index and weight; `valid` false for a texel the CPU skips (`hi <= lo`).
+struct Cell {
+    i: i32,
+    w: f32,
+    valid: bool,
+}
+
+fn cells_new(a: f32, b: f32, max_cells: u32) -> Cells {
+    let len = b - a;
+    if !(len > 0.0) {
+        return Cells(a, b, floor(a), 1u, 0u, 0.0);
+    }
+    let first = floor(a);
+    let last = max(ceil(b) - 1.0, first);
+    if last - first + 1.0 <= f32(max_cells) {
+        return Cells(a, b, first, u32(last - first) + 1u, 1u, 0.0);
+    }
+    return Cells(a, b, first, max_cells, 2u, len / f32(max_cells));
+}
+
+fn cell(c: Cells, k: u32) -> Cell {
+    if c.mode == 0u {
+        return Cell(i32(c.first), 1.0, true);
+    }
+    if c.mode == 1u {
+        let i = c.first + f32(k);
+        let lo = max(i, c.a);
+        let hi = min(i + 1.0, c.b);
+        return Cell(i32(i), hi - lo, hi > lo);
+    }
+    let x = c.a + (f32(k) + 0.5) * c.step;
+    return Cell(i32(floor(x)), c.step, true);
+}
+
+// The frame of MapEstimator::estimate for one active receiver: tangent-plane factor, light-space
+// transform, the near-plane and out-of-frustum rules, the receiver bias, then the filter.
+fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
+    let fac = facing(pw, nw);
+    if fac <= 0.0 {
+        return 0.0;
+    }
+    let p = view_to_light(view, pw);
+    let n = view_dir_to_light(view, nw);
+    if p.z <= view.n {
+        // Nearer than anything the map records (or behind a sphere light's frustum).
+        if p.z <= 0.0 {
+            atomicAdd(&counters[0], 1u);
+        }
+        return fac;
+    }
+    let uv = project(view, p);
+    if !view_contains(view, uv) {
+        atomicAdd(&counters[0], 1u);
+        return fac;
+    }
+    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias);
+    return fac * visibility(ReceiverSample(p, n, uv, eps));
+}
+
+// common::for_each_receiver: NaN for inactive receivers, results clamped to [0, 1], non-finite
+// results written as 0 and counted.
+@compute @workgroup_size(WG)
+fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= arrayLength(&receivers) {
+        return;
+    }
+    let rec = receivers[k];
+    if rec.is_active == 0u {
+        v_out[k] = NAN_BITS;
+        return;
+    }
+    let x = estimate_receiver(rec.position, rec.normal);
+    if is_finite(x) {
+        v_out[k] = bitcast<u32>(clamp(x, 0.0, 1.0));
+    } else {
+        v_out[k] = 0u;
+        atomicAdd(&counters[1], 1u);
+    }
+}

@@ -1,0 +1,301 @@
+//! GPU twin of [`crate::multi_sample`]: per sub-light, one shadow map from [`MapBuilder`] and one
+//! `accumulate` dispatch into a per-receiver count on the GPU, one map alive at a time; a
+//! `finalize` dispatch divides by the number of sub-lights at the end.
+use super::{
+    kernel::{self, ReceiverChunk},
+    map_estimator::{entry, COMMON_WGSL},
+    maps::{DepthTexture, GpuMaps, MapBuilder, MapOrigin},
+    shared::{self, EstimateUniform},
+};
+use crate::{
+    common,
+    multi_sample::{jitter, DESCRIPTION, NAME, SPECS},
+};
+use bytemuck::Zeroable;
+use shadow_map_core::{
+    gpu::{
+        shared::{LightViewUniform, SHARED_WGSL},
+        GpuContext, GpuScene,
+    },
+    light_space::{LightSpace, LightSpaceRequest},
+    Backend, DepthMap, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
+};
+use std::{sync::Arc, time::Instant};
+
+/// WGSL of the multi-sample kernels (`accumulate`, `finalize`).
+pub const MULTI_SAMPLE_WGSL: &str = include_str!("multi_sample.wgsl");
+
+/// The WGSL parts of the multi-sample kernels, in order.
+pub const MULTI_SAMPLE_PARTS: [&str; 4] = [
+    SHARED_WGSL,
+    shared::SHARED_WGSL,
+    COMMON_WGSL,
+    MULTI_SAMPLE_WGSL,
+];
+
+/// Multi-sample shadows on the GPU (twin of [`MultiSample`](crate::MultiSample)): same name,
+/// description and parameters, the same sub-light points (stratified, jittered by
+/// [`jitter`]) and the same per-sample test.
+pub struct GpuMultiSample {
+    ctx: Arc<GpuContext>,
+    params: Params,
+    layout: wgpu::BindGroupLayout,
+    accumulate: wgpu::ComputePipeline,
+    finalize: wgpu::ComputePipeline,
+    /// A 1x1 map bound where a kernel reads none (`finalize`).
+    placeholder: DepthTexture,
+    builder: Arc<MapBuilder>,
+    report: Report,
+    chunk_cap: usize,
+}
+
+impl GpuMultiSample {
+    /// With default parameters, compiling the kernels on `ctx`'s device.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
+        let label = "multi-sample";
+        let module = kernel::shader_module(&ctx, label, &MULTI_SAMPLE_PARTS)?;
+        let layout = kernel::bind_group_layout(&ctx, label);
+        let accumulate = kernel::compute_pipeline(
+            &ctx,
+            "multi-sample accumulate",
+            &module,
+            &layout,
+            "accumulate",
+        )?;
+        let finalize =
+            kernel::compute_pipeline(&ctx, "multi-sample finalize", &module, &layout, "finalize")?;
+        let placeholder = DepthTexture::upload(&ctx, &DepthMap::empty(1))?;
+        let builder = Arc::new(MapBuilder::new(&ctx)?);
+        Ok(GpuMultiSample {
+            builder,
+            params: Params::new(SPECS)?,
+            placeholder,
+            ctx,
+            layout,
+            accumulate,
+            finalize,
+            report: Report::default(),
+            chunk_cap: usize::MAX,
+        })
+    }
+
+    /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
+    /// small caps to exercise the chunked path that large receiver counts take.
+    pub fn set_max_chunk(&mut self, receivers: usize) {
+        self.chunk_cap = receivers.max(1);
+    }
+
+    /// The shadow-map request of every sub-light (resolution and culling from the parameters).
+    pub fn request(&self) -> LightSpaceRequest {
+        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
+        req.raster = common::raster_options(&self.params);
+        req
+    }
+
+    /// The sub-light points (light-plane coordinates), exactly as the CPU twin draws them.
+    pub fn sub_light_points(&self, light: &Light) -> Vec<glam::Vec2> {
+        let s = self.params.int("sublights") as u32;
+        let seed = self.params.int("seed") as u64;
+        light.stratified_points(s, |k| jitter(seed, k))
+    }
+
+    /// Estimates V from given light-space data, one item per sub-light, consumed one at a time
+    /// (so a test can feed the CPU twin's own maps: `LightSpace::build_point` at each of
+    /// [`sub_light_points`](Self::sub_light_points) with [`request`](Self::request)). An item
+    /// `Err(Error::LightView(_))` is a sub-light no receiver is in front of: it lights nothing but
+    /// counts in N, as on the CPU; any other error is returned. Replaces the report.
+    pub fn estimate_with(
+        &mut self,
+        sub_lights: impl IntoIterator<Item = Result<LightSpace>>,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        let ctx = self.ctx.clone();
+        let maps = sub_lights
+            .into_iter()
+            .map(move |ls| ls.and_then(|ls| GpuMaps::upload(&ctx, &ls)));
+        self.run(maps, light, receivers, v)
+    }
+
+    /// Accumulates every sub-light's map into the per-receiver counts, then finalizes V.
+    fn run(
+        &mut self,
+        mut sub_lights: impl Iterator<Item = Result<GpuMaps>>,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        common::check_len(receivers, v)?;
+        self.report = Report::default();
+        let ctx = &*self.ctx;
+        let mut u = EstimateUniform::new(
+            light,
+            self.params.float("bias") as f32,
+            self.params.float("slope_bias") as f32,
+        );
+        let chunks = ctx.scoped("multi-sample receivers", || {
+            kernel::upload_receivers(ctx, receivers, kernel::max_chunk(ctx, self.chunk_cap), true)
+        })?;
+        let (mut t_build, mut t_est) = (0.0, 0.0);
+        let (mut peak, mut behind, mut n_points) = (0usize, 0usize, 0usize);
+        loop {
+            let t = Instant::now();
+            let Some(item) = sub_lights.next() else {
+                break;
+            };
+            n_points += 1;
+            let maps = match item {
+                Ok(m) => m,
+                // No receiver in front of this light point: it lights nothing.
+                Err(Error::LightView(_)) => continue,
+                Err(e) => return Err(e),
+            };
+            t_build += t.elapsed().as_secs_f64() * 1e3;
+            peak = peak.max(maps.bytes());
+            behind = behind.max(maps.fit.out_of_frustum);
+            let t = Instant::now();
+            if !chunks.is_empty() {
+                let view = LightViewUniform::from(&maps.view);
+                let depth = &maps.depth.view;
+                self.dispatch(
+                    &self.accumulate,
+                    "multi-sample accumulate",
+                    &view,
+                    depth,
+                    &u,
+                    &chunks,
+                )?;
+            }
+            t_est += t.elapsed().as_secs_f64() * 1e3;
+            // `maps` is dropped here, after its work is done: one map alive at a time.
+        }
+        u.inv_samples = 1.0 / n_points.max(1) as f32;
+        let t = Instant::now();
+        if !chunks.is_empty() {
+            // The finalize kernel reads no map: the placeholder fills the layout.
+            let view = LightViewUniform::zeroed();
+            let depth = &self.placeholder.view;
+            self.dispatch(
+                &self.finalize,
+                "multi-sample finalize",
+                &view,
+                depth,
+                &u,
+                &chunks,
+            )?;
+        }
+        t_est += t.elapsed().as_secs_f64() * 1e3;
+        kernel::read_v(ctx, &chunks, v)?;
+        let s = self.params.int("sublights") as u32;
+        self.report.stages.push(("build".into(), t_build));
+        self.report.stages.push(("estimate".into(), t_est));
+        self.report.light_space_bytes = peak;
+        self.report.note("sublights", s * s);
+        self.report.note("out_of_frustum", behind);
+        if matches!(light.shape, LightShape::Sphere { .. }) {
+            self.report.note(
+                "approximation",
+                "sphere sampled on the disk perpendicular to the light normal",
+            );
+        }
+        Ok(())
+    }
+
+    /// One dispatch of `pipeline` over every chunk with a view and its map bound; waits for it.
+    fn dispatch(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        label: &str,
+        view: &LightViewUniform,
+        depth: &wgpu::TextureView,
+        u: &EstimateUniform,
+        chunks: &[ReceiverChunk],
+    ) -> Result<()> {
+        let ctx = &*self.ctx;
+        ctx.scoped(label, || -> Result<()> {
+            let view_buf = kernel::uniform(ctx, "light view", view);
+            let est_buf = kernel::uniform(ctx, "estimate uniform", u);
+            let mut groups = Vec::with_capacity(chunks.len());
+            for c in chunks {
+                let acc = c.acc.as_ref().ok_or_else(|| Error::Gpu {
+                    stage: label.into(),
+                    reason: "receiver chunk without an accumulator".into(),
+                })?;
+                groups.push(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(label),
+                    layout: &self.layout,
+                    entries: &[
+                        entry(0, view_buf.as_entire_binding()),
+                        entry(1, est_buf.as_entire_binding()),
+                        entry(2, wgpu::BindingResource::TextureView(depth)),
+                        entry(3, c.receivers.as_entire_binding()),
+                        entry(4, acc.as_entire_binding()),
+                        entry(5, c.out.as_entire_binding()),
+                    ],
+                }));
+            }
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(label),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                for (c, g) in chunks.iter().zip(&groups) {
+                    pass.set_bind_group(0, g, &[]);
+                    pass.dispatch_workgroups(c.workgroups(), 1, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+            ctx.wait()
+        })?
+    }
+}
+
+impl SoftShadowEstimator for GpuMultiSample {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn description(&self) -> &'static str {
+        DESCRIPTION
+    }
+    fn backend(&self) -> Backend {
+        Backend::Gpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
+        // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
+        self.report = Report::default();
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        let req = self.request();
+        let points = self.sub_light_points(&scene.light);
+        let ctx = self.ctx.clone();
+        let gpu_scene = GpuScene::upload(&ctx, scene)?;
+        let builder = self.builder.clone();
+        let maps = points.into_iter().map(|y| {
+            builder.build(
+                &ctx,
+                &gpu_scene,
+                scene,
+                receivers,
+                MapOrigin::Point(y),
+                &req,
+            )
+        });
+        self.run(maps, &scene.light, receivers, v)
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}

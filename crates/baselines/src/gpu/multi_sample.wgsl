@@ -1,0 +1,80 @@
+// Twin of crates/baselines/src/multi_sample.rs (Heckbert & Herf 1997, background.md §6):
+// `accumulate` adds one sub-light's hard test into a per-receiver count, once per sub-light map;
+// `finalize` divides by the number of sub-lights and applies the one-sided and inactive rules.
+// The view uniform is the sub-light's: its origin is the light point y_k (world), bit for bit
+// the CPU's `frame.to_world(y.extend(0.0))`.
+
+@group(0) @binding(0) var<uniform> view: LightViewUniform;
+@group(0) @binding(1) var<uniform> est: EstimateUniform;
+// The sub-light's shadow map: linear light-space depth per texel, +inf where empty.
+@group(0) @binding(2) var depth_map: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read> receivers: array<ReceiverGpu>;
+// Per receiver: how many sub-lights so far light it (exact small integers in f32, as on the CPU).
+@group(0) @binding(4) var<storage, read_write> acc: array<f32>;
+// V per receiver as f32 bits (written by `finalize`).
+@group(0) @binding(5) var<storage, read_write> v_out: array<u32>;
+
+const NAN_BITS: u32 = 0x7fc00000u;
+
+// DepthMap::at(i, j) >= zt, with texels outside the map +inf (always lit).
+fn lit_at(i: i32, j: i32, zt: f32) -> bool {
+    let r = i32(view.r);
+    if i < 0 || j < 0 || i >= r || j >= r {
+        return true;
+    }
+    return textureLoad(depth_map, vec2<i32>(i, j), 0).x >= zt;
+}
+
+@compute @workgroup_size(WG)
+fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= arrayLength(&receivers) {
+        return;
+    }
+    let rec = receivers[k];
+    if rec.is_active == 0u {
+        return;
+    }
+    let pw = rec.position;
+    let nw = rec.normal;
+    if dot3(nw, view.origin - pw) <= 0.0 {
+        return; // the sample is behind the receiver's tangent plane
+    }
+    let p = view_to_light(view, pw);
+    if p.z <= 0.0 {
+        return; // behind this light point: no light from it
+    }
+    if p.z <= view.n {
+        acc[k] += 1.0;
+        return;
+    }
+    let uv = project(view, p);
+    if !view_contains(view, uv) {
+        acc[k] += 1.0;
+        return;
+    }
+    let n = view_dir_to_light(view, nw);
+    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias);
+    if lit_at(i32(floor(uv.x)), i32(floor(uv.y)), p.z - eps) {
+        acc[k] += 1.0;
+    }
+}
+
+@compute @workgroup_size(WG)
+fn finalize(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= arrayLength(&receivers) {
+        return;
+    }
+    let rec = receivers[k];
+    if rec.is_active == 0u {
+        v_out[k] = NAN_BITS;
+        return;
+    }
+    let pl = frame_to_light(est.light_center, est.light_ex, est.light_ey, est.light_ez, rec.position);
+    if est.light_one_sided != 0u && pl.z <= 0.0 {
+        v_out[k] = 0u;
+        return;
+    }
+    v_out[k] = bitcast<u32>(clamp(acc[k] * est.inv_samples, 0.0, 1.0));
+}

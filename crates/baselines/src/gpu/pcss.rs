@@ -1,0 +1,20 @@
+//! GPU twin of [`crate::pcss`]: blocker search, penumbra estimate and weighted PCF in `pcss.wgsl`.
+use super::{
+    map_estimator::{GpuFilter, GpuMapEstimator},
+    shared::EstimateUniform,
+};
+use crate::{map_estimator::Filter, pcss::Pcss};
+use shadow_map_core::Params;
+
+/// WGSL of PCSS (`facing`, `visibility`).
+pub const PCSS_WGSL: &str = include_str!("pcss.wgsl");
+
+/// PCSS on the GPU (twin of [`PcssShadow`](crate::PcssShadow)).
+pub type GpuPcssShadow = GpuMapEstimator<Pcss>;
+
+impl GpuFilter for Pcss {
+    const WGSL: &'static str = PCSS_WGSL;
+    fn set_uniform(p: &Params, u: &mut EstimateUniform) {
+        u.max_taps = Pcss::from_params(p).max_taps();
+    }
+}

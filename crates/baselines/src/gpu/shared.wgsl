@@ -1,0 +1,25 @@
+// Mirrors crates/baselines/src/gpu/shared.rs field for field (the layout test in gpu/mod.rs
+// checks offsets with naga). Shape codes and the workgroup size are set from Rust as overrides.
+
+override WG: u32;
+override LIGHT_RECT: u32;
+override LIGHT_DISK: u32;
+override LIGHT_SPHERE: u32;
+
+struct EstimateUniform {
+    light_center: vec3<f32>,
+    light_shape: u32,
+    light_ex: vec3<f32>,
+    light_size_x: f32,
+    light_ey: vec3<f32>,
+    light_size_y: f32,
+    light_ez: vec3<f32>,
+    light_one_sided: u32,
+    light_half_extent: vec2<f32>,
+    bias: f32,
+    slope_bias: f32,
+    kernel_half: i32,
+    max_taps: u32,
+    inv_samples: f32,
+    _pad0: f32,
+}
