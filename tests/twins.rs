@@ -47,9 +47,8 @@ fn gpu_backend_matches_cpu_backend_on_every_fixture() {
                 out.push(run(e.as_mut(), &scene, &rec).unwrap().0);
             }
             let (mut sq, mut n, mut differing) = (0.0f64, 0usize, 0usize);
-            for k in 0..rec.len() {
-                let (c, g) = (out[0][k], out[1][k]);
-                if !rec.active[k] {
+            for ((&c, &g), &active) in out[0].iter().zip(&out[1]).zip(&rec.active) {
+                if !active {
                     assert!(
                         c.is_nan() && g.is_nan(),
                         "{algo} on {fixture}: background {c} / {g}"
