@@ -6,7 +6,7 @@
 //! | crate | job |
 //! |---|---|
 //! | [`core`] (`shadow-map-core`) | scene model, receivers, light view, rasteriser, peeling, midpoints, MSSM, the [`SoftShadowEstimator`] trait |
-//! | [`reference`] | ray-traced ground truth and closed-form oracles |
+//! | [`reference`](mod@reference) | ray-traced ground truth and closed-form oracles |
 //! | [`baselines`] | hard, PCF, PCSS, multi-sample, with wgpu twins (feature `gpu`) |
 pub use baselines;
 pub use reference;
