@@ -8,13 +8,22 @@
 //! | [`core`] (`shadow-map-core`) | scene model, receivers, light view, rasteriser, peeling, midpoints, MSSM, the [`SoftShadowEstimator`] trait |
 //! | [`reference`](mod@reference) | ray-traced ground truth and closed-form oracles |
 //! | [`baselines`] | hard, PCF, PCSS, multi-sample, with wgpu twins (feature `gpu`) |
+//! | [`backprojection`] | micropatch backprojection with depth-peeled layers and midpoints (CPU) |
+pub use backprojection;
 pub use baselines;
 pub use reference;
 pub use shadow_map_core as core;
 pub use shadow_map_core::{Backend, Error, Result, SoftShadowEstimator};
 
 /// Names of every registered estimator, in listing order.
-pub const ALGOS: &[&str] = &["reference", "hard", "pcf", "pcss", "multi-sample"];
+pub const ALGOS: &[&str] = &[
+    "reference",
+    "hard",
+    "pcf",
+    "pcss",
+    "multi-sample",
+    "backprojection",
+];
 
 /// A fresh estimator by registry name and backend, with default parameters. The GPU backend uses
 /// the process-wide [`core::gpu::GpuContext::shared`] device (Vulkan only).
@@ -31,8 +40,13 @@ pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstim
             "hard" => Box::new(baselines::HardShadow::new()?),
             "pcf" => Box::new(baselines::PcfShadow::new()?),
             "pcss" => Box::new(baselines::PcssShadow::new()?),
+            "backprojection" => Box::new(backprojection::CpuBackprojection::new()?),
             _ => Box::new(baselines::MultiSample::new()?),
         }),
+        Backend::Gpu if name == "backprojection" => Err(Error::param(
+            "backend",
+            "backprojection has no GPU twin yet; use --backend cpu",
+        )),
         Backend::Gpu => gpu_estimator(name),
     }
 }
@@ -66,7 +80,7 @@ fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
 /// The backends each registered estimator has.
 pub fn backends(name: &str) -> &'static [&'static str] {
     match name {
-        "reference" => &["cpu"],
+        "reference" | "backprojection" => &["cpu"],
         _ if cfg!(feature = "gpu") => &["cpu", "gpu"],
         _ => &["cpu"],
     }

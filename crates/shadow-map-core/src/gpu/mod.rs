@@ -256,8 +256,11 @@ mod tests {
         }
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/gpu");
         let mut files = 0;
-        for entry in std::fs::read_dir(&dir).expect("src/gpu is readable") {
-            let path = entry.expect("directory entry").path();
+        for entry in std::fs::read_dir(&dir)
+            .expect("src/gpu is readable")
+            .flatten()
+        {
+            let path = entry.path();
             if path.extension().is_some_and(|e| e == "wgsl") {
                 files += 1;
                 let text = std::fs::read_to_string(&path).expect("wgsl is readable");

@@ -1,0 +1,427 @@
+//! The CPU backprojection estimator (background.md §2; Bavoil 2008 §4.1, §4.2, §5).
+use crate::math::{backprojected_micropatch, kernel_width, light_overlap_area, micropatch_scale};
+use glam::Vec3;
+use rayon::prelude::*;
+use shadow_map_core::{
+    light_space::{LightSpace, LightSpaceRequest},
+    light_view::{LightView, MAX_RESOLUTION},
+    Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
+    Result, Scene, SoftShadowEstimator,
+};
+use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+
+/// Parameters of [`CpuBackprojection`].
+pub const SPECS: &[ParamSpec] = &[
+    ParamSpec {
+        key: "resolution",
+        kind: ParamKind::Int {
+            min: 1,
+            max: MAX_RESOLUTION as i64,
+        },
+        default: "1024",
+        help: "shadow-map resolution r (texels per side)",
+    },
+    ParamSpec {
+        key: "layers",
+        kind: ParamKind::Int { min: 1, max: 4 },
+        default: "3",
+        help: "depth-peeled layers k; per texel only the furthest occluding layer is backprojected (Bavoil §4.1)",
+    },
+    ParamSpec {
+        key: "self_shadow",
+        kind: ParamKind::Choice(&["midpoint", "bias"]),
+        default: "midpoint",
+        help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
+    },
+    ParamSpec {
+        key: "max_bias",
+        kind: ParamKind::Float { min: 0.0, max: 1e6 },
+        default: "4.0",
+        help: "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
+    },
+    ParamSpec {
+        key: "bias",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: "1.0",
+        help: "self_shadow=bias: constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
+    },
+    ParamSpec {
+        key: "slope_bias",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: "1.0",
+        help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
+    },
+    ParamSpec {
+        key: "gap_filling",
+        kind: ParamKind::Bool,
+        default: "false",
+        help: "extend each occluding micropatch to its +u and +v occluding neighbours (background.md §2, reconstructed)",
+    },
+    ParamSpec {
+        key: "max_nspp",
+        kind: ParamKind::Int { min: 1, max: 4096 },
+        default: "121",
+        help: "most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp)) (Bavoil §5)",
+    },
+];
+
+/// Soft shadows by micropatch backprojection onto a rectangle light (Guennebaud et al. 2006),
+/// with Bavoil's (2008) depth-peeled layers (§4.1: per texel, only the furthest occluding layer
+/// is backprojected, with its true depth), midpoint layers against self-shadowing (§4.2), and the
+/// adaptive uniform step (§5).
+///
+/// Per receiver p (light-space depth `z_p`, texel coordinates `(u_p, v_p)`):
+/// 1. facing = the fraction of the light in front of p's tangent plane; behind the light: 0;
+///    `z_p <= n`: facing (nothing recorded is nearer).
+/// 2. Kernel: [`kernel_width`] at `z_m = n`, then refined with the MSSM minimum over the kernel
+///    (`z_m = min depth`) until it stops shrinking; if that minimum is `>= z_p` (bias mode:
+///    `>= z_p - eps`), V = facing.
+/// 3. Sum `area(B_s ∩ L)` over the kernel's samples and occluding layers, and
+///    `V = facing (1 - clamp01(A_occ / A_L))`.
+///
+/// Rect lights only; disk and sphere lights are a [`Error::Param`] with key `light` from `build`.
+pub struct CpuBackprojection {
+    params: Params,
+    ls: Option<LightSpace>,
+    report: Report,
+}
+
+impl CpuBackprojection {
+    /// With default parameters.
+    pub fn new() -> Result<Self> {
+        Ok(CpuBackprojection {
+            params: Params::new(SPECS)?,
+            ls: None,
+            report: Report::default(),
+        })
+    }
+    /// The light-space data of the last build.
+    pub fn light_space(&self) -> Option<&LightSpace> {
+        self.ls.as_ref()
+    }
+}
+
+/// Receiver-side depth bias in world units, as in the baselines (background.md §2
+/// "Self-shadowing"): `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
+#[inline]
+fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
+    let texel = view.w * p.z / (view.n * view.r as f32);
+    let to_light = (-p).normalize_or_zero();
+    let cos = n.dot(to_light).abs().max(1e-6);
+    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
+    texel * (b0 + b1 * tan.min(10.0))
+}
+
+/// Settings read once per estimate.
+struct Setup<'a> {
+    ls: &'a LightSpace,
+    half: [f32; 2],
+    area: f64,
+    midpoint: bool,
+    gap_filling: bool,
+    max_nspp: u32,
+    b0: f32,
+    b1: f32,
+    /// Largest adaptive step used (reported).
+    max_step: AtomicU32,
+}
+
+/// A half-open texel rectangle `[x0, x1) x [y0, y1)` of the kernel around `uv`, clamped to the map.
+fn kernel_rect(view: &LightView, uv: glam::Vec2, wx: f32, wy: f32) -> [i32; 4] {
+    let r = view.r as f32;
+    let lo = |c: f32, w: f32| (c - 0.5 * w).floor().clamp(0.0, r) as i32;
+    let hi = |c: f32, w: f32| (c + 0.5 * w).ceil().clamp(0.0, r) as i32;
+    [lo(uv.x, wx), lo(uv.y, wy), hi(uv.x, wx), hi(uv.y, wy)]
+}
+
+impl Setup<'_> {
+    /// Visibility before the facing factor, in [0, 1].
+    fn visibility(&self, p: Vec3, n: Vec3, uv: glam::Vec2) -> f32 {
+        let ls = self.ls;
+        let view = &ls.view;
+        let zp = p.z;
+        let eps = if self.midpoint {
+            0.0
+        } else {
+            receiver_bias(view, p, n, self.b0, self.b1)
+        };
+        let (lx, ly) = (2.0 * self.half[0], 2.0 * self.half[1]);
+        let alpha = view.alpha();
+        // Kernel at z_m = n, refined by the exact min over it (background.md §2).
+        let mut zm = view.n;
+        let mut rect = kernel_rect(
+            view,
+            uv,
+            kernel_width(alpha, lx, zm, zp),
+            kernel_width(alpha, ly, zm, zp),
+        );
+        for _ in 0..16 {
+            let zmin = match &ls.mssm {
+                Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
+                None => f32::NEG_INFINITY,
+            };
+            if zmin >= zp - eps {
+                return 1.0;
+            }
+            if !(zmin > zm) {
+                break;
+            }
+            zm = zmin;
+            let next = kernel_rect(
+                view,
+                uv,
+                kernel_width(alpha, lx, zm, zp),
+                kernel_width(alpha, ly, zm, zp),
+            );
+            let area = |r: &[i32; 4]| (r[2] - r[0]) as i64 * (r[3] - r[1]) as i64;
+            if area(&next) >= area(&rect) {
+                break;
+            }
+            rect = next;
+        }
+        let (nx, ny) = ((rect[2] - rect[0]) as u32, (rect[3] - rect[1]) as u32);
+        if nx == 0 || ny == 0 {
+            return 1.0;
+        }
+        // Adaptive uniform step (Bavoil §5).
+        let step = if (nx as u64) * (ny as u64) > self.max_nspp as u64 {
+            (nx.max(ny) as f32 / (self.max_nspp as f32).sqrt())
+                .ceil()
+                .max(1.0) as u32
+        } else {
+            1
+        };
+        self.max_step.fetch_max(step, Ordering::Relaxed);
+        let bx = nx.div_ceil(step) as usize;
+        let by = ny.div_ceil(step) as usize;
+        // Per block: true depth of the furthest occluding layer, or +inf.
+        let mut occ = vec![f32::INFINITY; bx * by];
+        for b in 0..by {
+            let j0 = rect[1] + (b as u32 * step) as i32;
+            let j1 = (j0 + step as i32).min(rect[3]);
+            let jc = j0 + (j1 - j0 - 1) / 2;
+            for a in 0..bx {
+                let i0 = rect[0] + (a as u32 * step) as i32;
+                let i1 = (i0 + step as i32).min(rect[2]);
+                let ic = i0 + (i1 - i0 - 1) / 2;
+                for m in (0..ls.layers.len()).rev() {
+                    let z = ls.layers[m].at(ic, jc);
+                    let cls = if self.midpoint {
+                        ls.midpoints.get(m).map_or(z, |d| d.at(ic, jc))
+                    } else {
+                        z + eps
+                    };
+                    if cls < zp && z < zp {
+                        occ[b * bx + a] = z;
+                        break;
+                    }
+                }
+            }
+        }
+        let k = view.delta() / view.n;
+        let uvp = [uv.x, uv.y];
+        let mut a_occ = 0.0f64;
+        for b in 0..by {
+            let j0 = rect[1] + (b as u32 * step) as i32;
+            let j1 = (j0 + step as i32).min(rect[3]);
+            for a in 0..bx {
+                let z = occ[b * bx + a];
+                if !z.is_finite() {
+                    continue;
+                }
+                let i0 = rect[0] + (a as u32 * step) as i32;
+                let i1 = (i0 + step as i32).min(rect[2]);
+                let mut br = backprojected_micropatch(
+                    [i0 as f32, i1 as f32, j0 as f32, j1 as f32],
+                    uvp,
+                    k,
+                    z,
+                    zp,
+                );
+                if self.gap_filling {
+                    // +u neighbour: its x0 is (i1 - u_p) S_t.
+                    if a + 1 < bx {
+                        let zt = occ[b * bx + a + 1];
+                        if zt.is_finite() {
+                            let st = micropatch_scale(k, zt, zp);
+                            let d = i1 as f32 - uv.x;
+                            if d != 0.0 && st > 0.0 {
+                                let x0t =
+                                    (d * st).clamp(-crate::math::FAR_BOUND, crate::math::FAR_BOUND);
+                                br.x1 = br.x1.max(x0t);
+                            }
+                        }
+                    }
+                    if b + 1 < by {
+                        let zt = occ[(b + 1) * bx + a];
+                        if zt.is_finite() {
+                            let st = micropatch_scale(k, zt, zp);
+                            let d = j1 as f32 - uv.y;
+                            if d != 0.0 && st > 0.0 {
+                                let y0t =
+                                    (d * st).clamp(-crate::math::FAR_BOUND, crate::math::FAR_BOUND);
+                                br.y1 = br.y1.max(y0t);
+                            }
+                        }
+                    }
+                }
+                a_occ += light_overlap_area(&br, self.half);
+            }
+        }
+        if !(self.area > 0.0) {
+            return if a_occ > 0.0 { 0.0 } else { 1.0 };
+        }
+        // Snap a covered fraction within 1e-6 of 1 to full cover: summing abutting micropatches
+        // in f32 bounds can miss the whole light by a rounding error (tiny lights).
+        let f = a_occ / self.area;
+        if f >= 1.0 - 1e-6 {
+            return 0.0;
+        }
+        (1.0 - f.clamp(0.0, 1.0)) as f32
+    }
+}
+
+impl SoftShadowEstimator for CpuBackprojection {
+    fn name(&self) -> &'static str {
+        "backprojection"
+    }
+    fn description(&self) -> &'static str {
+        "micropatch backprojection onto a rect light with depth-peeled layers and midpoints (Guennebaud 2006, Bavoil 2008)"
+    }
+    fn backend(&self) -> Backend {
+        Backend::Cpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        self.ls = None;
+        if !matches!(scene.light.shape, LightShape::Rect { .. }) {
+            return Err(Error::param(
+                "light",
+                "backprojection supports rect lights only",
+            ));
+        }
+        let p = &self.params;
+        let r = p.int("resolution") as u32;
+        let layers = p.int("layers") as u32;
+        let midpoint = p.choice("self_shadow") == "midpoint";
+        let max_bias = p.float("max_bias") as f32;
+        let light = &scene.light;
+        let ls = self.report.time("build", || -> Result<LightSpace> {
+            let (view, fit) =
+                LightView::fit(scene, receivers, light.frame(), light.half_extent(), r)?;
+            // Largest kernel (at z_m = n, z_p = far) in texels fixes the MSSM levels.
+            let l = 2.0 * light.half_extent().max_element();
+            let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
+            let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
+            // Midpoint clamp in world units: max_bias texel footprints at the far plane (the
+            // largest footprint any receiver has), so the clamp never binds tighter than
+            // max_bias footprints at the receiver.
+            let footprint = view.w * view.far / (view.n * view.r as f32);
+            let mb = (max_bias * footprint).min(f32::MAX);
+            let req = LightSpaceRequest {
+                resolution: r,
+                layers,
+                midpoints: midpoint.then_some(mb),
+                mssm_levels: Some(levels),
+                dual_mssm_levels: None,
+                pyramid: false,
+                raster: RasterOptions::default(),
+            };
+            Ok(LightSpace::build_in_view(scene, view, fit, &req))
+        })?;
+        self.report.light_space_bytes = ls.bytes();
+        self.ls = Some(ls);
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        if v.len() != receivers.len() {
+            return Err(Error::Receivers(format!(
+                "output has {} slots for {} receivers",
+                v.len(),
+                receivers.len()
+            )));
+        }
+        let ls = self
+            .ls
+            .as_ref()
+            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let light = &scene.light;
+        let h = light.half_extent();
+        let setup = Setup {
+            ls,
+            half: [h.x, h.y],
+            area: 4.0 * h.x as f64 * h.y as f64,
+            midpoint: self.params.choice("self_shadow") == "midpoint",
+            gap_filling: self.params.flag("gap_filling"),
+            max_nspp: self.params.int("max_nspp") as u32,
+            b0: self.params.float("bias") as f32,
+            b1: self.params.float("slope_bias") as f32,
+            max_step: AtomicU32::new(1),
+        };
+        let view = &ls.view;
+        let outside = AtomicUsize::new(0);
+        let t = std::time::Instant::now();
+        let nonfinite: usize = v
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, out)| {
+                if !receivers.active[k] {
+                    *out = f32::NAN;
+                    return 0;
+                }
+                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+                let facing = light.front_fraction_world(pw, nw);
+                let p = view.frame.to_light(pw);
+                let x = if !(facing > 0.0) || p.z <= 0.0 {
+                    0.0
+                } else if p.z <= view.n {
+                    facing
+                } else {
+                    let uv = view.project(p);
+                    if !view.contains(uv) {
+                        outside.fetch_add(1, Ordering::Relaxed);
+                        facing
+                    } else {
+                        let n = view.frame.dir_to_light(nw);
+                        facing * setup.visibility(p, n, uv)
+                    }
+                };
+                if x.is_finite() {
+                    *out = x.clamp(0.0, 1.0);
+                    0
+                } else {
+                    *out = 0.0;
+                    1
+                }
+            })
+            .sum();
+        self.report
+            .stages
+            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.report.note("resolution", view.r);
+        self.report.note("layers", ls.layers.len());
+        self.report
+            .note("self_shadow", self.params.choice("self_shadow"));
+        self.report
+            .note("max_step", setup.max_step.load(Ordering::Relaxed));
+        self.report.note("near", view.n);
+        self.report.note("far", view.far);
+        self.report.note(
+            "out_of_frustum",
+            outside.into_inner() + ls.fit.out_of_frustum,
+        );
+        if nonfinite > 0 {
+            self.report.note("nonfinite_replaced", nonfinite);
+        }
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}

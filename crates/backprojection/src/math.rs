@@ -1,0 +1,157 @@
+//! Pure geometry of micropatch backprojection (background.md §2; Bavoil 2008 eq. 1, §3).
+//!
+//! Conventions: light space with the light centre at the origin, light plane z = 0, shadow-map
+//! plane z = n, texel coordinates `u = (n x / z - x0) / delta` (see
+//! [`shadow_map_core::LightView`]). Lengths returned on the light plane are world units relative
+//! to the light centre.
+
+/// Largest magnitude a backprojected bound may take. Bounds that would overflow (a sample almost
+/// at the receiver's depth) are clamped to +-`FAR_BOUND`, which keeps them finite and keeps their
+/// limit meaning: a micropatch containing the receiver's projection covers the whole light, the
+/// others leave it.
+pub const FAR_BOUND: f32 = 1e30;
+
+/// Kernel (search-area) width in texels along one axis (background.md §2 "Search area"; Bavoil
+/// §2 `w_0`, Yang eq. 1):
+///
+/// `W = alpha * l * (1/z_m - 1/z_p)`, `alpha = n r / w`,
+///
+/// where `l` is the light's extent on that axis, `z_m` a lower bound of the occluder depths and
+/// `z_p` the receiver depth. With `z_m = n` this is Bavoil's `w_0`. Returns 0 when `z_m >= z_p`
+/// (nothing between), and never NaN: non-positive `z_m` is treated as the smallest positive
+/// float (the kernel then saturates at `f32::MAX`).
+#[inline]
+pub fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
+    if !(z_m < z_p) {
+        return 0.0;
+    }
+    let zm = z_m.max(f32::MIN_POSITIVE);
+    let w = alpha * l * (1.0 / zm - 1.0 / z_p);
+    if w.is_finite() {
+        w.max(0.0)
+    } else {
+        f32::MAX
+    }
+}
+
+/// Scale of a backprojected texel on the light plane (background.md §2 "Backprojected
+/// micropatch"; Bavoil eq. 1 before his division by l):
+///
+/// `S = k z_s z_p / (z_p - z_s)`, `k = w / (n r)` (the texel pitch over n).
+///
+/// Guarded: `z_p - z_s` is floored at `1e-7 z_p` (the f32 resolution of depths near `z_p`) so S
+/// stays finite (its limit is +inf); samples at or behind the receiver (`z_s >= z_p`) or at or
+/// behind the light (`z_s <= 0`) return 0 (they block nothing). Never NaN for finite inputs.
+#[inline]
+pub fn micropatch_scale(k: f32, z_s: f32, z_p: f32) -> f32 {
+    if !(z_s > 0.0) || !(z_s < z_p) || !(k > 0.0) {
+        return 0.0;
+    }
+    let gap = (z_p - z_s).max(1e-7 * z_p).max(f32::MIN_POSITIVE);
+    let s = k * z_s * (z_p / gap);
+    if s.is_finite() {
+        s
+    } else {
+        f32::MAX
+    }
+}
+
+/// An axis-aligned rectangle `[x0, x1] x [y0, y1]` on the light plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rect {
+    /// Smallest x.
+    pub x0: f32,
+    /// Smallest y.
+    pub y0: f32,
+    /// Largest x.
+    pub x1: f32,
+    /// Largest y.
+    pub y1: f32,
+}
+
+/// Backprojects the micropatch covering the texel span `[i0, i1] x [j0, j1]` (texel coordinates;
+/// `[i, i+1] x [j, j+1]` for one texel, wider for the adaptive step of Bavoil §5) at depth `z_s`
+/// from the receiver at texel coordinates `(u_p, v_p)` and depth `z_p` onto the light plane
+/// (background.md §2, exact closed form; Bavoil eq. 1):
+///
+/// `B_s = [(i0 - u_p) S, (i1 - u_p) S] x [(j0 - v_p) S, (j1 - v_p) S]`, S from
+/// [`micropatch_scale`].
+///
+/// Bounds are clamped to +-[`FAR_BOUND`]: when `z_p - z_s` is tiny, a micropatch whose span
+/// contains `(u_p, v_p)` becomes a rectangle containing the whole light (the limit), and one that
+/// does not moves off to infinity. Never NaN or inf for finite inputs.
+#[inline]
+pub fn backprojected_micropatch(
+    span: [f32; 4],
+    uv_p: [f32; 2],
+    k: f32,
+    z_s: f32,
+    z_p: f32,
+) -> Rect {
+    let s = micropatch_scale(k, z_s, z_p);
+    let b = |t: f32, c: f32| {
+        let d = t - c;
+        if d == 0.0 || s == 0.0 {
+            0.0
+        } else {
+            (d * s).clamp(-FAR_BOUND, FAR_BOUND)
+        }
+    };
+    Rect {
+        x0: b(span[0], uv_p[0]),
+        x1: b(span[1], uv_p[0]),
+        y0: b(span[2], uv_p[1]),
+        y1: b(span[3], uv_p[1]),
+    }
+}
+
+/// Area of `rect ∩ L` for the rectangle light `L = [-l_x/2, l_x/2] x [-l_y/2, l_y/2]`
+/// (background.md §2 "Estimator": `area(B_s(p) ∩ L)`). 0 for empty or inverted rectangles.
+#[inline]
+pub fn light_overlap_area(rect: &Rect, half: [f32; 2]) -> f64 {
+    let dx = (rect.x1.min(half[0]) as f64 - rect.x0.max(-half[0]) as f64).max(0.0);
+    let dy = (rect.y1.min(half[1]) as f64 - rect.y0.max(-half[1]) as f64).max(0.0);
+    dx * dy
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closed form agrees with projecting the micropatch corners from p onto z = 0.
+    #[test]
+    fn closed_form_matches_direct_projection() {
+        // View: n = 1, window [-1, 1], r = 64.
+        let (n, x0, w, r) = (1.0f64, -1.0f64, 2.0f64, 64.0f64);
+        let delta = w / r;
+        let p = [0.13f64, -0.2, 3.0];
+        let u_p = (n * p[0] / p[2] - x0) / delta;
+        let v_p = (n * p[1] / p[2] - x0) / delta;
+        let (i, j, zs) = (30.0f64, 27.0f64, 1.7f64);
+        let world = |u: f64| (u * delta + x0) * zs / n; // x of the sample at texel coord u
+        let proj = |xs: f64, xp: f64| (p[2] * xs - zs * xp) / (p[2] - zs);
+        let b = backprojected_micropatch(
+            [i as f32, i as f32 + 1.0, j as f32, j as f32 + 1.0],
+            [u_p as f32, v_p as f32],
+            (w / (n * r)) as f32,
+            zs as f32,
+            p[2] as f32,
+        );
+        let ex0 = proj(world(i), p[0]);
+        let ey1 = proj(world(j + 1.0), p[1]);
+        assert!((b.x0 as f64 - ex0).abs() < 1e-5, "{} vs {ex0}", b.x0);
+        assert!((b.y1 as f64 - ey1).abs() < 1e-5, "{} vs {ey1}", b.y1);
+    }
+
+    #[test]
+    fn degenerate_depths_stay_finite() {
+        let b = backprojected_micropatch([3.0, 4.0, 3.0, 4.0], [3.5, 3.5], 0.01, 2.0, 2.0);
+        assert_eq!(light_overlap_area(&b, [0.5, 0.5]), 0.0);
+        let b = backprojected_micropatch([3.0, 4.0, 3.0, 4.0], [3.5, 3.5], 0.01, 1.999_999_9, 2.0);
+        assert!(b.x0.is_finite() && b.x1.is_finite());
+        assert!((light_overlap_area(&b, [0.5, 0.5]) - 1.0).abs() < 1e-6);
+        assert_eq!(kernel_width(100.0, 1.0, 0.0, 1.0), f32::MAX);
+        assert_eq!(kernel_width(100.0, 1.0, 2.0, 1.0), 0.0);
+        assert_eq!(micropatch_scale(0.01, 0.0, 1.0), 0.0);
+    }
+}
