@@ -8,7 +8,7 @@
 //! | [`core`] (`shadow-map-core`) | scene model, receivers, light view, rasteriser, peeling, midpoints, MSSM, the [`SoftShadowEstimator`] trait |
 //! | [`reference`](mod@reference) | ray-traced ground truth and closed-form oracles |
 //! | [`baselines`] | hard, PCF, PCSS, multi-sample, with wgpu twins (feature `gpu`) |
-//! | [`backprojection`] | micropatch backprojection with depth-peeled layers and midpoints (CPU) |
+//! | [`backprojection`] | micropatch backprojection with depth-peeled layers and midpoints, with a wgpu twin |
 pub use backprojection;
 pub use baselines;
 pub use reference;
@@ -43,10 +43,6 @@ pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstim
             "backprojection" => Box::new(backprojection::CpuBackprojection::new()?),
             _ => Box::new(baselines::MultiSample::new()?),
         }),
-        Backend::Gpu if name == "backprojection" => Err(Error::param(
-            "backend",
-            "backprojection has no GPU twin yet; use --backend cpu",
-        )),
         Backend::Gpu => gpu_estimator(name),
     }
 }
@@ -65,6 +61,7 @@ fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
         "hard" => Box::new(GpuHardShadow::new(ctx)?),
         "pcf" => Box::new(GpuPcfShadow::new(ctx)?),
         "pcss" => Box::new(GpuPcssShadow::new(ctx)?),
+        "backprojection" => Box::new(backprojection::GpuBackprojection::new(ctx)?),
         _ => Box::new(GpuMultiSample::new(ctx)?),
     })
 }
@@ -80,7 +77,7 @@ fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
 /// The backends each registered estimator has.
 pub fn backends(name: &str) -> &'static [&'static str] {
     match name {
-        "reference" | "backprojection" => &["cpu"],
+        "reference" => &["cpu"],
         _ if cfg!(feature = "gpu") => &["cpu", "gpu"],
         _ => &["cpu"],
     }

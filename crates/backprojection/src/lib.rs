@@ -25,7 +25,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cpu;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod math;
 
 pub use cpu::CpuBackprojection;
+#[cfg(feature = "gpu")]
+pub use gpu::GpuBackprojection;
 pub use shadow_map_core::SoftShadowEstimator;

@@ -11,8 +11,8 @@ use shadow_map_core::{light_space::LightSpace, Light, LightShape, ParamKind, Par
 /// 2. `z_avg` = mean depth of the samples with `z_i < z_r - eps` (none: V = 1);
 /// 3. penumbra at the receiver `w_p = (z_r - z_avg) l / z_avg`;
 /// 4. PCF over a box of full width `W_filter = w_p n / z_r` on the plane (a disk of that diameter
-///    for disk and sphere lights), each texel weighted by its overlap with the box, so a single
-///    planar blocker parallel to the light is reproduced exactly.
+///    for disk and sphere lights, with a one-texel soft edge), each texel weighted by its overlap
+///    with the box, so a single planar blocker parallel to the light is reproduced exactly.
 ///
 /// Both regions are sampled texel by texel up to `max_taps` texels per side, and by `max_taps`
 /// equal cells beyond (a documented approximation for very wide penumbrae).
@@ -58,7 +58,7 @@ impl Filter for Pcss {
         let to_texels = view.r as f32 / view.w;
         // 1. Blocker search.
         let ws = l * ((zr - view.n) / zr) * to_texels;
-        let (mut sum, mut count) = (0.0f64, 0.0f64);
+        let (mut sum, mut count) = (Kahan::default(), Kahan::default());
         let d = &ls.layers[0];
         cells(
             r.uv.y - 0.5 * ws.y,
@@ -72,26 +72,26 @@ impl Filter for Pcss {
                     |i, wx| {
                         let z = d.at(i, j);
                         if z < zr - r.eps {
-                            let w = (wx * wy) as f64;
-                            sum += w * z as f64;
-                            count += w;
+                            let w = wx * wy;
+                            sum.add(w * z);
+                            count.add(w);
                         }
                     },
                 )
             },
         );
-        if count <= 0.0 {
+        if count.s <= 0.0 {
             return 1.0;
         }
-        let z_avg = (sum / count) as f32;
+        let z_avg = sum.s / count.s;
         // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
         let wf: Vec2 = l * ((zr - z_avg) / z_avg) * (view.n / zr) * to_texels;
         let disk = matches!(
             light.shape,
             LightShape::Disk { .. } | LightShape::Sphere { .. }
         );
-        let (mut lit, mut total) = (0.0f64, 0.0f64);
-        let rad2 = (0.5 * wf.x).powi(2);
+        let (mut lit, mut total) = (Kahan::default(), Kahan::default());
+        let rad = 0.5 * wf.x;
         cells(
             r.uv.y - 0.5 * wf.y,
             r.uv.y + 0.5 * wf.y,
@@ -102,24 +102,47 @@ impl Filter for Pcss {
                     r.uv.x + 0.5 * wf.x,
                     self.max_taps,
                     |i, wx| {
+                        // Disk filter with a one-texel soft edge: continuous in the filter
+                        // width, so rounding in z_avg moves V by a rounding error, not a texel.
+                        let mut edge = 1.0f32;
                         if disk && wf.x > 1.0 {
                             let c = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - r.uv;
-                            if c.length_squared() > rad2 {
+                            edge = (rad + 0.5 - c.length()).clamp(0.0, 1.0);
+                            if edge <= 0.0 {
                                 return;
                             }
                         }
-                        let w = (wx * wy) as f64;
-                        total += w;
+                        let w = wx * wy * edge;
+                        total.add(w);
                         if d.at(i, j) >= zr - r.eps {
-                            lit += w;
+                            lit.add(w);
                         }
                     },
                 )
             },
         );
-        if total <= 0.0 {
+        if total.s <= 0.0 {
             return 1.0;
         }
-        (lit / total) as f32
+        lit.s / total.s
+    }
+}
+
+/// Kahan-compensated f32 sum. PCSS accumulates its weights with it, in the same order as its GPU
+/// twin, so both backends get the same blocker depth and filter width bit for bit (an f64 sum
+/// on one side only moved the filter's cells and flipped sampled texels).
+#[derive(Debug, Clone, Copy, Default)]
+struct Kahan {
+    s: f32,
+    c: f32,
+}
+
+impl Kahan {
+    #[inline]
+    fn add(&mut self, x: f32) {
+        let y = x - self.c;
+        let t = self.s + y;
+        self.c = (t - self.s) - y;
+        self.s = t;
     }
 }

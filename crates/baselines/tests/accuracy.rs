@@ -253,3 +253,22 @@ fn output_length_is_checked() {
         assert!(e.estimate(&s, &r, &mut v).is_err());
     }
 }
+
+/// When no receiver needs a map (none at all, or all behind the one-sided light), every estimator
+/// still answers: V = 0 behind the light, and an empty output for no receivers.
+#[test]
+fn no_receiver_in_front_of_the_light() {
+    let s = parallel_squares(1.0);
+    let behind = Receivers::from_points(
+        vec![Vec3::new(0.0, 5.0, 0.0), Vec3::new(1.0, 4.0, 0.0)],
+        vec![Vec3::Y; 2],
+    )
+    .unwrap();
+    let none = Receivers::from_points(vec![], vec![]).unwrap();
+    for mut e in all() {
+        let v = estimate(e.as_mut(), &s, &behind);
+        assert_eq!(v, vec![0.0, 0.0], "{}", e.name());
+        let v = estimate(e.as_mut(), &s, &none);
+        assert!(v.is_empty(), "{}", e.name());
+    }
+}

@@ -125,9 +125,19 @@ impl LightView {
             rec.push((t, q.z as f64));
         }
         if rec.is_empty() {
-            return Err(Error::LightView(
-                "no receiver lies in front of the light".into(),
-            ));
+            // No receiver needs the map (none at all, or all behind the light, where V = 0 for a
+            // one-sided light): any view is correct, so give a small one on the light axis rather
+            // than an error.
+            let n = (1e-3 * scale).max(f32::MIN_POSITIVE);
+            let view = LightView {
+                frame,
+                n,
+                far: scale,
+                window_min: Vec2::splat(-n),
+                w: 2.0 * n,
+                r,
+            };
+            return Ok((view, rep));
         }
         let zr_min = rec.iter().map(|r| r.1).fold(f64::INFINITY, f64::min) as f32;
         let zr_max = rec.iter().map(|r| r.1).fold(0.0f64, f64::max) as f32;

@@ -18,7 +18,7 @@
 //! The WGSL repeats the CPU math in f32 in the same operation order (glam's dot/cross order written
 //! out). Differences that remain, each far below the twin tolerance of `tests/gpu_twins.rs`:
 //! `front_fraction` clips and integrates in f64 on the CPU and in f32 here; PCSS sums its weights
-//! in f64 on the CPU and in compensated f32 here; the driver may fuse a multiply and an add
+//! with the same compensated f32 sum on both sides; the driver may fuse a multiply and an add
 //! (WGSL does not forbid it), which moves a transform or a bias by an ulp and can flip a depth
 //! comparison that is a tie to within f32 rounding.
 //!

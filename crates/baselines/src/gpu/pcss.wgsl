@@ -57,7 +57,6 @@ fn visibility(r: ReceiverSample) -> f32 {
     let wf = l * ((zr - z_avg) / z_avg) * (view.n / zr) * to_texels;
     let disk = est.light_shape != LIGHT_RECT;
     let rad = 0.5 * wf.x;
-    let rad2 = rad * rad;
     let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
     let fx = cells_new(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, est.max_taps);
     var lit_sum = Sum(0.0, 0.0);
@@ -72,13 +71,16 @@ fn visibility(r: ReceiverSample) -> f32 {
             if !ci.valid {
                 continue;
             }
+            // Disk filter with a one-texel soft edge (baselines::pcss).
+            var edge = 1.0;
             if disk && wf.x > 1.0 {
                 let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - r.uv;
-                if dot2(c, c) > rad2 {
+                edge = clamp(rad + 0.5 - sqrt(dot2(c, c)), 0.0, 1.0);
+                if edge <= 0.0 {
                     continue;
                 }
             }
-            let w = ci.w * cj.w;
+            let w = ci.w * cj.w * edge;
             total = sum_add(total, w);
             if !occludes(ci.i, cj.i, zt) {
                 lit_sum = sum_add(lit_sum, w);
