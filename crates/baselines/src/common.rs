@@ -3,8 +3,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
-    light_view::LightView, Cull, DepthBias, Error, ParamKind, ParamSpec, Params, RasterOptions,
-    Receivers, Result,
+    light_space::LightSpaceRequest, light_view::LightView, Cull, DepthBias, Error, ParamKind,
+    ParamSpec, Params, RasterOptions, Receivers, Result,
 };
 
 /// `resolution`: shadow-map side in texels.
@@ -41,6 +41,14 @@ pub const CULL: ParamSpec = ParamSpec {
     default: "none",
     help: "face culling in the shadow-map pass (winding-based, as seen from the light)",
 };
+
+/// The light-space request every baseline makes: one shadow map at the `resolution` parameter,
+/// rasterised with [`raster_options`]. Shared by the CPU and GPU twins so both ask for the same map.
+pub fn map_request(p: &Params) -> LightSpaceRequest {
+    let mut req = LightSpaceRequest::single(p.int("resolution") as u32);
+    req.raster = raster_options(p);
+    req
+}
 
 /// Raster options from the `cull` parameter (the map itself is stored unbiased; the bias is applied
 /// at the receiver, see [`receiver_bias`]).

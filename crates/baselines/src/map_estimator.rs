@@ -3,9 +3,8 @@
 use crate::common::{self, receiver_bias};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::{LightSpace, LightSpaceRequest},
-    Backend, Error, Light, ParamSpec, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    light_space::LightSpace, Backend, Error, Light, ParamSpec, Params, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -86,8 +85,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
-        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
-        req.raster = common::raster_options(&self.params);
+        let req = common::map_request(&self.params);
         let ls = self
             .report
             .time("build", || LightSpace::build(scene, receivers, &req))?;

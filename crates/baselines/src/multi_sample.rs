@@ -5,9 +5,8 @@ use crate::common::{self, receiver_bias, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use glam::Vec2;
 use rayon::prelude::*;
 use shadow_map_core::{
-    light_space::{LightSpace, LightSpaceRequest},
-    Backend, Error, LightShape, ParamKind, ParamSpec, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    light_space::LightSpace, Backend, Error, LightShape, ParamKind, ParamSpec, Params, Receivers,
+    Report, Result, Scene, SoftShadowEstimator,
 };
 
 /// Registry name of multi-sample shadows (shared with the GPU twin).
@@ -104,8 +103,7 @@ impl SoftShadowEstimator for MultiSample {
             self.params.float("bias") as f32,
             self.params.float("slope_bias") as f32,
         );
-        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
-        req.raster = common::raster_options(&self.params);
+        let req = common::map_request(&self.params);
         let light = scene.light;
         let points = light.stratified_points(s, |k| jitter(seed, k));
         let frame = light.frame();

@@ -22,7 +22,7 @@ use proptest::{
 use shadow_map_core::{
     gpu::{context_for_tests, GpuContext},
     light::default_tangent,
-    light_space::{LightSpace, LightSpaceRequest},
+    light_space::LightSpace,
     run, Backend, Camera, Error, Light, LightShape, Receivers, Scene, SceneBvh,
     SoftShadowEstimator,
 };
@@ -501,8 +501,8 @@ fn run_cpu(
             set_all(&mut e, &kv)?;
             let (v, _) = run(&mut e, scene, rec)?;
             // The same sub-light maps the CPU twin builds inside `estimate` (deterministic).
-            let mut req = LightSpaceRequest::single(s.resolution);
-            req.raster = baselines::common::raster_options(e.params());
+            let req = baselines::common::map_request(e.params());
+            assert_eq!(req.resolution, s.resolution);
             let seed = s.seed as u64;
             let maps: Vec<Result<LightSpace, Error>> = scene
                 .light

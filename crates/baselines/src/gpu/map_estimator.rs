@@ -11,7 +11,7 @@ use shadow_map_core::{
         shared::{LightViewUniform, SHARED_WGSL},
         GpuContext, GpuScene,
     },
-    light_space::{LightSpace, LightSpaceRequest},
+    light_space::LightSpace,
     Backend, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{marker::PhantomData, sync::Arc, time::Instant};
@@ -256,8 +256,7 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.maps = None;
-        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
-        req.raster = common::raster_options(&self.params);
+        let req = common::map_request(&self.params);
         let ctx = self.ctx.clone();
         let builder = &self.builder;
         let maps = self.report.time("build", || {

@@ -88,9 +88,7 @@ impl GpuMultiSample {
 
     /// The shadow-map request of every sub-light (resolution and culling from the parameters).
     pub fn request(&self) -> LightSpaceRequest {
-        let mut req = LightSpaceRequest::single(self.params.int("resolution") as u32);
-        req.raster = common::raster_options(&self.params);
-        req
+        common::map_request(&self.params)
     }
 
     /// The sub-light points (light-plane coordinates), exactly as the CPU twin draws them.
