@@ -4,7 +4,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{LightView, MAX_RESOLUTION},
+    light_view::{FitReport, LightView, MAX_RESOLUTION},
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
@@ -281,6 +281,42 @@ impl Setup<'_> {
     }
 }
 
+/// The light view and the light-space request both twins build for `params`: the view fitted to
+/// the receivers at the light centre; `layers` peeled layers; midpoints clamped at `max_bias`
+/// texel footprints at the far plane (the largest footprint any receiver has, so the clamp never
+/// binds tighter than `max_bias` footprints at the receiver); an anchored MSSM with enough levels
+/// for the largest kernel (at `z_m = n`, `z_p = far`).
+pub fn plan(
+    params: &Params,
+    scene: &Scene,
+    receivers: &Receivers,
+) -> Result<(LightView, FitReport, LightSpaceRequest)> {
+    let light = &scene.light;
+    if !matches!(light.shape, LightShape::Rect { .. }) {
+        return Err(Error::param(
+            "light",
+            "backprojection supports rect lights only",
+        ));
+    }
+    let r = params.int("resolution") as u32;
+    let (view, fit) = LightView::fit(scene, receivers, light.frame(), light.half_extent(), r)?;
+    let l = 2.0 * light.half_extent().max_element();
+    let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
+    let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
+    let footprint = view.w * view.far / (view.n * view.r as f32);
+    let mb = (params.float("max_bias") as f32 * footprint).min(f32::MAX);
+    let req = LightSpaceRequest {
+        resolution: r,
+        layers: params.int("layers") as u32,
+        midpoints: (params.choice("self_shadow") == "midpoint").then_some(mb),
+        mssm_levels: Some(levels),
+        dual_mssm_levels: None,
+        pyramid: false,
+        raster: RasterOptions::default(),
+    };
+    Ok((view, fit, req))
+}
+
 impl SoftShadowEstimator for CpuBackprojection {
     fn name(&self) -> &'static str {
         "backprojection"
@@ -300,39 +336,8 @@ impl SoftShadowEstimator for CpuBackprojection {
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.ls = None;
-        if !matches!(scene.light.shape, LightShape::Rect { .. }) {
-            return Err(Error::param(
-                "light",
-                "backprojection supports rect lights only",
-            ));
-        }
-        let p = &self.params;
-        let r = p.int("resolution") as u32;
-        let layers = p.int("layers") as u32;
-        let midpoint = p.choice("self_shadow") == "midpoint";
-        let max_bias = p.float("max_bias") as f32;
-        let light = &scene.light;
         let ls = self.report.time("build", || -> Result<LightSpace> {
-            let (view, fit) =
-                LightView::fit(scene, receivers, light.frame(), light.half_extent(), r)?;
-            // Largest kernel (at z_m = n, z_p = far) in texels fixes the MSSM levels.
-            let l = 2.0 * light.half_extent().max_element();
-            let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
-            let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
-            // Midpoint clamp in world units: max_bias texel footprints at the far plane (the
-            // largest footprint any receiver has), so the clamp never binds tighter than
-            // max_bias footprints at the receiver.
-            let footprint = view.w * view.far / (view.n * view.r as f32);
-            let mb = (max_bias * footprint).min(f32::MAX);
-            let req = LightSpaceRequest {
-                resolution: r,
-                layers,
-                midpoints: midpoint.then_some(mb),
-                mssm_levels: Some(levels),
-                dual_mssm_levels: None,
-                pyramid: false,
-                raster: RasterOptions::default(),
-            };
+            let (view, fit, req) = plan(&self.params, scene, receivers)?;
             Ok(LightSpace::build_in_view(scene, view, fit, &req))
         })?;
         self.report.light_space_bytes = ls.bytes();

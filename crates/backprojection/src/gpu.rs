@@ -1,14 +1,24 @@
 //! wgpu twin of [`CpuBackprojection`] (cargo feature `gpu`, on by default): the same name,
-//! description and parameters; light-space data built on the CPU exactly as the CPU twin builds
-//! them (layers, midpoints, MSSM), uploaded as R32Float texture arrays, and V from one compute
-//! dispatch per chunk of receivers (`backprojection.wgsl`, one invocation per receiver), modelled
-//! on the baselines' GPU twins (`baselines::gpu`).
+//! description and parameters, and the same light view and request ([`crate::cpu::plan`]).
+//!
+//! **Build, on the GPU.** The scene is uploaded and rasterised from the light by
+//! [`GpuShadowMapper::render_layers`] (peeled layers, midpoint layers and the anchored MSSM of
+//! layer 0, all in one submission); the layers are copied into one `R32Float` texture array and
+//! the MSSM levels into another (`plane_to_layer.wgsl`), the layout `backprojection.wgsl` reads.
+//! Nothing is read back. [`GpuBackprojection::set_light_space_on_cpu`] switches to building the
+//! maps on the CPU exactly as the CPU twin does and uploading them (what
+//! [`GpuBackprojection::estimate_with`] does for given maps), so a test can feed both twins
+//! identical data.
+//!
+//! **Estimate.** One compute dispatch per chunk of receivers (`backprojection.wgsl`, one
+//! invocation per receiver), modelled on the baselines' GPU twins (`baselines::gpu`).
 //!
 //! The WGSL follows `cpu.rs` and [`crate::math`] step by step in f32. Known differences: the CPU
 //! sums the overlap areas in f64, the kernel in Kahan-compensated f32 (about 1e-7 of the light
 //! area); the driver may fuse a multiply and an add, which can flip a depth comparison that is a
-//! tie to within f32 rounding.
-use crate::cpu::CpuBackprojection;
+//! tie to within f32 rounding. The GPU rasteriser's layers match the CPU's up to the ties that
+//! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
+use crate::cpu::{plan, CpuBackprojection};
 use baselines::gpu::{
     kernel::{max_chunk, shader_source},
     map_estimator::COMMON_WGSL,
@@ -17,15 +27,35 @@ use baselines::gpu::{
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
+        light_space::GpuLightSpace,
+        raster::{GpuScene, GpuShadowMapper},
         shared::{pack_receivers, LightViewUniform, SHARED_WGSL},
         GpuContext,
     },
     light_space::LightSpace,
+    light_view::LightView,
     Backend, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
+
+/// The MSSM-level copy into a texture array layer.
+pub const PLANE_TO_LAYER_WGSL: &str = include_str!("plane_to_layer.wgsl");
+
+/// Uniform of one [`PLANE_TO_LAYER_WGSL`] dispatch (mirrors `PlaneCopy`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PlaneCopy {
+    /// Side of the plane.
+    pub size: u32,
+    /// Destination array layer.
+    pub layer: u32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+}
 
 /// The estimator's own WGSL (appended after the parts in [`SHADER_PARTS`]' head).
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
@@ -77,17 +107,15 @@ pub struct BpUniform {
 
 /// `size x size` R32Float planes in one texture array.
 struct PlaneArray {
-    _texture: wgpu::Texture,
+    texture: wgpu::Texture,
     view: wgpu::TextureView,
+    size: u32,
     bytes: usize,
 }
 
-fn upload_planes(
-    ctx: &GpuContext,
-    label: &str,
-    size: u32,
-    planes: &[&[f32]],
-) -> Result<PlaneArray> {
+/// Allocates `count` planes of side `size` (usages: read by the kernel, written by copies and by
+/// [`PLANE_TO_LAYER_WGSL`]).
+fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Result<PlaneArray> {
     let l = ctx.limits();
     if size == 0 || size > l.max_texture_dimension_2d {
         return Err(Error::Limit {
@@ -96,13 +124,51 @@ fn upload_planes(
             max: l.max_texture_dimension_2d as u64,
         });
     }
-    if planes.len() as u64 > l.max_texture_array_layers as u64 {
+    if count == 0 || count > l.max_texture_array_layers {
         return Err(Error::Limit {
             what: "backprojection texture array layers",
-            requested: planes.len() as u64,
+            requested: count as u64,
             max: l.max_texture_array_layers as u64,
         });
     }
+    ctx.scoped(label, || {
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: count,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::STORAGE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        PlaneArray {
+            texture,
+            view,
+            size,
+            bytes: size as usize * size as usize * count as usize * 4,
+        }
+    })
+}
+
+/// Uploads CPU planes into one texture array.
+fn upload_planes(
+    ctx: &GpuContext,
+    label: &str,
+    size: u32,
+    planes: &[&[f32]],
+) -> Result<PlaneArray> {
+    let array = plane_array(ctx, label, size, planes.len() as u32)?;
     let texels = size as usize * size as usize;
     let mut data = Vec::with_capacity(texels * planes.len());
     for p in planes {
@@ -115,24 +181,9 @@ fn upload_planes(
         data.extend_from_slice(p);
     }
     ctx.scoped(label, || {
-        let extent = wgpu::Extent3d {
-            width: size,
-            height: size,
-            depth_or_array_layers: planes.len() as u32,
-        };
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: extent,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
         ctx.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
-                texture: &texture,
+                texture: &array.texture,
                 mip_level: 0,
                 origin: wgpu::Origin3d::ZERO,
                 aspect: wgpu::TextureAspect::All,
@@ -143,18 +194,63 @@ fn upload_planes(
                 bytes_per_row: Some(4 * size),
                 rows_per_image: Some(size),
             },
-            extent,
+            wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: planes.len() as u32,
+            },
         );
-        let view = texture.create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
-        PlaneArray {
-            _texture: texture,
-            view,
-            bytes: data.len() * 4,
+    })?;
+    Ok(array)
+}
+
+/// Light-space data on the device in the layout the kernel reads: depth layers then midpoint
+/// layers in one texture array, the MSSM min planes in another (a 1x1 dummy when there is none).
+struct DeviceMaps {
+    view: LightView,
+    out_of_frustum: usize,
+    maps: PlaneArray,
+    mssm: PlaneArray,
+    layers: u32,
+    midpoints: u32,
+    mssm_levels: Option<u32>,
+}
+
+impl DeviceMaps {
+    fn bytes(&self) -> usize {
+        self.maps.bytes + self.mssm.bytes
+    }
+
+    /// Uploads light-space data built on the CPU.
+    fn upload(ctx: &GpuContext, ls: &LightSpace, midpoint: bool) -> Result<Self> {
+        let r = ls.view.r;
+        // Layers, then midpoints; a dummy plane keeps the array non-empty.
+        let dummy = vec![f32::INFINITY; r as usize * r as usize];
+        let mut planes: Vec<&[f32]> = ls.layers.iter().map(|d| d.depth.as_slice()).collect();
+        let midpoints = if midpoint { ls.midpoints.len() } else { 0 };
+        planes.extend(ls.midpoints[..midpoints].iter().map(|d| d.depth.as_slice()));
+        if planes.is_empty() {
+            planes.push(&dummy);
         }
-    })
+        let maps = upload_planes(ctx, "backprojection layers", r, &planes)?;
+        let one = [f32::INFINITY];
+        let (mssm_planes, mssm_size): (Vec<&[f32]>, u32) = match &ls.mssm {
+            Some(m) if m.levels() > 0 => {
+                ((0..m.levels()).map(|l| m.level(l).0).collect(), m.size())
+            }
+            _ => (vec![&one[..]], 1),
+        };
+        let mssm = upload_planes(ctx, "backprojection mssm", mssm_size, &mssm_planes)?;
+        Ok(DeviceMaps {
+            view: ls.view,
+            out_of_frustum: ls.fit.out_of_frustum,
+            maps,
+            mssm,
+            layers: ls.layers.len() as u32,
+            midpoints: midpoints as u32,
+            mssm_levels: ls.mssm.as_ref().map(|m| m.levels()),
+        })
+    }
 }
 
 /// The GPU twin of [`CpuBackprojection`].
@@ -163,6 +259,11 @@ pub struct GpuBackprojection {
     cpu: CpuBackprojection,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
+    copy_layout: wgpu::BindGroupLayout,
+    copy_pipeline: wgpu::ComputePipeline,
+    mapper: Option<GpuShadowMapper>,
+    maps: Option<DeviceMaps>,
+    light_space_on_cpu: bool,
     report: Report,
     chunk_cap: usize,
 }
@@ -239,13 +340,199 @@ impl GpuBackprojection {
                 });
             (layout, pipeline)
         })?;
+        let (copy_layout, copy_pipeline) = ctx.scoped("backprojection plane copy", || {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("backprojection plane copy"),
+                    source: wgpu::ShaderSource::Wgsl(PLANE_TO_LAYER_WGSL.into()),
+                });
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("backprojection plane copy"),
+                    entries: &[
+                        buffer(0, wgpu::BufferBindingType::Uniform),
+                        buffer(1, storage(true)),
+                        wgpu::BindGroupLayoutEntry {
+                            binding: 2,
+                            visibility: wgpu::ShaderStages::COMPUTE,
+                            ty: wgpu::BindingType::StorageTexture {
+                                access: wgpu::StorageTextureAccess::WriteOnly,
+                                format: wgpu::TextureFormat::R32Float,
+                                view_dimension: wgpu::TextureViewDimension::D2Array,
+                            },
+                            count: None,
+                        },
+                    ],
+                });
+            let pl = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("backprojection plane copy"),
+                    bind_group_layouts: &[Some(&layout)],
+                    immediate_size: 0,
+                });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("backprojection plane copy"),
+                    layout: Some(&pl),
+                    module: &module,
+                    entry_point: Some("copy_plane"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            (layout, pipeline)
+        })?;
         Ok(GpuBackprojection {
             ctx,
             cpu: CpuBackprojection::new()?,
             layout,
             pipeline,
+            copy_layout,
+            copy_pipeline,
+            mapper: None,
+            maps: None,
+            light_space_on_cpu: false,
             report: Report::default(),
             chunk_cap: usize::MAX,
+        })
+    }
+
+    /// `true`: `build` makes the light-space data on the CPU exactly as [`CpuBackprojection`]
+    /// does and uploads them; `false` (the default): renders them on the GPU.
+    pub fn set_light_space_on_cpu(&mut self, on: bool) {
+        self.light_space_on_cpu = on;
+    }
+
+    /// Renders the light-space data for this frame on the GPU and lays them out for the kernel;
+    /// one submission, nothing read back.
+    fn build_on_gpu(&mut self, scene: &Scene, receivers: &Receivers) -> Result<DeviceMaps> {
+        let (view, fit, req) = plan(self.cpu.params(), scene, receivers)?;
+        let ctx = self.ctx.clone();
+        let ctx = &*ctx;
+        if self.mapper.is_none() {
+            self.mapper = Some(GpuShadowMapper::new(ctx)?);
+        }
+        let Some(mapper) = self.mapper.as_ref() else {
+            return Err(Error::Gpu {
+                stage: "raster".into(),
+                reason: "shadow mapper missing".into(),
+            });
+        };
+        let gpu_scene = GpuScene::upload(ctx, scene)?;
+        let gls = mapper.render_layers(ctx, &gpu_scene, &view, &req)?;
+        let mut maps = self.lay_out(ctx, &gls)?;
+        maps.out_of_frustum = fit.out_of_frustum;
+        Ok(maps)
+    }
+
+    /// Copies rendered light-space data into the kernel's texture arrays (GPU to GPU).
+    fn lay_out(&self, ctx: &GpuContext, gls: &GpuLightSpace) -> Result<DeviceMaps> {
+        let r = gls.view.r;
+        let planes: Vec<&wgpu::Texture> = gls
+            .layers
+            .iter()
+            .chain(&gls.midpoints)
+            .map(|d| &d.texture)
+            .collect();
+        let maps = plane_array(ctx, "backprojection layers", r, planes.len().max(1) as u32)?;
+        let levels: &[_] = gls.mssm.as_ref().map_or(&[], |m| &m.levels[..]);
+        let mssm = match gls.mssm.as_ref() {
+            Some(m) if !levels.is_empty() => {
+                let max = ctx.limits().max_storage_buffer_binding_size;
+                let bytes = m.size as u64 * m.size as u64 * 4;
+                if bytes > max {
+                    return Err(Error::Limit {
+                        what: "backprojection MSSM plane bytes (max_storage_buffer_binding_size)",
+                        requested: bytes,
+                        max,
+                    });
+                }
+                plane_array(ctx, "backprojection mssm", m.size, levels.len() as u32)?
+            }
+            _ => upload_planes(ctx, "backprojection mssm", 1, &[&[f32::INFINITY]])?,
+        };
+        ctx.scoped("backprojection layout", || {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("backprojection layout"),
+                });
+            for (i, tex) in planes.iter().enumerate() {
+                enc.copy_texture_to_texture(
+                    tex.as_image_copy(),
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &maps.texture,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: i as u32,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: r,
+                        height: r,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+            if !levels.is_empty() {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("backprojection mssm copy"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.copy_pipeline);
+                for (l, level) in levels.iter().enumerate() {
+                    let pc = PlaneCopy {
+                        size: mssm.size,
+                        layer: l as u32,
+                        _pad0: 0,
+                        _pad1: 0,
+                    };
+                    let u = ctx
+                        .device
+                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some("backprojection plane copy"),
+                            contents: bytemuck::bytes_of(&pc),
+                            usage: wgpu::BufferUsages::UNIFORM,
+                        });
+                    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("backprojection plane copy"),
+                        layout: &self.copy_layout,
+                        entries: &[
+                            wgpu::BindGroupEntry {
+                                binding: 0,
+                                resource: u.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 1,
+                                resource: level.min.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 2,
+                                resource: wgpu::BindingResource::TextureView(&mssm.view),
+                            },
+                        ],
+                    });
+                    pass.set_bind_group(0, &group, &[]);
+                    let g = mssm.size.div_ceil(16);
+                    pass.dispatch_workgroups(g, g, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        Ok(DeviceMaps {
+            view: gls.view,
+            out_of_frustum: 0,
+            maps,
+            mssm,
+            layers: gls.layers.len() as u32,
+            midpoints: gls.midpoints.len() as u32,
+            mssm_levels: gls.mssm.as_ref().map(|m| m.levels()),
         })
     }
 
@@ -255,7 +542,7 @@ impl GpuBackprojection {
     }
 
     /// Estimates V from given light-space data (as [`CpuBackprojection`] builds them: layers,
-    /// midpoints in midpoint mode, MSSM), so a test can feed both twins identical data.
+    /// midpoints in midpoint mode, MSSM), uploaded, so a test can feed both twins identical data.
     /// Replaces the report.
     pub fn estimate_with(
         &mut self,
@@ -264,46 +551,29 @@ impl GpuBackprojection {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
-        if !matches!(light.shape, LightShape::Rect { .. }) {
-            return Err(Error::param(
-                "light",
-                "backprojection supports rect lights only",
-            ));
-        }
+        check_inputs(light, receivers, v)?;
         self.report = Report::default();
-        let ctx = self.ctx.clone();
-        let ctx = &*ctx;
-        let p = self.cpu.params();
-        let midpoint = p.choice("self_shadow") == "midpoint";
         let t = Instant::now();
-        let r = ls.view.r;
-        // Layers, then midpoints; a dummy plane keeps the array non-empty.
-        let dummy = vec![f32::INFINITY; r as usize * r as usize];
-        let mut planes: Vec<&[f32]> = ls.layers.iter().map(|d| d.depth.as_slice()).collect();
-        planes.extend(ls.midpoints.iter().map(|d| d.depth.as_slice()));
-        if planes.is_empty() {
-            planes.push(&dummy);
-        }
-        let maps = upload_planes(ctx, "backprojection layers", r, &planes)?;
-        let one = [f32::INFINITY];
-        let (mssm_planes, mssm_size): (Vec<&[f32]>, u32) = match &ls.mssm {
-            Some(m) if m.levels() > 0 => {
-                ((0..m.levels()).map(|l| m.level(l).0).collect(), m.size())
-            }
-            _ => (vec![&one[..]], 1),
-        };
-        let mssm = upload_planes(ctx, "backprojection mssm", mssm_size, &mssm_planes)?;
+        let midpoint = self.cpu.params().choice("self_shadow") == "midpoint";
+        let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
         self.report
             .stages
             .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
-        self.report.light_space_bytes = maps.bytes + mssm.bytes;
+        self.estimate_maps(&maps, light, receivers, v)
+    }
+
+    /// V from maps already on the device; appends to the report.
+    fn estimate_maps(
+        &mut self,
+        maps: &DeviceMaps,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        check_inputs(light, receivers, v)?;
+        let p = self.cpu.params();
+        let midpoint = p.choice("self_shadow") == "midpoint";
+        self.report.light_space_bytes = maps.bytes();
         let h = light.half_extent();
         let max_nspp = p.int("max_nspp") as u32;
         let bpu = BpUniform {
@@ -315,31 +585,32 @@ impl GpuBackprojection {
             gap_filling: u32::from(p.flag("gap_filling")),
             max_nspp,
             sqrt_nspp: (max_nspp as f32).sqrt(),
-            layers: ls.layers.len() as u32,
-            midpoints: if midpoint {
-                ls.midpoints.len() as u32
+            layers: maps.layers,
+            midpoints: if midpoint { maps.midpoints } else { 0 },
+            mssm_present: u32::from(maps.mssm_levels.is_some()),
+            mssm_levels: maps.mssm_levels.unwrap_or(0),
+            mssm_size: if maps.mssm_levels.is_some() {
+                maps.mssm.size
             } else {
                 0
             },
-            mssm_present: u32::from(ls.mssm.is_some()),
-            mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
-            mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
             _pad0: 0,
             _pad1: 0,
         };
+        let self_shadow = p.choice("self_shadow");
         let eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
         let (outside, nonfinite, est_ms, read_ms) =
-            self.dispatch(&ls.view, &eu, &bpu, &maps, &mssm, receivers, v)?;
-        let view = &ls.view;
+            self.dispatch(&maps.view, &eu, &bpu, &maps.maps, &maps.mssm, receivers, v)?;
+        let view = &maps.view;
         self.report.stages.push(("estimate".into(), est_ms));
         self.report.stages.push(("readback".into(), read_ms));
         self.report.note("resolution", view.r);
-        self.report.note("layers", ls.layers.len());
-        self.report.note("self_shadow", p.choice("self_shadow"));
+        self.report.note("layers", maps.layers);
+        self.report.note("self_shadow", self_shadow);
         self.report.note("near", view.n);
         self.report.note("far", view.far);
         self.report
-            .note("out_of_frustum", outside + ls.fit.out_of_frustum);
+            .note("out_of_frustum", outside + maps.out_of_frustum);
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
         }
@@ -454,6 +725,23 @@ impl GpuBackprojection {
     }
 }
 
+fn check_inputs(light: &Light, receivers: &Receivers, v: &[f32]) -> Result<()> {
+    if v.len() != receivers.len() {
+        return Err(Error::Receivers(format!(
+            "output has {} slots for {} receivers",
+            v.len(),
+            receivers.len()
+        )));
+    }
+    if !matches!(light.shape, LightShape::Rect { .. }) {
+        return Err(Error::param(
+            "light",
+            "backprojection supports rect lights only",
+        ));
+    }
+    Ok(())
+}
+
 impl SoftShadowEstimator for GpuBackprojection {
     fn name(&self) -> &'static str {
         self.cpu.name()
@@ -470,23 +758,47 @@ impl SoftShadowEstimator for GpuBackprojection {
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.cpu.set_param(key, value)
     }
-    /// Builds the light-space data on the CPU, exactly as [`CpuBackprojection`] does.
+    /// Builds the light-space data on the GPU (or, after
+    /// [`set_light_space_on_cpu`](Self::set_light_space_on_cpu), on the CPU and uploads them).
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
-        self.cpu.build(scene, receivers)?;
-        self.report = self.cpu.report();
+        self.maps = None;
+        self.report = Report::default();
+        let t = Instant::now();
+        let maps = if self.light_space_on_cpu {
+            self.cpu.build(scene, receivers)?;
+            self.report = self.cpu.report();
+            let ls = self
+                .cpu
+                .light_space()
+                .ok_or_else(|| Error::param("build", "CPU light space missing"))?;
+            let midpoint = self.cpu.params().choice("self_shadow") == "midpoint";
+            let t = Instant::now();
+            let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
+            self.ctx.wait()?;
+            self.report
+                .stages
+                .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
+            maps
+        } else {
+            let maps = self.build_on_gpu(scene, receivers)?;
+            self.ctx.wait()?;
+            self.report
+                .stages
+                .push(("build".into(), t.elapsed().as_secs_f64() * 1e3));
+            self.report.note("light_space", "gpu");
+            maps
+        };
+        self.report.light_space_bytes = maps.bytes();
+        self.maps = Some(maps);
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        let build = self.report.clone();
-        let ls = self
-            .cpu
-            .light_space()
-            .cloned()
+        let maps = self
+            .maps
+            .take()
             .ok_or_else(|| Error::param("build", "estimate called before build"))?;
-        let out = self.estimate_with(&ls, &scene.light, receivers, v);
-        let mut stages = build.stages;
-        stages.append(&mut self.report.stages);
-        self.report.stages = stages;
+        let out = self.estimate_maps(&maps, &scene.light, receivers, v);
+        self.maps = Some(maps);
         out
     }
     fn report(&self) -> Report {
@@ -500,10 +812,14 @@ mod tests {
 
     #[test]
     fn shader_validates_with_naga() {
-        let src = shader_source(&SHADER_PARTS);
-        let module = match naga::front::wgsl::parse_str(&src) {
+        validate(&shader_source(&SHADER_PARTS));
+        validate(PLANE_TO_LAYER_WGSL);
+    }
+
+    fn validate(src: &str) {
+        let module = match naga::front::wgsl::parse_str(src) {
             Ok(m) => m,
-            Err(e) => panic!("{}", e.emit_to_string(&src)),
+            Err(e) => panic!("{}", e.emit_to_string(src)),
         };
         let mut v = naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
@@ -515,7 +831,8 @@ mod tests {
     }
 
     #[test]
-    fn uniform_is_64_bytes() {
+    fn uniforms_have_the_wgsl_sizes() {
         assert_eq!(std::mem::size_of::<BpUniform>(), 64);
+        assert_eq!(std::mem::size_of::<PlaneCopy>(), 16);
     }
 }

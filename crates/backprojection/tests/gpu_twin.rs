@@ -483,6 +483,10 @@ fn cli_path_and_chunking_match() {
     let (v1, _) = run(&mut g, &scene, &rec).expect("gpu run");
     g.set_max_chunk(13);
     let (v2, _) = run(&mut g, &scene, &rec).expect("gpu run chunked");
+    // The light space rendered on the GPU (the default) against the CPU's, uploaded.
+    g.set_light_space_on_cpu(true);
+    let (v3, report) = run(&mut g, &scene, &rec).expect("gpu run, CPU light space");
+    assert!(report.stages.iter().any(|s| s.0 == "upload"), "{report:?}");
     let mut umbra_pen = 0;
     for k in 0..rec.len() {
         if !rec.active[k] {
@@ -490,6 +494,12 @@ fn cli_path_and_chunking_match() {
             continue;
         }
         assert_eq!(v1[k].to_bits(), v2[k].to_bits(), "chunking changed #{k}");
+        assert!(
+            (v1[k] - v3[k]).abs() <= TWIN_TOL,
+            "#{k}: GPU-rendered maps {} vs CPU-built maps {}",
+            v1[k],
+            v3[k]
+        );
         assert!(
             (v1[k] - v_cpu[k]).abs() <= TWIN_TOL,
             "#{k}: {} vs {}",
