@@ -1,0 +1,578 @@
+//! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
+//! [`crate::math`]).
+use crate::math::{caster, fixed_kernel_start, paper_plane_distance, Footprint, LightPatch, SphereModel};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use shadow_map_core::{
+    light_space::{LightSpace, LightSpaceRequest},
+    light_view::{FitReport, LightView, MAX_RESOLUTION},
+    Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
+    Result, Scene, SoftShadowEstimator,
+};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+
+/// Largest bit-grid side of the exact variant (16 x 16 = 256 bits, 8 u32 words on the GPU).
+pub const MAX_BITS: u32 = 16;
+/// Words of the occlusion-bit mask.
+pub const MASK_WORDS: usize = (MAX_BITS * MAX_BITS / 32) as usize;
+/// Highest MSSM level built for the adaptive kernel (windows up to 32 texels; wider kernels take
+/// more fetches, never a wrong minimum).
+pub const MAX_MSSM_LEVEL: u32 = 5;
+/// Most refinement rounds of the adaptive kernel.
+pub const REFINE_ROUNDS: u32 = 16;
+
+/// Parameters of [`CpuAccumulation`] (and of its GPU twin).
+pub const SPECS: &[ParamSpec] = &[
+    ParamSpec {
+        key: "resolution",
+        kind: ParamKind::Int {
+            min: 1,
+            max: MAX_RESOLUTION as i64,
+        },
+        default: "1024",
+        help: "shadow-map resolution r (texels per side)",
+    },
+    ParamSpec {
+        key: "k",
+        kind: ParamKind::Int { min: 1, max: 64 },
+        default: "10",
+        help: "kernel=fixed: the paper's kernel size K (K x K lexels around the receiver's projection; the paper: 5 for speed, 10 for quality)",
+    },
+    ParamSpec {
+        key: "variant",
+        kind: ParamKind::Choice(&["additive", "exact"]),
+        default: "additive",
+        help: "additive: shadowing factors summed and clamped (paper eq. 2); exact: occlusion bits on the light, a union (eq. 1)",
+    },
+    ParamSpec {
+        key: "kernel",
+        kind: ParamKind::Choice(&["fixed", "adaptive"]),
+        default: "fixed",
+        help: "fixed: K x K lexels (paper); adaptive: per receiver, every lexel whose caster at the MSSM's minimum depth can reach the light",
+    },
+    ParamSpec {
+        key: "max_taps",
+        kind: ParamKind::Int { min: 1, max: 256 },
+        default: "32",
+        help: "kernel=adaptive: most taps per side; wider kernels take one tap per step x step block, its caster scaled by step",
+    },
+    ParamSpec {
+        key: "bits",
+        kind: ParamKind::Int {
+            min: 2,
+            max: MAX_BITS as i64,
+        },
+        default: "16",
+        help: "variant=exact: occlusion-bit grid side B (B x B equal-area bits on the light)",
+    },
+    ParamSpec {
+        key: "layers",
+        kind: ParamKind::Int { min: 1, max: 4 },
+        default: "1",
+        help: "variant=exact: depth-peeled layers whose casters set occlusion bits (additive uses layer 0, as the paper)",
+    },
+    ParamSpec {
+        key: "sphere",
+        kind: ParamKind::Choice(&["contract", "paper"]),
+        default: "contract",
+        help: "sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the paper's disk perpendicular to the light normal",
+    },
+    ParamSpec {
+        key: "bias",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: "1.0",
+        help: "constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
+    },
+    ParamSpec {
+        key: "slope_bias",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: "1.0",
+        help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
+    },
+];
+
+/// Which sum (paper eq. 2 or eq. 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// Factors summed, clamped to [0, 1] (eq. 2, the paper's GPU pseudo-code).
+    Additive,
+    /// Occlusion bits on the light, counted once (eq. 1, the "obit" algorithm).
+    Exact,
+}
+
+/// How the kernel is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KernelMode {
+    /// The paper's K x K lexels.
+    Fixed,
+    /// From the MSSM's minimum depth, per receiver.
+    Adaptive,
+}
+
+/// The parameters, typed; read by both twins.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// Additive or exact.
+    pub variant: Variant,
+    /// Fixed or adaptive.
+    pub kernel: KernelMode,
+    /// Fixed kernel size K.
+    pub k: u32,
+    /// Adaptive: most taps per side.
+    pub max_taps: u32,
+    /// Exact: bit-grid side B.
+    pub bits: u32,
+    /// Layers feeding the exact variant (1 for additive).
+    pub layers: u32,
+    /// Sphere model.
+    pub sphere: SphereModel,
+    /// Constant receiver bias (texel footprints).
+    pub b0: f32,
+    /// Slope-scaled receiver bias.
+    pub b1: f32,
+}
+
+impl Settings {
+    /// Reads the parameters.
+    pub fn from_params(p: &Params) -> Settings {
+        let variant = if p.choice("variant") == "exact" {
+            Variant::Exact
+        } else {
+            Variant::Additive
+        };
+        Settings {
+            variant,
+            kernel: if p.choice("kernel") == "adaptive" {
+                KernelMode::Adaptive
+            } else {
+                KernelMode::Fixed
+            },
+            k: p.int("k") as u32,
+            max_taps: p.int("max_taps") as u32,
+            bits: p.int("bits") as u32,
+            layers: if variant == Variant::Exact {
+                p.int("layers") as u32
+            } else {
+                1
+            },
+            sphere: if p.choice("sphere") == "paper" {
+                SphereModel::Paper
+            } else {
+                SphereModel::Contract
+            },
+            b0: p.float("bias") as f32,
+            b1: p.float("slope_bias") as f32,
+        }
+    }
+}
+
+/// The light view and the request both twins build (one shadow map at the light centre, fitted
+/// to the receivers; peeled layers for the exact variant; the anchored MSSM for the adaptive
+/// kernel).
+///
+/// The window is fitted to the light's bounding half extent, scaled for the contract's sphere by
+/// the largest `r_z / (r_z - z_max)` over the receivers (its silhouette disk leaves the light
+/// plane by up to `z_max = R |r_xy| / |r|` and projects wider than the paper's disk; capped at 4).
+pub fn plan(
+    scene: &Scene,
+    receivers: &Receivers,
+    s: &Settings,
+    resolution: u32,
+) -> Result<(LightView, FitReport, LightSpaceRequest)> {
+    let light = &scene.light;
+    let frame = light.frame();
+    let mut half = light.half_extent();
+    if let (LightShape::Sphere { .. }, SphereModel::Contract) = (light.shape, s.sphere) {
+        let mut f = 1.0f32;
+        for (k, pw) in receivers.position.iter().enumerate() {
+            if !receivers.active[k] {
+                continue;
+            }
+            let p = frame.to_light(*pw);
+            if p.z <= 0.0 {
+                continue;
+            }
+            let zmax = LightPatch::for_receiver(&light.shape, s.sphere, p).max_z();
+            if zmax < p.z {
+                f = f.max(p.z / (p.z - zmax));
+            }
+        }
+        half *= f.min(4.0);
+    }
+    let (view, fit) = LightView::fit(scene, receivers, frame, half, resolution)?;
+    let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
+        let l = 2.0 * half.max_element();
+        let wmax = (view.alpha() * l * (1.0 / view.n - 1.0 / view.far)).clamp(1.0, resolution as f32);
+        (wmax.log2().ceil() as u32).clamp(1, MAX_MSSM_LEVEL)
+    });
+    let req = LightSpaceRequest {
+        resolution,
+        layers: s.layers.max(1),
+        midpoints: None,
+        mssm_levels,
+        dual_mssm_levels: None,
+        pyramid: false,
+        raster: RasterOptions::default(),
+    };
+    Ok((view, fit, req))
+}
+
+/// Receiver-side depth bias in world units, as in the baselines (background.md §2
+/// "Self-shadowing"): `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
+#[inline]
+pub fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
+    let texel = view.w * p.z / (view.n * view.r as f32);
+    let to_light = (-p).normalize_or_zero();
+    let cos = n.dot(to_light).abs().max(1e-6);
+    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
+    texel * (b0 + b1 * tan.min(10.0))
+}
+
+/// Half-open texel rectangle `[x0, x1) x [y0, y1)` covering continuous bounds, clamped to the map.
+fn bounds_rect(b: [f32; 4], r: u32) -> [i32; 4] {
+    let r = r as f32;
+    let lo = |x: f32| if x.is_nan() { 0.0 } else { x.floor().clamp(0.0, r) };
+    let hi = |x: f32| if x.is_nan() { r } else { x.ceil().clamp(0.0, r) };
+    [lo(b[0]) as i32, lo(b[1]) as i32, hi(b[2]) as i32, hi(b[3]) as i32]
+}
+
+/// What one receiver's estimate cost (summed into the report).
+#[derive(Debug, Default, Clone, Copy)]
+pub struct TapStats {
+    /// Lexel fetches in the kernel (all layers).
+    pub taps: u64,
+}
+
+/// The per-receiver algorithm over given light-space data: the shadowing factor s in [0, 1]
+/// (V = facing (1 - s)).
+pub struct Accumulator<'a> {
+    /// The maps.
+    pub ls: &'a LightSpace,
+    /// The settings.
+    pub s: Settings,
+}
+
+impl Accumulator<'_> {
+    /// The kernel of one receiver and its step: `None` when the adaptive kernel proves that no
+    /// lexel occludes (MSSM minimum at or behind the receiver).
+    pub fn kernel(&self, fp: &Footprint, uv: Vec2, zp: f32, eps: f32) -> Option<([i32; 4], u32)> {
+        let view = &self.ls.view;
+        match self.s.kernel {
+            KernelMode::Fixed => {
+                let k = self.s.k as i32;
+                let (i0, j0) = (
+                    fixed_kernel_start(uv.x, self.s.k),
+                    fixed_kernel_start(uv.y, self.s.k),
+                );
+                Some(([i0, j0, i0 + k, j0 + k], 1))
+            }
+            KernelMode::Adaptive => {
+                let bounds = |z: f32| bounds_rect(fp.texel_bounds(z, view.window_min, view.delta()), view.r);
+                let mut zm = view.n;
+                let mut rect = bounds(zm);
+                for _ in 0..REFINE_ROUNDS {
+                    let zmin = match &self.ls.mssm {
+                        Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
+                        None => f32::NEG_INFINITY,
+                    };
+                    if zmin >= zp - eps {
+                        return None;
+                    }
+                    if !(zmin > zm) {
+                        break;
+                    }
+                    zm = zmin;
+                    let next = bounds(zm);
+                    let area = |r: &[i32; 4]| (r[2] - r[0]) as i64 * (r[3] - r[1]) as i64;
+                    if area(&next) >= area(&rect) {
+                        break;
+                    }
+                    rect = next;
+                }
+                let (nx, ny) = ((rect[2] - rect[0]).max(0) as u32, (rect[3] - rect[1]).max(0) as u32);
+                if nx == 0 || ny == 0 {
+                    return None;
+                }
+                let step = nx.max(ny).div_ceil(self.s.max_taps).max(1);
+                Some((rect, step))
+            }
+        }
+    }
+
+    /// The shadowing factor of the receiver at light-space `p` (normal `nrm`, texel coordinates
+    /// `uv`) with footprint `fp`.
+    pub fn shadowing(&self, fp: &Footprint, nrm: Vec3, uv: Vec2, stats: &mut TapStats) -> f32 {
+        let ls = self.ls;
+        let view = &ls.view;
+        let p = fp.r;
+        let zp = p.z;
+        let eps = receiver_bias(view, p, nrm, self.s.b0, self.s.b1);
+        let Some((rect, step)) = self.kernel(fp, uv, zp, eps) else {
+            return 0.0;
+        };
+        let delta = view.delta();
+        let bx = ((rect[2] - rect[0]) as u32).div_ceil(step);
+        let by = ((rect[3] - rect[1]) as u32).div_ceil(step);
+        let layers = (self.s.layers as usize).min(ls.layers.len()).max(1);
+        let exact = self.s.variant == Variant::Exact;
+        let nbits = (self.s.bits * self.s.bits) as usize;
+        let mut bit_pts: Vec<Vec2> = Vec::new();
+        let mut mask = [0u32; MASK_WORDS];
+        let mut set = 0usize;
+        let mut s_add = 0.0f32;
+        for b in 0..by {
+            let j0 = rect[1] + (b * step) as i32;
+            let j1 = (j0 + step as i32).min(rect[3]);
+            let jc = j0 + (j1 - j0 - 1) / 2;
+            for a in 0..bx {
+                let i0 = rect[0] + (a * step) as i32;
+                let i1 = (i0 + step as i32).min(rect[2]);
+                let ic = i0 + (i1 - i0 - 1) / 2;
+                // The cell's centre on the plane: eq. 4's l.
+                let l = view.window_min + Vec2::new((i0 + i1) as f32, (j0 + j1) as f32) * (0.5 * delta);
+                for layer in &ls.layers[..layers] {
+                    stats.taps += 1;
+                    let cz = layer.at(ic, jc);
+                    if !(cz < zp - eps) {
+                        break; // deeper layers are further still
+                    }
+                    let Some((lr, size)) = caster(p, view.n, l, cz) else {
+                        continue;
+                    };
+                    let hx = 0.5 * (i1 - i0) as f32 * delta * size;
+                    let hy = 0.5 * (j1 - j0) as f32 * delta * size;
+                    if !exact {
+                        s_add += fp.additive_term(lr, 4.0 * hx * hy);
+                        continue;
+                    }
+                    if bit_pts.is_empty() {
+                        let bits = self.s.bits;
+                        bit_pts = (0..nbits as u32)
+                            .map(|k| fp.to_plane(fp.patch.bit_point(k % bits, k / bits, bits)))
+                            .collect();
+                    }
+                    for (k, q) in bit_pts.iter().enumerate() {
+                        let (w, m) = (k / 32, 1u32 << (k % 32));
+                        if mask[w] & m == 0 && (q.x - lr.x).abs() <= hx && (q.y - lr.y).abs() <= hy {
+                            mask[w] |= m;
+                            set += 1;
+                        }
+                    }
+                    if set == nbits {
+                        return 1.0;
+                    }
+                }
+            }
+        }
+        if exact {
+            set as f32 / nbits as f32
+        } else if s_add >= 1.0 - 1e-6 {
+            1.0
+        } else {
+            s_add.clamp(0.0, 1.0)
+        }
+    }
+}
+
+/// Shadow accumulation (Aszódi & Szirmay-Kalos 2006): see the crate documentation and
+/// [`crate::math`] for the geometry.
+///
+/// Per active receiver p (light space):
+/// 1. facing = the fraction of the light in front of p's tangent plane (contract); 0: V = 0.
+/// 2. The footprint of the light seen from p on the plane z = n ([`Footprint`]); a receiver
+///    outside the one frustum the map covers (the light not entirely nearer the light plane than
+///    p, `z_p <= n`, or p's projection outside the map, which for a sphere light means behind its
+///    centre's plane or beyond 87 degrees off its axis) makes `estimate` fail with
+///    [`Error::Receivers`] naming the count: V is never silently set to full light there.
+/// 3. The kernel ([`Accumulator::kernel`]); per lexel (and per peeled layer for the exact
+///    variant) with depth `c_z < z_p - eps`, the elementary caster ([`caster`]).
+/// 4. additive: `s = clamp01(sum (size delta)^2 J(l_r) / A_L [l_r in F])`; exact:
+///    `s = popcount(bits) / B^2`. `V = facing (1 - s)`.
+///
+/// All surfaces are treated as opaque (the shadow map stores no opacity).
+pub struct CpuAccumulation {
+    params: Params,
+    ls: Option<LightSpace>,
+    report: Report,
+}
+
+impl CpuAccumulation {
+    /// With default parameters.
+    pub fn new() -> Result<Self> {
+        Ok(CpuAccumulation {
+            params: Params::new(SPECS)?,
+            ls: None,
+            report: Report::default(),
+        })
+    }
+    /// The light-space data of the last build.
+    pub fn light_space(&self) -> Option<&LightSpace> {
+        self.ls.as_ref()
+    }
+    /// The typed settings.
+    pub fn settings(&self) -> Settings {
+        Settings::from_params(&self.params)
+    }
+
+    /// Estimates V from given light-space data (as `build` makes them). Returns the lexel taps
+    /// made; fails when any lit receiver is outside the frustum ([`outside_error`]).
+    pub fn estimate_with(
+        &self,
+        ls: &LightSpace,
+        scene: &Scene,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<u64> {
+        if v.len() != receivers.len() {
+            return Err(Error::Receivers(format!(
+                "output has {} slots for {} receivers",
+                v.len(),
+                receivers.len()
+            )));
+        }
+        let s = self.settings();
+        let acc = Accumulator { ls, s };
+        let light = &scene.light;
+        let view = &ls.view;
+        let outside = AtomicUsize::new(0);
+        let taps = AtomicU64::new(0);
+        let nonfinite: usize = v
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, out)| {
+                if !receivers.active[k] {
+                    *out = f32::NAN;
+                    return 0;
+                }
+                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+                let facing = light.front_fraction_world(pw, nw);
+                if !(facing > 0.0) {
+                    *out = 0.0;
+                    return 0;
+                }
+                let p = view.frame.to_light(pw);
+                let fp = Footprint::new(LightPatch::for_receiver(&light.shape, s.sphere, p), p, view.n);
+                let uv = view.project(p);
+                if !fp.covered() || !view.contains(uv) {
+                    outside.fetch_add(1, Ordering::Relaxed);
+                    *out = f32::NAN;
+                    return 0;
+                }
+                let mut st = TapStats::default();
+                let sh = acc.shadowing(&fp, view.frame.dir_to_light(nw), uv, &mut st);
+                taps.fetch_add(st.taps, Ordering::Relaxed);
+                let x = facing * (1.0 - sh);
+                if x.is_finite() {
+                    *out = x.clamp(0.0, 1.0);
+                    0
+                } else {
+                    *out = 0.0;
+                    1
+                }
+            })
+            .sum();
+        let outside = outside.into_inner();
+        if outside > 0 {
+            return Err(outside_error(outside, light));
+        }
+        if nonfinite > 0 {
+            return Err(Error::Receivers(format!(
+                "{nonfinite} receivers got a non-finite V (a bug; replaced by 0)"
+            )));
+        }
+        Ok(taps.into_inner())
+    }
+}
+
+/// The error for receivers outside the one light frustum.
+pub fn outside_error(count: usize, light: &shadow_map_core::Light) -> Error {
+    let what = if matches!(light.shape, LightShape::Sphere { .. }) {
+        "sphere light: behind the plane through its centre perpendicular to its normal, or beyond 87 degrees off that normal"
+    } else {
+        "beyond 87 degrees off the light normal, or no farther from the light plane than the light itself"
+    };
+    Error::Receivers(format!(
+        "{count} lit receivers lie outside the one shadow-map frustum accumulation uses ({what}); \
+         their V is not defined by one map (cube-map views are not implemented): aim the light's normal at them or use another estimator"
+    ))
+}
+
+impl SoftShadowEstimator for CpuAccumulation {
+    fn name(&self) -> &'static str {
+        "accumulation"
+    }
+    fn description(&self) -> &'static str {
+        "shadow accumulation over a kernel of elementary casters, additive or exact occlusion bits (Aszodi & Szirmay-Kalos 2006)"
+    }
+    fn backend(&self) -> Backend {
+        Backend::Cpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        self.ls = None;
+        let s = self.settings();
+        let r = self.params.int("resolution") as u32;
+        let ls = self.report.time("build", || -> Result<LightSpace> {
+            let (view, fit, req) = plan(scene, receivers, &s, r)?;
+            Ok(LightSpace::build_in_view(scene, view, fit, &req))
+        })?;
+        self.report.light_space_bytes = ls.bytes();
+        self.ls = Some(ls);
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        let ls = self
+            .ls
+            .take()
+            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let t = std::time::Instant::now();
+        let out = self.estimate_with(&ls, scene, receivers, v);
+        self.report
+            .stages
+            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
+        let taps = out.as_ref().copied().unwrap_or(0);
+        let settings = self.settings();
+        note_settings(&mut self.report, &settings, &ls, &scene.light, receivers, taps);
+        self.ls = Some(ls);
+        out.map(|_| ())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+/// The notes both twins add to their report.
+pub fn note_settings(
+    report: &mut Report,
+    s: &Settings,
+    ls: &LightSpace,
+    light: &shadow_map_core::Light,
+    receivers: &Receivers,
+    taps: u64,
+) {
+    let view = &ls.view;
+    report.note("resolution", view.r);
+    report.note("variant", format!("{:?}", s.variant).to_lowercase());
+    report.note("kernel", format!("{:?}", s.kernel).to_lowercase());
+    report.note("layers", s.layers);
+    report.note("near", view.n);
+    report.note("far", view.far);
+    if s.kernel == KernelMode::Fixed {
+        let radius = 0.5 * light.diameter();
+        report.note(
+            "paper_n",
+            paper_plane_distance(radius, view.r, s.k, view.w / view.n),
+        );
+    }
+    if taps > 0 {
+        let n = receivers.active_count().max(1);
+        report.note("taps_per_receiver", format!("{:.1}", taps as f64 / n as f64));
+    }
+    report.note("out_of_frustum_fit", ls.fit.out_of_frustum);
+}

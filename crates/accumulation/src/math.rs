@@ -1,0 +1,473 @@
+//! Geometry of shadow accumulation (Aszódi & Szirmay-Kalos 2006, §1.1; background.md §9,
+//! "Aszodi's mapping, corrected").
+//!
+//! Conventions: light space with the light centre at the origin and `e_z` the light normal; the
+//! shadow-map plane is z = n, its window `[x0, x0 + w] x [y0, y0 + w]` split in `r x r` lexels of
+//! pitch `delta = w / r` (see [`shadow_map_core::LightView`]). Points on the plane are 2-D
+//! (x, y) at z = n, in world units.
+//!
+//! # The normalisation, derived (every quantity an area on the shadow-map plane)
+//!
+//! The paper's shadowing factor of caster c for receiver r is `s(c, r) = |D_c ∩ D| / |D|`
+//! (§1.1): D the rays from r that reach the light, D_c those that hit c. The contract measures
+//! these sets by **area on the light** (a uniform emitter; the sphere's silhouette disk), so map
+//! every ray from r to its intersection with the plane z = n:
+//!
+//! * D becomes the light's **footprint** F: the light projected from r onto the plane.
+//! * An elementary caster (one lexel l at depth `c_z`, eq. 4 `l = c n / c_z`) becomes the
+//!   square `Q_c` of centre `l_r` and side `size * delta` ([`caster`]):
+//!   `size = ((r_z - n)/(r_z - c_z)) (c_z / n)`, `l_r = ((n - c_z)/(r_z - c_z)) r_xy + size l`.
+//!   `size` is dimensionless (plane length per plane length); `delta` (world units) turns it into
+//!   a length, so `|Q_c| = (size delta)^2` is an area on the plane.
+//!
+//! A light point X and its image P on the plane are related by the central projection from r.
+//! With the Jacobian `J(P) = |dA_X / dA_P|` of that map ([`Footprint::to_patch`]) the fraction
+//! of the light's area hidden by c is
+//!
+//! `s(c, r) = (1 / A_L) ∫_{Q_c ∩ F} J(P) dP`.
+//!
+//! For a light in a plane parallel to the map (rect, disk, and the paper's model of the sphere:
+//! a disk of radius R perpendicular to the light normal) the projection is a uniform scaling by
+//! `t = (r_z - n) / r_z`, so `J = 1 / t^2` and `A_L t^2 = |F|`: the factor is a ratio of two
+//! areas on the plane, `s(c, r) = |Q_c ∩ F| / |F|`, with `|F| = pi R'^2`, `R' = R t` for a disk
+//! (the paper's R') and `|F| = t^2 l_x l_y` for a rectangle.
+//!
+//! The paper's additive variant (eq. 2 and its pseudo-code) replaces `|Q_c ∩ F|` by
+//! `|Q_c| [l_r ∈ F]`, which gives, summed over the kernel,
+//!
+//! `s = sum_c (size_c delta)^2 [l_r ∈ F] / (pi R'^2)`       ([`additive_term`])
+//!
+//! i.e. the printed `s += size*size; s /= R'*R'*PI/K/K` is right only when `R'` is measured in
+//! lexels (`R' / delta`) and the `K^2` is dropped; as printed it mixes lexel counts with world
+//! units. For the contract's sphere (silhouette disk perpendicular to `r`, tilted against the
+//! plane) `J` varies over F and the term is `|Q_c| J(l_r) / A_L`, which reduces to the line above
+//! for the parallel lights. The unit test `half_occluder_gives_one_half` checks the result: a
+//! flat occluder covering exactly half the footprint gives s = 0.5 (rect, disk, paper sphere and
+//! an off-axis contract sphere).
+//!
+//! The exact variant (eq. 1, the "obit" algorithm) puts B x B equal-area bits on the light
+//! ([`LightPatch::bit_point`]), projects each onto the plane ([`Footprint::to_plane`]) and sets it
+//! when a caster square contains it; `s = popcount / B^2` counts every occluded bit once (a
+//! union, not a sum), and equal-area bits make it an area fraction of the light.
+use glam::{Vec2, Vec3};
+use shadow_map_core::LightShape;
+
+/// Points on a disk's boundary used to bound its projections ([`Footprint::kernel_rect`]).
+pub const DISK_BOUNDARY_POINTS: u32 = 16;
+
+/// How a sphere light's emitting disk is modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SphereModel {
+    /// The contract's silhouette disk: radius R through the centre, perpendicular to the direction
+    /// from the receiver to the centre (exact for the project's V).
+    Contract,
+    /// The paper's: a disk of radius R perpendicular to the light normal (§1.1, assumption 1).
+    /// From a receiver at angle theta off the light axis it looks foreshortened by about cos theta
+    /// compared with the contract's disk.
+    Paper,
+}
+
+/// The emitting shape in its own plane through the light centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PatchShape {
+    /// A disk of this radius.
+    Disk(f32),
+    /// A rectangle with these half extents along `e1`, `e2`.
+    Rect(Vec2),
+}
+
+/// The light as accumulation sees it: a planar patch through the origin (light space) with unit
+/// normal `a` and in-plane orthonormal axes `e1`, `e2`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightPatch {
+    /// Unit normal of the patch plane (light space).
+    pub a: Vec3,
+    /// First in-plane axis.
+    pub e1: Vec3,
+    /// Second in-plane axis.
+    pub e2: Vec3,
+    /// Its shape.
+    pub shape: PatchShape,
+}
+
+impl LightPatch {
+    /// The patch seen from the light-space receiver position `r`: rect and disk lights (and the
+    /// paper's sphere) lie in the plane z = 0; the contract's sphere is the disk perpendicular to
+    /// `r` (the direction from the centre to the receiver).
+    pub fn for_receiver(shape: &LightShape, sphere: SphereModel, r: Vec3) -> LightPatch {
+        let flat = |shape| LightPatch {
+            a: Vec3::Z,
+            e1: Vec3::X,
+            e2: Vec3::Y,
+            shape,
+        };
+        match *shape {
+            LightShape::Rect { size } => flat(PatchShape::Rect(Vec2::new(size[0], size[1]) * 0.5)),
+            LightShape::Disk { radius } => flat(PatchShape::Disk(radius)),
+            LightShape::Sphere { radius } => match sphere {
+                SphereModel::Paper => flat(PatchShape::Disk(radius)),
+                SphereModel::Contract => {
+                    let Some(a) = r.try_normalize() else {
+                        return flat(PatchShape::Disk(radius));
+                    };
+                    let e1 = shadow_map_core::light::default_tangent(a);
+                    LightPatch {
+                        a,
+                        e1,
+                        e2: a.cross(e1),
+                        shape: PatchShape::Disk(radius),
+                    }
+                }
+            },
+        }
+    }
+
+    /// Area `A_L` of the patch.
+    pub fn area(&self) -> f32 {
+        match self.shape {
+            PatchShape::Disk(r) => std::f32::consts::PI * r * r,
+            PatchShape::Rect(h) => 4.0 * h.x * h.y,
+        }
+    }
+
+    /// True when in-plane coordinates (along `e1`, `e2`) lie on the patch (boundary included).
+    #[inline]
+    pub fn contains(&self, local: Vec2) -> bool {
+        match self.shape {
+            PatchShape::Disk(r) => local.length_squared() <= r * r,
+            PatchShape::Rect(h) => local.x.abs() <= h.x && local.y.abs() <= h.y,
+        }
+    }
+
+    /// Bit `(i, j)` of a `b x b` grid of equal-area cells on the patch (light space): the cell
+    /// centres of a regular grid on a rectangle, the same grid mapped by Shirley & Chiu's
+    /// concentric map on a disk (area preserving, so every bit stands for `A_L / b^2`).
+    pub fn bit_point(&self, i: u32, j: u32, b: u32) -> Vec3 {
+        let u = Vec2::new((i as f32 + 0.5) / b as f32, (j as f32 + 0.5) / b as f32);
+        let local = match self.shape {
+            PatchShape::Disk(r) => shadow_map_core::light::concentric_disk(u) * r,
+            PatchShape::Rect(h) => (u * 2.0 - 1.0) * h,
+        };
+        self.e1 * local.x + self.e2 * local.y
+    }
+
+    /// Points whose convex hull contains the patch: its 4 corners, or
+    /// [`DISK_BOUNDARY_POINTS`] points of the polygon circumscribing the disk.
+    pub fn hull_point(&self, k: u32) -> Vec3 {
+        let local = match self.shape {
+            PatchShape::Disk(r) => {
+                let m = DISK_BOUNDARY_POINTS as f32;
+                let rr = r / (std::f32::consts::PI / m).cos();
+                let phi = 2.0 * std::f32::consts::PI * k as f32 / m;
+                Vec2::new(phi.cos(), phi.sin()) * rr
+            }
+            PatchShape::Rect(h) => match k {
+                0 => Vec2::new(-h.x, -h.y),
+                1 => Vec2::new(h.x, -h.y),
+                2 => Vec2::new(h.x, h.y),
+                _ => Vec2::new(-h.x, h.y),
+            },
+        };
+        self.e1 * local.x + self.e2 * local.y
+    }
+
+    /// Number of [`LightPatch::hull_point`]s.
+    pub fn hull_points(&self) -> u32 {
+        match self.shape {
+            PatchShape::Disk(_) => DISK_BOUNDARY_POINTS,
+            PatchShape::Rect(_) => 4,
+        }
+    }
+
+    /// Largest light-space z over the patch (0 for patches in the light plane).
+    pub fn max_z(&self) -> f32 {
+        match self.shape {
+            PatchShape::Disk(r) => r * (1.0 - self.a.z * self.a.z).max(0.0).sqrt(),
+            PatchShape::Rect(h) => h.x * self.e1.z.abs() + h.y * self.e2.z.abs(),
+        }
+    }
+}
+
+/// One receiver's view of the light through the plane z = n.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Footprint {
+    /// The receiver (light space, `r_z > n`).
+    pub r: Vec3,
+    /// The plane distance n.
+    pub n: f32,
+    /// The light patch.
+    pub patch: LightPatch,
+    /// `1 / A_L`.
+    pub inv_area: f32,
+}
+
+impl Footprint {
+    /// The footprint of `patch` seen from `r` on the plane z = `n`.
+    pub fn new(patch: LightPatch, r: Vec3, n: f32) -> Footprint {
+        Footprint {
+            r,
+            n,
+            patch,
+            inv_area: 1.0 / patch.area(),
+        }
+    }
+
+    /// True when every ray from r to the light crosses the plane z = n in front of r (the light
+    /// lies nearer the light plane than the receiver, with a margin of 1e-4 r_z): the one
+    /// frustum's coverage condition. Outside it V is not defined by one map.
+    pub fn covered(&self) -> bool {
+        self.r.z > self.n && self.patch.max_z() < self.r.z * (1.0 - 1e-4)
+    }
+
+    /// Centre of the footprint, `q = n r_xy / r_z` (the receiver's projection).
+    pub fn q(&self) -> Vec2 {
+        Vec2::new(self.r.x, self.r.y) * (self.n / self.r.z)
+    }
+
+    /// The image on the plane of the light point `x` (light space): the central projection from
+    /// r, `P = r + (x - r) (r_z - n) / (r_z - x_z)`.
+    #[inline]
+    pub fn to_plane(&self, x: Vec3) -> Vec2 {
+        self.at_depth(x, self.n)
+    }
+
+    /// The point at depth `c` on the line from r through the light point `x`, as (x, y).
+    #[inline]
+    pub fn at_depth(&self, x: Vec3, c: f32) -> Vec2 {
+        let s = (self.r.z - c) / (self.r.z - x.z);
+        let r = Vec2::new(self.r.x, self.r.y);
+        r + (Vec2::new(x.x, x.y) - r) * s
+    }
+
+    /// Backprojects a plane point P onto the light patch: `(in-plane coordinates, J(P) / A_L)`,
+    /// where `J = |dA_X / dA_P| = u^2 |D_z| / |D . a|` is the area ratio of the central projection
+    /// from r (`D = P - r`, `X = r + u D` on the patch plane). `None` when the ray from r through P
+    /// does not meet the patch plane in front of r.
+    #[inline]
+    pub fn to_patch(&self, p: Vec2) -> Option<(Vec2, f32)> {
+        let a = self.patch.a;
+        let d = Vec3::new(p.x - self.r.x, p.y - self.r.y, self.n - self.r.z);
+        let da = d.dot(a);
+        let u = -self.r.dot(a) / da;
+        if !(u > 0.0) || !u.is_finite() {
+            return None;
+        }
+        let x = self.r + d * u;
+        let local = Vec2::new(x.dot(self.patch.e1), x.dot(self.patch.e2));
+        let jac = u * u * (d.z.abs() / da.abs());
+        Some((local, jac * self.inv_area))
+    }
+
+    /// The additive variant's shadowing factor of one caster square of centre `lr` and area
+    /// `area` (plane units): `area J(lr) / A_L` when `lr` lies in the footprint, else 0.
+    #[inline]
+    pub fn additive_term(&self, lr: Vec2, area: f32) -> f32 {
+        match self.to_patch(lr) {
+            Some((local, w)) if self.patch.contains(local) => area * w,
+            _ => 0.0,
+        }
+    }
+
+    /// Bounding box, in continuous texel coordinates of the view (`(u - x0) / delta` with the
+    /// view's `n`, `x0`, `delta`), of the tan-space directions of every point at depth `c` that
+    /// lies between r and the light: the texels whose casters at depth `>= c` can occlude r.
+    /// Returns `[u_min, v_min, u_max, v_max]`.
+    pub fn texel_bounds(&self, c: f32, window_min: Vec2, delta: f32) -> [f32; 4] {
+        let c = c.max(f32::MIN_POSITIVE);
+        let mut lo = Vec2::splat(f32::INFINITY);
+        let mut hi = Vec2::splat(f32::NEG_INFINITY);
+        for k in 0..self.patch.hull_points() {
+            let y = self.at_depth(self.patch.hull_point(k), c) * (self.n / c);
+            let t = (y - window_min) / delta;
+            lo = lo.min(t);
+            hi = hi.max(t);
+        }
+        [lo.x, lo.y, hi.x, hi.y]
+    }
+}
+
+/// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; background.md §9
+/// with its corrections): the caster point `c = (l, n) c_z / n` behind plane point `l` seen from
+/// r lands on the plane at
+///
+/// `l_r = ((n - c_z)/(r_z - c_z)) r_xy + size l`,  `size = ((r_z - n)/(r_z - c_z)) (c_z / n)`,
+///
+/// and a lexel of side `delta` becomes a square of side `size delta` there. Valid for any
+/// `0 < c_z < r_z`, also `c_z < n` (a caster between the light and the plane: the line from r
+/// through c still meets the plane). Returns `None` for `c_z` outside that range (the caster is
+/// not between the light and r) or non-finite results. `r_z - c_z` is floored at `1e-7 r_z`.
+#[inline]
+pub fn caster(r: Vec3, n: f32, l: Vec2, c_z: f32) -> Option<(Vec2, f32)> {
+    if !(c_z > 0.0) || !(c_z < r.z) {
+        return None;
+    }
+    let gap = (r.z - c_z).max(1e-7 * r.z);
+    let size = ((r.z - n) / gap) * (c_z / n);
+    let lr = Vec2::new(r.x, r.y) * ((n - c_z) / gap) + l * size;
+    (size.is_finite() && lr.is_finite()).then_some((lr, size))
+}
+
+/// First lexel index of the paper's fixed K-lexel kernel along one axis, centred on the
+/// continuous texel coordinate `u`: the K lexels whose centres lie in `[u - K/2, u + K/2)`.
+#[inline]
+pub fn fixed_kernel_start(u: f32, k: u32) -> i32 {
+    (u - 0.5 * k as f32 - 0.5).ceil() as i32
+}
+
+/// The paper's plane distance for a fixed kernel (§1.1, assumption 1: "n proportional to R so
+/// that a K x K kernel covers the footprint"): the lexel pitch on the plane equals `2R/K`, so
+/// `n = 2 R r / (K S)` with S the window side in tan space (`w / n` of the fitted view). The
+/// K x K kernel then covers the footprint on that plane, i.e. every caster with `c_z >= n_paper`
+/// (up to the receiver's own depth); casters nearer the light than `n_paper` project further than
+/// the kernel and are missed (what the adaptive kernel fixes).
+pub fn paper_plane_distance(radius: f32, r: u32, k: u32, tan_window: f32) -> f32 {
+    2.0 * radius * r as f32 / (k as f32 * tan_window)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sums the additive and exact shadowing factors of a flat occluder at depth `c` over the
+    /// lexels whose centre ray (from the light centre) is on the occluded side `side(l) < 0`.
+    fn flat_occluder(
+        fp: &Footprint,
+        delta: f32,
+        c: f32,
+        side: impl Fn(Vec2) -> f32,
+        bits: u32,
+    ) -> (f32, f32) {
+        let q = fp.q();
+        let [u0, v0, u1, v1] = fp.texel_bounds(c, q, delta);
+        let mut s_add = 0.0f64;
+        let mut casters = Vec::new();
+        for j in (v0.floor() as i32 - 1)..=(v1.ceil() as i32 + 1) {
+            for i in (u0.floor() as i32 - 1)..=(u1.ceil() as i32 + 1) {
+                let l = q + Vec2::new(i as f32 + 0.5, j as f32 + 0.5) * delta;
+                if side(l) >= 0.0 {
+                    continue;
+                }
+                let (lr, size) = caster(fp.r, fp.n, l, c).unwrap();
+                let side_len = size * delta;
+                s_add += fp.additive_term(lr, side_len * side_len) as f64;
+                casters.push((lr, 0.5 * side_len));
+            }
+        }
+        let mut hit = 0u32;
+        for j in 0..bits {
+            for i in 0..bits {
+                let p = fp.to_plane(fp.patch.bit_point(i, j, bits));
+                if casters
+                    .iter()
+                    .any(|(lr, h)| (p.x - lr.x).abs() <= *h && (p.y - lr.y).abs() <= *h)
+                {
+                    hit += 1;
+                }
+            }
+        }
+        (s_add as f32, hit as f32 / (bits * bits) as f32)
+    }
+
+    #[test]
+    fn half_occluder_gives_one_half() {
+        let n = 0.5;
+        let c = 2.0;
+        let lights = [
+            LightShape::Rect { size: [1.0, 0.6] },
+            LightShape::Disk { radius: 0.5 },
+            LightShape::Sphere { radius: 0.5 },
+        ];
+        for (shape, model, r) in [
+            (lights[0], SphereModel::Contract, Vec3::new(0.3, -0.2, 4.0)),
+            (lights[1], SphereModel::Contract, Vec3::new(0.3, -0.2, 4.0)),
+            (lights[2], SphereModel::Paper, Vec3::new(0.3, -0.2, 4.0)),
+            (lights[2], SphereModel::Contract, Vec3::new(2.0, 1.0, 3.0)),
+        ] {
+            let patch = LightPatch::for_receiver(&shape, model, r);
+            let fp = Footprint::new(patch, r, n);
+            // The plane through the light centre, r and the direction e_x (the occluder's edge
+            // seen from r crosses the light through its centre): exactly half the light.
+            let normal = r.cross(Vec3::X);
+            let side = |l: Vec2| normal.dot(Vec3::new(l.x, l.y, n));
+            let delta = 2e-3;
+            let (s_add, s_exact) = flat_occluder(&fp, delta, c, side, 16);
+            assert!((s_add - 0.5).abs() < 0.01, "{shape:?} {model:?}: additive {s_add}");
+            assert!((s_exact - 0.5).abs() < 0.04, "{shape:?} {model:?}: exact {s_exact}");
+            // A full occluder: every square tiles the footprint once.
+            let (s_full, e_full) = flat_occluder(&fp, delta, c, |_| -1.0, 8);
+            assert!((s_full - 1.0).abs() < 0.01, "{shape:?} {model:?}: full {s_full}");
+            assert_eq!(e_full, 1.0);
+        }
+    }
+
+    /// The plane distance n is a convention: a caster nearer the light than the plane
+    /// (`c_z < n`) lands on the same light point whichever n is used.
+    #[test]
+    fn caster_mapping_is_independent_of_n() {
+        let r = Vec3::new(0.4, -0.3, 5.0);
+        let c = Vec3::new(0.1, 0.05, 0.7);
+        let patch = LightPatch::for_receiver(&LightShape::Disk { radius: 0.5 }, SphereModel::Contract, r);
+        let mut hits = Vec::new();
+        for n in [0.2f32, 0.7, 1.5, 3.0] {
+            let l = Vec2::new(c.x, c.y) * (n / c.z);
+            let (lr, size) = caster(r, n, l, c.z).unwrap();
+            let fp = Footprint::new(patch, r, n);
+            let (local, _) = fp.to_patch(lr).unwrap();
+            hits.push(local);
+            assert!(size > 0.0);
+        }
+        // Direct: the line from r through c meets z = 0 at r + (c - r) r_z / (r_z - c_z).
+        let x = r + (c - r) * (r.z / (r.z - c.z));
+        for h in hits {
+            assert!((h - Vec2::new(x.x, x.y)).length() < 1e-4, "{h} vs {x}");
+        }
+    }
+
+    /// Off-axis, the paper's sphere model (disk perpendicular to the light normal) is
+    /// foreshortened against the contract's silhouette disk: the footprint areas differ by about
+    /// cos(theta).
+    #[test]
+    fn paper_sphere_model_is_foreshortened_off_axis() {
+        let shape = LightShape::Sphere { radius: 0.3 };
+        let n = 0.5;
+        for (r, cos_theta) in [
+            (Vec3::new(0.0, 0.0, 3.0), 1.0f32),
+            (Vec3::new(3.0, 0.0, 3.0), std::f32::consts::FRAC_1_SQRT_2),
+        ] {
+            let area = |model| {
+                let fp = Footprint::new(LightPatch::for_receiver(&shape, model, r), r, n);
+                // Footprint area on the plane = A_L / mean J: integrate 1[P in F] on a grid.
+                let [u0, v0, u1, v1] = fp.texel_bounds(n, Vec2::ZERO, 1e-3);
+                let mut a = 0.0f64;
+                for j in v0 as i32..=v1 as i32 {
+                    for i in u0 as i32..=u1 as i32 {
+                        let p = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) * 1e-3;
+                        if let Some((local, _)) = fp.to_patch(p) {
+                            if fp.patch.contains(local) {
+                                a += 1e-6;
+                            }
+                        }
+                    }
+                }
+                a
+            };
+            let ratio = area(SphereModel::Paper) / area(SphereModel::Contract);
+            assert!(
+                (ratio - cos_theta as f64).abs() < 0.03,
+                "paper/contract footprint area {ratio}, cos theta {cos_theta}"
+            );
+        }
+    }
+
+    #[test]
+    fn degenerate_casters_are_rejected() {
+        let r = Vec3::new(0.0, 0.0, 2.0);
+        assert!(caster(r, 1.0, Vec2::ZERO, 2.0).is_none());
+        assert!(caster(r, 1.0, Vec2::ZERO, 0.0).is_none());
+        assert!(caster(r, 1.0, Vec2::ZERO, f32::NAN).is_none());
+        let (_, size) = caster(r, 1.0, Vec2::ZERO, 1.999_999).unwrap();
+        assert!(size.is_finite());
+        assert_eq!(fixed_kernel_start(10.5, 10), 5);
+        assert_eq!(fixed_kernel_start(10.2, 3), 9);
+    }
+}
