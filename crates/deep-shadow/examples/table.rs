@@ -1,0 +1,317 @@
+//! Measurements for issue 8: RMSE against the ray-traced reference (DSM, PCF 3/5/7, EDSM 3/5/7,
+//! S = 2, 3 soft transmittance, the multi-sample baseline) on the strands and hair fixtures, a
+//! Table 1.1-shaped speed table, and the two speed-ups (neighbour links vs naive at 7x7;
+//! truncation vs none) as fractions of an in-run ceiling.
+//!
+//! `cargo run --release -p deep-shadow --example table -- [accuracy|speed|all] [--gpu]`
+//! Environment: `DS_W`, `DS_H` (image size, default 160x120), `DS_RES` (map resolution for the
+//! accuracy table, default 1024), `DS_SPP` (reference spp, default 256),
+//! `DS_SPEED_W`/`DS_SPEED_H` (receivers for the speed table, default 1280x720),
+//! `DS_SPEED_RES` (comma-separated resolutions, default 256,512,1024).
+use deep_shadow::CpuDeepShadow;
+use shadow_map_core::{run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use std::time::Instant;
+
+fn env(k: &str, d: u32) -> u32 {
+    std::env::var(k)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(d)
+}
+
+fn fixture(name: &str) -> String {
+    format!(
+        "{}/../../fixtures/{name}/{name}.toml",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+fn load(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
+    let mut scene = Scene::load(fixture(name)).expect("fixture");
+    scene.camera.width = w;
+    scene.camera.height = h;
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    (scene, rec)
+}
+
+fn rmse(a: &[f32], b: &[f32], active: &[bool]) -> f64 {
+    let (mut s, mut n) = (0.0, 0usize);
+    for k in 0..a.len() {
+        if active[k] {
+            let d = a[k] as f64 - b[k] as f64;
+            s += d * d;
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64).sqrt()
+}
+
+fn with(est: &mut dyn SoftShadowEstimator, kv: &[(&str, &str)]) {
+    for (k, v) in kv {
+        est.set_param(k, v).expect("param");
+    }
+}
+
+fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
+    None
+}
+
+fn accuracy() {
+    let (w, h) = (env("DS_W", 160), env("DS_H", 120));
+    let res = env("DS_RES", 1024).to_string();
+    let spp = env("DS_SPP", 256).to_string();
+    let rows: Vec<(&str, Vec<(&str, &str)>)> = vec![
+        ("DSM", vec![("filter", "none")]),
+        ("DSM PCF 3", vec![("filter", "pcf"), ("kernel", "3")]),
+        ("DSM PCF 5", vec![("filter", "pcf"), ("kernel", "5")]),
+        ("DSM PCF 7", vec![("filter", "pcf"), ("kernel", "7")]),
+        ("EDSM 3", vec![("filter", "edsm"), ("kernel", "3")]),
+        ("EDSM 5", vec![("filter", "edsm"), ("kernel", "5")]),
+        ("EDSM 7", vec![("filter", "edsm"), ("kernel", "7")]),
+        ("DSM S=2", vec![("filter", "none"), ("sublights", "2")]),
+        ("DSM S=3", vec![("filter", "none"), ("sublights", "3")]),
+        (
+            "PCF 3 S=2",
+            vec![("filter", "pcf"), ("kernel", "3"), ("sublights", "2")],
+        ),
+        (
+            "PCF 3 S=3",
+            vec![("filter", "pcf"), ("kernel", "3"), ("sublights", "3")],
+        ),
+        ("DSM S=4", vec![("filter", "none"), ("sublights", "4")]),
+        ("DSM eps=0", vec![("filter", "none"), ("epsilon", "0")]),
+    ];
+    println!(
+        "## Accuracy: RMSE of V against reference (spp {spp}), {w}x{h} receivers, resolution {res}"
+    );
+    println!("| fixture | estimator | RMSE | build ms | estimate ms |");
+    println!("|---|---|---|---|---|");
+    for name in ["strands", "hair"] {
+        let (scene, rec) = load(name, w, h);
+        let mut reference = reference::ReferenceEstimator::new().unwrap();
+        with(&mut reference, &[("spp", &spp)]);
+        let (vref, _) = run(&mut reference, &scene, &rec).unwrap();
+        // The reference's own noise: a second, independent run.
+        let mut ref2 = reference::ReferenceEstimator::new().unwrap();
+        with(&mut ref2, &[("spp", &spp), ("seed", "12345")]);
+        let (vref2, _) = run(&mut ref2, &scene, &rec).unwrap();
+        println!(
+            "| {name} | reference vs itself (other seed), / sqrt 2 | {:.4} | | |",
+            rmse(&vref, &vref2, &rec.active) / 2f64.sqrt()
+        );
+        for (label, kv) in &rows {
+            let mut e = CpuDeepShadow::new().unwrap();
+            with(&mut e, &[("resolution", &res)]);
+            with(&mut e, kv);
+            let (v, rep) = run(&mut e, &scene, &rec).unwrap();
+            println!(
+                "| {name} | {label} | {:.4} | {:.1} | {:.1} |",
+                rmse(&v, &vref, &rec.active),
+                rep.total_ms("build"),
+                rep.total_ms("estimate")
+            );
+        }
+        for s in ["2", "4"] {
+            let mut ms = baselines::MultiSample::new().unwrap();
+            with(&mut ms, &[("resolution", &res), ("sublights", s)]);
+            let (v, rep) = run(&mut ms, &scene, &rec).unwrap();
+            println!(
+                "| {name} | multi-sample S={s} (opaque) | {:.4} | {:.1} | {:.1} |",
+                rmse(&v, &vref, &rec.active),
+                rep.total_ms("build"),
+                rep.total_ms("estimate")
+            );
+        }
+    }
+}
+
+/// One timed configuration: median of `reps` runs of build + estimate (ms), and the report.
+fn time(
+    est: &mut dyn SoftShadowEstimator,
+    scene: &Scene,
+    rec: &Receivers,
+    reps: usize,
+) -> (f64, f64, shadow_map_core::Report) {
+    let mut b = Vec::new();
+    let mut e = Vec::new();
+    let mut last = None;
+    for _ in 0..reps {
+        let (_, rep) = run(est, scene, rec).unwrap();
+        b.push(rep.total_ms("build"));
+        e.push(rep.total_ms("estimate"));
+        last = Some(rep);
+    }
+    b.sort_by(f64::total_cmp);
+    e.sort_by(f64::total_cmp);
+    (b[reps / 2], e[reps / 2], last.unwrap())
+}
+
+fn note<'a>(rep: &'a shadow_map_core::Report, k: &str) -> &'a str {
+    rep.notes
+        .iter()
+        .find(|n| n.0 == k)
+        .map(|n| n.1.as_str())
+        .unwrap_or("-")
+}
+
+/// In-run ceilings: sequential list inserts (head exchange + element write) per second, and
+/// random-texel taps (one load) per second, on this machine, in this process.
+fn ceilings() -> (f64, f64) {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let n = 1 << 22;
+    let head: Vec<AtomicU32> = (0..1 << 20).map(|_| AtomicU32::new(u32::MAX)).collect();
+    let mut nodes = vec![0u32; n];
+    let counter = AtomicU32::new(0);
+    let mut x = 12345u32;
+    let t = Instant::now();
+    for _ in 0..n {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        let i = counter.fetch_add(1, Ordering::Relaxed) as usize;
+        nodes[i] = head[(x >> 12) as usize].swap(i as u32, Ordering::Relaxed);
+    }
+    let inserts = n as f64 / t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut s = 0u64;
+    for _ in 0..n {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        s += nodes[(x as usize) % n] as u64;
+    }
+    let taps = n as f64 / t.elapsed().as_secs_f64();
+    std::hint::black_box(s);
+    (inserts, taps)
+}
+
+fn speed(use_gpu: bool) {
+    let (w, h) = (env("DS_SPEED_W", 1280), env("DS_SPEED_H", 720));
+    let resolutions: Vec<String> = std::env::var("DS_SPEED_RES")
+        .unwrap_or_else(|_| "256,512,1024".into())
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .collect();
+    let (scene, rec) = load("hair", w, h);
+    let backend = if use_gpu { "gpu" } else { "cpu" };
+    let mk = || -> Box<dyn SoftShadowEstimator> {
+        if use_gpu {
+            gpu_est().expect("no GPU adapter")
+        } else {
+            Box::new(CpuDeepShadow::new().unwrap())
+        }
+    };
+    let (ins, taps) = ceilings();
+    println!("## Speed ({backend}), hair fixture, {w}x{h} receivers ({} active); median of 3; ms = build + estimate", rec.active_count());
+    println!(
+        "in-run ceilings (CPU, 1 thread): {:.1} M list inserts/s, {:.1} M random taps/s",
+        ins / 1e6,
+        taps / 1e6
+    );
+    let cols: Vec<(&str, Vec<(&str, &str)>)> = vec![
+        ("SM", vec![("filter", "first")]),
+        ("DSM", vec![("filter", "none")]),
+        ("DSM3", vec![("filter", "pcf"), ("kernel", "3")]),
+        ("DSM5", vec![("filter", "pcf"), ("kernel", "5")]),
+        ("EDSM", vec![("filter", "edsm"), ("kernel", "1")]),
+        ("EDSM3", vec![("filter", "edsm"), ("kernel", "3")]),
+        ("EDSM5", vec![("filter", "edsm"), ("kernel", "5")]),
+        ("EDSM7", vec![("filter", "edsm"), ("kernel", "7")]),
+    ];
+    print!("| SM res |");
+    for c in &cols {
+        print!(" {} ms |", c.0);
+    }
+    println!(" fragments | build ms | inserts/s as fraction of ceiling |");
+    println!("|{}", "---|".repeat(cols.len() + 4));
+    for res in &resolutions {
+        print!("| {res} |");
+        let mut last = None;
+        for (_, kv) in &cols {
+            let mut e = mk();
+            with(e.as_mut(), &[("resolution", res)]);
+            with(e.as_mut(), kv);
+            let (b, est, rep) = time(e.as_mut(), &scene, &rec, 3);
+            print!(" {:.1} |", b + est);
+            last = Some((b, rep));
+        }
+        let (b, rep) = last.unwrap();
+        let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
+        println!(" {frags} | {b:.1} | {:.3} |", frags / (b / 1e3) / ins);
+    }
+    println!();
+    println!("| speed-up ({backend}) | res | config A ms (estimate) | config B ms (estimate) | B/A - 1 | elements visited per lookup A / B | paper |");
+    println!("|---|---|---|---|---|---|---|");
+    for res in &resolutions {
+        let mut a = mk();
+        with(
+            a.as_mut(),
+            &[
+                ("resolution", res),
+                ("filter", "pcf"),
+                ("kernel", "7"),
+                ("traversal", "linked"),
+            ],
+        );
+        let (_, ea, ra) = time(a.as_mut(), &scene, &rec, 3);
+        let mut b = mk();
+        with(
+            b.as_mut(),
+            &[
+                ("resolution", res),
+                ("filter", "pcf"),
+                ("kernel", "7"),
+                ("traversal", "naive"),
+            ],
+        );
+        let (_, eb, rb) = time(b.as_mut(), &scene, &rec, 3);
+        println!(
+            "| links (A) vs naive (B), PCF 7x7 | {res} | {ea:.1} | {eb:.1} | {:+.0}% | {} / {} | +50% (720p), +100% (1080p) |",
+            (eb / ea - 1.0) * 100.0,
+            note(&ra, "elements_per_lookup"),
+            note(&rb, "elements_per_lookup")
+        );
+        let mut a = mk();
+        with(
+            a.as_mut(),
+            &[
+                ("resolution", res),
+                ("filter", "pcf"),
+                ("kernel", "7"),
+                ("epsilon", "0.001"),
+            ],
+        );
+        let (ba, ea, ra) = time(a.as_mut(), &scene, &rec, 3);
+        let mut b = mk();
+        with(
+            b.as_mut(),
+            &[
+                ("resolution", res),
+                ("filter", "pcf"),
+                ("kernel", "7"),
+                ("epsilon", "0"),
+            ],
+        );
+        let (bb, eb, rb) = time(b.as_mut(), &scene, &rec, 3);
+        println!(
+            "| truncation eps=1e-3 (A) vs none (B), PCF 7x7, build+estimate | {res} | {:.1} | {:.1} | {:+.0}% | {} / {} | about +40% frame time |",
+            ba + ea,
+            bb + eb,
+            ((bb + eb) / (ba + ea) - 1.0) * 100.0,
+            note(&ra, "elements_per_lookup"),
+            note(&rb, "elements_per_lookup")
+        );
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let what = args.first().map(String::as_str).unwrap_or("all");
+    let gpu = args.iter().any(|a| a == "--gpu");
+    if what == "accuracy" || what == "all" {
+        accuracy();
+    }
+    if what == "speed" || what == "all" {
+        speed(gpu);
+    }
+}

@@ -1,0 +1,345 @@
+//! The CPU twin, [`CpuDeepShadow`], and the per-view set-up both twins share: sub-light points,
+//! the fitted view of each, and what each receiver looks up in it.
+use crate::dsm::{transmittance_opaque, DeepShadowMap, LookupSettings};
+use crate::params::{self, Settings, DESCRIPTION, NAME, SPECS};
+use crate::raster::{fragments, prepare};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use shadow_map_core::{
+    light_space::{LightSpace, LightSpaceRequest},
+    light_view::FitReport,
+    Backend, DepthMap, Error, LightView, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
+};
+use std::time::Instant;
+
+/// The sub-light points, light-plane coordinates relative to the light centre: S = 1 is the centre
+/// (the paper's point light); S > 1 the S x S stratum centres (`Light::stratified_points` without
+/// jitter; concentric-mapped for disks and spheres).
+pub fn sublight_points(scene: &Scene, s: u32) -> Vec<Vec2> {
+    if s <= 1 {
+        vec![Vec2::ZERO]
+    } else {
+        scene.light.stratified_points(s, |_| Vec2::splat(0.5))
+    }
+}
+
+/// The view of the point light at `y` (light-plane coordinates): centre of projection there, axes
+/// parallel to the light frame, fitted to the receivers by [`LightView::fit`].
+pub fn sublight_view(
+    scene: &Scene,
+    receivers: &Receivers,
+    y: Vec2,
+    r: u32,
+) -> Result<(LightView, FitReport)> {
+    let mut frame = scene.light.frame();
+    frame.origin = frame.to_world(y.extend(0.0));
+    LightView::fit(scene, receivers, frame, Vec2::ZERO, r)
+}
+
+/// What one receiver needs from one view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Query {
+    /// A fixed transmittance, no lookup: 0 when the point light is behind the receiver's tangent
+    /// plane or the receiver behind the light point; 1 when the receiver is nearer than n (nothing
+    /// recorded is nearer).
+    Fixed(f32),
+    /// Look up at continuous texel coordinates `uv` and depth `d = z_p - eps`.
+    Look {
+        /// Texel coordinates.
+        uv: Vec2,
+        /// Biased receiver depth.
+        d: f32,
+    },
+}
+
+/// Receiver-side depth bias in world units, as in the baselines (background.md §2
+/// "Self-shadowing"): `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
+#[inline]
+pub fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
+    let texel = view.w * p.z / (view.n * view.r as f32);
+    let to_light = (-p).normalize_or_zero();
+    let cos = n.dot(to_light).abs().max(1e-6);
+    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
+    texel * (b0 + b1 * tan.min(10.0))
+}
+
+/// The query of a receiver at world position `pw`, normal `nw`, in `view` (centre of projection
+/// `view.frame.origin`).
+pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
+    let yw = view.frame.origin;
+    if !(nw.dot(yw - pw) > 0.0) {
+        return Query::Fixed(0.0);
+    }
+    let p = view.frame.to_light(pw);
+    if !(p.z > 0.0) {
+        return Query::Fixed(0.0);
+    }
+    if p.z <= view.n {
+        return Query::Fixed(1.0);
+    }
+    let n = view.frame.dir_to_light(nw);
+    let eps = receiver_bias(view, p, n, s.b0, s.b1);
+    Query::Look {
+        uv: view.project(p),
+        d: p.z - eps,
+    }
+}
+
+/// Lookup settings for a view: `c' = c / (far - n)` turns the notes' c over normalised depth into
+/// world units.
+pub fn lookup_settings(view: &LightView, s: &Settings) -> LookupSettings {
+    LookupSettings {
+        filter: s.filter,
+        kernel: s.kernel,
+        c_world: s.c / (view.far - view.n).max(f32::MIN_POSITIVE),
+        traversal: s.traversal,
+    }
+}
+
+/// Builds, processes and links the deep shadow map of `scene` in `view` on the CPU (§1.3.1 to
+/// §1.3.3).
+pub fn build_deep_map(scene: &Scene, view: &LightView, s: &Settings) -> Result<DeepShadowMap> {
+    let tris = prepare(scene, view);
+    let frags = fragments(&tris, view.r);
+    let mut dsm = DeepShadowMap::build(&frags, view.r, s.capacity, s.max_capacity)?;
+    dsm.process(s.epsilon);
+    dsm.link();
+    Ok(dsm)
+}
+
+/// Deep shadow maps on the CPU (Fürst et al.), with soft transmittance from S x S sub-lights.
+///
+/// Per sub-light point y: a deep shadow map from y ([`build_deep_map`]), then for each receiver p
+/// `T_y(p)` = the filtered transmittance at `d = z_p - eps` ([`DeepShadowMap::transmittance`]),
+/// 0 when y is behind p's tangent plane. `V(p) = (1/S^2) sum_y T_y(p)`, 0 behind a one-sided light.
+/// One map is alive at a time.
+///
+/// A fully opaque scene builds no lists: each view is the core's ordinary shadow map, read by the
+/// same filters (`--stats` note `path`).
+pub struct CpuDeepShadow {
+    params: Params,
+    report: Report,
+}
+
+impl CpuDeepShadow {
+    /// With default parameters.
+    pub fn new() -> Result<Self> {
+        Ok(CpuDeepShadow {
+            params: Params::new(SPECS)?,
+            report: Report::default(),
+        })
+    }
+    /// The current settings.
+    pub fn settings(&self) -> Settings {
+        Settings::from_params(&self.params)
+    }
+}
+
+/// Checks the output slice length.
+pub fn check_len(receivers: &Receivers, v: &[f32]) -> Result<()> {
+    if v.len() != receivers.len() {
+        return Err(Error::Receivers(format!(
+            "output has {} slots for {} receivers",
+            v.len(),
+            receivers.len()
+        )));
+    }
+    Ok(())
+}
+
+/// Writes `V = acc / views` (NaN for inactive receivers, 0 behind a one-sided light), clamped to
+/// [0, 1]; returns how many were not finite (written as 0; a non-zero count is a bug, reported).
+pub fn finish(
+    scene: &Scene,
+    receivers: &Receivers,
+    acc: &[f32],
+    views: usize,
+    v: &mut [f32],
+) -> usize {
+    let inv = 1.0 / views.max(1) as f32;
+    let frame = scene.light.frame();
+    let one_sided = scene.light.one_sided();
+    let mut bad = 0;
+    for (k, out) in v.iter_mut().enumerate() {
+        *out = if !receivers.active[k] {
+            f32::NAN
+        } else if one_sided && frame.to_light(receivers.position[k]).z <= 0.0 {
+            0.0
+        } else {
+            let x = acc[k] * inv;
+            if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                bad += 1;
+                0.0
+            }
+        };
+    }
+    bad
+}
+
+/// Notes of one deep map for `--stats`, summed over views.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Tally {
+    /// Fragments.
+    pub fragments: u64,
+    /// Kept elements.
+    pub kept: u64,
+    /// Largest capacity used.
+    pub capacity: u64,
+    /// Build passes.
+    pub passes: u32,
+    /// Longest list.
+    pub max_len: u32,
+    /// Lookups.
+    pub lookups: u64,
+    /// Elements visited by lookups.
+    pub steps: u64,
+    /// Receivers out of the frustum (max over views).
+    pub out_of_frustum: usize,
+    /// Peak bytes.
+    pub peak: usize,
+}
+
+impl Tally {
+    /// Adds the notes to a report.
+    pub fn note(&self, rep: &mut Report, opaque: bool, views: usize) {
+        rep.note(
+            "path",
+            if opaque {
+                "opaque scene: ordinary shadow map per view, no lists"
+            } else {
+                "deep lists"
+            },
+        );
+        rep.note("views", views);
+        if !opaque {
+            rep.note("fragments", self.fragments);
+            rep.note("elements_kept", self.kept);
+            rep.note("truncated", self.fragments - self.kept.min(self.fragments));
+            rep.note("capacity", self.capacity);
+            rep.note("build_passes", self.passes);
+            rep.note("max_list", self.max_len);
+            if self.lookups > 0 {
+                rep.note(
+                    "elements_per_lookup",
+                    format!("{:.2}", self.steps as f64 / self.lookups as f64),
+                );
+            }
+        }
+        rep.note("out_of_frustum", self.out_of_frustum);
+        rep.light_space_bytes = self.peak;
+    }
+}
+
+impl SoftShadowEstimator for CpuDeepShadow {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn description(&self) -> &'static str {
+        DESCRIPTION
+    }
+    fn backend(&self) -> Backend {
+        Backend::Cpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        params::set(&mut self.params, key, value)
+    }
+    fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
+        // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
+        self.report = Report::default();
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        check_len(receivers, v)?;
+        self.report = Report::default();
+        let s = self.settings();
+        let opaque = scene.is_opaque();
+        let points = sublight_points(scene, s.sublights);
+        let mut acc = vec![0.0f32; receivers.len()];
+        let (mut t_build, mut t_est) = (0.0, 0.0);
+        let mut tally = Tally::default();
+        for y in &points {
+            let t = Instant::now();
+            let (view, fit) = sublight_view(scene, receivers, *y, s.resolution)?;
+            tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
+            let map = if opaque {
+                let ls = LightSpace::build_in_view(
+                    scene,
+                    view,
+                    fit,
+                    &LightSpaceRequest::single(s.resolution),
+                );
+                Source::Opaque(
+                    ls.layers
+                        .into_iter()
+                        .next()
+                        .unwrap_or_else(|| DepthMap::empty(s.resolution)),
+                )
+            } else {
+                let dsm = build_deep_map(scene, &view, &s)?;
+                tally.fragments += dsm.stats.fragments;
+                tally.kept += dsm.stats.kept;
+                tally.capacity = tally.capacity.max(dsm.stats.capacity);
+                tally.passes += dsm.stats.passes;
+                tally.max_len = tally.max_len.max(dsm.stats.max_len);
+                Source::Deep(dsm)
+            };
+            tally.peak = tally.peak.max(match &map {
+                Source::Opaque(m) => m.bytes(),
+                Source::Deep(d) => d.bytes(),
+            });
+            t_build += t.elapsed().as_secs_f64() * 1e3;
+            let t = Instant::now();
+            let ls = lookup_settings(&view, &s);
+            let (lookups, steps) = acc
+                .par_iter_mut()
+                .enumerate()
+                .map(|(k, a)| {
+                    if !receivers.active[k] {
+                        return (0u64, 0u64);
+                    }
+                    match query(&view, receivers.position[k], receivers.normal[k], &s) {
+                        Query::Fixed(x) => {
+                            *a += x;
+                            (0, 0)
+                        }
+                        Query::Look { uv, d } => match &map {
+                            Source::Opaque(m) => {
+                                *a += transmittance_opaque(m, uv, d, &ls);
+                                (1, 0)
+                            }
+                            Source::Deep(dsm) => {
+                                let (tr, st) = dsm.transmittance(uv, d, &ls);
+                                *a += tr;
+                                (1, st as u64)
+                            }
+                        },
+                    }
+                })
+                .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+            tally.lookups += lookups;
+            tally.steps += steps;
+            t_est += t.elapsed().as_secs_f64() * 1e3;
+        }
+        let bad = finish(scene, receivers, &acc, points.len(), v);
+        self.report.stages.push(("build".into(), t_build));
+        self.report.stages.push(("estimate".into(), t_est));
+        tally.note(&mut self.report, opaque, points.len());
+        self.report.note("non_finite", bad);
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+/// The light-space data of one view.
+enum Source {
+    Opaque(DepthMap),
+    Deep(DeepShadowMap),
+}

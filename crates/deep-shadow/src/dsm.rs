@@ -1,0 +1,480 @@
+//! The deep shadow map of Fürst et al. on the CPU: per-texel linked lists in a head buffer and an
+//! element buffer with one counter (§1.3.1), processed by sorting, cumulative transmittance and
+//! truncation (§1.3.2), linked to the right and upper neighbours (§1.3.3), and looked up with PCF
+//! or exponential filtering, with link-guided or naive traversal (§1.3.4, §1.3.5).
+use crate::raster::Fragment;
+use crate::shared::{Node, NIL};
+use glam::Vec2;
+use rayon::prelude::*;
+use shadow_map_core::{DepthMap, Error, Result};
+
+/// How a lookup filters the transmittance over the shadow-map plane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Filter {
+    /// Binary shadow map from the first (nearest) fragment only: `T = [d <= z_0]` (Table 1.1 "SM").
+    First,
+    /// One tap: `T(d)` of the receiver's texel (Eq. 1.1, §1.3.4).
+    None,
+    /// Percentage-closer filtering: the mean of `T(d)` over N x N texels (§1.3.5).
+    Pcf,
+    /// Exponential deep shadow maps (EDSM, §1.3.5, background.md §7): the mean over N x N texels of
+    /// `tau_c(d) = prod_j (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' max(0, t))`.
+    Edsm,
+}
+
+/// How each tap's list is searched (both give identical results; only the cost differs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Traversal {
+    /// From the previous tap's element through its `right`/`upper` link, then `next`/`prev`
+    /// (Fürst et al. §1.3.5, Figure 1.5): each list is walked from its head once per pixel at most.
+    Linked,
+    /// Every tap's list walked from its head.
+    Naive,
+}
+
+/// Settings of one lookup.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LookupSettings {
+    /// Filter.
+    pub filter: Filter,
+    /// Kernel side N (odd); ignored by [`Filter::First`] and [`Filter::None`].
+    pub kernel: u32,
+    /// EDSM sharpness in world units: `c' = c / (far - n)` for the notes' c over normalised depth.
+    pub c_world: f32,
+    /// Traversal.
+    pub traversal: Traversal,
+}
+
+/// `o_c` is evaluated only for `c' (d - z) < EDSM_CUTOFF`: beyond it `exp(-c' t) < 1.2e-7` and the
+/// fragment counts as a hard step, so its factor is read from the stored `tau`.
+pub const EDSM_CUTOFF: f32 = 16.0;
+
+/// Statistics of a build.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BuildStats {
+    /// Fragments rasterised (the counter after the last pass).
+    pub fragments: u64,
+    /// Element-buffer capacity of the last pass.
+    pub capacity: u64,
+    /// Passes needed (1 + rebuilds after an overflow).
+    pub passes: u32,
+    /// Elements left in the lists after truncation.
+    pub kept: u64,
+    /// Longest list before truncation.
+    pub max_len: u32,
+    /// Non-empty lists.
+    pub lists: u64,
+}
+
+/// A deep shadow map: `head[j r + i]` is the first element of texel (i, j)'s list in `nodes`
+/// ([`NIL`] when empty).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeepShadowMap {
+    /// Side r in texels.
+    pub r: u32,
+    /// Head buffer.
+    pub head: Vec<u32>,
+    /// List element buffer (its length is the capacity).
+    pub nodes: Vec<Node>,
+    /// Build statistics.
+    pub stats: BuildStats,
+}
+
+/// One pass of §1.3.1 (Listing 1.2), sequential: for each fragment, `i = counter++`; if
+/// `i < capacity` the element is written and pushed at the head of its texel's list (the
+/// `InterlockedExchange`); otherwise only the counter moves, so an overflow is detected
+/// (`counter > capacity`) and never leaves a broken list. Returns the counter.
+pub fn insert_pass(
+    frags: &[Fragment],
+    head: &mut [u32],
+    nodes: &mut Vec<Node>,
+    capacity: u64,
+) -> u64 {
+    head.fill(NIL);
+    nodes.clear();
+    let mut counter: u64 = 0;
+    for f in frags {
+        let i = counter;
+        counter += 1;
+        if i >= capacity {
+            continue;
+        }
+        let h = &mut head[f.texel as usize];
+        nodes.push(Node::fragment(f.depth, f.alpha, *h));
+        *h = i as u32;
+    }
+    counter
+}
+
+/// Raw element-buffer pointer shared by the per-texel passes, which touch disjoint lists.
+#[derive(Clone, Copy)]
+struct NodesPtr(*mut Node);
+// SAFETY: every per-texel pass below writes only the elements of its own texel's list (lists are
+// disjoint) and reads other lists only in fields no pass writes concurrently.
+unsafe impl Send for NodesPtr {}
+unsafe impl Sync for NodesPtr {}
+
+impl DeepShadowMap {
+    /// Builds the lists from fragments with the capacity rule of §1.3.1: a pass at
+    /// `initial_capacity` elements (0: `max(4 r^2, 1024)`); when the counter passes the capacity,
+    /// the buffer grows to the counter and the pass is rebuilt. A need above `max_capacity` is an
+    /// [`Error::Limit`]; fragments are never dropped silently.
+    pub fn build(
+        frags: &[Fragment],
+        r: u32,
+        initial_capacity: u64,
+        max_capacity: u64,
+    ) -> Result<Self> {
+        let texels = r as usize * r as usize;
+        let mut capacity = if initial_capacity == 0 {
+            (4 * texels as u64).max(1024)
+        } else {
+            initial_capacity
+        }
+        .min(max_capacity);
+        let mut head = vec![NIL; texels];
+        let mut nodes = Vec::new();
+        let mut passes = 0;
+        loop {
+            passes += 1;
+            let counter = insert_pass(frags, &mut head, &mut nodes, capacity);
+            if counter <= capacity {
+                let stats = BuildStats {
+                    fragments: counter,
+                    capacity,
+                    passes,
+                    ..Default::default()
+                };
+                return Ok(DeepShadowMap {
+                    r,
+                    head,
+                    nodes,
+                    stats,
+                });
+            }
+            if counter > max_capacity || counter >= NIL as u64 {
+                return Err(Error::Limit {
+                    what: "deep shadow map list elements (raise max_capacity or lower resolution)",
+                    requested: counter,
+                    max: max_capacity.min(NIL as u64 - 1),
+                });
+            }
+            capacity = counter;
+        }
+    }
+
+    /// Indices of texel `t`'s list, in list order.
+    pub fn list(&self, t: usize) -> Vec<u32> {
+        let mut out = Vec::new();
+        let mut e = self.head[t];
+        while e != NIL {
+            out.push(e);
+            e = self.nodes[e as usize].next;
+        }
+        out
+    }
+
+    /// Processing (§1.3.2), one texel at a time in parallel: sort the list by depth (insertion
+    /// sort of its payloads, ties broken by alpha so any insertion order gives the same list),
+    /// store `tau_k = prod_{i<=k} (1 - alpha_i)` (Eq. 1.1) and the `prev` links, and truncate after
+    /// the first element with `tau_k <= epsilon` (0 disables): no later fragment can change the
+    /// transmittance by more than `tau_k`, so the lookup error is at most `epsilon`.
+    pub fn process(&mut self, epsilon: f32) {
+        let ptr = NodesPtr(self.nodes.as_mut_ptr());
+        let res: Vec<(u64, u32)> = self
+            .head
+            .par_iter()
+            .map(|&h| {
+                let p = ptr;
+                // SAFETY: only the elements of this texel's list are touched.
+                unsafe { process_list(p.0, h, epsilon) }
+            })
+            .collect();
+        self.stats.kept = res.iter().map(|r| r.0).sum();
+        self.stats.max_len = res.iter().map(|r| r.1).max().unwrap_or(0);
+        self.stats.lists = res.iter().filter(|r| r.1 > 0).count() as u64;
+    }
+
+    /// Neighbour links (§1.3.3): for every element, the depth-nearest element of the lists of the
+    /// right (i+1, j) and upper (i, j+1) texels (ties to the shallower), found by walking both
+    /// sorted lists together.
+    pub fn link(&mut self) {
+        let r = self.r as usize;
+        let ptr = NodesPtr(self.nodes.as_mut_ptr());
+        let head = &self.head;
+        (0..head.len()).into_par_iter().for_each(|t| {
+            let p = ptr;
+            let (i, j) = (t % r, t / r);
+            let right = if i + 1 < r { head[t + 1] } else { NIL };
+            let upper = if j + 1 < r { head[t + r] } else { NIL };
+            // SAFETY: writes only `right`/`upper` of this texel's elements; reads only `depth`
+            // and `next` of the neighbours' elements, which this pass never writes.
+            unsafe {
+                link_list(p.0, head[t], right, false);
+                link_list(p.0, head[t], upper, true);
+            }
+        });
+    }
+
+    /// Transmittance at light-space depth `d` (the receiver depth minus its bias) for the point
+    /// with continuous texel coordinates `uv`, filtered as `s` says. Returns `(T, elements visited)`.
+    pub fn transmittance(&self, uv: Vec2, d: f32, s: &LookupSettings) -> (f32, u32) {
+        let r = self.r as i32;
+        let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
+        let n = match s.filter {
+            Filter::First | Filter::None => 1,
+            _ => s.kernel.max(1) as i32,
+        };
+        let h = n / 2;
+        let mut sum = 0.0f32;
+        let mut steps = 0u32;
+        let mut row_anchor = NIL;
+        for b in 0..n {
+            let j = cj - h + b;
+            let mut anchor = NIL;
+            for a in 0..n {
+                let i = ci - h + a;
+                if i < 0 || j < 0 || i >= r || j >= r {
+                    sum += 1.0;
+                    anchor = NIL;
+                    if a == 0 {
+                        row_anchor = NIL;
+                    }
+                    continue;
+                }
+                let hd = self.head[(j * r + i) as usize];
+                if hd == NIL {
+                    sum += 1.0;
+                    anchor = NIL;
+                    if a == 0 {
+                        row_anchor = NIL;
+                    }
+                    continue;
+                }
+                if s.filter == Filter::First {
+                    steps += 1;
+                    sum += if self.nodes[hd as usize].depth < d {
+                        0.0
+                    } else {
+                        1.0
+                    };
+                    continue;
+                }
+                let start = match s.traversal {
+                    Traversal::Naive => hd,
+                    Traversal::Linked => {
+                        let from = if a == 0 { row_anchor } else { anchor };
+                        let link = if from == NIL {
+                            NIL
+                        } else if a == 0 {
+                            self.nodes[from as usize].upper
+                        } else {
+                            self.nodes[from as usize].right
+                        };
+                        if link == NIL {
+                            hd
+                        } else {
+                            link
+                        }
+                    }
+                };
+                let (k, st) = find(&self.nodes, start, d);
+                steps += st;
+                sum += match s.filter {
+                    Filter::Edsm => soft_tau(&self.nodes, k, d, s.c_world),
+                    _ => {
+                        if k == NIL {
+                            1.0
+                        } else {
+                            self.nodes[k as usize].tau
+                        }
+                    }
+                };
+                anchor = if k == NIL { hd } else { k };
+                if a == 0 {
+                    row_anchor = anchor;
+                }
+            }
+        }
+        ((sum / (n * n) as f32).clamp(0.0, 1.0), steps)
+    }
+
+    /// Bytes of the head and element buffers.
+    pub fn bytes(&self) -> usize {
+        self.head.len() * 4 + self.nodes.len() * std::mem::size_of::<Node>()
+    }
+}
+
+/// The last element of a sorted list with `depth < d` ([`NIL`] when none), searched from `start`
+/// (any element of the list) along `next` or `prev`. Returns it and the elements visited.
+#[inline]
+pub fn find(nodes: &[Node], start: u32, d: f32) -> (u32, u32) {
+    let mut s = start;
+    let mut steps = 1;
+    if nodes[s as usize].depth < d {
+        loop {
+            let nx = nodes[s as usize].next;
+            if nx != NIL && nodes[nx as usize].depth < d {
+                s = nx;
+                steps += 1;
+            } else {
+                return (s, steps);
+            }
+        }
+    }
+    loop {
+        let pv = nodes[s as usize].prev;
+        if pv == NIL {
+            return (NIL, steps);
+        }
+        s = pv;
+        steps += 1;
+        if nodes[s as usize].depth < d {
+            return (s, steps);
+        }
+    }
+}
+
+/// EDSM transmittance of one tap (background.md §7, the soft-tested product):
+/// `tau_c(d) = prod_{z_j < d} (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' t)`.
+///
+/// Only the exponent `-c' (d - z_j) <= 0` is ever evaluated (the log-space form: `exp(c z)` on its
+/// own, which overflows f32 once `c z > 88.7`, never appears). Walking back from `k` (the last
+/// fragment in front of d), the first fragment with `c' (d - z_j) >= EDSM_CUTOFF` and every one
+/// before it count as hard steps, whose product is the stored `tau_j`.
+#[inline]
+pub fn soft_tau(nodes: &[Node], k: u32, d: f32, c_world: f32) -> f32 {
+    let mut prod = 1.0f32;
+    let mut j = k;
+    while j != NIL {
+        let e = &nodes[j as usize];
+        let t = (d - e.depth) * c_world;
+        if t >= EDSM_CUTOFF {
+            return e.tau * prod;
+        }
+        prod *= 1.0 - e.alpha * (1.0 - (-t.max(0.0)).exp());
+        j = e.prev;
+    }
+    prod
+}
+
+/// Sorts, accumulates and truncates one list; returns (elements kept, length before truncation).
+///
+/// # Safety
+/// `nodes` must point at the element buffer and no other thread may touch this list.
+unsafe fn process_list(nodes: *mut Node, head: u32, epsilon: f32) -> (u64, u32) {
+    if head == NIL {
+        return (0, 0);
+    }
+    let at = |i: u32| unsafe { &mut *nodes.add(i as usize) };
+    let mut idx = Vec::new();
+    let mut e = head;
+    while e != NIL {
+        idx.push(e);
+        e = at(e).next;
+    }
+    let mut pay: Vec<(f32, f32)> = idx.iter().map(|&i| (at(i).depth, at(i).alpha)).collect();
+    // Insertion sort (the paper's choice, §1.3.2), by (depth, alpha).
+    for a in 1..pay.len() {
+        let x = pay[a];
+        let mut b = a;
+        while b > 0 && less(x, pay[b - 1]) {
+            pay[b] = pay[b - 1];
+            b -= 1;
+        }
+        pay[b] = x;
+    }
+    let mut tau = 1.0f32;
+    let mut kept = idx.len();
+    for (k, (&i, &(z, al))) in idx.iter().zip(&pay).enumerate() {
+        tau *= 1.0 - al;
+        let n = at(i);
+        n.depth = z;
+        n.alpha = al;
+        n.tau = tau;
+        n.prev = if k == 0 { NIL } else { idx[k - 1] };
+        if epsilon > 0.0 && tau <= epsilon {
+            n.next = NIL;
+            kept = k + 1;
+            break;
+        }
+    }
+    (kept as u64, idx.len() as u32)
+}
+
+/// The sort order of list payloads: depth, then alpha (a total order on the values, so the
+/// CPU and GPU twins sort any insertion order to the same list).
+#[inline]
+pub fn less(a: (f32, f32), b: (f32, f32)) -> bool {
+    a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
+}
+
+/// Links every element of list `a` to its depth-nearest element of list `b`.
+///
+/// # Safety
+/// As [`DeepShadowMap::link`].
+unsafe fn link_list(nodes: *mut Node, a: u32, b: u32, upper: bool) {
+    let at = |i: u32| unsafe { &mut *nodes.add(i as usize) };
+    let mut cur = b;
+    let mut e = a;
+    while e != NIL {
+        let z = at(e).depth;
+        let best = if cur == NIL {
+            NIL
+        } else {
+            loop {
+                let nx = at(cur).next;
+                if nx != NIL && at(nx).depth <= z {
+                    cur = nx;
+                } else {
+                    break;
+                }
+            }
+            let zc = at(cur).depth;
+            let nx = at(cur).next;
+            if zc <= z && nx != NIL && at(nx).depth - z < z - zc {
+                nx
+            } else {
+                cur
+            }
+        };
+        if upper {
+            at(e).upper = best;
+        } else {
+            at(e).right = best;
+        }
+        e = at(e).next;
+    }
+}
+
+/// The opaque path: no lists, an ordinary shadow map (the nearest depth per texel) read with the
+/// same filters; each texel acts as a one-element list with alpha = 1.
+pub fn transmittance_opaque(map: &DepthMap, uv: Vec2, d: f32, s: &LookupSettings) -> f32 {
+    let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
+    let n = match s.filter {
+        Filter::First | Filter::None => 1,
+        _ => s.kernel.max(1) as i32,
+    };
+    let h = n / 2;
+    let mut sum = 0.0;
+    for b in 0..n {
+        for a in 0..n {
+            let z = map.at(ci - h + a, cj - h + b);
+            sum += if z < d {
+                if s.filter == Filter::Edsm {
+                    let t = (d - z) * s.c_world;
+                    if t >= EDSM_CUTOFF {
+                        0.0
+                    } else {
+                        (-t).exp()
+                    }
+                } else {
+                    0.0
+                }
+            } else {
+                1.0
+            };
+        }
+    }
+    (sum / (n * n) as f32).clamp(0.0, 1.0)
+}

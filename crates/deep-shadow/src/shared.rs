@@ -1,0 +1,53 @@
+//! The one `#[repr(C)]` layout both twins read: the list element of Fürst et al. Listing 1.1,
+//! mirrored field for field by `Node` in `deep_shadow.wgsl`.
+
+/// "No element": the end of a list, an empty head, a missing neighbour link.
+pub const NIL: u32 = u32::MAX;
+
+/// One list element (Fürst et al. §1.3.1, Listing 1.1), 32 bytes.
+///
+/// - `depth`: linear light-space z of the fragment (background.md §1), unbiased (the bias is
+///   applied at the receiver).
+/// - `alpha`: the fragment's opacity `alpha_i` (the mesh's `opacity`, 1 for opaque meshes).
+/// - `tau`: after processing (§1.3.2), the cumulative transmittance through this element,
+///   `tau_k = prod_{i <= k} (1 - alpha_i)` (Eq. 1.1), over the list sorted by depth.
+/// - `next`, `prev`: the doubly linked list in depth order (`prev` is set while processing).
+/// - `right`, `upper`: the depth-nearest elements of the lists of texels (i+1, j) and (i, j+1)
+///   (§1.3.3), or [`NIL`].
+#[repr(C)]
+#[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Node {
+    /// Linear light-space depth z.
+    pub depth: f32,
+    /// Opacity alpha.
+    pub alpha: f32,
+    /// Cumulative transmittance `tau_k` (Eq. 1.1) after processing; 1 before.
+    pub tau: f32,
+    /// Next element (deeper after sorting), or [`NIL`].
+    pub next: u32,
+    /// Previous element, or [`NIL`].
+    pub prev: u32,
+    /// Depth-nearest element in the right neighbour's list, or [`NIL`].
+    pub right: u32,
+    /// Depth-nearest element in the upper neighbour's list, or [`NIL`].
+    pub upper: u32,
+    /// Padding to 32 bytes.
+    pub _pad0: u32,
+}
+
+impl Node {
+    /// A fresh element as inserted by the build (unsorted, unlinked).
+    pub fn fragment(depth: f32, alpha: f32, next: u32) -> Self {
+        Node {
+            depth,
+            alpha,
+            tau: 1.0,
+            next,
+            prev: NIL,
+            right: NIL,
+            upper: NIL,
+            _pad0: 0,
+        }
+    }
+}
