@@ -1,0 +1,630 @@
+//! Per-pixel contour backprojection (Guennebaud, Barthe, Paulin 2007, "GBP07"; background.md §3),
+//! the exact baseline every acceleration of this crate reproduces, and the hierarchical contour
+//! extraction over the dual-grid MSSM (Yang et al. 2009 §4.2, Algorithm 3).
+//!
+//! Conventions (background.md §1): light space with the light (or sub-light) centre at the
+//! origin, light plane z = 0, continuous texel coordinates `(u, v)`, sample (i, j) centred at
+//! `(i + 1/2, j + 1/2)`. Samples outside the map are non-occluders (+inf).
+//!
+//! - **Occluder status** (Yang eq. 3): for a threshold range `[t_min, t_max]` (one receiver:
+//!   `t_min = t_max = t_p`), a sample with classification depth `c_s` has status
+//!   `f(s) = 1` if `c_s < t_min`, `0` if `c_s >= t_max`, and *null* otherwise. The paper writes
+//!   `z_s <= z_pmin` for status 1; this crate uses the strict `<` so that a one-pixel packet has
+//!   exactly the per-pixel classification `c_s < t_p` (background.md §3 "Classification") and a
+//!   null never arises for it. See [`Status`].
+//! - **Contour edges**: marching squares on the dual cell with corners c0 = (i, j),
+//!   c1 = (i+1, j), c2 = (i+1, j+1), c3 = (i, j+1) (counter-clockwise); one vertex at the
+//!   midpoint of each side whose corners differ, with the depth of the side's occluder sample;
+//!   edges oriented from an occluder-to-free crossing X to a free-to-occluder crossing E (occluded
+//!   side on the left); saddles use the *connected* rule (X on side s joins E on side s+1). See
+//!   [`cell_edges`].
+//! - **Backprojection** of a vertex `(u, v, z_s)` seen from the receiver `(u_p, v_p, z_p)`:
+//!   `x_L = k z_s z_p (u - u_p) / (z_p - z_s)`, likewise y, `k = w / (n r)` ([`backproject`]).
+//! - **Radial integration** (Assarsson & Akenine-Möller 2003): each projected edge clipped to the
+//!   light contributes `tri(a', b') - sector(a', b')`; `A_occ = c A_L + sum`, with c the centre
+//!   status of `(u_p, v_p)` taken from the contour ([`centre_status`]);
+//!   `V = 1 - clamp01(A_occ / A_L)` ([`edge_area`], [`visibility_from_area`]).
+//!
+//! All light-plane geometry is in f64, so the only difference between evaluation orders
+//! (per pixel, per packet, flat or hierarchical) is the order of an f64 sum.
+use glam::DVec2;
+use shadow_map_core::mssm::DualMssm;
+
+/// Texel coordinates and depths a cell is read from: the true depth (for backprojection) and the
+/// classification depth (for the occluder status: the true depth, or Bavoil's midpoint between the
+/// first two layers) of every sample.
+#[derive(Debug, Clone, Copy)]
+pub struct SampleGrid<'a> {
+    /// Side r of the map.
+    pub size: u32,
+    /// True linear depths, `r x r`, row-major.
+    pub depth: &'a [f32],
+    /// Classification depths, `r x r`, row-major.
+    pub class: &'a [f32],
+}
+
+impl SampleGrid<'_> {
+    /// `(true depth, classification depth)` of sample (i, j); `(+inf, +inf)` outside the map.
+    #[inline]
+    pub fn at(&self, i: i32, j: i32) -> (f32, f32) {
+        let r = self.size as i32;
+        if i < 0 || j < 0 || i >= r || j >= r {
+            (f32::INFINITY, f32::INFINITY)
+        } else {
+            let k = j as usize * r as usize + i as usize;
+            (self.depth[k], self.class[k])
+        }
+    }
+}
+
+/// Occluder status of one sample for a threshold range (Yang eq. 3, strict form; module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// Occludes every receiver of the range (`c_s < t_min`).
+    Occluder,
+    /// Occludes none (`c_s >= t_max`).
+    Free,
+    /// Occludes some receivers of the packet and not others: the packet's contours diverge.
+    Null,
+}
+
+/// The status `f(s)` of a classification depth `c` for the threshold range `[t_min, t_max]`.
+#[inline]
+pub fn status(c: f32, t_min: f32, t_max: f32) -> Status {
+    if c < t_min {
+        Status::Occluder
+    } else if !(c < t_max) {
+        Status::Free
+    } else {
+        Status::Null
+    }
+}
+
+/// A contour edge in texel coordinates: from `a` (depth `za`) to `b` (depth `zb`), occluded side
+/// on the left.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Edge {
+    /// Start (an occluder-to-free crossing X).
+    pub a: [f32; 2],
+    /// End (a free-to-occluder crossing E).
+    pub b: [f32; 2],
+    /// Depth of the start vertex (its side's occluder sample).
+    pub za: f32,
+    /// Depth of the end vertex.
+    pub zb: f32,
+}
+
+/// Corner offsets c0..c3, counter-clockwise.
+const CORNERS: [(i32, i32); 4] = [(0, 0), (1, 0), (1, 1), (0, 1)];
+/// Side midpoints (s from corner s to corner s+1) relative to `(i, j)`, in texel coordinates.
+const SIDES: [(f32, f32); 4] = [(1.0, 0.5), (1.5, 1.0), (1.0, 1.5), (0.5, 1.0)];
+
+/// Contour edges of dual cell (i, j) from its corner occluder flags and true depths (module docs):
+/// 0, 1 or 2 edges.
+#[inline]
+pub fn cell_edges(i: i32, j: i32, occ: [bool; 4], z: [f32; 4]) -> ([Edge; 2], usize) {
+    let empty = Edge {
+        a: [0.0; 2],
+        b: [0.0; 2],
+        za: 0.0,
+        zb: 0.0,
+    };
+    let mut out = [empty; 2];
+    let n_occ = occ.iter().filter(|&&o| o).count();
+    if n_occ == 0 || n_occ == 4 {
+        return (out, 0);
+    }
+    let vertex = |s: usize| -> ([f32; 2], f32) {
+        let (du, dv) = SIDES[s];
+        let occ_corner = if occ[s] { s } else { (s + 1) % 4 };
+        ([i as f32 + du, j as f32 + dv], z[occ_corner])
+    };
+    let saddle = n_occ == 2 && occ[0] == occ[2];
+    let mut n = 0;
+    for s in 0..4 {
+        // X: occluder -> free walking counter-clockwise.
+        if occ[s] && !occ[(s + 1) % 4] {
+            let e = if saddle {
+                (s + 1) % 4
+            } else {
+                // The unique E side.
+                (0..4)
+                    .find(|&t| !occ[t] && occ[(t + 1) % 4])
+                    .unwrap_or((s + 1) % 4)
+            };
+            let (a, za) = vertex(s);
+            let (b, zb) = vertex(e);
+            out[n] = Edge { a, b, za, zb };
+            n += 1;
+        }
+    }
+    (out, n)
+}
+
+/// Occluder flags and true depths of the corners of cell (i, j) for one receiver threshold.
+#[inline]
+pub fn cell_corners(grid: &SampleGrid, i: i32, j: i32, t: f32) -> ([bool; 4], [f32; 4]) {
+    let mut occ = [false; 4];
+    let mut z = [0.0f32; 4];
+    for (k, (di, dj)) in CORNERS.iter().enumerate() {
+        let (zs, cs) = grid.at(i + di, j + dj);
+        occ[k] = cs < t;
+        z[k] = zs;
+    }
+    (occ, z)
+}
+
+/// Which side of the edge the point q is on: `cross(b - a, q - a)` (> 0: left, occluded).
+#[inline]
+fn side(e: &Edge, q: DVec2) -> f64 {
+    let a = DVec2::new(e.a[0] as f64, e.a[1] as f64);
+    let b = DVec2::new(e.b[0] as f64, e.b[1] as f64);
+    (b - a).perp_dot(q - a)
+}
+
+/// Centre status c of the receiver's projection `q = (u_p, v_p)` taken from the contour
+/// (background.md §3 "Centre status"): in the dual cell `floor(q - 1/2)`, all corners agreeing
+/// give their status; otherwise q is occluded when it is left of its edge (two edges, connected
+/// rule: left of both). Returns `None` when q lies on a cell boundary or exactly on an edge (the
+/// caller nudges q, see [`Receiver::new`]).
+pub fn centre_status(grid: &SampleGrid, q: DVec2, t: f32) -> Option<bool> {
+    let (fi, fj) = ((q.x - 0.5).floor(), (q.y - 0.5).floor());
+    if fi == q.x - 0.5 || fj == q.y - 0.5 {
+        return None;
+    }
+    let (i, j) = (fi as i32, fj as i32);
+    let (occ, z) = cell_corners(grid, i, j, t);
+    let (edges, n) = cell_edges(i, j, occ, z);
+    if n == 0 {
+        return Some(occ[0]);
+    }
+    let mut inside = true;
+    for e in &edges[..n] {
+        let s = side(e, q);
+        if s == 0.0 {
+            return None;
+        }
+        inside &= s > 0.0;
+    }
+    Some(inside)
+}
+
+/// One receiver as the contour integration sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Receiver {
+    /// Texel coordinates `(u_p, v_p)` (possibly nudged off cell boundaries and edges).
+    pub uv: DVec2,
+    /// Light-space depth `z_p` (backprojection).
+    pub zp: f64,
+    /// Classification threshold `t_p`: a sample occludes when its classification depth is below.
+    pub t: f32,
+    /// Centre status c (1: the light centre is occluded).
+    pub centre: bool,
+}
+
+impl Receiver {
+    /// Evaluates the centre status, nudging `uv` by a fixed `(2^-12, 2^-13)` texels (up to 8 times)
+    /// while it lies on a cell boundary or exactly on a contour edge (background.md §3: "nudge q by a
+    /// fixed tiny offset before both the status test and the projection").
+    pub fn new(grid: &SampleGrid, uv: DVec2, zp: f64, t: f32) -> Receiver {
+        let mut q = uv;
+        for _ in 0..8 {
+            if let Some(c) = centre_status(grid, q, t) {
+                return Receiver {
+                    uv: q,
+                    zp,
+                    t,
+                    centre: c,
+                };
+            }
+            q += DVec2::new(1.0 / 4096.0, 1.0 / 8192.0);
+        }
+        // Unreachable in practice; take the nearest-sample status.
+        let (_, c) = grid.at(q.x.floor() as i32, q.y.floor() as i32);
+        Receiver {
+            uv: q,
+            zp,
+            t,
+            centre: c < t,
+        }
+    }
+}
+
+/// Backprojects a contour vertex at texel coordinates `uv` with depth `zs` from the receiver onto
+/// the light plane (background.md §3): `x_L = k z_s z_p (u - u_p) / (z_p - z_s)`, `k = w/(n r)`.
+/// Light-plane world coordinates relative to the (sub-)light centre. Finite for finite inputs
+/// with `zs < zp` (the difference is floored at `1e-12 z_p`).
+#[inline]
+pub fn backproject(uv: [f32; 2], zs: f32, rec: &Receiver, k: f64) -> DVec2 {
+    let zs = zs as f64;
+    let gap = (rec.zp - zs)
+        .max(1e-12 * rec.zp.abs())
+        .max(f64::MIN_POSITIVE);
+    let s = k * zs * rec.zp / gap;
+    DVec2::new(uv[0] as f64 - rec.uv.x, uv[1] as f64 - rec.uv.y) * s
+}
+
+/// Clips the segment `a -> b` to the rectangle `[-h.x, h.x] x [-h.y, h.y]` (Liang-Barsky);
+/// `None` when nothing of it lies inside.
+pub fn clip_to_rect(a: DVec2, b: DVec2, h: DVec2) -> Option<(DVec2, DVec2)> {
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-d.x, a.x + h.x),
+        (d.x, h.x - a.x),
+        (-d.y, a.y + h.y),
+        (d.y, h.y - a.y),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    if !(t0 <= t1) {
+        return None;
+    }
+    Some((a + d * t0, a + d * t1))
+}
+
+/// Signed area of the rectangle light `[-h.x, h.x] x [-h.y, h.y]` inside the angular wedge swept
+/// from direction `a` to direction `b` the short way (background.md §3): the shoelace area of
+/// `0, a_R, (corners strictly inside the sweep, in sweep order), b_R`, where `a_R` is `a`
+/// projected radially onto the border. Positive for a counter-clockwise sweep.
+pub fn sector_rect(a: DVec2, b: DVec2, h: DVec2) -> f64 {
+    let dth = a.perp_dot(b).atan2(a.dot(b));
+    if dth == 0.0 || a == DVec2::ZERO || b == DVec2::ZERO {
+        return 0.0;
+    }
+    let to_border = |p: DVec2| p / (p.x.abs() / h.x).max(p.y.abs() / h.y);
+    let (ar, br) = (to_border(a), to_border(b));
+    let tha = a.y.atan2(a.x);
+    let tau = std::f64::consts::TAU;
+    let mut corners: [(f64, DVec2); 4] = [(0.0, DVec2::ZERO); 4];
+    let mut n = 0;
+    for c in [
+        DVec2::new(h.x, h.y),
+        DVec2::new(-h.x, h.y),
+        DVec2::new(-h.x, -h.y),
+        DVec2::new(h.x, -h.y),
+    ] {
+        let thc = c.y.atan2(c.x);
+        let o = if dth > 0.0 {
+            (thc - tha).rem_euclid(tau)
+        } else {
+            (tha - thc).rem_euclid(tau)
+        };
+        if o > 0.0 && o < dth.abs() {
+            corners[n] = (o, c);
+            n += 1;
+        }
+    }
+    corners[..n].sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut prev = ar;
+    let mut twice = 0.0;
+    for (_, c) in &corners[..n] {
+        twice += prev.perp_dot(*c);
+        prev = *c;
+    }
+    twice += prev.perp_dot(br);
+    0.5 * twice
+}
+
+/// Contribution `tri(a', b') - sector(a', b')` of one contour edge to the occluded area of the
+/// rectangle light with half extents `h`, seen from `rec` (background.md §3 "Radial
+/// integration"); 0 for edges entirely outside the light.
+#[inline]
+pub fn edge_area(e: &Edge, rec: &Receiver, k: f64, h: DVec2) -> f64 {
+    let a = backproject(e.a, e.za, rec, k);
+    let b = backproject(e.b, e.zb, rec, k);
+    match clip_to_rect(a, b, h) {
+        Some((a, b)) => 0.5 * a.perp_dot(b) - sector_rect(a, b, h),
+        None => 0.0,
+    }
+}
+
+/// `V = 1 - clamp01(A_occ / A_L)` with `A_occ = c A_L + sum` (background.md §3).
+#[inline]
+pub fn visibility_from_area(centre: bool, sum: f64, h: DVec2) -> f32 {
+    let al = 4.0 * h.x * h.y;
+    if !(al > 0.0) {
+        return if centre { 0.0 } else { 1.0 };
+    }
+    let a = if centre { al } else { 0.0 } + sum;
+    let f = a / al;
+    if !f.is_finite() {
+        return if centre { 0.0 } else { 1.0 };
+    }
+    (1.0 - f.clamp(0.0, 1.0)) as f32
+}
+
+/// A rectangle of dual cells `[x0, x1) x [y0, y1)` (anchors, unpadded: cell (i, j) has corners
+/// (i..=i+1, j..=j+1); anchors run over `[-1, r)` so cells touching the map border are included).
+pub type CellRect = [i32; 4];
+
+/// The dual-grid MSSM of the classification depths over the map padded by one ring of empty
+/// (+inf) samples, so that cells reaching outside the map (anchors -1 and r-1) are exact nodes too.
+/// Padded anchor = unpadded anchor + 1.
+#[derive(Debug, Clone)]
+pub struct PaddedDualMssm {
+    /// The structure over the `(r + 2)^2` padded samples.
+    pub mssm: DualMssm,
+}
+
+impl PaddedDualMssm {
+    /// Builds levels `0..=floor(log2(r + 2))` over the padded classification depths.
+    pub fn build(class: &[f32], r: u32) -> PaddedDualMssm {
+        let p = r as usize + 2;
+        let mut padded = vec![f32::INFINITY; p * p];
+        for j in 0..r as usize {
+            padded[(j + 1) * p + 1..(j + 1) * p + 1 + r as usize]
+                .copy_from_slice(&class[j * r as usize..(j + 1) * r as usize]);
+        }
+        let levels = (p as f64).log2().floor() as u32;
+        PaddedDualMssm {
+            mssm: DualMssm::build(&padded, p as u32, levels),
+        }
+    }
+    /// Exact min/max of the classification depths of every sample touched by the cells of `cr`.
+    pub fn query(&self, cr: &CellRect) -> shadow_map_core::mssm::MinMax {
+        self.mssm
+            .query_cells(cr[0] + 1, cr[1] + 1, cr[2] + 1, cr[3] + 1)
+    }
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.mssm.bytes()
+    }
+}
+
+/// How the contour of a kernel is extracted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Traversal {
+    /// Every 2x2 block (dual cell) of the kernel, one after the other (GBP07).
+    Flat,
+    /// Yang's Algorithm 3 over the dual-grid MSSM with an explicit stack.
+    Hierarchical,
+}
+
+/// Largest number of nodes the explicit stack ever holds: 3 per level plus the roots.
+pub const STACK_CAPACITY: usize = 3 * 32 + 64;
+
+/// Extracts the contour of the cells in `cr` for the threshold range `[t_min, t_max]` (one
+/// receiver: equal), calling `emit(i, j, edge)` for every edge, and returns `false` as soon as a
+/// null status is met (the packet's contours diverge; Yang §4.1). `visited` counts the nodes
+/// (hierarchical) or cells (flat) examined.
+///
+/// Hierarchical (Yang §4.2, Algorithm 3): start at the node of the lowest level `L` covering the
+/// kernel with the kernel's top-left corner as anchor (`L = ceil(log2(max(W, H)))`; above the top
+/// built level, the kernel is tiled with top-level nodes); a node whose depth range is entirely
+/// below `t_min` (every sample occludes: Fig. 6 case 5) or entirely at or above `t_max` (none
+/// occludes: case 4) holds no contour and is pruned; otherwise (cases 1-3, 6) its four children
+/// `(x, y), (x+h, y), (x, y+h), (x+h, y+h)`, `h = 2^(l-1)`, that start inside the kernel are
+/// pushed; level-0 nodes are cells. The stack is explicit (no recursion, as in WGSL).
+pub fn extract(
+    grid: &SampleGrid,
+    dm: &PaddedDualMssm,
+    cr: &CellRect,
+    t_min: f32,
+    t_max: f32,
+    traversal: Traversal,
+    visited: &mut u64,
+    mut emit: impl FnMut(i32, i32, &Edge),
+) -> bool {
+    let mut cell = |i: i32, j: i32| -> bool {
+        let mut occ = [false; 4];
+        let mut z = [0.0f32; 4];
+        for (k, (di, dj)) in CORNERS.iter().enumerate() {
+            let (zs, cs) = grid.at(i + di, j + dj);
+            match status(cs, t_min, t_max) {
+                Status::Occluder => occ[k] = true,
+                Status::Free => {}
+                Status::Null => return false,
+            }
+            z[k] = zs;
+        }
+        let (edges, n) = cell_edges(i, j, occ, z);
+        for e in &edges[..n] {
+            emit(i, j, e);
+        }
+        true
+    };
+    if cr[0] >= cr[2] || cr[1] >= cr[3] {
+        return true;
+    }
+    match traversal {
+        Traversal::Flat => {
+            for j in cr[1]..cr[3] {
+                for i in cr[0]..cr[2] {
+                    *visited += 1;
+                    if !cell(i, j) {
+                        return false;
+                    }
+                }
+            }
+            true
+        }
+        Traversal::Hierarchical => {
+            let m = &dm.mssm;
+            let top = m.levels().saturating_sub(1);
+            let span = (cr[2] - cr[0]).max(cr[3] - cr[1]) as u32;
+            let want = 32 - (span.max(1) - 1).leading_zeros(); // ceil(log2(span))
+            let l0 = want.min(top);
+            let step = 1i32 << l0;
+            // Padded anchors.
+            let (x0, y0, x1, y1) = (cr[0] + 1, cr[1] + 1, cr[2] + 1, cr[3] + 1);
+            let mut stack: Vec<(i32, i32, u32)> = Vec::with_capacity(STACK_CAPACITY);
+            let mut y = y0;
+            while y < y1 {
+                let mut x = x0;
+                while x < x1 {
+                    stack.push((x, y, l0));
+                    x += step;
+                }
+                y += step;
+            }
+            // Pop in the pushed order's reverse; order only changes the f64 sum.
+            while let Some((x, y, l)) = stack.pop() {
+                *visited += 1;
+                let mm = m.fetch(l, x as u32, y as u32);
+                if mm.max < t_min || !(mm.min < t_max) {
+                    continue; // Fig. 6 cases 4 and 5: no contour below this node
+                }
+                if l == 0 {
+                    if !cell(x - 1, y - 1) {
+                        return false;
+                    }
+                    continue;
+                }
+                let h = 1i32 << (l - 1);
+                for (dx, dy) in [(h, h), (0, h), (h, 0), (0, 0)] {
+                    let (cx, cy) = (x + dx, y + dy);
+                    if cx < x1 && cy < y1 {
+                        stack.push((cx, cy, l - 1));
+                    }
+                }
+            }
+            true
+        }
+    }
+}
+
+/// Per-pixel GBP07 on a kernel `cr`: the visibility (before the receiver-facing factor) of one
+/// receiver, and the nodes visited.
+pub fn pixel_visibility(
+    grid: &SampleGrid,
+    dm: &PaddedDualMssm,
+    cr: &CellRect,
+    rec: &Receiver,
+    k: f64,
+    h: DVec2,
+    traversal: Traversal,
+) -> (f32, u64) {
+    let mut sum = 0.0f64;
+    let mut visited = 0u64;
+    extract(
+        grid,
+        dm,
+        cr,
+        rec.t,
+        rec.t,
+        traversal,
+        &mut visited,
+        |_, _, e| {
+            sum += edge_area(e, rec, k, h);
+        },
+    );
+    (visibility_from_area(rec.centre, sum, h), visited)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid_of(r: u32, mut f: impl FnMut(i32, i32) -> f32) -> Vec<f32> {
+        let mut d = vec![f32::INFINITY; (r * r) as usize];
+        for j in 0..r as i32 {
+            for i in 0..r as i32 {
+                d[(j * r as i32 + i) as usize] = f(i, j);
+            }
+        }
+        d
+    }
+
+    #[test]
+    fn sector_of_full_turn_is_light_area() {
+        let h = DVec2::new(0.7, 0.3);
+        // Four quarter turns around the origin.
+        let pts = [
+            DVec2::new(1.0, 0.1),
+            DVec2::new(-0.1, 1.0),
+            DVec2::new(-1.0, -0.1),
+            DVec2::new(0.1, -1.0),
+        ];
+        let s: f64 = (0..4)
+            .map(|i| sector_rect(pts[i], pts[(i + 1) % 4], h))
+            .sum();
+        assert!((s - 4.0 * h.x * h.y).abs() < 1e-12, "{s}");
+        // Reversed sweep is negative.
+        let s2 = sector_rect(pts[1], pts[0], h);
+        assert!((s2 + sector_rect(pts[0], pts[1], h)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn cell_edges_orientation() {
+        // Only c0 occludes: the edge cuts corner c0 with c0 on the left.
+        let (e, n) = cell_edges(0, 0, [true, false, false, false], [1.0; 4]);
+        assert_eq!(n, 1);
+        let c0 = DVec2::new(0.5, 0.5);
+        assert!(side(&e[0], c0) > 0.0);
+        assert!(side(&e[0], DVec2::new(1.5, 1.5)) < 0.0);
+        // Saddle: two edges, each cutting a free corner.
+        let (e, n) = cell_edges(0, 0, [true, false, true, false], [1.0; 4]);
+        assert_eq!(n, 2);
+        for ed in &e[..2] {
+            assert!(
+                side(ed, DVec2::new(1.0, 1.0)) > 0.0,
+                "centre occluded (connected)"
+            );
+        }
+    }
+
+    #[test]
+    fn full_cover_and_empty_are_exact() {
+        let r = 16;
+        let d = grid_of(r, |_, _| 1.0);
+        let g = SampleGrid {
+            size: r,
+            depth: &d,
+            class: &d,
+        };
+        let dm = PaddedDualMssm::build(&d, r);
+        let rec = Receiver::new(&g, DVec2::new(8.3, 8.1), 2.0, 2.0);
+        assert!(rec.centre);
+        let h = DVec2::new(0.5, 0.5);
+        for t in [Traversal::Flat, Traversal::Hierarchical] {
+            // Kernel inside the map: no edges, centre occluded.
+            let (v, _) = pixel_visibility(&g, &dm, &[4, 4, 12, 12], &rec, 0.01, h, t);
+            assert_eq!(v, 0.0);
+            // Threshold below every sample: lit.
+            let rec2 = Receiver::new(&g, DVec2::new(8.3, 8.1), 2.0, 0.5);
+            let (v, _) = pixel_visibility(&g, &dm, &[-1, -1, 16, 16], &rec2, 0.01, h, t);
+            assert_eq!(v, 1.0);
+        }
+    }
+
+    #[test]
+    fn hierarchical_equals_flat_on_random_maps() {
+        let r = 24u32;
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) as f64 / (1u64 << 31) as f64) as f32
+        };
+        for _ in 0..20 {
+            let d = grid_of(r, |_, _| 1.0 + rnd());
+            let g = SampleGrid {
+                size: r,
+                depth: &d,
+                class: &d,
+            };
+            let dm = PaddedDualMssm::build(&d, r);
+            let uv = DVec2::new(1.0 + 22.0 * rnd() as f64, 1.0 + 22.0 * rnd() as f64);
+            let rec = Receiver::new(&g, uv, 3.0, 1.5);
+            let cr = [-1, 2, 20, 24];
+            let h = DVec2::new(0.4, 0.6);
+            let (vf, nf) = pixel_visibility(&g, &dm, &cr, &rec, 0.02, h, Traversal::Flat);
+            let (vh, _) = pixel_visibility(&g, &dm, &cr, &rec, 0.02, h, Traversal::Hierarchical);
+            assert!((vf - vh).abs() < 1e-6, "{vf} {vh}");
+            assert_eq!(nf, 21 * 22);
+        }
+    }
+}

@@ -1,0 +1,859 @@
+//! The CPU estimator: Yang et al. 2009, Algorithm 1, steps 2-8, over the exact per-pixel contour
+//! backprojection of [`crate::contour`].
+use crate::contour::{
+    edge_area, extract, pixel_visibility, visibility_from_area, CellRect, Edge, PaddedDualMssm,
+    Receiver, SampleGrid, Traversal,
+};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use shadow_map_core::{
+    light::front_fraction,
+    light_space::{LightSpace, LightSpaceRequest},
+    light_view::{LightView, MAX_RESOLUTION},
+    mssm::Mssm,
+    Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
+    Result, Scene, SoftShadowEstimator,
+};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Registry name (shared with the GPU twin).
+pub const NAME: &str = "packet-hsm";
+/// One-line description (shared with the GPU twin).
+pub const DESCRIPTION: &str = "packet-based hierarchical soft shadow mapping: contour backprojection over a dual-grid MSSM, pixel packets, coherence test, S x S sub-lights (Yang 2009, GBP07)";
+
+/// Every packet size from 1x1 to 8x8 (`WxH`).
+const PACKETS: &[&str] = &[
+    "1x1", "1x2", "1x3", "1x4", "1x5", "1x6", "1x7", "1x8", "2x1", "2x2", "2x3", "2x4", "2x5",
+    "2x6", "2x7", "2x8", "3x1", "3x2", "3x3", "3x4", "3x5", "3x6", "3x7", "3x8", "4x1", "4x2",
+    "4x3", "4x4", "4x5", "4x6", "4x7", "4x8", "5x1", "5x2", "5x3", "5x4", "5x5", "5x6", "5x7",
+    "5x8", "6x1", "6x2", "6x3", "6x4", "6x5", "6x6", "6x7", "6x8", "7x1", "7x2", "7x3", "7x4",
+    "7x5", "7x6", "7x7", "7x8", "8x1", "8x2", "8x3", "8x4", "8x5", "8x6", "8x7", "8x8",
+];
+
+/// Parameters of [`CpuPacketHsm`] (shared with the GPU twin).
+pub const SPECS: &[ParamSpec] = &[
+    ParamSpec {
+        key: "resolution",
+        kind: ParamKind::Int {
+            min: 1,
+            max: MAX_RESOLUTION as i64,
+        },
+        default: "1024",
+        help: "shadow-map resolution r (texels per side) of each sub-light's map",
+    },
+    ParamSpec {
+        key: "packet",
+        kind: ParamKind::Choice(PACKETS),
+        default: "3x3",
+        help: "packet of WxH neighbouring pixels (Yang §4.1; 1x1 = per pixel); receivers without an image layout are processed pixel-wise",
+    },
+    ParamSpec {
+        key: "sublights",
+        kind: ParamKind::Int { min: 1, max: 4 },
+        default: "1",
+        help: "S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V averaged (Yang §5)",
+    },
+    ParamSpec {
+        key: "td",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: "0.8",
+        help: "Td: a packet whose diverging probability P_d (Yang eq. 5) exceeds Td is processed pixel-wise",
+    },
+    ParamSpec {
+        key: "hierarchy",
+        kind: ParamKind::Bool,
+        default: "true",
+        help: "hierarchical contour extraction over the dual-grid MSSM (Yang §4.2, Algorithm 3); false: every 2x2 block of the kernel (GBP07)",
+    },
+    ParamSpec {
+        key: "coherence",
+        kind: ParamKind::Bool,
+        default: "true",
+        help: "coherence test (Yang §4.3: P_d > Td or cost ratio eq. 6 > 1 sends a packet pixel-wise); false: every packet is tried packet-wise",
+    },
+    ParamSpec {
+        key: "qe",
+        kind: ParamKind::Float { min: 0.0, max: 1e6 },
+        default: "2.0",
+        help: "Q_e of the cost model (eq. 6): cost of extracting an edge, in units of Q_n = 1 (a node)",
+    },
+    ParamSpec {
+        key: "qv",
+        kind: ParamKind::Float { min: 0.0, max: 1e6 },
+        default: "4.0",
+        help: "Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one pixel",
+    },
+    ParamSpec {
+        key: "self_shadow",
+        kind: ParamKind::Choice(&["midpoint", "bias"]),
+        default: "midpoint",
+        help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
+    },
+    ParamSpec {
+        key: "max_bias",
+        kind: ParamKind::Float { min: 0.0, max: 1e6 },
+        default: "4.0",
+        help: "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
+    },
+    ParamSpec {
+        key: "bias",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: "1.0",
+        help: "self_shadow=bias: constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
+    },
+    ParamSpec {
+        key: "slope_bias",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: "1.0",
+        help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
+    },
+];
+
+/// Per-receiver diagnostics of the last estimate (Yang Figs. 5 and 8): what the EXR channels of a
+/// diagnostic image would hold.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PixelDiag {
+    /// Largest kernel side in dual cells over the sub-lights (0: no kernel needed).
+    pub kernel: f32,
+    /// MSSM nodes (hierarchy) or 2x2 blocks (flat) visited for this pixel, summed over the
+    /// sub-lights; a packet's visits are shared equally by its penumbra pixels.
+    pub visited: f32,
+    /// How the pixel was last evaluated (see the `CLASS_*` constants).
+    pub class: u8,
+}
+
+/// [`PixelDiag::class`]: fully lit, fully occluded, or no shadow-map work (behind, outside).
+pub const CLASS_TRIVIAL: u8 = 0;
+/// [`PixelDiag::class`]: evaluated in a coherent packet.
+pub const CLASS_PACKET: u8 = 1;
+/// [`PixelDiag::class`]: evaluated pixel-wise (non-coherent or diverging packet, lone pixel,
+/// packet 1x1 or no image layout).
+pub const CLASS_PIXEL: u8 = 2;
+
+/// Packet-based hierarchical soft shadow mapping (Yang, Feng, Guennebaud, Liu 2009, Algorithm 1)
+/// on the CPU.
+///
+/// For each of the S x S sub-lights (step 2; S = `sublights`; sub-light (a, b) has centre
+/// `((a + 1/2)/S - 1/2) l_x, ((b + 1/2)/S - 1/2) l_y` and size `l/S`), one at a time:
+/// 3-4. a shadow map from the sub-light centre fitted to the receivers (plus the second peeled
+///    layer for midpoints), its MSSM and the padded dual-grid MSSM of the classification depths;
+/// 5. per receiver p: the facing fraction of the sub-light (the contract's tangent-plane term),
+///    the tight kernel from the MSSM (Yang eq. 1 with `z_m` the exact minimum depth over the
+///    kernel, refined until it stops shrinking, SS07/GBP06), grown to every dual cell touching it;
+///    fully lit when no sample of the kernel occludes, fully occluded when all do (exact for the
+///    contour method);
+/// 6. packets of w x h pixels of the image layout; the coherence test
+///    ([`coherence`]: P_null eq. 4, P_d eq. 5 against Td, cost ratio eq. 6);
+/// 7. coherent packets: one contour extraction over the packet's extended kernel with the
+///    ternary status (eq. 3); a null status aborts to step 8; otherwise each pixel integrates the
+///    edges of the cells inside its own kernel;
+/// 8. the remaining pixels: per-pixel GBP07 ([`pixel_visibility`]).
+///
+/// V is the mean over sub-lights of `facing_k (1 - clamp01(A_occ,k / A_k))`.
+///
+/// **Exactness.** Steps 6-8 and the `hierarchy` switch never change V beyond the order of an f64
+/// sum: a packet pixel integrates exactly the edges its own per-pixel kernel yields (pruned nodes
+/// hold no edge; the status of a non-null sample is the pixel's own).
+///
+/// Receivers without an image layout are processed pixel-wise (steps 5 and 8 only).
+/// Rect lights only; disk and sphere lights are a [`Error::Param`] with key `light`.
+pub struct CpuPacketHsm {
+    params: Params,
+    report: Report,
+    diagnostics: Vec<PixelDiag>,
+}
+
+impl CpuPacketHsm {
+    /// With default parameters.
+    pub fn new() -> Result<Self> {
+        Ok(CpuPacketHsm {
+            params: Params::new(SPECS)?,
+            report: Report::default(),
+            diagnostics: Vec::new(),
+        })
+    }
+    /// Per-receiver diagnostics of the last estimate (kernel size, visited nodes, packet class).
+    pub fn diagnostics(&self) -> &[PixelDiag] {
+        &self.diagnostics
+    }
+}
+
+/// The packet size `(w, h)` of a `WxH` parameter value.
+pub fn parse_packet(s: &str) -> Result<(u32, u32)> {
+    let bad = || {
+        Error::param(
+            "packet",
+            format!("expected WxH with W, H in 1..=8, got {s:?}"),
+        )
+    };
+    let (a, b) = s.split_once('x').ok_or_else(bad)?;
+    let w: u32 = a.parse().map_err(|_| bad())?;
+    let h: u32 = b.parse().map_err(|_| bad())?;
+    if !(1..=8).contains(&w) || !(1..=8).contains(&h) {
+        return Err(bad());
+    }
+    Ok((w, h))
+}
+
+/// Kernel (search-area) width in texels along one axis (Yang eq. 1, background.md §2):
+/// `W = alpha l (1/z_m - 1/z_p)`, `alpha = n r / w`; 0 when `z_m >= z_p`, saturating at
+/// `f32::MAX`, never NaN.
+#[inline]
+pub fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
+    if !(z_m < z_p) {
+        return 0.0;
+    }
+    let zm = z_m.max(f32::MIN_POSITIVE);
+    let w = alpha * l * (1.0 / zm - 1.0 / z_p);
+    if w.is_finite() {
+        w.max(0.0)
+    } else {
+        f32::MAX
+    }
+}
+
+/// Receiver-side depth bias in world units (as in the baselines):
+/// `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
+#[inline]
+fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
+    let texel = view.w * p.z / (view.n * view.r as f32);
+    let to_light = (-p).normalize_or_zero();
+    let cos = n.dot(to_light).abs().max(1e-6);
+    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
+    texel * (b0 + b1 * tan.min(10.0))
+}
+
+/// Settings of one estimate.
+#[derive(Debug, Clone, Copy)]
+pub struct Config {
+    /// Packet size (w, h).
+    pub packet: (u32, u32),
+    /// Sub-lights per side S.
+    pub sublights: u32,
+    /// Hierarchical extraction.
+    pub hierarchy: bool,
+    /// Coherence test.
+    pub coherence: bool,
+    /// Td.
+    pub td: f64,
+    /// Q_e.
+    pub qe: f64,
+    /// Q_v.
+    pub qv: f64,
+    /// Midpoint classification (else bias).
+    pub midpoint: bool,
+    /// Midpoint clamp in footprints at the far plane.
+    pub max_bias: f32,
+    /// Bias constants.
+    pub b0: f32,
+    /// Slope bias.
+    pub b1: f32,
+}
+
+impl Config {
+    /// Reads the parameters.
+    pub fn from_params(p: &Params) -> Result<Config> {
+        Ok(Config {
+            packet: parse_packet(p.choice("packet"))?,
+            sublights: p.int("sublights") as u32,
+            hierarchy: p.flag("hierarchy"),
+            coherence: p.flag("coherence"),
+            td: p.float("td"),
+            qe: p.float("qe"),
+            qv: p.float("qv"),
+            midpoint: p.choice("self_shadow") == "midpoint",
+            max_bias: p.float("max_bias") as f32,
+            b0: p.float("bias") as f32,
+            b1: p.float("slope_bias") as f32,
+        })
+    }
+    fn traversal(&self) -> Traversal {
+        if self.hierarchy {
+            Traversal::Hierarchical
+        } else {
+            Traversal::Flat
+        }
+    }
+}
+
+/// Centre of sub-light (a, b) of S x S in light-plane coordinates, for a light of half extents
+/// `half`.
+pub fn sublight_centre(half: Vec2, s: u32, a: u32, b: u32) -> Vec2 {
+    let f = |k: u32, h: f32| ((k as f32 + 0.5) / s as f32 - 0.5) * 2.0 * h;
+    Vec2::new(f(a, half.x), f(b, half.y))
+}
+
+/// One sub-light's light-space data: the map, its MSSM, the padded dual-grid MSSM of the
+/// classification depths. Only one is alive at a time.
+pub struct SubView {
+    /// The view and layers (layer 0; midpoints when asked for).
+    pub ls: LightSpace,
+    /// Anchored MSSM of the true depths (kernels).
+    pub mssm: Mssm,
+    /// Padded dual-grid MSSM of the classification depths (classification, pruning).
+    pub dual: PaddedDualMssm,
+    /// Sub-light half extents.
+    pub half: Vec2,
+}
+
+impl SubView {
+    /// Builds the data of the sub-light centred at `centre` (light-plane coordinates) with half
+    /// extents `half`.
+    pub fn build(
+        scene: &Scene,
+        receivers: &Receivers,
+        r: u32,
+        centre: Vec2,
+        half: Vec2,
+        cfg: &Config,
+    ) -> Result<SubView> {
+        let mut frame = scene.light.frame();
+        frame.origin = frame.to_world(centre.extend(0.0));
+        let (view, fit) = LightView::fit(scene, receivers, frame, half, r)?;
+        let l = 2.0 * half.max_element();
+        let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
+        let levels = (wmax.log2().ceil() as u32).clamp(1, 16);
+        let footprint = view.w * view.far / (view.n * view.r as f32);
+        let mb = (cfg.max_bias * footprint).min(f32::MAX);
+        let req = LightSpaceRequest {
+            resolution: r,
+            layers: 1,
+            midpoints: cfg.midpoint.then_some(mb),
+            mssm_levels: None,
+            dual_mssm_levels: None,
+            pyramid: false,
+            raster: RasterOptions::default(),
+        };
+        let ls = LightSpace::build_in_view(scene, view, fit, &req);
+        let l0 = &ls.layers[0];
+        let mssm = Mssm::build(&l0.depth, l0.size, levels);
+        let class = if cfg.midpoint {
+            ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
+        } else {
+            &l0.depth
+        };
+        let dual = PaddedDualMssm::build(class, l0.size);
+        Ok(SubView {
+            ls,
+            mssm,
+            dual,
+            half,
+        })
+    }
+    /// The sample grid (true and classification depths).
+    pub fn grid(&self, cfg: &Config) -> SampleGrid<'_> {
+        let l0 = &self.ls.layers[0];
+        let class = if cfg.midpoint {
+            self.ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
+        } else {
+            &l0.depth
+        };
+        SampleGrid {
+            size: l0.size,
+            depth: &l0.depth,
+            class,
+        }
+    }
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.ls.bytes() + self.mssm.bytes() + self.dual.bytes()
+    }
+}
+
+/// The outcome of step 5 for one receiver and one sub-light.
+#[derive(Debug, Clone, Copy)]
+pub enum Prep {
+    /// V (with the facing factor) is known: behind, outside, fully lit or fully occluded.
+    Done(f32),
+    /// A penumbra receiver.
+    Penumbra {
+        /// The receiver as the contour sees it.
+        rec: Receiver,
+        /// Its kernel in dual cells.
+        cr: CellRect,
+        /// The facing fraction of the sub-light.
+        facing: f32,
+    },
+}
+
+/// Step 5 for one receiver: facing term, tight kernel from the MSSM, trivial classification.
+/// `outside` is set when the receiver projects outside the map.
+pub fn prepare(
+    sv: &SubView,
+    grid: &SampleGrid,
+    cfg: &Config,
+    pw: Vec3,
+    nw: Vec3,
+    outside: &mut bool,
+) -> Prep {
+    let view = &sv.ls.view;
+    let p = view.frame.to_light(pw);
+    if !(p.z > 0.0) {
+        return Prep::Done(0.0);
+    }
+    let n = view.frame.dir_to_light(nw);
+    let shape = LightShape::Rect {
+        size: [2.0 * sv.half.x, 2.0 * sv.half.y],
+    };
+    let facing = front_fraction(&shape, p, n);
+    if !(facing > 0.0) {
+        return Prep::Done(0.0);
+    }
+    if p.z <= view.n {
+        return Prep::Done(facing);
+    }
+    let uv = view.project(p);
+    if !view.contains(uv) {
+        *outside = true;
+        return Prep::Done(facing);
+    }
+    let t = if cfg.midpoint {
+        p.z
+    } else {
+        p.z - receiver_bias(view, p, n, cfg.b0, cfg.b1)
+    };
+    let Some(cr) = kernel_cells(view, &sv.mssm, uv, p.z, 2.0 * sv.half) else {
+        return Prep::Done(facing);
+    };
+    let mm = sv.dual.query(&cr);
+    if !(mm.min < t) {
+        return Prep::Done(facing); // fully lit
+    }
+    if mm.max < t {
+        return Prep::Done(0.0); // fully occluded (umbra)
+    }
+    let rec = Receiver::new(grid, uv.as_dvec2(), p.z as f64, t);
+    Prep::Penumbra { rec, cr, facing }
+}
+
+/// The tight kernel of a receiver in dual cells (Yang eq. 1 with the MSSM, background.md §2
+/// "Refining the kernel"), or `None` when no sample it could see is nearer than `z_p` (lit).
+///
+/// Samples rect `[x0, x1)` from `W = alpha l (1/z_m - 1/z_p)` around `(u_p, v_p)`, starting at
+/// `z_m = n`; `z_m` is then the exact minimum depth over the samples touched by the cells
+/// `[x0 - 1, x1)` (the cells touching the rect), until the kernel stops shrinking. Cells are
+/// clamped to anchors `[-1, r)`.
+pub fn kernel_cells(view: &LightView, mssm: &Mssm, uv: Vec2, zp: f32, l: Vec2) -> Option<CellRect> {
+    let r = view.r as f32;
+    let alpha = view.alpha();
+    let rect = |zm: f32| -> [i32; 4] {
+        let (wx, wy) = (
+            kernel_width(alpha, l.x, zm, zp),
+            kernel_width(alpha, l.y, zm, zp),
+        );
+        let lo = |c: f32, w: f32| (c - 0.5 * w).floor().clamp(0.0, r) as i32;
+        let hi = |c: f32, w: f32| (c + 0.5 * w).ceil().clamp(0.0, r) as i32;
+        [lo(uv.x, wx), lo(uv.y, wy), hi(uv.x, wx), hi(uv.y, wy)]
+    };
+    let area = |q: &[i32; 4]| (q[2] - q[0]) as i64 * (q[3] - q[1]) as i64;
+    let mut zm = view.n;
+    let mut s = rect(zm);
+    for _ in 0..16 {
+        let zmin = mssm.query(s[0] - 1, s[1] - 1, s[2] + 1, s[3] + 1).min;
+        if !(zmin < zp) {
+            return None;
+        }
+        if !(zmin > zm) {
+            break;
+        }
+        zm = zmin;
+        let next = rect(zm);
+        if area(&next) >= area(&s) {
+            break;
+        }
+        s = next;
+    }
+    if s[0] >= s[2] || s[1] >= s[3] {
+        return None;
+    }
+    Some([s[0] - 1, s[1] - 1, s[2], s[3]])
+}
+
+/// Side of a kernel in cells (`w_i` of eq. 6).
+#[inline]
+pub fn kernel_side(cr: &CellRect) -> u32 {
+    (cr[2] - cr[0]).max(cr[3] - cr[1]).max(0) as u32
+}
+
+/// Yang §4.3, the coherence test of a packet with extended kernel `k` (cells), threshold range
+/// `[t_min, t_max]` and member kernel sides `w_i`:
+///
+/// - `P_null = max(min(t_max, zbar_max) - max(t_min, zbar_min), 0) / (zbar_max - zbar_min)`
+///   (eq. 4), with `[zbar_min, zbar_max]` the depth range of the packet kernel (empty samples
+///   counted at `far`);
+/// - `P_d = 1 - (1 - P_null)^(wbar^2)` (eq. 5), `wbar` the packet kernel side; non-coherent when
+///   `P_d > Td`;
+/// - cost ratio (eq. 6), `Q_n = 1`, log base 2:
+///   `(log(wbar) wbar + (Q_e + Q_v n) wbar) / sum_i (log(w_i) w_i + (Q_e + Q_v) w_i)`;
+///   non-coherent when it exceeds 1.
+///
+/// Returns true for a coherent packet. Only speed depends on it.
+pub fn coherence(
+    dual: &PaddedDualMssm,
+    k: &CellRect,
+    t_min: f32,
+    t_max: f32,
+    sides: &[u32],
+    far: f32,
+    cfg: &Config,
+) -> bool {
+    let mm = dual.query(k);
+    let zmin = mm.min.min(far) as f64;
+    let zmax = mm.max.min(far) as f64;
+    let (tmin, tmax) = (t_min as f64, t_max as f64);
+    let inter = (tmax.min(zmax) - tmin.max(zmin)).max(0.0);
+    let range = zmax - zmin;
+    let p_null = if range > 0.0 {
+        (inter / range).min(1.0)
+    } else if tmin <= zmin && zmin < tmax {
+        1.0
+    } else {
+        0.0
+    };
+    let wbar = kernel_side(k).max(1) as f64;
+    let p_d = 1.0 - (1.0 - p_null).powf(wbar * wbar);
+    if p_d > cfg.td {
+        return false;
+    }
+    let n = sides.len() as f64;
+    let packet = wbar.log2() * wbar + (cfg.qe + cfg.qv * n) * wbar;
+    let pixels: f64 = sides
+        .iter()
+        .map(|&w| {
+            let w = w.max(1) as f64;
+            w.log2() * w + (cfg.qe + cfg.qv) * w
+        })
+        .sum();
+    packet <= pixels
+}
+
+/// Counters of one estimate.
+#[derive(Debug, Default)]
+pub struct Counters {
+    /// Penumbra receiver evaluations (over sub-lights).
+    pub penumbra: AtomicU64,
+    /// Nodes or cells visited.
+    pub visited: AtomicU64,
+    /// Packets with at least two penumbra pixels.
+    pub packets: AtomicU64,
+    /// Packets evaluated packet-wise.
+    pub coherent: AtomicU64,
+    /// Packets the coherence test sent pixel-wise.
+    pub rejected: AtomicU64,
+    /// Packets whose contours diverged (null status) and went pixel-wise.
+    pub diverged: AtomicU64,
+    /// Receivers projecting outside a map.
+    pub outside: AtomicU64,
+}
+
+/// Per-pixel GBP07 for one penumbra receiver: `facing * V`, visited nodes.
+fn pixel_wise(
+    sv: &SubView,
+    grid: &SampleGrid,
+    cfg: &Config,
+    rec: &Receiver,
+    cr: &CellRect,
+    facing: f32,
+) -> (f32, u64) {
+    let k = (sv.ls.view.delta() / sv.ls.view.n) as f64;
+    let (v, n) = pixel_visibility(
+        grid,
+        &sv.dual,
+        cr,
+        rec,
+        k,
+        sv.half.as_dvec2(),
+        cfg.traversal(),
+    );
+    (facing * v, n)
+}
+
+/// Steps 5-8 for one sub-light: adds `weight * V_k` to `acc` and fills the diagnostics.
+pub fn estimate_sublight(
+    sv: &SubView,
+    cfg: &Config,
+    receivers: &Receivers,
+    weight: f32,
+    acc: &mut [f32],
+    diag: &mut [PixelDiag],
+    counters: &Counters,
+) {
+    let grid = sv.grid(cfg);
+    let k = (sv.ls.view.delta() / sv.ls.view.n) as f64;
+    let h = sv.half.as_dvec2();
+    let far = sv.ls.view.far;
+    let (pw, ph) = match receivers.layout {
+        Some(_) => cfg.packet,
+        None => (1, 1),
+    };
+    let width = receivers.layout.map_or(256, |l| l.width as usize).max(1);
+    let chunk = width * ph as usize;
+    acc.par_chunks_mut(chunk)
+        .zip(diag.par_chunks_mut(chunk))
+        .enumerate()
+        .for_each(|(row, (acc, diag))| {
+            let base = row * chunk;
+            let rows = acc.len() / width;
+            let mut pens: Vec<(usize, Receiver, CellRect, f32)> = Vec::with_capacity(64);
+            let mut sides: Vec<u32> = Vec::with_capacity(64);
+            let mut edges: Vec<(i32, i32, Edge)> = Vec::new();
+            let mut outside = 0u64;
+            let mut local = [0u64; 6]; // penumbra, visited, packets, coherent, rejected, diverged
+            let mut bx = 0usize;
+            while bx < width {
+                pens.clear();
+                let bw = (pw as usize).min(width - bx);
+                for dy in 0..rows.max(1) {
+                    for dx in 0..bw {
+                        let li = dy * width + bx + dx;
+                        if li >= acc.len() {
+                            continue;
+                        }
+                        let gi = base + li;
+                        if !receivers.active[gi] {
+                            continue;
+                        }
+                        let mut out = false;
+                        let prep = prepare(
+                            sv,
+                            &grid,
+                            cfg,
+                            receivers.position[gi],
+                            receivers.normal[gi],
+                            &mut out,
+                        );
+                        outside += out as u64;
+                        match prep {
+                            Prep::Done(v) => acc[li] += weight * v,
+                            Prep::Penumbra { rec, cr, facing } => {
+                                diag[li].kernel = diag[li].kernel.max(kernel_side(&cr) as f32);
+                                pens.push((li, rec, cr, facing));
+                            }
+                        }
+                    }
+                }
+                bx += bw;
+                if pens.is_empty() {
+                    continue;
+                }
+                local[0] += pens.len() as u64;
+                let mut done = false;
+                if pens.len() >= 2 {
+                    local[2] += 1;
+                    let mut kk = pens[0].2;
+                    let (mut tmin, mut tmax) = (pens[0].1.t, pens[0].1.t);
+                    sides.clear();
+                    for (_, rec, cr, _) in &pens {
+                        kk = [
+                            kk[0].min(cr[0]),
+                            kk[1].min(cr[1]),
+                            kk[2].max(cr[2]),
+                            kk[3].max(cr[3]),
+                        ];
+                        tmin = tmin.min(rec.t);
+                        tmax = tmax.max(rec.t);
+                        sides.push(kernel_side(cr));
+                    }
+                    let coherent =
+                        !cfg.coherence || coherence(&sv.dual, &kk, tmin, tmax, &sides, far, cfg);
+                    if !coherent {
+                        local[4] += 1;
+                    } else {
+                        edges.clear();
+                        let mut visited = 0u64;
+                        let ok = extract(
+                            &grid,
+                            &sv.dual,
+                            &kk,
+                            tmin,
+                            tmax,
+                            cfg.traversal(),
+                            &mut visited,
+                            |i, j, e| {
+                                edges.push((i, j, *e));
+                            },
+                        );
+                        local[1] += visited;
+                        let share = visited as f32 / pens.len() as f32;
+                        for (li, _, _, _) in &pens {
+                            diag[*li].visited += share;
+                        }
+                        if ok {
+                            local[3] += 1;
+                            for (li, rec, cr, facing) in &pens {
+                                let mut sum = 0.0f64;
+                                for (i, j, e) in &edges {
+                                    if *i >= cr[0] && *i < cr[2] && *j >= cr[1] && *j < cr[3] {
+                                        sum += edge_area(e, rec, k, h);
+                                    }
+                                }
+                                acc[*li] +=
+                                    weight * facing * visibility_from_area(rec.centre, sum, h);
+                                diag[*li].class = CLASS_PACKET;
+                            }
+                            done = true;
+                        } else {
+                            local[5] += 1;
+                        }
+                    }
+                }
+                if !done {
+                    for (li, rec, cr, facing) in &pens {
+                        let (v, n) = pixel_wise(sv, &grid, cfg, rec, cr, *facing);
+                        acc[*li] += weight * v;
+                        diag[*li].visited += n as f32;
+                        diag[*li].class = CLASS_PIXEL;
+                        local[1] += n;
+                    }
+                }
+            }
+            counters.outside.fetch_add(outside, Ordering::Relaxed);
+            counters.penumbra.fetch_add(local[0], Ordering::Relaxed);
+            counters.visited.fetch_add(local[1], Ordering::Relaxed);
+            counters.packets.fetch_add(local[2], Ordering::Relaxed);
+            counters.coherent.fetch_add(local[3], Ordering::Relaxed);
+            counters.rejected.fetch_add(local[4], Ordering::Relaxed);
+            counters.diverged.fetch_add(local[5], Ordering::Relaxed);
+        });
+}
+
+/// Per-pixel GBP07 on one sub-light for a single receiver (the exact baseline; tests and
+/// examples): `facing * V` of sub-light data `sv`.
+pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
+    let grid = sv.grid(cfg);
+    let mut out = false;
+    match prepare(sv, &grid, cfg, pw, nw, &mut out) {
+        Prep::Done(v) => v,
+        Prep::Penumbra { rec, cr, facing } => {
+            let flat = Config {
+                hierarchy: false,
+                ..*cfg
+            };
+            pixel_wise(sv, &grid, &flat, &rec, &cr, facing).0
+        }
+    }
+}
+
+impl CpuPacketHsm {
+    fn check_light(scene: &Scene) -> Result<()> {
+        match scene.light.shape {
+            LightShape::Rect { .. } => Ok(()),
+            _ => Err(Error::param(
+                "light",
+                "packet-hsm supports rect lights only (the radial integration clips to a rectangle; disk and sphere lights are not handled)",
+            )),
+        }
+    }
+}
+
+impl SoftShadowEstimator for CpuPacketHsm {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn description(&self) -> &'static str {
+        DESCRIPTION
+    }
+    fn backend(&self) -> Backend {
+        Backend::Cpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.params.set(key, value)
+    }
+    fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
+        // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
+        self.report = Report::default();
+        Self::check_light(scene)?;
+        Config::from_params(&self.params)?;
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        if v.len() != receivers.len() {
+            return Err(Error::Receivers(format!(
+                "output has {} slots for {} receivers",
+                v.len(),
+                receivers.len()
+            )));
+        }
+        Self::check_light(scene)?;
+        let cfg = Config::from_params(&self.params)?;
+        let r = self.params.int("resolution") as u32;
+        let s = cfg.sublights;
+        let half = scene.light.half_extent() / s as f32;
+        let weight = 1.0 / (s * s) as f32;
+        let mut acc = vec![0.0f32; receivers.len()];
+        let mut diag = vec![PixelDiag::default(); receivers.len()];
+        let counters = Counters::default();
+        let (mut t_build, mut t_est) = (0.0, 0.0);
+        let mut peak = 0usize;
+        let mut out_of_frustum = 0usize;
+        for b in 0..s {
+            for a in 0..s {
+                let t = std::time::Instant::now();
+                let c = sublight_centre(scene.light.half_extent(), s, a, b);
+                let sv = SubView::build(scene, receivers, r, c, half, &cfg)?;
+                t_build += t.elapsed().as_secs_f64() * 1e3;
+                peak = peak.max(sv.bytes());
+                out_of_frustum = out_of_frustum.max(sv.ls.fit.out_of_frustum);
+                let t = std::time::Instant::now();
+                estimate_sublight(&sv, &cfg, receivers, weight, &mut acc, &mut diag, &counters);
+                t_est += t.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        let mut nonfinite = 0usize;
+        for (k, out) in v.iter_mut().enumerate() {
+            *out = if !receivers.active[k] {
+                f32::NAN
+            } else if acc[k].is_finite() {
+                acc[k].clamp(0.0, 1.0)
+            } else {
+                nonfinite += 1;
+                0.0
+            };
+        }
+        self.diagnostics = diag;
+        let rep = &mut self.report;
+        rep.stages.push(("build".into(), t_build));
+        rep.stages.push(("estimate".into(), t_est));
+        rep.light_space_bytes = peak;
+        rep.note("resolution", r);
+        rep.note("sublights", s * s);
+        rep.note("packet", self.params.choice("packet"));
+        rep.note("hierarchy", cfg.hierarchy);
+        rep.note("coherence", cfg.coherence);
+        let pen = counters.penumbra.load(Ordering::Relaxed);
+        let vis = counters.visited.load(Ordering::Relaxed);
+        rep.note("penumbra_evaluations", pen);
+        rep.note("visited_nodes", vis);
+        rep.note(
+            "visited_per_penumbra_pixel",
+            format!("{:.1}", vis as f64 / pen.max(1) as f64),
+        );
+        rep.note("packets", counters.packets.load(Ordering::Relaxed));
+        rep.note(
+            "packets_coherent",
+            counters.coherent.load(Ordering::Relaxed),
+        );
+        rep.note(
+            "packets_rejected",
+            counters.rejected.load(Ordering::Relaxed),
+        );
+        rep.note(
+            "packets_diverged",
+            counters.diverged.load(Ordering::Relaxed),
+        );
+        rep.note(
+            "out_of_frustum",
+            counters.outside.load(Ordering::Relaxed) as usize + out_of_frustum,
+        );
+        if nonfinite > 0 {
+            rep.note("nonfinite_replaced", nonfinite);
+        }
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
