@@ -22,7 +22,7 @@ pub const NAME: &str = "packet-hsm";
 pub const DESCRIPTION: &str = "packet-based hierarchical soft shadow mapping: contour backprojection over a dual-grid MSSM, pixel packets, coherence test, S x S sub-lights (Yang 2009, GBP07)";
 
 /// Every packet size from 1x1 to 8x8 (`WxH`).
-const PACKETS: &[&str] = &[
+pub const PACKETS: &[&str] = &[
     "1x1", "1x2", "1x3", "1x4", "1x5", "1x6", "1x7", "1x8", "2x1", "2x2", "2x3", "2x4", "2x5",
     "2x6", "2x7", "2x8", "3x1", "3x2", "3x3", "3x4", "3x5", "3x6", "3x7", "3x8", "4x1", "4x2",
     "4x3", "4x4", "4x5", "4x6", "4x7", "4x8", "5x1", "5x2", "5x3", "5x4", "5x5", "5x6", "5x7",

@@ -12,7 +12,15 @@ use shadow_map_core::{run, Error, LightShape, Receivers, Scene, SoftShadowEstima
 /// `S = k z_o z_p / (z_p - z_o)`, `k = w / (n r)`.
 fn texel_on_light(scene: &Scene, r: &Receivers, res: u32, zo: f32, zp: f32) -> f64 {
     let cfg = Config::from_params(hsm(&[]).params()).unwrap();
-    let sv = SubView::build(scene, r, res, glam::Vec2::ZERO, scene.light.half_extent(), &cfg).unwrap();
+    let sv = SubView::build(
+        scene,
+        r,
+        res,
+        glam::Vec2::ZERO,
+        scene.light.half_extent(),
+        &cfg,
+    )
+    .unwrap();
     let v = sv.ls.view;
     let k = v.delta() / v.n;
     (k * zo * zp / (zp - zo)) as f64
@@ -98,9 +106,13 @@ fn occluder_touching_the_receiver() {
         let s = scene_with(rect_light(1.0, 3.0), &[occ], 8, 8);
         let o = oracle(&s, &[occ], &r);
         for ss in ["midpoint", "bias"] {
-            let v = run(&mut hsm(&[("resolution", "256"), ("self_shadow", ss)]), &s, &r)
-                .unwrap()
-                .0;
+            let v = run(
+                &mut hsm(&[("resolution", "256"), ("self_shadow", ss)]),
+                &s,
+                &r,
+            )
+            .unwrap()
+            .0;
             assert_valid(&v, "touching");
             if gap < 1e-3 {
                 continue;
@@ -108,7 +120,12 @@ fn occluder_touching_the_receiver() {
             for k in 0..r.len() {
                 let x = r.position[k].x;
                 if (x.abs() - 0.5).abs() > 0.05 {
-                    assert!((v[k] as f64 - o[k]).abs() < 1e-3, "{ss} x={x}: {} vs {}", v[k], o[k]);
+                    assert!(
+                        (v[k] as f64 - o[k]).abs() < 1e-3,
+                        "{ss} x={x}: {} vs {}",
+                        v[k],
+                        o[k]
+                    );
                 }
             }
         }
@@ -154,7 +171,12 @@ fn contour_through_the_receiver() {
 fn border_and_huge_kernels() {
     let r = line_receivers();
     // Occluder almost touching the light: kernels span the whole map.
-    let s = scene_with(rect_light(1.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 3.0 - 1e-4)], 8, 8);
+    let s = scene_with(
+        rect_light(1.0, 3.0),
+        &[(-0.5, -0.5, 0.5, 0.5, 3.0 - 1e-4)],
+        8,
+        8,
+    );
     for h in ["true", "false"] {
         let v = run(&mut hsm(&[("resolution", "128"), ("hierarchy", h)]), &s, &r)
             .unwrap()
@@ -172,7 +194,13 @@ fn border_and_huge_kernels() {
     pts.extend([Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.2, 3.0, 0.1)]);
     let mut rr = Receivers::from_points(pts.clone(), vec![Vec3::Y; pts.len()]).unwrap();
     rr.active[3] = false;
-    let v = run(&mut hsm(&[("resolution", "64"), ("sublights", "2")]), &s, &rr).unwrap().0;
+    let v = run(
+        &mut hsm(&[("resolution", "64"), ("sublights", "2")]),
+        &s,
+        &rr,
+    )
+    .unwrap()
+    .0;
     assert!(v[3].is_nan());
     assert_eq!(v[v.len() - 2], 0.0);
     assert_eq!(v[v.len() - 1], 0.0);
@@ -188,7 +216,13 @@ fn sublights_reduce_the_single_view_error() {
     let o = oracle(&s, &occ, &r);
     let mut rm = Vec::new();
     for sl in ["1", "2", "4"] {
-        let v = run(&mut hsm(&[("resolution", "256"), ("sublights", sl)]), &s, &r).unwrap().0;
+        let v = run(
+            &mut hsm(&[("resolution", "256"), ("sublights", sl)]),
+            &s,
+            &r,
+        )
+        .unwrap()
+        .0;
         let (rms, max) = errors(&v, &o);
         eprintln!("stacked squares S={sl}: rmse {rms:.5} max {max:.5}");
         rm.push(rms);
@@ -199,17 +233,32 @@ fn sublights_reduce_the_single_view_error() {
 /// Bad input: disk and sphere lights and out-of-range parameters are errors naming the key.
 #[test]
 fn bad_input() {
-    for shape in [LightShape::Disk { radius: 0.5 }, LightShape::Sphere { radius: 0.5 }] {
+    for shape in [
+        LightShape::Disk { radius: 0.5 },
+        LightShape::Sphere { radius: 0.5 },
+    ] {
         let mut light = rect_light(1.0, 3.0);
         light.shape = shape;
         let s = scene_with(light, &[SQUARE], 8, 8);
         let err = run(&mut hsm(&[]), &s, &line_receivers()).unwrap_err();
-        assert!(matches!(&err, Error::Param { key, .. } if key == "light"), "{err}");
+        assert!(
+            matches!(&err, Error::Param { key, .. } if key == "light"),
+            "{err}"
+        );
     }
     let mut e = packet_hsm::CpuPacketHsm::new().unwrap();
-    for (k, v) in [("packet", "9x1"), ("packet", "0x2"), ("packet", "4"), ("sublights", "5"), ("td", "1.5")] {
+    for (k, v) in [
+        ("packet", "9x1"),
+        ("packet", "0x2"),
+        ("packet", "4"),
+        ("sublights", "5"),
+        ("td", "1.5"),
+    ] {
         let err = e.set_param(k, v).unwrap_err();
-        assert!(matches!(&err, Error::Param { key, .. } if key == k), "{err}");
+        assert!(
+            matches!(&err, Error::Param { key, .. } if key == k),
+            "{err}"
+        );
     }
     let mut v = vec![0.0; 3];
     let s = scene_with(rect_light(1.0, 3.0), &[SQUARE], 8, 8);
