@@ -1,6 +1,6 @@
 //! The CPU twin, [`CpuDeepShadow`], and the per-view set-up both twins share: sub-light points,
 //! the fitted view of each, and what each receiver looks up in it.
-use crate::dsm::{transmittance_opaque, DeepShadowMap, LookupSettings};
+use crate::dsm::{transmittance_opaque, DeepShadowMap, Filter, LookupSettings};
 use crate::params::{self, Settings, DESCRIPTION, NAME, SPECS};
 use crate::raster::{fragments, prepare};
 use glam::{Vec2, Vec3};
@@ -25,16 +25,34 @@ pub fn sublight_points(scene: &Scene, s: u32) -> Vec<Vec2> {
 }
 
 /// The view of the point light at `y` (light-plane coordinates): centre of projection there, axes
-/// parallel to the light frame, fitted to the receivers by [`LightView::fit`].
+/// parallel to the light frame, fitted to the receivers by [`LightView::fit`], then widened by
+/// `margin` texels on every side (keeping r), so an N x N filter kernel (`margin = N / 2`) around
+/// any receiver stays inside the map (background.md §1 "Coverage": the window must hold every
+/// receiver's projection plus half its kernel).
 pub fn sublight_view(
     scene: &Scene,
     receivers: &Receivers,
     y: Vec2,
     r: u32,
+    margin: u32,
 ) -> Result<(LightView, FitReport)> {
     let mut frame = scene.light.frame();
     frame.origin = frame.to_world(y.extend(0.0));
-    LightView::fit(scene, receivers, frame, Vec2::ZERO, r)
+    let (mut view, fit) = LightView::fit(scene, receivers, frame, Vec2::ZERO, r)?;
+    if margin > 0 && r > 2 * margin {
+        let w = view.w * r as f32 / (r - 2 * margin) as f32;
+        view.window_min -= Vec2::splat(margin as f32 * w / r as f32);
+        view.w = w;
+    }
+    Ok((view, fit))
+}
+
+/// Texels of filter margin a view needs: `N / 2` for PCF and EDSM, 0 otherwise.
+pub fn kernel_margin(s: &Settings) -> u32 {
+    match s.filter {
+        Filter::Pcf | Filter::Edsm => s.kernel / 2,
+        _ => 0,
+    }
 }
 
 /// What one receiver needs from one view.
@@ -265,7 +283,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
         let mut tally = Tally::default();
         for y in &points {
             let t = Instant::now();
-            let (view, fit) = sublight_view(scene, receivers, *y, s.resolution)?;
+            let (view, fit) = sublight_view(scene, receivers, *y, s.resolution, kernel_margin(&s))?;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
             let map = if opaque {
                 let ls = LightSpace::build_in_view(

@@ -1,0 +1,500 @@
+//! The CPU twin against closed forms, hard cases, its own invariants and the ray-traced reference.
+mod common;
+use common::*;
+use deep_shadow::{
+    cpu::{build_deep_map, sublight_view},
+    dsm::DeepShadowMap,
+    params::Settings,
+    shared::NIL,
+    CpuDeepShadow,
+};
+use glam::Vec3;
+use shadow_map_core::{run, Error, Receivers, Scene, SoftShadowEstimator};
+
+fn est(kv: &[(&str, &str)]) -> CpuDeepShadow {
+    let mut e = CpuDeepShadow::new().unwrap();
+    for (k, v) in kv {
+        e.set_param(k, v).unwrap();
+    }
+    e
+}
+
+fn v_of(e: &mut CpuDeepShadow, s: &Scene, r: &Receivers) -> Vec<f32> {
+    let (v, _) = run(e, s, r).unwrap();
+    check_contract(&v, r);
+    v
+}
+
+const MODES: &[&[(&str, &str)]] = &[
+    &[("filter", "none")],
+    &[("filter", "pcf"), ("kernel", "3")],
+    &[("filter", "pcf"), ("kernel", "5")],
+    &[("filter", "pcf"), ("kernel", "7")],
+    &[("filter", "edsm"), ("kernel", "1")],
+    &[("filter", "edsm"), ("kernel", "3")],
+    &[("filter", "edsm"), ("kernel", "7")],
+    &[("filter", "edsm"), ("kernel", "5"), ("c", "1000000")],
+];
+
+#[test]
+fn stacked_sheets_give_the_product_of_transmittances_in_every_mode() {
+    let alphas = [0.3f32, 0.5, 0.2, 0.45];
+    let scene = sheets(&alphas, 0.5);
+    let exact: f64 = alphas.iter().map(|a| 1.0 - *a as f64).product();
+    // Under the sheets (ground, well inside the shadow), above all of them, and between sheets 2 and 3.
+    let below = grid(0.3, 0.0, 6);
+    let above = grid(0.3, 1.5, 4);
+    let between = grid(0.3, 1.15, 4);
+    // The light is above: the sheets nearer it are the higher ones (1.2 and 1.3).
+    let between_exact = (1.0 - alphas[2] as f64) * (1.0 - alphas[3] as f64);
+    for eps in ["0.001", "0"] {
+        for mode in MODES {
+            for s in ["1", "2"] {
+                let mut kv = mode.to_vec();
+                kv.extend([
+                    ("resolution", "128"),
+                    ("epsilon", eps),
+                    ("sublights", s),
+                    ("slope_bias", "0"),
+                ]);
+                let soft = kv.contains(&("filter", "edsm")) && !kv.iter().any(|p| p.0 == "c");
+                for (rec, mut want) in [(&below, exact), (&above, 1.0), (&between, between_exact)] {
+                    let v = v_of(&mut est(&kv), &scene, rec);
+                    if soft && std::ptr::eq(rec, &between) {
+                        if s != "1" {
+                            continue;
+                        }
+                        // EDSM at c = 80 softens the sheets 0.05 and 0.15 in front of the
+                        // receiver: its own closed form, prod (1 - alpha_j (1 - exp(-c' (d - z_j)))).
+                        let m = kv
+                            .iter()
+                            .find(|p| p.0 == "kernel")
+                            .unwrap()
+                            .1
+                            .parse::<u32>()
+                            .unwrap()
+                            / 2;
+                        let (view, _) =
+                            sublight_view(&scene, rec, glam::Vec2::ZERO, 128, m).unwrap();
+                        let cw = 80.0 / (view.far - view.n) as f64;
+                        let zp = 3.0 - 1.15f64;
+                        let d = zp - view.w as f64 * zp / (view.n as f64 * 128.0);
+                        want = [(1.2, alphas[2]), (1.3, alphas[3])]
+                            .iter()
+                            .map(|(y, a)| 1.0 - *a as f64 * (1.0 - (-cw * (d - (3.0 - y))).exp()))
+                            .product();
+                    }
+                    let tol = 1e-5 + eps.parse::<f64>().unwrap();
+                    for x in &v {
+                        assert!((*x as f64 - want).abs() <= tol, "{kv:?}: V {x} vs {want}");
+                    }
+                }
+            }
+        }
+        // Binary first-fragment shadow map: fully shadowed below, lit above.
+        let v = v_of(
+            &mut est(&[("resolution", "128"), ("filter", "first")]),
+            &scene,
+            &below,
+        );
+        assert!(v.iter().all(|x| *x == 0.0));
+        let v = v_of(
+            &mut est(&[("resolution", "128"), ("filter", "first")]),
+            &scene,
+            &above,
+        );
+        assert!(v.iter().all(|x| *x == 1.0));
+    }
+}
+
+#[test]
+fn truncation_cuts_lists_and_stays_within_epsilon() {
+    // 12 sheets of alpha 0.5: tau falls below 1e-3 after the 10th, so two are cut per texel.
+    let alphas = [0.5f32; 12];
+    let scene = sheets(&alphas, 0.5);
+    let rec = grid(0.3, 0.0, 5);
+    let (view, _) = sublight_view(&scene, &rec, glam::Vec2::ZERO, 64, 0).unwrap();
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    s.resolution = 64;
+    let dsm = build_deep_map(&scene, &view, &s).unwrap();
+    let covered = dsm.head.iter().filter(|h| **h != NIL).count() as u64;
+    // ground + 12 sheets in the sheet texels; the ground alone elsewhere.
+    assert!(dsm.stats.fragments > dsm.stats.kept);
+    assert_eq!(dsm.stats.max_len, 13);
+    for t in 0..dsm.head.len() {
+        let l = dsm.list(t);
+        if l.len() > 1 {
+            assert_eq!(l.len(), 10, "texel {t}: kept {}", l.len());
+            let last = &dsm.nodes[*l.last().unwrap() as usize];
+            assert!(last.tau <= 1e-3 && last.tau > 0.0);
+        }
+    }
+    assert!(covered > 0);
+    s.epsilon = 0.0;
+    let full = build_deep_map(&scene, &view, &s).unwrap();
+    assert_eq!(full.stats.kept, full.stats.fragments);
+}
+
+#[test]
+fn coincident_fragments_at_equal_depth_both_count() {
+    let light = rect_light(0.5);
+    let meshes = vec![
+        (quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0),
+        (quad(-1.0, -1.0, 1.0, 1.0, 1.0), 0.3),
+        (quad(-1.0, -1.0, 1.0, 1.0, 1.0), 0.6),
+        (quad(-1.0, -1.0, 1.0, 1.0, 1.0), 0.3),
+    ];
+    let scene = Scene::from_meshes("coincident", camera(), light, meshes).unwrap();
+    let rec = grid(0.3, 0.0, 5);
+    for mode in MODES {
+        let mut kv = mode.to_vec();
+        kv.push(("resolution", "64"));
+        let v = v_of(&mut est(&kv), &scene, &rec);
+        let want = 0.7f32 * 0.4 * 0.7;
+        assert!(v.iter().all(|x| (x - want).abs() < 1e-5), "{kv:?}: {v:?}");
+    }
+}
+
+#[test]
+fn one_fragment_texel_and_receivers_before_every_fragment() {
+    // A single semi-transparent sheet and no ground: the sheet texels hold one fragment.
+    let scene = Scene::from_meshes(
+        "one",
+        camera(),
+        rect_light(0.5),
+        vec![(quad(-1.0, -1.0, 1.0, 1.0, 1.0), 0.35)],
+    )
+    .unwrap();
+    let below = grid(0.3, 0.0, 5);
+    let above = grid(0.3, 1.2, 5);
+    for mode in MODES {
+        let mut kv = mode.to_vec();
+        kv.push(("resolution", "64"));
+        let v = v_of(&mut est(&kv), &scene, &below);
+        assert!(v.iter().all(|x| (x - 0.65).abs() < 1e-6), "{kv:?}: {v:?}");
+        let v = v_of(&mut est(&kv), &scene, &above);
+        assert!(v.iter().all(|x| *x == 1.0), "{kv:?}: {v:?}");
+    }
+    let rec = grid(0.3, 0.0, 5);
+    let (view, _) = sublight_view(&scene, &rec, glam::Vec2::ZERO, 16, 0).unwrap();
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    s.resolution = 16;
+    let dsm = build_deep_map(&scene, &view, &s).unwrap();
+    assert_eq!(dsm.stats.max_len, 1);
+}
+
+#[test]
+fn a_texel_with_ten_thousand_fragments() {
+    // 10^4 small quads of alpha 0.001 stacked over (0, 0), and a wide field of receivers, so a few
+    // texels hold 10^4 fragments and the rest one (the ground).
+    let n = 10_000;
+    let mut meshes = vec![(quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0)];
+    let mut stack = Vec::new();
+    for k in 0..n {
+        stack.extend(quad(-0.02, -0.02, 0.02, 0.02, 1.0 + k as f32 * 1e-4));
+    }
+    meshes.push((stack, 0.001));
+    let scene = Scene::from_meshes("tall", camera(), rect_light(0.5), meshes).unwrap();
+    let mut pos: Vec<Vec3> = (0..9)
+        .map(|k| Vec3::new(-0.004 + 0.001 * k as f32, 0.0, 0.0))
+        .collect();
+    pos.push(Vec3::new(-1.0, 0.0, -1.0));
+    pos.push(Vec3::new(1.0, 0.0, 1.0));
+    let rec = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap();
+    let exact = 0.999f64.powi(n);
+    for eps in [0.0f64, 0.001] {
+        for traversal in ["linked", "naive"] {
+            let e_s = eps.to_string();
+            let mut e = est(&[
+                ("resolution", "128"),
+                ("epsilon", &e_s),
+                ("traversal", traversal),
+            ]);
+            let (v, rep) = run(&mut e, &scene, &rec).unwrap();
+            check_contract(&v, &rec);
+            let max_list: u32 = rep
+                .notes
+                .iter()
+                .find(|n| n.0 == "max_list")
+                .unwrap()
+                .1
+                .parse()
+                .unwrap();
+            assert_eq!(max_list, n as u32 + 1);
+            for x in &v[..9] {
+                assert!(
+                    (*x as f64 - exact).abs() <= 1e-3 * exact + eps + 1e-7,
+                    "eps {eps}: {x} vs {exact}"
+                );
+            }
+            assert_eq!(v[9], 1.0);
+            assert_eq!(v[10], 1.0);
+        }
+    }
+}
+
+#[test]
+fn linked_and_naive_traversal_agree_exactly() {
+    for name in ["hair", "strands"] {
+        let (scene, rec) = fixture(name, 48, 36);
+        for mode in MODES {
+            for s in ["1", "2"] {
+                let mut kv = mode.to_vec();
+                kv.extend([("resolution", "256"), ("sublights", s)]);
+                let mut a = kv.clone();
+                a.push(("traversal", "linked"));
+                let mut b = kv.clone();
+                b.push(("traversal", "naive"));
+                let (va, ra) = run(&mut est(&a), &scene, &rec).unwrap();
+                let (vb, rb) = run(&mut est(&b), &scene, &rec).unwrap();
+                check_contract(&va, &rec);
+                for k in 0..va.len() {
+                    assert!(
+                        va[k].to_bits() == vb[k].to_bits(),
+                        "{name} {kv:?} receiver {k}: {} vs {}",
+                        va[k],
+                        vb[k]
+                    );
+                }
+                let steps = |r: &shadow_map_core::Report| -> f64 {
+                    r.notes
+                        .iter()
+                        .find(|n| n.0 == "elements_per_lookup")
+                        .unwrap()
+                        .1
+                        .parse()
+                        .unwrap()
+                };
+                if kv.iter().any(|p| p.1 == "7") {
+                    assert!(
+                        steps(&ra) < steps(&rb),
+                        "{name}: links should visit fewer elements"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn links_point_at_the_depth_nearest_neighbour() {
+    let (scene, rec) = fixture("hair", 32, 24);
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    s.resolution = 128;
+    let (view, _) = sublight_view(&scene, &rec, glam::Vec2::ZERO, 128, 0).unwrap();
+    let dsm = build_deep_map(&scene, &view, &s).unwrap();
+    let r = 128usize;
+    let mut checked = 0;
+    for t in 0..dsm.head.len() {
+        let list = dsm.list(t);
+        // Sorted, prev links consistent, tau the running product.
+        let mut tau = 1.0f32;
+        for (k, &e) in list.iter().enumerate() {
+            let n = &dsm.nodes[e as usize];
+            tau *= 1.0 - n.alpha;
+            assert_eq!(n.tau, tau);
+            assert_eq!(n.prev, if k == 0 { NIL } else { list[k - 1] });
+            if k > 0 {
+                assert!(dsm.nodes[list[k - 1] as usize].depth <= n.depth);
+            }
+        }
+        let (i, j) = (t % r, t / r);
+        for (nb, upper) in [
+            ((i + 1 < r).then(|| t + 1), false),
+            ((j + 1 < r).then(|| t + r), true),
+        ] {
+            let other = nb.map(|u| dsm.list(u)).unwrap_or_default();
+            for &e in &list {
+                let n = &dsm.nodes[e as usize];
+                let link = if upper { n.upper } else { n.right };
+                if other.is_empty() {
+                    assert_eq!(link, NIL);
+                    continue;
+                }
+                assert!(other.contains(&link));
+                let best = other
+                    .iter()
+                    .map(|&o| (dsm.nodes[o as usize].depth - n.depth).abs())
+                    .fold(f32::INFINITY, f32::min);
+                assert_eq!((dsm.nodes[link as usize].depth - n.depth).abs(), best);
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+}
+
+#[test]
+fn a_tiny_capacity_grows_and_rebuilds_or_fails_with_a_typed_error() {
+    let (scene, rec) = fixture("strands", 32, 24);
+    let (v0, r0) = run(&mut est(&[("resolution", "128")]), &scene, &rec).unwrap();
+    let (v1, r1) = run(
+        &mut est(&[("resolution", "128"), ("capacity", "16")]),
+        &scene,
+        &rec,
+    )
+    .unwrap();
+    assert_eq!(v0, v1);
+    let passes = |r: &shadow_map_core::Report| {
+        r.notes
+            .iter()
+            .find(|n| n.0 == "build_passes")
+            .unwrap()
+            .1
+            .clone()
+    };
+    assert_eq!(passes(&r0), "1");
+    assert_eq!(passes(&r1), "2");
+    let frags: u64 = r1
+        .notes
+        .iter()
+        .find(|n| n.0 == "fragments")
+        .unwrap()
+        .1
+        .parse()
+        .unwrap();
+    let mut e = est(&[
+        ("resolution", "128"),
+        ("capacity", "16"),
+        ("max_capacity", "1000"),
+    ]);
+    match run(&mut e, &scene, &rec) {
+        Err(Error::Limit { requested, max, .. }) => {
+            assert_eq!(requested, frags);
+            assert_eq!(max, 1000);
+        }
+        other => panic!("expected a limit error, got {other:?}"),
+    }
+    // Direct: the detected need equals the fragment count.
+    let frs = vec![
+        deep_shadow::raster::Fragment {
+            texel: 0,
+            depth: 1.0,
+            alpha: 0.5
+        };
+        50
+    ];
+    let d = DeepShadowMap::build(&frs, 2, 3, 1 << 20).unwrap();
+    assert_eq!(
+        (d.stats.capacity, d.stats.passes, d.list(0).len()),
+        (50, 2, 50)
+    );
+}
+
+#[test]
+fn an_opaque_scene_builds_no_lists() {
+    let scene = sheets(&[1.0], 0.5);
+    let rec = grid(0.3, 0.0, 4);
+    let mut e = est(&[("resolution", "64")]);
+    let (v, rep) = run(&mut e, &scene, &rec).unwrap();
+    assert!(v.iter().all(|x| *x == 0.0));
+    let path = &rep.notes.iter().find(|n| n.0 == "path").unwrap().1;
+    assert!(path.contains("no lists"), "{path}");
+    assert!(rep.notes.iter().all(|n| n.0 != "fragments"));
+    let (v, _) = run(&mut e, &scene, &grid(0.3, 1.5, 4)).unwrap();
+    assert!(v.iter().all(|x| *x == 1.0));
+}
+
+#[test]
+fn every_mode_keeps_the_contract_on_the_fixtures() {
+    for name in ["hair", "strands", "bunny", "sphere-light"] {
+        let (scene, rec) = fixture(name, 32, 24);
+        for mode in MODES {
+            for s in ["1", "3"] {
+                let mut kv = mode.to_vec();
+                kv.extend([("resolution", "128"), ("sublights", s)]);
+                v_of(&mut est(&kv), &scene, &rec);
+            }
+        }
+    }
+}
+
+#[test]
+fn parameters_are_checked() {
+    let mut e = CpuDeepShadow::new().unwrap();
+    assert!(matches!(
+        e.set_param("kernel", "4"),
+        Err(Error::Param { .. })
+    ));
+    assert!(matches!(
+        e.set_param("kernel", "9"),
+        Err(Error::Param { .. })
+    ));
+    assert!(matches!(
+        e.set_param("filter", "box"),
+        Err(Error::Param { .. })
+    ));
+    assert!(matches!(
+        e.set_param("sublights", "5"),
+        Err(Error::Param { .. })
+    ));
+    assert!(matches!(e.set_param("nope", "1"), Err(Error::Param { .. })));
+    e.set_param("kernel", "7").unwrap();
+    assert_eq!(e.params().int("kernel"), 7);
+}
+
+#[test]
+fn truncation_error_is_bounded_by_epsilon_on_hair() {
+    let (scene, rec) = fixture("hair", 48, 36);
+    for mode in [
+        &[("filter", "none")][..],
+        &[("filter", "edsm"), ("kernel", "5")][..],
+    ] {
+        let mut a = mode.to_vec();
+        a.extend([("resolution", "256"), ("epsilon", "0.001")]);
+        let mut b = mode.to_vec();
+        b.extend([("resolution", "256"), ("epsilon", "0")]);
+        let (va, ra) = run(&mut est(&a), &scene, &rec).unwrap();
+        let (vb, _) = run(&mut est(&b), &scene, &rec).unwrap();
+        let worst = va
+            .iter()
+            .zip(&vb)
+            .filter(|p| p.0.is_finite())
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst <= 1.0e-3 + 1e-6, "{mode:?}: {worst}");
+        let truncated: u64 = ra
+            .notes
+            .iter()
+            .find(|n| n.0 == "truncated")
+            .unwrap()
+            .1
+            .parse()
+            .unwrap();
+        assert!(truncated > 0);
+    }
+}
+
+#[test]
+fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baseline() {
+    for (name, bound) in [("strands", 0.06), ("hair", 0.09)] {
+        let (scene, rec) = fixture(name, 64, 48);
+        let mut reference = reference::ReferenceEstimator::new().unwrap();
+        reference.set_param("spp", "64").unwrap();
+        let (vref, _) = run(&mut reference, &scene, &rec).unwrap();
+        let soft = v_of(
+            &mut est(&[
+                ("resolution", "512"),
+                ("filter", "pcf"),
+                ("kernel", "3"),
+                ("sublights", "3"),
+            ]),
+            &scene,
+            &rec,
+        );
+        let hard = v_of(&mut est(&[("resolution", "512")]), &scene, &rec);
+        let mut ms = baselines::MultiSample::new().unwrap();
+        ms.set_param("resolution", "512").unwrap();
+        ms.set_param("sublights", "3").unwrap();
+        let (vms, _) = run(&mut ms, &scene, &rec).unwrap();
+        let (e_soft, e_hard, e_ms) = (
+            rmse(&soft, &vref, &rec.active),
+            rmse(&hard, &vref, &rec.active),
+            rmse(&vms, &vref, &rec.active),
+        );
+        eprintln!("{name}: soft {e_soft:.4} hard {e_hard:.4} multi-sample {e_ms:.4}");
+        assert!(e_soft < bound, "{name}: {e_soft}");
+        assert!(e_soft < e_hard, "{name}: sub-lights should help");
+        assert!(e_soft < e_ms, "{name}: transmittance should matter");
+    }
+}
