@@ -1,6 +1,8 @@
 //! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
 //! [`crate::math`]).
-use crate::math::{caster, fixed_kernel_start, paper_plane_distance, Footprint, LightPatch, SphereModel};
+use crate::math::{
+    caster, fixed_kernel_start, paper_plane_distance, Footprint, LightPatch, SphereModel,
+};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
@@ -36,7 +38,7 @@ pub const SPECS: &[ParamSpec] = &[
         key: "k",
         kind: ParamKind::Int { min: 1, max: 64 },
         default: "10",
-        help: "kernel=fixed: the paper's kernel size K (K x K lexels around the receiver's projection; the paper: 5 for speed, 10 for quality)",
+        help: "kernel size K: taps per side (the paper: 5 for speed, 10 for quality)",
     },
     ParamSpec {
         key: "variant",
@@ -46,15 +48,9 @@ pub const SPECS: &[ParamSpec] = &[
     },
     ParamSpec {
         key: "kernel",
-        kind: ParamKind::Choice(&["fixed", "adaptive"]),
-        default: "fixed",
-        help: "fixed: K x K lexels (paper); adaptive: per receiver, every lexel whose caster at the MSSM's minimum depth can reach the light",
-    },
-    ParamSpec {
-        key: "max_taps",
-        kind: ParamKind::Int { min: 1, max: 256 },
-        default: "32",
-        help: "kernel=adaptive: most taps per side; wider kernels take one tap per step x step block, its caster scaled by step",
+        kind: ParamKind::Choice(&["fixed", "adaptive", "lexels"]),
+        default: "adaptive",
+        help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
     },
     ParamSpec {
         key: "bits",
@@ -100,13 +96,24 @@ pub enum Variant {
     Exact,
 }
 
-/// How the kernel is chosen.
+/// How the kernel is chosen. Every mode takes at most K x K taps; a tap reads the depth at the
+/// centre texel of a `step x step` block and its elementary caster is the whole block (a lexel of
+/// a map `step` times coarser: the paper's lexel).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum KernelMode {
-    /// The paper's K x K lexels.
+    /// The paper's (§1.1, assumption 1): K x K taps over the light's footprint on the plane
+    /// z = n, i.e. a lexel pitch of about `2R / K` there ("n proportional to R"). Here n is the
+    /// fitted near plane, the nearest geometry in the light frustum, so no caster is clipped;
+    /// casters far from the plane are sampled coarsely.
     Fixed,
-    /// From the MSSM's minimum depth, per receiver.
+    /// Per receiver: the texels whose casters at depth `>= z_min` can reach the light, `z_min` the
+    /// MSSM minimum over that same region (refined until it stops shrinking), at most K x K taps.
     Adaptive,
+    /// The paper's kernel taken literally at this map's resolution: K x K single lexels around
+    /// the receiver's projection. It covers only casters with
+    /// `c_z >= 1 / (1/n_paper + 1/z_p)` ([`crate::math::paper_plane_distance`]) and misses those
+    /// nearer the light, whose possible projections grow as `1 / c_z`.
+    Lexels,
 }
 
 /// The parameters, typed; read by both twins.
@@ -114,12 +121,10 @@ pub enum KernelMode {
 pub struct Settings {
     /// Additive or exact.
     pub variant: Variant,
-    /// Fixed or adaptive.
+    /// Fixed, adaptive or lexels.
     pub kernel: KernelMode,
-    /// Fixed kernel size K.
+    /// Kernel size K (taps per side).
     pub k: u32,
-    /// Adaptive: most taps per side.
-    pub max_taps: u32,
     /// Exact: bit-grid side B.
     pub bits: u32,
     /// Layers feeding the exact variant (1 for additive).
@@ -142,13 +147,12 @@ impl Settings {
         };
         Settings {
             variant,
-            kernel: if p.choice("kernel") == "adaptive" {
-                KernelMode::Adaptive
-            } else {
-                KernelMode::Fixed
+            kernel: match p.choice("kernel") {
+                "fixed" => KernelMode::Fixed,
+                "lexels" => KernelMode::Lexels,
+                _ => KernelMode::Adaptive,
             },
             k: p.int("k") as u32,
-            max_taps: p.int("max_taps") as u32,
             bits: p.int("bits") as u32,
             layers: if variant == Variant::Exact {
                 p.int("layers") as u32
@@ -202,7 +206,8 @@ pub fn plan(
     let (view, fit) = LightView::fit(scene, receivers, frame, half, resolution)?;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
-        let wmax = (view.alpha() * l * (1.0 / view.n - 1.0 / view.far)).clamp(1.0, resolution as f32);
+        let wmax =
+            (view.alpha() * l * (1.0 / view.n - 1.0 / view.far)).clamp(1.0, resolution as f32);
         (wmax.log2().ceil() as u32).clamp(1, MAX_MSSM_LEVEL)
     });
     let req = LightSpaceRequest {
@@ -231,9 +236,26 @@ pub fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f3
 /// Half-open texel rectangle `[x0, x1) x [y0, y1)` covering continuous bounds, clamped to the map.
 fn bounds_rect(b: [f32; 4], r: u32) -> [i32; 4] {
     let r = r as f32;
-    let lo = |x: f32| if x.is_nan() { 0.0 } else { x.floor().clamp(0.0, r) };
-    let hi = |x: f32| if x.is_nan() { r } else { x.ceil().clamp(0.0, r) };
-    [lo(b[0]) as i32, lo(b[1]) as i32, hi(b[2]) as i32, hi(b[3]) as i32]
+    let lo = |x: f32| {
+        if x.is_nan() {
+            0.0
+        } else {
+            x.floor().clamp(0.0, r)
+        }
+    };
+    let hi = |x: f32| {
+        if x.is_nan() {
+            r
+        } else {
+            x.ceil().clamp(0.0, r)
+        }
+    };
+    [
+        lo(b[0]) as i32,
+        lo(b[1]) as i32,
+        hi(b[2]) as i32,
+        hi(b[3]) as i32,
+    ]
 }
 
 /// What one receiver's estimate cost (summed into the report).
@@ -257,17 +279,19 @@ impl Accumulator<'_> {
     /// lexel occludes (MSSM minimum at or behind the receiver).
     pub fn kernel(&self, fp: &Footprint, uv: Vec2, zp: f32, eps: f32) -> Option<([i32; 4], u32)> {
         let view = &self.ls.view;
-        match self.s.kernel {
-            KernelMode::Fixed => {
+        let bounds =
+            |z: f32| bounds_rect(fp.texel_bounds(z, view.window_min, view.delta()), view.r);
+        let rect = match self.s.kernel {
+            KernelMode::Lexels => {
                 let k = self.s.k as i32;
                 let (i0, j0) = (
                     fixed_kernel_start(uv.x, self.s.k),
                     fixed_kernel_start(uv.y, self.s.k),
                 );
-                Some(([i0, j0, i0 + k, j0 + k], 1))
+                return Some(([i0, j0, i0 + k, j0 + k], 1));
             }
+            KernelMode::Fixed => bounds(view.n),
             KernelMode::Adaptive => {
-                let bounds = |z: f32| bounds_rect(fp.texel_bounds(z, view.window_min, view.delta()), view.r);
                 let mut zm = view.n;
                 let mut rect = bounds(zm);
                 for _ in 0..REFINE_ROUNDS {
@@ -289,14 +313,17 @@ impl Accumulator<'_> {
                     }
                     rect = next;
                 }
-                let (nx, ny) = ((rect[2] - rect[0]).max(0) as u32, (rect[3] - rect[1]).max(0) as u32);
-                if nx == 0 || ny == 0 {
-                    return None;
-                }
-                let step = nx.max(ny).div_ceil(self.s.max_taps).max(1);
-                Some((rect, step))
+                rect
             }
+        };
+        let (nx, ny) = (
+            (rect[2] - rect[0]).max(0) as u32,
+            (rect[3] - rect[1]).max(0) as u32,
+        );
+        if nx == 0 || ny == 0 {
+            return None;
         }
+        Some((rect, nx.max(ny).div_ceil(self.s.k).max(1)))
     }
 
     /// The shadowing factor of the receiver at light-space `p` (normal `nrm`, texel coordinates
@@ -329,7 +356,8 @@ impl Accumulator<'_> {
                 let i1 = (i0 + step as i32).min(rect[2]);
                 let ic = i0 + (i1 - i0 - 1) / 2;
                 // The cell's centre on the plane: eq. 4's l.
-                let l = view.window_min + Vec2::new((i0 + i1) as f32, (j0 + j1) as f32) * (0.5 * delta);
+                let l =
+                    view.window_min + Vec2::new((i0 + i1) as f32, (j0 + j1) as f32) * (0.5 * delta);
                 for layer in &ls.layers[..layers] {
                     stats.taps += 1;
                     let cz = layer.at(ic, jc);
@@ -353,7 +381,8 @@ impl Accumulator<'_> {
                     }
                     for (k, q) in bit_pts.iter().enumerate() {
                         let (w, m) = (k / 32, 1u32 << (k % 32));
-                        if mask[w] & m == 0 && (q.x - lr.x).abs() <= hx && (q.y - lr.y).abs() <= hy {
+                        if mask[w] & m == 0 && (q.x - lr.x).abs() <= hx && (q.y - lr.y).abs() <= hy
+                        {
                             mask[w] |= m;
                             set += 1;
                         }
@@ -451,7 +480,11 @@ impl CpuAccumulation {
                     return 0;
                 }
                 let p = view.frame.to_light(pw);
-                let fp = Footprint::new(LightPatch::for_receiver(&light.shape, s.sphere, p), p, view.n);
+                let fp = Footprint::new(
+                    LightPatch::for_receiver(&light.shape, s.sphere, p),
+                    p,
+                    view.n,
+                );
                 let uv = view.project(p);
                 if !fp.covered() || !view.contains(uv) {
                     outside.fetch_add(1, Ordering::Relaxed);
@@ -538,7 +571,14 @@ impl SoftShadowEstimator for CpuAccumulation {
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         let taps = out.as_ref().copied().unwrap_or(0);
         let settings = self.settings();
-        note_settings(&mut self.report, &settings, &ls, &scene.light, receivers, taps);
+        note_settings(
+            &mut self.report,
+            &settings,
+            &ls,
+            &scene.light,
+            receivers,
+            taps,
+        );
         self.ls = Some(ls);
         out.map(|_| ())
     }
@@ -563,7 +603,7 @@ pub fn note_settings(
     report.note("layers", s.layers);
     report.note("near", view.n);
     report.note("far", view.far);
-    if s.kernel == KernelMode::Fixed {
+    if s.kernel == KernelMode::Lexels {
         let radius = 0.5 * light.diameter();
         report.note(
             "paper_n",
@@ -572,7 +612,10 @@ pub fn note_settings(
     }
     if taps > 0 {
         let n = receivers.active_count().max(1);
-        report.note("taps_per_receiver", format!("{:.1}", taps as f64 / n as f64));
+        report.note(
+            "taps_per_receiver",
+            format!("{:.1}", taps as f64 / n as f64),
+        );
     }
     report.note("out_of_frustum_fit", ls.fit.out_of_frustum);
 }

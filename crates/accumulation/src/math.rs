@@ -139,22 +139,32 @@ impl LightPatch {
         }
     }
 
-    /// Bit `(i, j)` of a `b x b` grid of equal-area cells on the patch (light space): the cell
-    /// centres of a regular grid on a rectangle, the same grid mapped by Shirley & Chiu's
-    /// concentric map on a disk (area preserving, so every bit stands for `A_L / b^2`).
-    pub fn bit_point(&self, i: u32, j: u32, b: u32) -> Vec3 {
+    /// Bit `(i, j)` of a `b x b` grid of equal-area cells on the patch, in in-plane coordinates:
+    /// the cell centres of a regular grid on a rectangle, the same grid mapped by Shirley &
+    /// Chiu's concentric map on a disk (area preserving, so every bit stands for `A_L / b^2`).
+    pub fn bit_local(&self, i: u32, j: u32, b: u32) -> Vec2 {
         let u = Vec2::new((i as f32 + 0.5) / b as f32, (j as f32 + 0.5) / b as f32);
-        let local = match self.shape {
+        match self.shape {
             PatchShape::Disk(r) => shadow_map_core::light::concentric_disk(u) * r,
             PatchShape::Rect(h) => (u * 2.0 - 1.0) * h,
-        };
+        }
+    }
+
+    /// In-plane coordinates to light space: `e1 x + e2 y`.
+    #[inline]
+    pub fn embed(&self, local: Vec2) -> Vec3 {
         self.e1 * local.x + self.e2 * local.y
     }
 
-    /// Points whose convex hull contains the patch: its 4 corners, or
-    /// [`DISK_BOUNDARY_POINTS`] points of the polygon circumscribing the disk.
-    pub fn hull_point(&self, k: u32) -> Vec3 {
-        let local = match self.shape {
+    /// [`LightPatch::bit_local`] in light space.
+    pub fn bit_point(&self, i: u32, j: u32, b: u32) -> Vec3 {
+        self.embed(self.bit_local(i, j, b))
+    }
+
+    /// In-plane coordinates of hull point `k`: points whose convex hull contains the patch, its
+    /// 4 corners, or the [`DISK_BOUNDARY_POINTS`] vertices of the polygon circumscribing the disk.
+    pub fn hull_local(&self, k: u32) -> Vec2 {
+        match self.shape {
             PatchShape::Disk(r) => {
                 let m = DISK_BOUNDARY_POINTS as f32;
                 let rr = r / (std::f32::consts::PI / m).cos();
@@ -167,8 +177,12 @@ impl LightPatch {
                 2 => Vec2::new(h.x, h.y),
                 _ => Vec2::new(-h.x, h.y),
             },
-        };
-        self.e1 * local.x + self.e2 * local.y
+        }
+    }
+
+    /// [`LightPatch::hull_local`] in light space.
+    pub fn hull_point(&self, k: u32) -> Vec3 {
+        self.embed(self.hull_local(k))
     }
 
     /// Number of [`LightPatch::hull_point`]s.
@@ -391,11 +405,20 @@ mod tests {
             let side = |l: Vec2| normal.dot(Vec3::new(l.x, l.y, n));
             let delta = 2e-3;
             let (s_add, s_exact) = flat_occluder(&fp, delta, c, side, 16);
-            assert!((s_add - 0.5).abs() < 0.01, "{shape:?} {model:?}: additive {s_add}");
-            assert!((s_exact - 0.5).abs() < 0.04, "{shape:?} {model:?}: exact {s_exact}");
+            assert!(
+                (s_add - 0.5).abs() < 0.01,
+                "{shape:?} {model:?}: additive {s_add}"
+            );
+            assert!(
+                (s_exact - 0.5).abs() < 0.04,
+                "{shape:?} {model:?}: exact {s_exact}"
+            );
             // A full occluder: every square tiles the footprint once.
             let (s_full, e_full) = flat_occluder(&fp, delta, c, |_| -1.0, 8);
-            assert!((s_full - 1.0).abs() < 0.01, "{shape:?} {model:?}: full {s_full}");
+            assert!(
+                (s_full - 1.0).abs() < 0.01,
+                "{shape:?} {model:?}: full {s_full}"
+            );
             assert_eq!(e_full, 1.0);
         }
     }
@@ -406,7 +429,8 @@ mod tests {
     fn caster_mapping_is_independent_of_n() {
         let r = Vec3::new(0.4, -0.3, 5.0);
         let c = Vec3::new(0.1, 0.05, 0.7);
-        let patch = LightPatch::for_receiver(&LightShape::Disk { radius: 0.5 }, SphereModel::Contract, r);
+        let patch =
+            LightPatch::for_receiver(&LightShape::Disk { radius: 0.5 }, SphereModel::Contract, r);
         let mut hits = Vec::new();
         for n in [0.2f32, 0.7, 1.5, 3.0] {
             let l = Vec2::new(c.x, c.y) * (n / c.z);

@@ -1,0 +1,357 @@
+// Twin of crates/accumulation/src/cpu.rs (Accumulator) and math.rs, in f32 and in the CPU's
+// operation order. Prepended: the core's SHARED_WGSL, the baselines' shared.wgsl and common.wgsl
+// (receiver bias, light frames, default_tangent, front_fraction_world).
+//
+// The patch's hull points and occlusion-bit points come in in-plane coordinates from the CPU
+// (`tables`: LightPatch::hull_local then LightPatch::bit_local), so no trigonometry differs.
+// The occlusion-bit mask lives in registers (array<u32, 8>, 256 bits at most).
+
+// Mirrors gpu.rs AccUniform field for field.
+struct AccUniform {
+    inv_area: f32,
+    n_hull: u32,
+    bits: u32,
+    nbits: u32,
+    k: u32,
+    kernel: u32,
+    variant: u32,
+    layers: u32,
+    sphere_contract: u32,
+    patch_rect: u32,
+    half: vec2<f32>,
+    b0: f32,
+    b1: f32,
+    mssm_present: u32,
+    mssm_levels: u32,
+    mssm_size: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+const KERNEL_FIXED: u32 = 0u;
+const KERNEL_ADAPTIVE: u32 = 1u;
+const KERNEL_LEXELS: u32 = 2u;
+const VARIANT_EXACT: u32 = 1u;
+const HULL_SLOTS: u32 = 16u;
+const REFINE_ROUNDS: i32 = 16;
+
+@group(0) @binding(0) var<uniform> view: LightViewUniform;
+@group(0) @binding(1) var<uniform> est: EstimateUniform;
+@group(0) @binding(2) var<uniform> acc: AccUniform;
+// Peeled layers (linear light-space depth, +inf where empty).
+@group(0) @binding(3) var maps: texture_2d_array<f32>;
+// MSSM min planes, one array layer per level.
+@group(0) @binding(4) var mssm: texture_2d_array<f32>;
+// HULL_SLOTS hull points, then the bit points (in-plane coordinates).
+@group(0) @binding(5) var<storage, read> tables: array<vec2<f32>>;
+@group(0) @binding(6) var<storage, read> receivers: array<ReceiverGpu>;
+@group(0) @binding(7) var<storage, read_write> v_out: array<u32>;
+// [0]: lit receivers outside the frustum, [1]: non-finite results.
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 2>;
+
+const NAN_BITS: u32 = 0x7fc00000u;
+const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
+
+fn pos_inf() -> f32 {
+    return bitcast<f32>(0x7f800000u);
+}
+
+// math::LightPatch.
+struct Patch {
+    a: vec3<f32>,
+    e1: vec3<f32>,
+    e2: vec3<f32>,
+}
+
+// LightPatch::for_receiver.
+fn patch_for(r: vec3<f32>) -> Patch {
+    var p = Patch(vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0));
+    if acc.sphere_contract != 0u {
+        let rcp = valid_rcp(r);
+        if rcp != 0.0 {
+            let a = r * rcp;
+            let e1 = default_tangent(a);
+            p = Patch(a, e1, cross3(a, e1));
+        }
+    }
+    return p;
+}
+
+// LightPatch::embed.
+fn embed(p: Patch, l: vec2<f32>) -> vec3<f32> {
+    return p.e1 * l.x + p.e2 * l.y;
+}
+
+// LightPatch::contains.
+fn patch_contains(l: vec2<f32>) -> bool {
+    if acc.patch_rect != 0u {
+        return abs(l.x) <= acc.half.x && abs(l.y) <= acc.half.y;
+    }
+    return dot2(l, l) <= acc.half.x * acc.half.x;
+}
+
+// LightPatch::max_z.
+fn patch_max_z(p: Patch) -> f32 {
+    if acc.patch_rect != 0u {
+        return acc.half.x * abs(p.e1.z) + acc.half.y * abs(p.e2.z);
+    }
+    return acc.half.x * sqrt(max(1.0 - p.a.z * p.a.z, 0.0));
+}
+
+// Footprint::at_depth: the point at depth c on the line from r through light point x.
+fn at_depth(r: vec3<f32>, x: vec3<f32>, c: f32) -> vec2<f32> {
+    let s = (r.z - c) / (r.z - x.z);
+    let r2 = vec2<f32>(r.x, r.y);
+    return r2 + (vec2<f32>(x.x, x.y) - r2) * s;
+}
+
+// Footprint::additive_term.
+fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32) -> f32 {
+    let d = vec3<f32>(lr.x - r.x, lr.y - r.y, view.n - r.z);
+    let da = dot3(d, p.a);
+    let u = -dot3(r, p.a) / da;
+    if !(u > 0.0) || !is_finite(u) {
+        return 0.0;
+    }
+    let x = r + d * u;
+    let local = vec2<f32>(dot3(x, p.e1), dot3(x, p.e2));
+    if !patch_contains(local) {
+        return 0.0;
+    }
+    let jac = u * u * (abs(d.z) / abs(da));
+    return area * (jac * acc.inv_area);
+}
+
+// cpu.rs bounds_rect over Footprint::texel_bounds(c).
+fn kernel_bounds(p: Patch, r: vec3<f32>, c_in: f32) -> vec4<i32> {
+    let c = max(c_in, F32_MIN_POSITIVE);
+    var lo = vec2<f32>(pos_inf());
+    var hi = vec2<f32>(-pos_inf());
+    for (var k = 0u; k < acc.n_hull; k++) {
+        let y = at_depth(r, embed(p, tables[k]), c) * (view.n / c);
+        let t = (y - view.window_min) / view.delta;
+        lo = min(lo, t);
+        hi = max(hi, t);
+    }
+    let rf = f32(view.r);
+    var out = vec4<i32>(0, 0, i32(view.r), i32(view.r));
+    if lo.x == lo.x { out.x = i32(clamp(floor(lo.x), 0.0, rf)); }
+    if lo.y == lo.y { out.y = i32(clamp(floor(lo.y), 0.0, rf)); }
+    if hi.x == hi.x { out.z = i32(clamp(ceil(hi.x), 0.0, rf)); }
+    if hi.y == hi.y { out.w = i32(clamp(ceil(hi.y), 0.0, rf)); }
+    return out;
+}
+
+// Mssm::query(..).min (as backprojection.wgsl): same level choice and window starts.
+fn mssm_min(rect: vec4<i32>) -> f32 {
+    if acc.mssm_present == 0u {
+        return -pos_inf();
+    }
+    let s = i32(acc.mssm_size);
+    let x0 = clamp(rect.x, 0, s);
+    let y0 = clamp(rect.y, 0, s);
+    let x1 = clamp(rect.z, 0, s);
+    let y1 = clamp(rect.w, 0, s);
+    if !(x0 < x1 && y0 < y1) || acc.mssm_levels == 0u {
+        return pos_inf();
+    }
+    let m = u32(min(x1 - x0, y1 - y0));
+    let l = min(firstLeadingBit(m), acc.mssm_levels - 1u);
+    let h = i32(1u << l);
+    let last_x = max(x1 - h, x0);
+    let last_y = max(y1 - h, y0);
+    var best = pos_inf();
+    var y = y0;
+    loop {
+        let yc = select(last_y, y, y < last_y);
+        var x = x0;
+        loop {
+            let xc = select(last_x, x, x < last_x);
+            best = min(best, textureLoad(mssm, vec2<i32>(xc, yc), i32(l), 0).x);
+            if x >= last_x {
+                break;
+            }
+            x += h;
+        }
+        if y >= last_y {
+            break;
+        }
+        y += h;
+    }
+    return best;
+}
+
+// DepthMap::at: +inf outside the map.
+fn depth_at(i: i32, j: i32, layer: u32) -> f32 {
+    let r = i32(view.r);
+    if i < 0 || j < 0 || i >= r || j >= r {
+        return pos_inf();
+    }
+    return textureLoad(maps, vec2<i32>(i, j), i32(layer), 0).x;
+}
+
+// math::fixed_kernel_start.
+fn fixed_kernel_start(u: f32, k: u32) -> i32 {
+    return i32(ceil(u - 0.5 * f32(k) - 0.5));
+}
+
+struct Kernel {
+    rect: vec4<i32>,
+    step: u32,
+    empty: bool,
+}
+
+// Accumulator::kernel.
+fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
+    if acc.kernel == KERNEL_LEXELS {
+        let i0 = fixed_kernel_start(uv.x, acc.k);
+        let j0 = fixed_kernel_start(uv.y, acc.k);
+        let k = i32(acc.k);
+        return Kernel(vec4<i32>(i0, j0, i0 + k, j0 + k), 1u, false);
+    }
+    var rect = kernel_bounds(p, r, view.n);
+    if acc.kernel == KERNEL_ADAPTIVE {
+        var zm = view.n;
+        for (var it = 0; it < REFINE_ROUNDS; it++) {
+            let zmin = mssm_min(rect);
+            if zmin >= r.z - eps {
+                return Kernel(rect, 1u, true);
+            }
+            if !(zmin > zm) {
+                break;
+            }
+            zm = zmin;
+            let next = kernel_bounds(p, r, zm);
+            let an = (next.z - next.x) * (next.w - next.y);
+            let ar = (rect.z - rect.x) * (rect.w - rect.y);
+            if an >= ar {
+                break;
+            }
+            rect = next;
+        }
+    }
+    let nx = u32(max(rect.z - rect.x, 0));
+    let ny = u32(max(rect.w - rect.y, 0));
+    if nx == 0u || ny == 0u {
+        return Kernel(rect, 1u, true);
+    }
+    let step = max((max(nx, ny) + acc.k - 1u) / acc.k, 1u);
+    return Kernel(rect, step, false);
+}
+
+// Accumulator::shadowing: the shadowing factor s in [0, 1].
+fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
+    let eps = receiver_bias(view, r, nrm, acc.b0, acc.b1);
+    let kr = kernel(p, r, uv, eps);
+    if kr.empty {
+        return 0.0;
+    }
+    let rect = kr.rect;
+    let step = kr.step;
+    let delta = view.delta;
+    let n = view.n;
+    let bx = (u32(rect.z - rect.x) + step - 1u) / step;
+    let by = (u32(rect.w - rect.y) + step - 1u) / step;
+    let exact = acc.variant == VARIANT_EXACT;
+    var mask = array<u32, 8>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
+    var n_set = 0u;
+    var s_add = 0.0;
+    let r2 = vec2<f32>(r.x, r.y);
+    for (var b = 0u; b < by; b++) {
+        let j0 = rect.y + i32(b * step);
+        let j1 = min(j0 + i32(step), rect.w);
+        let jc = j0 + (j1 - j0 - 1) / 2;
+        for (var a = 0u; a < bx; a++) {
+            let i0 = rect.x + i32(a * step);
+            let i1 = min(i0 + i32(step), rect.z);
+            let ic = i0 + (i1 - i0 - 1) / 2;
+            let l = view.window_min + vec2<f32>(f32(i0 + i1), f32(j0 + j1)) * (0.5 * delta);
+            for (var layer = 0u; layer < acc.layers; layer++) {
+                let cz = depth_at(ic, jc, layer);
+                if !(cz < r.z - eps) {
+                    break;
+                }
+                // math::caster.
+                if !(cz > 0.0) || !(cz < r.z) {
+                    continue;
+                }
+                let gap = max(r.z - cz, 1e-7 * r.z);
+                let size = ((r.z - n) / gap) * (cz / n);
+                let lr = r2 * ((n - cz) / gap) + l * size;
+                if !is_finite(size) || !is_finite(lr.x) || !is_finite(lr.y) {
+                    continue;
+                }
+                let hx = 0.5 * f32(i1 - i0) * delta * size;
+                let hy = 0.5 * f32(j1 - j0) * delta * size;
+                if !exact {
+                    s_add += additive_term(p, r, lr, 4.0 * hx * hy);
+                    continue;
+                }
+                for (var k = 0u; k < acc.nbits; k++) {
+                    let w = k / 32u;
+                    let m = 1u << (k % 32u);
+                    if (mask[w] & m) != 0u {
+                        continue;
+                    }
+                    let q = at_depth(r, embed(p, tables[HULL_SLOTS + k]), n);
+                    if abs(q.x - lr.x) <= hx && abs(q.y - lr.y) <= hy {
+                        mask[w] |= m;
+                        n_set += 1u;
+                    }
+                }
+                if n_set == acc.nbits {
+                    return 1.0;
+                }
+            }
+        }
+    }
+    if exact {
+        return f32(n_set) / f32(acc.nbits);
+    }
+    if s_add >= 1.0 - 1e-6 {
+        return 1.0;
+    }
+    return clamp(s_add, 0.0, 1.0);
+}
+
+// CpuAccumulation::estimate_with, per receiver; NaN for a lit receiver outside the frustum
+// (counted).
+fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
+    let facing = front_fraction_world(est, pw, nw);
+    if !(facing > 0.0) {
+        return 0.0;
+    }
+    let r = view_to_light(view, pw);
+    let p = patch_for(r);
+    let uv = project(view, r);
+    let covered = r.z > view.n && patch_max_z(p) < r.z * (1.0 - 1e-4);
+    if !covered || !view_contains(view, uv) {
+        atomicAdd(&counters[0], 1u);
+        return bitcast<f32>(NAN_BITS);
+    }
+    let s = shadowing(p, r, view_dir_to_light(view, nw), uv);
+    return facing * (1.0 - s);
+}
+
+@compute @workgroup_size(WG)
+fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= arrayLength(&receivers) {
+        return;
+    }
+    let rec = receivers[k];
+    if rec.is_active == 0u {
+        v_out[k] = NAN_BITS;
+        return;
+    }
+    let x = estimate_receiver(rec.position, rec.normal);
+    if x != x {
+        v_out[k] = NAN_BITS;
+    } else if is_finite(x) {
+        v_out[k] = bitcast<u32>(clamp(x, 0.0, 1.0));
+    } else {
+        v_out[k] = 0u;
+        atomicAdd(&counters[1], 1u);
+    }
+}

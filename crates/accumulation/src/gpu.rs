@@ -1,0 +1,644 @@
+//! wgpu twin of [`CpuAccumulation`] (cargo feature `gpu`, on by default): the same name,
+//! description and parameters, and the same light view and request ([`crate::cpu::plan`]).
+//!
+//! **Build.** As the backprojection twin: the light-space data (peeled layers, the MSSM for the
+//! adaptive kernel) are built on the CPU exactly as [`CpuAccumulation`] builds them and uploaded
+//! as two `R32Float` texture arrays, so both twins read identical maps.
+//!
+//! **Estimate.** One compute dispatch per chunk of receivers (`accumulation.wgsl`, one
+//! invocation per receiver). The exact variant keeps its occlusion-bit mask in registers
+//! (`array<u32, 8>`, up to 16 x 16 bits). The light patch's hull and bit points are computed on the
+//! CPU ([`crate::math::LightPatch::hull_local`], [`crate::math::LightPatch::bit_local`]) and
+//! uploaded, so no trigonometry differs between the twins.
+//!
+//! The WGSL follows `cpu.rs` and [`crate::math`] step by step in f32. Known differences: the
+//! facing factor is f32 here and f64 inside the CPU's `front_fraction` (about 1e-7); the driver
+//! may fuse a multiply and an add, which can flip a depth comparison, a caster centre on the
+//! footprint's edge or a bit on a caster square's edge when it is a tie to within f32 rounding
+//! (the twin test explains every such receiver).
+use crate::cpu::{
+    note_settings, outside_error, CpuAccumulation, KernelMode, Settings, Variant, MAX_BITS,
+};
+use crate::math::{LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
+use baselines::gpu::{
+    kernel::{max_chunk, shader_source},
+    map_estimator::COMMON_WGSL,
+    shared::{EstimateUniform, OVERRIDES, SHARED_WGSL as BASELINES_SHARED_WGSL, WORKGROUP_SIZE},
+};
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use shadow_map_core::{
+    gpu::{
+        shared::{pack_receivers, LightViewUniform, SHARED_WGSL},
+        GpuContext,
+    },
+    light_space::LightSpace,
+    Backend, Error, LightShape, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+};
+use std::{sync::Arc, time::Instant};
+use wgpu::util::DeviceExt;
+
+/// The estimator's own WGSL (after the parts in [`SHADER_PARTS`]' head).
+pub const ACCUMULATION_WGSL: &str = include_str!("accumulation.wgsl");
+
+/// The WGSL parts of the kernel, in order.
+pub const SHADER_PARTS: [&str; 4] = [
+    SHARED_WGSL,
+    BASELINES_SHARED_WGSL,
+    COMMON_WGSL,
+    ACCUMULATION_WGSL,
+];
+
+/// Hull-point slots at the head of the tables buffer (WGSL `HULL_SLOTS`).
+pub const HULL_SLOTS: usize = DISK_BOUNDARY_POINTS as usize;
+
+/// The settings the kernel reads besides the light view and the light (mirrors `AccUniform` in
+/// `accumulation.wgsl`).
+#[repr(C, align(16))]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct AccUniform {
+    /// `1 / A_L` as [`crate::math::Footprint::new`] computes it.
+    pub inv_area: f32,
+    /// Hull points used (4 or [`DISK_BOUNDARY_POINTS`]).
+    pub n_hull: u32,
+    /// Bit-grid side B.
+    pub bits: u32,
+    /// `B^2`.
+    pub nbits: u32,
+    /// Kernel size K.
+    pub k: u32,
+    /// 0 fixed, 1 adaptive, 2 lexels.
+    pub kernel: u32,
+    /// 0 additive, 1 exact.
+    pub variant: u32,
+    /// Layers read per tap.
+    pub layers: u32,
+    /// 1 for a sphere light under the contract's model.
+    pub sphere_contract: u32,
+    /// 1 for a rectangular patch, 0 for a disk.
+    pub patch_rect: u32,
+    /// Rect half extents, or (R, R).
+    pub half: [f32; 2],
+    /// Constant receiver bias (texel footprints).
+    pub b0: f32,
+    /// Slope-scaled receiver bias.
+    pub b1: f32,
+    /// 1 when the light-space data hold an MSSM.
+    pub mssm_present: u32,
+    /// MSSM levels (array layers of the MSSM texture).
+    pub mssm_levels: u32,
+    /// MSSM side in texels.
+    pub mssm_size: u32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+    /// Padding.
+    pub _pad2: u32,
+}
+
+/// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
+pub fn uniform_and_tables(
+    s: &Settings,
+    shape: &LightShape,
+    ls: &LightSpace,
+) -> (AccUniform, Vec<[f32; 2]>) {
+    let patch = LightPatch::for_receiver(shape, SphereModel::Paper, Vec3::Z);
+    let (patch_rect, half) = match patch.shape {
+        PatchShape::Rect(h) => (1, [h.x, h.y]),
+        PatchShape::Disk(r) => (0, [r, r]),
+    };
+    let bits = s.bits.min(MAX_BITS);
+    let mut tables = vec![[0.0f32; 2]; HULL_SLOTS];
+    for k in 0..patch.hull_points() {
+        tables[k as usize] = patch.hull_local(k).to_array();
+    }
+    for k in 0..bits * bits {
+        tables.push(patch.bit_local(k % bits, k / bits, bits).to_array());
+    }
+    let u = AccUniform {
+        inv_area: 1.0 / patch.area(),
+        n_hull: patch.hull_points(),
+        bits,
+        nbits: bits * bits,
+        k: s.k,
+        kernel: match s.kernel {
+            KernelMode::Fixed => 0,
+            KernelMode::Adaptive => 1,
+            KernelMode::Lexels => 2,
+        },
+        variant: u32::from(s.variant == Variant::Exact),
+        layers: (s.layers as usize).min(ls.layers.len()).max(1) as u32,
+        sphere_contract: u32::from(
+            matches!(shape, LightShape::Sphere { .. }) && s.sphere == SphereModel::Contract,
+        ),
+        patch_rect,
+        half,
+        b0: s.b0,
+        b1: s.b1,
+        mssm_present: u32::from(ls.mssm.is_some()),
+        mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
+        mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
+    };
+    (u, tables)
+}
+
+/// `size x size` R32Float planes in one texture array.
+struct PlaneArray {
+    texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    bytes: usize,
+}
+
+/// Allocates `count` planes of side `size` (usages: read by the kernel, written by copies and by
+/// [`PLANE_TO_LAYER_WGSL`]).
+fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Result<PlaneArray> {
+    let l = ctx.limits();
+    if size == 0 || size > l.max_texture_dimension_2d {
+        return Err(Error::Limit {
+            what: "accumulation texture side",
+            requested: size as u64,
+            max: l.max_texture_dimension_2d as u64,
+        });
+    }
+    if count == 0 || count > l.max_texture_array_layers {
+        return Err(Error::Limit {
+            what: "accumulation texture array layers",
+            requested: count as u64,
+            max: l.max_texture_array_layers as u64,
+        });
+    }
+    ctx.scoped(label, || {
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: count,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::STORAGE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        PlaneArray {
+            texture,
+            view,
+            bytes: size as usize * size as usize * count as usize * 4,
+        }
+    })
+}
+
+/// Uploads CPU planes into one texture array.
+fn upload_planes(
+    ctx: &GpuContext,
+    label: &str,
+    size: u32,
+    planes: &[&[f32]],
+) -> Result<PlaneArray> {
+    let array = plane_array(ctx, label, size, planes.len() as u32)?;
+    let texels = size as usize * size as usize;
+    let mut data = Vec::with_capacity(texels * planes.len());
+    for p in planes {
+        if p.len() != texels {
+            return Err(Error::Gpu {
+                stage: format!("{label} upload"),
+                reason: format!("{} depths for a {size}x{size} plane", p.len()),
+            });
+        }
+        data.extend_from_slice(p);
+    }
+    ctx.scoped(label, || {
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &array.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&data),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * size),
+                rows_per_image: Some(size),
+            },
+            wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: planes.len() as u32,
+            },
+        );
+    })?;
+    Ok(array)
+}
+
+/// The GPU twin of [`CpuAccumulation`].
+pub struct GpuAccumulation {
+    ctx: Arc<GpuContext>,
+    cpu: CpuAccumulation,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    report: Report,
+    chunk_cap: usize,
+}
+
+const LABEL: &str = "accumulation estimate";
+
+/// Everything one estimate needs on the device: maps, uniforms, receiver chunks and their bind
+/// groups. [`Prepared::dispatch`] may run many times (benchmarks time it without readback).
+pub struct Prepared {
+    groups: Vec<(usize, usize, wgpu::BindGroup, wgpu::Buffer)>,
+    counters: wgpu::Buffer,
+    bytes: usize,
+}
+
+impl Prepared {
+    /// Light-space bytes on the device.
+    pub fn bytes(&self) -> usize {
+        self.bytes
+    }
+}
+
+impl GpuAccumulation {
+    /// With default parameters, compiling the kernel on `ctx`'s device.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
+        let src = shader_source(&SHADER_PARTS);
+        let module = ctx.scoped(LABEL, || {
+            ctx.device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(LABEL),
+                    source: wgpu::ShaderSource::Wgsl(src.into()),
+                })
+        })?;
+        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2Array,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+        let (layout, pipeline) = ctx.scoped(LABEL, || {
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some(LABEL),
+                    entries: &[
+                        buffer(0, wgpu::BufferBindingType::Uniform),
+                        buffer(1, wgpu::BufferBindingType::Uniform),
+                        buffer(2, wgpu::BufferBindingType::Uniform),
+                        texture(3),
+                        texture(4),
+                        buffer(5, storage(true)),
+                        buffer(6, storage(true)),
+                        buffer(7, storage(false)),
+                        buffer(8, storage(false)),
+                    ],
+                });
+            let pl = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(LABEL),
+                    bind_group_layouts: &[Some(&layout)],
+                    immediate_size: 0,
+                });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(LABEL),
+                    layout: Some(&pl),
+                    module: &module,
+                    entry_point: Some("estimate"),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: OVERRIDES,
+                        zero_initialize_workgroup_memory: true,
+                    },
+                    cache: None,
+                });
+            (layout, pipeline)
+        })?;
+        Ok(GpuAccumulation {
+            ctx,
+            cpu: CpuAccumulation::new()?,
+            layout,
+            pipeline,
+            report: Report::default(),
+            chunk_cap: usize::MAX,
+        })
+    }
+
+    /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
+    pub fn set_max_chunk(&mut self, receivers: usize) {
+        self.chunk_cap = receivers.max(1);
+    }
+
+    /// The CPU twin holding the parameters and, after `build`, the light-space data.
+    pub fn cpu(&self) -> &CpuAccumulation {
+        &self.cpu
+    }
+
+    /// Uploads the maps, uniforms and receivers for [`Prepared::dispatch`].
+    pub fn prepare(
+        &self,
+        ls: &LightSpace,
+        light: &shadow_map_core::Light,
+        receivers: &Receivers,
+    ) -> Result<Prepared> {
+        let ctx = &*self.ctx;
+        let s = self.cpu.settings();
+        let r = ls.view.r;
+        let planes: Vec<&[f32]> = ls.layers.iter().map(|d| d.depth.as_slice()).collect();
+        let dummy = vec![f32::INFINITY; r as usize * r as usize];
+        let planes = if planes.is_empty() {
+            vec![&dummy[..]]
+        } else {
+            planes
+        };
+        let maps = upload_planes(ctx, "accumulation layers", r, &planes)?;
+        let one = [f32::INFINITY];
+        let (mssm_planes, mssm_size): (Vec<&[f32]>, u32) = match &ls.mssm {
+            Some(m) if m.levels() > 0 => {
+                ((0..m.levels()).map(|l| m.level(l).0).collect(), m.size())
+            }
+            _ => (vec![&one[..]], 1),
+        };
+        let mssm = upload_planes(ctx, "accumulation mssm", mssm_size, &mssm_planes)?;
+        let (au, tables) = uniform_and_tables(&s, &light.shape, ls);
+        let eu = EstimateUniform::new(light, s.b0, s.b1);
+        let chunk = max_chunk(ctx, self.chunk_cap);
+        let packed = pack_receivers(receivers);
+        let (groups, counters) = ctx.scoped(LABEL, || {
+            let init = |label, contents: &[u8], usage| {
+                ctx.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents,
+                        usage,
+                    })
+            };
+            let view_buf = init(
+                "light view",
+                bytemuck::bytes_of(&LightViewUniform::from(&ls.view)),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            let est_buf = init(
+                "estimate uniform",
+                bytemuck::bytes_of(&eu),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            let acc_buf = init(
+                "accumulation uniform",
+                bytemuck::bytes_of(&au),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            let tab_buf = init(
+                "accumulation tables",
+                bytemuck::cast_slice(&tables),
+                wgpu::BufferUsages::STORAGE,
+            );
+            let counters = init(
+                "accumulation counters",
+                bytemuck::cast_slice(&[0u32; 2]),
+                wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+            );
+            let mut groups = Vec::new();
+            for (c, part) in packed.chunks(chunk).enumerate() {
+                let rec = init(
+                    "accumulation receivers",
+                    bytemuck::cast_slice(part),
+                    wgpu::BufferUsages::STORAGE,
+                );
+                let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("accumulation V"),
+                    size: (part.len() * 4) as u64,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+                let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(LABEL),
+                    layout: &self.layout,
+                    entries: &[
+                        e(0, view_buf.as_entire_binding()),
+                        e(1, est_buf.as_entire_binding()),
+                        e(2, acc_buf.as_entire_binding()),
+                        e(3, wgpu::BindingResource::TextureView(&maps.view)),
+                        e(4, wgpu::BindingResource::TextureView(&mssm.view)),
+                        e(5, tab_buf.as_entire_binding()),
+                        e(6, rec.as_entire_binding()),
+                        e(7, out.as_entire_binding()),
+                        e(8, counters.as_entire_binding()),
+                    ],
+                });
+                groups.push((c * chunk, part.len(), group, out));
+            }
+            (groups, counters)
+        })?;
+        Ok(Prepared {
+            groups,
+            counters,
+            bytes: maps.bytes + mssm.bytes,
+        })
+    }
+
+    /// Runs the kernel `repeats` times over every chunk in one submission and waits (no readback).
+    /// Returns wall-clock milliseconds from submission to completion.
+    pub fn dispatch(&self, prep: &Prepared, repeats: u32) -> Result<f64> {
+        let ctx = &*self.ctx;
+        let t = Instant::now();
+        ctx.scoped(LABEL, || {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(LABEL) });
+            enc.clear_buffer(&prep.counters, 0, None);
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(LABEL),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                for _ in 0..repeats.max(1) {
+                    for (_, len, group, _) in &prep.groups {
+                        pass.set_bind_group(0, group, &[]);
+                        pass.dispatch_workgroups(
+                            len.div_ceil(WORKGROUP_SIZE as usize) as u32,
+                            1,
+                            1,
+                        );
+                    }
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        ctx.wait()?;
+        Ok(t.elapsed().as_secs_f64() * 1e3)
+    }
+
+    /// Estimates V from given light-space data (as [`CpuAccumulation`] builds them), so a test can
+    /// feed both twins identical data. Replaces the report.
+    pub fn estimate_with(
+        &mut self,
+        ls: &LightSpace,
+        scene: &Scene,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        if v.len() != receivers.len() {
+            return Err(Error::Receivers(format!(
+                "output has {} slots for {} receivers",
+                v.len(),
+                receivers.len()
+            )));
+        }
+        self.report = Report::default();
+        if receivers.is_empty() {
+            return Ok(());
+        }
+        let t = Instant::now();
+        let prep = self.prepare(ls, &scene.light, receivers)?;
+        self.report
+            .stages
+            .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.report.light_space_bytes = prep.bytes;
+        let est_ms = self.dispatch(&prep, 1)?;
+        self.report.stages.push(("estimate".into(), est_ms));
+        let t = Instant::now();
+        let ctx = &*self.ctx;
+        for (start, len, _, out) in &prep.groups {
+            let part: Vec<f32> = ctx.read_buffer(out, (*len * 4) as u64)?;
+            v[*start..*start + *len].copy_from_slice(&part);
+        }
+        let c: Vec<u32> = ctx.read_buffer(&prep.counters, 8)?;
+        self.report
+            .stages
+            .push(("readback".into(), t.elapsed().as_secs_f64() * 1e3));
+        let s = self.cpu.settings();
+        note_settings(&mut self.report, &s, ls, &scene.light, receivers, 0);
+        let outside = c.first().copied().unwrap_or(0) as usize;
+        let nonfinite = c.get(1).copied().unwrap_or(0) as usize;
+        if outside > 0 {
+            return Err(outside_error(outside, &scene.light));
+        }
+        if nonfinite > 0 {
+            return Err(Error::Receivers(format!(
+                "{nonfinite} receivers got a non-finite V (a bug; replaced by 0)"
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl SoftShadowEstimator for GpuAccumulation {
+    fn name(&self) -> &'static str {
+        self.cpu.name()
+    }
+    fn description(&self) -> &'static str {
+        self.cpu.description()
+    }
+    fn backend(&self) -> Backend {
+        Backend::Gpu
+    }
+    fn params(&self) -> &Params {
+        self.cpu.params()
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.cpu.set_param(key, value)
+    }
+    /// Builds the light-space data on the CPU, exactly as [`CpuAccumulation`] does.
+    fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        self.cpu.build(scene, receivers)?;
+        self.report = self.cpu.report();
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        let build = self.report.clone();
+        let ls = self
+            .cpu
+            .light_space()
+            .cloned()
+            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let out = self.estimate_with(&ls, scene, receivers, v);
+        let mut stages = build.stages;
+        stages.append(&mut self.report.stages);
+        self.report.stages = stages;
+        out
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shader_validates_with_naga() {
+        let src = shader_source(&SHADER_PARTS);
+        let module = match naga::front::wgsl::parse_str(&src) {
+            Ok(m) => m,
+            Err(e) => panic!("{}", e.emit_to_string(&src)),
+        };
+        let mut v = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        );
+        let info = match v.validate(&module) {
+            Ok(i) => i,
+            Err(e) => panic!("{e:?}"),
+        };
+        // The uniform's WGSL layout equals the Rust struct's.
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).unwrap();
+        let (h, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("AccUniform"))
+            .expect("AccUniform in the WGSL");
+        assert_eq!(layouter[h].size as usize, std::mem::size_of::<AccUniform>());
+        if let naga::TypeInner::Struct { members, .. } = &ty.inner {
+            let off = |name: &str| {
+                members
+                    .iter()
+                    .find(|m| m.name.as_deref() == Some(name))
+                    .unwrap()
+                    .offset as usize
+            };
+            assert_eq!(off("half"), std::mem::offset_of!(AccUniform, half));
+            assert_eq!(
+                off("mssm_size"),
+                std::mem::offset_of!(AccUniform, mssm_size)
+            );
+            assert_eq!(off("layers"), std::mem::offset_of!(AccUniform, layers));
+        } else {
+            panic!("AccUniform is not a struct");
+        }
+        drop(info);
+    }
+}
