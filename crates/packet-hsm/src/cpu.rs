@@ -376,8 +376,78 @@ pub enum Prep {
     },
 }
 
-/// Step 5 for one receiver: facing term, tight kernel from the MSSM, trivial classification.
-/// `outside` is set when the receiver projects outside the map.
+/// The per-receiver setup that needs no map (shared by the CPU and GPU twins).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReceiverSetup {
+    /// V (with the facing factor) is known: behind the light, facing away, nearer than n.
+    Settled(f32),
+    /// Projects outside the map (counted): V = facing.
+    Outside(f32),
+    /// Needs the map: texel coordinates, depth, classification threshold, facing fraction.
+    Map {
+        /// `(u_p, v_p)`.
+        uv: Vec2,
+        /// `z_p`.
+        zp: f32,
+        /// `t_p` (`z_p` with midpoints, `z_p - eps` with the bias).
+        t: f32,
+        /// Fraction of the sub-light in front of the receiver's tangent plane.
+        facing: f32,
+    },
+}
+
+/// Step 5, the part without maps: light-space transform, facing fraction of the sub-light (the
+/// contract's tangent-plane term), projection, classification threshold.
+pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> ReceiverSetup {
+    let view = &sv.ls.view;
+    let p = view.frame.to_light(pw);
+    if !(p.z > 0.0) {
+        return ReceiverSetup::Settled(0.0);
+    }
+    let n = view.frame.dir_to_light(nw);
+    let shape = LightShape::Rect {
+        size: [2.0 * sv.half.x, 2.0 * sv.half.y],
+    };
+    let facing = front_fraction(&shape, p, n);
+    if !(facing > 0.0) {
+        return ReceiverSetup::Settled(0.0);
+    }
+    if p.z <= view.n {
+        return ReceiverSetup::Settled(facing);
+    }
+    let uv = view.project(p);
+    if !view.contains(uv) {
+        return ReceiverSetup::Outside(facing);
+    }
+    let t = if cfg.midpoint {
+        p.z
+    } else {
+        p.z - receiver_bias(view, p, n, cfg.b0, cfg.b1)
+    };
+    ReceiverSetup::Map {
+        uv,
+        zp: p.z,
+        t,
+        facing,
+    }
+}
+
+/// [`setup_receiver`] for every receiver (inactive ones: `Settled(0)`), in parallel.
+pub fn prepare_setup(sv: &SubView, cfg: &Config, receivers: &Receivers) -> Vec<ReceiverSetup> {
+    (0..receivers.len())
+        .into_par_iter()
+        .map(|k| {
+            if receivers.active[k] {
+                setup_receiver(sv, cfg, receivers.position[k], receivers.normal[k])
+            } else {
+                ReceiverSetup::Settled(0.0)
+            }
+        })
+        .collect()
+}
+
+/// Step 5 for one receiver: [`setup_receiver`], then the tight kernel from the MSSM and the
+/// trivial classification. `outside` is set when the receiver projects outside the map.
 pub fn prepare(
     sv: &SubView,
     grid: &SampleGrid,
@@ -386,33 +456,15 @@ pub fn prepare(
     nw: Vec3,
     outside: &mut bool,
 ) -> Prep {
-    let view = &sv.ls.view;
-    let p = view.frame.to_light(pw);
-    if !(p.z > 0.0) {
-        return Prep::Done(0.0);
-    }
-    let n = view.frame.dir_to_light(nw);
-    let shape = LightShape::Rect {
-        size: [2.0 * sv.half.x, 2.0 * sv.half.y],
+    let (uv, zp, t, facing) = match setup_receiver(sv, cfg, pw, nw) {
+        ReceiverSetup::Settled(x) => return Prep::Done(x),
+        ReceiverSetup::Outside(x) => {
+            *outside = true;
+            return Prep::Done(x);
+        }
+        ReceiverSetup::Map { uv, zp, t, facing } => (uv, zp, t, facing),
     };
-    let facing = front_fraction(&shape, p, n);
-    if !(facing > 0.0) {
-        return Prep::Done(0.0);
-    }
-    if p.z <= view.n {
-        return Prep::Done(facing);
-    }
-    let uv = view.project(p);
-    if !view.contains(uv) {
-        *outside = true;
-        return Prep::Done(facing);
-    }
-    let t = if cfg.midpoint {
-        p.z
-    } else {
-        p.z - receiver_bias(view, p, n, cfg.b0, cfg.b1)
-    };
-    let Some(cr) = kernel_cells(view, &sv.mssm, uv, p.z, 2.0 * sv.half) else {
+    let Some(cr) = kernel_cells(&sv.ls.view, &sv.mssm, uv, zp, 2.0 * sv.half) else {
         return Prep::Done(facing);
     };
     let mm = sv.dual.query(&cr);
@@ -422,7 +474,7 @@ pub fn prepare(
     if mm.max < t {
         return Prep::Done(0.0); // fully occluded (umbra)
     }
-    let rec = Receiver::new(grid, uv.as_dvec2(), p.z as f64, t);
+    let rec = Receiver::new(grid, uv.as_dvec2(), zp as f64, t);
     Prep::Penumbra { rec, cr, facing }
 }
 

@@ -32,6 +32,10 @@
 
 pub mod contour;
 pub mod cpu;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 
 pub use cpu::CpuPacketHsm;
+#[cfg(feature = "gpu")]
+pub use gpu::GpuPacketHsm;
 pub use shadow_map_core::SoftShadowEstimator;

@@ -1,0 +1,425 @@
+//! wgpu twin of [`CpuPacketHsm`] (cargo feature `gpu`, on by default): the same name,
+//! description and parameters.
+//!
+//! **What runs where.** For each sub-light, one at a time, the light-space data are built on the
+//! CPU exactly as the CPU twin builds them ([`SubView::build`]: shadow map, midpoints, MSSM, padded
+//! dual-grid MSSM) and uploaded as storage buffers. The per-receiver setup that needs no map
+//! (light-space transform, facing fraction, projection, bias threshold, the behind / near /
+//! outside cases) is done on the CPU with the CPU twin's code ([`crate::cpu::setup_receiver`]); everything
+//! from the kernel on runs on the GPU (`packet_hsm.wgsl`, one invocation per receiver): the tight
+//! kernel from the MSSM, the fully lit / fully occluded classification over the dual-grid MSSM,
+//! the centre status, the contour extraction (flat, or Yang's Algorithm 3 with an explicit stack
+//! when `hierarchy` is on) and the backprojection and radial integration.
+//!
+//! **Not on the GPU (yet):** packets and the coherence test. The GPU twin evaluates every receiver
+//! pixel-wise, which gives the same V (the accelerations are exact, see `tests/exactness.rs`), so
+//! `packet` and `coherence` are accepted and reported but change nothing here. Rasterising the maps
+//! on the GPU is not done either.
+//!
+//! Known differences from the CPU: f32 light-plane geometry and sums (f64 on the CPU), a
+//! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added in
+//! f32; see `tests/gpu_twin.rs` for the measured agreement.
+use crate::cpu::{prepare_setup, ReceiverSetup};
+use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView, DESCRIPTION, NAME};
+use bytemuck::{Pod, Zeroable};
+use shadow_map_core::{
+    gpu::GpuContext, Backend, Error, LightShape, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
+};
+use std::sync::Arc;
+use wgpu::util::DeviceExt;
+
+/// The kernel.
+pub const PACKET_HSM_WGSL: &str = include_str!("packet_hsm.wgsl");
+
+/// Uniform of one dispatch (mirrors `HsmUniform` in `packet_hsm.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct HsmUniform {
+    /// Shadow-map side r.
+    pub r: u32,
+    /// Padded side r + 2 of the dual-grid MSSM.
+    pub padded: u32,
+    /// Anchored MSSM levels uploaded.
+    pub mssm_levels: u32,
+    /// Dual-grid MSSM levels uploaded.
+    pub dual_levels: u32,
+    /// `alpha = n r / w`.
+    pub alpha: f32,
+    /// Near plane n.
+    pub n: f32,
+    /// `k = w / (n r)` (texel pitch over n).
+    pub k: f32,
+    /// 1: hierarchical extraction.
+    pub hierarchy: u32,
+    /// Sub-light half extent x.
+    pub hx: f32,
+    /// Sub-light half extent y.
+    pub hy: f32,
+    /// Receivers in this dispatch.
+    pub count: u32,
+    /// First receiver of this dispatch.
+    pub base: u32,
+}
+
+/// One receiver as the kernel reads it (mirrors `RecIn`): texel coordinates, `z_p` and the
+/// classification threshold `t_p`; `zp <= 0` for receivers settled on the CPU.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct RecIn {
+    /// `(u_p, v_p)`.
+    pub uv: [f32; 2],
+    /// `z_p`.
+    pub zp: f32,
+    /// `t_p`.
+    pub t: f32,
+}
+
+const LABEL: &str = "packet-hsm estimate";
+const WORKGROUP: u32 = 64;
+
+/// The GPU twin of [`CpuPacketHsm`].
+pub struct GpuPacketHsm {
+    ctx: Arc<GpuContext>,
+    cpu: CpuPacketHsm,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    report: Report,
+}
+
+impl GpuPacketHsm {
+    /// With default parameters, compiling the kernel on `ctx`'s device.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
+        let (layout, pipeline) = ctx.scoped(LABEL, || {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(LABEL),
+                    source: wgpu::ShaderSource::Wgsl(PACKET_HSM_WGSL.into()),
+                });
+            let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            };
+            let ro = wgpu::BufferBindingType::Storage { read_only: true };
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some(LABEL),
+                    entries: &[
+                        buffer(0, wgpu::BufferBindingType::Uniform),
+                        buffer(1, ro),
+                        buffer(2, ro),
+                        buffer(3, ro),
+                        buffer(4, ro),
+                        buffer(5, ro),
+                        buffer(6, ro),
+                        buffer(7, wgpu::BufferBindingType::Storage { read_only: false }),
+                    ],
+                });
+            let pl = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(LABEL),
+                    bind_group_layouts: &[Some(&layout)],
+                    immediate_size: 0,
+                });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(LABEL),
+                    layout: Some(&pl),
+                    module: &module,
+                    entry_point: Some("estimate"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            (layout, pipeline)
+        })?;
+        Ok(GpuPacketHsm {
+            ctx,
+            cpu: CpuPacketHsm::new()?,
+            layout,
+            pipeline,
+            report: Report::default(),
+        })
+    }
+
+    fn storage(&self, label: &str, data: &[u8], limit: u64) -> Result<wgpu::Buffer> {
+        if data.len() as u64 > limit {
+            return Err(Error::Limit {
+                what: "packet-hsm storage binding bytes (max_storage_buffer_binding_size)",
+                requested: data.len() as u64,
+                max: limit,
+            });
+        }
+        // Never bind a zero-size buffer.
+        let dummy = [0u8; 16];
+        let contents = if data.is_empty() { &dummy[..] } else { data };
+        self.ctx.scoped(label, || {
+            self.ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                })
+        })
+    }
+
+    /// V before the facing factor and the visited nodes of every receiver of `recs` for one
+    /// sub-light, on the GPU.
+    pub fn run_sublight(
+        &self,
+        sv: &SubView,
+        cfg: &Config,
+        recs: &[RecIn],
+    ) -> Result<Vec<[f32; 2]>> {
+        let ctx = &*self.ctx;
+        let limit = ctx.limits().max_storage_buffer_binding_size;
+        let grid = sv.grid(cfg);
+        let r = grid.size;
+        let m = &sv.mssm;
+        let mut mssm = Vec::with_capacity(m.levels() as usize * (r * r) as usize);
+        for l in 0..m.levels() {
+            mssm.extend_from_slice(m.level(l).0);
+        }
+        let d = &sv.dual.mssm;
+        let (mut dmin, mut dmax) = (Vec::new(), Vec::new());
+        for l in 0..d.levels() {
+            let (a, b) = d.level(l);
+            dmin.extend_from_slice(a);
+            dmax.extend_from_slice(b);
+        }
+        let b_depth = self.storage("packet-hsm depth", bytemuck::cast_slice(grid.depth), limit)?;
+        let b_class = self.storage("packet-hsm class", bytemuck::cast_slice(grid.class), limit)?;
+        let b_mssm = self.storage("packet-hsm mssm", bytemuck::cast_slice(&mssm), limit)?;
+        let b_dmin = self.storage("packet-hsm dual min", bytemuck::cast_slice(&dmin), limit)?;
+        let b_dmax = self.storage("packet-hsm dual max", bytemuck::cast_slice(&dmax), limit)?;
+        let b_recs = self.storage("packet-hsm receivers", bytemuck::cast_slice(recs), limit)?;
+        let out_bytes = (recs.len().max(1) * 8) as u64;
+        if out_bytes > limit {
+            return Err(Error::Limit {
+                what: "packet-hsm output bytes",
+                requested: out_bytes,
+                max: limit,
+            });
+        }
+        let out = ctx.scoped(LABEL, || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("packet-hsm v"),
+                size: out_bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        })?;
+        let view = &sv.ls.view;
+        let max_groups = ctx.limits().max_compute_workgroups_per_dimension.max(1);
+        let per = (max_groups * WORKGROUP) as usize;
+        ctx.scoped(LABEL, || {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            let mut base = 0usize;
+            let mut uniforms = Vec::new();
+            while base < recs.len() {
+                let count = (recs.len() - base).min(per);
+                let un = HsmUniform {
+                    r,
+                    padded: d.size(),
+                    mssm_levels: m.levels().max(1),
+                    dual_levels: d.levels().max(1),
+                    alpha: view.alpha(),
+                    n: view.n,
+                    k: view.delta() / view.n,
+                    hierarchy: cfg.hierarchy as u32,
+                    hx: sv.half.x,
+                    hy: sv.half.y,
+                    count: count as u32,
+                    base: base as u32,
+                };
+                let ub = ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("packet-hsm uniform"),
+                        contents: bytemuck::bytes_of(&un),
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    });
+                let bufs = [
+                    &ub, &b_depth, &b_class, &b_mssm, &b_dmin, &b_dmax, &b_recs, &out,
+                ];
+                let entries: Vec<wgpu::BindGroupEntry> = bufs
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| wgpu::BindGroupEntry {
+                        binding: i as u32,
+                        resource: b.as_entire_binding(),
+                    })
+                    .collect();
+                let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(LABEL),
+                    layout: &self.layout,
+                    entries: &entries,
+                });
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some(LABEL),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&self.pipeline);
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.dispatch_workgroups((count as u32).div_ceil(WORKGROUP), 1, 1);
+                }
+                uniforms.push(ub);
+                base += count;
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        if recs.is_empty() {
+            return Ok(Vec::new());
+        }
+        let v: Vec<[f32; 2]> = ctx.read_buffer(&out, out_bytes)?;
+        Ok(v)
+    }
+}
+
+impl SoftShadowEstimator for GpuPacketHsm {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn description(&self) -> &'static str {
+        DESCRIPTION
+    }
+    fn backend(&self) -> Backend {
+        Backend::Gpu
+    }
+    fn params(&self) -> &Params {
+        self.cpu.params()
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        self.cpu.set_param(key, value)
+    }
+    fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        self.cpu.build(scene, receivers)
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        if v.len() != receivers.len() {
+            return Err(Error::Receivers(format!(
+                "output has {} slots for {} receivers",
+                v.len(),
+                receivers.len()
+            )));
+        }
+        if !matches!(scene.light.shape, LightShape::Rect { .. }) {
+            return Err(Error::param(
+                "light",
+                "packet-hsm supports rect lights only",
+            ));
+        }
+        let cfg = Config::from_params(self.cpu.params())?;
+        let r = self.cpu.params().int("resolution") as u32;
+        let s = cfg.sublights;
+        let half = scene.light.half_extent() / s as f32;
+        let weight = 1.0 / (s * s) as f32;
+        let mut acc = vec![0.0f32; receivers.len()];
+        let (mut t_build, mut t_est) = (0.0, 0.0);
+        let mut peak = 0usize;
+        let mut visited = 0f64;
+        let mut outside = 0usize;
+        for b in 0..s {
+            for a in 0..s {
+                let t = std::time::Instant::now();
+                let c = sublight_centre(scene.light.half_extent(), s, a, b);
+                let sv = SubView::build(scene, receivers, r, c, half, &cfg)?;
+                t_build += t.elapsed().as_secs_f64() * 1e3;
+                peak = peak.max(sv.bytes());
+                let t = std::time::Instant::now();
+                let setups: Vec<ReceiverSetup> = prepare_setup(&sv, &cfg, receivers);
+                let recs: Vec<RecIn> = setups
+                    .iter()
+                    .map(|s| match s {
+                        ReceiverSetup::Settled(_) | ReceiverSetup::Outside(_) => RecIn {
+                            uv: [0.0; 2],
+                            zp: 0.0,
+                            t: 0.0,
+                        },
+                        ReceiverSetup::Map { uv, zp, t, .. } => RecIn {
+                            uv: [uv.x, uv.y],
+                            zp: *zp,
+                            t: *t,
+                        },
+                    })
+                    .collect();
+                let out = self.run_sublight(&sv, &cfg, &recs)?;
+                for (k, su) in setups.iter().enumerate() {
+                    let x = match su {
+                        ReceiverSetup::Settled(x) => *x,
+                        ReceiverSetup::Outside(x) => {
+                            outside += 1;
+                            *x
+                        }
+                        ReceiverSetup::Map { facing, .. } => {
+                            visited += out[k][1] as f64;
+                            facing * out[k][0]
+                        }
+                    };
+                    acc[k] += weight * x;
+                }
+                t_est += t.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        let mut nonfinite = 0usize;
+        for (k, out) in v.iter_mut().enumerate() {
+            *out = if !receivers.active[k] {
+                f32::NAN
+            } else if acc[k].is_finite() {
+                acc[k].clamp(0.0, 1.0)
+            } else {
+                nonfinite += 1;
+                0.0
+            };
+        }
+        let rep = &mut self.report;
+        rep.stages.push(("build".into(), t_build));
+        rep.stages.push(("estimate".into(), t_est));
+        rep.light_space_bytes = peak;
+        rep.note("resolution", r);
+        rep.note("sublights", s * s);
+        rep.note("hierarchy", cfg.hierarchy);
+        rep.note(
+            "packet",
+            "per pixel on the GPU (packets are CPU-only; same V)",
+        );
+        rep.note("visited_nodes", visited as u64);
+        rep.note("out_of_frustum", outside);
+        if nonfinite > 0 {
+            rep.note("nonfinite_replaced", nonfinite);
+        }
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The kernel parses and validates with naga (no device needed).
+    #[test]
+    fn wgsl_validates_with_naga() {
+        let src = super::PACKET_HSM_WGSL;
+        let module = naga::front::wgsl::parse_str(src)
+            .unwrap_or_else(|e| panic!("packet_hsm.wgsl: {}", e.emit_to_string(src)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("packet_hsm.wgsl: {}", e.emit_to_string(src)));
+    }
+}

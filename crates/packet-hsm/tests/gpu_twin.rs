@@ -1,0 +1,168 @@
+//! The GPU twin against the CPU twin (both build the same light-space data on the CPU; the GPU
+//! evaluates per pixel with the hierarchy on or off, the CPU with random packets, hierarchy and
+//! coherence switches: the exactness of the accelerations makes them comparable).
+//!
+//! Tolerance: the GPU does the light-plane geometry and the edge sum in f32 (the CPU in f64).
+//! Per receiver `|dV| <= TWIN_TOL` on at least `TWIN_MIN_WITHIN` of the active receivers, and
+//! every receiver within `TWIN_MAX` (rare f32 ties: a receiver's projection within an f32 ulp of
+//! a cell boundary is nudged on one side only, or a sample almost at the receiver's depth
+//! backprojects to a huge scale whose f32 and f64 clips differ).
+#![cfg(feature = "gpu")]
+mod common;
+use common::*;
+use glam::Vec3;
+use packet_hsm::{CpuPacketHsm, GpuPacketHsm};
+use proptest::{prelude::*, test_runner::TestRunner};
+use shadow_map_core::{
+    gpu::{context_for_tests, GpuContext},
+    run, Backend, Receivers, Scene, SceneBvh, SoftShadowEstimator,
+};
+use std::{cell::RefCell, sync::Arc};
+
+const TWIN_TOL: f32 = 1e-4;
+const TWIN_MIN_WITHIN: f64 = 0.999;
+const TWIN_MAX: f32 = 0.05;
+
+fn gpu(test: &str) -> Option<Arc<GpuContext>> {
+    match context_for_tests(test) {
+        Ok(c) => c,
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
+fn cases() -> u32 {
+    std::env::var("SOFTSHADOW_PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(8)
+}
+
+fn scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)]) -> Scene {
+    let mut meshes = vec![
+        (quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0),
+        (quad(SQUARE.0, SQUARE.1, SQUARE.2, SQUARE.3, SQUARE.4), 1.0),
+    ];
+    for &(x, z, s, y) in squares {
+        meshes.push((quad(x, z, x + s, z + s, y), 1.0));
+    }
+    // A tilted triangle for non-constant depths.
+    meshes.push((
+        vec![[
+            Vec3::new(-1.6, 0.4, 1.0),
+            Vec3::new(-0.4, 1.6, 1.3),
+            Vec3::new(-1.0, 1.0, 0.2),
+        ]],
+        1.0,
+    ));
+    Scene::from_meshes("twin", camera(32, 24), rect_light(light, height), meshes).unwrap()
+}
+
+fn compare(cpu: &[f32], gpu: &[f32], rec: &Receivers, what: &str) -> (f64, f32) {
+    let mut within = 0usize;
+    let mut active = 0usize;
+    let mut worst = 0.0f32;
+    for k in 0..cpu.len() {
+        if !rec.active[k] {
+            assert!(cpu[k].is_nan() && gpu[k].is_nan(), "{what}: inactive {k}");
+            continue;
+        }
+        active += 1;
+        let d = (cpu[k] - gpu[k]).abs();
+        assert!(
+            gpu[k].is_finite() && (0.0..=1.0).contains(&gpu[k]),
+            "{what}: {k} {}",
+            gpu[k]
+        );
+        assert!(
+            d <= TWIN_MAX,
+            "{what}: receiver {k}: cpu {} gpu {}",
+            cpu[k],
+            gpu[k]
+        );
+        if d <= TWIN_TOL {
+            within += 1;
+        }
+        worst = worst.max(d);
+    }
+    let f = within as f64 / active.max(1) as f64;
+    assert!(f >= TWIN_MIN_WITHIN, "{what}: only {f} within {TWIN_TOL}");
+    (f, worst)
+}
+
+#[test]
+fn gpu_twin_matches_cpu_twin() {
+    let Some(ctx) = gpu("gpu_twin_matches_cpu_twin") else {
+        return;
+    };
+    let g = RefCell::new(GpuPacketHsm::new(ctx).unwrap());
+    assert_eq!(g.borrow().backend(), Backend::Gpu);
+    let c = CpuPacketHsm::new().unwrap();
+    assert_eq!(g.borrow().name(), c.name());
+    assert_eq!(g.borrow().params().specs(), c.params().specs());
+    let mut runner = TestRunner::new(ProptestConfig {
+        cases: cases(),
+        ..ProptestConfig::default()
+    });
+    let strat = (
+        0.3f32..2.0,
+        2.5f32..4.0,
+        prop::collection::vec(
+            (-1.5f32..1.0, -1.5f32..1.0, 0.2f32..1.0, 0.05f32..2.0),
+            0..3,
+        ),
+        prop::sample::select(vec![32u32, 64, 128]),
+        any::<bool>(),
+        any::<bool>(),
+        prop::sample::select(vec!["1", "2"]),
+        prop::sample::select(vec!["1x1", "2x2", "3x3", "4x2", "8x8"]),
+    );
+    runner
+        .run(
+            &strat,
+            |(light, height, squares, res, hier, bias, sl, packet)| {
+                let s = scene(light, height, &squares);
+                let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+                let res = res.to_string();
+                let hier = hier.to_string();
+                let ss = if bias { "bias" } else { "midpoint" };
+                let kv = [
+                    ("resolution", res.as_str()),
+                    ("hierarchy", hier.as_str()),
+                    ("self_shadow", ss),
+                    ("sublights", sl),
+                    ("packet", packet),
+                ];
+                let mut g = g.borrow_mut();
+                for (k, v) in kv {
+                    g.set_param(k, v).unwrap();
+                }
+                let vg = run(&mut *g, &s, &rec).unwrap().0;
+                let vc = run(&mut hsm(&kv), &s, &rec).unwrap().0;
+                let (f, worst) = compare(&vc, &vg, &rec, &format!("{kv:?}"));
+                eprintln!("gpu twin {kv:?}: within {f:.4}, worst {worst:e}");
+                Ok(())
+            },
+        )
+        .unwrap();
+}
+
+/// Hard cases on the GPU: huge kernels, touching occluder, receivers behind the light; finite.
+#[test]
+fn gpu_hard_cases_stay_finite() {
+    let Some(ctx) = gpu("gpu_hard_cases_stay_finite") else {
+        return;
+    };
+    let mut g = GpuPacketHsm::new(ctx).unwrap();
+    g.set_param("resolution", "128").unwrap();
+    let r = line_receivers();
+    for occ in [
+        (-0.5, -0.5, 0.5, 0.5, 3.0 - 1e-4),
+        (-0.5, -0.5, 0.5, 0.5, 1e-5),
+    ] {
+        let s = scene_with(rect_light(1.0, 3.0), &[occ], 8, 8);
+        let vg = run(&mut g, &s, &r).unwrap().0;
+        assert_valid(&vg, "gpu hard case");
+        let vc = run(&mut hsm(&[("resolution", "128")]), &s, &r).unwrap().0;
+        compare(&vc, &vg, &r, "hard case");
+    }
+}
