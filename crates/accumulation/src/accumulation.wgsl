@@ -18,6 +18,8 @@ struct AccUniform {
     layers: u32,
     sphere_contract: u32,
     patch_rect: u32,
+    overlap: u32,
+    _pad3: u32,
     half: vec2<f32>,
     b0: f32,
     b1: f32,
@@ -25,8 +27,6 @@ struct AccUniform {
     mssm_levels: u32,
     mssm_size: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
 const KERNEL_FIXED: u32 = 0u;
@@ -121,6 +121,48 @@ fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32) -> f32 {
     }
     let jac = u * u * (abs(d.z) / abs(da));
     return area * (jac * acc.inv_area);
+}
+
+// math::lens_area.
+fn lens_area(r1: f32, r2: f32, d: f32) -> f32 {
+    if !(r1 > 0.0) || !(r2 > 0.0) || !(d < r1 + r2) {
+        return 0.0;
+    }
+    if d <= abs(r1 - r2) {
+        let r = min(r1, r2);
+        return PI_F32 * r * r;
+    }
+    let a1 = acos_f32(clamp((d * d + r1 * r1 - r2 * r2) / (2.0 * d * r1), -1.0, 1.0));
+    let a2 = acos_f32(clamp((d * d + r2 * r2 - r1 * r1) / (2.0 * d * r2), -1.0, 1.0));
+    let k = (-d + r1 + r2) * (d + r1 - r2) * (d - r1 + r2) * (d + r1 + r2);
+    return max(r1 * r1 * a1 + r2 * r2 * a2 - 0.5 * sqrt(max(k, 0.0)), 0.0);
+}
+
+// Footprint::overlap_term.
+fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32) -> f32 {
+    let d = vec3<f32>(lr.x - r.x, lr.y - r.y, view.n - r.z);
+    let da = dot3(d, p.a);
+    let u = -dot3(r, p.a) / da;
+    if !(u > 0.0) || !is_finite(u) {
+        return 0.0;
+    }
+    let x = r + d * u;
+    let local = vec2<f32>(dot3(x, p.e1), dot3(x, p.e2));
+    let jac = u * u * (abs(d.z) / abs(da));
+    let w = jac * acc.inv_area;
+    let sj = sqrt(w / acc.inv_area);
+    let ax = hx * sj;
+    let ay = hy * sj;
+    var area = 0.0;
+    if acc.patch_rect != 0u {
+        let dx = max(min(local.x + ax, acc.half.x) - max(local.x - ax, -acc.half.x), 0.0);
+        let dy = max(min(local.y + ay, acc.half.y) - max(local.y - ay, -acc.half.y), 0.0);
+        area = dx * dy;
+    } else {
+        let rho = sqrt(4.0 * ax * ay / PI_F32);
+        area = lens_area(acc.half.x, rho, sqrt(dot2(local, local)));
+    }
+    return area * acc.inv_area;
 }
 
 // cpu.rs bounds_rect over Footprint::texel_bounds(c).
@@ -285,7 +327,11 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
                 let hx = 0.5 * f32(i1 - i0) * delta * size;
                 let hy = 0.5 * f32(j1 - j0) * delta * size;
                 if !exact {
-                    s_add += additive_term(p, r, lr, 4.0 * hx * hy);
+                    if acc.overlap != 0u {
+                        s_add += overlap_term(p, r, lr, hx, hy);
+                    } else {
+                        s_add += additive_term(p, r, lr, 4.0 * hx * hy);
+                    }
                     continue;
                 }
                 for (var k = 0u; k < acc.nbits; k++) {

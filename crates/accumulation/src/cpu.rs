@@ -53,6 +53,12 @@ pub const SPECS: &[ParamSpec] = &[
         help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
     },
     ParamSpec {
+        key: "coverage",
+        kind: ParamKind::Choice(&["overlap", "centre"]),
+        default: "overlap",
+        help: "variant=additive: a caster counts with its overlap area with the footprint, or in full when its centre is inside (the paper's test)",
+    },
+    ParamSpec {
         key: "bits",
         kind: ParamKind::Int {
             min: 2,
@@ -125,6 +131,8 @@ pub struct Settings {
     pub kernel: KernelMode,
     /// Kernel size K (taps per side).
     pub k: u32,
+    /// Additive: overlap area (true) or the paper's centre test (false).
+    pub overlap: bool,
     /// Exact: bit-grid side B.
     pub bits: u32,
     /// Layers feeding the exact variant (1 for additive).
@@ -153,6 +161,7 @@ impl Settings {
                 _ => KernelMode::Adaptive,
             },
             k: p.int("k") as u32,
+            overlap: p.choice("coverage") != "centre",
             bits: p.int("bits") as u32,
             layers: if variant == Variant::Exact {
                 p.int("layers") as u32
@@ -370,7 +379,11 @@ impl Accumulator<'_> {
                     let hx = 0.5 * (i1 - i0) as f32 * delta * size;
                     let hy = 0.5 * (j1 - j0) as f32 * delta * size;
                     if !exact {
-                        s_add += fp.additive_term(lr, 4.0 * hx * hy);
+                        s_add += if self.s.overlap {
+                            fp.overlap_term(lr, hx, hy)
+                        } else {
+                            fp.additive_term(lr, 4.0 * hx * hy)
+                        };
                         continue;
                     }
                     if bit_pts.is_empty() {
@@ -415,7 +428,8 @@ impl Accumulator<'_> {
 ///    [`Error::Receivers`] naming the count: V is never silently set to full light there.
 /// 3. The kernel ([`Accumulator::kernel`]); per lexel (and per peeled layer for the exact
 ///    variant) with depth `c_z < z_p - eps`, the elementary caster ([`caster`]).
-/// 4. additive: `s = clamp01(sum (size delta)^2 J(l_r) / A_L [l_r in F])`; exact:
+/// 4. additive: `s = clamp01(sum |Q_c ∩ F| J / A_L)` ([`Footprint::overlap_term`]) or, with
+///    `coverage = centre`, the paper's `clamp01(sum (size delta)^2 J(l_r) / A_L [l_r in F])`; exact:
 ///    `s = popcount(bits) / B^2`. `V = facing (1 - s)`.
 ///
 /// All surfaces are treated as opaque (the shadow map stores no opacity).

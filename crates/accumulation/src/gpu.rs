@@ -77,6 +77,10 @@ pub struct AccUniform {
     pub sphere_contract: u32,
     /// 1 for a rectangular patch, 0 for a disk.
     pub patch_rect: u32,
+    /// Additive: 1 for the overlap area, 0 for the paper's centre test.
+    pub overlap: u32,
+    /// Padding.
+    pub _pad3: u32,
     /// Rect half extents, or (R, R).
     pub half: [f32; 2],
     /// Constant receiver bias (texel footprints).
@@ -91,10 +95,6 @@ pub struct AccUniform {
     pub mssm_size: u32,
     /// Padding.
     pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
-    /// Padding.
-    pub _pad2: u32,
 }
 
 /// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
@@ -133,6 +133,8 @@ pub fn uniform_and_tables(
             matches!(shape, LightShape::Sphere { .. }) && s.sphere == SphereModel::Contract,
         ),
         patch_rect,
+        overlap: u32::from(s.overlap),
+        _pad3: 0,
         half,
         b0: s.b0,
         b1: s.b1,
@@ -140,8 +142,6 @@ pub fn uniform_and_tables(
         mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
         mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
         _pad0: 0,
-        _pad1: 0,
-        _pad2: 0,
     };
     (u, tables)
 }

@@ -45,6 +45,11 @@
 //! flat occluder covering exactly half the footprint gives s = 0.5 (rect, disk, paper sphere and
 //! an off-axis contract sphere).
 //!
+//! The centre test is all or nothing per caster: when a backprojected lexel is larger than the
+//! footprint (small lights) it gives 0 or `|Q_c| / |F| >> 1`. The `coverage = overlap` form
+//! ([`Footprint::overlap_term`], the default) uses `|Q_c ∩ F|` itself, so the additive sum
+//! converges to the hard shadow test as R -> 0; `coverage = centre` is the paper's test.
+//!
 //! The exact variant (eq. 1, the "obit" algorithm) puts B x B equal-area bits on the light
 //! ([`LightPatch::bit_point`]), projects each onto the plane ([`Footprint::to_plane`]) and sets it
 //! when a caster square contains it; `s = popcount / B^2` counts every occluded bit once (a
@@ -282,6 +287,35 @@ impl Footprint {
         }
     }
 
+    /// The additive variant's factor with the overlap area instead of the centre test: the caster
+    /// rectangle of centre `lr` and half sides `(hx, hy)` (plane units) is carried to the patch
+    /// with the local area scale `J(lr)` (a rectangle of half sides `sqrt(J) (hx, hy)` around the
+    /// backprojected centre; exact for the parallel lights, whose `J` is constant) and intersected
+    /// with it: exactly for a rectangle, as its equal-area disk (background.md §9) for a disk.
+    /// Unlike the centre test it stays right when a caster is larger than the footprint (small
+    /// lights, R -> 0: the hard-shadow limit).
+    #[inline]
+    pub fn overlap_term(&self, lr: Vec2, hx: f32, hy: f32) -> f32 {
+        let Some((local, w)) = self.to_patch(lr) else {
+            return 0.0;
+        };
+        // w = J / A_L, so J = w / inv_area.
+        let sj = (w / self.inv_area).sqrt();
+        let (ax, ay) = (hx * sj, hy * sj);
+        let area = match self.patch.shape {
+            PatchShape::Rect(h) => {
+                let dx = ((local.x + ax).min(h.x) - (local.x - ax).max(-h.x)).max(0.0);
+                let dy = ((local.y + ay).min(h.y) - (local.y - ay).max(-h.y)).max(0.0);
+                dx * dy
+            }
+            PatchShape::Disk(r) => {
+                let rho = (4.0 * ax * ay / std::f32::consts::PI).sqrt();
+                lens_area(r, rho, local.length())
+            }
+        };
+        area * self.inv_area
+    }
+
     /// Bounding box, in continuous texel coordinates of the view (`(u - x0) / delta` with the
     /// view's `n`, `x0`, `delta`), of the tan-space directions of every point at depth `c` that
     /// lies between r and the light: the texels whose casters at depth `>= c` can occlude r.
@@ -298,6 +332,27 @@ impl Footprint {
         }
         [lo.x, lo.y, hi.x, hi.y]
     }
+}
+
+/// Area of the intersection of two disks of radii `r1`, `r2` whose centres are `d` apart
+/// (background.md §9), in f32 with the acos arguments clamped; never NaN for finite inputs.
+#[inline]
+pub fn lens_area(r1: f32, r2: f32, d: f32) -> f32 {
+    if !(r1 > 0.0) || !(r2 > 0.0) || !(d < r1 + r2) {
+        return 0.0;
+    }
+    if d <= (r1 - r2).abs() {
+        let r = r1.min(r2);
+        return std::f32::consts::PI * r * r;
+    }
+    let a1 = ((d * d + r1 * r1 - r2 * r2) / (2.0 * d * r1))
+        .clamp(-1.0, 1.0)
+        .acos();
+    let a2 = ((d * d + r2 * r2 - r1 * r1) / (2.0 * d * r2))
+        .clamp(-1.0, 1.0)
+        .acos();
+    let k = (-d + r1 + r2) * (d + r1 - r2) * (d - r1 + r2) * (d + r1 + r2);
+    (r1 * r1 * a1 + r2 * r2 * a2 - 0.5 * k.max(0.0).sqrt()).max(0.0)
 }
 
 /// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; background.md §9
@@ -350,10 +405,11 @@ mod tests {
         c: f32,
         side: impl Fn(Vec2) -> f32,
         bits: u32,
-    ) -> (f32, f32) {
+    ) -> (f32, f32, f32) {
         let q = fp.q();
         let [u0, v0, u1, v1] = fp.texel_bounds(c, q, delta);
         let mut s_add = 0.0f64;
+        let mut s_ovl = 0.0f64;
         let mut casters = Vec::new();
         for j in (v0.floor() as i32 - 1)..=(v1.ceil() as i32 + 1) {
             for i in (u0.floor() as i32 - 1)..=(u1.ceil() as i32 + 1) {
@@ -364,6 +420,7 @@ mod tests {
                 let (lr, size) = caster(fp.r, fp.n, l, c).unwrap();
                 let side_len = size * delta;
                 s_add += fp.additive_term(lr, side_len * side_len) as f64;
+                s_ovl += fp.overlap_term(lr, 0.5 * side_len, 0.5 * side_len) as f64;
                 casters.push((lr, 0.5 * side_len));
             }
         }
@@ -379,7 +436,11 @@ mod tests {
                 }
             }
         }
-        (s_add as f32, hit as f32 / (bits * bits) as f32)
+        (
+            s_add as f32,
+            hit as f32 / (bits * bits) as f32,
+            s_ovl as f32,
+        )
     }
 
     #[test]
@@ -404,7 +465,11 @@ mod tests {
             let normal = r.cross(Vec3::X);
             let side = |l: Vec2| normal.dot(Vec3::new(l.x, l.y, n));
             let delta = 2e-3;
-            let (s_add, s_exact) = flat_occluder(&fp, delta, c, side, 16);
+            let (s_add, s_exact, s_ovl) = flat_occluder(&fp, delta, c, side, 16);
+            assert!(
+                (s_ovl - 0.5).abs() < 0.01,
+                "{shape:?} {model:?}: overlap {s_ovl}"
+            );
             assert!(
                 (s_add - 0.5).abs() < 0.01,
                 "{shape:?} {model:?}: additive {s_add}"
@@ -414,7 +479,11 @@ mod tests {
                 "{shape:?} {model:?}: exact {s_exact}"
             );
             // A full occluder: every square tiles the footprint once.
-            let (s_full, e_full) = flat_occluder(&fp, delta, c, |_| -1.0, 8);
+            let (s_full, e_full, o_full) = flat_occluder(&fp, delta, c, |_| -1.0, 8);
+            assert!(
+                (o_full - 1.0).abs() < 0.01,
+                "{shape:?} {model:?}: overlap full {o_full}"
+            );
             assert!(
                 (s_full - 1.0).abs() < 0.01,
                 "{shape:?} {model:?}: full {s_full}"

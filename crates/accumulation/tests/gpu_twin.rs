@@ -69,6 +69,7 @@ struct Settings {
     bits: u32,
     layers: u32,
     sphere: &'static str,
+    coverage: &'static str,
     bias: f32,
     slope_bias: f32,
 }
@@ -120,14 +121,24 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
         prop_oneof![Just("additive"), Just("exact")],
         prop_oneof![Just("fixed"), Just("adaptive"), Just("lexels")],
         (2u32..=16, 1u32..=4),
-        prop_oneof![Just("contract"), Just("paper")],
+        (
+            prop_oneof![Just("contract"), Just("paper")],
+            prop_oneof![Just("overlap"), Just("centre")],
+        ),
         (
             prop_oneof![1 => 0.0f32..0.02, 3 => 0.2f32..3.0],
             prop_oneof![1 => Just(0.0f32), 3 => 0.0f32..3.0],
         ),
     )
         .prop_map(
-            |((resolution, k), variant, kernel, (bits, layers), sphere, (bias, slope_bias))| {
+            |(
+                (resolution, k),
+                variant,
+                kernel,
+                (bits, layers),
+                (sphere, coverage),
+                (bias, slope_bias),
+            )| {
                 Settings {
                     resolution,
                     k,
@@ -136,6 +147,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                     bits,
                     layers,
                     sphere,
+                    coverage,
                     bias,
                     slope_bias,
                 }
@@ -328,6 +340,7 @@ fn settings_kv(s: &Settings, bias: f32) -> Vec<(&'static str, String)> {
         ("bits", s.bits.to_string()),
         ("layers", s.layers.to_string()),
         ("sphere", s.sphere.to_string()),
+        ("coverage", s.coverage.to_string()),
         ("bias", bias.to_string()),
         ("slope_bias", s.slope_bias.to_string()),
     ]
@@ -546,6 +559,7 @@ fn cli_path_every_mode_and_chunking_match() {
             bits: 16,
             layers: 2,
             sphere: "contract",
+            coverage: "overlap",
             bias: 1.0,
             slope_bias: 1.0,
         },
