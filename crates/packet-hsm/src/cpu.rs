@@ -717,8 +717,7 @@ pub fn estimate_sublight(
                             &grid,
                             &sv.dual,
                             &kk,
-                            tmin,
-                            tmax,
+                            [tmin, tmax],
                             cfg.traversal(),
                             &mut visited,
                             |i, j, e| {
