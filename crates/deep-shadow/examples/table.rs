@@ -52,6 +52,12 @@ fn with(est: &mut dyn SoftShadowEstimator, kv: &[(&str, &str)]) {
     }
 }
 
+#[cfg(feature = "gpu")]
+fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
+    let ctx = shadow_map_core::gpu::GpuContext::shared().ok()?;
+    Some(Box::new(deep_shadow::GpuDeepShadow::new(ctx).ok()?))
+}
+#[cfg(not(feature = "gpu"))]
 fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
     None
 }

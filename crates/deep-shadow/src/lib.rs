@@ -40,9 +40,13 @@
 
 pub mod cpu;
 pub mod dsm;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod params;
 pub mod raster;
 pub mod shared;
 
 pub use cpu::CpuDeepShadow;
+#[cfg(feature = "gpu")]
+pub use gpu::GpuDeepShadow;
 pub use shadow_map_core::SoftShadowEstimator;

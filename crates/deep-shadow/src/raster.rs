@@ -104,6 +104,18 @@ pub fn owns_ties(du: f64, dv: f64) -> bool {
     dv < 0.0 || (dv == 0.0 && du > 0.0)
 }
 
+/// The edge function `(e - s) x (p - s)`, evaluated from the lexicographically smaller endpoint
+/// and negated when needed, so the two triangles sharing an edge get exactly opposite values
+/// (watertight: a texel centre on a shared edge is covered exactly once, by the top-left rule).
+#[inline]
+pub fn edge_function(s: DVec2, e: DVec2, p: DVec2) -> f64 {
+    if (s.x, s.y) <= (e.x, e.y) {
+        (e - s).perp_dot(p - s)
+    } else {
+        -(s - e).perp_dot(p - e)
+    }
+}
+
 /// Calls `emit(i, j, z)` for every texel centre of the `r x r` map in rows `rows.0..rows.1` inside
 /// `t` (top-left rule), with the perspective-correct linear depth z there.
 pub fn raster_tri(t: &PreparedTri, r: u32, rows: (u32, u32), mut emit: impl FnMut(u32, u32, f32)) {
@@ -131,7 +143,7 @@ pub fn raster_tri(t: &PreparedTri, r: u32, rows: (u32, u32), mut emit: impl FnMu
         for i in i0..i1 {
             let p = DVec2::new(i as f64 + 0.5, pv);
             let inside = edges.iter().enumerate().all(|(k, (s, e))| {
-                let ef = (*e - *s).perp_dot(p - *s);
+                let ef = edge_function(*s, *e, p);
                 ef > 0.0 || (ef == 0.0 && own[k])
             });
             if !inside {

@@ -51,3 +51,66 @@ impl Node {
         }
     }
 }
+
+/// A prepared triangle as the GPU rasteriser reads it (`Tri` in `deep_shadow.wgsl`): texel
+/// coordinates of the vertices (signed area positive), 1/z at each, the mesh opacity. 48 bytes.
+#[repr(C)]
+#[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tri {
+    /// u of vertex 0.
+    pub u0: f32,
+    /// v of vertex 0.
+    pub v0: f32,
+    /// u of vertex 1.
+    pub u1: f32,
+    /// v of vertex 1.
+    pub v1: f32,
+    /// u of vertex 2.
+    pub u2: f32,
+    /// v of vertex 2.
+    pub v2: f32,
+    /// 1/z at vertex 0.
+    pub iz0: f32,
+    /// 1/z at vertex 1.
+    pub iz1: f32,
+    /// 1/z at vertex 2.
+    pub iz2: f32,
+    /// Opacity.
+    pub alpha: f32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+}
+
+/// The settings every GPU stage reads (`DsUniform` in `deep_shadow.wgsl`). 48 bytes.
+#[repr(C)]
+#[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DsUniform {
+    /// Resolution r.
+    pub r: u32,
+    /// Element-buffer capacity.
+    pub capacity: u32,
+    /// Raster work items (triangle x 16x16 tile).
+    pub n_items: u32,
+    /// Lookup queries.
+    pub n_queries: u32,
+    /// Truncation epsilon.
+    pub epsilon: f32,
+    /// 0 first, 1 none, 2 pcf, 3 edsm.
+    pub filter_mode: u32,
+    /// Kernel side N.
+    pub kernel: u32,
+    /// 0 linked, 1 naive.
+    pub traversal: u32,
+    /// EDSM c' in world units.
+    pub c_world: f32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+    /// Padding.
+    pub _pad2: u32,
+}

@@ -1,0 +1,422 @@
+// Deep shadow maps on the GPU (Fürst et al.), the twin of dsm.rs and raster.rs, stage for stage:
+// clear, raster (compute rasteriser: §1.3.1 with atomics), process (§1.3.2: sort, tau, prev,
+// truncation), link (§1.3.3), lookup (§1.3.4, §1.3.5). The opaque path (no lists): raster_opaque
+// (atomicMin of the depth bits) and lookup_opaque.
+// Structs mirror shared.rs field for field.
+
+const NIL: u32 = 0xffffffffu;
+const WG: u32 = 64u;
+const EDSM_CUTOFF: f32 = 16.0;
+const SORT_LOCAL: u32 = 64u;
+const FILTER_FIRST: u32 = 0u;
+const FILTER_NONE: u32 = 1u;
+const FILTER_PCF: u32 = 2u;
+const FILTER_EDSM: u32 = 3u;
+
+struct Node {
+    depth: f32,
+    alpha: f32,
+    tau: f32,
+    next: u32,
+    prev: u32,
+    right: u32,
+    upper: u32,
+    _pad0: u32,
+}
+
+struct Tri {
+    u0: f32, v0: f32, u1: f32, v1: f32, u2: f32, v2: f32,
+    iz0: f32, iz1: f32, iz2: f32,
+    alpha: f32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+struct DsUniform {
+    r: u32,
+    capacity: u32,
+    n_items: u32,
+    n_queries: u32,
+    epsilon: f32,
+    filter_mode: u32,
+    kernel: u32,
+    traversal: u32,
+    c_world: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct Counters {
+    count: atomic<u32>,
+    steps: atomic<u32>,
+}
+
+@group(0) @binding(0) var<uniform> P: DsUniform;
+@group(0) @binding(1) var<storage, read> tris: array<Tri>;
+// (triangle, first texel column, first texel row, unused) per work item: a 16 x 16 tile.
+@group(0) @binding(2) var<storage, read> items: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> head: array<atomic<u32>>;
+@group(0) @binding(4) var<storage, read_write> nodes: array<Node>;
+@group(0) @binding(5) var<storage, read_write> counters: Counters;
+// (u, v, d, fixed): fixed >= 0 is the transmittance without a lookup.
+@group(0) @binding(6) var<storage, read> queries: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> out_t: array<f32>;
+
+fn linear_id(wid: vec3<u32>, nwg: vec3<u32>, lid: vec3<u32>) -> u32 {
+    return (wid.y * nwg.x + wid.x) * WG + lid.x;
+}
+
+@compute @workgroup_size(64)
+fn clear(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+         @builtin(local_invocation_id) lid: vec3<u32>) {
+    let t = linear_id(wid, nwg, lid);
+    if (t >= P.r * P.r) { return; }
+    atomicStore(&head[t], NIL);
+}
+
+fn owns_ties(du: f32, dv: f32) -> bool {
+    return dv < 0.0 || (dv == 0.0 && du > 0.0);
+}
+
+fn perp(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    return a.x * b.y - a.y * b.x;
+}
+
+// As raster.rs edge_function: from the lexicographically smaller endpoint, so shared edges give
+// exactly opposite values (watertight).
+fn edge(s: vec2<f32>, e: vec2<f32>, p: vec2<f32>) -> f32 {
+    if (s.x < e.x || (s.x == e.x && s.y <= e.y)) {
+        return perp(e - s, p - s);
+    }
+    return -perp(s - e, p - e);
+}
+
+// Rasterises one work item; `mode` 0 inserts list elements, 1 keeps the nearest depth.
+fn raster_item(k: u32, mode: u32) {
+    if (k >= P.n_items) { return; }
+    let it = items[k];
+    let t = tris[it.x];
+    let a = vec2<f32>(t.u0, t.v0);
+    let b = vec2<f32>(t.u1, t.v1);
+    let c = vec2<f32>(t.u2, t.v2);
+    let area = edge(a, b, c);
+    if (!(area > 0.0)) { return; }
+    let e1 = b - a;
+    let e2 = c - a;
+    let gu = ((t.iz1 - t.iz0) * e2.y - (t.iz2 - t.iz0) * e1.y) / area;
+    let gv = ((t.iz2 - t.iz0) * e1.x - (t.iz1 - t.iz0) * e2.x) / area;
+    let rf = f32(P.r);
+    let lo = min(min(a, b), c);
+    let hi = max(max(a, b), c);
+    let i0 = max(u32(clamp(ceil(lo.x - 0.5), 0.0, rf)), it.y);
+    let i1 = min(u32(clamp(floor(hi.x - 0.5) + 1.0, 0.0, rf)), it.y + 16u);
+    let j0 = max(u32(clamp(ceil(lo.y - 0.5), 0.0, rf)), it.z);
+    let j1 = min(u32(clamp(floor(hi.y - 0.5) + 1.0, 0.0, rf)), it.z + 16u);
+    let own0 = owns_ties(b.x - a.x, b.y - a.y);
+    let own1 = owns_ties(c.x - b.x, c.y - b.y);
+    let own2 = owns_ties(a.x - c.x, a.y - c.y);
+    for (var j = j0; j < j1; j++) {
+        for (var i = i0; i < i1; i++) {
+            let p = vec2<f32>(f32(i) + 0.5, f32(j) + 0.5);
+            let f0 = edge(a, b, p);
+            let f1 = edge(b, c, p);
+            let f2 = edge(c, a, p);
+            let in0 = f0 > 0.0 || (f0 == 0.0 && own0);
+            let in1 = f1 > 0.0 || (f1 == 0.0 && own1);
+            let in2 = f2 > 0.0 || (f2 == 0.0 && own2);
+            if (!(in0 && in1 && in2)) { continue; }
+            let iz = t.iz0 + gu * (p.x - a.x) + gv * (p.y - a.y);
+            if (!(iz > 0.0)) { continue; }
+            let z = 1.0 / iz;
+            let texel = j * P.r + i;
+            if (mode == 1u) {
+                atomicMin(&head[texel], bitcast<u32>(z));
+                continue;
+            }
+            // Listing 1.2: allocate with the counter, write, exchange the head.
+            let e = atomicAdd(&counters.count, 1u);
+            if (e >= P.capacity) { continue; } // overflow: counted, never linked
+            nodes[e].depth = z;
+            nodes[e].alpha = t.alpha;
+            nodes[e].tau = 1.0;
+            nodes[e].prev = NIL;
+            nodes[e].right = NIL;
+            nodes[e].upper = NIL;
+            nodes[e].next = atomicExchange(&head[texel], e);
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn raster(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+          @builtin(local_invocation_id) lid: vec3<u32>) {
+    raster_item(linear_id(wid, nwg, lid), 0u);
+}
+
+@compute @workgroup_size(64)
+fn raster_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                 @builtin(local_invocation_id) lid: vec3<u32>) {
+    raster_item(linear_id(wid, nwg, lid), 1u);
+}
+
+fn less(za: f32, aa: f32, zb: f32, ab: f32) -> bool {
+    return za < zb || (za == zb && aa < ab);
+}
+
+// §1.3.2, one texel per invocation: sort the payloads by (depth, alpha) (insertion sort in a
+// private array for lists up to SORT_LOCAL, selection sort in place beyond), then tau, prev and
+// truncation after the first element with tau <= epsilon.
+@compute @workgroup_size(64)
+fn process(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+           @builtin(local_invocation_id) lid: vec3<u32>) {
+    let t = linear_id(wid, nwg, lid);
+    if (t >= P.r * P.r) { return; }
+    let h = atomicLoad(&head[t]);
+    if (h == NIL) { return; }
+    var len = 0u;
+    var e = h;
+    while (e != NIL) { len++; e = nodes[e].next; }
+    if (len <= SORT_LOCAL) {
+        var zs: array<f32, 64>;
+        var als: array<f32, 64>;
+        e = h;
+        for (var k = 0u; k < len; k++) {
+            let z = nodes[e].depth;
+            let al = nodes[e].alpha;
+            var m = k;
+            while (m > 0u && less(z, al, zs[m - 1u], als[m - 1u])) {
+                zs[m] = zs[m - 1u];
+                als[m] = als[m - 1u];
+                m--;
+            }
+            zs[m] = z;
+            als[m] = al;
+            e = nodes[e].next;
+        }
+        e = h;
+        for (var k = 0u; k < len; k++) {
+            nodes[e].depth = zs[k];
+            nodes[e].alpha = als[k];
+            e = nodes[e].next;
+        }
+    } else {
+        var a = h;
+        while (a != NIL) {
+            var m = a;
+            var b = nodes[a].next;
+            while (b != NIL) {
+                if (less(nodes[b].depth, nodes[b].alpha, nodes[m].depth, nodes[m].alpha)) { m = b; }
+                b = nodes[b].next;
+            }
+            let z = nodes[a].depth;
+            let al = nodes[a].alpha;
+            nodes[a].depth = nodes[m].depth;
+            nodes[a].alpha = nodes[m].alpha;
+            nodes[m].depth = z;
+            nodes[m].alpha = al;
+            a = nodes[a].next;
+        }
+    }
+    var tau = 1.0;
+    var prev = NIL;
+    e = h;
+    while (e != NIL) {
+        tau = tau * (1.0 - nodes[e].alpha);
+        nodes[e].tau = tau;
+        nodes[e].prev = prev;
+        if (P.epsilon > 0.0 && tau <= P.epsilon) {
+            nodes[e].next = NIL;
+            break;
+        }
+        prev = e;
+        e = nodes[e].next;
+    }
+}
+
+// The depth-nearest element of list `b` for every element of list `a` (ties to the shallower).
+fn link_list(a: u32, b: u32, upper: bool) {
+    var cur = b;
+    var e = a;
+    while (e != NIL) {
+        let z = nodes[e].depth;
+        var best = NIL;
+        if (cur != NIL) {
+            loop {
+                let nx = nodes[cur].next;
+                if (nx != NIL && nodes[nx].depth <= z) { cur = nx; } else { break; }
+            }
+            let zc = nodes[cur].depth;
+            let nx = nodes[cur].next;
+            best = cur;
+            if (zc <= z && nx != NIL && nodes[nx].depth - z < z - zc) { best = nx; }
+        }
+        if (upper) { nodes[e].upper = best; } else { nodes[e].right = best; }
+        e = nodes[e].next;
+    }
+}
+
+// §1.3.3, one texel per invocation.
+@compute @workgroup_size(64)
+fn link(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+        @builtin(local_invocation_id) lid: vec3<u32>) {
+    let t = linear_id(wid, nwg, lid);
+    let r = P.r;
+    if (t >= r * r) { return; }
+    let i = t % r;
+    let j = t / r;
+    let h = atomicLoad(&head[t]);
+    var right = NIL;
+    var upper = NIL;
+    if (i + 1u < r) { right = atomicLoad(&head[t + 1u]); }
+    if (j + 1u < r) { upper = atomicLoad(&head[t + r]); }
+    link_list(h, right, false);
+    link_list(h, upper, true);
+}
+
+// The last element with depth < d, searched from `start` along next or prev; and the steps.
+fn find(start: u32, d: f32) -> vec2<u32> {
+    var s = start;
+    var steps = 1u;
+    if (nodes[s].depth < d) {
+        loop {
+            let nx = nodes[s].next;
+            if (nx != NIL && nodes[nx].depth < d) { s = nx; steps++; } else { break; }
+        }
+        return vec2<u32>(s, steps);
+    }
+    loop {
+        let pv = nodes[s].prev;
+        if (pv == NIL) { return vec2<u32>(NIL, steps); }
+        s = pv;
+        steps++;
+        if (nodes[s].depth < d) { return vec2<u32>(s, steps); }
+    }
+    return vec2<u32>(NIL, steps);
+}
+
+// EDSM (background.md §7): prod (1 - alpha_j (1 - exp(-c' (d - z_j)))), exponents <= 0 only.
+fn soft_tau(k: u32, d: f32) -> f32 {
+    var prod = 1.0;
+    var j = k;
+    while (j != NIL) {
+        let t = (d - nodes[j].depth) * P.c_world;
+        if (t >= EDSM_CUTOFF) { return nodes[j].tau * prod; }
+        prod = prod * (1.0 - nodes[j].alpha * (1.0 - exp(-max(t, 0.0))));
+        j = nodes[j].prev;
+    }
+    return prod;
+}
+
+fn kernel_side() -> i32 {
+    if (P.filter_mode == FILTER_PCF || P.filter_mode == FILTER_EDSM) { return i32(max(P.kernel, 1u)); }
+    return 1;
+}
+
+// §1.3.4, §1.3.5: one query per invocation, as DeepShadowMap::transmittance.
+@compute @workgroup_size(64)
+fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+          @builtin(local_invocation_id) lid: vec3<u32>) {
+    let q_id = linear_id(wid, nwg, lid);
+    if (q_id >= P.n_queries) { return; }
+    let q = queries[q_id];
+    if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
+    let r = i32(P.r);
+    let d = q.z;
+    let ci = i32(floor(q.x));
+    let cj = i32(floor(q.y));
+    let n = kernel_side();
+    let hk = n / 2;
+    var sum = 0.0;
+    var steps = 0u;
+    var row_anchor = NIL;
+    for (var b = 0; b < n; b++) {
+        let j = cj - hk + b;
+        var anchor = NIL;
+        for (var a = 0; a < n; a++) {
+            let i = ci - hk + a;
+            if (i < 0 || j < 0 || i >= r || j >= r) {
+                sum += 1.0;
+                anchor = NIL;
+                if (a == 0) { row_anchor = NIL; }
+                continue;
+            }
+            let hd = atomicLoad(&head[u32(j * r + i)]);
+            if (hd == NIL) {
+                sum += 1.0;
+                anchor = NIL;
+                if (a == 0) { row_anchor = NIL; }
+                continue;
+            }
+            if (P.filter_mode == FILTER_FIRST) {
+                steps++;
+                if (!(nodes[hd].depth < d)) { sum += 1.0; }
+                continue;
+            }
+            var start = hd;
+            if (P.traversal == 0u) {
+                var src = anchor;
+                if (a == 0) { src = row_anchor; }
+                if (src != NIL) {
+                    var link = nodes[src].right;
+                    if (a == 0) { link = nodes[src].upper; }
+                    if (link != NIL) { start = link; }
+                }
+            }
+            let f = find(start, d);
+            let k = f.x;
+            steps += f.y;
+            if (P.filter_mode == FILTER_EDSM) {
+                sum += soft_tau(k, d);
+            } else if (k != NIL) {
+                sum += nodes[k].tau;
+            } else {
+                sum += 1.0;
+            }
+            anchor = hd;
+            if (k != NIL) { anchor = k; }
+            if (a == 0) { row_anchor = anchor; }
+        }
+    }
+    atomicAdd(&counters.steps, steps);
+    out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
+}
+
+// The opaque path: head[] holds the nearest depth's bits (NIL: empty), no lists.
+@compute @workgroup_size(64)
+fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                 @builtin(local_invocation_id) lid: vec3<u32>) {
+    let q_id = linear_id(wid, nwg, lid);
+    if (q_id >= P.n_queries) { return; }
+    let q = queries[q_id];
+    if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
+    let r = i32(P.r);
+    let d = q.z;
+    let ci = i32(floor(q.x));
+    let cj = i32(floor(q.y));
+    let n = kernel_side();
+    let hk = n / 2;
+    var sum = 0.0;
+    for (var b = 0; b < n; b++) {
+        for (var a = 0; a < n; a++) {
+            let i = ci - hk + a;
+            let j = cj - hk + b;
+            var lit = 1.0;
+            if (i >= 0 && j >= 0 && i < r && j < r) {
+                let bits = atomicLoad(&head[u32(j * r + i)]);
+                if (bits != NIL) {
+                    let z = bitcast<f32>(bits);
+                    if (z < d) {
+                        lit = 0.0;
+                        if (P.filter_mode == FILTER_EDSM) {
+                            let t = (d - z) * P.c_world;
+                            if (t < EDSM_CUTOFF) { lit = exp(-t); }
+                        }
+                    }
+                }
+            }
+            sum += lit;
+        }
+    }
+    out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
+}

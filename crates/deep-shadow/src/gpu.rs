@@ -1,0 +1,642 @@
+//! The wgpu twin, [`GpuDeepShadow`] (cargo feature `gpu`, on by default): the same name,
+//! description and parameters as [`CpuDeepShadow`](crate::CpuDeepShadow), and the same stages in
+//! `deep_shadow.wgsl`.
+//!
+//! **Why a compute rasteriser** (and not a fragment shader with storage-buffer atomics): it runs
+//! the CPU twin's fill rule exactly (texel centres, top-left rule, perspective-correct 1/z, no
+//! sub-pixel vertex snapping, which hardware rasterisers apply at 8 bits on lavapipe), needs no
+//! render target, and its work is balanced by splitting every triangle's bounding box into
+//! 16 x 16-texel work items, so one large ground triangle does not serialise the pass. The edge
+//! functions run in f32 where the CPU uses f64, so a texel centre within about 1e-6 texel of an
+//! edge may be covered by one twin and not the other; depths agree to f32 rounding.
+//!
+//! Stages: `clear` (head = NIL), `raster` (Listing 1.2: `atomicAdd` on the counter,
+//! `atomicExchange` on the head; past the capacity only the counter moves), a counter readback
+//! (capacity check: grow and rebuild, or [`Error::Limit`]), `process` (sort, tau, prev, truncation),
+//! `link`, then `lookup` per receiver. The receivers' light-space queries (texel coordinates,
+//! biased depth, facing) are computed on the CPU with the CPU twin's code
+//! ([`crate::cpu::query`]) and uploaded. A fully opaque scene takes `raster_opaque` (an
+//! `atomicMin` of the depth bits into the head buffer: an ordinary shadow map, no lists) and
+//! `lookup_opaque`.
+use crate::cpu::{
+    check_len, finish, kernel_margin, lookup_settings, query, sublight_points, sublight_view,
+    Query, Tally,
+};
+use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
+use crate::params::{self, Settings, SPECS};
+use crate::raster::prepare;
+use crate::shared::{DsUniform, Node, Tri};
+use shadow_map_core::{
+    gpu::GpuContext, Backend, Error, LightView, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
+};
+use std::{sync::Arc, time::Instant};
+use wgpu::util::DeviceExt;
+
+/// The WGSL of every stage.
+pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
+
+/// Every shader of the crate as `(name, source)` (validated with naga by a unit test).
+pub const SHADERS: &[(&str, &str)] = &[("deep_shadow", DEEP_SHADOW_WGSL)];
+
+/// Workgroup size of every entry point (`WG` in the WGSL).
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// Tile side of a raster work item.
+pub const TILE: u32 = 16;
+
+struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    clear: wgpu::ComputePipeline,
+    raster: wgpu::ComputePipeline,
+    raster_opaque: wgpu::ComputePipeline,
+    process: wgpu::ComputePipeline,
+    link: wgpu::ComputePipeline,
+    lookup: wgpu::ComputePipeline,
+    lookup_opaque: wgpu::ComputePipeline,
+}
+
+/// A deep shadow map (or, for an opaque scene, a plain depth map) living on the GPU.
+pub struct GpuMap {
+    /// Resolution.
+    pub r: u32,
+    /// Head buffer (`r^2` u32; for the opaque path, the nearest depth's bits).
+    pub head: wgpu::Buffer,
+    /// Element buffer.
+    pub nodes: wgpu::Buffer,
+    /// Counters (fragments, lookup steps).
+    pub counters: wgpu::Buffer,
+    /// True for the opaque path (no lists).
+    pub opaque: bool,
+    /// Build statistics (`kept` and `max_len` are not measured on the GPU).
+    pub stats: BuildStats,
+}
+
+/// Deep shadow maps through wgpu; see the module documentation.
+pub struct GpuDeepShadow {
+    ctx: Arc<GpuContext>,
+    params: Params,
+    report: Report,
+    pipes: Pipelines,
+}
+
+fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
+    let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
+    let x = groups.min(65535);
+    let y = groups.div_ceil(x);
+    pass.dispatch_workgroups(x as u32, y as u32, 1);
+}
+
+impl GpuDeepShadow {
+    /// Compiles the pipelines on `ctx`.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
+        let pipes = ctx.scoped("deep-shadow pipelines", || {
+            let d = &ctx.device;
+            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("deep_shadow.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(DEEP_SHADOW_WGSL.into()),
+            });
+            let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            };
+            let ro = wgpu::BufferBindingType::Storage { read_only: true };
+            let rw = wgpu::BufferBindingType::Storage { read_only: false };
+            let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("deep-shadow"),
+                entries: &[
+                    buffer(0, wgpu::BufferBindingType::Uniform),
+                    buffer(1, ro),
+                    buffer(2, ro),
+                    buffer(3, rw),
+                    buffer(4, rw),
+                    buffer(5, rw),
+                    buffer(6, ro),
+                    buffer(7, rw),
+                ],
+            });
+            let pl = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("deep-shadow"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let mk = |entry: &str| {
+                d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(&pl),
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            };
+            Pipelines {
+                clear: mk("clear"),
+                raster: mk("raster"),
+                raster_opaque: mk("raster_opaque"),
+                process: mk("process"),
+                link: mk("link"),
+                lookup: mk("lookup"),
+                lookup_opaque: mk("lookup_opaque"),
+                layout,
+            }
+        })?;
+        Ok(GpuDeepShadow {
+            ctx,
+            params: Params::new(SPECS)?,
+            report: Report::default(),
+            pipes,
+        })
+    }
+
+    /// The current settings.
+    pub fn settings(&self) -> Settings {
+        Settings::from_params(&self.params)
+    }
+
+    fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        let pad;
+        let contents = if bytes.is_empty() {
+            pad = [0u8; 16];
+            &pad[..]
+        } else {
+            bytes
+        };
+        self.ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            })
+    }
+
+    fn uniform(&self, u: &DsUniform) -> wgpu::Buffer {
+        self.ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("deep-shadow uniform"),
+                contents: bytemuck::bytes_of(u),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn group(
+        &self,
+        u: &wgpu::Buffer,
+        tris: &wgpu::Buffer,
+        items: &wgpu::Buffer,
+        map: &GpuMap,
+        queries: &wgpu::Buffer,
+        out: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        fn e(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            }
+        }
+        self.ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("deep-shadow"),
+                layout: &self.pipes.layout,
+                entries: &[
+                    e(0, u),
+                    e(1, tris),
+                    e(2, items),
+                    e(3, &map.head),
+                    e(4, &map.nodes),
+                    e(5, &map.counters),
+                    e(6, queries),
+                    e(7, out),
+                ],
+            })
+    }
+
+    /// The largest element capacity the device can bind.
+    pub fn device_capacity(&self) -> u64 {
+        let l = self.ctx.limits();
+        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
+            / std::mem::size_of::<Node>() as u64
+    }
+
+    /// Builds, processes and links the deep shadow map of `scene` in `view` on the GPU (or, for an
+    /// opaque scene, the nearest-depth map).
+    pub fn build_map(&self, scene: &Scene, view: &LightView, s: &Settings) -> Result<GpuMap> {
+        self.build_impl(scene, view, s, scene.is_opaque())
+    }
+
+    /// Builds lists even for an opaque scene (as [`crate::cpu::build_deep_map`] does; for the
+    /// twin tests).
+    pub fn build_lists(&self, scene: &Scene, view: &LightView, s: &Settings) -> Result<GpuMap> {
+        self.build_impl(scene, view, s, false)
+    }
+
+    fn build_impl(
+        &self,
+        scene: &Scene,
+        view: &LightView,
+        s: &Settings,
+        opaque: bool,
+    ) -> Result<GpuMap> {
+        let ctx = &self.ctx;
+        let r = view.r;
+        let texels = r as u64 * r as u64;
+        let l = ctx.limits();
+        if texels * 4 > l.max_storage_buffer_binding_size.min(l.max_buffer_size) {
+            return Err(Error::Limit {
+                what: "deep-shadow head buffer bytes (lower the resolution)",
+                requested: texels * 4,
+                max: l.max_storage_buffer_binding_size,
+            });
+        }
+        let prepared = prepare(scene, view);
+        let tris: Vec<Tri> = prepared
+            .iter()
+            .map(|t| Tri {
+                u0: t.uv[0].x as f32,
+                v0: t.uv[0].y as f32,
+                u1: t.uv[1].x as f32,
+                v1: t.uv[1].y as f32,
+                u2: t.uv[2].x as f32,
+                v2: t.uv[2].y as f32,
+                iz0: t.inv_z[0] as f32,
+                iz1: t.inv_z[1] as f32,
+                iz2: t.inv_z[2] as f32,
+                alpha: t.alpha,
+                _pad0: 0,
+                _pad1: 0,
+            })
+            .collect();
+        let mut items: Vec<[u32; 4]> = Vec::new();
+        let rf = r as f64;
+        for (k, t) in prepared.iter().enumerate() {
+            let lo = t.uv[0].min(t.uv[1]).min(t.uv[2]);
+            let hi = t.uv[0].max(t.uv[1]).max(t.uv[2]);
+            let i0 = (lo.x - 0.5).ceil().clamp(0.0, rf) as u32;
+            let i1 = ((hi.x - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
+            let j0 = (lo.y - 0.5).ceil().clamp(0.0, rf) as u32;
+            let j1 = ((hi.y - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
+            if i0 >= i1 || j0 >= j1 {
+                continue;
+            }
+            for ty in j0 / TILE..=(j1 - 1) / TILE {
+                for tx in i0 / TILE..=(i1 - 1) / TILE {
+                    items.push([k as u32, tx * TILE, ty * TILE, 0]);
+                }
+            }
+        }
+        let dev_cap = self.device_capacity();
+        let max_cap = s.max_capacity.min(dev_cap).min(u32::MAX as u64 - 1);
+        let mut capacity = if opaque {
+            1
+        } else if s.capacity == 0 {
+            (4 * texels).max(1024)
+        } else {
+            s.capacity
+        }
+        .min(max_cap)
+        .max(1);
+        let tri_buf = self.storage("deep-shadow triangles", bytemuck::cast_slice(&tris));
+        let item_buf = self.storage("deep-shadow raster items", bytemuck::cast_slice(&items));
+        let dummy = self.storage("deep-shadow unused (read)", &[0u8; 16]);
+        let dummy_rw = self.storage("deep-shadow unused (write)", &[0u8; 16]);
+        let head = ctx.scoped("deep-shadow head", || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("deep-shadow head"),
+                size: texels * 4,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        })?;
+        let counters = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("deep-shadow counters"),
+            size: 8,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut passes = 0;
+        let mut map;
+        loop {
+            passes += 1;
+            let nodes = ctx.scoped("deep-shadow element buffer", || {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("deep-shadow elements"),
+                    size: capacity * std::mem::size_of::<Node>() as u64,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            })?;
+            map = GpuMap {
+                r,
+                head: head.clone(),
+                nodes,
+                counters: counters.clone(),
+                opaque,
+                stats: BuildStats::default(),
+            };
+            let u = self.uniform(&DsUniform {
+                r,
+                capacity: capacity as u32,
+                n_items: items.len() as u32,
+                n_queries: 0,
+                epsilon: s.epsilon,
+                filter_mode: 0,
+                kernel: 1,
+                traversal: 0,
+                c_world: 0.0,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
+            });
+            let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
+            ctx.scoped("deep-shadow raster", || {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                enc.clear_buffer(&counters, 0, None);
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("deep-shadow build"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.set_pipeline(&self.pipes.clear);
+                    dispatch(&mut pass, texels);
+                    pass.set_pipeline(if opaque {
+                        &self.pipes.raster_opaque
+                    } else {
+                        &self.pipes.raster
+                    });
+                    dispatch(&mut pass, items.len() as u64);
+                }
+                ctx.queue.submit([enc.finish()]);
+            })?;
+            let count = ctx.read_buffer::<u32>(&counters, 8)?[0] as u64;
+            if opaque || count <= capacity {
+                map.stats = BuildStats {
+                    fragments: count,
+                    capacity,
+                    passes,
+                    ..Default::default()
+                };
+                // Process and link (§1.3.2, §1.3.3).
+                if !opaque {
+                    ctx.scoped("deep-shadow process", || {
+                        let mut enc = ctx.device.create_command_encoder(&Default::default());
+                        {
+                            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                                label: Some("deep-shadow process"),
+                                timestamp_writes: None,
+                            });
+                            pass.set_bind_group(0, &group, &[]);
+                            pass.set_pipeline(&self.pipes.process);
+                            dispatch(&mut pass, texels);
+                            pass.set_pipeline(&self.pipes.link);
+                            dispatch(&mut pass, texels);
+                        }
+                        ctx.queue.submit([enc.finish()]);
+                    })?;
+                }
+                ctx.wait()?;
+                return Ok(map);
+            }
+            // Overflow: the counter holds the need.
+            if count > max_cap {
+                return Err(Error::Limit {
+                    what: "deep shadow map list elements on this device (raise max_capacity, lower resolution)",
+                    requested: count,
+                    max: max_cap,
+                });
+            }
+            capacity = count;
+        }
+    }
+
+    /// Reads a GPU map back as the CPU twin's structure (for tests).
+    pub fn read_map(&self, map: &GpuMap) -> Result<DeepShadowMap> {
+        let head: Vec<u32> = self.ctx.read_buffer(&map.head, map.head.size())?;
+        let mut nodes: Vec<Node> = self.ctx.read_buffer(&map.nodes, map.nodes.size())?;
+        nodes.truncate(map.stats.fragments.min(map.stats.capacity) as usize);
+        Ok(DeepShadowMap {
+            r: map.r,
+            head,
+            nodes,
+            stats: map.stats,
+        })
+    }
+
+    /// Filtered transmittance for each query `(u, v, d, fixed)` (fixed >= 0: no lookup), and the
+    /// list elements visited.
+    pub fn lookup(
+        &self,
+        map: &GpuMap,
+        ls: &LookupSettings,
+        queries: &[[f32; 4]],
+    ) -> Result<(Vec<f32>, u64)> {
+        let ctx = &self.ctx;
+        let n = queries.len();
+        if n == 0 {
+            return Ok((Vec::new(), 0));
+        }
+        let max_q = (ctx.limits().max_storage_buffer_binding_size as usize) / 16;
+        let mut out = Vec::with_capacity(n);
+        let mut steps = 0u64;
+        for part in queries.chunks(max_q.max(1)) {
+            let u = self.uniform(&DsUniform {
+                r: map.r,
+                capacity: map.stats.capacity as u32,
+                n_items: 0,
+                n_queries: part.len() as u32,
+                epsilon: 0.0,
+                filter_mode: match ls.filter {
+                    Filter::First => 0,
+                    Filter::None => 1,
+                    Filter::Pcf => 2,
+                    Filter::Edsm => 3,
+                },
+                kernel: ls.kernel,
+                traversal: match ls.traversal {
+                    Traversal::Linked => 0,
+                    Traversal::Naive => 1,
+                },
+                c_world: ls.c_world,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
+            });
+            let q = self.storage("deep-shadow queries", bytemuck::cast_slice(part));
+            let o = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("deep-shadow T"),
+                size: (part.len() * 4) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let dummy = self.storage("deep-shadow unused", &[0u8; 16]);
+            let group = self.group(&u, &dummy, &dummy, map, &q, &o);
+            ctx.scoped("deep-shadow lookup", || {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                enc.clear_buffer(&map.counters, 4, Some(4));
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("deep-shadow lookup"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.set_pipeline(if map.opaque {
+                        &self.pipes.lookup_opaque
+                    } else {
+                        &self.pipes.lookup
+                    });
+                    dispatch(&mut pass, part.len() as u64);
+                }
+                ctx.queue.submit([enc.finish()]);
+            })?;
+            out.extend(ctx.read_buffer::<f32>(&o, (part.len() * 4) as u64)?);
+            steps += ctx.read_buffer::<u32>(&map.counters, 8)?[1] as u64;
+        }
+        Ok((out, steps))
+    }
+}
+
+/// Packs a [`Query`] as the WGSL reads it.
+pub fn pack_query(q: Query) -> [f32; 4] {
+    match q {
+        Query::Fixed(x) => [0.0, 0.0, 0.0, x],
+        Query::Look { uv, d } => [uv.x, uv.y, d, -1.0],
+    }
+}
+
+impl SoftShadowEstimator for GpuDeepShadow {
+    fn name(&self) -> &'static str {
+        params::NAME
+    }
+    fn description(&self) -> &'static str {
+        params::DESCRIPTION
+    }
+    fn backend(&self) -> Backend {
+        Backend::Gpu
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        params::set(&mut self.params, key, value)
+    }
+    fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        Ok(())
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        check_len(receivers, v)?;
+        self.report = Report::default();
+        let s = self.settings();
+        let opaque = scene.is_opaque();
+        let points = sublight_points(scene, s.sublights);
+        let mut acc = vec![0.0f32; receivers.len()];
+        let (mut t_build, mut t_est) = (0.0, 0.0);
+        let mut tally = Tally::default();
+        for y in &points {
+            let t = Instant::now();
+            let (view, fit) = sublight_view(scene, receivers, *y, s.resolution, kernel_margin(&s))?;
+            tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
+            let map = self.build_map(scene, &view, &s)?;
+            tally.fragments += map.stats.fragments;
+            tally.kept += map.stats.fragments;
+            tally.capacity = tally.capacity.max(map.stats.capacity);
+            tally.passes += map.stats.passes;
+            tally.peak = tally
+                .peak
+                .max((map.head.size() + map.nodes.size()) as usize);
+            t_build += t.elapsed().as_secs_f64() * 1e3;
+            let t = Instant::now();
+            let queries: Vec<[f32; 4]> = (0..receivers.len())
+                .map(|k| {
+                    if receivers.active[k] {
+                        pack_query(query(&view, receivers.position[k], receivers.normal[k], &s))
+                    } else {
+                        [0.0; 4]
+                    }
+                })
+                .collect();
+            let ls = lookup_settings(&view, &s);
+            let (tv, steps) = self.lookup(&map, &ls, &queries)?;
+            tally.lookups += queries.iter().filter(|q| q[3] < 0.0).count() as u64;
+            tally.steps += steps;
+            for (a, x) in acc.iter_mut().zip(&tv) {
+                *a += x;
+            }
+            t_est += t.elapsed().as_secs_f64() * 1e3;
+        }
+        let bad = finish(scene, receivers, &acc, points.len(), v);
+        self.report.stages.push(("build".into(), t_build));
+        self.report.stages.push(("estimate".into(), t_est));
+        tally.note(&mut self.report, opaque, points.len());
+        self.report
+            .notes
+            .retain(|n| n.0 != "elements_kept" && n.0 != "truncated" && n.0 != "max_list");
+        self.report.note("non_finite", bad);
+        self.report.note("device", self.ctx.describe());
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shader_validates_with_naga() {
+        for (name, src) in SHADERS {
+            let module = match naga::front::wgsl::parse_str(src) {
+                Ok(m) => m,
+                Err(e) => panic!("{name}: {}", e.emit_to_string(src)),
+            };
+            let mut v = naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::all(),
+            );
+            if let Err(e) = v.validate(&module) {
+                panic!("{name}: {e:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn shared_structs_match_the_wgsl_layouts() {
+        let module = naga::front::wgsl::parse_str(DEEP_SHADOW_WGSL).unwrap();
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).unwrap();
+        let want = [
+            ("Node", std::mem::size_of::<Node>()),
+            ("Tri", std::mem::size_of::<Tri>()),
+            ("DsUniform", std::mem::size_of::<DsUniform>()),
+        ];
+        for (name, size) in want {
+            let (h, ty) = module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("{name} not in the WGSL"));
+            assert_eq!(layouter[h].size as usize, size, "{name}");
+            if let naga::TypeInner::Struct { members, .. } = &ty.inner {
+                // Every member is 4 bytes, in order, as in the #[repr(C)] struct.
+                for (k, m) in members.iter().enumerate() {
+                    assert_eq!(m.offset as usize, 4 * k, "{name}.{:?}", m.name);
+                }
+                assert_eq!(members.len() * 4, size, "{name}");
+            }
+        }
+    }
+}

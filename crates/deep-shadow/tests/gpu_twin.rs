@@ -1,0 +1,335 @@
+//! The GPU twin against the CPU twin (proptest): per texel, the processed lists as sorted
+//! sequences (depth within `DEPTH_REL`, alpha and tau equal), the truncation points, the
+//! neighbour links (as ranks in the neighbour's list: element indices depend on insertion order)
+//! and the filtered transmittance of every filter mode and traversal (within `T_TOL`), on scenes of
+//! parallel sheets whose edges sit a quarter texel off the texel centres, so the f32 (GPU) and f64
+//! (CPU) edge tests cannot disagree. Then the estimators on fixtures, capacity growth and the
+//! typed error. Cases: 8 by default, `SOFTSHADOW_PROPTEST_CASES=N` for more.
+#![cfg(feature = "gpu")]
+mod common;
+use common::*;
+use deep_shadow::{
+    cpu::{build_deep_map, sublight_view},
+    dsm::{DeepShadowMap, Filter, LookupSettings, Traversal},
+    params::Settings,
+    shared::NIL,
+    CpuDeepShadow, GpuDeepShadow,
+};
+use glam::{Vec2, Vec3};
+use proptest::{
+    prelude::*,
+    test_runner::{TestCaseError, TestRunner},
+};
+use shadow_map_core::{
+    gpu::{context_for_tests, GpuContext},
+    run, Error, LightFrame, LightView, Scene, SoftShadowEstimator,
+};
+use std::sync::Arc;
+
+const DEPTH_REL: f32 = 2e-6;
+const T_TOL: f32 = 2e-5;
+
+fn gpu(test: &str) -> Option<Arc<GpuContext>> {
+    match context_for_tests(test) {
+        Ok(c) => c,
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
+fn cases() -> u32 {
+    std::env::var("SOFTSHADOW_PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(8)
+}
+
+/// A sheet: texel rectangle [a0, a1) x [b0, b1), depth index, alpha.
+#[derive(Debug, Clone)]
+struct Sheet {
+    a: (u32, u32),
+    b: (u32, u32),
+    depth: u32,
+    alpha: f32,
+}
+
+#[derive(Debug, Clone)]
+struct Case {
+    r: u32,
+    sheets: Vec<Sheet>,
+    ground: bool,
+    epsilon: f32,
+    queries: Vec<(f32, f32, f32)>,
+}
+
+fn arb_case() -> impl Strategy<Value = Case> {
+    prop_oneof![Just(16u32), Just(32), Just(48)].prop_flat_map(|r| {
+        let sheet = (
+            0..r,
+            1..r,
+            0..r,
+            1..r,
+            0u32..12,
+            prop_oneof![Just(1.0f32), 0.05f32..0.95],
+        )
+            .prop_map(move |(a0, da, b0, db, depth, alpha)| Sheet {
+                a: (a0, (a0 + da).min(r)),
+                b: (b0, (b0 + db).min(r)),
+                depth,
+                alpha,
+            });
+        (
+            Just(r),
+            prop::collection::vec(sheet, 1..14),
+            any::<bool>(),
+            prop_oneof![Just(0.0f32), Just(0.001), Just(0.05)],
+            prop::collection::vec((0.0f32..1.0, 0.0f32..1.0, 0u32..26), 40),
+        )
+            .prop_map(|(r, sheets, ground, epsilon, q)| Case {
+                r,
+                sheets,
+                ground,
+                epsilon,
+                // Query depths halfway between sheet depths (never a tie with a fragment).
+                queries: q
+                    .into_iter()
+                    .map(|(u, v, k)| {
+                        (
+                            u * r as f32,
+                            v * r as f32,
+                            1.05 + 0.1 * k as f32 / 2.0 + 0.025,
+                        )
+                    })
+                    .collect(),
+            })
+    })
+}
+
+/// Sheet depth k is at light-space z = 1.1 + 0.1 k; the ground at z = 2.5.
+fn sheet_z(k: u32) -> f32 {
+    1.1 + 0.1 * k as f32
+}
+
+/// The light view: centre of projection at (0, 3, 0) looking down, n = 1, window [-1, 1]^2.
+fn view(r: u32) -> LightView {
+    LightView {
+        frame: LightFrame::new(Vec3::new(0.0, 3.0, 0.0), -Vec3::Y, Vec3::X).unwrap(),
+        n: 1.0,
+        far: 3.0,
+        window_min: Vec2::splat(-1.0),
+        w: 2.0,
+        r,
+    }
+}
+
+fn scene_of(c: &Case) -> Scene {
+    let v = view(c.r);
+    let delta = v.w / c.r as f32;
+    let mut meshes = Vec::new();
+    if c.ground {
+        meshes.push((quad(-5.0, -5.0, 5.0, 5.0, 0.5), 1.0));
+    }
+    for s in &c.sheets {
+        let z = sheet_z(s.depth);
+        // Light-space x = z (u delta - 1) at u = a + 1/4 (a quarter texel off the centres).
+        let lx = |a: u32| z * ((a as f32 + 0.25) * delta - 1.0);
+        let (x0, x1) = (lx(s.a.0), lx(s.a.1));
+        let (y0, y1) = (lx(s.b.0), lx(s.b.1));
+        // Light space (x, y, z) is world (x, 3 - z, y) for this frame (e_y = e_z x e_x = +Z).
+        meshes.push((quad(x0, y0, x1, y1, 3.0 - z), s.alpha));
+    }
+    Scene::from_meshes("twin", camera(), rect_light(0.5), meshes).unwrap()
+}
+
+fn rank(d: &DeepShadowMap, t: usize, e: u32) -> Option<usize> {
+    if e == NIL {
+        return None;
+    }
+    d.list(t).iter().position(|x| *x == e)
+}
+
+fn compare_maps(c: &DeepShadowMap, g: &DeepShadowMap) -> Result<(), TestCaseError> {
+    prop_assert_eq!(c.stats.fragments, g.stats.fragments, "fragments");
+    let r = c.r as usize;
+    for t in 0..c.head.len() {
+        let (lc, lg) = (c.list(t), g.list(t));
+        prop_assert_eq!(lc.len(), lg.len(), "texel {}: truncation point / length", t);
+        for (k, (&ec, &eg)) in lc.iter().zip(&lg).enumerate() {
+            let (nc, ng) = (&c.nodes[ec as usize], &g.nodes[eg as usize]);
+            prop_assert!(
+                (nc.depth - ng.depth).abs() <= DEPTH_REL * nc.depth,
+                "texel {} #{}: depth {} vs {}",
+                t,
+                k,
+                nc.depth,
+                ng.depth
+            );
+            prop_assert_eq!(nc.alpha, ng.alpha, "texel {} #{}: alpha", t, k);
+            prop_assert_eq!(nc.tau, ng.tau, "texel {} #{}: tau", t, k);
+            prop_assert_eq!(
+                rank(c, t, nc.prev),
+                rank(g, t, ng.prev),
+                "texel {} #{}: prev",
+                t,
+                k
+            );
+            let (i, j) = (t % r, t / r);
+            if i + 1 < r {
+                prop_assert_eq!(
+                    rank(c, t + 1, nc.right),
+                    rank(g, t + 1, ng.right),
+                    "texel {} #{}: right",
+                    t,
+                    k
+                );
+            }
+            if j + 1 < r {
+                prop_assert_eq!(
+                    rank(c, t + r, nc.upper),
+                    rank(g, t + r, ng.upper),
+                    "texel {} #{}: upper",
+                    t,
+                    k
+                );
+            }
+            if k > 0 {
+                prop_assert!(
+                    g.nodes[lg[k - 1] as usize].depth <= ng.depth,
+                    "texel {}: GPU list unsorted",
+                    t
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+fn settings() -> Settings {
+    Settings::from_params(CpuDeepShadow::new().unwrap().params())
+}
+
+#[test]
+fn gpu_lists_links_and_transmittance_match_the_cpu_twin() {
+    let Some(ctx) = gpu("gpu_lists_links_and_transmittance_match_the_cpu_twin") else {
+        return;
+    };
+    let g = GpuDeepShadow::new(ctx).unwrap();
+    let mut runner = TestRunner::new(ProptestConfig {
+        cases: cases(),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    });
+    runner
+        .run(&arb_case(), |c| {
+            let scene = scene_of(&c);
+            let v = view(c.r);
+            let mut s = settings();
+            s.resolution = c.r;
+            s.epsilon = c.epsilon;
+            let cm = build_deep_map(&scene, &v, &s).unwrap();
+            let gm = g.build_lists(&scene, &v, &s).unwrap();
+            let gr = g.read_map(&gm).unwrap();
+            compare_maps(&cm, &gr)?;
+            let queries: Vec<[f32; 4]> = c.queries.iter().map(|q| [q.0, q.1, q.2, -1.0]).collect();
+            for filter in [Filter::First, Filter::None, Filter::Pcf, Filter::Edsm] {
+                for kernel in [3, 7] {
+                    for traversal in [Traversal::Linked, Traversal::Naive] {
+                        let ls = LookupSettings {
+                            filter,
+                            kernel,
+                            c_world: 30.0,
+                            traversal,
+                        };
+                        let (tg, _) = g.lookup(&gm, &ls, &queries).unwrap();
+                        for (q, t) in queries.iter().zip(&tg) {
+                            let (tc, _) = cm.transmittance(Vec2::new(q[0], q[1]), q[2], &ls);
+                            prop_assert!(
+                                (tc - t).abs() <= T_TOL,
+                                "{:?} at {:?}: CPU {} GPU {}",
+                                ls,
+                                q,
+                                tc,
+                                t
+                            );
+                        }
+                    }
+                }
+            }
+            Ok(())
+        })
+        .unwrap();
+}
+
+#[test]
+fn gpu_estimator_matches_the_cpu_estimator_on_fixtures() {
+    let Some(ctx) = gpu("gpu_estimator_matches_the_cpu_estimator_on_fixtures") else {
+        return;
+    };
+    for name in ["hair", "strands", "bunny"] {
+        let (scene, rec) = fixture(name, 40, 30);
+        for kv in [
+            &[("filter", "none")][..],
+            &[("filter", "pcf"), ("kernel", "5"), ("sublights", "2")][..],
+            &[("filter", "edsm"), ("kernel", "7")][..],
+            &[("filter", "first")][..],
+        ] {
+            let mut c = CpuDeepShadow::new().unwrap();
+            let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();
+            for (k, v) in kv.iter().chain(&[("resolution", "256")]) {
+                c.set_param(k, v).unwrap();
+                g.set_param(k, v).unwrap();
+            }
+            assert_eq!((c.name(), c.description()), (g.name(), g.description()));
+            let (vc, rc) = run(&mut c, &scene, &rec).unwrap();
+            let (vg, rg) = run(&mut g, &scene, &rec).unwrap();
+            check_contract(&vg, &rec);
+            let note = |r: &shadow_map_core::Report, k: &str| {
+                r.notes.iter().find(|n| n.0 == k).map(|n| n.1.clone())
+            };
+            assert_eq!(note(&rc, "path"), note(&rg, "path"));
+            assert_eq!(
+                note(&rc, "fragments"),
+                note(&rg, "fragments"),
+                "{name} {kv:?}"
+            );
+            let n = rec.active_count();
+            let within = vc
+                .iter()
+                .zip(&vg)
+                .filter(|(a, b)| a.is_finite() && (*a - *b).abs() <= 1e-4)
+                .count();
+            // Coverage ties (texel centres within ~1e-6 texel of an edge, f32 vs f64) may flip a few.
+            assert!(
+                within as f64 >= 0.995 * n as f64,
+                "{name} {kv:?}: {within} of {n} within 1e-4"
+            );
+        }
+    }
+}
+
+#[test]
+fn gpu_capacity_grows_or_fails_with_a_typed_error() {
+    let Some(ctx) = gpu("gpu_capacity_grows_or_fails_with_a_typed_error") else {
+        return;
+    };
+    let (scene, rec) = fixture("strands", 32, 24);
+    let g = GpuDeepShadow::new(ctx).unwrap();
+    let mut s = settings();
+    s.resolution = 64;
+    let (v, _) = sublight_view(&scene, &rec, Vec2::ZERO, 64, 0).unwrap();
+    let full = g.build_map(&scene, &v, &s).unwrap();
+    assert_eq!(full.stats.passes, 1);
+    s.capacity = 8;
+    let grown = g.build_map(&scene, &v, &s).unwrap();
+    assert_eq!(grown.stats.passes, 2);
+    assert_eq!(grown.stats.fragments, full.stats.fragments);
+    compare_maps(&g.read_map(&full).unwrap(), &g.read_map(&grown).unwrap()).unwrap();
+    s.max_capacity = 100;
+    match g.build_map(&scene, &v, &s) {
+        Err(Error::Limit { requested, max, .. }) => {
+            assert_eq!(requested, full.stats.fragments);
+            assert_eq!(max, 100);
+        }
+        Err(e) => panic!("expected a limit error, got {e}"),
+        Ok(_) => panic!("expected a limit error"),
+    }
+}
