@@ -4,7 +4,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitReport, LightView, MAX_RESOLUTION},
+    light_view::{FitReport, LightView, ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
@@ -63,6 +63,8 @@ pub const SPECS: &[ParamSpec] = &[
         default: "121",
         help: "most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp)) (Bavoil §5)",
     },
+    FIT,
+    NEARFAR,
 ];
 
 /// Soft shadows by micropatch backprojection onto a rectangle light (Guennebaud et al. 2006),
@@ -299,7 +301,15 @@ pub fn plan(
         ));
     }
     let r = params.int("resolution") as u32;
-    let (view, fit) = LightView::fit(scene, receivers, light.frame(), light.half_extent(), r)?;
+    let opts = ViewOptions::from_params(params);
+    let (view, fit) = LightView::fit_with(
+        scene,
+        receivers,
+        light.frame(),
+        light.half_extent(),
+        r,
+        &opts,
+    )?;
     let l = 2.0 * light.half_extent().max_element();
     let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
     let levels = (wmax.log2().ceil() as u32).clamp(1, 10);

@@ -3,6 +3,7 @@
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
 use glam::Vec3;
+use shadow_map_core::light_view::{FIT, NEARFAR};
 use shadow_map_core::{light_space::LightSpace, Light, ParamSpec, Params};
 
 /// The hard test: `V = [z_p - eps <= D(floor u, floor v)]`, and 0 when the light centre is
@@ -16,7 +17,7 @@ impl Filter for Hard {
     const NAME: &'static str = "hard";
     const DESCRIPTION: &'static str =
         "hard shadow map: one binary depth test from the light centre (Williams 1978)";
-    const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL];
+    const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL, FIT, NEARFAR];
     fn from_params(_: &Params) -> Self {
         Hard
     }

@@ -3,8 +3,8 @@
 use crate::common::{self, receiver_bias};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::LightSpace, Backend, Error, Light, ParamSpec, Params, Receivers, Report, Result,
-    Scene, SoftShadowEstimator,
+    light_space::LightSpace, light_view::ViewOptions, Backend, Error, Light, ParamSpec, Params,
+    Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -86,9 +86,10 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let req = common::map_request(&self.params);
-        let ls = self
-            .report
-            .time("build", || LightSpace::build(scene, receivers, &req))?;
+        let ls = self.report.time("build", || {
+            let opts = ViewOptions::from_params(&self.params);
+            LightSpace::build_with(scene, receivers, &req, &opts)
+        })?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);
         Ok(())

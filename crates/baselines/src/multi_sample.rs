@@ -4,6 +4,7 @@
 use crate::common::{self, receiver_bias, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use glam::Vec2;
 use rayon::prelude::*;
+use shadow_map_core::light_view::{ViewOptions, FIT, NEARFAR};
 use shadow_map_core::{
     light_space::LightSpace, Backend, Error, LightShape, ParamKind, ParamSpec, Params, Receivers,
     Report, Result, Scene, SoftShadowEstimator,
@@ -21,6 +22,8 @@ pub const SPECS: &[ParamSpec] = &[
     BIAS,
     SLOPE_BIAS,
     CULL,
+    FIT,
+    NEARFAR,
     ParamSpec {
         key: "sublights",
         kind: ParamKind::Int { min: 1, max: 64 },
@@ -104,6 +107,7 @@ impl SoftShadowEstimator for MultiSample {
             self.params.float("slope_bias") as f32,
         );
         let req = common::map_request(&self.params);
+        let opts = ViewOptions::from_params(&self.params);
         let light = scene.light;
         let points = light.stratified_points(s, |k| jitter(seed, k));
         let frame = light.frame();
@@ -113,7 +117,7 @@ impl SoftShadowEstimator for MultiSample {
         let mut behind = 0usize;
         for y in &points {
             let t = std::time::Instant::now();
-            let ls = match LightSpace::build_point(scene, receivers, *y, &req) {
+            let ls = match LightSpace::build_point_with(scene, receivers, *y, &req, &opts) {
                 Ok(ls) => ls,
                 // No receiver in front of this light point: it lights nothing.
                 Err(Error::LightView(_)) => continue,

@@ -2,6 +2,7 @@
 //! filter, over an N x N block of texels centred on the receiver's texel.
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
+use shadow_map_core::light_view::{FIT, NEARFAR};
 use shadow_map_core::{light_space::LightSpace, Light, ParamKind, ParamSpec, Params};
 
 /// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`.
@@ -28,6 +29,8 @@ impl Filter for Pcf {
         BIAS,
         SLOPE_BIAS,
         CULL,
+        FIT,
+        NEARFAR,
         ParamSpec {
             key: "kernel",
             kind: ParamKind::Int { min: 1, max: 63 },

@@ -3,6 +3,7 @@
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{cells, Filter, MapEstimator, ReceiverSample};
 use glam::Vec2;
+use shadow_map_core::light_view::{FIT, NEARFAR};
 use shadow_map_core::{light_space::LightSpace, Light, LightShape, ParamKind, ParamSpec, Params};
 
 /// PCSS, step by step (background.md §5):
@@ -39,6 +40,8 @@ impl Filter for Pcss {
         BIAS,
         SLOPE_BIAS,
         CULL,
+        FIT,
+        NEARFAR,
         ParamSpec {
             key: "max_taps",
             kind: ParamKind::Int { min: 1, max: 1024 },

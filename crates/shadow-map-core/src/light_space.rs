@@ -2,7 +2,7 @@
 //! the fitted light view, k peeled depth layers, optional midpoint layers, and optional MSSM,
 //! dual-grid MSSM and min/max pyramid over layer 0.
 use crate::{
-    light_view::{FitReport, LightView},
+    light_view::{FitReport, LightView, ViewOptions},
     mssm::{DualMssm, MinMaxPyramid, Mssm},
     peeling::{midpoints, peel},
     raster::{DepthMap, PreparedScene, RasterOptions},
@@ -69,13 +69,24 @@ impl LightSpace {
     /// Fits a view at the light centre to the receivers (see [`LightView::fit`]) and builds what
     /// `req` asks for.
     pub fn build(scene: &Scene, receivers: &Receivers, req: &LightSpaceRequest) -> Result<Self> {
+        Self::build_with(scene, receivers, req, &ViewOptions::default())
+    }
+
+    /// [`build`](Self::build) with a window and near/far choice ([`LightView::fit_with`]).
+    pub fn build_with(
+        scene: &Scene,
+        receivers: &Receivers,
+        req: &LightSpaceRequest,
+        opts: &ViewOptions,
+    ) -> Result<Self> {
         let light = &scene.light;
-        let (view, fit) = LightView::fit(
+        let (view, fit) = LightView::fit_with(
             scene,
             receivers,
             light.frame(),
             light.half_extent(),
             req.resolution,
+            opts,
         )?;
         Ok(Self::build_in_view(scene, view, fit, req))
     }
@@ -88,9 +99,21 @@ impl LightSpace {
         at: Vec2,
         req: &LightSpaceRequest,
     ) -> Result<Self> {
+        Self::build_point_with(scene, receivers, at, req, &ViewOptions::default())
+    }
+
+    /// [`build_point`](Self::build_point) with a window and near/far choice.
+    pub fn build_point_with(
+        scene: &Scene,
+        receivers: &Receivers,
+        at: Vec2,
+        req: &LightSpaceRequest,
+        opts: &ViewOptions,
+    ) -> Result<Self> {
         let mut frame = scene.light.frame();
         frame.origin = frame.to_world(at.extend(0.0));
-        let (view, fit) = LightView::fit(scene, receivers, frame, Vec2::ZERO, req.resolution)?;
+        let (view, fit) =
+            LightView::fit_with(scene, receivers, frame, Vec2::ZERO, req.resolution, opts)?;
         Ok(Self::build_in_view(scene, view, fit, req))
     }
 

@@ -1,7 +1,13 @@
 //! The light view: a perspective projection through the light centre onto the shadow-map plane
 //! z = n (the papers' convention, background.md §1), fitted tightly to what the receivers need
 //! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
-use crate::{light::LightFrame, receivers::Receivers, scene::Scene, Error, Result};
+use crate::{
+    light::LightFrame,
+    params::{ParamKind, ParamSpec, Params},
+    receivers::Receivers,
+    scene::Scene,
+    Error, Result,
+};
 use glam::{DVec2, Vec2, Vec3};
 
 /// Largest shadow-map resolution the CPU core accepts (texels per side).
@@ -42,6 +48,97 @@ pub struct FitReport {
     pub behind: usize,
     /// Active receivers in front of the light but outside the frustum (beyond [`MAX_TAN`]).
     pub out_of_frustum: usize,
+    /// Side of the final window over the side of the tightest window over the receivers'
+    /// footprints at the same n (1 for `fit=receivers`; up to 2 for `fit=stable`; the texel
+    /// density given up is its square). 0 when no receiver needed the map.
+    pub window_scale: f32,
+}
+
+/// How the window on the shadow-map plane is chosen (`--param fit=...`; common techniques,
+/// "Calculating a tight projection" and "Moving the light in texel-sized increments").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum FitMode {
+    /// The bounding square of every scene vertex in front of the light (and of the receivers'
+    /// footprints): constant while the camera moves, wasteful when the camera sees a small part.
+    Scene,
+    /// The tightest square over this frame's receivers' footprints (the default).
+    #[default]
+    Receivers,
+    /// Shimmer-free: the receivers' square, its side rounded up to a power of two (in `x/z`
+    /// units, after one texel of slack) and its corner snapped to whole texels of that size, with
+    /// n and far taken from the scene, not the receivers. The texel lattice in `x/z` is then a
+    /// fixed grid (`k s / r` for integers k, s the power of two) while the camera moves and the
+    /// side stays on the same power of two, so a world point keeps the same texels and the same V
+    /// up to float rounding. Costs up to 2x in window side (4x in texel density).
+    Stable,
+}
+
+/// How the near and far planes are chosen (`--param nearfar=...`; common techniques,
+/// "Calculating the near plane and far plane").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum NearFar {
+    /// The scene's bounding box corners in light space: min and max z (n at least the floor of
+    /// 1e-4 of the far receiver; a light inside the box gets that floor).
+    Aabb,
+    /// The view frustum in light space: the nearest and farthest receiver (what the camera sees).
+    /// Casters nearer than the nearest receiver are clipped, the paper's warning; reported in
+    /// `--stats` and measured, not hidden.
+    Frustum,
+    /// The light frustum intersected with the scene: the paper's recommendation and the default
+    /// (see [`LightView::fit`]).
+    #[default]
+    Clipped,
+}
+
+/// Light-view options shared by every estimator: [`FitMode`] and [`NearFar`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ViewOptions {
+    /// Window choice.
+    pub fit: FitMode,
+    /// Near/far choice.
+    pub nearfar: NearFar,
+}
+
+/// `fit`: the window choice ([`FitMode`]).
+pub const FIT: ParamSpec = ParamSpec {
+    key: "fit",
+    kind: ParamKind::Choice(&["receivers", "scene", "stable"]),
+    default: "receivers",
+    help: "light-view window: tightest over the receivers, the whole scene, or stable (power-of-two size, texel-snapped: no shimmer when the camera moves)",
+};
+
+/// `nearfar`: the near/far choice ([`NearFar`]).
+pub const NEARFAR: ParamSpec = ParamSpec {
+    key: "nearfar",
+    kind: ParamKind::Choice(&["clipped", "aabb", "frustum"]),
+    default: "clipped",
+    help: "near/far planes: light frustum clipped to the scene, scene AABB, or the view frustum (receivers; clips casters nearer than them)",
+};
+
+impl ViewOptions {
+    /// From the `fit` and `nearfar` parameters (defaults where a table lacks them).
+    pub fn from_params(p: &Params) -> Self {
+        let has = |k: &str| p.specs().iter().any(|s| s.key == k);
+        let fit = if has("fit") {
+            match p.choice("fit") {
+                "scene" => FitMode::Scene,
+                "stable" => FitMode::Stable,
+                _ => FitMode::Receivers,
+            }
+        } else {
+            FitMode::default()
+        };
+        let nearfar = if has("nearfar") {
+            match p.choice("nearfar") {
+                "aabb" => NearFar::Aabb,
+                "frustum" => NearFar::Frustum,
+                _ => NearFar::Clipped,
+            }
+        } else {
+            NearFar::default()
+        };
+        ViewOptions { fit, nearfar }
+    }
 }
 
 impl LightView {
@@ -95,6 +192,26 @@ impl LightView {
         frame: LightFrame,
         light_half: Vec2,
         r: u32,
+    ) -> Result<(LightView, FitReport)> {
+        Self::fit_with(
+            scene,
+            receivers,
+            frame,
+            light_half,
+            r,
+            &ViewOptions::default(),
+        )
+    }
+
+    /// [`fit`](Self::fit) with a window and near/far choice ([`ViewOptions`]); the defaults
+    /// (`receivers`, `clipped`) are `fit`.
+    pub fn fit_with(
+        scene: &Scene,
+        receivers: &Receivers,
+        frame: LightFrame,
+        light_half: Vec2,
+        r: u32,
+        opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
         if r == 0 || r > MAX_RESOLUTION {
             return Err(Error::Limit {
@@ -188,43 +305,107 @@ impl LightView {
             }
             (zmin, zmax)
         };
-        let (n0, _) = geometry_range(DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
-        let n0 = n0.min(zr_min * 0.999).max(n_floor);
+        let all = (DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
+        let (n_scene, far_scene) = geometry_range(all.0, all.1);
+        let n0 = n_scene.min(zr_min * 0.999).max(n_floor);
+        // Tan-space bounds of every scene vertex in front of the light (fit=scene).
+        let scene_window = {
+            let mut lo = DVec2::splat(f64::INFINITY);
+            let mut hi = DVec2::splat(f64::NEG_INFINITY);
+            for v in tris.iter().flatten() {
+                if v.z > n_floor {
+                    let t = DVec2::new(v.x as f64, v.y as f64) / v.z as f64;
+                    lo = lo.min(t);
+                    hi = hi.max(t);
+                }
+            }
+            (lo.max(all.0), hi.min(all.1))
+        };
+        let fit_mode = opts.fit;
         // The square window (texels are square) fitted at a given n, in x/z space.
         let square = |n: f32| -> (DVec2, DVec2) {
-            let (lo, hi) = window(n);
+            let (mut lo, mut hi) = window(n);
+            if fit_mode == FitMode::Scene && scene_window.0.x <= scene_window.1.x {
+                lo = lo.min(scene_window.0);
+                hi = hi.max(scene_window.1);
+            }
             // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.
             let side = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-6);
             let c = (lo + hi) * 0.5;
             (c - DVec2::splat(side * 0.5), c + DVec2::splat(side * 0.5))
         };
-        // Raise n from n0 (below every triangle in front of the light) to the nearest geometry
-        // inside the square window fitted at n0, and keep it only if the window refitted at the
-        // raised n (which can shift when it is squared) holds nothing nearer.
-        let mut n = n0;
-        let (z1, _) = {
-            let (lo, hi) = square(n0);
-            geometry_range(lo, hi)
-        };
-        if z1.is_finite() {
-            let raised = z1.min(zr_min * 0.999).max(n0);
-            let (lo, hi) = square(raised);
-            let (z2, _) = geometry_range(lo, hi);
-            if !(z2 < raised) {
-                n = raised;
+        let aabb = || -> (f32, f32) {
+            let b = scene.bounds();
+            let (mut zmin, mut zmax) = (f32::INFINITY, f32::NEG_INFINITY);
+            for k in 0..8 {
+                let c = Vec3::new(
+                    if k & 1 == 0 { b.min.x } else { b.max.x },
+                    if k & 2 == 0 { b.min.y } else { b.max.y },
+                    if k & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                let z = frame.to_light(c).z;
+                zmin = zmin.min(z);
+                zmax = zmax.max(z);
             }
+            (zmin.min(zr_min * 0.999).max(n_floor), zmax.max(zr_max))
+        };
+        let (n, far) = match (opts.nearfar, fit_mode) {
+            (NearFar::Aabb, _) => aabb(),
+            (NearFar::Frustum, _) => ((zr_min * 0.999).max(n_floor), zr_max),
+            // Receiver-independent planes, so the lattice and kernels do not move with the camera.
+            (NearFar::Clipped, FitMode::Stable) => (n0, far_scene.max(zr_max)),
+            (NearFar::Clipped, _) => {
+                // Raise n from n0 (below every triangle in front of the light) to the nearest
+                // geometry inside the square window fitted at n0, and keep it only if the window
+                // refitted at the raised n (which can shift when it is squared) holds nothing
+                // nearer.
+                let mut n = n0;
+                let (z1, _) = {
+                    let (lo, hi) = square(n0);
+                    geometry_range(lo, hi)
+                };
+                if z1.is_finite() {
+                    let raised = z1.min(zr_min * 0.999).max(n0);
+                    let (lo, hi) = square(raised);
+                    let (z2, _) = geometry_range(lo, hi);
+                    if !(z2 < raised) {
+                        n = raised;
+                    }
+                }
+                let (lo, hi) = square(n);
+                let (_, far) = geometry_range(lo, hi);
+                (n, far.max(zr_max))
+            }
+        };
+        let (mut lo, mut hi) = square(n);
+        let tight = {
+            let (lo, hi) = window(n);
+            (hi - lo).max_element().max(1e-9)
+        };
+        if fit_mode == FitMode::Stable && r >= 2 {
+            // A margin of 3 texels so no search kernel (its ceil adds up to one texel) reaches the
+            // map border, where clamping would shift it differently in each frame; then the side
+            // rounded up to a power of two with room for one texel of snapping, and the corner
+            // snapped to whole texels.
+            let m = 3.0 * (hi.x - lo.x) / r as f64;
+            lo -= DVec2::splat(m);
+            hi += DVec2::splat(m);
+            let side = hi.x - lo.x;
+            let need = side * r as f64 / (r - 1) as f64;
+            let s2 = 2f64.powi(need.log2().ceil() as i32);
+            let d = s2 / r as f64;
+            let lo2 = (lo / d).floor() * d;
+            lo = lo2;
+            hi = lo2 + DVec2::splat(s2);
         }
-        let (lo, hi) = square(n);
-        let (_, far) = geometry_range(lo, hi);
-        let far = far.max(zr_max);
         let side = hi.x - lo.x;
-        let centre = (lo + hi) * 0.5;
+        rep.window_scale = (side / tight) as f32;
         let nd = n as f64;
         let view = LightView {
             frame,
             n,
             far,
-            window_min: ((centre - DVec2::splat(side * 0.5)) * nd).as_vec2(),
+            window_min: (lo * nd).as_vec2(),
             w: (side * nd) as f32,
             r,
         };

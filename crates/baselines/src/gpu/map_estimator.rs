@@ -6,6 +6,7 @@ use super::{
     shared::{self, EstimateUniform},
 };
 use crate::{common, map_estimator::Filter};
+use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
         shared::{LightViewUniform, SHARED_WGSL},
@@ -257,6 +258,7 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
         self.report = Report::default();
         self.maps = None;
         let req = common::map_request(&self.params);
+        let opts = ViewOptions::from_params(&self.params);
         let ctx = self.ctx.clone();
         let builder = &self.builder;
         let maps = self.report.time("build", || {
@@ -268,6 +270,7 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
                 receivers,
                 MapOrigin::LightCentre,
                 &req,
+                &opts,
             )
         })?;
         self.report.light_space_bytes = maps.bytes();

@@ -1,6 +1,7 @@
 //! Light-space data on the GPU for one view: the fitted [`LightView`] and its shadow map (layer 0)
 //! as an R32Float texture, and [`MapBuilder`], the one place the maps are made.
 use glam::Vec2;
+use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{GpuContext, GpuScene, GpuShadowMapper},
     light_space::{LightSpace, LightSpaceRequest},
@@ -149,6 +150,7 @@ impl MapBuilder {
     }
 
     /// Builds the view and layer 0 for `origin` from a scene already uploaded as `gpu_scene`.
+    #[allow(clippy::too_many_arguments)]
     pub fn build(
         &self,
         ctx: &GpuContext,
@@ -157,6 +159,7 @@ impl MapBuilder {
         receivers: &Receivers,
         origin: MapOrigin,
         req: &LightSpaceRequest,
+        opts: &ViewOptions,
     ) -> Result<GpuMaps> {
         let light = &scene.light;
         let mut frame = light.frame();
@@ -167,7 +170,7 @@ impl MapBuilder {
                 Vec2::ZERO
             }
         };
-        let (view, fit) = LightView::fit(scene, receivers, frame, half, req.resolution)?;
+        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, req.resolution, opts)?;
         let mut one = *req;
         one.layers = 1;
         one.midpoints = None;

@@ -12,6 +12,7 @@ use crate::{
     multi_sample::{jitter, DESCRIPTION, NAME, SPECS},
 };
 use bytemuck::Zeroable;
+use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
         shared::{LightViewUniform, SHARED_WGSL},
@@ -278,6 +279,7 @@ impl SoftShadowEstimator for GpuMultiSample {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         let req = self.request();
         let points = self.sub_light_points(&scene.light);
+        let opts = ViewOptions::from_params(&self.params);
         let ctx = self.ctx.clone();
         let gpu_scene = GpuScene::upload(&ctx, scene)?;
         let builder = self.builder.clone();
@@ -289,6 +291,7 @@ impl SoftShadowEstimator for GpuMultiSample {
                 receivers,
                 MapOrigin::Point(y),
                 &req,
+                &opts,
             )
         });
         self.run(maps, &scene.light, receivers, v)
