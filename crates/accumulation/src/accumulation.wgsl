@@ -123,44 +123,115 @@ fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32) -> f32 {
     return area * (jac * acc.inv_area);
 }
 
-// math::lens_area.
-fn lens_area(r1: f32, r2: f32, d: f32) -> f32 {
-    if !(r1 > 0.0) || !(r2 > 0.0) || !(d < r1 + r2) {
+// glam::Vec2::perp_dot.
+fn perp_dot(p: vec2<f32>, q: vec2<f32>) -> f32 {
+    return (p.x * q.y) - (p.y * q.x);
+}
+
+fn seg_outside(p: vec2<f32>, q: vec2<f32>, r: f32) -> f32 {
+    return 0.5 * r * r * atan2(perp_dot(p, q), dot2(p, q));
+}
+
+// math::quad_disk_area.
+fn quad_disk_area(q: array<vec2<f32>, 4>, r: f32) -> f32 {
+    if !(r > 0.0) {
         return 0.0;
     }
-    if d <= abs(r1 - r2) {
-        let r = min(r1, r2);
-        return PI_F32 * r * r;
+    let lo = min(min(min(q[0], q[1]), q[2]), q[3]);
+    let hi = max(max(max(q[0], q[1]), q[2]), q[3]);
+    if !(lo.x < r && lo.y < r && hi.x > -r && hi.y > -r) {
+        return 0.0;
     }
-    let a1 = acos_f32(clamp((d * d + r1 * r1 - r2 * r2) / (2.0 * d * r1), -1.0, 1.0));
-    let a2 = acos_f32(clamp((d * d + r2 * r2 - r1 * r1) / (2.0 * d * r2), -1.0, 1.0));
-    let k = (-d + r1 + r2) * (d + r1 - r2) * (d - r1 + r2) * (d + r1 + r2);
-    return max(r1 * r1 * a1 + r2 * r2 * a2 - 0.5 * sqrt(max(k, 0.0)), 0.0);
+    let full = PI_F32 * r * r;
+    var all_in = true;
+    for (var k = 0u; k < 4u; k++) {
+        if !(dot2(q[k], q[k]) <= r * r) {
+            all_in = false;
+        }
+    }
+    if all_in {
+        var a = 0.0;
+        for (var k = 0u; k < 4u; k++) {
+            a += perp_dot(q[k], q[(k + 1u) % 4u]);
+        }
+        return min(abs(0.5 * a), full);
+    }
+    var area = 0.0;
+    for (var k = 0u; k < 4u; k++) {
+        let p0 = q[k];
+        let p1 = q[(k + 1u) % 4u];
+        let d = p1 - p0;
+        let a = dot2(d, d);
+        let b = dot2(p0, d);
+        let cc = dot2(p0, p0) - r * r;
+        let disc = b * b - a * cc;
+        if !(disc > 0.0) || !(a > 0.0) {
+            area += seg_outside(p0, p1, r);
+            continue;
+        }
+        let sq = sqrt(disc);
+        let t1 = clamp((-b - sq) / a, 0.0, 1.0);
+        let t2 = clamp((-b + sq) / a, 0.0, 1.0);
+        let q1 = p0 + d * t1;
+        let q2 = p0 + d * t2;
+        if t1 > 0.0 {
+            area += seg_outside(p0, q1, r);
+        }
+        if t2 > t1 {
+            area += 0.5 * perp_dot(q1, q2);
+        }
+        if t2 < 1.0 {
+            area += seg_outside(q2, p1, r);
+        }
+    }
+    return min(abs(area), full);
+}
+
+// Footprint::to_patch's in-plane coordinates (valid = false when the ray misses the patch plane).
+struct Local {
+    p: vec2<f32>,
+    w: f32,
+    valid: bool,
+}
+
+fn to_patch(p: Patch, r: vec3<f32>, pt: vec2<f32>) -> Local {
+    let d = vec3<f32>(pt.x - r.x, pt.y - r.y, view.n - r.z);
+    let da = dot3(d, p.a);
+    let u = -dot3(r, p.a) / da;
+    if !(u > 0.0) || !is_finite(u) {
+        return Local(vec2<f32>(0.0), 0.0, false);
+    }
+    let x = r + d * u;
+    let jac = u * u * (abs(d.z) / abs(da));
+    return Local(vec2<f32>(dot3(x, p.e1), dot3(x, p.e2)), jac * acc.inv_area, true);
 }
 
 // Footprint::overlap_term.
 fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32) -> f32 {
-    let d = vec3<f32>(lr.x - r.x, lr.y - r.y, view.n - r.z);
-    let da = dot3(d, p.a);
-    let u = -dot3(r, p.a) / da;
-    if !(u > 0.0) || !is_finite(u) {
-        return 0.0;
-    }
-    let x = r + d * u;
-    let local = vec2<f32>(dot3(x, p.e1), dot3(x, p.e2));
-    let jac = u * u * (abs(d.z) / abs(da));
-    let w = jac * acc.inv_area;
-    let sj = sqrt(w / acc.inv_area);
-    let ax = hx * sj;
-    let ay = hy * sj;
     var area = 0.0;
     if acc.patch_rect != 0u {
-        let dx = max(min(local.x + ax, acc.half.x) - max(local.x - ax, -acc.half.x), 0.0);
-        let dy = max(min(local.y + ay, acc.half.y) - max(local.y - ay, -acc.half.y), 0.0);
+        let lc = to_patch(p, r, lr);
+        if !lc.valid {
+            return 0.0;
+        }
+        let sj = sqrt(lc.w / acc.inv_area);
+        let ax = hx * sj;
+        let ay = hy * sj;
+        let dx = max(min(lc.p.x + ax, acc.half.x) - max(lc.p.x - ax, -acc.half.x), 0.0);
+        let dy = max(min(lc.p.y + ay, acc.half.y) - max(lc.p.y - ay, -acc.half.y), 0.0);
         area = dx * dy;
     } else {
-        let rho = sqrt(4.0 * ax * ay / PI_F32);
-        area = lens_area(acc.half.x, rho, sqrt(dot2(local, local)));
+        var q: array<vec2<f32>, 4>;
+        let sx = array<f32, 4>(-1.0, 1.0, 1.0, -1.0);
+        let sy = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
+        for (var k = 0u; k < 4u; k++) {
+            let lc = to_patch(p, r, lr + vec2<f32>(sx[k] * hx, sy[k] * hy));
+            if !lc.valid {
+                return 0.0;
+            }
+            q[k] = lc.p;
+        }
+        area = quad_disk_area(q, acc.half.x);
     }
     return area * acc.inv_area;
 }
@@ -285,6 +356,7 @@ fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
 // Accumulator::shadowing: the shadowing factor s in [0, 1].
 fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     let eps = receiver_bias(view, r, nrm, acc.b0, acc.b1);
+    let eps_plane = view.w * r.z / (view.n * f32(view.r)) * acc.b0;
     let kr = kernel(p, r, uv, eps);
     if kr.empty {
         return 0.0;
@@ -313,6 +385,11 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
                 let cz = depth_at(ic, jc, layer);
                 if !(cz < r.z - eps) {
                     break;
+                }
+                // In front of the receiver's tangent plane.
+                let c = vec3<f32>(l.x, l.y, n) * (cz / n);
+                if !(dot3(nrm, c - r) > eps_plane) {
+                    continue;
                 }
                 // math::caster.
                 if !(cz > 0.0) || !(cz < r.z) {

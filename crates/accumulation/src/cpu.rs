@@ -343,6 +343,8 @@ impl Accumulator<'_> {
         let p = fp.r;
         let zp = p.z;
         let eps = receiver_bias(view, p, nrm, self.s.b0, self.s.b1);
+        // Tangent-plane margin: b0 texel footprints at the receiver.
+        let eps_plane = view.w * zp / (view.n * view.r as f32) * self.s.b0;
         let Some((rect, step)) = self.kernel(fp, uv, zp, eps) else {
             return 0.0;
         };
@@ -372,6 +374,13 @@ impl Accumulator<'_> {
                     let cz = layer.at(ic, jc);
                     if !(cz < zp - eps) {
                         break; // deeper layers are further still
+                    }
+                    // Only casters in front of the receiver's tangent plane can block the light
+                    // the facing factor keeps (a segment from p to a light point in front of the
+                    // plane stays in front of it): the receiver's own surface never occludes.
+                    let c = Vec3::new(l.x, l.y, view.n) * (cz / view.n);
+                    if !(nrm.dot(c - p) > eps_plane) {
+                        continue;
                     }
                     let Some((lr, size)) = caster(p, view.n, l, cz) else {
                         continue;
@@ -427,7 +436,9 @@ impl Accumulator<'_> {
 ///    centre's plane or beyond 87 degrees off its axis) makes `estimate` fail with
 ///    [`Error::Receivers`] naming the count: V is never silently set to full light there.
 /// 3. The kernel ([`Accumulator::kernel`]); per lexel (and per peeled layer for the exact
-///    variant) with depth `c_z < z_p - eps`, the elementary caster ([`caster`]).
+///    variant) with depth `c_z < z_p - eps` whose surface point lies in front of p's tangent plane
+///    (by `b0` texel footprints; points behind it cannot block the light the facing factor
+///    keeps), the elementary caster ([`caster`]).
 /// 4. additive: `s = clamp01(sum |Q_c ∩ F| J / A_L)` ([`Footprint::overlap_term`]) or, with
 ///    `coverage = centre`, the paper's `clamp01(sum (size delta)^2 J(l_r) / A_L [l_r in F])`; exact:
 ///    `s = popcount(bits) / B^2`. `V = facing (1 - s)`.

@@ -288,29 +288,39 @@ impl Footprint {
     }
 
     /// The additive variant's factor with the overlap area instead of the centre test: the caster
-    /// rectangle of centre `lr` and half sides `(hx, hy)` (plane units) is carried to the patch
-    /// with the local area scale `J(lr)` (a rectangle of half sides `sqrt(J) (hx, hy)` around the
-    /// backprojected centre; exact for the parallel lights, whose `J` is constant) and intersected
-    /// with it: exactly for a rectangle, as its equal-area disk (background.md §9) for a disk.
+    /// rectangle of centre `lr` and half sides `(hx, hy)` (plane units) carried to the patch and
+    /// intersected with it, exactly: on a rectangle light (parallel to the plane) it is the
+    /// rectangle of half sides `sqrt(J) (hx, hy)` around the backprojected centre; on a disk its
+    /// four corners are backprojected ([`Footprint::to_patch`], the central projection maps the
+    /// square to a quadrilateral) and intersected with the disk ([`quad_disk_area`]).
     /// Unlike the centre test it stays right when a caster is larger than the footprint (small
     /// lights, R -> 0: the hard-shadow limit).
     #[inline]
     pub fn overlap_term(&self, lr: Vec2, hx: f32, hy: f32) -> f32 {
-        let Some((local, w)) = self.to_patch(lr) else {
-            return 0.0;
-        };
-        // w = J / A_L, so J = w / inv_area.
-        let sj = (w / self.inv_area).sqrt();
-        let (ax, ay) = (hx * sj, hy * sj);
         let area = match self.patch.shape {
             PatchShape::Rect(h) => {
+                let Some((local, w)) = self.to_patch(lr) else {
+                    return 0.0;
+                };
+                // w = J / A_L, so J = w / inv_area.
+                let sj = (w / self.inv_area).sqrt();
+                let (ax, ay) = (hx * sj, hy * sj);
                 let dx = ((local.x + ax).min(h.x) - (local.x - ax).max(-h.x)).max(0.0);
                 let dy = ((local.y + ay).min(h.y) - (local.y - ay).max(-h.y)).max(0.0);
                 dx * dy
             }
             PatchShape::Disk(r) => {
-                let rho = (4.0 * ax * ay / std::f32::consts::PI).sqrt();
-                lens_area(r, rho, local.length())
+                let mut q = [Vec2::ZERO; 4];
+                for (k, s) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let Some((local, _)) = self.to_patch(lr + Vec2::new(s.0 * hx, s.1 * hy)) else {
+                        return 0.0;
+                    };
+                    q[k] = local;
+                }
+                quad_disk_area(q, r)
             }
         };
         area * self.inv_area
@@ -334,25 +344,58 @@ impl Footprint {
     }
 }
 
-/// Area of the intersection of two disks of radii `r1`, `r2` whose centres are `d` apart
-/// (background.md §9), in f32 with the acos arguments clamped; never NaN for finite inputs.
-#[inline]
-pub fn lens_area(r1: f32, r2: f32, d: f32) -> f32 {
-    if !(r1 > 0.0) || !(r2 > 0.0) || !(d < r1 + r2) {
+/// Area of a convex quadrilateral (corners in order, either orientation) inside the disk of
+/// radius `r` at the origin (background.md §9, "Polygon ∩ disk"): per directed edge, pieces inside
+/// the circle add `cross(P, Q) / 2`, pieces outside add `r^2 atan2(cross, dot) / 2`; the sum is
+/// the signed area. Shortcuts: bounding boxes apart (0), every corner inside (the shoelace
+/// area). Never NaN for finite inputs.
+pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
+    if !(r > 0.0) {
         return 0.0;
     }
-    if d <= (r1 - r2).abs() {
-        let r = r1.min(r2);
-        return std::f32::consts::PI * r * r;
+    let lo = q[0].min(q[1]).min(q[2]).min(q[3]);
+    let hi = q[0].max(q[1]).max(q[2]).max(q[3]);
+    if !(lo.x < r && lo.y < r && hi.x > -r && hi.y > -r) {
+        return 0.0;
     }
-    let a1 = ((d * d + r1 * r1 - r2 * r2) / (2.0 * d * r1))
-        .clamp(-1.0, 1.0)
-        .acos();
-    let a2 = ((d * d + r2 * r2 - r1 * r1) / (2.0 * d * r2))
-        .clamp(-1.0, 1.0)
-        .acos();
-    let k = (-d + r1 + r2) * (d + r1 - r2) * (d - r1 + r2) * (d + r1 + r2);
-    (r1 * r1 * a1 + r2 * r2 * a2 - 0.5 * k.max(0.0).sqrt()).max(0.0)
+    let full = std::f32::consts::PI * r * r;
+    if q.iter().all(|p| p.length_squared() <= r * r) {
+        let mut a = 0.0f32;
+        for k in 0..4 {
+            a += q[k].perp_dot(q[(k + 1) % 4]);
+        }
+        return (0.5 * a).abs().min(full);
+    }
+    let outside = |p: Vec2, e: Vec2| 0.5 * r * r * p.perp_dot(e).atan2(p.dot(e));
+    let mut area = 0.0f32;
+    for k in 0..4 {
+        let p0 = q[k];
+        let p1 = q[(k + 1) % 4];
+        let d = p1 - p0;
+        let a = d.dot(d);
+        let b = p0.dot(d);
+        let cc = p0.dot(p0) - r * r;
+        let disc = b * b - a * cc;
+        if !(disc > 0.0) || !(a > 0.0) {
+            area += outside(p0, p1);
+            continue;
+        }
+        let sq = disc.sqrt();
+        let t1 = ((-b - sq) / a).clamp(0.0, 1.0);
+        let t2 = ((-b + sq) / a).clamp(0.0, 1.0);
+        let q1 = p0 + d * t1;
+        let q2 = p0 + d * t2;
+        if t1 > 0.0 {
+            area += outside(p0, q1);
+        }
+        if t2 > t1 {
+            area += 0.5 * q1.perp_dot(q2);
+        }
+        if t2 < 1.0 {
+            area += outside(q2, p1);
+        }
+    }
+    area.abs().min(full)
 }
 
 /// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; background.md §9
@@ -549,6 +592,48 @@ mod tests {
                 (ratio - cos_theta as f64).abs() < 0.03,
                 "paper/contract footprint area {ratio}, cos theta {cos_theta}"
             );
+        }
+    }
+
+    fn rect_disk_area(c: Vec2, ax: f32, ay: f32, r: f32) -> f32 {
+        quad_disk_area(
+            [
+                c + Vec2::new(-ax, -ay),
+                c + Vec2::new(ax, -ay),
+                c + Vec2::new(ax, ay),
+                c + Vec2::new(-ax, ay),
+            ],
+            r,
+        )
+    }
+
+    #[test]
+    fn rect_disk_area_matches_a_grid() {
+        let r = 0.7;
+        for (c, ax, ay) in [
+            (Vec2::new(0.1, -0.2), 0.3, 0.5),
+            (Vec2::new(0.6, 0.5), 0.4, 0.2),
+            (Vec2::new(-0.9, 0.0), 0.3, 0.3),
+            (Vec2::new(0.0, 0.0), 2.0, 0.1),
+            (Vec2::new(0.2, 0.1), 3.0, 3.0),
+            (Vec2::new(3.0, 0.1), 0.5, 0.5),
+        ] {
+            let m = 1000;
+            let mut hit = 0u32;
+            for j in 0..m {
+                for i in 0..m {
+                    let p = Vec2::new(
+                        c.x - ax + 2.0 * ax * (i as f32 + 0.5) / m as f32,
+                        c.y - ay + 2.0 * ay * (j as f32 + 0.5) / m as f32,
+                    );
+                    if p.length_squared() <= r * r {
+                        hit += 1;
+                    }
+                }
+            }
+            let grid = 4.0 * ax * ay * hit as f32 / (m * m) as f32;
+            let a = rect_disk_area(c, ax, ay, r);
+            assert!((a - grid).abs() < 2e-3, "{c} {ax} {ay}: {a} vs {grid}");
         }
     }
 
