@@ -431,6 +431,7 @@ impl SoftShadowEstimator for CpuBackprojection {
             "out_of_frustum",
             outside.into_inner() + ls.fit.out_of_frustum,
         );
+        self.report.note("window_scale", ls.fit.window_scale);
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
         }

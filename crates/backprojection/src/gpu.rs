@@ -209,6 +209,7 @@ fn upload_planes(
 struct DeviceMaps {
     view: LightView,
     out_of_frustum: usize,
+    window_scale: f32,
     maps: PlaneArray,
     mssm: PlaneArray,
     layers: u32,
@@ -244,6 +245,7 @@ impl DeviceMaps {
         Ok(DeviceMaps {
             view: ls.view,
             out_of_frustum: ls.fit.out_of_frustum,
+            window_scale: ls.fit.window_scale,
             maps,
             mssm,
             layers: ls.layers.len() as u32,
@@ -425,6 +427,7 @@ impl GpuBackprojection {
         let gls = mapper.render_layers(ctx, &gpu_scene, &view, &req)?;
         let mut maps = self.lay_out(ctx, &gls)?;
         maps.out_of_frustum = fit.out_of_frustum;
+        maps.window_scale = fit.window_scale;
         Ok(maps)
     }
 
@@ -528,6 +531,7 @@ impl GpuBackprojection {
         Ok(DeviceMaps {
             view: gls.view,
             out_of_frustum: 0,
+            window_scale: 0.0,
             maps,
             mssm,
             layers: gls.layers.len() as u32,
@@ -611,6 +615,7 @@ impl GpuBackprojection {
         self.report.note("far", view.far);
         self.report
             .note("out_of_frustum", outside + maps.out_of_frustum);
+        self.report.note("window_scale", maps.window_scale);
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
         }

@@ -141,6 +141,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
             "out_of_frustum",
             outside.into_inner() + ls.fit.out_of_frustum,
         );
+        self.report.note("window_scale", ls.fit.window_scale);
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
         }

@@ -146,6 +146,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         self.report.note("far", view.far);
         self.report
             .note("out_of_frustum", stats.outside + maps.fit.out_of_frustum);
+        self.report.note("window_scale", maps.fit.window_scale);
         if stats.nonfinite > 0 {
             self.report.note("nonfinite_replaced", stats.nonfinite);
         }
