@@ -10,6 +10,7 @@
 //! - `sweep`: packet-size sweep at two image sizes (Yang Fig. 12), hierarchy off and on.
 //! - `tune`: the Q_e, Q_v grid of the cost model (eq. 6; Q_n = 1): estimate time per pair, the
 //!   argmin printed.
+//! - `gpu`: the speed table on the GPU twin (lavapipe here): estimate ms per variant, same V.
 //! - `accuracy`: RMSE against the ray-traced reference and time on every fixture: GBP07 per pixel,
 //!   packet-hsm S = 1, 2, 4, micropatch backprojection with 1, 3 and 4 layers, PCSS, multi-sample;
 //!   and Yang's Fig. 11 claim (S = 2 faster than and as accurate as 4-layer peeling) on the
@@ -20,7 +21,10 @@
 //! ```
 //! Environment: `HSM_SCENE` (fixture name for speed/visits/sweep/tune, default bunny), `HSM_W`,
 //! `HSM_H` (image, default 160x120), `HSM_RES` (map resolution, default 512), `HSM_RUNS`
-//! (median of, default 3), `HSM_SPP` (reference spp, default 256).
+//! (median of, default 3), `HSM_SPP` (reference spp, default 256), `HSM_FIXTURES`
+//! (comma-separated fixture names for `accuracy`, default all).
+// `!(a < b)` is deliberate: true for NaN, which must take the safe branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use backprojection::CpuBackprojection;
 use baselines::{MultiSample, PcssShadow};
 use packet_hsm::contour::{extract, CellRect, Traversal};
@@ -371,6 +375,10 @@ fn accuracy() {
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .collect();
     names.sort();
+    if let Ok(only) = std::env::var("HSM_FIXTURES") {
+        let only: Vec<&str> = only.split(',').collect();
+        names.retain(|n| only.contains(&n.as_str()));
+    }
     println!("\n## accuracy: RMSE vs the reference ({spp} spp), {w}x{h}, r = {res}; frame ms = build + estimate (median of {runs})");
     println!("| fixture | estimator | RMSE | frame ms |");
     println!("|---|---|---|---|");
@@ -461,16 +469,77 @@ fn accuracy() {
             }
         }
     }
-    if fig11.len() == 2 {
-        let (s2, bp4) = (&fig11[0], &fig11[1]);
-        let faster = s2.2 < bp4.2;
-        let as_accurate = s2.1 <= bp4.1 * 1.05;
+    if let Some(s2) = fig11.first() {
+        for bp4 in &fig11[1..] {
+            let faster = s2.2 < bp4.2;
+            let as_accurate = s2.1 <= bp4.1 * 1.05;
+            println!(
+                "\nFig. 11 claim on overlapping: {} RMSE {:.4} in {:.1} ms vs {} RMSE {:.4} in {:.1} ms: faster {}, as accurate (within 5%) {} -> {}",
+                s2.0, s2.1, s2.2, bp4.0, bp4.1, bp4.2, faster, as_accurate,
+                if faster && as_accurate { "confirmed" } else { "refuted" }
+            );
+        }
+    }
+}
+
+#[cfg(feature = "gpu")]
+fn gpu() {
+    let ctx = match shadow_map_core::gpu::GpuContext::shared() {
+        Ok(c) => c,
+        Err(e) => {
+            println!("\n## gpu: no adapter ({e})");
+            return;
+        }
+    };
+    let name = env("HSM_SCENE", "bunny");
+    let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
+    let res = env("HSM_RES", "512");
+    let runs = envu("HSM_RUNS", 3);
+    let (mut scene, rec) = load(&name, w, h);
+    let base_light = scene.light;
+    println!("\n## gpu twin ({}): {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}; maps built on the CPU and uploaded, not counted), S = 1, 3x3 packets", ctx.describe());
+    println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV vs CPU |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
+        scene.light = base_light.scaled(scale);
+        let variants: [&[(&str, &str)]; 4] = [
+            &[
+                ("packet", "1x1"),
+                ("hierarchy", "false"),
+                ("coherence", "false"),
+            ],
+            &[("packet", "1x1"), ("hierarchy", "true")],
+            &[("packet", "3x3"), ("hierarchy", "false")],
+            &[("packet", "3x3"), ("hierarchy", "true")],
+        ];
+        let mut cpu = hsm(&[("resolution", &res)]);
+        let (_, _, vc, _) = time(&mut cpu, &scene, &rec, 1);
+        let mut out = Vec::new();
+        for kv in variants {
+            let mut e = packet_hsm::GpuPacketHsm::new(ctx.clone()).expect("gpu");
+            e.set_param("resolution", &res).expect("res");
+            for (k, v) in kv {
+                e.set_param(k, v).expect("param");
+            }
+            out.push(time(&mut e, &scene, &rec, runs));
+        }
+        let dv = out.iter().map(|o| max_diff(&o.2, &vc)).fold(0.0, f32::max);
         println!(
-            "\nFig. 11 claim on overlapping: {} RMSE {:.4} in {:.1} ms vs {} RMSE {:.4} in {:.1} ms: faster {}, as accurate (within 5%) {} -> {}",
-            s2.0, s2.1, s2.2, bp4.0, bp4.1, bp4.2, faster, as_accurate,
-            if faster && as_accurate { "confirmed" } else { "refuted" }
+            "| {scale} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {dv:.1e} |",
+            out[0].0,
+            out[1].0,
+            out[2].0,
+            out[3].0,
+            out[0].0 / out[1].0,
+            out[0].0 / out[2].0,
+            out[0].0 / out[3].0,
         );
     }
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu() {
+    println!("\n## gpu: built without the `gpu` feature");
 }
 
 fn main() {
@@ -491,6 +560,9 @@ fn main() {
     }
     if all || what == "tune" {
         tune();
+    }
+    if all || what == "gpu" {
+        gpu();
     }
     if all || what == "accuracy" {
         accuracy();

@@ -6,15 +6,16 @@
 //! dual-grid MSSM) and uploaded as storage buffers. The per-receiver setup that needs no map
 //! (light-space transform, facing fraction, projection, bias threshold, the behind / near /
 //! outside cases) is done on the CPU with the CPU twin's code ([`crate::cpu::setup_receiver`]); everything
-//! from the kernel on runs on the GPU (`packet_hsm.wgsl`, one invocation per receiver): the tight
-//! kernel from the MSSM, the fully lit / fully occluded classification over the dual-grid MSSM,
-//! the centre status, the contour extraction (flat, or Yang's Algorithm 3 with an explicit stack
-//! when `hierarchy` is on) and the backprojection and radial integration.
+//! from the kernel on runs on the GPU (`packet_hsm.wgsl`), in three passes: `prepare` (one
+//! invocation per receiver: the tight kernel from the MSSM, the fully lit / fully occluded
+//! classification over the dual-grid MSSM, the centre status), `packets` (one invocation per
+//! w x h packet of the image layout: extended kernel, coherence test, ternary contour extraction,
+//! per-pixel backprojection and radial integration; a null status leaves the packet's pixels to
+//! the next pass), `pixels` (per-pixel GBP07 for every penumbra receiver left). Contour
+//! extraction is flat or Yang's Algorithm 3 with an explicit stack (`hierarchy`). Receivers
+//! without an image layout skip the packets pass.
 //!
-//! **Not on the GPU (yet):** packets and the coherence test. The GPU twin evaluates every receiver
-//! pixel-wise, which gives the same V (the accelerations are exact, see `tests/exactness.rs`), so
-//! `packet` and `coherence` are accepted and reported but change nothing here. Rasterising the maps
-//! on the GPU is not done either.
+//! **Not on the GPU:** rasterising the maps and building the MSSMs (uploaded from the CPU).
 //!
 //! Known differences from the CPU: f32 light-plane geometry and sums (f64 on the CPU), a
 //! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added in
@@ -23,8 +24,8 @@ use crate::cpu::{prepare_setup, ReceiverSetup};
 use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView, DESCRIPTION, NAME};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
-    gpu::GpuContext, Backend, Error, LightShape, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    gpu::GpuContext, Backend, Error, ImageLayout, LightShape, Params, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
@@ -60,6 +61,45 @@ pub struct HsmUniform {
     pub count: u32,
     /// First receiver of this dispatch.
     pub base: u32,
+    /// Image width (packets; 0 without an image layout).
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Packet width w.
+    pub pw: u32,
+    /// Packet height h.
+    pub ph: u32,
+    /// Packets per image row.
+    pub packets_x: u32,
+    /// Packets in all.
+    pub packets: u32,
+    /// 1: coherence test on.
+    pub coherence: u32,
+    /// Td.
+    pub td: f32,
+    /// Q_e.
+    pub qe: f32,
+    /// Q_v.
+    pub qv: f32,
+    /// Far plane (empty samples' depth in eq. 4).
+    pub far: f32,
+    /// Padding.
+    pub _pad: u32,
+}
+
+/// Per-receiver state between the passes (mirrors `PrepGpu`): kernel cells, nudged texel
+/// coordinates, state (0 done, 2 penumbra still to evaluate), centre status.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PrepGpu {
+    /// Kernel cells `[x0, y0, x1, y1)`.
+    pub cr: [i32; 4],
+    /// Nudged `(u_p, v_p)`.
+    pub q: [f32; 2],
+    /// State.
+    pub state: u32,
+    /// Centre status.
+    pub centre: u32,
 }
 
 /// One receiver as the kernel reads it (mirrors `RecIn`): texel coordinates, `z_p` and the
@@ -83,14 +123,20 @@ pub struct GpuPacketHsm {
     ctx: Arc<GpuContext>,
     cpu: CpuPacketHsm,
     layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    prepare: wgpu::ComputePipeline,
+    packets: wgpu::ComputePipeline,
+    pixels: wgpu::ComputePipeline,
     report: Report,
 }
+
+/// What one sub-light's dispatches return: per receiver (V before the facing factor, visited
+/// nodes), and the packet counters (packets, coherent, rejected, diverged).
+pub type SublightOutput = (Vec<[f32; 2]>, [u32; 4]);
 
 impl GpuPacketHsm {
     /// With default parameters, compiling the kernel on `ctx`'s device.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let (layout, pipeline) = ctx.scoped(LABEL, || {
+        let (layout, prepare, packets, pixels) = ctx.scoped(LABEL, || {
             let module = ctx
                 .device
                 .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -121,6 +167,8 @@ impl GpuPacketHsm {
                         buffer(5, ro),
                         buffer(6, ro),
                         buffer(7, wgpu::BufferBindingType::Storage { read_only: false }),
+                        buffer(8, wgpu::BufferBindingType::Storage { read_only: false }),
+                        buffer(9, wgpu::BufferBindingType::Storage { read_only: false }),
                     ],
                 });
             let pl = ctx
@@ -130,23 +178,26 @@ impl GpuPacketHsm {
                     bind_group_layouts: &[Some(&layout)],
                     immediate_size: 0,
                 });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(LABEL),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some("estimate"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            (layout, pipeline)
+            let make = |entry: &str| {
+                ctx.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(LABEL),
+                        layout: Some(&pl),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            };
+            (layout, make("prepare"), make("packets"), make("pixels"))
         })?;
         Ok(GpuPacketHsm {
             ctx,
             cpu: CpuPacketHsm::new()?,
             layout,
-            pipeline,
+            prepare,
+            packets,
+            pixels,
             report: Report::default(),
         })
     }
@@ -174,13 +225,15 @@ impl GpuPacketHsm {
     }
 
     /// V before the facing factor and the visited nodes of every receiver of `recs` for one
-    /// sub-light, on the GPU.
+    /// sub-light, on the GPU: `prepare`, then `packets` when `layout` is given and the packet is
+    /// larger than 1x1, then `pixels`; and the packet counters.
     pub fn run_sublight(
         &self,
         sv: &SubView,
         cfg: &Config,
         recs: &[RecIn],
-    ) -> Result<Vec<[f32; 2]>> {
+        layout: Option<ImageLayout>,
+    ) -> Result<SublightOutput> {
         let ctx = &*self.ctx;
         let limit = ctx.limits().max_storage_buffer_binding_size;
         let grid = sv.grid(cfg);
@@ -197,13 +250,19 @@ impl GpuPacketHsm {
             dmin.extend_from_slice(a);
             dmax.extend_from_slice(b);
         }
+        if recs.is_empty() {
+            return Ok((Vec::new(), [0; 4]));
+        }
         let b_depth = self.storage("packet-hsm depth", bytemuck::cast_slice(grid.depth), limit)?;
         let b_class = self.storage("packet-hsm class", bytemuck::cast_slice(grid.class), limit)?;
         let b_mssm = self.storage("packet-hsm mssm", bytemuck::cast_slice(&mssm), limit)?;
         let b_dmin = self.storage("packet-hsm dual min", bytemuck::cast_slice(&dmin), limit)?;
         let b_dmax = self.storage("packet-hsm dual max", bytemuck::cast_slice(&dmax), limit)?;
         let b_recs = self.storage("packet-hsm receivers", bytemuck::cast_slice(recs), limit)?;
-        let out_bytes = (recs.len().max(1) * 8) as u64;
+        let zero_prep = vec![PrepGpu::zeroed(); recs.len()];
+        let b_prep = self.storage("packet-hsm prep", bytemuck::cast_slice(&zero_prep), limit)?;
+        let b_count = self.storage("packet-hsm counters", &[0u8; 16], limit)?;
+        let out_bytes = (recs.len() * 8) as u64;
         if out_bytes > limit {
             return Err(Error::Limit {
                 what: "packet-hsm output bytes",
@@ -222,26 +281,55 @@ impl GpuPacketHsm {
         let view = &sv.ls.view;
         let max_groups = ctx.limits().max_compute_workgroups_per_dimension.max(1);
         let per = (max_groups * WORKGROUP) as usize;
+        let (pw, ph) = cfg.packet;
+        let packet_mode = layout.is_some() && (pw, ph) != (1, 1);
+        let (width, height) = layout.map_or((0, 0), |l| (l.width, l.height));
+        let packets_x = if packet_mode { width.div_ceil(pw) } else { 0 };
+        let packets = if packet_mode {
+            packets_x * height.div_ceil(ph)
+        } else {
+            0
+        };
+        if packets as usize > per {
+            return Err(Error::Limit {
+                what: "packet-hsm packets per dispatch",
+                requested: packets as u64,
+                max: per as u64,
+            });
+        }
+        let uniform = |count: usize, base: usize| HsmUniform {
+            r,
+            padded: d.size(),
+            mssm_levels: m.levels().max(1),
+            dual_levels: d.levels().max(1),
+            alpha: view.alpha(),
+            n: view.n,
+            k: view.delta() / view.n,
+            hierarchy: cfg.hierarchy as u32,
+            hx: sv.half.x,
+            hy: sv.half.y,
+            count: count as u32,
+            base: base as u32,
+            width,
+            height,
+            pw,
+            ph,
+            packets_x,
+            packets,
+            coherence: cfg.coherence as u32,
+            td: cfg.td as f32,
+            qe: cfg.qe as f32,
+            qv: cfg.qv as f32,
+            far: view.far,
+            _pad: 0,
+        };
         ctx.scoped(LABEL, || {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
-            let mut base = 0usize;
-            let mut uniforms = Vec::new();
-            while base < recs.len() {
-                let count = (recs.len() - base).min(per);
-                let un = HsmUniform {
-                    r,
-                    padded: d.size(),
-                    mssm_levels: m.levels().max(1),
-                    dual_levels: d.levels().max(1),
-                    alpha: view.alpha(),
-                    n: view.n,
-                    k: view.delta() / view.n,
-                    hierarchy: cfg.hierarchy as u32,
-                    hx: sv.half.x,
-                    hy: sv.half.y,
-                    count: count as u32,
-                    base: base as u32,
-                };
+            let mut keep = Vec::new();
+            let mut dispatch = |enc: &mut wgpu::CommandEncoder,
+                                pipe: &wgpu::ComputePipeline,
+                                un: HsmUniform,
+                                groups: u32| {
                 let ub = ctx
                     .device
                     .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -250,7 +338,8 @@ impl GpuPacketHsm {
                         usage: wgpu::BufferUsages::UNIFORM,
                     });
                 let bufs = [
-                    &ub, &b_depth, &b_class, &b_mssm, &b_dmin, &b_dmax, &b_recs, &out,
+                    &ub, &b_depth, &b_class, &b_mssm, &b_dmin, &b_dmax, &b_recs, &out, &b_prep,
+                    &b_count,
                 ];
                 let entries: Vec<wgpu::BindGroupEntry> = bufs
                     .iter()
@@ -265,25 +354,53 @@ impl GpuPacketHsm {
                     layout: &self.layout,
                     entries: &entries,
                 });
-                {
-                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some(LABEL),
-                        timestamp_writes: None,
-                    });
-                    pass.set_pipeline(&self.pipeline);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.dispatch_workgroups((count as u32).div_ceil(WORKGROUP), 1, 1);
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(LABEL),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &group, &[]);
+                pass.dispatch_workgroups(groups.max(1), 1, 1);
+                drop(pass);
+                keep.push(ub);
+            };
+            let chunks = |f: &mut dyn FnMut(usize, usize)| {
+                let mut base = 0usize;
+                while base < recs.len() {
+                    let count = (recs.len() - base).min(per);
+                    f(count, base);
+                    base += count;
                 }
-                uniforms.push(ub);
-                base += count;
+            };
+            chunks(&mut |count, base| {
+                dispatch(
+                    &mut enc,
+                    &self.prepare,
+                    uniform(count, base),
+                    (count as u32).div_ceil(WORKGROUP),
+                )
+            });
+            if packet_mode && packets > 0 {
+                dispatch(
+                    &mut enc,
+                    &self.packets,
+                    uniform(0, 0),
+                    packets.div_ceil(WORKGROUP),
+                );
             }
+            chunks(&mut |count, base| {
+                dispatch(
+                    &mut enc,
+                    &self.pixels,
+                    uniform(count, base),
+                    (count as u32).div_ceil(WORKGROUP),
+                )
+            });
             ctx.queue.submit([enc.finish()]);
         })?;
-        if recs.is_empty() {
-            return Ok(Vec::new());
-        }
         let v: Vec<[f32; 2]> = ctx.read_buffer(&out, out_bytes)?;
-        Ok(v)
+        let c: Vec<u32> = ctx.read_buffer(&b_count, 16)?;
+        Ok((v, [c[0], c[1], c[2], c[3]]))
     }
 }
 
@@ -331,6 +448,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let mut peak = 0usize;
         let mut visited = 0f64;
         let mut outside = 0usize;
+        let mut counts = [0u64; 4];
         for b in 0..s {
             for a in 0..s {
                 let t = std::time::Instant::now();
@@ -355,7 +473,10 @@ impl SoftShadowEstimator for GpuPacketHsm {
                         },
                     })
                     .collect();
-                let out = self.run_sublight(&sv, &cfg, &recs)?;
+                let (out, c) = self.run_sublight(&sv, &cfg, &recs, receivers.layout)?;
+                for (a, b) in counts.iter_mut().zip(c) {
+                    *a += b as u64;
+                }
                 for (k, su) in setups.iter().enumerate() {
                     let x = match su {
                         ReceiverSetup::Settled(x) => *x,
@@ -391,10 +512,12 @@ impl SoftShadowEstimator for GpuPacketHsm {
         rep.note("resolution", r);
         rep.note("sublights", s * s);
         rep.note("hierarchy", cfg.hierarchy);
-        rep.note(
-            "packet",
-            "per pixel on the GPU (packets are CPU-only; same V)",
-        );
+        rep.note("packet", self.cpu.params().choice("packet"));
+        rep.note("coherence", cfg.coherence);
+        rep.note("packets", counts[0]);
+        rep.note("packets_coherent", counts[1]);
+        rep.note("packets_rejected", counts[2]);
+        rep.note("packets_diverged", counts[3]);
         rep.note("visited_nodes", visited as u64);
         rep.note("out_of_frustum", outside);
         if nonfinite > 0 {

@@ -1,6 +1,10 @@
 // Twin of crates/packet-hsm/src/contour.rs (per-pixel GBP07, hierarchical extraction with an
-// explicit stack, Yang 2009 Algorithm 3) and of cpu.rs's kernel_cells and trivial classification,
-// in f32. One invocation per receiver.
+// explicit stack, Yang 2009 Algorithm 3) and of cpu.rs's kernel_cells, trivial classification,
+// packets (Algorithm 2) and coherence test (section 4.3), in f32. Three entry points, dispatched in
+// order: `prepare` (one invocation per receiver: kernel, lit / umbra, centre status),
+// `packets` (one per packet of the image layout: extended kernel, coherence test, ternary
+// contour extraction, per-pixel integration; diverging packets leave their pixels to the next
+// pass), `pixels` (one per receiver: per-pixel GBP07 for every penumbra pixel not done yet).
 //
 // Known differences from the CPU: the light-plane geometry (backprojection, clipping, sectors) and
 // the sum over edges are f32 here (f64 on the CPU); the backprojection gap is floored at 1e-7 z_p
@@ -20,7 +24,31 @@ struct HsmUniform {
     hy: f32,
     count: u32,
     base: u32,
+    width: u32,
+    height: u32,
+    pw: u32,
+    ph: u32,
+    packets_x: u32,
+    packets: u32,
+    coherence: u32,
+    td: f32,
+    qe: f32,
+    qv: f32,
+    far: f32,
+    _pad: u32,
 }
+
+// Per-receiver state between the passes (mirrors gpu.rs PrepGpu).
+struct PrepGpu {
+    cr: vec4<i32>,
+    q: vec2<f32>,
+    // STATE_*.
+    state: u32,
+    centre: u32,
+}
+
+const STATE_DONE: u32 = 0u;
+const STATE_PENUMBRA: u32 = 2u;
 
 // Mirrors gpu.rs RecIn: texel coordinates, depth z_p and classification threshold t_p;
 // zp <= 0 marks a receiver the CPU already settled (not evaluated here).
@@ -43,6 +71,10 @@ struct RecIn {
 @group(0) @binding(6) var<storage, read> recs: array<RecIn>;
 // Per receiver: V before the facing factor, nodes visited.
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;
+@group(0) @binding(8) var<storage, read_write> prep: array<PrepGpu>;
+// [0]: packets with >= 2 penumbra pixels, [1]: coherent (done packet-wise), [2]: rejected by the
+// coherence test, [3]: diverged (null status).
+@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 4>;
 
 const F32_MAX: f32 = 3.40282347e38;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
@@ -424,29 +456,38 @@ fn cell_area(i: i32, j: i32, t: f32, q: vec2<f32>, zp: f32) -> f32 {
 }
 
 @compute @workgroup_size(64)
-fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = u.base + gid.x;
     if gid.x >= u.count {
         return;
     }
+    var p: PrepGpu;
+    p.state = STATE_DONE;
+    p.centre = 0u;
+    p.cr = vec4<i32>(0);
+    p.q = vec2<f32>(0.0);
     let rec = recs[idx];
     if !(rec.zp > 0.0) {
         v_out[idx] = vec2<f32>(0.0, 0.0);
+        prep[idx] = p;
         return;
     }
     var valid = false;
     let cr = kernel_cells(rec.uv, rec.zp, &valid);
     if !valid {
         v_out[idx] = vec2<f32>(1.0, 0.0);
+        prep[idx] = p;
         return;
     }
     let mm = dual_query(cr);
     if !(mm.x < rec.t) {
         v_out[idx] = vec2<f32>(1.0, 0.0);
+        prep[idx] = p;
         return;
     }
     if mm.y < rec.t {
         v_out[idx] = vec2<f32>(0.0, 0.0);
+        prep[idx] = p;
         return;
     }
     // Centre status with the nudge of contour::Receiver::new.
@@ -463,6 +504,41 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = sample(i32(floor(q.x)), i32(floor(q.y)));
         centre = select(0u, 1u, s.y < rec.t);
     }
+    p.cr = cr;
+    p.q = q;
+    p.state = STATE_PENUMBRA;
+    p.centre = centre;
+    prep[idx] = p;
+    v_out[idx] = vec2<f32>(0.0, 0.0);
+}
+
+fn finish(sum: f32, centre: u32) -> f32 {
+    let al = 4.0 * u.hx * u.hy;
+    var a = sum;
+    if centre == 1u {
+        a += al;
+    }
+    var v = 1.0 - clamp(a / al, 0.0, 1.0);
+    if !(v >= 0.0 && v <= 1.0) {
+        v = select(1.0, 0.0, centre == 1u);
+    }
+    return v;
+}
+
+// Per-pixel GBP07 for every penumbra receiver the packets pass left.
+@compute @workgroup_size(64)
+fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let idx = u.base + gid.x;
+    if gid.x >= u.count {
+        return;
+    }
+    let p = prep[idx];
+    if p.state != STATE_PENUMBRA {
+        return;
+    }
+    let rec = recs[idx];
+    let cr = p.cr;
+    let q = p.q;
     var sum = 0.0;
     var visited = 0u;
     if u.hierarchy == 0u {
@@ -474,27 +550,9 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     } else {
         var stack: array<vec3<i32>, STACK>;
-        var sp = 0u;
-        let top = u.dual_levels - 1u;
-        let span = u32(max(cr.z - cr.x, cr.w - cr.y));
-        var want = 0u;
-        if span > 1u {
-            want = 32u - countLeadingZeros(span - 1u);
-        }
-        let l0 = min(want, top);
-        let step = i32(1u << l0);
-        let x0 = cr.x + 1;
-        let y0 = cr.y + 1;
+        var sp = push_roots(&stack, cr);
         let x1 = cr.z + 1;
         let y1 = cr.w + 1;
-        for (var y = y0; y < y1; y += step) {
-            for (var x = x0; x < x1; x += step) {
-                if sp < STACK {
-                    stack[sp] = vec3<i32>(x, y, i32(l0));
-                    sp += 1u;
-                }
-            }
-        }
         loop {
             if sp == 0u {
                 break;
@@ -503,41 +561,231 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
             let nd = stack[sp];
             visited += 1u;
             let l = u32(nd.z);
-            var mn = pos_inf();
-            var mx = -pos_inf();
-            if u32(nd.x) < u.padded && u32(nd.y) < u.padded {
-                let k = l * u.padded * u.padded + u32(nd.y) * u.padded + u32(nd.x);
-                mn = dual_min[k];
-                mx = dual_max[k];
-            }
+            let mm = node(nd);
             // Fig. 6 cases 4 and 5: no contour below this node.
-            if mx < rec.t || !(mn < rec.t) {
+            if mm.y < rec.t || !(mm.x < rec.t) {
                 continue;
             }
             if l == 0u {
                 sum += cell_area(nd.x - 1, nd.y - 1, rec.t, q, rec.zp);
                 continue;
             }
-            let h = i32(1u << (l - 1u));
-            let kids = array<vec2<i32>, 4>(vec2<i32>(h, h), vec2<i32>(0, h), vec2<i32>(h, 0), vec2<i32>(0, 0));
-            for (var c = 0u; c < 4u; c++) {
-                let cx = nd.x + kids[c].x;
-                let cy = nd.y + kids[c].y;
-                if cx < x1 && cy < y1 && sp < STACK {
-                    stack[sp] = vec3<i32>(cx, cy, i32(l) - 1);
-                    sp += 1u;
+            sp = push_children(&stack, sp, nd, x1, y1);
+        }
+    }
+    v_out[idx] = vec2<f32>(finish(sum, p.centre), v_out[idx].y + f32(visited));
+}
+
+// Min/max of a padded dual-MSSM node (x, y, level); EMPTY outside.
+fn node(nd: vec3<i32>) -> vec2<f32> {
+    if u32(nd.x) < u.padded && u32(nd.y) < u.padded {
+        let k = u32(nd.z) * u.padded * u.padded + u32(nd.y) * u.padded + u32(nd.x);
+        return vec2<f32>(dual_min[k], dual_max[k]);
+    }
+    return vec2<f32>(pos_inf(), -pos_inf());
+}
+
+// The start nodes of contour::extract: the lowest level covering the kernel from its top-left
+// corner (tiled with top-level nodes above the top level). Returns the stack size.
+fn push_roots(stack: ptr<function, array<vec3<i32>, STACK>>, cr: vec4<i32>) -> u32 {
+    var sp = 0u;
+    let top = u.dual_levels - 1u;
+    let span = u32(max(cr.z - cr.x, cr.w - cr.y));
+    var want = 0u;
+    if span > 1u {
+        want = 32u - countLeadingZeros(span - 1u);
+    }
+    let l0 = min(want, top);
+    let step = i32(1u << l0);
+    for (var y = cr.y + 1; y < cr.w + 1; y += step) {
+        for (var x = cr.x + 1; x < cr.z + 1; x += step) {
+            if sp < STACK {
+                (*stack)[sp] = vec3<i32>(x, y, i32(l0));
+                sp += 1u;
+            }
+        }
+    }
+    return sp;
+}
+
+fn push_children(stack: ptr<function, array<vec3<i32>, STACK>>, sp0: u32, nd: vec3<i32>, x1: i32, y1: i32) -> u32 {
+    var sp = sp0;
+    let h = i32(1u << (u32(nd.z) - 1u));
+    let kids = array<vec2<i32>, 4>(vec2<i32>(h, h), vec2<i32>(0, h), vec2<i32>(h, 0), vec2<i32>(0, 0));
+    for (var c = 0u; c < 4u; c++) {
+        let cx = nd.x + kids[c].x;
+        let cy = nd.y + kids[c].y;
+        if cx < x1 && cy < y1 && sp < STACK {
+            (*stack)[sp] = vec3<i32>(cx, cy, nd.z - 1);
+            sp += 1u;
+        }
+    }
+    return sp;
+}
+
+const MAX_PACKET: u32 = 64u;
+
+// cpu.rs coherence (Yang eq. 4, 5, 6) in f32.
+fn packet_coherent(k: vec4<i32>, tmin: f32, tmax: f32, sides: ptr<function, array<u32, MAX_PACKET>>, n: u32) -> bool {
+    let mm = dual_query(k);
+    let zmin = min(mm.x, u.far);
+    let zmax = min(mm.y, u.far);
+    let inter = max(min(tmax, zmax) - max(tmin, zmin), 0.0);
+    let range = zmax - zmin;
+    var p_null = 0.0;
+    if range > 0.0 {
+        p_null = min(inter / range, 1.0);
+    } else if tmin <= zmin && zmin < tmax {
+        p_null = 1.0;
+    }
+    let wbar = f32(max(max(k.z - k.x, k.w - k.y), 1));
+    let p_d = 1.0 - pow(1.0 - p_null, wbar * wbar);
+    if p_d > u.td {
+        return false;
+    }
+    let packet = log2(wbar) * wbar + (u.qe + u.qv * f32(n)) * wbar;
+    var pixels = 0.0;
+    for (var i = 0u; i < n; i++) {
+        let w = f32(max((*sides)[i], 1u));
+        pixels += log2(w) * w + (u.qe + u.qv) * w;
+    }
+    return packet <= pixels;
+}
+
+// Yang Algorithm 2 for one packet (cpu.rs estimate_sublight, packet branch).
+@compute @workgroup_size(64)
+fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pk = gid.x;
+    if pk >= u.packets {
+        return;
+    }
+    let px = (pk % u.packets_x) * u.pw;
+    let py = (pk / u.packets_x) * u.ph;
+    var ids: array<u32, MAX_PACKET>;
+    var sides: array<u32, MAX_PACKET>;
+    var sums: array<f32, MAX_PACKET>;
+    var n = 0u;
+    var k = vec4<i32>(0);
+    var tmin = 0.0;
+    var tmax = 0.0;
+    for (var dy = 0u; dy < u.ph; dy++) {
+        for (var dx = 0u; dx < u.pw; dx++) {
+            let x = px + dx;
+            let y = py + dy;
+            if x >= u.width || y >= u.height {
+                continue;
+            }
+            let idx = y * u.width + x;
+            let p = prep[idx];
+            if p.state != STATE_PENUMBRA || n >= MAX_PACKET {
+                continue;
+            }
+            let t = recs[idx].t;
+            if n == 0u {
+                k = p.cr;
+                tmin = t;
+                tmax = t;
+            } else {
+                k = vec4<i32>(min(k.xy, p.cr.xy), max(k.zw, p.cr.zw));
+                tmin = min(tmin, t);
+                tmax = max(tmax, t);
+            }
+            ids[n] = idx;
+            sides[n] = u32(max(max(p.cr.z - p.cr.x, p.cr.w - p.cr.y), 0));
+            sums[n] = 0.0;
+            n += 1u;
+        }
+    }
+    if n < 2u {
+        return;
+    }
+    atomicAdd(&counters[0], 1u);
+    if u.coherence != 0u && !packet_coherent(k, tmin, tmax, &sides, n) {
+        atomicAdd(&counters[2], 1u);
+        return;
+    }
+    var visited = 0u;
+    var stack: array<vec3<i32>, STACK>;
+    var sp = 0u;
+    var fi = k.x;
+    var fj = k.y;
+    if u.hierarchy != 0u {
+        sp = push_roots(&stack, k);
+    }
+    let x1 = k.z + 1;
+    let y1 = k.w + 1;
+    loop {
+        // Next cell: flat scan, or the next level-0 node of the traversal.
+        var ci = 0;
+        var cj = 0;
+        if u.hierarchy == 0u {
+            if fj >= k.w {
+                break;
+            }
+            ci = fi;
+            cj = fj;
+            fi += 1;
+            if fi >= k.z {
+                fi = k.x;
+                fj += 1;
+            }
+            visited += 1u;
+        } else {
+            if sp == 0u {
+                break;
+            }
+            sp -= 1u;
+            let nd = stack[sp];
+            visited += 1u;
+            let mm = node(nd);
+            if mm.y < tmin || !(mm.x < tmax) {
+                continue;
+            }
+            if nd.z > 0 {
+                sp = push_children(&stack, sp, nd, x1, y1);
+                continue;
+            }
+            ci = nd.x - 1;
+            cj = nd.y - 1;
+        }
+        // Ternary status (Yang eq. 3, strict form).
+        var occ = 0u;
+        var z = vec4<f32>(0.0);
+        var null_status = false;
+        let offs = array<vec2<i32>, 4>(vec2<i32>(0, 0), vec2<i32>(1, 0), vec2<i32>(1, 1), vec2<i32>(0, 1));
+        for (var c = 0u; c < 4u; c++) {
+            let s = sample(ci + offs[c].x, cj + offs[c].y);
+            z[c] = s.x;
+            if s.y < tmin {
+                occ |= 1u << c;
+            } else if s.y < tmax {
+                null_status = true;
+            }
+        }
+        if null_status {
+            atomicAdd(&counters[3], 1u);
+            return;
+        }
+        let cell = cell_edges(ci, cj, occ, z);
+        if cell.n == 0u {
+            continue;
+        }
+        for (var i = 0u; i < n; i++) {
+            let p = prep[ids[i]];
+            if ci >= p.cr.x && ci < p.cr.z && cj >= p.cr.y && cj < p.cr.w {
+                let r = recs[ids[i]];
+                sums[i] += edge_area(cell.e0, p.q, r.zp);
+                if cell.n == 2u {
+                    sums[i] += edge_area(cell.e1, p.q, r.zp);
                 }
             }
         }
     }
-    let al = 4.0 * u.hx * u.hy;
-    var a = sum;
-    if centre == 1u {
-        a += al;
+    atomicAdd(&counters[1], 1u);
+    let share = f32(visited) / f32(n);
+    for (var i = 0u; i < n; i++) {
+        let idx = ids[i];
+        v_out[idx] = vec2<f32>(finish(sums[i], prep[idx].centre), share);
+        prep[idx].state = STATE_DONE;
     }
-    var v = 1.0 - clamp(a / al, 0.0, 1.0);
-    if !(v >= 0.0 && v <= 1.0) {
-        v = select(1.0, 0.0, centre == 1u);
-    }
-    v_out[idx] = vec2<f32>(v, f32(visited));
 }

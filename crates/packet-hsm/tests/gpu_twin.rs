@@ -1,6 +1,8 @@
-//! The GPU twin against the CPU twin (both build the same light-space data on the CPU; the GPU
-//! evaluates per pixel with the hierarchy on or off, the CPU with random packets, hierarchy and
-//! coherence switches: the exactness of the accelerations makes them comparable).
+//! The GPU twin against the CPU twin on random scenes, both with the same random packet size,
+//! hierarchy, coherence, sub-lights and self-shadow settings (both build the same light-space
+//! data on the CPU). Besides V, the packet counters must agree: the same packets (same penumbra
+//! pixels) and, without the coherence test (f32 on the GPU, f64 on the CPU), the same coherent and
+//! diverging packets; and the GPU packets pass must have run.
 //!
 //! Tolerance: the GPU does the light-plane geometry and the edge sum in f32 (the CPU in f64).
 //! Per receiver `|dV| <= TWIN_TOL` on at least `TWIN_MIN_WITHIN` of the active receivers, and
@@ -99,6 +101,7 @@ fn gpu_twin_matches_cpu_twin() {
     let c = CpuPacketHsm::new().unwrap();
     assert_eq!(g.borrow().name(), c.name());
     assert_eq!(g.borrow().params().specs(), c.params().specs());
+    let gpu_packets = RefCell::new(0u64);
     let mut runner = TestRunner::new(ProptestConfig {
         cases: cases(),
         ..ProptestConfig::default()
@@ -113,19 +116,21 @@ fn gpu_twin_matches_cpu_twin() {
         prop::sample::select(vec![32u32, 64, 128]),
         any::<bool>(),
         any::<bool>(),
-        prop::sample::select(vec!["1", "2"]),
+        (prop::sample::select(vec!["1", "2"]), any::<bool>()),
         prop::sample::select(vec!["1x1", "2x2", "3x3", "4x2", "8x8"]),
     );
     runner
         .run(
             &strat,
-            |(light, height, squares, res, hier, bias, sl, packet)| {
+            |(light, height, squares, res, hier, bias, (sl, coh), packet)| {
                 let s = scene(light, height, &squares);
                 let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
                 let res = res.to_string();
                 let hier = hier.to_string();
                 let ss = if bias { "bias" } else { "midpoint" };
+                let coh = coh.to_string();
                 let kv = [
+                    ("coherence", coh.as_str()),
                     ("resolution", res.as_str()),
                     ("hierarchy", hier.as_str()),
                     ("self_shadow", ss),
@@ -136,8 +141,23 @@ fn gpu_twin_matches_cpu_twin() {
                 for (k, v) in kv {
                     g.set_param(k, v).unwrap();
                 }
-                let vg = run(&mut *g, &s, &rec).unwrap().0;
-                let vc = run(&mut hsm(&kv), &s, &rec).unwrap().0;
+                let (vg, rg) = run(&mut *g, &s, &rec).unwrap();
+                let (vc, rc) = run(&mut hsm(&kv), &s, &rec).unwrap();
+                // Same penumbra pixels, so the same packets; without the (f32 vs f64) coherence
+                // test the same packets go packet-wise and the same ones diverge.
+                let note = |r: &shadow_map_core::Report, k: &str| {
+                    r.notes
+                        .iter()
+                        .find(|n| n.0 == k)
+                        .map(|n| n.1.clone())
+                        .unwrap_or_default()
+                };
+                assert_eq!(note(&rg, "packets"), note(&rc, "packets"));
+                if coh == "false" {
+                    assert_eq!(note(&rg, "packets_coherent"), note(&rc, "packets_coherent"));
+                    assert_eq!(note(&rg, "packets_diverged"), note(&rc, "packets_diverged"));
+                }
+                *gpu_packets.borrow_mut() += note(&rg, "packets_coherent").parse::<u64>().unwrap();
                 let (f, worst) = compare(&vc, &vg, &rec, &format!("{kv:?}"));
                 eprintln!("gpu twin {kv:?}: within {f:.4}, worst {worst:e}");
                 Ok(())

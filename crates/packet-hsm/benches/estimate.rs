@@ -1,0 +1,66 @@
+//! Criterion bench of the estimate stage: per-pixel GBP07 (flat) vs hierarchy vs packets +
+//! hierarchy, on the bunny fixture at 160x120, r = 512, under the fixture's light and a 2x light.
+//! `cargo bench -p packet-hsm --bench estimate`
+use criterion::{criterion_group, criterion_main, Criterion};
+use packet_hsm::CpuPacketHsm;
+use shadow_map_core::{Receivers, Scene, SceneBvh, SoftShadowEstimator};
+
+fn bench(c: &mut Criterion) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/bunny/bunny.toml"
+    );
+    let mut scene = Scene::load(path).expect("fixture");
+    scene.camera.width = 160;
+    scene.camera.height = 120;
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let base = scene.light;
+    let mut g = c.benchmark_group("packet-hsm estimate");
+    g.sample_size(10);
+    for scale in [1.0f32, 2.0] {
+        scene.light = base.scaled(scale);
+        for (label, kv) in [
+            (
+                "gbp07",
+                [
+                    ("packet", "1x1"),
+                    ("hierarchy", "false"),
+                    ("coherence", "false"),
+                ],
+            ),
+            (
+                "hierarchy",
+                [
+                    ("packet", "1x1"),
+                    ("hierarchy", "true"),
+                    ("coherence", "true"),
+                ],
+            ),
+            (
+                "packets+hierarchy",
+                [
+                    ("packet", "3x3"),
+                    ("hierarchy", "true"),
+                    ("coherence", "true"),
+                ],
+            ),
+        ] {
+            let mut e = CpuPacketHsm::new().expect("new");
+            e.set_param("resolution", "512").expect("res");
+            for (k, v) in kv {
+                e.set_param(k, v).expect("param");
+            }
+            let mut v = vec![0.0f32; rec.len()];
+            g.bench_function(format!("{label} light x{scale}"), |b| {
+                b.iter(|| {
+                    e.build(&scene, &rec).expect("build");
+                    e.estimate(&scene, &rec, &mut v).expect("estimate");
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
