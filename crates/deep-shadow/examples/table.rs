@@ -62,6 +62,18 @@ fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
     None
 }
 
+/// The GPU's in-run insert ceiling (inserts/s): 4 M bare list inserts into a 1024^2 head buffer.
+#[cfg(feature = "gpu")]
+fn gpu_insert_ceiling() -> Option<f64> {
+    let ctx = shadow_map_core::gpu::GpuContext::shared().ok()?;
+    let g = deep_shadow::GpuDeepShadow::new(ctx).ok()?;
+    g.insert_ceiling(1024, 1 << 22, 5).ok()
+}
+#[cfg(not(feature = "gpu"))]
+fn gpu_insert_ceiling() -> Option<f64> {
+    None
+}
+
 fn accuracy() {
     let (w, h) = (env("DS_W", 160), env("DS_H", 120));
     let res = env("DS_RES", 1024).to_string();
@@ -160,34 +172,39 @@ fn note<'a>(rep: &'a shadow_map_core::Report, k: &str) -> &'a str {
         .unwrap_or("-")
 }
 
-/// In-run ceilings: sequential list inserts (head exchange + element write) per second, and
-/// random-texel taps (one load) per second, on this machine, in this process.
+/// In-run ceilings on this machine, in this process: bare list inserts per second (counter +
+/// head exchange + element write at random texels, one thread, as the CPU build's insert pass),
+/// and element reads per second streaming through memory on every core (rayon), an upper bound
+/// for list elements visited by lookups.
 fn ceilings() -> (f64, f64) {
+    use rayon::prelude::*;
     use std::sync::atomic::{AtomicU32, Ordering};
     let n = 1 << 22;
     let head: Vec<AtomicU32> = (0..1 << 20).map(|_| AtomicU32::new(u32::MAX)).collect();
-    let mut nodes = vec![0u32; n];
+    let mut nodes = vec![[0u32; 8]; n];
     let counter = AtomicU32::new(0);
     let mut x = 12345u32;
-    let t = Instant::now();
-    for _ in 0..n {
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
-        let i = counter.fetch_add(1, Ordering::Relaxed) as usize;
-        nodes[i] = head[(x >> 12) as usize].swap(i as u32, Ordering::Relaxed);
+    let mut inserts = 0.0f64;
+    for _ in 0..3 {
+        counter.store(0, Ordering::Relaxed);
+        let t = Instant::now();
+        for _ in 0..n {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let i = counter.fetch_add(1, Ordering::Relaxed) as usize;
+            nodes[i][3] = head[(x >> 12) as usize].swap(i as u32, Ordering::Relaxed);
+            nodes[i][0] = x;
+        }
+        inserts = inserts.max(n as f64 / t.elapsed().as_secs_f64());
     }
-    let inserts = n as f64 / t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let mut s = 0u64;
-    for _ in 0..n {
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
-        s += nodes[(x as usize) % n] as u64;
+    let mut taps = 0.0f64;
+    for _ in 0..3 {
+        let t = Instant::now();
+        let s: u64 = nodes.par_iter().map(|e| e[0] as u64 + e[3] as u64).sum();
+        taps = taps.max(n as f64 / t.elapsed().as_secs_f64());
+        std::hint::black_box(s);
     }
-    let taps = n as f64 / t.elapsed().as_secs_f64();
-    std::hint::black_box(s);
     (inserts, taps)
 }
 
@@ -207,13 +224,20 @@ fn speed(use_gpu: bool) {
             Box::new(CpuDeepShadow::new().unwrap())
         }
     };
-    let (ins, taps) = ceilings();
+    let (mut ins, taps) = ceilings();
     println!("## Speed ({backend}), hair fixture, {w}x{h} receivers ({} active); median of 3; ms = build + estimate", rec.active_count());
     println!(
-        "in-run ceilings (CPU, 1 thread): {:.1} M list inserts/s, {:.1} M random taps/s",
+        "in-run ceilings (CPU): {:.1} M list inserts/s (1 thread), {:.1} M element reads/s (streaming, all cores)",
         ins / 1e6,
         taps / 1e6
     );
+    if use_gpu {
+        ins = gpu_insert_ceiling().expect("GPU insert ceiling");
+        println!(
+            "in-run ceiling (GPU, ceiling_insert kernel): {:.1} M list inserts/s",
+            ins / 1e6
+        );
+    }
     let cols: Vec<(&str, Vec<(&str, &str)>)> = vec![
         ("SM", vec![("filter", "first")]),
         ("DSM", vec![("filter", "none")]),
@@ -228,8 +252,9 @@ fn speed(use_gpu: bool) {
     for c in &cols {
         print!(" {} ms |", c.0);
     }
-    println!(" fragments | build ms | inserts/s as fraction of ceiling |");
-    println!("|{}", "---|".repeat(cols.len() + 4));
+    println!(" fragments | build ms | inserts/s as fraction of insert ceiling | EDSM7 element visits/s as fraction of CPU read ceiling |");
+    println!("|{}", "---|".repeat(cols.len() + 5));
+    let mut breakdown = Vec::new();
     for res in &resolutions {
         print!("| {res} |");
         let mut last = None;
@@ -239,11 +264,30 @@ fn speed(use_gpu: bool) {
             with(e.as_mut(), kv);
             let (b, est, rep) = time(e.as_mut(), &scene, &rec, 3);
             print!(" {:.1} |", b + est);
-            last = Some((b, rep));
+            last = Some((b, est, rep));
         }
-        let (b, rep) = last.unwrap();
+        let (b, est, rep) = last.unwrap();
+        breakdown.push((
+            res.clone(),
+            rep.stages
+                .iter()
+                .map(|(k, v)| format!("{k} {v:.1}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+        ));
         let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
-        println!(" {frags} | {b:.1} | {:.3} |", frags / (b / 1e3) / ins);
+        let visits: f64 =
+            note(&rep, "elements_per_lookup").parse().unwrap_or(0.0) * rec.active_count() as f64;
+        println!(
+            " {frags} | {b:.1} | {:.3} | {:.3} |",
+            frags / (b / 1e3) / ins,
+            visits / (est / 1e3) / taps
+        );
+    }
+    println!();
+    println!("Stages of the last EDSM7 run (ms):");
+    for (res, b) in &breakdown {
+        println!("- {res}: {b}");
     }
     println!();
     println!("| speed-up ({backend}) | res | config A ms (estimate) | config B ms (estimate) | B/A - 1 | elements visited per lookup A / B | paper |");

@@ -118,11 +118,30 @@ pub fn lookup_settings(view: &LightView, s: &Settings) -> LookupSettings {
 /// Builds, processes and links the deep shadow map of `scene` in `view` on the CPU (§1.3.1 to
 /// §1.3.3).
 pub fn build_deep_map(scene: &Scene, view: &LightView, s: &Settings) -> Result<DeepShadowMap> {
+    build_deep_map_timed(scene, view, s, &mut [0.0; 4])
+}
+
+/// [`build_deep_map`], adding the milliseconds of its stages to `ms`: rasterise, insert (with any
+/// rebuilds), process, link.
+pub fn build_deep_map_timed(
+    scene: &Scene,
+    view: &LightView,
+    s: &Settings,
+    ms: &mut [f64; 4],
+) -> Result<DeepShadowMap> {
+    let t = Instant::now();
     let tris = prepare(scene, view);
     let frags = fragments(&tris, view.r);
+    ms[0] += t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
     let mut dsm = DeepShadowMap::build(&frags, view.r, s.capacity, s.max_capacity)?;
+    ms[1] += t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
     dsm.process(s.epsilon);
+    ms[2] += t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
     dsm.link();
+    ms[3] += t.elapsed().as_secs_f64() * 1e3;
     Ok(dsm)
 }
 
@@ -280,10 +299,14 @@ impl SoftShadowEstimator for CpuDeepShadow {
         let points = sublight_points(scene, s.sublights);
         let mut acc = vec![0.0f32; receivers.len()];
         let (mut t_build, mut t_est) = (0.0, 0.0);
+        let mut t_fit = 0.0;
+        let mut t_stages = [0.0f64; 4];
         let mut tally = Tally::default();
         for y in &points {
             let t = Instant::now();
+            let t_f = Instant::now();
             let (view, fit) = sublight_view(scene, receivers, *y, s.resolution, kernel_margin(&s))?;
+            t_fit += t_f.elapsed().as_secs_f64() * 1e3;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
             let map = if opaque {
                 let ls = LightSpace::build_in_view(
@@ -299,7 +322,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
                         .unwrap_or_else(|| DepthMap::empty(s.resolution)),
                 )
             } else {
-                let dsm = build_deep_map(scene, &view, &s)?;
+                let dsm = build_deep_map_timed(scene, &view, &s, &mut t_stages)?;
                 tally.fragments += dsm.stats.fragments;
                 tally.kept += dsm.stats.kept;
                 tally.capacity = tally.capacity.max(dsm.stats.capacity);
@@ -345,7 +368,21 @@ impl SoftShadowEstimator for CpuDeepShadow {
             t_est += t.elapsed().as_secs_f64() * 1e3;
         }
         let bad = finish(scene, receivers, &acc, points.len(), v);
-        self.report.stages.push(("build".into(), t_build));
+        if opaque {
+            self.report.stages.push(("build".into(), t_build));
+        } else {
+            // The build's parts (their sum is the build; `total_ms("build")` adds them up).
+            let rest = t_build - t_stages.iter().sum::<f64>() - t_fit;
+            self.report.stages.push(("build: fit view".into(), t_fit));
+            for (k, name) in ["raster", "insert", "process", "link"].iter().enumerate() {
+                self.report
+                    .stages
+                    .push((format!("build: {name}"), t_stages[k]));
+            }
+            self.report
+                .stages
+                .push(("build: other".into(), rest.max(0.0)));
+        }
         self.report.stages.push(("estimate".into(), t_est));
         tally.note(&mut self.report, opaque, points.len());
         self.report.note("non_finite", bad);

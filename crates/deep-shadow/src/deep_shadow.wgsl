@@ -420,3 +420,19 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     }
     out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
 }
+
+// The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one
+// element write) at hashed texels, nothing else. Measured by GpuDeepShadow::insert_ceiling.
+@compute @workgroup_size(64)
+fn ceiling_insert(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                  @builtin(local_invocation_id) lid: vec3<u32>) {
+    let k = linear_id(wid, nwg, lid);
+    if (k >= P.n_items) { return; }
+    var x = k * 747796405u + 2891336453u;
+    x = ((x >> ((x >> 28u) + 4u)) ^ x) * 277803737u;
+    x = (x >> 22u) ^ x;
+    let e = atomicAdd(&counters.count, 1u);
+    if (e >= P.capacity) { return; }
+    nodes[e].depth = f32(k);
+    nodes[e].next = atomicExchange(&head[x % (P.r * P.r)], e);
+}

@@ -184,11 +184,14 @@ impl DeepShadowMap {
         let res: Vec<(u64, u32)> = self
             .head
             .par_iter()
-            .map(|&h| {
-                let p = ptr;
-                // SAFETY: only the elements of this texel's list are touched.
-                unsafe { process_list(p.0, h, epsilon) }
-            })
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |scratch, &h| {
+                    let p = ptr;
+                    // SAFETY: only the elements of this texel's list are touched.
+                    unsafe { process_list(p.0, h, epsilon, scratch) }
+                },
+            )
             .collect();
         self.stats.kept = res.iter().map(|r| r.0).sum();
         self.stats.max_len = res.iter().map(|r| r.1).max().unwrap_or(0);
@@ -362,18 +365,25 @@ pub fn soft_tau(nodes: &[Node], k: u32, d: f32, c_world: f32) -> f32 {
 ///
 /// # Safety
 /// `nodes` must point at the element buffer and no other thread may touch this list.
-unsafe fn process_list(nodes: *mut Node, head: u32, epsilon: f32) -> (u64, u32) {
+unsafe fn process_list(
+    nodes: *mut Node,
+    head: u32,
+    epsilon: f32,
+    (idx, pay): &mut (Vec<u32>, Vec<(f32, f32)>),
+) -> (u64, u32) {
     if head == NIL {
         return (0, 0);
     }
     let at = |i: u32| unsafe { &mut *nodes.add(i as usize) };
-    let mut idx = Vec::new();
+    idx.clear();
+    pay.clear();
     let mut e = head;
     while e != NIL {
         idx.push(e);
-        e = at(e).next;
+        let n = at(e);
+        pay.push((n.depth, n.alpha));
+        e = n.next;
     }
-    let mut pay: Vec<(f32, f32)> = idx.iter().map(|&i| (at(i).depth, at(i).alpha)).collect();
     // Insertion sort (the paper's choice, §1.3.2), by (depth, alpha).
     for a in 1..pay.len() {
         let x = pay[a];
@@ -386,7 +396,7 @@ unsafe fn process_list(nodes: *mut Node, head: u32, epsilon: f32) -> (u64, u32) 
     }
     let mut tau = 1.0f32;
     let mut kept = idx.len();
-    for (k, (&i, &(z, al))) in idx.iter().zip(&pay).enumerate() {
+    for (k, (&i, &(z, al))) in idx.iter().zip(pay.iter()).enumerate() {
         tau *= 1.0 - al;
         let n = at(i);
         n.depth = z;

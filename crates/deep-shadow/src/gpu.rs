@@ -54,6 +54,7 @@ struct Pipelines {
     link: wgpu::ComputePipeline,
     lookup: wgpu::ComputePipeline,
     lookup_opaque: wgpu::ComputePipeline,
+    ceiling_insert: wgpu::ComputePipeline,
 }
 
 /// A deep shadow map (or, for an opaque scene, a plain depth map) living on the GPU.
@@ -144,6 +145,7 @@ impl GpuDeepShadow {
                 link: mk("link"),
                 lookup: mk("lookup"),
                 lookup_opaque: mk("lookup_opaque"),
+                ceiling_insert: mk("ceiling_insert"),
                 layout,
             }
         })?;
@@ -419,6 +421,71 @@ impl GpuDeepShadow {
             }
             capacity = count;
         }
+    }
+
+    /// The in-run ceiling of the build: bare list inserts per second (`ceiling_insert` in the
+    /// WGSL: counter, head exchange, one element write; `n` inserts into an `r x r` head buffer),
+    /// the best of `reps` wall-clock runs of one submit and one wait.
+    pub fn insert_ceiling(&self, r: u32, n: u32, reps: u32) -> Result<f64> {
+        let ctx = &self.ctx;
+        let texels = r as u64 * r as u64;
+        let mk = |label, size: u64| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let map = GpuMap {
+            r,
+            head: mk("ceiling head", texels * 4),
+            nodes: mk(
+                "ceiling elements",
+                n as u64 * std::mem::size_of::<Node>() as u64,
+            ),
+            counters: mk("ceiling counters", 8),
+            opaque: false,
+            stats: BuildStats::default(),
+        };
+        let u = self.uniform(&DsUniform {
+            r,
+            capacity: n,
+            n_items: n,
+            n_queries: 0,
+            epsilon: 0.0,
+            filter_mode: 0,
+            kernel: 1,
+            traversal: 0,
+            c_world: 0.0,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
+        });
+        let dummy = self.storage("ceiling unused (read)", &[0u8; 16]);
+        let dummy_rw = self.storage("ceiling unused (write)", &[0u8; 16]);
+        let group = self.group(&u, &dummy, &dummy, &map, &dummy, &dummy_rw);
+        let mut best = f64::INFINITY;
+        for _ in 0..reps.max(1) {
+            let t = Instant::now();
+            ctx.scoped("deep-shadow insert ceiling", || {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                enc.clear_buffer(&map.counters, 0, None);
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("deep-shadow insert ceiling"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.set_pipeline(&self.pipes.ceiling_insert);
+                    dispatch(&mut pass, n as u64);
+                }
+                ctx.queue.submit([enc.finish()]);
+            })?;
+            ctx.wait()?;
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        Ok(n as f64 / best)
     }
 
     /// Reads a GPU map back as the CPU twin's structure (for tests).

@@ -1,0 +1,109 @@
+//! Criterion benchmarks of the deep shadow map stages on the hair fixture (320x240 receivers,
+//! resolution 512): fragment rasterisation, list build, processing, linking, lookups with each
+//! filter and traversal on the CPU, and the whole estimator on the GPU when an adapter exists.
+//! Ids: `deep-shadow/<backend>/<stage>`. Run: `cargo bench -p deep-shadow --bench deep_shadow`.
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use deep_shadow::{
+    cpu::{lookup_settings, query, sublight_view, Query},
+    dsm::DeepShadowMap,
+    params::Settings,
+    raster::{fragments, prepare},
+    CpuDeepShadow,
+};
+use glam::Vec2;
+use shadow_map_core::{Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use std::hint::black_box;
+
+const R: u32 = 512;
+
+fn setup() -> (Scene, Receivers) {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/hair/hair.toml");
+    let mut scene = Scene::load(path).expect("fixture");
+    scene.camera.width = 320;
+    scene.camera.height = 240;
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    (scene, rec)
+}
+
+fn bench(c: &mut Criterion) {
+    let (scene, rec) = setup();
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    s.resolution = R;
+    s.kernel = 7;
+    let (view, _) = sublight_view(&scene, &rec, Vec2::ZERO, R, 3).unwrap();
+    let tris = prepare(&scene, &view);
+    let frags = fragments(&tris, R);
+    let mut g = c.benchmark_group("deep-shadow");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(frags.len() as u64));
+    g.bench_function("cpu/raster", |b| b.iter(|| fragments(black_box(&tris), R)));
+    g.bench_function("cpu/insert", |b| {
+        b.iter(|| DeepShadowMap::build(black_box(&frags), R, 0, 1 << 26).unwrap())
+    });
+    let built = DeepShadowMap::build(&frags, R, 0, 1 << 26).unwrap();
+    g.bench_function("cpu/process", |b| {
+        b.iter(|| {
+            let mut d = built.clone();
+            d.process(black_box(0.001));
+            d
+        })
+    });
+    let mut processed = built.clone();
+    processed.process(0.001);
+    g.bench_function("cpu/link", |b| {
+        b.iter(|| {
+            let mut d = processed.clone();
+            d.link();
+            d
+        })
+    });
+    let mut dsm = processed.clone();
+    dsm.link();
+    let looks: Vec<(Vec2, f32)> = (0..rec.len())
+        .filter(|&k| rec.active[k])
+        .filter_map(|k| match query(&view, rec.position[k], rec.normal[k], &s) {
+            Query::Look { uv, d } => Some((uv, d)),
+            Query::Fixed(_) => None,
+        })
+        .collect();
+    g.throughput(Throughput::Elements(looks.len() as u64));
+    for (label, filter, kernel) in [
+        ("none", "none", "1"),
+        ("pcf3", "pcf", "3"),
+        ("pcf7", "pcf", "7"),
+        ("edsm7", "edsm", "7"),
+    ] {
+        for traversal in ["linked", "naive"] {
+            let mut p = CpuDeepShadow::new().unwrap();
+            p.set_param("filter", filter).unwrap();
+            p.set_param("kernel", kernel).unwrap();
+            p.set_param("traversal", traversal).unwrap();
+            let ls = lookup_settings(&view, &p.settings());
+            g.bench_function(format!("cpu/lookup/{label}/{traversal}"), |b| {
+                b.iter(|| {
+                    looks
+                        .iter()
+                        .map(|(uv, d)| dsm.transmittance(*uv, *d, &ls).0)
+                        .sum::<f32>()
+                })
+            });
+        }
+    }
+    #[cfg(feature = "gpu")]
+    if let Ok(ctx) = shadow_map_core::gpu::GpuContext::shared() {
+        let mut e = deep_shadow::GpuDeepShadow::new(ctx).unwrap();
+        for (k, v) in [("resolution", "512"), ("filter", "edsm"), ("kernel", "7")] {
+            e.set_param(k, v).unwrap();
+        }
+        let mut v = vec![0.0f32; rec.len()];
+        g.bench_function("gpu/estimate/edsm7", |b| {
+            b.iter(|| e.estimate(&scene, &rec, black_box(&mut v)).unwrap())
+        });
+    } else {
+        eprintln!("deep-shadow bench: no GPU adapter, GPU benchmark skipped");
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
