@@ -286,10 +286,15 @@ fn gpu_estimator_matches_the_cpu_estimator_on_fixtures() {
                 r.notes.iter().find(|n| n.0 == k).map(|n| n.1.clone())
             };
             assert_eq!(note(&rc, "path"), note(&rg, "path"));
-            assert_eq!(
-                note(&rc, "fragments"),
-                note(&rg, "fragments"),
-                "{name} {kv:?}"
+            // Fragment counts agree up to coverage ties: texel centres within ~1e-6 texel of an
+            // arbitrary edge, decided in f32 on the GPU and f64 on the CPU (1 in 2e5 on hair).
+            let frags = |r: &shadow_map_core::Report| -> i64 {
+                note(r, "fragments").map_or(0, |f| f.parse().unwrap())
+            };
+            let (fc, fg) = (frags(&rc), frags(&rg));
+            assert!(
+                (fc - fg).abs() <= 2 + fc / 10_000,
+                "{name} {kv:?}: fragments {fc} vs {fg}"
             );
             let n = rec.active_count();
             let within = vc
