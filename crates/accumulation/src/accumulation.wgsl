@@ -309,19 +309,23 @@ fn fixed_kernel_start(u: f32, k: u32) -> i32 {
     return i32(ceil(u - 0.5 * f32(k) - 0.5));
 }
 
+// cpu::Kernel: uniform blocks (rings = false) or multi-resolution rings.
 struct Kernel {
     rect: vec4<i32>,
     step: u32,
     empty: bool,
+    rings: bool,
+    centre: vec2<i32>,
 }
 
 // Accumulator::kernel.
 fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
+    let none = vec2<i32>(0);
     if acc.kernel == KERNEL_LEXELS {
         let i0 = fixed_kernel_start(uv.x, acc.k);
         let j0 = fixed_kernel_start(uv.y, acc.k);
         let k = i32(acc.k);
-        return Kernel(vec4<i32>(i0, j0, i0 + k, j0 + k), 1u, false);
+        return Kernel(vec4<i32>(i0, j0, i0 + k, j0 + k), 1u, false, false, none);
     }
     var rect = kernel_bounds(p, r, view.n);
     if acc.kernel == KERNEL_ADAPTIVE {
@@ -329,7 +333,7 @@ fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
         for (var it = 0; it < REFINE_ROUNDS; it++) {
             let zmin = mssm_min(rect);
             if zmin >= r.z - eps {
-                return Kernel(rect, 1u, true);
+                return Kernel(rect, 1u, true, false, none);
             }
             if !(zmin > zm) {
                 break;
@@ -347,10 +351,129 @@ fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
     let nx = u32(max(rect.z - rect.x, 0));
     let ny = u32(max(rect.w - rect.y, 0));
     if nx == 0u || ny == 0u {
-        return Kernel(rect, 1u, true);
+        return Kernel(rect, 1u, true, false, none);
+    }
+    if acc.kernel == KERNEL_ADAPTIVE {
+        let c = vec2<i32>(i32(floor(uv.x + 0.5)), i32(floor(uv.y + 0.5)));
+        return Kernel(rect, 1u, false, true, c);
     }
     let step = max((max(nx, ny) + acc.k - 1u) / acc.k, 1u);
-    return Kernel(rect, step, false);
+    return Kernel(rect, step, false, false, none);
+}
+
+// What the cells accumulate.
+struct State {
+    mask: array<u32, 8>,
+    n_set: u32,
+    s_add: f32,
+}
+
+// The per-cell body of Accumulator::shadowing; true when every bit is set.
+fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: f32, eps_plane: f32, i0: i32, i1: i32, j0: i32, j1: i32) -> bool {
+    let delta = view.delta;
+    let n = view.n;
+    let r2 = vec2<f32>(r.x, r.y);
+    let ic = i0 + (i1 - i0 - 1) / 2;
+    let jc = j0 + (j1 - j0 - 1) / 2;
+    let l = view.window_min + vec2<f32>(f32(i0 + i1), f32(j0 + j1)) * (0.5 * delta);
+    for (var layer = 0u; layer < acc.layers; layer++) {
+        let cz = depth_at(ic, jc, layer);
+        if !(cz < r.z - eps) {
+            break;
+        }
+        // In front of the receiver's tangent plane.
+        let c = vec3<f32>(l.x, l.y, n) * (cz / n);
+        if !(dot3(nrm, c - r) > eps_plane) {
+            continue;
+        }
+        // math::caster.
+        if !(cz > 0.0) || !(cz < r.z) {
+            continue;
+        }
+        let gap = max(r.z - cz, 1e-7 * r.z);
+        let size = ((r.z - n) / gap) * (cz / n);
+        let lr = r2 * ((n - cz) / gap) + l * size;
+        if !is_finite(size) || !is_finite(lr.x) || !is_finite(lr.y) {
+            continue;
+        }
+        let hx = 0.5 * f32(i1 - i0) * delta * size;
+        let hy = 0.5 * f32(j1 - j0) * delta * size;
+        if acc.variant != VARIANT_EXACT {
+            if acc.overlap != 0u {
+                (*st).s_add += overlap_term(p, r, lr, hx, hy);
+            } else {
+                (*st).s_add += additive_term(p, r, lr, 4.0 * hx * hy);
+            }
+            continue;
+        }
+        for (var k = 0u; k < acc.nbits; k++) {
+            let w = k / 32u;
+            let m = 1u << (k % 32u);
+            if ((*st).mask[w] & m) != 0u {
+                continue;
+            }
+            let q = at_depth(r, embed(p, tables[HULL_SLOTS + k]), n);
+            if abs(q.x - lr.x) <= hx && abs(q.y - lr.y) <= hy {
+                (*st).mask[w] |= m;
+                (*st).n_set += 1u;
+            }
+        }
+        if (*st).n_set == acc.nbits {
+            return true;
+        }
+    }
+    return false;
+}
+
+fn floor_to(x: i32, a: i32) -> i32 {
+    return select(x / a, -((-x + a - 1) / a), x < 0) * a;
+}
+
+fn ceil_to(x: i32, a: i32) -> i32 {
+    return -floor_to(-x, a);
+}
+
+fn covers(rr: vec4<i32>, b: vec4<i32>) -> bool {
+    return rr.x <= b.x && rr.y <= b.y && rr.z >= b.z && rr.w >= b.w;
+}
+
+// cpu::for_each_ring_cell over visit.
+fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: f32, eps_plane: f32, bound: vec4<i32>, c: vec2<i32>) {
+    let m = i32(max((acc.k + 3u) / 4u, 1u));
+    var raw = vec4<i32>(c.x - m, c.y - m, c.x + m, c.y + m);
+    var inner = vec4<i32>(c.x, c.y, c.x, c.y);
+    var s = 1;
+    for (var lvl = 0; lvl < 32; lvl++) {
+        let last = covers(raw, bound);
+        let a = select(2 * s, s, last);
+        let outer = vec4<i32>(floor_to(raw.x, a), floor_to(raw.y, a), ceil_to(raw.z, a), ceil_to(raw.w, a));
+        let x0 = max(outer.x, floor_to(bound.x, s));
+        let x1 = min(outer.z, bound.z);
+        let y0 = max(outer.y, floor_to(bound.y, s));
+        let y1 = min(outer.w, bound.w);
+        for (var y = y0; y < y1; y += s) {
+            for (var x = x0; x < x1; x += s) {
+                let in_inner = x >= inner.x && x + s <= inner.z && y >= inner.y && y + s <= inner.w;
+                if !in_inner {
+                    let i0 = max(x, bound.x);
+                    let i1 = min(x + s, bound.z);
+                    let j0 = max(y, bound.y);
+                    let j1 = min(y + s, bound.w);
+                    if i0 < i1 && j0 < j1 {
+                        if visit(st, p, r, nrm, eps, eps_plane, i0, i1, j0, j1) {
+                            return;
+                        }
+                    }
+                }
+            }
+        }
+        if last || covers(outer, bound) {
+            return;
+        }
+        inner = outer;
+        s *= 2;
+        raw = vec4<i32>(outer.x - m * s, outer.y - m * s, outer.z + m * s, outer.w + m * s);
+    }
 }
 
 // Accumulator::shadowing: the shadowing factor s in [0, 1].
@@ -361,81 +484,38 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     if kr.empty {
         return 0.0;
     }
-    let rect = kr.rect;
-    let step = kr.step;
-    let delta = view.delta;
-    let n = view.n;
-    let bx = (u32(rect.z - rect.x) + step - 1u) / step;
-    let by = (u32(rect.w - rect.y) + step - 1u) / step;
-    let exact = acc.variant == VARIANT_EXACT;
-    var mask = array<u32, 8>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
-    var n_set = 0u;
-    var s_add = 0.0;
-    let r2 = vec2<f32>(r.x, r.y);
-    for (var b = 0u; b < by; b++) {
-        let j0 = rect.y + i32(b * step);
-        let j1 = min(j0 + i32(step), rect.w);
-        let jc = j0 + (j1 - j0 - 1) / 2;
-        for (var a = 0u; a < bx; a++) {
-            let i0 = rect.x + i32(a * step);
-            let i1 = min(i0 + i32(step), rect.z);
-            let ic = i0 + (i1 - i0 - 1) / 2;
-            let l = view.window_min + vec2<f32>(f32(i0 + i1), f32(j0 + j1)) * (0.5 * delta);
-            for (var layer = 0u; layer < acc.layers; layer++) {
-                let cz = depth_at(ic, jc, layer);
-                if !(cz < r.z - eps) {
+    var st = State(array<u32, 8>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u), 0u, 0.0);
+    if kr.rings {
+        rings(&st, p, r, nrm, eps, eps_plane, kr.rect, kr.centre);
+    } else {
+        let rect = kr.rect;
+        let step = kr.step;
+        let bx = (u32(rect.z - rect.x) + step - 1u) / step;
+        let by = (u32(rect.w - rect.y) + step - 1u) / step;
+        var full = false;
+        for (var b = 0u; b < by && !full; b++) {
+            let j0 = rect.y + i32(b * step);
+            let j1 = min(j0 + i32(step), rect.w);
+            for (var a = 0u; a < bx; a++) {
+                let i0 = rect.x + i32(a * step);
+                let i1 = min(i0 + i32(step), rect.z);
+                if visit(&st, p, r, nrm, eps, eps_plane, i0, i1, j0, j1) {
+                    full = true;
                     break;
-                }
-                // In front of the receiver's tangent plane.
-                let c = vec3<f32>(l.x, l.y, n) * (cz / n);
-                if !(dot3(nrm, c - r) > eps_plane) {
-                    continue;
-                }
-                // math::caster.
-                if !(cz > 0.0) || !(cz < r.z) {
-                    continue;
-                }
-                let gap = max(r.z - cz, 1e-7 * r.z);
-                let size = ((r.z - n) / gap) * (cz / n);
-                let lr = r2 * ((n - cz) / gap) + l * size;
-                if !is_finite(size) || !is_finite(lr.x) || !is_finite(lr.y) {
-                    continue;
-                }
-                let hx = 0.5 * f32(i1 - i0) * delta * size;
-                let hy = 0.5 * f32(j1 - j0) * delta * size;
-                if !exact {
-                    if acc.overlap != 0u {
-                        s_add += overlap_term(p, r, lr, hx, hy);
-                    } else {
-                        s_add += additive_term(p, r, lr, 4.0 * hx * hy);
-                    }
-                    continue;
-                }
-                for (var k = 0u; k < acc.nbits; k++) {
-                    let w = k / 32u;
-                    let m = 1u << (k % 32u);
-                    if (mask[w] & m) != 0u {
-                        continue;
-                    }
-                    let q = at_depth(r, embed(p, tables[HULL_SLOTS + k]), n);
-                    if abs(q.x - lr.x) <= hx && abs(q.y - lr.y) <= hy {
-                        mask[w] |= m;
-                        n_set += 1u;
-                    }
-                }
-                if n_set == acc.nbits {
-                    return 1.0;
                 }
             }
         }
     }
-    if exact {
-        return f32(n_set) / f32(acc.nbits);
+    if acc.variant == VARIANT_EXACT {
+        if st.n_set == acc.nbits {
+            return 1.0;
+        }
+        return f32(st.n_set) / f32(acc.nbits);
     }
-    if s_add >= 1.0 - 1e-6 {
+    if st.s_add >= 1.0 - 1e-6 {
         return 1.0;
     }
-    return clamp(s_add, 0.0, 1.0);
+    return clamp(st.s_add, 0.0, 1.0);
 }
 
 // CpuAccumulation::estimate_with, per receiver; NaN for a lit receiver outside the frustum

@@ -50,7 +50,7 @@ pub const SPECS: &[ParamSpec] = &[
         key: "kernel",
         kind: ParamKind::Choice(&["fixed", "adaptive", "lexels"]),
         default: "adaptive",
-        help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
+        help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: multi-resolution rings (single lexels near the receiver, cells doubling outwards, ~K per side per level) over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
     },
     ParamSpec {
         key: "coverage",
@@ -113,7 +113,9 @@ pub enum KernelMode {
     /// casters far from the plane are sampled coarsely.
     Fixed,
     /// Per receiver: the texels whose casters at depth `>= z_min` can reach the light, `z_min` the
-    /// MSSM minimum over that same region (refined until it stops shrinking), at most K x K taps.
+    /// MSSM minimum over that same region (refined until it stops shrinking), covered by
+    /// multi-resolution rings ([`for_each_ring_cell`]): single lexels near the receiver's
+    /// projection, cells doubling in size outwards, about K cells per side per level.
     Adaptive,
     /// The paper's kernel taken literally at this map's resolution: K x K single lexels around
     /// the receiver's projection. It covers only casters with
@@ -267,6 +269,102 @@ fn bounds_rect(b: [f32; 4], r: u32) -> [i32; 4] {
     ]
 }
 
+/// A receiver's kernel: the cells whose centre texels are read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kernel {
+    /// `step x step` blocks tiling `rect` (`[x0, y0, x1, y1)`, the last ones clipped).
+    Uniform {
+        /// The texel rectangle.
+        rect: [i32; 4],
+        /// Block side in texels.
+        step: u32,
+    },
+    /// Multi-resolution rings ([`for_each_ring_cell`]) around `centre`, clipped to `bound`.
+    Rings {
+        /// The texel rectangle the cells are clipped to.
+        bound: [i32; 4],
+        /// The texel corner nearest the receiver's projection.
+        centre: [i32; 2],
+        /// Ring width in cells.
+        m: i32,
+    },
+}
+
+/// Ring width of the adaptive kernel for kernel size K: `ceil(K / 4)` cells, so each level's
+/// square is about K cells wide.
+pub fn ring_width(k: u32) -> i32 {
+    k.div_ceil(4).max(1) as i32
+}
+
+fn floor_to(x: i32, a: i32) -> i32 {
+    x.div_euclid(a) * a
+}
+
+fn ceil_to(x: i32, a: i32) -> i32 {
+    -((-x).div_euclid(a) * a)
+}
+
+/// The adaptive kernel's cells: level 0 is single texels in `[c - m, c + m)^2`; level l has cells
+/// of side `s = 2^l` aligned to multiples of s, filling the ring between the previous level's
+/// square (extended to multiples of s) and that square grown by `m s` on every side; levels stop
+/// once a square covers `bound`. The cells tile the square exactly (no overlap, no gap), fine near
+/// the receiver's projection, where a caster close to the receiver is magnified most (its image
+/// scale `size` grows as `1 / (z_p - c_z)`), and coarse further out, where only casters near the
+/// light (small `size`) can reach the footprint. Every cell is clipped to `bound`. `f` returns
+/// true to stop.
+pub fn for_each_ring_cell(
+    bound: [i32; 4],
+    c: [i32; 2],
+    m: i32,
+    mut f: impl FnMut(i32, i32, i32, i32) -> bool,
+) {
+    let covers =
+        |r: &[i32; 4]| r[0] <= bound[0] && r[1] <= bound[1] && r[2] >= bound[2] && r[3] >= bound[3];
+    let mut raw = [c[0] - m, c[1] - m, c[0] + m, c[1] + m];
+    let mut inner = [c[0], c[1], c[0], c[1]];
+    let mut s = 1i32;
+    for _ in 0..32 {
+        let last = covers(&raw);
+        let a = if last { s } else { 2 * s };
+        let outer = [
+            floor_to(raw[0], a),
+            floor_to(raw[1], a),
+            ceil_to(raw[2], a),
+            ceil_to(raw[3], a),
+        ];
+        let (x0, x1) = (outer[0].max(floor_to(bound[0], s)), outer[2].min(bound[2]));
+        let (y0, y1) = (outer[1].max(floor_to(bound[1], s)), outer[3].min(bound[3]));
+        let mut y = y0;
+        while y < y1 {
+            let mut x = x0;
+            while x < x1 {
+                let in_inner =
+                    x >= inner[0] && x + s <= inner[2] && y >= inner[1] && y + s <= inner[3];
+                if !in_inner {
+                    let (i0, i1) = (x.max(bound[0]), (x + s).min(bound[2]));
+                    let (j0, j1) = (y.max(bound[1]), (y + s).min(bound[3]));
+                    if i0 < i1 && j0 < j1 && f(i0, i1, j0, j1) {
+                        return;
+                    }
+                }
+                x += s;
+            }
+            y += s;
+        }
+        if last || covers(&outer) {
+            return;
+        }
+        inner = outer;
+        s *= 2;
+        raw = [
+            outer[0] - m * s,
+            outer[1] - m * s,
+            outer[2] + m * s,
+            outer[3] + m * s,
+        ];
+    }
+}
+
 /// What one receiver's estimate cost (summed into the report).
 #[derive(Debug, Default, Clone, Copy)]
 pub struct TapStats {
@@ -284,9 +382,9 @@ pub struct Accumulator<'a> {
 }
 
 impl Accumulator<'_> {
-    /// The kernel of one receiver and its step: `None` when the adaptive kernel proves that no
-    /// lexel occludes (MSSM minimum at or behind the receiver).
-    pub fn kernel(&self, fp: &Footprint, uv: Vec2, zp: f32, eps: f32) -> Option<([i32; 4], u32)> {
+    /// The kernel of one receiver: `None` when the adaptive kernel proves that no lexel occludes
+    /// (MSSM minimum at or behind the receiver).
+    pub fn kernel(&self, fp: &Footprint, uv: Vec2, zp: f32, eps: f32) -> Option<Kernel> {
         let view = &self.ls.view;
         let bounds =
             |z: f32| bounds_rect(fp.texel_bounds(z, view.window_min, view.delta()), view.r);
@@ -297,7 +395,10 @@ impl Accumulator<'_> {
                     fixed_kernel_start(uv.x, self.s.k),
                     fixed_kernel_start(uv.y, self.s.k),
                 );
-                return Some(([i0, j0, i0 + k, j0 + k], 1));
+                return Some(Kernel::Uniform {
+                    rect: [i0, j0, i0 + k, j0 + k],
+                    step: 1,
+                });
             }
             KernelMode::Fixed => bounds(view.n),
             KernelMode::Adaptive => {
@@ -332,7 +433,17 @@ impl Accumulator<'_> {
         if nx == 0 || ny == 0 {
             return None;
         }
-        Some((rect, nx.max(ny).div_ceil(self.s.k).max(1)))
+        if self.s.kernel == KernelMode::Adaptive {
+            return Some(Kernel::Rings {
+                bound: rect,
+                centre: [(uv.x + 0.5).floor() as i32, (uv.y + 0.5).floor() as i32],
+                m: ring_width(self.s.k),
+            });
+        }
+        Some(Kernel::Uniform {
+            rect,
+            step: nx.max(ny).div_ceil(self.s.k).max(1),
+        })
     }
 
     /// The shadowing factor of the receiver at light-space `p` (normal `nrm`, texel coordinates
@@ -345,12 +456,10 @@ impl Accumulator<'_> {
         let eps = receiver_bias(view, p, nrm, self.s.b0, self.s.b1);
         // Tangent-plane margin: b0 texel footprints at the receiver.
         let eps_plane = view.w * zp / (view.n * view.r as f32) * self.s.b0;
-        let Some((rect, step)) = self.kernel(fp, uv, zp, eps) else {
+        let Some(kernel) = self.kernel(fp, uv, zp, eps) else {
             return 0.0;
         };
         let delta = view.delta();
-        let bx = ((rect[2] - rect[0]) as u32).div_ceil(step);
-        let by = ((rect[3] - rect[1]) as u32).div_ceil(step);
         let layers = (self.s.layers as usize).min(ls.layers.len()).max(1);
         let exact = self.s.variant == Variant::Exact;
         let nbits = (self.s.bits * self.s.bits) as usize;
@@ -358,64 +467,80 @@ impl Accumulator<'_> {
         let mut mask = [0u32; MASK_WORDS];
         let mut set = 0usize;
         let mut s_add = 0.0f32;
-        for b in 0..by {
-            let j0 = rect[1] + (b * step) as i32;
-            let j1 = (j0 + step as i32).min(rect[3]);
+        // One cell [i0, i1) x [j0, j1): its centre texel's depth stands for the whole cell (a lexel
+        // of a coarser map). Returns true when every bit is set.
+        let mut visit = |i0: i32, i1: i32, j0: i32, j1: i32| -> bool {
+            let ic = i0 + (i1 - i0 - 1) / 2;
             let jc = j0 + (j1 - j0 - 1) / 2;
-            for a in 0..bx {
-                let i0 = rect[0] + (a * step) as i32;
-                let i1 = (i0 + step as i32).min(rect[2]);
-                let ic = i0 + (i1 - i0 - 1) / 2;
-                // The cell's centre on the plane: eq. 4's l.
-                let l =
-                    view.window_min + Vec2::new((i0 + i1) as f32, (j0 + j1) as f32) * (0.5 * delta);
-                for layer in &ls.layers[..layers] {
-                    stats.taps += 1;
-                    let cz = layer.at(ic, jc);
-                    if !(cz < zp - eps) {
-                        break; // deeper layers are further still
-                    }
-                    // Only casters in front of the receiver's tangent plane can block the light
-                    // the facing factor keeps (a segment from p to a light point in front of the
-                    // plane stays in front of it): the receiver's own surface never occludes.
-                    let c = Vec3::new(l.x, l.y, view.n) * (cz / view.n);
-                    if !(nrm.dot(c - p) > eps_plane) {
-                        continue;
-                    }
-                    let Some((lr, size)) = caster(p, view.n, l, cz) else {
-                        continue;
+            // The cell's centre on the plane: eq. 4's l.
+            let l = view.window_min + Vec2::new((i0 + i1) as f32, (j0 + j1) as f32) * (0.5 * delta);
+            for layer in &ls.layers[..layers] {
+                stats.taps += 1;
+                let cz = layer.at(ic, jc);
+                if !(cz < zp - eps) {
+                    break; // deeper layers are further still
+                }
+                // Only casters in front of the receiver's tangent plane can block the light the
+                // facing factor keeps (a segment from p to a light point in front of the plane
+                // stays in front of it): the receiver's own surface never occludes.
+                let c = Vec3::new(l.x, l.y, view.n) * (cz / view.n);
+                if !(nrm.dot(c - p) > eps_plane) {
+                    continue;
+                }
+                let Some((lr, size)) = caster(p, view.n, l, cz) else {
+                    continue;
+                };
+                let hx = 0.5 * (i1 - i0) as f32 * delta * size;
+                let hy = 0.5 * (j1 - j0) as f32 * delta * size;
+                if !exact {
+                    s_add += if self.s.overlap {
+                        fp.overlap_term(lr, hx, hy)
+                    } else {
+                        fp.additive_term(lr, 4.0 * hx * hy)
                     };
-                    let hx = 0.5 * (i1 - i0) as f32 * delta * size;
-                    let hy = 0.5 * (j1 - j0) as f32 * delta * size;
-                    if !exact {
-                        s_add += if self.s.overlap {
-                            fp.overlap_term(lr, hx, hy)
-                        } else {
-                            fp.additive_term(lr, 4.0 * hx * hy)
-                        };
-                        continue;
+                    continue;
+                }
+                if bit_pts.is_empty() {
+                    let bits = self.s.bits;
+                    bit_pts = (0..nbits as u32)
+                        .map(|k| fp.to_plane(fp.patch.bit_point(k % bits, k / bits, bits)))
+                        .collect();
+                }
+                for (k, q) in bit_pts.iter().enumerate() {
+                    let (w, m) = (k / 32, 1u32 << (k % 32));
+                    if mask[w] & m == 0 && (q.x - lr.x).abs() <= hx && (q.y - lr.y).abs() <= hy {
+                        mask[w] |= m;
+                        set += 1;
                     }
-                    if bit_pts.is_empty() {
-                        let bits = self.s.bits;
-                        bit_pts = (0..nbits as u32)
-                            .map(|k| fp.to_plane(fp.patch.bit_point(k % bits, k / bits, bits)))
-                            .collect();
-                    }
-                    for (k, q) in bit_pts.iter().enumerate() {
-                        let (w, m) = (k / 32, 1u32 << (k % 32));
-                        if mask[w] & m == 0 && (q.x - lr.x).abs() <= hx && (q.y - lr.y).abs() <= hy
-                        {
-                            mask[w] |= m;
-                            set += 1;
+                }
+                if set == nbits {
+                    return true;
+                }
+            }
+            false
+        };
+        match kernel {
+            Kernel::Uniform { rect, step } => {
+                let bx = ((rect[2] - rect[0]) as u32).div_ceil(step);
+                let by = ((rect[3] - rect[1]) as u32).div_ceil(step);
+                'grid: for b in 0..by {
+                    let j0 = rect[1] + (b * step) as i32;
+                    let j1 = (j0 + step as i32).min(rect[3]);
+                    for a in 0..bx {
+                        let i0 = rect[0] + (a * step) as i32;
+                        let i1 = (i0 + step as i32).min(rect[2]);
+                        if visit(i0, i1, j0, j1) {
+                            break 'grid;
                         }
-                    }
-                    if set == nbits {
-                        return 1.0;
                     }
                 }
             }
+            Kernel::Rings { bound, centre, m } => for_each_ring_cell(bound, centre, m, visit),
         }
         if exact {
+            if set == nbits {
+                return 1.0;
+            }
             set as f32 / nbits as f32
         } else if s_add >= 1.0 - 1e-6 {
             1.0
@@ -643,4 +768,50 @@ pub fn note_settings(
         );
     }
     report.note("out_of_frustum_fit", ls.fit.out_of_frustum);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rings tile their bound exactly: every texel in exactly one cell, single texels next
+    /// to the centre.
+    #[test]
+    fn ring_cells_tile_the_bound_once() {
+        for (bound, c, m) in [
+            ([0, 0, 37, 29], [11, 13], 3),
+            ([5, 7, 300, 90], [200, 40], 1),
+            ([0, 0, 8, 8], [4, 4], 3),
+            ([10, 10, 200, 200], [10, 199], 2),
+        ] {
+            let (w, h) = (
+                (bound[2] - bound[0]) as usize,
+                (bound[3] - bound[1]) as usize,
+            );
+            let mut hits = vec![0u32; w * h];
+            let mut cells = 0;
+            for_each_ring_cell(bound, c, m, |i0, i1, j0, j1| {
+                cells += 1;
+                for j in j0..j1 {
+                    for i in i0..i1 {
+                        hits[(j - bound[1]) as usize * w + (i - bound[0]) as usize] += 1;
+                    }
+                }
+                if (c[0] - m..c[0] + m).contains(&i0) && (c[1] - m..c[1] + m).contains(&j0) {
+                    assert_eq!(
+                        (i1 - i0, j1 - j0),
+                        (1, 1),
+                        "cell near the centre is a texel"
+                    );
+                }
+                false
+            });
+            assert!(hits.iter().all(|&h| h == 1), "{bound:?} {c:?} {m}");
+            assert!(
+                cells <= w * h,
+                "{cells} cells for {} texels",
+                w * h
+            );
+        }
+    }
 }
