@@ -807,11 +807,7 @@ mod tests {
                 false
             });
             assert!(hits.iter().all(|&h| h == 1), "{bound:?} {c:?} {m}");
-            assert!(
-                cells <= w * h,
-                "{cells} cells for {} texels",
-                w * h
-            );
+            assert!(cells <= w * h, "{cells} cells for {} texels", w * h);
         }
     }
 }
