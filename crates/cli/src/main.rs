@@ -1,6 +1,7 @@
 //! `softshadow`: render a scene's visibility with any estimator, list the estimators, score an
 //! image against a reference (contract.md, "The command line").
 mod exr_io;
+mod path;
 mod score;
 
 use clap::{Parser, Subcommand};
@@ -47,6 +48,21 @@ enum Cmd {
         /// Print one JSON line with the algorithm, backend, parameters and stage times.
         #[arg(long)]
         stats: bool,
+        /// Render a camera path of N frames into numbered files (OUT.0000.exr, ...) and print a
+        /// JSON line with the frame-to-frame flicker of V at the same world points.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100000))]
+        frames: u32,
+        /// Camera path: orbit about the vertical axis through the target, DEGREES over the path.
+        #[arg(
+            long,
+            value_name = "DEGREES",
+            conflicts_with = "pan",
+            allow_hyphen_values = true
+        )]
+        orbit: Option<f32>,
+        /// Camera path: move eye and target by X,Y,Z over the path.
+        #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+        pan: Option<String>,
     },
     /// List every estimator with its parameters, defaults, ranges and a description.
     Algos {
@@ -101,15 +117,21 @@ fn main() -> ExitCode {
             out,
             png,
             stats,
-        } => render(
-            &scene,
-            &algo,
-            &backend,
-            &params,
-            &out,
-            png.as_deref(),
-            stats,
-        ),
+            frames,
+            orbit,
+            pan,
+        } => camera_path(orbit, pan.as_deref(), frames).and_then(|path| {
+            render(
+                &scene,
+                &algo,
+                &backend,
+                &params,
+                &out,
+                png.as_deref(),
+                stats,
+                path.map(|p| (p, frames as usize)),
+            )
+        }),
         Cmd::Algos { json } => algos(json),
         Cmd::Score {
             candidate,
@@ -126,6 +148,27 @@ fn main() -> ExitCode {
     }
 }
 
+fn camera_path(
+    orbit: Option<f32>,
+    pan: Option<&str>,
+    frames: u32,
+) -> Result<Option<path::CameraPath>, String> {
+    let p = match (orbit, pan) {
+        (Some(d), _) if !d.is_finite() => return Err(format!("--orbit {d}: not a finite angle")),
+        (Some(d), _) => Some(path::CameraPath::Orbit(d)),
+        (None, Some(s)) => Some(path::CameraPath::Pan(path::CameraPath::parse_pan(s)?)),
+        (None, None) => None,
+    };
+    match (p, frames) {
+        (None, f) if f > 1 => Err(format!(
+            "--frames {f} needs a camera path: --orbit DEGREES or --pan X,Y,Z"
+        )),
+        (Some(_), 1) => Err("--orbit/--pan need --frames N with N >= 2".into()),
+        (p, _) => Ok(p),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
 fn render(
     scene_path: &std::path::Path,
     algo: &str,
@@ -134,6 +177,7 @@ fn render(
     out: &std::path::Path,
     png: Option<&std::path::Path>,
     stats: bool,
+    cam_path: Option<(path::CameraPath, usize)>,
 ) -> Result<(), String> {
     let t_all = Instant::now();
     let backend = if backend == "gpu" {
@@ -146,15 +190,86 @@ fn render(
         let (k, v) = shadow_map_core::params::parse_assignment(kv).map_err(|e| e.to_string())?;
         est.set_param(k, v).map_err(|e| e.to_string())?;
     }
-    let mut stages: Vec<(String, f64)> = Vec::new();
     let t = Instant::now();
-    let scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
-    stages.push(("load".into(), ms(t)));
+    let mut scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
+    let load_ms = ms(t);
+    let Some((cam_path, frames)) = cam_path else {
+        return render_frame(
+            &scene,
+            est.as_mut(),
+            scene_path,
+            out,
+            png,
+            stats,
+            load_ms,
+            t_all,
+            None,
+        )
+        .map(|_| ());
+    };
+    let base = scene.camera;
+    let mut prev: Option<path::Frame> = None;
+    let mut samples = Vec::new();
+    for k in 0..frames {
+        scene.camera = cam_path.camera(&base, k, frames);
+        let out_k = path::numbered(out, k);
+        let png_k = png.map(|p| path::numbered(p, k));
+        let frame = render_frame(
+            &scene,
+            est.as_mut(),
+            scene_path,
+            &out_k,
+            png_k.as_deref(),
+            stats,
+            if k == 0 { load_ms } else { 0.0 },
+            Instant::now(),
+            Some(k),
+        )?;
+        if let Some(a) = &prev {
+            samples.extend(path::flicker_samples(a, &frame));
+        }
+        prev = Some(frame);
+    }
+    let (mean, p99, pairs) = path::summarize(samples);
+    let num = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
+    println!(
+        "{}",
+        json!({
+            "flicker": {
+                "algo": est.name(),
+                "backend": est.backend().to_string(),
+                "scene": scene_path.display().to_string(),
+                "frames": frames,
+                "path": format!("{cam_path:?}"),
+                "mean_abs_dv": num(mean),
+                "p99_abs_dv": num(p99),
+                "pairs": pairs,
+            }
+        })
+    );
+    let _ = t_all;
+    Ok(())
+}
+
+/// Renders one frame of `scene` (its camera) and writes it; returns what the flicker measure needs.
+#[allow(clippy::too_many_arguments)]
+fn render_frame(
+    scene: &Scene,
+    est: &mut dyn shadow_map_core::SoftShadowEstimator,
+    scene_path: &std::path::Path,
+    out: &std::path::Path,
+    png: Option<&std::path::Path>,
+    stats: bool,
+    load_ms: f64,
+    t_all: Instant,
+    frame: Option<usize>,
+) -> Result<path::Frame, String> {
+    let backend = est.backend();
+    let mut stages: Vec<(String, f64)> = vec![("load".into(), load_ms)];
     let t = Instant::now();
-    let receivers = camera_receivers(&scene, backend).map_err(|e| e.to_string())?;
+    let receivers = camera_receivers(scene, backend).map_err(|e| e.to_string())?;
     stages.push(("gbuffer".into(), ms(t)));
-    let (v, report) =
-        shadow_map_core::run(est.as_mut(), &scene, &receivers).map_err(|e| e.to_string())?;
+    let (v, report) = shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
     stages.extend(report.stages.iter().cloned());
     let t = Instant::now();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
@@ -187,7 +302,7 @@ fn render(
             .iter()
             .map(|(k, v)| (k.clone(), json!(v)))
             .collect();
-        let line = json!({
+        let mut line = json!({
             "algo": est.name(),
             "backend": est.backend().to_string(),
             "scene": scene_path.display().to_string(),
@@ -201,9 +316,17 @@ fn render(
             "light_space_bytes": report.light_space_bytes,
             "notes": notes,
         });
+        if let Some(k) = frame {
+            line["frame"] = json!(k);
+        }
         println!("{line}");
     }
-    Ok(())
+    Ok(path::Frame {
+        camera: scene.camera,
+        position: receivers.position,
+        active: receivers.active,
+        v,
+    })
 }
 
 /// The camera's G-buffer: rasterised on the GPU for `--backend gpu`, ray cast through the BVH

@@ -199,3 +199,63 @@ fn bad_input_is_one_line_and_writes_nothing() {
         "no temporary files left behind"
     );
 }
+
+#[test]
+fn camera_path_writes_numbered_frames_and_flicker() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = fixture("parallel-squares/parallel-squares.toml");
+    let out = dir.path().join("pan.exr");
+    let mut flicker = Vec::new();
+    for fit in ["receivers", "stable"] {
+        let stdout = run_ok(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--algo",
+            "pcf",
+            "--param",
+            "resolution=128",
+            "--param",
+            &format!("fit={fit}"),
+            "--frames",
+            "3",
+            "--pan",
+            "0.1,0,-0.05",
+            "--out",
+            out.to_str().unwrap(),
+            "--stats",
+        ]);
+        let lines: Vec<serde_json::Value> = stdout
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(
+            lines.len(),
+            4,
+            "3 stats lines and the flicker line: {stdout}"
+        );
+        for (k, l) in lines[..3].iter().enumerate() {
+            assert_eq!(l["frame"], k);
+        }
+        let f = &lines[3]["flicker"];
+        assert_eq!(f["frames"], 3);
+        assert!(f["pairs"].as_u64().unwrap() > 1000, "{f}");
+        let mean = f["mean_abs_dv"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&mean));
+        flicker.push(mean);
+    }
+    for k in 0..3 {
+        assert!(dir.path().join(format!("pan.{k:04}.exr")).exists());
+    }
+    assert!(!dir.path().join("pan.exr").exists());
+    // Path flags need each other.
+    let s = scene.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let err = run_err(&["render", s, "--algo", "hard", "--frames", "3", "--out", o]);
+    assert!(err.contains("--orbit"), "{err}");
+    let err = run_err(&["render", s, "--algo", "hard", "--orbit", "30", "--out", o]);
+    assert!(err.contains("--frames"), "{err}");
+    let err = run_err(&[
+        "render", s, "--algo", "hard", "--frames", "2", "--pan", "1,x,2", "--out", o,
+    ]);
+    assert!(err.contains("--pan"), "{err}");
+}
