@@ -140,7 +140,7 @@ fn main() {
         "# accumulation sweep: camera {}x{}, reference {} spp, CPU times (ms, estimate stage)",
         a.size.0, a.size.1, a.spp
     );
-    for name in &a.fixtures {
+    for name in a.fixtures.iter().filter(|f| !f.is_empty()) {
         let (scene, rec, reference) = load(name, &a);
         println!("\n## {name} ({} receivers)\n", rec.active_count());
         println!("| method | variant | kernel | K | res | RMSE | build ms | estimate ms |");
@@ -188,10 +188,18 @@ fn main() {
     }
 }
 
-/// Layers on the overlapping fixture, and the sphere models on the sphere-light fixture.
+/// Layers on the overlapping and stacked fixtures, and the sphere models on the sphere-light
+/// fixture.
 fn extra(a: &Args) {
-    let (scene, rec, reference) = load("overlapping", a);
-    println!("\n## overlapping: exact variant, peeled layers (adaptive kernel)\n");
+    for name in ["overlapping", "stacked"] {
+        layers(a, name);
+    }
+    spheres(a);
+}
+
+fn layers(a: &Args, name: &str) {
+    let (scene, rec, reference) = load(name, a);
+    println!("\n## {name}: exact variant, peeled layers (adaptive kernel, K = 10)\n");
     println!("| variant | layers | res | RMSE | estimate ms |");
     println!("|---|---|---|---|---|");
     for res in [512u32, 1024] {
@@ -214,6 +222,9 @@ fn extra(a: &Args) {
             println!("| exact | {layers} | {res} | {r:.4} | {t:.1} |");
         }
     }
+}
+
+fn spheres(a: &Args) {
     let (scene, rec, reference) = load("sphere-light", a);
     println!("\n## sphere-light: sphere model (adaptive kernel, 1024)\n");
     println!("| sphere | variant | RMSE | estimate ms |");

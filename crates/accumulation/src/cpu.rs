@@ -185,9 +185,11 @@ impl Settings {
 /// to the receivers; peeled layers for the exact variant; the anchored MSSM for the adaptive
 /// kernel).
 ///
-/// The window is fitted to the light's bounding half extent, scaled for the contract's sphere by
-/// the largest `r_z / (r_z - z_max)` over the receivers (its silhouette disk leaves the light
-/// plane by up to `z_max = R |r_xy| / |r|` and projects wider than the paper's disk; capped at 4).
+/// The window is fitted to the light's bounding half extent; for the contract's sphere, whose
+/// silhouette disk leaves the light plane by up to `z_max = R |r_xy| / |r|`, to the half extent of
+/// its equivalent disk in the light plane (where the lines from r through the disk meet z = 0):
+/// `h = (|r_xy| z_max + R r_z) / (r_z - z_max)`, the largest over the receivers, capped at 4 R
+/// (receivers needing more lose casters beyond the window edge).
 pub fn plan(
     scene: &Scene,
     receivers: &Receivers,
@@ -208,8 +210,10 @@ pub fn plan(
                 continue;
             }
             let zmax = LightPatch::for_receiver(&light.shape, s.sphere, p).max_z();
-            if zmax < p.z {
-                f = f.max(p.z / (p.z - zmax));
+            let radius = half.x;
+            if zmax < p.z && radius > 0.0 {
+                let rxy = Vec2::new(p.x, p.y).length();
+                f = f.max((rxy * zmax + radius * p.z) / (radius * (p.z - zmax)));
             }
         }
         half *= f.min(4.0);

@@ -4,10 +4,15 @@
 //! around the receiver's projection is an elementary caster, backprojected from the receiver
 //! onto the shadow-map plane; the fraction of the light's footprint it covers is its shadowing
 //! factor. Two variants: **additive** (the paper's eq. 2 and GPU pseudo-code, factors summed and
-//! clamped) and **exact** (eq. 1, occlusion bits on the light, a union), over a **fixed** K x K
-//! kernel (the paper) or an **adaptive** kernel sized per receiver from the MSSM's minimum
-//! occluder depth. The geometry and the derivation of the normalisation are in [`math`].
-//! CPU: [`CpuAccumulation`]; wgpu twin: `GpuAccumulation` (feature `gpu`).
+//! clamped, with each caster's exact overlap with the footprint or the paper's centre test) and
+//! **exact** (eq. 1, occlusion bits on the light, a union, fed by up to 4 peeled layers), over a
+//! **fixed** K x K kernel spread over the light's footprint (the paper), an **adaptive** kernel
+//! (bounded per receiver by the MSSM's minimum occluder depth, sampled by multi-resolution rings:
+//! single lexels next to the receiver, cells doubling outwards) or the paper's **lexels** taken
+//! literally (K x K single lexels). Rect, disk and sphere lights (the contract's silhouette disk,
+//! or the paper's disk perpendicular to the light normal). The geometry and the derivation of the
+//! normalisation are in [`math`]; the estimator in [`cpu`]. CPU: [`CpuAccumulation`]; wgpu twin:
+//! `GpuAccumulation` (feature `gpu`), same name (`accumulation`) and parameters.
 //!
 //! A complete example: load a fixture, cast the camera's rays for receivers, run it.
 //!
