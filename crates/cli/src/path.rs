@@ -81,7 +81,7 @@ fn project(c: &Camera, p: Vec3) -> Option<(usize, f32)> {
     let b = c.basis();
     let d = p - c.eye;
     let z = d.dot(b.forward);
-    if !(z > 0.0) {
+    if z.is_nan() || z <= 0.0 {
         return None;
     }
     let t = (c.fov_y_deg.to_radians() * 0.5).tan();
