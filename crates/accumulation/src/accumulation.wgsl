@@ -35,6 +35,9 @@ const KERNEL_LEXELS: u32 = 2u;
 const VARIANT_EXACT: u32 = 1u;
 const HULL_SLOTS: u32 = 16u;
 const REFINE_ROUNDS: i32 = 16;
+// Corner signs of Footprint::caster_quad (counter-clockwise on the plane).
+const SX = array<f32, 4>(-1.0, 1.0, 1.0, -1.0);
+const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 
 @group(0) @binding(0) var<uniform> view: LightViewUniform;
 @group(0) @binding(1) var<uniform> est: EstimateUniform;
@@ -156,6 +159,22 @@ fn quad_disk_area(q: array<vec2<f32>, 4>, r: f32) -> f32 {
         }
         return min(abs(0.5 * a), full);
     }
+    var a2 = 0.0;
+    for (var k = 0u; k < 4u; k++) {
+        a2 += perp_dot(q[k], q[(k + 1u) % 4u]);
+    }
+    let orient = select(1.0, -1.0, a2 < 0.0);
+    var contains = true;
+    for (var k = 0u; k < 4u; k++) {
+        let e = q[(k + 1u) % 4u] - q[k];
+        let d = orient * perp_dot(e, -q[k]);
+        if !(d >= r * sqrt(dot2(e, e))) {
+            contains = false;
+        }
+    }
+    if contains {
+        return full;
+    }
     var area = 0.0;
     for (var k = 0u; k < 4u; k++) {
         let p0 = q[k];
@@ -222,10 +241,8 @@ fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32) -> f32 
         area = dx * dy;
     } else {
         var q: array<vec2<f32>, 4>;
-        let sx = array<f32, 4>(-1.0, 1.0, 1.0, -1.0);
-        let sy = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
         for (var k = 0u; k < 4u; k++) {
-            let lc = to_patch(p, r, lr + vec2<f32>(sx[k] * hx, sy[k] * hy));
+            let lc = to_patch(p, r, lr + vec2<f32>(SX[k] * hx, SY[k] * hy));
             if !lc.valid {
                 return 0.0;
             }
@@ -406,14 +423,42 @@ fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: 
             }
             continue;
         }
+        // Footprint::caster_quad.
+        var q: array<vec2<f32>, 4>;
+        var ok = true;
+        for (var c4 = 0u; c4 < 4u; c4++) {
+            let lc = to_patch(p, r, lr + vec2<f32>(SX[c4] * hx, SY[c4] * hy));
+            ok = ok && lc.valid;
+            q[c4] = lc.p;
+        }
+        if !ok {
+            continue;
+        }
+        let flat = p.a.x == 0.0 && p.a.y == 0.0 && p.a.z == 1.0;
+        let lo = min(q[0], q[2]);
+        let hi = max(q[0], q[2]);
         for (var k = 0u; k < acc.nbits; k++) {
             let w = k / 32u;
             let m = 1u << (k % 32u);
             if ((*st).mask[w] & m) != 0u {
                 continue;
             }
-            let q = at_depth(r, embed(p, tables[HULL_SLOTS + k]), n);
-            if abs(q.x - lr.x) <= hx && abs(q.y - lr.y) <= hy {
+            let b = tables[HULL_SLOTS + k];
+            // math::quad_contains.
+            var inside = false;
+            if flat {
+                inside = b.x >= lo.x && b.x <= hi.x && b.y >= lo.y && b.y <= hi.y;
+            } else {
+                var pos = true;
+                var neg = true;
+                for (var e4 = 0u; e4 < 4u; e4++) {
+                    let cr = perp_dot(q[(e4 + 1u) % 4u] - q[e4], b - q[e4]);
+                    pos = pos && cr >= 0.0;
+                    neg = neg && cr <= 0.0;
+                }
+                inside = pos || neg;
+            }
+            if inside {
                 (*st).mask[w] |= m;
                 (*st).n_set += 1u;
             }

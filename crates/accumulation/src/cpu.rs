@@ -1,7 +1,8 @@
 //! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
 //! [`crate::math`]).
 use crate::math::{
-    caster, fixed_kernel_start, paper_plane_distance, Footprint, LightPatch, SphereModel,
+    caster, fixed_kernel_start, paper_plane_distance, quad_contains, Footprint, LightPatch,
+    SphereModel,
 };
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -467,6 +468,8 @@ impl Accumulator<'_> {
         let layers = (self.s.layers as usize).min(ls.layers.len()).max(1);
         let exact = self.s.variant == Variant::Exact;
         let nbits = (self.s.bits * self.s.bits) as usize;
+        // Parallel lights: the backprojected caster is an axis-aligned rectangle.
+        let flat = fp.patch.a == Vec3::Z;
         let mut bit_pts: Vec<Vec2> = Vec::new();
         let mut mask = [0u32; MASK_WORDS];
         let mut set = 0usize;
@@ -504,15 +507,20 @@ impl Accumulator<'_> {
                     };
                     continue;
                 }
+                // The caster backprojected onto the light, and the bits (in-plane coordinates)
+                // inside it.
+                let Some(quad) = fp.caster_quad(lr, hx, hy) else {
+                    continue;
+                };
                 if bit_pts.is_empty() {
                     let bits = self.s.bits;
                     bit_pts = (0..nbits as u32)
-                        .map(|k| fp.to_plane(fp.patch.bit_point(k % bits, k / bits, bits)))
+                        .map(|k| fp.patch.bit_local(k % bits, k / bits, bits))
                         .collect();
                 }
-                for (k, q) in bit_pts.iter().enumerate() {
+                for (k, b) in bit_pts.iter().enumerate() {
                     let (w, m) = (k / 32, 1u32 << (k % 32));
-                    if mask[w] & m == 0 && (q.x - lr.x).abs() <= hx && (q.y - lr.y).abs() <= hy {
+                    if mask[w] & m == 0 && quad_contains(&quad, flat, *b) {
                         mask[w] |= m;
                         set += 1;
                     }

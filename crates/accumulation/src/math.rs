@@ -326,6 +326,22 @@ impl Footprint {
         area * self.inv_area
     }
 
+    /// The caster rectangle of centre `lr` and half sides `(hx, hy)` on the plane, backprojected
+    /// onto the patch: its four corners (counter-clockwise on the plane) in in-plane coordinates,
+    /// exact (the central projection maps the rectangle to a quadrilateral). `None` when a corner's
+    /// ray misses the patch plane.
+    #[inline]
+    pub fn caster_quad(&self, lr: Vec2, hx: f32, hy: f32) -> Option<[Vec2; 4]> {
+        let mut q = [Vec2::ZERO; 4];
+        for (k, s) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            q[k] = self.to_patch(lr + Vec2::new(s.0 * hx, s.1 * hy))?.0;
+        }
+        Some(q)
+    }
+
     /// Bounding box, in continuous texel coordinates of the view (`(u - x0) / delta` with the
     /// view's `n`, `x0`, `delta`), of the tan-space directions of every point at depth `c` that
     /// lies between r and the light: the texels whose casters at depth `>= c` can occlude r.
@@ -348,7 +364,7 @@ impl Footprint {
 /// radius `r` at the origin (background.md §9, "Polygon ∩ disk"): per directed edge, pieces inside
 /// the circle add `cross(P, Q) / 2`, pieces outside add `r^2 atan2(cross, dot) / 2`; the sum is
 /// the signed area. Shortcuts: bounding boxes apart (0), every corner inside (the shoelace
-/// area). Never NaN for finite inputs.
+/// area), the disk inside the quadrilateral (`pi r^2`). Never NaN for finite inputs.
 pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
     if !(r > 0.0) {
         return 0.0;
@@ -365,6 +381,25 @@ pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
             a += q[k].perp_dot(q[(k + 1) % 4]);
         }
         return (0.5 * a).abs().min(full);
+    }
+    // The disk inside the quadrilateral: the centre at least r inside every edge (signed by the
+    // orientation).
+    let mut a2 = 0.0f32;
+    for k in 0..4 {
+        a2 += q[k].perp_dot(q[(k + 1) % 4]);
+    }
+    let orient = if a2 < 0.0 { -1.0f32 } else { 1.0 };
+    let mut contains = true;
+    for k in 0..4 {
+        let e = q[(k + 1) % 4] - q[k];
+        // Signed distance of the origin from the edge line, positive inside.
+        let d = orient * e.perp_dot(-q[k]);
+        if !(d >= r * e.length()) {
+            contains = false;
+        }
+    }
+    if contains {
+        return full;
     }
     let outside = |p: Vec2, e: Vec2| 0.5 * r * r * p.perp_dot(e).atan2(p.dot(e));
     let mut area = 0.0f32;
@@ -396,6 +431,26 @@ pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
         }
     }
     area.abs().min(full)
+}
+
+/// True when `b` lies in the convex quadrilateral `q` (either orientation, boundary included).
+/// For the parallel lights `q` is an axis-aligned rectangle and `flat` takes its bounds.
+#[inline]
+pub fn quad_contains(q: &[Vec2; 4], flat: bool, b: Vec2) -> bool {
+    if flat {
+        let lo = q[0].min(q[2]);
+        let hi = q[0].max(q[2]);
+        return b.x >= lo.x && b.x <= hi.x && b.y >= lo.y && b.y <= hi.y;
+    }
+    let mut pos = true;
+    let mut neg = true;
+    for k in 0..4 {
+        let e = q[(k + 1) % 4] - q[k];
+        let c = e.perp_dot(b - q[k]);
+        pos &= c >= 0.0;
+        neg &= c <= 0.0;
+    }
+    pos || neg
 }
 
 /// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; background.md §9
