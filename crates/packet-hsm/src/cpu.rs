@@ -768,6 +768,17 @@ pub fn estimate_sublight(
         });
 }
 
+/// V (with the facing factor) of one receiver on one sub-light, per pixel with the configured
+/// traversal (the GPU twin's fallback for receivers the device cut short).
+pub fn pixel_value(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
+    let grid = sv.grid(cfg);
+    let mut out = false;
+    match prepare(sv, &grid, cfg, pw, nw, &mut out) {
+        Prep::Done(v) => v,
+        Prep::Penumbra { rec, cr, facing } => pixel_wise(sv, &grid, cfg, &rec, &cr, facing).0,
+    }
+}
+
 /// Per-pixel GBP07 on one sub-light for a single receiver (the exact baseline; tests and
 /// examples): `facing * V` of sub-light data `sv`.
 pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {

@@ -20,7 +20,7 @@
 //! Known differences from the CPU: f32 light-plane geometry and sums (f64 on the CPU), a
 //! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added in
 //! f32; see `tests/gpu_twin.rs` for the measured agreement.
-use crate::cpu::{prepare_setup, ReceiverSetup};
+use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
 use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView, DESCRIPTION, NAME};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
@@ -83,8 +83,8 @@ pub struct HsmUniform {
     pub qv: f32,
     /// Far plane (empty samples' depth in eq. 4).
     pub far: f32,
-    /// Padding.
-    pub _pad: u32,
+    /// Always 2: the trip count of the shader's loop-limit probe.
+    pub probe: u32,
 }
 
 /// Per-receiver state between the passes (mirrors `PrepGpu`): kernel cells, nudged texel
@@ -130,8 +130,19 @@ pub struct GpuPacketHsm {
 }
 
 /// What one sub-light's dispatches return: per receiver (V before the facing factor, visited
-/// nodes), and the packet counters (packets, coherent, rejected, diverged).
-pub type SublightOutput = (Vec<[f32; 2]>, [u32; 4]);
+/// nodes; visited < 0: the device cut the work short, see [`LOOP_LIMIT`]), and the packet
+/// counters (packets, coherent, rejected, diverged, cut short).
+pub type SublightOutput = (Vec<[f32; 2]>, [u32; 5]);
+
+/// Why a receiver can come back flagged: some devices bound the loop iterations of one shader
+/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run:
+/// gallivm's `LP_MAX_TGSI_LOOP_ITERATIONS`), which would silently truncate a long contour scan
+/// (a large kernel without the hierarchy, or a large packet). The kernel detects it (a loop that
+/// did not finish, and a two-trip probe loop with a uniform bound that trips once when the budget
+/// is spent) and flags the receiver; [`GpuPacketHsm`] then evaluates it with the CPU twin's code
+/// on the same data (exact, the same V) and reports the count as `loop_limit_cpu_fallbacks`.
+/// A packet cut short leaves its pixels to the per-pixel pass.
+pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 
 impl GpuPacketHsm {
     /// With default parameters, compiling the kernel on `ctx`'s device.
@@ -251,7 +262,7 @@ impl GpuPacketHsm {
             dmax.extend_from_slice(b);
         }
         if recs.is_empty() {
-            return Ok((Vec::new(), [0; 4]));
+            return Ok((Vec::new(), [0; 5]));
         }
         let b_depth = self.storage("packet-hsm depth", bytemuck::cast_slice(grid.depth), limit)?;
         let b_class = self.storage("packet-hsm class", bytemuck::cast_slice(grid.class), limit)?;
@@ -261,7 +272,7 @@ impl GpuPacketHsm {
         let b_recs = self.storage("packet-hsm receivers", bytemuck::cast_slice(recs), limit)?;
         let zero_prep = vec![PrepGpu::zeroed(); recs.len()];
         let b_prep = self.storage("packet-hsm prep", bytemuck::cast_slice(&zero_prep), limit)?;
-        let b_count = self.storage("packet-hsm counters", &[0u8; 16], limit)?;
+        let b_count = self.storage("packet-hsm counters", &[0u8; 20], limit)?;
         let out_bytes = (recs.len() * 8) as u64;
         if out_bytes > limit {
             return Err(Error::Limit {
@@ -321,7 +332,7 @@ impl GpuPacketHsm {
             qe: cfg.qe as f32,
             qv: cfg.qv as f32,
             far: view.far,
-            _pad: 0,
+            probe: 2,
         };
         ctx.scoped(LABEL, || {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -399,8 +410,8 @@ impl GpuPacketHsm {
             ctx.queue.submit([enc.finish()]);
         })?;
         let v: Vec<[f32; 2]> = ctx.read_buffer(&out, out_bytes)?;
-        let c: Vec<u32> = ctx.read_buffer(&b_count, 16)?;
-        Ok((v, [c[0], c[1], c[2], c[3]]))
+        let c: Vec<u32> = ctx.read_buffer(&b_count, 20)?;
+        Ok((v, [c[0], c[1], c[2], c[3], c[4]]))
     }
 }
 
@@ -448,7 +459,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let mut peak = 0usize;
         let mut visited = 0f64;
         let mut outside = 0usize;
-        let mut counts = [0u64; 4];
+        let mut counts = [0u64; 5];
+        let mut fallbacks = 0usize;
         for b in 0..s {
             for a in 0..s {
                 let t = std::time::Instant::now();
@@ -485,8 +497,13 @@ impl SoftShadowEstimator for GpuPacketHsm {
                             *x
                         }
                         ReceiverSetup::Map { facing, .. } => {
-                            visited += out[k][1] as f64;
-                            facing * out[k][0]
+                            if out[k][1] < 0.0 {
+                                fallbacks += 1;
+                                pixel_value(&sv, &cfg, receivers.position[k], receivers.normal[k])
+                            } else {
+                                visited += out[k][1] as f64;
+                                facing * out[k][0]
+                            }
                         }
                     };
                     acc[k] += weight * x;
@@ -518,6 +535,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
         rep.note("packets_coherent", counts[1]);
         rep.note("packets_rejected", counts[2]);
         rep.note("packets_diverged", counts[3]);
+        rep.note("packets_loop_limit", counts[4]);
+        rep.note("loop_limit_cpu_fallbacks", fallbacks);
         rep.note("visited_nodes", visited as u64);
         rep.note("out_of_frustum", outside);
         if nonfinite > 0 {

@@ -35,7 +35,8 @@ struct HsmUniform {
     qe: f32,
     qv: f32,
     far: f32,
-    _pad: u32,
+    // Always 2: the trip count of the loop-limit probe (a uniform, so it is not unrolled).
+    probe: u32,
 }
 
 // Per-receiver state between the passes (mirrors gpu.rs PrepGpu).
@@ -73,8 +74,23 @@ struct RecIn {
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;
 @group(0) @binding(8) var<storage, read_write> prep: array<PrepGpu>;
 // [0]: packets with >= 2 penumbra pixels, [1]: coherent (done packet-wise), [2]: rejected by the
-// coherence test, [3]: diverged (null status).
-@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 4>;
+// coherence test, [3]: diverged (null status), [4]: cut short by the device's loop limit.
+@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 5>;
+
+// Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
+// once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), which would
+// silently truncate long contour scans. `loop_limit_hit` runs a two-trip loop whose bound is a
+// uniform: it trips once only when that budget is spent. Work cut short is flagged (the CPU
+// twin redoes those receivers and reports how many), never returned as V.
+fn loop_limit_hit() -> bool {
+    var trips = 0u;
+    for (var i = 0u; i < u.probe; i++) {
+        trips += 1u;
+    }
+    return trips < u.probe;
+}
+
+const TRUNCATED: f32 = -1.0;
 
 const F32_MAX: f32 = 3.40282347e38;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
@@ -474,20 +490,16 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     var valid = false;
     let cr = kernel_cells(rec.uv, rec.zp, &valid);
-    if !valid {
-        v_out[idx] = vec2<f32>(1.0, 0.0);
-        prep[idx] = p;
-        return;
-    }
     let mm = dual_query(cr);
-    if !(mm.x < rec.t) {
-        v_out[idx] = vec2<f32>(1.0, 0.0);
+    if !valid || !(mm.x < rec.t) || mm.y < rec.t {
         prep[idx] = p;
-        return;
-    }
-    if mm.y < rec.t {
-        v_out[idx] = vec2<f32>(0.0, 0.0);
-        prep[idx] = p;
+        if loop_limit_hit() {
+            v_out[idx] = vec2<f32>(0.0, TRUNCATED);
+        } else if !valid || !(mm.x < rec.t) {
+            v_out[idx] = vec2<f32>(1.0, 0.0);
+        } else {
+            v_out[idx] = vec2<f32>(0.0, 0.0);
+        }
         return;
     }
     // Centre status with the nudge of contour::Receiver::new.
@@ -508,6 +520,12 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     p.q = q;
     p.state = STATE_PENUMBRA;
     p.centre = centre;
+    if loop_limit_hit() {
+        p.state = STATE_DONE;
+        prep[idx] = p;
+        v_out[idx] = vec2<f32>(0.0, TRUNCATED);
+        return;
+    }
     prep[idx] = p;
     v_out[idx] = vec2<f32>(0.0, 0.0);
 }
@@ -541,13 +559,22 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
     let q = p.q;
     var sum = 0.0;
     var visited = 0u;
+    var complete = true;
     if u.hierarchy == 0u {
-        for (var j = cr.y; j < cr.w; j++) {
-            for (var i = cr.x; i < cr.z; i++) {
-                visited += 1u;
-                sum += cell_area(i, j, rec.t, q, rec.zp);
+        let wc = max(cr.z - cr.x, 1);
+        let total = max(cr.z - cr.x, 0) * max(cr.w - cr.y, 0);
+        var kk = 0;
+        loop {
+            if kk >= total {
+                break;
             }
+            let i = cr.x + kk % wc;
+            let j = cr.y + kk / wc;
+            visited += 1u;
+            sum += cell_area(i, j, rec.t, q, rec.zp);
+            kk += 1;
         }
+        complete = kk >= total;
     } else {
         var stack: array<vec3<i32>, STACK>;
         var sp = push_roots(&stack, cr);
@@ -572,6 +599,11 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             sp = push_children(&stack, sp, nd, x1, y1);
         }
+        complete = sp == 0u;
+    }
+    if !complete || loop_limit_hit() {
+        v_out[idx] = vec2<f32>(0.0, TRUNCATED);
+        return;
     }
     v_out[idx] = vec2<f32>(finish(sum, p.centre), v_out[idx].y + f32(visited));
 }
@@ -780,6 +812,12 @@ fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
             }
         }
+    }
+    let complete = select(sp == 0u, fj >= k.w, u.hierarchy == 0u);
+    if !complete || loop_limit_hit() {
+        // Cut short: the pixels pass redoes these pixels.
+        atomicAdd(&counters[4], 1u);
+        return;
     }
     atomicAdd(&counters[1], 1u);
     let share = f32(visited) / f32(n);

@@ -186,3 +186,32 @@ fn gpu_hard_cases_stay_finite() {
         compare(&vc, &vg, &r, "hard case");
     }
 }
+
+/// Large kernels without the hierarchy (an occluder near the light, a large light): on lavapipe a
+/// flat scan exceeds llvmpipe's 65535 loop iterations per invocation; the kernel must flag those
+/// receivers and the twin must redo them, so V still matches the CPU (the count is reported).
+#[test]
+fn gpu_loop_limit_is_detected_not_truncated() {
+    let Some(ctx) = gpu("gpu_loop_limit_is_detected_not_truncated") else {
+        return;
+    };
+    let s = scene_with(rect_light(2.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 2.6), SQUARE], 8, 8);
+    let r = line_receivers();
+    for (p, h) in [("1x1", "false"), ("8x8", "false"), ("1x1", "true")] {
+        let kv = [("resolution", "256"), ("packet", p), ("hierarchy", h)];
+        let mut g = GpuPacketHsm::new(ctx.clone()).unwrap();
+        for (k, v) in kv {
+            g.set_param(k, v).unwrap();
+        }
+        let (vg, rep) = run(&mut g, &s, &r).unwrap();
+        let vc = run(&mut hsm(&kv), &s, &r).unwrap().0;
+        let (_, worst) = compare(&vc, &vg, &r, "large kernels");
+        let fb = rep
+            .notes
+            .iter()
+            .find(|n| n.0 == "loop_limit_cpu_fallbacks")
+            .map(|n| n.1.clone())
+            .unwrap();
+        eprintln!("large kernels {kv:?}: worst {worst:e}, CPU fallbacks {fb}");
+    }
+}
