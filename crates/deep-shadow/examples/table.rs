@@ -3,7 +3,8 @@
 //! Table 1.1-shaped speed table, and the two speed-ups (neighbour links vs naive at 7x7;
 //! truncation vs none) as fractions of an in-run ceiling.
 //!
-//! `cargo run --release -p deep-shadow --example table -- [accuracy|speed|all] [--gpu]`
+//! `cargo run --release -p deep-shadow --example table -- [accuracy|extra|speed|speedups|all] [--gpu]`
+//! (`speedups`: only the two speed-up ratios, no Table 1.1).
 //! Environment: `DS_W`, `DS_H` (image size, default 160x120), `DS_RES` (map resolution for the
 //! accuracy table, default 1024), `DS_SPP` (reference spp, default 256),
 //! `DS_SPEED_W`/`DS_SPEED_H` (receivers for the speed table, default 1280x720),
@@ -208,7 +209,7 @@ fn ceilings() -> (f64, f64) {
     (inserts, taps)
 }
 
-fn speed(use_gpu: bool) {
+fn speed(use_gpu: bool, table: bool) {
     let (w, h) = (env("DS_SPEED_W", 1280), env("DS_SPEED_H", 720));
     let resolutions: Vec<String> = std::env::var("DS_SPEED_RES")
         .unwrap_or_else(|_| "256,512,1024".into())
@@ -248,48 +249,50 @@ fn speed(use_gpu: bool) {
         ("EDSM5", vec![("filter", "edsm"), ("kernel", "5")]),
         ("EDSM7", vec![("filter", "edsm"), ("kernel", "7")]),
     ];
-    print!("| SM res |");
-    for c in &cols {
-        print!(" {} ms |", c.0);
-    }
-    println!(" fragments | build ms | inserts/s as fraction of insert ceiling | EDSM7 element visits/s as fraction of CPU read ceiling |");
-    println!("|{}", "---|".repeat(cols.len() + 5));
-    let mut breakdown = Vec::new();
-    for res in &resolutions {
-        print!("| {res} |");
-        let mut last = None;
-        for (_, kv) in &cols {
-            let mut e = mk();
-            with(e.as_mut(), &[("resolution", res)]);
-            with(e.as_mut(), kv);
-            let (b, est, rep) = time(e.as_mut(), &scene, &rec, 3);
-            print!(" {:.1} |", b + est);
-            last = Some((b, est, rep));
+    if table {
+        print!("| SM res |");
+        for c in &cols {
+            print!(" {} ms |", c.0);
         }
-        let (b, est, rep) = last.unwrap();
-        breakdown.push((
-            res.clone(),
-            rep.stages
-                .iter()
-                .map(|(k, v)| format!("{k} {v:.1}"))
-                .collect::<Vec<_>>()
-                .join(", "),
-        ));
-        let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
-        let visits: f64 =
-            note(&rep, "elements_per_lookup").parse().unwrap_or(0.0) * rec.active_count() as f64;
-        println!(
-            " {frags} | {b:.1} | {:.3} | {:.3} |",
-            frags / (b / 1e3) / ins,
-            visits / (est / 1e3) / taps
-        );
+        println!(" fragments | build ms | inserts/s as fraction of insert ceiling | EDSM7 element visits/s as fraction of CPU read ceiling |");
+        println!("|{}", "---|".repeat(cols.len() + 5));
+        let mut breakdown = Vec::new();
+        for res in &resolutions {
+            print!("| {res} |");
+            let mut last = None;
+            for (_, kv) in &cols {
+                let mut e = mk();
+                with(e.as_mut(), &[("resolution", res)]);
+                with(e.as_mut(), kv);
+                let (b, est, rep) = time(e.as_mut(), &scene, &rec, 3);
+                print!(" {:.1} |", b + est);
+                last = Some((b, est, rep));
+            }
+            let (b, est, rep) = last.unwrap();
+            breakdown.push((
+                res.clone(),
+                rep.stages
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v:.1}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ));
+            let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
+            let visits: f64 = note(&rep, "elements_per_lookup").parse().unwrap_or(0.0)
+                * rec.active_count() as f64;
+            println!(
+                " {frags} | {b:.1} | {:.3} | {:.3} |",
+                frags / (b / 1e3) / ins,
+                visits / (est / 1e3) / taps
+            );
+        }
+        println!();
+        println!("Stages of the last EDSM7 run (ms):");
+        for (res, b) in &breakdown {
+            println!("- {res}: {b}");
+        }
+        println!();
     }
-    println!();
-    println!("Stages of the last EDSM7 run (ms):");
-    for (res, b) in &breakdown {
-        println!("- {res}: {b}");
-    }
-    println!();
     println!("| speed-up ({backend}) | res | config A ms (estimate) | config B ms (estimate) | B/A - 1 | elements visited per lookup A / B | paper |");
     println!("|---|---|---|---|---|---|---|");
     for res in &resolutions {
@@ -354,6 +357,64 @@ fn speed(use_gpu: bool) {
     }
 }
 
+/// Truncation error against no truncation, and EDSM's c, on both fixtures.
+fn extra() {
+    let (w, h) = (env("DS_W", 160), env("DS_H", 120));
+    let res = env("DS_RES", 1024).to_string();
+    let spp = env("DS_SPP", 256).to_string();
+    println!("## Truncation and EDSM c ({w}x{h}, resolution {res}, reference spp {spp})");
+    println!("| fixture | what | value |");
+    println!("|---|---|---|");
+    for name in ["strands", "hair"] {
+        let (scene, rec) = load(name, w, h);
+        let mut reference = reference::ReferenceEstimator::new().unwrap();
+        with(&mut reference, &[("spp", &spp)]);
+        let (vref, _) = run(&mut reference, &scene, &rec).unwrap();
+        for filter in [
+            &[("filter", "none")][..],
+            &[("filter", "pcf"), ("kernel", "7")][..],
+        ] {
+            let mut a = CpuDeepShadow::new().unwrap();
+            with(&mut a, &[("resolution", &res), ("epsilon", "0.001")]);
+            with(&mut a, filter);
+            let (va, ra) = run(&mut a, &scene, &rec).unwrap();
+            let mut b = CpuDeepShadow::new().unwrap();
+            with(&mut b, &[("resolution", &res), ("epsilon", "0")]);
+            with(&mut b, filter);
+            let (vb, _) = run(&mut b, &scene, &rec).unwrap();
+            let worst = va
+                .iter()
+                .zip(&vb)
+                .filter(|p| p.0.is_finite())
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0f32, f32::max);
+            println!(
+                "| {name} | {filter:?}: truncation eps=1e-3 vs none: max abs dV, RMS dV, fragments truncated of all | {worst:.2e}, {:.2e}, {} of {} |",
+                rmse(&va, &vb, &rec.active),
+                note(&ra, "truncated"),
+                note(&ra, "fragments")
+            );
+        }
+        for c in ["20", "80", "300", "1000", "10000"] {
+            let mut e = CpuDeepShadow::new().unwrap();
+            with(
+                &mut e,
+                &[
+                    ("resolution", &res),
+                    ("filter", "edsm"),
+                    ("kernel", "5"),
+                    ("c", c),
+                ],
+            );
+            let (v, _) = run(&mut e, &scene, &rec).unwrap();
+            println!(
+                "| {name} | EDSM 5, c = {c}: RMSE | {:.4} |",
+                rmse(&v, &vref, &rec.active)
+            );
+        }
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let what = args.first().map(String::as_str).unwrap_or("all");
@@ -361,7 +422,13 @@ fn main() {
     if what == "accuracy" || what == "all" {
         accuracy();
     }
+    if what == "extra" || what == "all" {
+        extra();
+    }
     if what == "speed" || what == "all" {
-        speed(gpu);
+        speed(gpu, true);
+    }
+    if what == "speedups" {
+        speed(gpu, false);
     }
 }
