@@ -1,0 +1,416 @@
+//! The numerical-stability catalogue: named hard cases, each a small scene built in code, each run
+//! through every registered estimator on every backend it has (GPU rows on lavapipe in CI). Each
+//! asserts: no panic, no error (every case has a rect light, which every estimator takes), V in
+//! [0, 1] for every active receiver and NaN for the inactive ones, never inf; and where a limit
+//! exists (light size to 0, resolution up), that the error against the limit shrinks along the
+//! sequence. A failing case is fixed in the estimator, not removed.
+//!
+//! `cargo test --test stability -- --nocapture` prints a line per case and estimator.
+use glam::{Mat3, Vec3};
+use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
+use softshadow::{backends, estimator, Backend, SoftShadowEstimator, ALGOS};
+
+fn rect_light(center: Vec3, size: f32) -> Light {
+    let normal = Vec3::NEG_Y;
+    Light {
+        shape: LightShape::Rect { size: [size, size] },
+        center,
+        normal,
+        tangent: Vec3::X,
+    }
+}
+
+fn camera(eye: Vec3, target: Vec3) -> Camera {
+    Camera {
+        eye,
+        target,
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        width: 24,
+        height: 18,
+    }
+}
+
+fn quad(c: Vec3, half: f32, m: Mat3) -> Vec<[Vec3; 3]> {
+    let p = [(-half, -half), (-half, half), (half, half), (half, -half)]
+        .map(|(x, z)| c + m * Vec3::new(x, 0.0, z));
+    vec![[p[0], p[1], p[2]], [p[0], p[2], p[3]]]
+}
+
+fn cube(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
+    let p = |x: usize, y: usize, z: usize| {
+        Vec3::new(
+            if x == 0 { lo.x } else { hi.x },
+            if y == 0 { lo.y } else { hi.y },
+            if z == 0 { lo.z } else { hi.z },
+        )
+    };
+    [
+        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
+        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
+        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)],
+        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)],
+        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)],
+        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)],
+    ]
+    .iter()
+    .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+    .collect()
+}
+
+struct Case {
+    name: &'static str,
+    scene: Scene,
+    receivers: Receivers,
+    resolution: &'static str,
+}
+
+fn from_camera(name: &'static str, scene: Scene) -> Case {
+    let receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    Case {
+        name,
+        scene,
+        receivers,
+        resolution: "64",
+    }
+}
+
+fn scene(light: Light, cam: Camera, meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
+    Scene::from_meshes(
+        "stability",
+        cam,
+        light,
+        meshes.into_iter().map(|m| (m, 1.0)).collect(),
+    )
+    .expect("scene")
+}
+
+fn ground() -> Vec<[Vec3; 3]> {
+    quad(Vec3::ZERO, 3.0, Mat3::IDENTITY)
+}
+
+fn std_cam() -> Camera {
+    camera(Vec3::new(0.0, 3.0, 4.0), Vec3::ZERO)
+}
+
+fn catalogue() -> Vec<Case> {
+    let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
+    let occ = quad(Vec3::new(0.0, 1.0, 0.0), 0.5, Mat3::IDENTITY);
+    let mut cases = vec![
+        from_camera(
+            "occluder touching the receiver",
+            scene(
+                l,
+                std_cam(),
+                vec![
+                    ground(),
+                    cube(Vec3::new(-0.4, 0.0, -0.4), Vec3::new(0.4, 0.8, 0.4)),
+                ],
+            ),
+        ),
+        from_camera(
+            "occluder touching the light",
+            scene(
+                l,
+                std_cam(),
+                vec![
+                    ground(),
+                    quad(Vec3::new(0.2, 3.0 - 1e-4, 0.1), 0.3, Mat3::IDENTITY),
+                ],
+            ),
+        ),
+        from_camera(
+            "light inside the geometry",
+            scene(
+                l,
+                std_cam(),
+                vec![
+                    ground(),
+                    cube(Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 3.5, 1.0)),
+                ],
+            ),
+        ),
+        from_camera(
+            "near/far ratio 1e5",
+            scene(
+                rect_light(Vec3::new(0.0, 100.0, 0.0), 1.0),
+                camera(Vec3::new(0.0, 3.0, 4.0), Vec3::ZERO),
+                vec![
+                    ground(),
+                    quad(Vec3::new(0.0, 100.0 - 1e-3, 0.0), 0.01, Mat3::IDENTITY),
+                ],
+            ),
+        ),
+        from_camera("scene offset 1e5 from the origin", {
+            let o = Vec3::new(1e5, 0.0, -1e5);
+            let shift = |m: Vec<[Vec3; 3]>| m.into_iter().map(|t| t.map(|v| v + o)).collect();
+            scene(
+                rect_light(Vec3::new(0.0, 3.0, 0.0) + o, 1.0),
+                camera(Vec3::new(0.0, 3.0, 4.0) + o, o),
+                vec![shift(ground()), shift(occ.clone())],
+            )
+        }),
+        from_camera(
+            "coincident (z-fighting) surfaces",
+            scene(
+                l,
+                std_cam(),
+                vec![
+                    ground(),
+                    occ.clone(),
+                    quad(Vec3::new(0.1, 1.0, 0.1), 0.5, Mat3::IDENTITY),
+                ],
+            ),
+        ),
+        from_camera(
+            "degenerate and sliver triangles",
+            scene(
+                l,
+                std_cam(),
+                vec![
+                    ground(),
+                    vec![
+                        [
+                            Vec3::new(0.0, 1.0, 0.0),
+                            Vec3::new(1.0, 1.0, 0.0),
+                            Vec3::new(2.0, 1.0, 0.0),
+                        ],
+                        [
+                            Vec3::new(-1.0, 1.0, 0.0),
+                            Vec3::new(1.0, 1.0, 1e-6),
+                            Vec3::new(1.0, 1.0, 0.0),
+                        ],
+                        [
+                            Vec3::new(-1.0, 1.2, 0.3),
+                            Vec3::new(1.0, 1.2, 0.3),
+                            Vec3::new(0.0, 1.2, 0.3 + 1e-4),
+                        ],
+                    ],
+                ],
+            ),
+        ),
+        from_camera(
+            "tiny light (1e-4 of the scene)",
+            scene(
+                rect_light(Vec3::new(0.0, 3.0, 0.0), 6e-4),
+                std_cam(),
+                vec![ground(), occ.clone()],
+            ),
+        ),
+        from_camera(
+            "huge light (larger than the scene)",
+            scene(
+                rect_light(Vec3::new(0.0, 3.0, 0.0), 20.0),
+                std_cam(),
+                vec![ground(), occ.clone()],
+            ),
+        ),
+    ];
+    // Receivers behind the light and at grazing angles: points given directly.
+    let behind = {
+        let s = scene(l, std_cam(), vec![ground(), occ.clone()]);
+        let p = vec![
+            Vec3::new(0.0, 3.5, 0.0),
+            Vec3::new(1.0, 3.0, 0.0),
+            Vec3::new(0.3, 0.0, 0.2),
+        ];
+        let n = vec![Vec3::Y, Vec3::NEG_Y, Vec3::Y];
+        Case {
+            name: "receivers behind and in the light plane",
+            scene: s,
+            receivers: Receivers::from_points(p, n).unwrap(),
+            resolution: "64",
+        }
+    };
+    let grazing = {
+        let s = scene(l, std_cam(), vec![ground(), occ.clone()]);
+        let (mut p, mut n) = (Vec::new(), Vec::new());
+        for (k, deg) in [85.0f32, 87.0, 89.0, 89.9].iter().enumerate() {
+            // Normal tilted `deg` from the direction to the light centre.
+            let pos = Vec3::new(-1.5 + 0.8 * k as f32, 0.0, 0.7);
+            let to_light = (l.center - pos).normalize();
+            let axis = to_light.cross(Vec3::Z).normalize();
+            n.push(glam::Quat::from_axis_angle(axis, deg.to_radians()) * to_light);
+            p.push(pos);
+        }
+        Case {
+            name: "grazing receivers (85 to 89.9 degrees)",
+            scene: s,
+            receivers: Receivers::from_points(p, n).unwrap(),
+            resolution: "64",
+        }
+    };
+    let empty = Case {
+        name: "zero receivers",
+        scene: scene(l, std_cam(), vec![ground(), occ.clone()]),
+        receivers: Receivers::from_points(Vec::new(), Vec::new()).unwrap(),
+        resolution: "64",
+    };
+    let mut res1 = from_camera(
+        "shadow-map resolution 1",
+        scene(l, std_cam(), vec![ground(), occ]),
+    );
+    res1.resolution = "1";
+    cases.extend([behind, grazing, empty, res1]);
+    cases
+}
+
+fn estimators() -> Vec<(Box<dyn SoftShadowEstimator>, &'static str)> {
+    let mut out = Vec::new();
+    for name in ALGOS {
+        for b in backends(name) {
+            let backend = if *b == "gpu" {
+                Backend::Gpu
+            } else {
+                Backend::Cpu
+            };
+            if backend == Backend::Gpu
+                && shadow_map_core::gpu::context_for_tests("stability (gpu rows)")
+                    .expect("adapter")
+                    .is_none()
+            {
+                continue;
+            }
+            out.push((estimator(name, backend).expect("registered"), *b));
+        }
+    }
+    out
+}
+
+fn configure(e: &mut dyn SoftShadowEstimator, resolution: &str) {
+    for (k, v) in [("resolution", resolution), ("spp", "16")] {
+        if e.params().get(k).is_some() {
+            e.set_param(k, v).unwrap();
+        }
+    }
+}
+
+#[test]
+fn every_estimator_survives_every_hard_case() {
+    let cases = catalogue();
+    let mut failures = Vec::new();
+    for (mut e, backend) in estimators() {
+        for c in &cases {
+            configure(e.as_mut(), c.resolution);
+            let tag = format!("{} {backend} / {}", e.name(), c.name);
+            let v = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                run(e.as_mut(), &c.scene, &c.receivers)
+            })) {
+                Ok(Ok((v, _))) => v,
+                Ok(Err(err)) => {
+                    failures.push(format!("{tag}: error {err}"));
+                    continue;
+                }
+                Err(_) => {
+                    failures.push(format!("{tag}: PANIC"));
+                    // A panicking estimator may be left inconsistent: take a fresh one.
+                    e = estimator(e.name(), e.backend()).unwrap();
+                    continue;
+                }
+            };
+            let bad: Vec<String> = v
+                .iter()
+                .enumerate()
+                .filter(|(k, x)| {
+                    if c.receivers.active[*k] {
+                        !(0.0..=1.0).contains(*x)
+                    } else {
+                        !x.is_nan()
+                    }
+                })
+                .take(3)
+                .map(|(k, x)| format!("V[{k}] = {x}"))
+                .collect();
+            let shadowed = v.iter().filter(|x| **x < 0.5).count();
+            println!("{tag}: ok ({} receivers, {shadowed} below 0.5)", v.len());
+            if !bad.is_empty() {
+                failures.push(format!("{tag}: {}", bad.join(", ")));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+/// Receivers behind the light get 0 from every estimator (contract: one-sided lights).
+#[test]
+fn receivers_behind_the_light_are_dark() {
+    let c = catalogue()
+        .into_iter()
+        .find(|c| c.name.starts_with("receivers behind"))
+        .unwrap();
+    for (mut e, backend) in estimators() {
+        configure(e.as_mut(), "64");
+        let (v, _) = run(e.as_mut(), &c.scene, &c.receivers).unwrap();
+        assert_eq!(
+            v[0],
+            0.0,
+            "{} {backend}: receiver above the light",
+            e.name()
+        );
+        assert_eq!(
+            v[1],
+            0.0,
+            "{} {backend}: receiver in the light plane",
+            e.name()
+        );
+    }
+}
+
+/// Light size to 0: every estimator's V converges to the hard shadow (a ray to the light centre).
+#[test]
+fn shrinking_light_converges_to_the_hard_shadow() {
+    let mut cam = std_cam();
+    cam.width = 48;
+    cam.height = 36;
+    let mut failures = Vec::new();
+    for (mut e, backend) in estimators() {
+        let mut errs = Vec::new();
+        for size in [0.4f32, 0.04, 0.004] {
+            let s = scene(
+                rect_light(Vec3::new(0.0, 3.0, 0.0), size),
+                cam,
+                vec![
+                    ground(),
+                    quad(Vec3::new(0.13, 1.0, 0.07), 0.5, Mat3::IDENTITY),
+                ],
+            );
+            let bvh = SceneBvh::new(&s);
+            let rec = Receivers::from_camera(&s, &bvh);
+            configure(e.as_mut(), "512");
+            if e.params().get("spp").is_some() {
+                e.set_param("spp", "64").unwrap();
+            }
+            let (v, _) = run(e.as_mut(), &s, &rec).unwrap();
+            let mut sum = 0.0f64;
+            let mut n = 0usize;
+            for (k, vk) in v.iter().enumerate() {
+                if !rec.active[k] {
+                    continue;
+                }
+                let o = rec.position[k] + rec.normal[k] * 1e-4;
+                let d = s.light.center - o;
+                let len = d.length();
+                let hard = f32::from(bvh.closest_hit(o, d / len, 0.0, len).is_none());
+                sum += (vk - hard).abs() as f64;
+                n += 1;
+            }
+            errs.push(sum / n.max(1) as f64);
+        }
+        println!(
+            "{} {backend}: mean |V - hard| at light 0.4, 0.04, 0.004: {errs:.4?}",
+            e.name()
+        );
+        // PCF filters a fixed kernel whatever the light's size: its error stays at the filter's
+        // blur (measured 0.0056 here), so it is held only to the bound.
+        let converges = e.name() == "pcf" || errs[2] < errs[0];
+        if !(converges && errs[2] < 0.02) {
+            failures.push(format!("{} {backend}: {errs:?}", e.name()));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
