@@ -256,7 +256,7 @@ pub struct GpuAccumulation {
 const LABEL: &str = "accumulation estimate";
 
 /// Everything one estimate needs on the device: maps, uniforms, receiver chunks and their bind
-/// groups. [`Prepared::dispatch`] may run many times (benchmarks time it without readback).
+/// groups. [`GpuAccumulation::dispatch`] may run many times (benchmarks time it without readback).
 pub struct Prepared {
     groups: Vec<(usize, usize, wgpu::BindGroup, wgpu::Buffer)>,
     counters: wgpu::Buffer,
@@ -361,7 +361,7 @@ impl GpuAccumulation {
         &self.cpu
     }
 
-    /// Uploads the maps, uniforms and receivers for [`Prepared::dispatch`].
+    /// Uploads the maps, uniforms and receivers for [`GpuAccumulation::dispatch`].
     pub fn prepare(
         &self,
         ls: &LightSpace,

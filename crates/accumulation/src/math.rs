@@ -35,7 +35,7 @@
 //! The paper's additive variant (eq. 2 and its pseudo-code) replaces `|Q_c ∩ F|` by
 //! `|Q_c| [l_r ∈ F]`, which gives, summed over the kernel,
 //!
-//! `s = sum_c (size_c delta)^2 [l_r ∈ F] / (pi R'^2)`       ([`additive_term`])
+//! `s = sum_c (size_c delta)^2 [l_r ∈ F] / (pi R'^2)`       ([`Footprint::additive_term`])
 //!
 //! i.e. the printed `s += size*size; s /= R'*R'*PI/K/K` is right only when `R'` is measured in
 //! lexels (`R' / delta`) and the `K^2` is dropped; as printed it mixes lexel counts with world
@@ -57,7 +57,7 @@
 use glam::{Vec2, Vec3};
 use shadow_map_core::LightShape;
 
-/// Points on a disk's boundary used to bound its projections ([`Footprint::kernel_rect`]).
+/// Points on a disk's boundary used to bound its projections ([`Footprint::texel_bounds`]).
 pub const DISK_BOUNDARY_POINTS: u32 = 16;
 
 /// How a sphere light's emitting disk is modelled.
