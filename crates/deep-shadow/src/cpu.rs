@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::FitReport,
-    Backend, DepthMap, Error, LightView, Params, Receivers, Report, Result, Scene,
+    Backend, DepthMap, Error, LightShape, LightView, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
 use std::time::Instant;
@@ -241,7 +241,13 @@ pub struct Tally {
 
 impl Tally {
     /// Adds the notes to a report.
-    pub fn note(&self, rep: &mut Report, opaque: bool, views: usize) {
+    pub fn note(&self, rep: &mut Report, scene: &Scene, opaque: bool, views: usize) {
+        if matches!(scene.light.shape, LightShape::Sphere { .. }) {
+            rep.note(
+                "approximation",
+                "sphere light sampled on the disk through its centre perpendicular to the light normal",
+            );
+        }
         rep.note(
             "path",
             if opaque {
@@ -384,7 +390,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
                 .push(("build: other".into(), rest.max(0.0)));
         }
         self.report.stages.push(("estimate".into(), t_est));
-        tally.note(&mut self.report, opaque, points.len());
+        tally.note(&mut self.report, scene, opaque, points.len());
         self.report.note("non_finite", bad);
         Ok(())
     }

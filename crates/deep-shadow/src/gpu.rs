@@ -646,7 +646,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
         let bad = finish(scene, receivers, &acc, points.len(), v);
         self.report.stages.push(("build".into(), t_build));
         self.report.stages.push(("estimate".into(), t_est));
-        tally.note(&mut self.report, opaque, points.len());
+        tally.note(&mut self.report, scene, opaque, points.len());
         self.report
             .notes
             .retain(|n| n.0 != "elements_kept" && n.0 != "truncated" && n.0 != "max_list");

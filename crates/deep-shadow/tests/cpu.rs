@@ -397,7 +397,18 @@ fn an_opaque_scene_builds_no_lists() {
 
 #[test]
 fn every_mode_keeps_the_contract_on_the_fixtures() {
-    for name in ["hair", "strands", "bunny", "sphere-light"] {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|d| {
+            let d = d.ok()?.path();
+            let name = d.file_name()?.to_str()?.to_string();
+            d.join(format!("{name}.toml")).exists().then_some(name)
+        })
+        .collect();
+    names.sort();
+    assert!(names.iter().any(|n| n == "hair"), "{names:?}");
+    for name in &names {
         let (scene, rec) = fixture(name, 32, 24);
         for mode in MODES {
             for s in ["1", "3"] {
