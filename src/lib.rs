@@ -9,8 +9,14 @@
 //! | [`reference`](mod@reference) | ray-traced ground truth and closed-form oracles |
 //! | [`baselines`] | hard, PCF, PCSS, multi-sample, with wgpu twins (feature `gpu`) |
 //! | [`backprojection`] | micropatch backprojection with depth-peeled layers and midpoints, with a wgpu twin |
+//! | [`accumulation`] | shadow accumulation over a KxK kernel of elementary casters (additive and exact occlusion bits), with a wgpu twin |
+//! | [`packet_hsm`] | packet-based hierarchical soft shadow mapping (contour backprojection over the dual-grid MSSM, packets, sub-lights), with a wgpu twin |
+//! | [`deep_shadow`] | deep shadow maps (per-texel lists, PCF and exponential filtering, sub-lights), with a wgpu twin |
+pub use accumulation;
 pub use backprojection;
 pub use baselines;
+pub use deep_shadow;
+pub use packet_hsm;
 pub use reference;
 pub use shadow_map_core as core;
 pub use shadow_map_core::{Backend, Error, Result, SoftShadowEstimator};
@@ -23,6 +29,9 @@ pub const ALGOS: &[&str] = &[
     "pcss",
     "multi-sample",
     "backprojection",
+    "accumulation",
+    "packet-hsm",
+    "deep-shadow",
 ];
 
 /// A fresh estimator by registry name and backend, with default parameters. The GPU backend uses
@@ -41,6 +50,9 @@ pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstim
             "pcf" => Box::new(baselines::PcfShadow::new()?),
             "pcss" => Box::new(baselines::PcssShadow::new()?),
             "backprojection" => Box::new(backprojection::CpuBackprojection::new()?),
+            "accumulation" => Box::new(accumulation::CpuAccumulation::new()?),
+            "packet-hsm" => Box::new(packet_hsm::CpuPacketHsm::new()?),
+            "deep-shadow" => Box::new(deep_shadow::CpuDeepShadow::new()?),
             _ => Box::new(baselines::MultiSample::new()?),
         }),
         Backend::Gpu => gpu_estimator(name),
@@ -62,6 +74,9 @@ fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
         "pcf" => Box::new(GpuPcfShadow::new(ctx)?),
         "pcss" => Box::new(GpuPcssShadow::new(ctx)?),
         "backprojection" => Box::new(backprojection::GpuBackprojection::new(ctx)?),
+        "accumulation" => Box::new(accumulation::GpuAccumulation::new(ctx)?),
+        "packet-hsm" => Box::new(packet_hsm::GpuPacketHsm::new(ctx)?),
+        "deep-shadow" => Box::new(deep_shadow::GpuDeepShadow::new(ctx)?),
         _ => Box::new(GpuMultiSample::new(ctx)?),
     })
 }

@@ -440,4 +440,22 @@ impl SoftShadowEstimator for CpuBackprojection {
     fn report(&self) -> Report {
         self.report.clone()
     }
+    /// Resolution, layers (Bavoil §4.1), gap filling, bias instead of midpoints, and the sample
+    /// budget (§5).
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        let one = |k: &'static str, v: &str| vec![(k, v.to_string())];
+        if quick {
+            return vec![one("resolution", "256"), one("layers", "1")];
+        }
+        let mut s = shadow_map_core::default_sweep(&self.params, false);
+        s.extend([
+            one("layers", "1"),
+            one("layers", "2"),
+            one("gap_filling", "true"),
+            one("self_shadow", "bias"),
+            one("max_nspp", "25"),
+            one("max_nspp", "49"),
+        ]);
+        s
+    }
 }

@@ -809,6 +809,9 @@ impl SoftShadowEstimator for GpuBackprojection {
     fn report(&self) -> Report {
         self.report.clone()
     }
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        self.cpu.sweep(quick)
+    }
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! image against a reference (contract.md, "The command line").
 mod exr_io;
 mod path;
+mod report;
 mod score;
 
 use clap::{Parser, Subcommand};
@@ -63,6 +64,23 @@ enum Cmd {
         /// Camera path: move eye and target by X,Y,Z over the path.
         #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
         pan: Option<String>,
+    },
+    /// Run every estimator over its parameter sweep on every fixture, score each image against
+    /// the ray-traced reference, and write results.csv, results.json, flicker.csv, index.md and
+    /// the time-vs-RMSE plots.
+    Report {
+        /// Directory of fixtures (NAME/NAME.toml).
+        #[arg(long, default_value = "fixtures")]
+        fixtures: PathBuf,
+        /// Output directory.
+        #[arg(long, default_value = "report")]
+        out: PathBuf,
+        /// Backends to run.
+        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu", "both"])]
+        backend: String,
+        /// The CI subset: half-size images, 256-sample references, quick sweeps, 3-frame pans.
+        #[arg(long)]
+        quick: bool,
     },
     /// List every estimator with its parameters, defaults, ranges and a description.
     Algos {
@@ -131,6 +149,21 @@ fn main() -> ExitCode {
                 stats,
                 path.map(|p| (p, frames as usize)),
             )
+        }),
+        Cmd::Report {
+            fixtures,
+            out,
+            backend,
+            quick,
+        } => report::report(&report::ReportArgs {
+            fixtures,
+            out,
+            backends: match backend.as_str() {
+                "gpu" => vec![Backend::Gpu],
+                "both" => vec![Backend::Cpu, Backend::Gpu],
+                _ => vec![Backend::Cpu],
+            },
+            quick,
         }),
         Cmd::Algos { json } => algos(json),
         Cmd::Score {

@@ -1,0 +1,814 @@
+//! `softshadow report`: every registered estimator over the parameter sweep it declares
+//! ([`SoftShadowEstimator::sweep`]), on every fixture, on the chosen backends; each image scored
+//! against the ray-traced reference; the speed-versus-error picture written out.
+//!
+//! **Reference.** Rendered by the `reference` crate (never by the code under test) and cached in
+//! `OUT/cache/` under an FNV-1a hash of the scene file, every OBJ it names, the image size and the
+//! sample count, so a second report reuses it and an edited scene gets a new one.
+//!
+//! **Times.** `build ms` and `estimate ms` are the estimator's own stage times (its
+//! [`Report`](shadow_map_core::Report): GPU rows include upload, dispatch and readback); `frame ms`
+//! is the wall clock of `build` + `estimate` as a renderer would call them. Loading, the camera
+//! G-buffer and scoring are outside every time. One run per setting, so on a busy machine compare
+//! ratios within one report.
+//!
+//! **Outputs** (in `OUT`): `results.csv` and `results.json` (one row per run), `flicker.csv` (the
+//! frame-to-frame |dV| of each fit mode on a camera pan, see [`crate::path`]), `index.md` (per
+//! fixture: the time-vs-RMSE plot `plot-FIXTURE.svg` with its Pareto front, the Pareto table, an
+//! image grid of the reference, each algorithm's most accurate setting and its error image; then
+//! the summary: the most accurate setting within each time budget, and each seed algorithm
+//! against PCSS and multi-sample at matched time).
+use crate::{exr_io, path, score};
+use serde::Serialize;
+use serde_json::json;
+use shadow_map_core::{Backend, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use softshadow::{backends, estimator, ALGOS};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One setting of a sweep: `(key, value)` overrides.
+type Setting = Vec<(&'static str, String)>;
+
+/// The baselines, marked as such in plots and tables.
+pub const BASELINES: &[&str] = &["hard", "pcf", "pcss", "multi-sample"];
+
+/// What `softshadow report` was asked for.
+#[derive(Debug, Clone)]
+pub struct ReportArgs {
+    /// Directory of fixtures (`NAME/NAME.toml`).
+    pub fixtures: PathBuf,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Backends to run.
+    pub backends: Vec<Backend>,
+    /// The CI subset: half-size images, 256-sample references, the quick sweeps, 3-frame pans.
+    pub quick: bool,
+}
+
+/// One run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    /// Fixture name.
+    pub fixture: String,
+    /// Estimator name.
+    pub algo: String,
+    /// Backend.
+    pub backend: String,
+    /// The overrides of this setting (`defaults` when none), `k=v;k=v`.
+    pub setting: String,
+    /// Every parameter as run.
+    pub params: BTreeMap<String, String>,
+    /// `ok`, or why there is no score (`rejected: ...`).
+    pub status: String,
+    /// Estimator build stage(s), ms.
+    pub build_ms: f64,
+    /// Estimator estimate stage(s), ms.
+    pub estimate_ms: f64,
+    /// Wall clock of build + estimate, ms.
+    pub frame_ms: f64,
+    /// RMSE against the reference.
+    pub rmse: f64,
+    /// Mean absolute error.
+    pub mae: f64,
+    /// 99th percentile of the absolute error.
+    pub p99: f64,
+    /// Fraction of pixels with |error| > 0.1.
+    pub frac_gt_0_1: f64,
+    /// Candidate hit pixels whose V is not finite.
+    pub nonfinite: usize,
+    /// Light-space bytes at the peak.
+    pub light_space_bytes: usize,
+}
+
+/// One flicker measurement.
+#[derive(Debug, Clone, Serialize)]
+pub struct FlickerRow {
+    /// Fixture name.
+    pub fixture: String,
+    /// Estimator name.
+    pub algo: String,
+    /// Backend.
+    pub backend: String,
+    /// Fit mode.
+    pub fit: String,
+    /// Mean |dV| between consecutive frames at the same world points.
+    pub mean_abs_dv: f64,
+    /// Its 99th percentile.
+    pub p99_abs_dv: f64,
+    /// Pairs measured.
+    pub pairs: usize,
+}
+
+fn fnv1a(h: &mut u64, bytes: &[u8]) {
+    for b in bytes {
+        *h ^= *b as u64;
+        *h = h.wrapping_mul(0x100000001b3);
+    }
+}
+
+/// The fixtures under `dir`, sorted: every `NAME/NAME.toml`.
+pub fn fixtures(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let rd = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut out: Vec<PathBuf> = rd
+        .filter_map(|d| {
+            let d = d.ok()?.path();
+            let name = d.file_name()?.to_str()?.to_string();
+            let t = d.join(format!("{name}.toml"));
+            t.exists().then_some(t)
+        })
+        .collect();
+    out.sort();
+    if out.is_empty() {
+        return Err(format!("{}: no fixtures (NAME/NAME.toml)", dir.display()));
+    }
+    Ok(out)
+}
+
+fn cache_key(scene_path: &Path, scene: &Scene, spp: u32) -> Result<u64, String> {
+    let mut h = 0xcbf29ce484222325u64;
+    let text = std::fs::read(scene_path).map_err(|e| format!("{}: {e}", scene_path.display()))?;
+    fnv1a(&mut h, &text);
+    // Every OBJ the scene names, relative to the scene file.
+    let dir = scene_path.parent().unwrap_or(Path::new("."));
+    for line in String::from_utf8_lossy(&text).lines() {
+        let l = line.trim();
+        if let Some(rest) = l.strip_prefix("path") {
+            let p = rest.trim_start_matches([' ', '=']).trim().trim_matches('"');
+            if let Ok(b) = std::fs::read(dir.join(p)) {
+                fnv1a(&mut h, &b);
+            }
+        }
+    }
+    fnv1a(&mut h, &scene.camera.width.to_le_bytes());
+    fnv1a(&mut h, &scene.camera.height.to_le_bytes());
+    fnv1a(&mut h, &spp.to_le_bytes());
+    Ok(h)
+}
+
+fn image(scene: &Scene, rec: &Receivers, v: Vec<f32>) -> Result<exr_io::VisibilityImage, String> {
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let z = rec
+        .view_depth
+        .clone()
+        .unwrap_or_else(|| vec![f32::INFINITY; w * h]);
+    let mut img = exr_io::VisibilityImage::new(w, h);
+    img.push_channel("V", v).map_err(|e| e.to_string())?;
+    img.push_channel("Z", z).map_err(|e| e.to_string())?;
+    Ok(img)
+}
+
+fn reference(
+    args: &ReportArgs,
+    scene_path: &Path,
+    scene: &Scene,
+    rec: &Receivers,
+) -> Result<exr_io::VisibilityImage, String> {
+    let spp: u32 = if args.quick { 256 } else { 1024 };
+    let key = cache_key(scene_path, scene, spp)?;
+    let dir = args.out.join("cache");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let file = dir.join(format!("reference-{key:016x}.exr"));
+    if let Ok(img) = exr_io::read_visibility_exr(&file) {
+        return Ok(img);
+    }
+    let mut r = reference::ReferenceEstimator::new().map_err(|e| e.to_string())?;
+    r.set_param("spp", &spp.to_string())
+        .map_err(|e| e.to_string())?;
+    let (v, _) = shadow_map_core::run(&mut r, scene, rec).map_err(|e| e.to_string())?;
+    let img = image(scene, rec, v)?;
+    exr_io::write_exr(&file, &img).map_err(|e| e.to_string())?;
+    Ok(img)
+}
+
+fn setting_label(s: &[(&'static str, String)]) -> String {
+    if s.is_empty() {
+        "defaults".into()
+    } else {
+        s.iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(";")
+    }
+}
+
+fn backend_name(b: Backend) -> &'static str {
+    match b {
+        Backend::Cpu => "cpu",
+        Backend::Gpu => "gpu",
+    }
+}
+
+/// Runs the report and writes its files.
+pub fn report(args: &ReportArgs) -> Result<(), String> {
+    let t0 = Instant::now();
+    let fixtures = fixtures(&args.fixtures)?;
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let img_dir = args.out.join("images");
+    std::fs::create_dir_all(&img_dir).map_err(|e| format!("{}: {e}", img_dir.display()))?;
+    // The plan: (algo, backend, settings), counted for the progress bar.
+    let mut plan: Vec<(&'static str, Backend, Vec<Setting>)> = Vec::new();
+    for name in ALGOS.iter().copied().filter(|n| *n != "reference") {
+        for b in &args.backends {
+            if !backends(name).contains(&backend_name(*b)) {
+                continue;
+            }
+            let e = estimator(name, *b).map_err(|e| format!("{name} {b}: {e}"))?;
+            let mut settings = vec![Vec::new()];
+            settings.extend(e.sweep(args.quick));
+            plan.push((name, *b, settings));
+        }
+    }
+    let runs_per_fixture: usize = plan.iter().map(|p| p.2.len()).sum();
+    let bar = indicatif::ProgressBar::new((runs_per_fixture * fixtures.len()) as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg}")
+            .map_err(|e| e.to_string())?
+            .progress_chars("=> "),
+    );
+    let mut rows: Vec<Row> = Vec::new();
+    let mut flicker: Vec<FlickerRow> = Vec::new();
+    let mut fixture_names = Vec::new();
+    for scene_path in &fixtures {
+        let mut scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
+        let name = scene_path
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default();
+        fixture_names.push(name.clone());
+        if args.quick {
+            scene.camera.width = (scene.camera.width / 2).max(8);
+            scene.camera.height = (scene.camera.height / 2).max(6);
+        }
+        let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+        bar.set_message(format!("{name}: reference"));
+        let refimg = reference(args, scene_path, &scene, &rec)?;
+        let ref_v = refimg.channel("V").map(|v| v.to_vec()).unwrap_or_default();
+        exr_io::write_png_preview(
+            &img_dir.join(format!("{name}-reference.png")),
+            refimg.width,
+            refimg.height,
+            &ref_v,
+        )
+        .map_err(|e| e.to_string())?;
+        // Most accurate V per (algo, backend), for the image grid.
+        let mut best: BTreeMap<(String, String), (f64, exr_io::VisibilityImage)> = BTreeMap::new();
+        for (algo, backend, settings) in &plan {
+            for s in settings {
+                bar.set_message(format!("{name}: {algo} {backend} {}", setting_label(s)));
+                let row = run_one(&name, algo, *backend, s, &scene, &rec, &refimg, &mut best)?;
+                rows.push(row);
+                bar.inc(1);
+            }
+        }
+        for ((algo, backend), (_, img)) in &best {
+            let stem = format!("{name}-{algo}-{backend}");
+            if let Some(v) = img.channel("V") {
+                exr_io::write_png_preview(
+                    &img_dir.join(format!("{stem}.png")),
+                    img.width,
+                    img.height,
+                    v,
+                )
+                .map_err(|e| e.to_string())?;
+            }
+            score::write_error_png(&img_dir.join(format!("{stem}-error.png")), img, &refimg)
+                .map_err(|e| e.to_string())?;
+        }
+        // Flicker per fit mode: a short pan, every estimator with a `fit` parameter, defaults.
+        for (algo, backend, _) in &plan {
+            let e = estimator(algo, *backend).map_err(|e| e.to_string())?;
+            if e.params().get("fit").is_none() {
+                continue;
+            }
+            for fit in ["receivers", "scene", "stable"] {
+                bar.set_message(format!("{name}: flicker {algo} {backend} fit={fit}"));
+                if let Some(f) = flicker_one(&name, algo, *backend, fit, &scene, args.quick)? {
+                    flicker.push(f);
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    write_outputs(
+        args,
+        &fixture_names,
+        &rows,
+        &flicker,
+        t0.elapsed().as_secs_f64(),
+    )?;
+    eprintln!(
+        "softshadow report: {} runs on {} fixtures in {:.0} s; {}",
+        rows.len(),
+        fixture_names.len(),
+        t0.elapsed().as_secs_f64(),
+        args.out.join("index.md").display()
+    );
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_one(
+    fixture: &str,
+    algo: &str,
+    backend: Backend,
+    setting: &[(&'static str, String)],
+    scene: &Scene,
+    rec: &Receivers,
+    refimg: &exr_io::VisibilityImage,
+    best: &mut BTreeMap<(String, String), (f64, exr_io::VisibilityImage)>,
+) -> Result<Row, String> {
+    let mut e = estimator(algo, backend).map_err(|e| e.to_string())?;
+    for (k, v) in setting {
+        e.set_param(k, v)
+            .map_err(|e| format!("{algo} {k}={v}: {e}"))?;
+    }
+    let params = e
+        .params()
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    let mut row = Row {
+        fixture: fixture.into(),
+        algo: algo.into(),
+        backend: backend_name(backend).into(),
+        setting: setting_label(setting),
+        params,
+        status: "ok".into(),
+        build_ms: f64::NAN,
+        estimate_ms: f64::NAN,
+        frame_ms: f64::NAN,
+        rmse: f64::NAN,
+        mae: f64::NAN,
+        p99: f64::NAN,
+        frac_gt_0_1: f64::NAN,
+        nonfinite: 0,
+        light_space_bytes: 0,
+    };
+    let t = Instant::now();
+    let mut v = vec![f32::NAN; rec.len()];
+    let out = e
+        .build(scene, rec)
+        .and_then(|_| e.estimate(scene, rec, &mut v));
+    let frame_ms = t.elapsed().as_secs_f64() * 1e3;
+    if let Err(err) = out {
+        row.status = format!("rejected: {err}");
+        return Ok(row);
+    }
+    let rep = e.report();
+    row.build_ms = rep.total_ms("build") + rep.total_ms("upload");
+    row.estimate_ms = rep.total_ms("estimate") + rep.total_ms("readback");
+    row.frame_ms = frame_ms;
+    row.light_space_bytes = rep.light_space_bytes;
+    let img = image(scene, rec, v)?;
+    let s = score::score(&img, refimg).map_err(|e| e.to_string())?;
+    row.rmse = s.rmse;
+    row.mae = s.mae;
+    row.p99 = s.p99_abs_error;
+    row.frac_gt_0_1 = s.frac_abs_error_gt_0_1;
+    row.nonfinite = s.nonfinite_v;
+    let key = (algo.to_string(), row.backend.clone());
+    if best.get(&key).is_none_or(|b| s.rmse < b.0) {
+        best.insert(key, (s.rmse, img));
+    }
+    Ok(row)
+}
+
+fn flicker_one(
+    fixture: &str,
+    algo: &str,
+    backend: Backend,
+    fit: &str,
+    scene: &Scene,
+    quick: bool,
+) -> Result<Option<FlickerRow>, String> {
+    let mut e = estimator(algo, backend).map_err(|e| e.to_string())?;
+    e.set_param("fit", fit).map_err(|e| e.to_string())?;
+    let frames = if quick { 3 } else { 6 };
+    // A sideways pan of a tenth of the camera's distance to its target.
+    let c = scene.camera;
+    let b = c.basis();
+    let cam_path = path::CameraPath::Pan(b.right * (0.1 * (c.target - c.eye).length()));
+    let mut s = scene.clone();
+    let mut prev: Option<path::Frame> = None;
+    let mut samples = Vec::new();
+    for k in 0..frames {
+        s.camera = cam_path.camera(&c, k, frames);
+        let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+        let v = match shadow_map_core::run(e.as_mut(), &s, &rec) {
+            Ok((v, _)) => v,
+            Err(_) => return Ok(None),
+        };
+        let f = path::Frame {
+            camera: s.camera,
+            position: rec.position,
+            active: rec.active,
+            v,
+        };
+        if let Some(a) = &prev {
+            samples.extend(path::flicker_samples(a, &f));
+        }
+        prev = Some(f);
+    }
+    let (mean, p99, pairs) = path::summarize(samples);
+    Ok(Some(FlickerRow {
+        fixture: fixture.into(),
+        algo: algo.into(),
+        backend: backend_name(backend).into(),
+        fit: fit.into(),
+        mean_abs_dv: mean,
+        p99_abs_dv: p99,
+        pairs,
+    }))
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn num(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.6}")
+    } else {
+        String::new()
+    }
+}
+
+/// Rows on the Pareto front of (frame ms, RMSE): no other row is both faster and more accurate.
+pub fn pareto(rows: &[&Row]) -> Vec<usize> {
+    let ok: Vec<usize> = (0..rows.len())
+        .filter(|&i| rows[i].rmse.is_finite() && rows[i].frame_ms.is_finite())
+        .collect();
+    let mut front: Vec<usize> = ok
+        .iter()
+        .copied()
+        .filter(|&i| {
+            !ok.iter().any(|&j| {
+                j != i
+                    && rows[j].frame_ms <= rows[i].frame_ms
+                    && rows[j].rmse <= rows[i].rmse
+                    && (rows[j].frame_ms < rows[i].frame_ms || rows[j].rmse < rows[i].rmse)
+            })
+        })
+        .collect();
+    front.sort_by(|&a, &b| rows[a].frame_ms.total_cmp(&rows[b].frame_ms));
+    front
+}
+
+fn plot(path: &Path, fixture: &str, rows: &[&Row]) -> Result<(), String> {
+    use plotters::prelude::*;
+    let ok: Vec<&Row> = rows
+        .iter()
+        .copied()
+        .filter(|r| r.rmse.is_finite() && r.frame_ms.is_finite())
+        .collect();
+    let root = SVGBackend::new(path, (760, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let tmin = ok
+        .iter()
+        .map(|r| r.frame_ms)
+        .fold(f64::INFINITY, f64::min)
+        .max(1e-3);
+    let tmax = ok
+        .iter()
+        .map(|r| r.frame_ms)
+        .fold(0.0, f64::max)
+        .max(tmin * 2.0);
+    let emax = ok.iter().map(|r| r.rmse).fold(0.0, f64::max).max(1e-3) * 1.1;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{fixture}: frame time vs RMSE"), ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .right_y_label_area_size(10)
+        .build_cartesian_2d((tmin / 1.5..tmax * 1.5).log_scale(), 0.0..emax)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("build + estimate, ms (log)")
+        .y_desc("RMSE vs reference")
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let algos: Vec<String> = {
+        let mut a: Vec<String> = ok.iter().map(|r| r.algo.clone()).collect();
+        a.sort();
+        a.dedup();
+        a
+    };
+    for (k, algo) in algos.iter().enumerate() {
+        let colour = Palette99::pick(k).to_rgba();
+        let pts: Vec<(f64, f64)> = ok
+            .iter()
+            .filter(|r| &r.algo == algo)
+            .map(|r| (r.frame_ms, r.rmse))
+            .collect();
+        let baseline = BASELINES.contains(&algo.as_str());
+        let label = if baseline {
+            format!("{algo} (baseline)")
+        } else {
+            algo.clone()
+        };
+        let series = pts.iter().map(move |&(x, y)| {
+            if baseline {
+                EmptyElement::at((x, y)) + Cross::new((0, 0), 4, colour.stroke_width(2))
+            } else {
+                EmptyElement::at((x, y)) + Cross::new((0, 0), 0, colour)
+            }
+        });
+        chart.draw_series(series).map_err(|e| e.to_string())?;
+        let dots = pts
+            .iter()
+            .filter(|_| !baseline)
+            .map(move |&(x, y)| Circle::new((x, y), 4, colour.filled()));
+        chart
+            .draw_series(dots)
+            .map_err(|e| e.to_string())?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
+    }
+    let front: Vec<(f64, f64)> = pareto(&ok)
+        .iter()
+        .map(|&i| (ok[i].frame_ms, ok[i].rmse))
+        .collect();
+    chart
+        .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
+        .map_err(|e| e.to_string())?
+        .label("Pareto front")
+        .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+fn write_outputs(
+    args: &ReportArgs,
+    fixtures: &[String],
+    rows: &[Row],
+    flicker: &[FlickerRow],
+    seconds: f64,
+) -> Result<(), String> {
+    let w =
+        |p: PathBuf, s: String| std::fs::write(&p, s).map_err(|e| format!("{}: {e}", p.display()));
+    // CSV and JSON.
+    let mut csv = String::from("fixture,algo,backend,setting,params,status,build_ms,estimate_ms,frame_ms,rmse,mae,p99,frac_gt_0_1,nonfinite,light_space_bytes\n");
+    for r in rows {
+        let params: Vec<String> = r.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            csv_field(&r.fixture),
+            csv_field(&r.algo),
+            r.backend,
+            csv_field(&r.setting),
+            csv_field(&params.join(";")),
+            csv_field(&r.status),
+            num(r.build_ms),
+            num(r.estimate_ms),
+            num(r.frame_ms),
+            num(r.rmse),
+            num(r.mae),
+            num(r.p99),
+            num(r.frac_gt_0_1),
+            r.nonfinite,
+            r.light_space_bytes
+        );
+    }
+    w(args.out.join("results.csv"), csv)?;
+    let jnum = |x: f64| {
+        if x.is_finite() {
+            json!(x)
+        } else {
+            serde_json::Value::Null
+        }
+    };
+    let jrows: Vec<serde_json::Value> = rows
+        .iter()
+        .map(|r| {
+            json!({
+                "fixture": r.fixture, "algo": r.algo, "backend": r.backend,
+                "setting": r.setting, "params": r.params, "status": r.status,
+                "build_ms": jnum(r.build_ms), "estimate_ms": jnum(r.estimate_ms),
+                "frame_ms": jnum(r.frame_ms), "rmse": jnum(r.rmse), "mae": jnum(r.mae),
+                "p99": jnum(r.p99), "frac_gt_0_1": jnum(r.frac_gt_0_1),
+                "nonfinite": r.nonfinite, "light_space_bytes": r.light_space_bytes,
+            })
+        })
+        .collect();
+    let jflicker: Vec<serde_json::Value> = flicker
+        .iter()
+        .map(|f| {
+            json!({
+                "fixture": f.fixture, "algo": f.algo, "backend": f.backend, "fit": f.fit,
+                "mean_abs_dv": jnum(f.mean_abs_dv), "p99_abs_dv": jnum(f.p99_abs_dv),
+                "pairs": f.pairs,
+            })
+        })
+        .collect();
+    w(
+        args.out.join("results.json"),
+        serde_json::to_string_pretty(&json!({
+            "quick": args.quick,
+            "seconds": seconds,
+            "runs": jrows,
+            "flicker": jflicker,
+        }))
+        .map_err(|e| e.to_string())?,
+    )?;
+    let mut fcsv = String::from("fixture,algo,backend,fit,mean_abs_dv,p99_abs_dv,pairs\n");
+    for f in flicker {
+        let _ = writeln!(
+            fcsv,
+            "{},{},{},{},{},{},{}",
+            f.fixture,
+            f.algo,
+            f.backend,
+            f.fit,
+            num(f.mean_abs_dv),
+            num(f.p99_abs_dv),
+            f.pairs
+        );
+    }
+    w(args.out.join("flicker.csv"), fcsv)?;
+
+    // index.md
+    let mut md = String::new();
+    let _ = writeln!(md, "# softshadow report\n");
+    let _ =
+        writeln!(
+        md,
+        "{} runs, {} fixtures, {}, {:.0} s. Regenerate: `softshadow report{} --out {}`. Times: \
+         build + estimate wall clock of one run (see `crates/cli/src/report.rs`); RMSE against \
+         the ray-traced reference ({} spp). Baselines are drawn as crosses.\n",
+        rows.len(),
+        fixtures.len(),
+        if args.quick { "quick (half-size images)" } else { "full" },
+        seconds,
+        if args.quick { " --quick" } else { "" },
+        args.out.display(),
+        if args.quick { 256 } else { 1024 }
+    );
+    let budgets = [10.0, 30.0, 100.0, 300.0, 1000.0, f64::INFINITY];
+    let mut summary = String::new();
+    let _ = writeln!(
+        summary,
+        "## Summary: most accurate setting within each time budget\n"
+    );
+    let _ = write!(summary, "| fixture |");
+    for b in budgets {
+        if b.is_finite() {
+            let _ = write!(summary, " <= {b} ms |");
+        } else {
+            let _ = write!(summary, " any time |");
+        }
+    }
+    let _ = writeln!(summary, "\n|---|{}", "---|".repeat(budgets.len()));
+    let mut matched = String::new();
+    let _ = writeln!(
+        matched,
+        "## Each seed algorithm against PCSS and multi-sample at matched time\n\n\
+         Per fixture and backend: the seed algorithm's most accurate setting, and the most \
+         accurate PCSS and multi-sample setting that is no slower.\n\n\
+         | fixture | backend | algorithm (setting) | ms | RMSE | PCSS RMSE within that time | multi-sample RMSE within that time |\n|---|---|---|---|---|---|---|"
+    );
+    for fx in fixtures {
+        let fr: Vec<&Row> = rows.iter().filter(|r| &r.fixture == fx).collect();
+        let svg = format!("plot-{fx}.svg");
+        plot(&args.out.join(&svg), fx, &fr)?;
+        let _ = writeln!(md, "## {fx}\n\n![{fx}]({svg})\n");
+        let _ = writeln!(md, "Pareto-optimal settings:\n\n| algo | backend | setting | ms | RMSE | p99 |\n|---|---|---|---|---|---|");
+        for i in pareto(&fr) {
+            let r = fr[i];
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.1} | {:.4} | {:.3} |",
+                r.algo, r.backend, r.setting, r.frame_ms, r.rmse, r.p99
+            );
+        }
+        let rejected: Vec<String> = fr
+            .iter()
+            .filter(|r| r.status != "ok")
+            .map(|r| format!("{} {} ({})", r.algo, r.backend, r.status))
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        if !rejected.is_empty() {
+            let _ = writeln!(md, "\nNot run: {}", rejected.join("; "));
+        }
+        let _ = writeln!(md, "\nMost accurate setting of each algorithm (V, then error: blue too dark, red too bright):\n");
+        let _ = writeln!(
+            md,
+            "| reference | | |\n|---|---|---|\n| ![ref](images/{fx}-reference.png) | | |"
+        );
+        let mut algos: Vec<(String, String)> = fr
+            .iter()
+            .filter(|r| r.status == "ok")
+            .map(|r| (r.algo.clone(), r.backend.clone()))
+            .collect();
+        algos.sort();
+        algos.dedup();
+        for (a, b) in &algos {
+            let best = fr
+                .iter()
+                .filter(|r| &r.algo == a && &r.backend == b && r.rmse.is_finite())
+                .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
+            if let Some(r) = best {
+                let _ = writeln!(
+                    md,
+                    "| {a} {b} `{}` RMSE {:.4} | ![v](images/{fx}-{a}-{b}.png) | ![e](images/{fx}-{a}-{b}-error.png) |",
+                    r.setting, r.rmse
+                );
+            }
+        }
+        let _ = writeln!(md);
+        // Summary row.
+        let _ = write!(summary, "| {fx} |");
+        for b in budgets {
+            let best = fr
+                .iter()
+                .filter(|r| r.rmse.is_finite() && r.frame_ms <= b)
+                .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
+            match best {
+                Some(r) => {
+                    let _ = write!(
+                        summary,
+                        " {} {} `{}` {:.4} |",
+                        r.algo, r.backend, r.setting, r.rmse
+                    );
+                }
+                None => {
+                    let _ = write!(summary, " none |");
+                }
+            }
+        }
+        let _ = writeln!(summary);
+        for backend in ["cpu", "gpu"] {
+            for seed in ALGOS
+                .iter()
+                .filter(|a| **a != "reference" && !BASELINES.contains(a))
+            {
+                let best = fr
+                    .iter()
+                    .filter(|r| r.algo == *seed && r.backend == backend && r.rmse.is_finite())
+                    .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
+                let Some(s) = best else { continue };
+                let within = |algo: &str| {
+                    fr.iter()
+                        .filter(|r| {
+                            r.algo == algo
+                                && r.backend == backend
+                                && r.rmse.is_finite()
+                                && r.frame_ms <= s.frame_ms
+                        })
+                        .map(|r| r.rmse)
+                        .fold(f64::INFINITY, f64::min)
+                };
+                let f = |x: f64| {
+                    if x.is_finite() {
+                        format!("{x:.4}")
+                    } else {
+                        "none that fast".into()
+                    }
+                };
+                let _ = writeln!(
+                    matched,
+                    "| {fx} | {backend} | {seed} (`{}`) | {:.1} | {:.4} | {} | {} |",
+                    s.setting,
+                    s.frame_ms,
+                    s.rmse,
+                    f(within("pcss")),
+                    f(within("multi-sample"))
+                );
+            }
+        }
+    }
+    md.push_str(&summary);
+    md.push('\n');
+    md.push_str(&matched);
+    md.push('\n');
+    let _ = writeln!(
+        md,
+        "## Flicker per fit mode\n\nMean and 99th percentile of |dV| between consecutive frames \
+         of a sideways camera pan, at the same world points (`crates/cli/src/path.rs`).\n\n\
+         | fixture | algo | backend | fit | mean abs dV | p99 abs dV | pairs |\n|---|---|---|---|---|---|---|"
+    );
+    for f in flicker {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.5} | {:.4} | {} |",
+            f.fixture, f.algo, f.backend, f.fit, f.mean_abs_dv, f.p99_abs_dv, f.pairs
+        );
+    }
+    w(args.out.join("index.md"), md)?;
+    Ok(())
+}
