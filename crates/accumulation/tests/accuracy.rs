@@ -454,6 +454,8 @@ fn every_fixture_gives_v_in_range() {
         "strands",
         "sphere-light",
         "bunny",
+        "stacked",
+        "hair",
     ] {
         let (s, r) = small_fixture(name, 24, 18);
         for variant in ["additive", "exact"] {
