@@ -431,6 +431,15 @@ fn accuracy() {
             }),
         ),
         (
+            "backprojection 4 layers, max_nspp 4096 (no adaptive step up to 64x64 kernels)",
+            Box::new(|| {
+                let mut e = CpuBackprojection::new().expect("bp");
+                e.set_param("layers", "4").expect("p");
+                e.set_param("max_nspp", "4096").expect("p");
+                Box::new(e) as Box<dyn SoftShadowEstimator>
+            }),
+        ),
+        (
             "PCSS",
             Box::new(|| Box::new(PcssShadow::new().expect("pcss")) as Box<dyn SoftShadowEstimator>),
         ),
