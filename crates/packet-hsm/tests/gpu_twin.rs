@@ -195,7 +195,12 @@ fn gpu_loop_limit_is_detected_not_truncated() {
     let Some(ctx) = gpu("gpu_loop_limit_is_detected_not_truncated") else {
         return;
     };
-    let s = scene_with(rect_light(2.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 2.6), SQUARE], 8, 8);
+    let s = scene_with(
+        rect_light(2.0, 3.0),
+        &[(-0.5, -0.5, 0.5, 0.5, 2.6), SQUARE],
+        8,
+        8,
+    );
     let r = line_receivers();
     for (p, h) in [("1x1", "false"), ("8x8", "false"), ("1x1", "true")] {
         let kv = [("resolution", "256"), ("packet", p), ("hierarchy", h)];
