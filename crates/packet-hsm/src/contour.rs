@@ -359,15 +359,23 @@ pub struct PaddedDualMssm {
 }
 
 impl PaddedDualMssm {
-    /// Builds levels `0..=floor(log2(r + 2))` over the padded classification depths.
-    pub fn build(class: &[f32], r: u32) -> PaddedDualMssm {
+    /// Builds levels `0..=L` over the padded classification depths, with
+    /// `L = min(floor(log2(r + 2)), ceil(log2(max_cells)))`: no kernel spans more than
+    /// `max_cells` cells, so its start node is a single node of level `<= L` and higher levels
+    /// would only cost memory (`2 (L + 1) (r + 2)^2 4` bytes). Missing depths (a short slice) are
+    /// empty samples.
+    pub fn build(class: &[f32], r: u32, max_cells: u32) -> PaddedDualMssm {
         let p = r as usize + 2;
         let mut padded = vec![f32::INFINITY; p * p];
         for j in 0..r as usize {
-            padded[(j + 1) * p + 1..(j + 1) * p + 1 + r as usize]
-                .copy_from_slice(&class[j * r as usize..(j + 1) * r as usize]);
+            for i in 0..r as usize {
+                if let Some(&c) = class.get(j * r as usize + i) {
+                    padded[(j + 1) * p + 1 + i] = c;
+                }
+            }
         }
-        let levels = (p as f64).log2().floor() as u32;
+        let need = 32 - (max_cells.max(1) - 1).leading_zeros();
+        let levels = ((p as f64).log2().floor() as u32).min(need);
         PaddedDualMssm {
             mssm: DualMssm::build(&padded, p as u32, levels),
         }
@@ -582,7 +590,7 @@ mod tests {
             depth: &d,
             class: &d,
         };
-        let dm = PaddedDualMssm::build(&d, r);
+        let dm = PaddedDualMssm::build(&d, r, r + 2);
         let rec = Receiver::new(&g, DVec2::new(8.3, 8.1), 2.0, 2.0);
         assert!(rec.centre);
         let h = DVec2::new(0.5, 0.5);
@@ -614,14 +622,20 @@ mod tests {
                 depth: &d,
                 class: &d,
             };
-            let dm = PaddedDualMssm::build(&d, r);
+            let dm = PaddedDualMssm::build(&d, r, r + 2);
+            // Levels capped below the kernel's span: the kernel is tiled with top-level roots.
+            let capped = PaddedDualMssm::build(&d, r, 4);
+            assert_eq!(capped.mssm.levels(), 3);
             let uv = DVec2::new(1.0 + 22.0 * rnd() as f64, 1.0 + 22.0 * rnd() as f64);
             let rec = Receiver::new(&g, uv, 3.0, 1.5);
             let cr = [-1, 2, 20, 24];
             let h = DVec2::new(0.4, 0.6);
             let (vf, nf) = pixel_visibility(&g, &dm, &cr, &rec, 0.02, h, Traversal::Flat);
             let (vh, _) = pixel_visibility(&g, &dm, &cr, &rec, 0.02, h, Traversal::Hierarchical);
+            let (vc, _) =
+                pixel_visibility(&g, &capped, &cr, &rec, 0.02, h, Traversal::Hierarchical);
             assert!((vf - vh).abs() < 1e-6, "{vf} {vh}");
+            assert!((vf - vc).abs() < 1e-6, "{vf} {vc}");
             assert_eq!(nf, 21 * 22);
         }
     }

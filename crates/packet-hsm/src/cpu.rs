@@ -332,7 +332,8 @@ impl SubView {
         } else {
             &l0.depth
         };
-        let dual = PaddedDualMssm::build(class, l0.size);
+        let max_cells = (wmax.ceil() as u32).saturating_add(3).min(r + 2);
+        let dual = PaddedDualMssm::build(class, l0.size, max_cells);
         Ok(SubView {
             ls,
             mssm,

@@ -92,6 +92,10 @@ fn loop_limit_hit() -> bool {
 
 const TRUNCATED: f32 = -1.0;
 
+// Set when a node could not be pushed (cannot happen with <= 4 roots and 3 pushes per level, but
+// never silently): the work is flagged like a loop-limit cut.
+var<private> stack_overflow: bool = false;
+
 const F32_MAX: f32 = 3.40282347e38;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 const STACK: u32 = 64u;
@@ -601,7 +605,7 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         complete = sp == 0u;
     }
-    if !complete || loop_limit_hit() {
+    if !complete || stack_overflow || loop_limit_hit() {
         v_out[idx] = vec2<f32>(0.0, TRUNCATED);
         return;
     }
@@ -634,6 +638,8 @@ fn push_roots(stack: ptr<function, array<vec3<i32>, STACK>>, cr: vec4<i32>) -> u
             if sp < STACK {
                 (*stack)[sp] = vec3<i32>(x, y, i32(l0));
                 sp += 1u;
+            } else {
+                stack_overflow = true;
             }
         }
     }
@@ -647,9 +653,13 @@ fn push_children(stack: ptr<function, array<vec3<i32>, STACK>>, sp0: u32, nd: ve
     for (var c = 0u; c < 4u; c++) {
         let cx = nd.x + kids[c].x;
         let cy = nd.y + kids[c].y;
-        if cx < x1 && cy < y1 && sp < STACK {
-            (*stack)[sp] = vec3<i32>(cx, cy, nd.z - 1);
-            sp += 1u;
+        if cx < x1 && cy < y1 {
+            if sp < STACK {
+                (*stack)[sp] = vec3<i32>(cx, cy, nd.z - 1);
+                sp += 1u;
+            } else {
+                stack_overflow = true;
+            }
         }
     }
     return sp;
@@ -814,7 +824,7 @@ fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let complete = select(sp == 0u, fj >= k.w, u.hierarchy == 0u);
-    if !complete || loop_limit_hit() {
+    if !complete || stack_overflow || loop_limit_hit() {
         // Cut short: the pixels pass redoes these pixels.
         atomicAdd(&counters[4], 1u);
         return;
