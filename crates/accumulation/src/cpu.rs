@@ -24,6 +24,23 @@ pub const MAX_MSSM_LEVEL: u32 = 5;
 /// Most refinement rounds of the adaptive kernel.
 pub const REFINE_ROUNDS: u32 = 16;
 
+/// The settings `softshadow report` runs besides the defaults (both twins).
+pub fn sweep(quick: bool) -> Vec<Vec<(&'static str, String)>> {
+    let one = |k: &'static str, v: &str| vec![(k, v.to_string())];
+    if quick {
+        return vec![one("resolution", "256"), one("variant", "exact")];
+    }
+    let mut s: Vec<Vec<(&'static str, String)>> =
+        ["3", "5", "15"].iter().map(|k| one("k", k)).collect();
+    s.extend([
+        one("variant", "exact"),
+        one("kernel", "fixed"),
+        one("resolution", "256"),
+        one("resolution", "2048"),
+    ]);
+    s
+}
+
 /// Parameters of [`CpuAccumulation`] (and of its GPU twin).
 pub const SPECS: &[ParamSpec] = &[
     ParamSpec {
@@ -746,6 +763,11 @@ impl SoftShadowEstimator for CpuAccumulation {
     }
     fn report(&self) -> Report {
         self.report.clone()
+    }
+    /// Kernel size K (the paper's 3 to 15), the exact variant, the paper's fixed kernel, and
+    /// the resolution.
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        sweep(quick)
     }
 }
 

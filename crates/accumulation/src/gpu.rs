@@ -592,6 +592,9 @@ impl SoftShadowEstimator for GpuAccumulation {
     fn report(&self) -> Report {
         self.report.clone()
     }
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        crate::cpu::sweep(quick)
+    }
 }
 
 #[cfg(test)]

@@ -397,6 +397,10 @@ impl SoftShadowEstimator for CpuDeepShadow {
     fn report(&self) -> Report {
         self.report.clone()
     }
+    /// Filters (the paper's Table 1.1 columns), sub-lights (soft transmittance) and resolution.
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        crate::params::sweep(quick)
+    }
 }
 
 /// The light-space data of one view.

@@ -657,6 +657,10 @@ impl SoftShadowEstimator for GpuDeepShadow {
     fn report(&self) -> Report {
         self.report.clone()
     }
+    /// Filters (the paper's Table 1.1 columns), sub-lights (soft transmittance) and resolution.
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        crate::params::sweep(quick)
+    }
 }
 
 #[cfg(test)]

@@ -7,6 +7,23 @@ pub const NAME: &str = "deep-shadow";
 /// One-line description, shared by both twins.
 pub const DESCRIPTION: &str = "deep shadow maps: per-texel linked lists of semi-transparent fragments, sorted and truncated, PCF/EDSM with neighbour links (Fürst et al.); S x S sub-lights for soft transmittance";
 
+/// The settings `softshadow report` runs besides the defaults (both twins).
+pub fn sweep(quick: bool) -> Vec<Vec<(&'static str, String)>> {
+    let kv = |p: &[(&'static str, &str)]| p.iter().map(|(k, v)| (*k, v.to_string())).collect();
+    if quick {
+        return vec![kv(&[("resolution", "256")]), kv(&[("sublights", "2")])];
+    }
+    vec![
+        kv(&[("filter", "pcf"), ("kernel", "5")]),
+        kv(&[("filter", "edsm"), ("kernel", "5")]),
+        kv(&[("sublights", "2")]),
+        kv(&[("sublights", "3")]),
+        kv(&[("sublights", "2"), ("filter", "pcf"), ("kernel", "3")]),
+        kv(&[("resolution", "256")]),
+        kv(&[("resolution", "512")]),
+    ]
+}
+
 /// The parameters, shared by both twins.
 pub const SPECS: &[ParamSpec] = &[
     ParamSpec {
