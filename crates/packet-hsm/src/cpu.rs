@@ -30,6 +30,22 @@ pub const PACKETS: &[&str] = &[
     "7x5", "7x6", "7x7", "7x8", "8x1", "8x2", "8x3", "8x4", "8x5", "8x6", "8x7", "8x8",
 ];
 
+/// The settings `softshadow report` runs besides the defaults (both twins).
+pub fn sweep(quick: bool) -> Vec<Vec<(&'static str, String)>> {
+    let one = |k: &'static str, v: &str| vec![(k, v.to_string())];
+    if quick {
+        return vec![one("resolution", "256"), one("sublights", "2")];
+    }
+    vec![
+        one("sublights", "2"),
+        one("sublights", "4"),
+        one("packet", "1x1"),
+        one("packet", "4x4"),
+        one("resolution", "256"),
+        one("resolution", "512"),
+    ]
+}
+
 /// Parameters of [`CpuPacketHsm`] (shared with the GPU twin).
 pub const SPECS: &[ParamSpec] = &[
     ParamSpec {
@@ -918,5 +934,10 @@ impl SoftShadowEstimator for CpuPacketHsm {
     }
     fn report(&self) -> Report {
         self.report.clone()
+    }
+    /// Sub-lights (section 5), packet sizes (Algorithm 2) and resolution; hierarchy and
+    /// coherence change only the time, so the report runs their defaults.
+    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
+        crate::cpu::sweep(quick)
     }
 }
