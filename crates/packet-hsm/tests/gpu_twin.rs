@@ -153,7 +153,14 @@ fn gpu_twin_matches_cpu_twin() {
                         .unwrap_or_default()
                 };
                 assert_eq!(note(&rg, "packets"), note(&rc, "packets"));
-                if coh == "false" {
+                // Packets that hit llvmpipe's loop limit (65535 iterations per invocation) are
+                // redone pixel-wise (same V) and so counted differently: compare the counters
+                // only where the GPU finished every packet itself.
+                let cut = note(&rg, "packets_loop_limit").parse::<u64>().unwrap_or(0)
+                    + note(&rg, "loop_limit_cpu_fallbacks")
+                        .parse::<u64>()
+                        .unwrap_or(0);
+                if coh == "false" && cut == 0 {
                     assert_eq!(note(&rg, "packets_coherent"), note(&rc, "packets_coherent"));
                     assert_eq!(note(&rg, "packets_diverged"), note(&rc, "packets_diverged"));
                 }
