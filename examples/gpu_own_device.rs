@@ -1,0 +1,56 @@
+//! A GPU estimator inside a user's own wgpu device: the user creates the instance, adapter,
+//! device and queue (here headless, as a renderer would before creating its surface), wraps them
+//! in a `GpuContext` without giving up ownership of anything else, and runs the PCSS and
+//! backprojection twins on it. Receivers come from the CPU here and V is read back; estimators
+//! that take receivers already resident in the user's GPU buffers (`GpuReceivers::from_buffer`)
+//! and leave V there are not implemented yet.
+//!
+//! ```text
+//! WGPU_BACKEND=vulkan cargo run --release --example gpu_own_device
+//! ```
+use shadow_map_core::{gpu::GpuContext, run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use std::sync::Arc;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // The user's device.
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
+    });
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        ..Default::default()
+    }))?;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("my renderer"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))?;
+    println!("adapter: {:?}", adapter.get_info().name);
+    let ctx = Arc::new(GpuContext::from_device(device.clone(), queue.clone()));
+
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/fixtures/parallel-squares/parallel-squares.toml"
+    );
+    let scene = Scene::load(path)?;
+    let receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let mut estimators: Vec<Box<dyn SoftShadowEstimator>> = vec![
+        Box::new(softshadow::baselines::gpu::GpuPcssShadow::new(ctx.clone())?),
+        Box::new(softshadow::backprojection::GpuBackprojection::new(ctx)?),
+    ];
+    for e in &mut estimators {
+        let (v, report) = run(e.as_mut(), &scene, &receivers)?;
+        let lit: Vec<f32> = v.into_iter().filter(|x| !x.is_nan()).collect();
+        println!(
+            "{} on the user's device: mean V {:.4}, build {:.1} ms, estimate {:.1} ms",
+            e.name(),
+            lit.iter().sum::<f32>() / lit.len().max(1) as f32,
+            report.total_ms("build"),
+            report.total_ms("estimate")
+        );
+    }
+    // The device is still the user's: keep using it.
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    Ok(())
+}
