@@ -241,8 +241,7 @@ fn render(
         .map(|_| ());
     };
     let base = scene.camera;
-    let mut prev: Option<path::Frame> = None;
-    let mut samples = Vec::new();
+    let mut flicker = path::Flicker::default();
     for k in 0..frames {
         scene.camera = cam_path.camera(&base, k, frames);
         let out_k = path::numbered(out, k);
@@ -258,12 +257,9 @@ fn render(
             Instant::now(),
             Some(k),
         )?;
-        if let Some(a) = &prev {
-            samples.extend(path::flicker_samples(a, &frame));
-        }
-        prev = Some(frame);
+        flicker.push(frame);
     }
-    let (mean, p99, pairs) = path::summarize(samples);
+    let (mean, p99, pairs) = flicker.summary();
     let num = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
     println!(
         "{}",
@@ -306,14 +302,7 @@ fn render_frame(
     stages.extend(report.stages.iter().cloned());
     let t = Instant::now();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    let z: Vec<f32> = receivers
-        .view_depth
-        .clone()
-        .unwrap_or_else(|| vec![f32::INFINITY; w * h]);
-    let mut img = exr_io::VisibilityImage::new(w, h);
-    img.push_channel("V", v.clone())
-        .map_err(|e| e.to_string())?;
-    img.push_channel("Z", z).map_err(|e| e.to_string())?;
+    let img = report::visibility_image(scene, &receivers, v.clone())?;
     exr_io::write_exr(out, &img).map_err(|e| e.to_string())?;
     if let Some(p) = png {
         exr_io::write_png_preview(p, w, h, &v).map_err(|e| e.to_string())?;

@@ -119,6 +119,28 @@ pub fn flicker_samples(a: &Frame, b: &Frame) -> Vec<f32> {
     out
 }
 
+/// The flicker of a sequence of frames: [`flicker_samples`] of each consecutive pair.
+#[derive(Debug, Default)]
+pub struct Flicker {
+    prev: Option<Frame>,
+    samples: Vec<f32>,
+}
+
+impl Flicker {
+    /// Adds the next frame of the sequence.
+    pub fn push(&mut self, frame: Frame) {
+        if let Some(a) = &self.prev {
+            self.samples.extend(flicker_samples(a, &frame));
+        }
+        self.prev = Some(frame);
+    }
+
+    /// (mean, p99, pairs) over every transition so far ([`summarize`]).
+    pub fn summary(self) -> (f64, f64, usize) {
+        summarize(self.samples)
+    }
+}
+
 /// (mean, p99, pairs) over samples.
 pub fn summarize(mut s: Vec<f32>) -> (f64, f64, usize) {
     if s.is_empty() {

@@ -147,7 +147,13 @@ fn cache_key(scene_path: &Path, scene: &Scene, spp: u32) -> Result<u64, String> 
     Ok(h)
 }
 
-fn image(scene: &Scene, rec: &Receivers, v: Vec<f32>) -> Result<exr_io::VisibilityImage, String> {
+/// The contract's image of V for `rec` (the camera's receivers): channels `V` and `Z` (view
+/// depth, +inf where the receivers carry none).
+pub fn visibility_image(
+    scene: &Scene,
+    rec: &Receivers,
+    v: Vec<f32>,
+) -> Result<exr_io::VisibilityImage, String> {
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let z = rec
         .view_depth
@@ -177,7 +183,7 @@ fn reference(
     r.set_param("spp", &spp.to_string())
         .map_err(|e| e.to_string())?;
     let (v, _) = shadow_map_core::run(&mut r, scene, rec).map_err(|e| e.to_string())?;
-    let img = image(scene, rec, v)?;
+    let img = visibility_image(scene, rec, v)?;
     exr_io::write_exr(&file, &img).map_err(|e| e.to_string())?;
     Ok(img)
 }
@@ -361,7 +367,7 @@ fn run_one(
     row.estimate_ms = rep.total_ms("estimate") + rep.total_ms("readback");
     row.frame_ms = frame_ms;
     row.light_space_bytes = rep.light_space_bytes;
-    let img = image(scene, rec, v)?;
+    let img = visibility_image(scene, rec, v)?;
     let s = score::score(&img, refimg).map_err(|e| e.to_string())?;
     row.rmse = s.rmse;
     row.mae = s.mae;
@@ -391,11 +397,12 @@ fn flicker_one(
     let b = c.basis();
     let cam_path = path::CameraPath::Pan(b.right * (0.1 * (c.target - c.eye).length()));
     let mut s = scene.clone();
-    let mut prev: Option<path::Frame> = None;
-    let mut samples = Vec::new();
+    let mut flicker = path::Flicker::default();
+    // Only the camera moves: one BVH serves every frame.
+    let bvh = SceneBvh::new(scene);
     for k in 0..frames {
         s.camera = cam_path.camera(&c, k, frames);
-        let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+        let rec = Receivers::from_camera(&s, &bvh);
         let v = match shadow_map_core::run(e.as_mut(), &s, &rec) {
             Ok((v, _)) => v,
             Err(_) => return Ok(None),
@@ -406,12 +413,9 @@ fn flicker_one(
             active: rec.active,
             v,
         };
-        if let Some(a) = &prev {
-            samples.extend(path::flicker_samples(a, &f));
-        }
-        prev = Some(f);
+        flicker.push(f);
     }
-    let (mean, p99, pairs) = path::summarize(samples);
+    let (mean, p99, pairs) = flicker.summary();
     Ok(Some(FlickerRow {
         fixture: fixture.into(),
         algo: algo.into(),
