@@ -1,10 +1,4 @@
-//! # shadow-map-core
-//!
-//! The ground every softshadow algorithm stands on: the scene model of the project's contract
-//! (TOML + OBJ, one area light, one camera), receivers (the camera's G-buffer or a user's points),
-//! the light view (perspective projection through the light centre onto the plane z = n, fitted
-//! tightly), the CPU rasteriser with its fill rule, bias and culling, depth peeling, midpoint
-//! layers, the MSSM family, estimator parameters and the [`SoftShadowEstimator`] trait.
+#![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 // `!(a > b)` is deliberate throughout: it is true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
