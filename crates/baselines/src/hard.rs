@@ -3,8 +3,9 @@
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
 use glam::Vec3;
-use shadow_map_core::light_view::{FIT, NEARFAR};
-use shadow_map_core::{light_space::LightSpace, Light, ParamSpec, Params};
+use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
+use shadow_map_core::precision::DEPTH;
+use shadow_map_core::{DepthLookup, Light, ParamSpec, Params};
 
 /// The hard test: `V = [z_p - eps <= D(floor u, floor v)]`, and 0 when the light centre is
 /// behind the receiver's tangent plane.
@@ -17,13 +18,19 @@ impl Filter for Hard {
     const NAME: &'static str = "hard";
     const DESCRIPTION: &'static str =
         "hard shadow map: one binary depth test from the light centre (Williams 1978)";
-    const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL, FIT, NEARFAR];
+    const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL, FIT, NEARFAR, DEPTH];
     fn from_params(_: &Params) -> Self {
         Hard
     }
-    fn visibility(&self, ls: &LightSpace, _: &Light, r: &ReceiverSample) -> f32 {
+    fn visibility<M: DepthLookup>(
+        &self,
+        _: &LightView,
+        map: &M,
+        _: &Light,
+        r: &ReceiverSample,
+    ) -> f32 {
         lit(
-            ls,
+            map,
             r.uv.x.floor() as i32,
             r.uv.y.floor() as i32,
             r.p.z,

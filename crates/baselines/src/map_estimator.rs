@@ -3,8 +3,10 @@
 use crate::common::{self, receiver_bias};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::LightSpace, light_view::ViewOptions, Backend, Error, Light, ParamSpec, Params,
-    Receivers, Report, Result, Scene, SoftShadowEstimator,
+    light_space::LightSpace,
+    light_view::{LightView, ViewOptions},
+    Backend, DepthLookup, DepthPrecision, Error, Light, ParamSpec, Params, Receivers, Report,
+    Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -18,7 +20,8 @@ pub struct ReceiverSample {
     pub n: Vec3,
     /// Continuous texel coordinates (inside the map).
     pub uv: Vec2,
-    /// Depth bias in world units: a sample occludes when `z_s < p.z - eps`.
+    /// Depth bias in world units: a sample occludes when `z_s < p.z - eps` (half a code step
+    /// more under `depth=unorm16`, see [`shadow_map_core::precision`]).
     pub eps: f32,
 }
 
@@ -33,8 +36,14 @@ pub trait Filter: Send + Sync {
     /// Reads the typed settings from the parameters.
     fn from_params(p: &Params) -> Self;
     /// Visibility of the light from the receiver as this filter estimates it, before the
-    /// tangent-plane factor, in [0, 1].
-    fn visibility(&self, ls: &LightSpace, light: &Light, r: &ReceiverSample) -> f32;
+    /// tangent-plane factor, in [0, 1], reading the shadow map `map` (f32 or 16-bit) of `view`.
+    fn visibility<M: DepthLookup>(
+        &self,
+        view: &LightView,
+        map: &M,
+        light: &Light,
+        r: &ReceiverSample,
+    ) -> f32;
     /// The tangent-plane factor: by default the exact fraction of the light in front of the
     /// receiver's tangent plane (contract: light behind the surface is blocked).
     fn facing(&self, light: &Light, p_world: Vec3, n_world: Vec3) -> f32 {
@@ -43,10 +52,12 @@ pub trait Filter: Send + Sync {
 }
 
 /// A [`SoftShadowEstimator`] from a [`Filter`]: builds one shadow map at the light centre, fitted
-/// to the receivers, then runs the filter per receiver.
+/// to the receivers, then runs the filter per receiver. Under `depth=unorm16` the map is encoded
+/// to 16-bit codes after the build and the f32 layer is freed.
 pub struct MapEstimator<F: Filter> {
     params: Params,
     ls: Option<LightSpace>,
+    q16: Option<Unorm16Map>,
     report: Report,
     _f: std::marker::PhantomData<F>,
 }
@@ -57,13 +68,19 @@ impl<F: Filter> MapEstimator<F> {
         Ok(MapEstimator {
             params: Params::new(F::SPECS)?,
             ls: None,
+            q16: None,
             report: Report::default(),
             _f: Default::default(),
         })
     }
-    /// The light-space data of the last build (for tests and the GPU twin).
+    /// The light-space data of the last build (for tests and the GPU twin). Under
+    /// `depth=unorm16` its layer 0 is empty (freed); the map is [`unorm16`](Self::unorm16).
     pub fn light_space(&self) -> Option<&LightSpace> {
         self.ls.as_ref()
+    }
+    /// The 16-bit map of the last build under `depth=unorm16`.
+    pub fn unorm16(&self) -> Option<&Unorm16Map> {
+        self.q16.as_ref()
     }
 }
 
@@ -86,12 +103,16 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let req = common::map_request(&self.params);
-        let ls = self.report.time("build", || {
+        let precision = DepthPrecision::from_params(&self.params);
+        let (ls, q16) = self.report.time("build", || -> Result<_> {
             let opts = ViewOptions::from_params(&self.params);
-            LightSpace::build_with(scene, receivers, &req, &opts)
+            let mut ls = LightSpace::build_with(scene, receivers, &req, &opts)?;
+            let q16 = encode_layer0(&mut ls, precision);
+            Ok((ls, q16))
         })?;
-        self.report.light_space_bytes = ls.bytes();
+        self.report.light_space_bytes = ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes);
         self.ls = Some(ls);
+        self.q16 = q16;
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
@@ -106,41 +127,41 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
             self.params.float("slope_bias") as f32,
         );
         let light = &scene.light;
-        let view = &ls.view;
-        let outside = AtomicUsize::new(0);
         let t = std::time::Instant::now();
-        let nonfinite = common::for_each_receiver(receivers, v, |pw, nw| {
-            let facing = filter.facing(light, pw, nw);
-            if facing <= 0.0 {
-                return 0.0;
-            }
-            let p = view.frame.to_light(pw);
-            let n = view.frame.dir_to_light(nw);
-            if p.z <= view.n {
-                // Nearer than anything the map records (or behind a sphere light's frustum).
-                if p.z <= 0.0 {
-                    outside.fetch_add(1, Ordering::Relaxed);
-                }
-                return facing;
-            }
-            let uv = view.project(p);
-            if !view.contains(uv) {
-                outside.fetch_add(1, Ordering::Relaxed);
-                return facing;
-            }
-            let eps = receiver_bias(view, p, n, b0, b1);
-            facing * filter.visibility(ls, light, &ReceiverSample { p, n, uv, eps })
-        });
+        let (nonfinite, outside) = match &self.q16 {
+            Some(q) => filter_all(
+                &filter,
+                &ls.view,
+                q,
+                q.half_step(),
+                light,
+                receivers,
+                v,
+                (b0, b1),
+            ),
+            None => filter_all(
+                &filter,
+                &ls.view,
+                &ls.layers[0],
+                0.0,
+                light,
+                receivers,
+                v,
+                (b0, b1),
+            ),
+        };
+        let view = &ls.view;
         self.report
             .stages
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         self.report.note("resolution", view.r);
         self.report.note("near", view.n);
         self.report.note("far", view.far);
-        self.report.note(
-            "out_of_frustum",
-            outside.into_inner() + ls.fit.out_of_frustum,
-        );
+        self.report
+            .note("out_of_frustum", outside + ls.fit.out_of_frustum);
+        if let Some(q) = &self.q16 {
+            self.report.note("depth_step", q.step);
+        }
         self.report.note("window_scale", ls.fit.window_scale);
         if nonfinite > 0 {
             self.report.note("nonfinite_replaced", nonfinite);
@@ -158,10 +179,62 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
     }
 }
 
+/// Encodes layer 0 of `ls` to 16-bit codes under [`DepthPrecision::Unorm16`] and frees the f32
+/// layer (its `size` is kept); `None` under f32.
+pub fn encode_layer0(ls: &mut LightSpace, precision: DepthPrecision) -> Option<Unorm16Map> {
+    if precision != DepthPrecision::Unorm16 {
+        return None;
+    }
+    let l0 = ls.layers.first_mut()?;
+    let q = Unorm16Map::encode(l0, ls.view.n, ls.view.far);
+    l0.depth = Vec::new();
+    Some(q)
+}
+
+/// Runs `filter` over every receiver with the map `map` (f32 or 16-bit; `extra_eps` is added to
+/// the receiver bias: half a code step for 16-bit maps). Returns (non-finite results, receivers
+/// outside the frustum).
+#[allow(clippy::too_many_arguments)]
+fn filter_all<F: Filter, M: DepthLookup>(
+    filter: &F,
+    view: &LightView,
+    map: &M,
+    extra_eps: f32,
+    light: &Light,
+    receivers: &Receivers,
+    v: &mut [f32],
+    (b0, b1): (f32, f32),
+) -> (usize, usize) {
+    let outside = AtomicUsize::new(0);
+    let nonfinite = common::for_each_receiver(receivers, v, |pw, nw| {
+        let facing = filter.facing(light, pw, nw);
+        if facing <= 0.0 {
+            return 0.0;
+        }
+        let p = view.frame.to_light(pw);
+        let n = view.frame.dir_to_light(nw);
+        if p.z <= view.n {
+            // Nearer than anything the map records (or behind a sphere light's frustum).
+            if p.z <= 0.0 {
+                outside.fetch_add(1, Ordering::Relaxed);
+            }
+            return facing;
+        }
+        let uv = view.project(p);
+        if !view.contains(uv) {
+            outside.fetch_add(1, Ordering::Relaxed);
+            return facing;
+        }
+        let eps = receiver_bias(view, p, n, b0, b1) + extra_eps;
+        facing * filter.visibility(view, map, light, &ReceiverSample { p, n, uv, eps })
+    });
+    (nonfinite, outside.into_inner())
+}
+
 /// `1` when the map sample at texel (i, j) does not occlude a receiver at depth `z - eps`.
 #[inline]
-pub fn lit(ls: &LightSpace, i: i32, j: i32, z: f32, eps: f32) -> f32 {
-    if ls.layers[0].at(i, j) < z - eps {
+pub fn lit<M: DepthLookup>(map: &M, i: i32, j: i32, z: f32, eps: f32) -> f32 {
+    if map.at(i, j) < z - eps {
         0.0
     } else {
         1.0

@@ -2,12 +2,14 @@
 //! shadow maps rendered from jittered stratified points on the light, the papers' brute-force
 //! reference. Only one map is alive at a time.
 use crate::common::{self, receiver_bias, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::map_estimator::encode_layer0;
 use glam::Vec2;
 use rayon::prelude::*;
 use shadow_map_core::light_view::{ViewOptions, FIT, NEARFAR};
+use shadow_map_core::precision::DEPTH;
 use shadow_map_core::{
-    light_space::LightSpace, Backend, Error, LightShape, ParamKind, ParamSpec, Params, Receivers,
-    Report, Result, Scene, SoftShadowEstimator,
+    light_space::LightSpace, Backend, DepthLookup, DepthPrecision, Error, LightShape, ParamKind,
+    ParamSpec, Params, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 
 /// Registry name of multi-sample shadows (shared with the GPU twin).
@@ -24,6 +26,7 @@ pub const SPECS: &[ParamSpec] = &[
     CULL,
     FIT,
     NEARFAR,
+    DEPTH,
     ParamSpec {
         key: "sublights",
         kind: ParamKind::Int { min: 1, max: 64 },
@@ -108,6 +111,7 @@ impl SoftShadowEstimator for MultiSample {
         );
         let req = common::map_request(&self.params);
         let opts = ViewOptions::from_params(&self.params);
+        let precision = DepthPrecision::from_params(&self.params);
         let light = scene.light;
         let points = light.stratified_points(s, |k| jitter(seed, k));
         let frame = light.frame();
@@ -117,14 +121,16 @@ impl SoftShadowEstimator for MultiSample {
         let mut behind = 0usize;
         for y in &points {
             let t = std::time::Instant::now();
-            let ls = match LightSpace::build_point_with(scene, receivers, *y, &req, &opts) {
+            let mut ls = match LightSpace::build_point_with(scene, receivers, *y, &req, &opts) {
                 Ok(ls) => ls,
                 // No receiver in front of this light point: it lights nothing.
                 Err(Error::LightView(_)) => continue,
                 Err(e) => return Err(e),
             };
+            let q16 = encode_layer0(&mut ls, precision);
+            let half_step = q16.as_ref().map_or(0.0, Unorm16Map::half_step);
             t_build += t.elapsed().as_secs_f64() * 1e3;
-            peak = peak.max(ls.bytes());
+            peak = peak.max(ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes));
             behind = behind.max(ls.fit.out_of_frustum);
             let t = std::time::Instant::now();
             let yw = frame.to_world(y.extend(0.0));
@@ -151,8 +157,13 @@ impl SoftShadowEstimator for MultiSample {
                     return;
                 }
                 let n = view.frame.dir_to_light(nw);
-                let eps = receiver_bias(view, p, n, b0, b1);
-                if ls.layers[0].at(uv.x.floor() as i32, uv.y.floor() as i32) >= p.z - eps {
+                let eps = receiver_bias(view, p, n, b0, b1) + half_step;
+                let (i, j) = (uv.x.floor() as i32, uv.y.floor() as i32);
+                let z = match &q16 {
+                    Some(q) => q.at(i, j),
+                    None => ls.layers[0].at(i, j),
+                };
+                if z >= p.z - eps {
                     *a += 1.0;
                 }
             });

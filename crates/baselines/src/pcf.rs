@@ -2,8 +2,9 @@
 //! filter, over an N x N block of texels centred on the receiver's texel.
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
-use shadow_map_core::light_view::{FIT, NEARFAR};
-use shadow_map_core::{light_space::LightSpace, Light, ParamKind, ParamSpec, Params};
+use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
+use shadow_map_core::precision::DEPTH;
+use shadow_map_core::{DepthLookup, Light, ParamKind, ParamSpec, Params};
 
 /// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`.
 pub struct Pcf {
@@ -31,6 +32,7 @@ impl Filter for Pcf {
         CULL,
         FIT,
         NEARFAR,
+        DEPTH,
         ParamSpec {
             key: "kernel",
             kind: ParamKind::Int { min: 1, max: 63 },
@@ -43,12 +45,18 @@ impl Filter for Pcf {
             half: (p.int("kernel") as i32) / 2,
         }
     }
-    fn visibility(&self, ls: &LightSpace, _: &Light, r: &ReceiverSample) -> f32 {
+    fn visibility<M: DepthLookup>(
+        &self,
+        _: &LightView,
+        map: &M,
+        _: &Light,
+        r: &ReceiverSample,
+    ) -> f32 {
         let (i0, j0) = (r.uv.x.floor() as i32, r.uv.y.floor() as i32);
         let mut sum = 0.0;
         for dj in -self.half..=self.half {
             for di in -self.half..=self.half {
-                sum += lit(ls, i0 + di, j0 + dj, r.p.z, r.eps);
+                sum += lit(map, i0 + di, j0 + dj, r.p.z, r.eps);
             }
         }
         let side = (2 * self.half + 1) as f32;

@@ -3,8 +3,9 @@
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{cells, Filter, MapEstimator, ReceiverSample};
 use glam::Vec2;
-use shadow_map_core::light_view::{FIT, NEARFAR};
-use shadow_map_core::{light_space::LightSpace, Light, LightShape, ParamKind, ParamSpec, Params};
+use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
+use shadow_map_core::precision::DEPTH;
+use shadow_map_core::{DepthLookup, Light, LightShape, ParamKind, ParamSpec, Params};
 
 /// PCSS, step by step (background.md §5):
 /// 1. blocker search over the cut of the receiver-light pyramid at the near plane,
@@ -42,6 +43,7 @@ impl Filter for Pcss {
         CULL,
         FIT,
         NEARFAR,
+        DEPTH,
         ParamSpec {
             key: "max_taps",
             kind: ParamKind::Int { min: 1, max: 1024 },
@@ -54,15 +56,20 @@ impl Filter for Pcss {
             max_taps: p.int("max_taps") as u32,
         }
     }
-    fn visibility(&self, ls: &LightSpace, light: &Light, r: &ReceiverSample) -> f32 {
-        let view = &ls.view;
+    fn visibility<M: DepthLookup>(
+        &self,
+        view: &LightView,
+        map: &M,
+        light: &Light,
+        r: &ReceiverSample,
+    ) -> f32 {
         let zr = r.p.z;
         let l = 2.0 * light.half_extent(); // (l_x, l_y)
         let to_texels = view.r as f32 / view.w;
         // 1. Blocker search.
         let ws = l * ((zr - view.n) / zr) * to_texels;
         let (mut sum, mut count) = (Kahan::default(), Kahan::default());
-        let d = &ls.layers[0];
+        let d = map;
         cells(
             r.uv.y - 0.5 * ws.y,
             r.uv.y + 0.5 * ws.y,

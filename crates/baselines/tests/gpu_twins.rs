@@ -98,6 +98,8 @@ struct Settings {
     max_taps: u32,
     sublights: u32,
     seed: u32,
+    /// `depth` parameter: f32 or unorm16.
+    depth: &'static str,
 }
 
 #[derive(Debug, Clone)]
@@ -160,10 +162,20 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
         ),
         prop_oneof![Just("none"), Just("back"), Just("front")],
         (1u32..=9, 1u32..=48),
-        (1u32..=4, 0u32..100),
+        (
+            1u32..=4,
+            0u32..100,
+            prop_oneof![2 => Just("f32"), 1 => Just("unorm16")],
+        ),
     )
         .prop_map(
-            |(resolution, (bias, slope_bias), cull, (kernel, max_taps), (sublights, seed))| {
+            |(
+                resolution,
+                (bias, slope_bias),
+                cull,
+                (kernel, max_taps),
+                (sublights, seed, depth),
+            )| {
                 Settings {
                     resolution,
                     bias,
@@ -173,6 +185,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                     max_taps,
                     sublights,
                     seed,
+                    depth,
                 }
             },
         )
@@ -443,6 +456,7 @@ fn settings_kv(w: Which, s: &Settings, bias: f32) -> Vec<(&'static str, String)>
         ("bias", format!("{bias}")),
         ("slope_bias", format!("{}", s.slope_bias)),
         ("cull", s.cull.to_string()),
+        ("depth", s.depth.to_string()),
     ];
     match w {
         Which::Pcf => kv.push(("kernel", s.kernel.to_string())),
@@ -467,6 +481,8 @@ fn set_all(est: &mut dyn SoftShadowEstimator, kv: &[(&'static str, String)]) -> 
 struct CpuRun {
     v: Vec<f32>,
     maps: Vec<Result<LightSpace, Error>>,
+    /// The map estimators' 16-bit map under `depth=unorm16` (their layer 0 is then freed).
+    q16: Option<shadow_map_core::Unorm16Map>,
     /// Bias change (in texel footprints) that moves `z - eps` by `TIE_NUDGE_REL z` in every map.
     nudge: f32,
 }
@@ -489,10 +505,10 @@ fn run_cpu(
                 .light_space()
                 .cloned()
                 .ok_or_else(|| Error::LightView("no light space after build".into()))?;
-            (v, vec![Ok(ls)])
+            (v, vec![Ok(ls)], e.unorm16().cloned())
         }};
     }
-    let (v, maps) = match w {
+    let (v, maps, q16) = match w {
         Which::Hard => map_twin!(HardShadow),
         Which::Pcf => map_twin!(PcfShadow),
         Which::Pcss => map_twin!(PcssShadow),
@@ -510,7 +526,7 @@ fn run_cpu(
                 .into_iter()
                 .map(|y| LightSpace::build_point(scene, rec, y, &req))
                 .collect();
-            (v, maps)
+            (v, maps, None)
         }
     };
     let nudge = maps
@@ -518,7 +534,12 @@ fn run_cpu(
         .filter_map(|m| m.as_ref().ok())
         .map(|ls| TIE_NUDGE_REL * ls.view.n * ls.view.r as f32 / ls.view.w)
         .fold(0.0f32, f32::max);
-    Ok(CpuRun { v, maps, nudge })
+    Ok(CpuRun {
+        v,
+        maps,
+        q16,
+        nudge,
+    })
 }
 
 fn run_gpu_with(
@@ -533,6 +554,26 @@ fn run_gpu_with(
     set_all(twins.get(w), &settings_kv(w, s, s.bias))?;
     let light = &scene.light;
     let mut maps = cpu.maps.into_iter();
+    if let Some(q) = &cpu.q16 {
+        // Identical 16-bit codes on both sides (the encoder itself is checked bit for bit in
+        // shadow-map-core's gpu_precision test).
+        let ls = first(&mut maps)?;
+        match w {
+            Which::Hard => twins
+                .hard
+                .estimate_with_unorm16(&ls, q, light, rec, &mut v)?,
+            Which::Pcf => twins
+                .pcf
+                .estimate_with_unorm16(&ls, q, light, rec, &mut v)?,
+            Which::Pcss => twins
+                .pcss
+                .estimate_with_unorm16(&ls, q, light, rec, &mut v)?,
+            Which::MultiSample => {
+                return Err(Error::LightView("multi-sample keeps no 16-bit map".into()))
+            }
+        }
+        return Ok(v);
+    }
     match w {
         Which::Hard => twins
             .hard
@@ -813,6 +854,7 @@ fn small_case() -> Case {
             max_taps: 16,
             sublights: 3,
             seed: 7,
+            depth: "f32",
         },
     }
 }

@@ -4,9 +4,22 @@
 use super::shared::{OVERRIDES, WORKGROUP_SIZE};
 use shadow_map_core::{
     gpu::{shared::pack_receivers, GpuContext},
-    Receivers, Result,
+    DepthPrecision, Receivers, Result,
 };
 use wgpu::util::DeviceExt;
+
+/// WGSL of binding 2 and `fn depth_texel(i, j) -> f32` for an R32Float map (`depth=f32`).
+pub const DEPTH_F32_WGSL: &str = include_str!("depth_f32.wgsl");
+/// WGSL of binding 2 and `fn depth_texel(i, j) -> f32` for packed 16-bit codes (`depth=unorm16`).
+pub const DEPTH_UNORM16_WGSL: &str = include_str!("depth_unorm16.wgsl");
+
+/// The depth-access WGSL part for a precision.
+pub const fn depth_wgsl(depth: DepthPrecision) -> &'static str {
+    match depth {
+        DepthPrecision::F32 => DEPTH_F32_WGSL,
+        DepthPrecision::Unorm16 => DEPTH_UNORM16_WGSL,
+    }
+}
 
 /// Concatenates WGSL parts (the core's `SHARED_WGSL` first) into one module source.
 pub fn shader_source(parts: &[&str]) -> String {
@@ -31,9 +44,14 @@ pub(crate) fn shader_module(
 
 /// The bind-group layout of every baseline kernel:
 /// 0 light view (uniform), 1 [`EstimateUniform`](super::shared::EstimateUniform) (uniform),
-/// 2 depth map (`texture_2d<f32>`, R32Float), 3 receivers (read-only storage),
+/// 2 depth map (`texture_2d<f32>`, R32Float, under `depth=f32`; read-only storage of packed
+/// 16-bit codes under `depth=unorm16`), 3 receivers (read-only storage),
 /// 4 and 5 read-write storage (V bits and counters, or accumulator and V bits).
-pub(crate) fn bind_group_layout(ctx: &GpuContext, label: &str) -> wgpu::BindGroupLayout {
+pub(crate) fn bind_group_layout(
+    ctx: &GpuContext,
+    label: &str,
+    depth: DepthPrecision,
+) -> wgpu::BindGroupLayout {
     let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -51,15 +69,18 @@ pub(crate) fn bind_group_layout(ctx: &GpuContext, label: &str) -> wgpu::BindGrou
             entries: &[
                 buffer(0, wgpu::BufferBindingType::Uniform),
                 buffer(1, wgpu::BufferBindingType::Uniform),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
+                match depth {
+                    DepthPrecision::F32 => wgpu::BindGroupLayoutEntry {
+                        binding: 2,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                            multisampled: false,
+                        },
+                        count: None,
                     },
-                    count: None,
+                    DepthPrecision::Unorm16 => buffer(2, storage(true)),
                 },
                 buffer(3, storage(true)),
                 buffer(4, storage(false)),

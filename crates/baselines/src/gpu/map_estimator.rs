@@ -2,7 +2,7 @@
 //! by a compute kernel (`map_estimator.wgsl` + the filter's WGSL), one invocation per receiver.
 use super::{
     kernel::{self, ReceiverChunk},
-    maps::{GpuMaps, MapBuilder, MapOrigin},
+    maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
     shared::{self, EstimateUniform},
 };
 use crate::{common, map_estimator::Filter};
@@ -13,7 +13,8 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::LightSpace,
-    Backend, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Backend, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator, Unorm16Map,
 };
 use std::{marker::PhantomData, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -33,15 +34,29 @@ pub trait GpuFilter: Filter {
     fn set_uniform(_p: &Params, _u: &mut EstimateUniform) {}
 }
 
-/// The WGSL parts of the kernel of filter `F`, in order.
-pub const fn shader_parts<F: GpuFilter>() -> [&'static str; 5] {
+/// The WGSL parts of the kernel of filter `F` reading a map of precision `depth`, in order.
+pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 6] {
     [
         SHARED_WGSL,
         shared::SHARED_WGSL,
         COMMON_WGSL,
+        kernel::depth_wgsl(depth),
         MAP_ESTIMATOR_WGSL,
         F::WGSL,
     ]
+}
+
+/// One compiled kernel: the bind-group layout and the pipeline for one depth precision.
+pub(crate) struct Kernel {
+    pub layout: wgpu::BindGroupLayout,
+    pub pipeline: wgpu::ComputePipeline,
+}
+
+fn precision_index(d: DepthPrecision) -> usize {
+    match d {
+        DepthPrecision::F32 => 0,
+        DepthPrecision::Unorm16 => 1,
+    }
 }
 
 /// The GPU twin of [`MapEstimator`](crate::map_estimator::MapEstimator): same name, description and parameters; light-space data
@@ -49,8 +64,8 @@ pub const fn shader_parts<F: GpuFilter>() -> [&'static str; 5] {
 pub struct GpuMapEstimator<F: GpuFilter> {
     ctx: Arc<GpuContext>,
     params: Params,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    /// Kernels per depth precision (f32, unorm16), compiled on first use.
+    kernels: [Option<Kernel>; 2],
     maps: Option<GpuMaps>,
     builder: MapBuilder,
     report: Report,
@@ -67,23 +82,38 @@ struct RunStats {
 }
 
 impl<F: GpuFilter> GpuMapEstimator<F> {
-    /// With default parameters, compiling the kernel on `ctx`'s device.
+    /// With default parameters, compiling the f32 kernel on `ctx`'s device (the 16-bit one on
+    /// first use).
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let label = format!("{} estimate", F::NAME);
-        let module = kernel::shader_module(&ctx, &label, &shader_parts::<F>())?;
-        let layout = kernel::bind_group_layout(&ctx, &label);
-        let pipeline = kernel::compute_pipeline(&ctx, &label, &module, &layout, "estimate")?;
         let builder = MapBuilder::new(&ctx)?;
-        Ok(GpuMapEstimator {
+        let mut e = GpuMapEstimator {
             builder,
             params: Params::new(F::SPECS)?,
             ctx,
-            layout,
-            pipeline,
+            kernels: [None, None],
             maps: None,
             report: Report::default(),
             chunk_cap: usize::MAX,
             _f: PhantomData,
+        };
+        e.kernel(DepthPrecision::F32)?;
+        Ok(e)
+    }
+
+    /// The kernel reading maps of precision `depth`, compiled on first use.
+    fn kernel(&mut self, depth: DepthPrecision) -> Result<&Kernel> {
+        let slot = &mut self.kernels[precision_index(depth)];
+        if slot.is_none() {
+            let label = format!("{} estimate", F::NAME);
+            let module = kernel::shader_module(&self.ctx, &label, &shader_parts::<F>(depth))?;
+            let layout = kernel::bind_group_layout(&self.ctx, &label, depth);
+            let pipeline =
+                kernel::compute_pipeline(&self.ctx, &label, &module, &layout, "estimate")?;
+            *slot = Some(Kernel { layout, pipeline });
+        }
+        slot.as_ref().ok_or_else(|| Error::Gpu {
+            stage: "kernel".into(),
+            reason: "kernel missing after compilation".into(),
         })
     }
 
@@ -98,8 +128,9 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         self.maps.as_ref()
     }
 
-    /// Estimates V from given light-space data (its view and layer 0, uploaded here), so a test
-    /// can feed the CPU and GPU twins identical data. Replaces the report.
+    /// Estimates V from given light-space data (its view and layer 0, uploaded here and encoded
+    /// on the GPU under `depth=unorm16`), so a test can feed the CPU and GPU twins identical
+    /// data. Replaces the report.
     pub fn estimate_with(
         &mut self,
         ls: &LightSpace,
@@ -110,7 +141,31 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         common::check_len(receivers, v)?;
         self.report = Report::default();
         let t = Instant::now();
-        let maps = GpuMaps::upload(&self.ctx, ls)?;
+        let depth = DepthPrecision::from_params(&self.params);
+        let encoder = self.builder.encoder(&self.ctx)?;
+        let maps = GpuMaps::upload(&self.ctx, ls, depth, encoder)?;
+        self.report
+            .stages
+            .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.report.light_space_bytes = maps.bytes();
+        self.run(&maps, light, receivers, v)
+    }
+
+    /// Estimates V from the view of `ls` and CPU 16-bit codes uploaded as they are (the CPU
+    /// twin's [`unorm16`](crate::map_estimator::MapEstimator::unorm16) map), so a test can feed
+    /// both twins identical codes. Replaces the report.
+    pub fn estimate_with_unorm16(
+        &mut self,
+        ls: &LightSpace,
+        map: &Unorm16Map,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        common::check_len(receivers, v)?;
+        self.report = Report::default();
+        let t = Instant::now();
+        let maps = GpuMaps::upload_unorm16(&self.ctx, ls, map)?;
         self.report
             .stages
             .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
@@ -133,6 +188,8 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
             self.params.float("slope_bias") as f32,
         );
         F::set_uniform(&self.params, &mut u);
+        u.depth_step = maps.depth.step();
+        self.kernel(maps.depth.precision())?;
         let stats = self.dispatch(maps, &u, receivers, v)?;
         let view = &maps.view;
         self.report
@@ -147,6 +204,9 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         self.report
             .note("out_of_frustum", stats.outside + maps.fit.out_of_frustum);
         self.report.note("window_scale", maps.fit.window_scale);
+        if let MapDepth::Unorm16(m) = &maps.depth {
+            self.report.note("depth_step", m.step);
+        }
         if stats.nonfinite > 0 {
             self.report.note("nonfinite_replaced", stats.nonfinite);
         }
@@ -171,6 +231,12 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         }
         let ctx = &*self.ctx;
         let label = format!("{} estimate", F::NAME);
+        let k = self.kernels[precision_index(maps.depth.precision())]
+            .as_ref()
+            .ok_or_else(|| Error::Gpu {
+                stage: label.clone(),
+                reason: "kernel not compiled".into(),
+            })?;
         let t = Instant::now();
         let chunk = kernel::max_chunk(ctx, self.chunk_cap);
         let (chunks, counters) =
@@ -191,11 +257,11 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                     .map(|c| {
                         ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                             label: Some(&label),
-                            layout: &self.layout,
+                            layout: &k.layout,
                             entries: &[
                                 entry(0, view_buf.as_entire_binding()),
                                 entry(1, est_buf.as_entire_binding()),
-                                entry(2, wgpu::BindingResource::TextureView(&maps.depth.view)),
+                                entry(2, maps.depth.binding()),
                                 entry(3, c.receivers.as_entire_binding()),
                                 entry(4, c.out.as_entire_binding()),
                                 entry(5, counters.as_entire_binding()),
@@ -213,7 +279,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                         label: Some(&label),
                         timestamp_writes: None,
                     });
-                    pass.set_pipeline(&self.pipeline);
+                    pass.set_pipeline(&k.pipeline);
                     for (c, g) in chunks.iter().zip(&groups) {
                         pass.set_bind_group(0, g, &[]);
                         pass.dispatch_workgroups(c.workgroups(), 1, 1);
@@ -260,6 +326,7 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
         self.maps = None;
         let req = common::map_request(&self.params);
         let opts = ViewOptions::from_params(&self.params);
+        let depth = DepthPrecision::from_params(&self.params);
         let ctx = self.ctx.clone();
         let builder = &self.builder;
         let maps = self.report.time("build", || {
@@ -272,6 +339,7 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
                 MapOrigin::LightCentre,
                 &req,
                 &opts,
+                depth,
             )
         })?;
         self.report.light_space_bytes = maps.bytes();

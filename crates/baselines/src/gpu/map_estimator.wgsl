@@ -6,8 +6,8 @@
 
 @group(0) @binding(0) var<uniform> view: LightViewUniform;
 @group(0) @binding(1) var<uniform> est: EstimateUniform;
-// Layer 0 of the light-space data: linear light-space depth per texel, +inf where empty.
-@group(0) @binding(2) var depth_map: texture_2d<f32>;
+// Binding 2, layer 0 of the light-space data, and `fn depth_texel(i, j) -> f32` come from
+// depth_f32.wgsl or depth_unorm16.wgsl (the `depth` parameter).
 @group(0) @binding(3) var<storage, read> receivers: array<ReceiverGpu>;
 // V per receiver as f32 bits (NaN for inactive receivers is written as bits, never computed).
 @group(0) @binding(4) var<storage, read_write> v_out: array<u32>;
@@ -30,12 +30,12 @@ fn occludes(i: i32, j: i32, zt: f32) -> bool {
     if i < 0 || j < 0 || i >= r || j >= r {
         return false;
     }
-    return textureLoad(depth_map, vec2<i32>(i, j), 0).x < zt;
+    return depth_texel(i, j) < zt;
 }
 
 // DepthMap::at for a texel inside the map.
 fn depth_at(i: i32, j: i32) -> f32 {
-    return textureLoad(depth_map, vec2<i32>(i, j), 0).x;
+    return depth_texel(i, j);
 }
 
 // map_estimator::lit: 1 when the sample at (i, j) does not occlude a receiver at depth z - eps.
@@ -110,7 +110,8 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
         atomicAdd(&counters[0], 1u);
         return fac;
     }
-    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias);
+    // Half a code step more under depth=unorm16 (depth_step = 0 for f32 maps).
+    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias) + 0.5 * est.depth_step;
     return fac * visibility(ReceiverSample(p, n, uv, eps));
 }
 

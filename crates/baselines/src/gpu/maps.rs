@@ -1,12 +1,16 @@
 //! Light-space data on the GPU for one view: the fitted [`LightView`] and its shadow map (layer 0)
-//! as an R32Float texture, and [`MapBuilder`], the one place the maps are made.
+//! as an R32Float texture or as packed 16-bit codes (`depth=unorm16`), and [`MapBuilder`], the
+//! one place the maps are made.
 use glam::Vec2;
 use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
-    gpu::{GpuContext, GpuScene, GpuShadowMapper},
+    gpu::{
+        depth_map::GpuDepthMap, GpuContext, GpuScene, GpuShadowMapper, GpuUnorm16Encoder,
+        GpuUnorm16Map,
+    },
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView},
-    DepthMap, Error, Receivers, Result, Scene,
+    DepthMap, DepthPrecision, Error, Receivers, Result, Scene, Unorm16Map,
 };
 
 /// A depth map on the GPU: `size x size` texels of linear light-space depth (+inf where empty) in
@@ -100,6 +104,57 @@ pub enum MapOrigin {
     Point(Vec2),
 }
 
+/// Layer 0 as a kernel binds it (binding 2), in the stored precision.
+#[derive(Debug)]
+pub enum MapDepth {
+    /// `depth=f32`: the R32Float texture.
+    F32(DepthTexture),
+    /// `depth=unorm16`: packed 16-bit codes (the f32 render target is dropped after encoding).
+    Unorm16(GpuUnorm16Map),
+}
+
+impl MapDepth {
+    /// The binding of binding 2.
+    pub fn binding(&self) -> wgpu::BindingResource<'_> {
+        match self {
+            MapDepth::F32(t) => wgpu::BindingResource::TextureView(&t.view),
+            MapDepth::Unorm16(m) => m.buffer.as_entire_binding(),
+        }
+    }
+    /// The precision.
+    pub fn precision(&self) -> DepthPrecision {
+        match self {
+            MapDepth::F32(_) => DepthPrecision::F32,
+            MapDepth::Unorm16(_) => DepthPrecision::Unorm16,
+        }
+    }
+    /// The code step s (`EstimateUniform::depth_step`): 0 for f32.
+    pub fn step(&self) -> f32 {
+        match self {
+            MapDepth::F32(_) => 0.0,
+            MapDepth::Unorm16(m) => m.step,
+        }
+    }
+    /// Bytes of storage.
+    pub fn bytes(&self) -> usize {
+        match self {
+            MapDepth::F32(t) => t.bytes(),
+            MapDepth::Unorm16(m) => m.bytes(),
+        }
+    }
+    /// A 1x1 empty map of a precision, bound where a kernel reads none.
+    pub fn placeholder(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
+        let empty = DepthMap::empty(1);
+        Ok(match depth {
+            DepthPrecision::F32 => MapDepth::F32(DepthTexture::upload(ctx, &empty)?),
+            DepthPrecision::Unorm16 => MapDepth::Unorm16(GpuUnorm16Map::upload(
+                ctx,
+                &Unorm16Map::encode(&empty, 1.0, 2.0),
+            )?),
+        })
+    }
+}
+
 /// The light-space data a baseline kernel reads: the view and layer 0 on the GPU.
 #[derive(Debug)]
 pub struct GpuMaps {
@@ -107,22 +162,45 @@ pub struct GpuMaps {
     pub view: LightView,
     /// Fit statistics.
     pub fit: FitReport,
-    /// Layer 0, the ordinary shadow map.
-    pub depth: DepthTexture,
+    /// Layer 0, the ordinary shadow map, in the stored precision.
+    pub depth: MapDepth,
 }
 
 impl GpuMaps {
     /// Uploads the view and layer 0 of CPU light-space data (so a test can give the CPU and GPU
-    /// twins identical data).
-    pub fn upload(ctx: &GpuContext, ls: &LightSpace) -> Result<Self> {
+    /// twins identical data); under `depth=unorm16` the f32 layer is encoded on the GPU by
+    /// `encoder`, as a build does.
+    pub fn upload(
+        ctx: &GpuContext,
+        ls: &LightSpace,
+        depth: DepthPrecision,
+        encoder: &GpuUnorm16Encoder,
+    ) -> Result<Self> {
         let layer0 = ls
             .layers
             .first()
+            .filter(|l| !l.depth.is_empty())
             .ok_or_else(|| Error::LightView("light-space data without a depth layer".into()))?;
+        let depth = match depth {
+            DepthPrecision::F32 => MapDepth::F32(DepthTexture::upload(ctx, layer0)?),
+            DepthPrecision::Unorm16 => {
+                let g = shadow_map_core::gpu::upload_depth_map(ctx, layer0)?;
+                MapDepth::Unorm16(encoder.encode(ctx, &g, ls.view.n, ls.view.far)?)
+            }
+        };
         Ok(GpuMaps {
             view: ls.view,
             fit: ls.fit,
-            depth: DepthTexture::upload(ctx, layer0)?,
+            depth,
+        })
+    }
+
+    /// Uploads the view of CPU light-space data and CPU 16-bit codes as they are (tests).
+    pub fn upload_unorm16(ctx: &GpuContext, ls: &LightSpace, map: &Unorm16Map) -> Result<Self> {
+        Ok(GpuMaps {
+            view: ls.view,
+            fit: ls.fit,
+            depth: MapDepth::Unorm16(GpuUnorm16Map::upload(ctx, map)?),
         })
     }
 
@@ -139,17 +217,29 @@ impl GpuMaps {
 /// sub-light in `estimate` (multi-sample).
 pub struct MapBuilder {
     mapper: GpuShadowMapper,
+    encoder: std::sync::OnceLock<GpuUnorm16Encoder>,
 }
 
 impl MapBuilder {
-    /// Compiles the rasteriser's pipelines on first use.
+    /// Compiles the rasteriser's pipelines (the 16-bit encoder on first use).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         Ok(MapBuilder {
             mapper: GpuShadowMapper::new(ctx)?,
+            encoder: std::sync::OnceLock::new(),
         })
     }
 
-    /// Builds the view and layer 0 for `origin` from a scene already uploaded as `gpu_scene`.
+    /// The 16-bit encoder, compiled on first use.
+    pub fn encoder(&self, ctx: &GpuContext) -> Result<&GpuUnorm16Encoder> {
+        if let Some(e) = self.encoder.get() {
+            return Ok(e);
+        }
+        let e = GpuUnorm16Encoder::new(ctx)?;
+        Ok(self.encoder.get_or_init(|| e))
+    }
+
+    /// Builds the view and layer 0 for `origin` from a scene already uploaded as `gpu_scene`,
+    /// stored in precision `depth` (encoded on the GPU; the f32 render target is then dropped).
     #[allow(clippy::too_many_arguments)]
     pub fn build(
         &self,
@@ -160,6 +250,7 @@ impl MapBuilder {
         origin: MapOrigin,
         req: &LightSpaceRequest,
         opts: &ViewOptions,
+        depth: DepthPrecision,
     ) -> Result<GpuMaps> {
         let light = &scene.light;
         let mut frame = light.frame();
@@ -183,15 +274,17 @@ impl MapBuilder {
                 "the GPU rasteriser returned no layer".into(),
             ));
         }
-        let l0 = gls.layers.swap_remove(0);
-        Ok(GpuMaps {
-            view,
-            fit,
-            depth: DepthTexture {
+        let l0: GpuDepthMap = gls.layers.swap_remove(0);
+        let depth = match depth {
+            DepthPrecision::F32 => MapDepth::F32(DepthTexture {
                 texture: l0.texture,
                 view: l0.view,
                 size: l0.size,
-            },
-        })
+            }),
+            DepthPrecision::Unorm16 => {
+                MapDepth::Unorm16(self.encoder(ctx)?.encode(ctx, &l0, view.n, view.far)?)
+            }
+        };
+        Ok(GpuMaps { view, fit, depth })
     }
 }

@@ -35,7 +35,7 @@ pub mod shared;
 
 pub use hard::GpuHardShadow;
 pub use map_estimator::{GpuFilter, GpuMapEstimator};
-pub use maps::{DepthTexture, GpuMaps, MapBuilder, MapOrigin};
+pub use maps::{DepthTexture, GpuMaps, MapBuilder, MapDepth, MapOrigin};
 pub use multi_sample::GpuMultiSample;
 pub use pcf::GpuPcfShadow;
 pub use pcss::GpuPcssShadow;
@@ -46,11 +46,17 @@ use crate::{hard::Hard, pcf::Pcf, pcss::Pcss};
 /// Every shader of the crate as `(name, parts in order)`; [`kernel::shader_source`] joins them.
 /// A unit test validates each with naga, so a WGSL error fails CPU-only CI.
 pub const SHADERS: &[(&str, &[&str])] = &[
-    ("hard", &map_estimator::shader_parts::<Hard>()),
-    ("pcf", &map_estimator::shader_parts::<Pcf>()),
-    ("pcss", &map_estimator::shader_parts::<Pcss>()),
-    ("multi-sample", &multi_sample::MULTI_SAMPLE_PARTS),
+    ("hard", &map_estimator::shader_parts::<Hard>(F32)),
+    ("pcf", &map_estimator::shader_parts::<Pcf>(F32)),
+    ("pcss", &map_estimator::shader_parts::<Pcss>(F32)),
+    ("multi-sample", &multi_sample::shader_parts(F32)),
+    ("hard unorm16", &map_estimator::shader_parts::<Hard>(U16)),
+    ("pcf unorm16", &map_estimator::shader_parts::<Pcf>(U16)),
+    ("pcss unorm16", &map_estimator::shader_parts::<Pcss>(U16)),
+    ("multi-sample unorm16", &multi_sample::shader_parts(U16)),
 ];
+const F32: shadow_map_core::DepthPrecision = shadow_map_core::DepthPrecision::F32;
+const U16: shadow_map_core::DepthPrecision = shadow_map_core::DepthPrecision::Unorm16;
 
 #[cfg(test)]
 mod tests {
@@ -118,7 +124,7 @@ mod tests {
             ("kernel_half", offset_of!(EstimateUniform, kernel_half)),
             ("max_taps", offset_of!(EstimateUniform, max_taps)),
             ("inv_samples", offset_of!(EstimateUniform, inv_samples)),
-            ("_pad0", offset_of!(EstimateUniform, _pad0)),
+            ("depth_step", offset_of!(EstimateUniform, depth_step)),
         ];
         assert_eq!(members.len(), rust.len());
         for (m, (name, off)) in members.iter().zip(rust) {

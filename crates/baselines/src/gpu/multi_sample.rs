@@ -4,7 +4,7 @@
 use super::{
     kernel::{self, ReceiverChunk},
     map_estimator::{entry, COMMON_WGSL},
-    maps::{DepthTexture, GpuMaps, MapBuilder, MapOrigin},
+    maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
     shared::{self, EstimateUniform},
 };
 use crate::{
@@ -19,7 +19,7 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::{LightSpace, LightSpaceRequest},
-    Backend, DepthMap, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
+    Backend, DepthPrecision, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
@@ -27,13 +27,48 @@ use std::{sync::Arc, time::Instant};
 /// WGSL of the multi-sample kernels (`accumulate`, `finalize`).
 pub const MULTI_SAMPLE_WGSL: &str = include_str!("multi_sample.wgsl");
 
-/// The WGSL parts of the multi-sample kernels, in order.
-pub const MULTI_SAMPLE_PARTS: [&str; 4] = [
-    SHARED_WGSL,
-    shared::SHARED_WGSL,
-    COMMON_WGSL,
-    MULTI_SAMPLE_WGSL,
-];
+/// The WGSL parts of the multi-sample kernels reading maps of precision `depth`, in order.
+pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 5] {
+    [
+        SHARED_WGSL,
+        shared::SHARED_WGSL,
+        COMMON_WGSL,
+        kernel::depth_wgsl(depth),
+        MULTI_SAMPLE_WGSL,
+    ]
+}
+
+/// The kernels for one depth precision.
+struct Kernels {
+    layout: wgpu::BindGroupLayout,
+    accumulate: wgpu::ComputePipeline,
+    finalize: wgpu::ComputePipeline,
+    /// A 1x1 map bound where a kernel reads none (`finalize`).
+    placeholder: MapDepth,
+}
+
+impl Kernels {
+    fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
+        let label = "multi-sample";
+        let module = kernel::shader_module(ctx, label, &shader_parts(depth))?;
+        let layout = kernel::bind_group_layout(ctx, label, depth);
+        let accumulate = kernel::compute_pipeline(
+            ctx,
+            "multi-sample accumulate",
+            &module,
+            &layout,
+            "accumulate",
+        )?;
+        let finalize =
+            kernel::compute_pipeline(ctx, "multi-sample finalize", &module, &layout, "finalize")?;
+        Ok(Kernels {
+            layout,
+            accumulate,
+            finalize,
+            placeholder: MapDepth::placeholder(ctx, depth)?,
+        })
+    }
+}
 
 /// Multi-sample shadows on the GPU (twin of [`MultiSample`](crate::MultiSample)): same name,
 /// description and parameters, the same sub-light points (stratified, jittered by
@@ -41,44 +76,42 @@ pub const MULTI_SAMPLE_PARTS: [&str; 4] = [
 pub struct GpuMultiSample {
     ctx: Arc<GpuContext>,
     params: Params,
-    layout: wgpu::BindGroupLayout,
-    accumulate: wgpu::ComputePipeline,
-    finalize: wgpu::ComputePipeline,
-    /// A 1x1 map bound where a kernel reads none (`finalize`).
-    placeholder: DepthTexture,
+    /// Kernels per depth precision (f32, unorm16), compiled on first use.
+    kernels: [Option<Arc<Kernels>>; 2],
     builder: Arc<MapBuilder>,
     report: Report,
     chunk_cap: usize,
 }
 
 impl GpuMultiSample {
-    /// With default parameters, compiling the kernels on `ctx`'s device.
+    /// With default parameters, compiling the f32 kernels on `ctx`'s device (the 16-bit ones
+    /// on first use).
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let label = "multi-sample";
-        let module = kernel::shader_module(&ctx, label, &MULTI_SAMPLE_PARTS)?;
-        let layout = kernel::bind_group_layout(&ctx, label);
-        let accumulate = kernel::compute_pipeline(
-            &ctx,
-            "multi-sample accumulate",
-            &module,
-            &layout,
-            "accumulate",
-        )?;
-        let finalize =
-            kernel::compute_pipeline(&ctx, "multi-sample finalize", &module, &layout, "finalize")?;
-        let placeholder = DepthTexture::upload(&ctx, &DepthMap::empty(1))?;
         let builder = Arc::new(MapBuilder::new(&ctx)?);
-        Ok(GpuMultiSample {
+        let mut e = GpuMultiSample {
             builder,
             params: Params::new(SPECS)?,
-            placeholder,
             ctx,
-            layout,
-            accumulate,
-            finalize,
+            kernels: [None, None],
             report: Report::default(),
             chunk_cap: usize::MAX,
-        })
+        };
+        e.kernels(DepthPrecision::F32)?;
+        Ok(e)
+    }
+
+    /// The kernels for maps of precision `depth`, compiled on first use.
+    fn kernels(&mut self, depth: DepthPrecision) -> Result<Arc<Kernels>> {
+        let i = match depth {
+            DepthPrecision::F32 => 0,
+            DepthPrecision::Unorm16 => 1,
+        };
+        if let Some(k) = &self.kernels[i] {
+            return Ok(k.clone());
+        }
+        let k = Arc::new(Kernels::new(&self.ctx, depth)?);
+        self.kernels[i] = Some(k.clone());
+        Ok(k)
     }
 
     /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
@@ -112,9 +145,11 @@ impl GpuMultiSample {
         v: &mut [f32],
     ) -> Result<()> {
         let ctx = self.ctx.clone();
-        let maps = sub_lights
-            .into_iter()
-            .map(move |ls| ls.and_then(|ls| GpuMaps::upload(&ctx, &ls)));
+        let depth = DepthPrecision::from_params(&self.params);
+        let builder = self.builder.clone();
+        let maps = sub_lights.into_iter().map(move |ls| {
+            ls.and_then(|ls| GpuMaps::upload(&ctx, &ls, depth, builder.encoder(&ctx)?))
+        });
         self.run(maps, light, receivers, v)
     }
 
@@ -128,6 +163,7 @@ impl GpuMultiSample {
     ) -> Result<()> {
         common::check_len(receivers, v)?;
         self.report = Report::default();
+        let kernels = self.kernels(DepthPrecision::from_params(&self.params))?;
         let ctx = &*self.ctx;
         let mut u = EstimateUniform::new(
             light,
@@ -157,12 +193,13 @@ impl GpuMultiSample {
             let t = Instant::now();
             if !chunks.is_empty() {
                 let view = LightViewUniform::from(&maps.view);
-                let depth = &maps.depth.view;
+                u.depth_step = maps.depth.step();
                 self.dispatch(
-                    &self.accumulate,
+                    &kernels,
+                    &kernels.accumulate,
                     "multi-sample accumulate",
                     &view,
-                    depth,
+                    &maps.depth,
                     &u,
                     &chunks,
                 )?;
@@ -175,12 +212,12 @@ impl GpuMultiSample {
         if !chunks.is_empty() {
             // The finalize kernel reads no map: the placeholder fills the layout.
             let view = LightViewUniform::zeroed();
-            let depth = &self.placeholder.view;
             self.dispatch(
-                &self.finalize,
+                &kernels,
+                &kernels.finalize,
                 "multi-sample finalize",
                 &view,
-                depth,
+                &kernels.placeholder,
                 &u,
                 &chunks,
             )?;
@@ -203,12 +240,14 @@ impl GpuMultiSample {
     }
 
     /// One dispatch of `pipeline` over every chunk with a view and its map bound; waits for it.
+    #[allow(clippy::too_many_arguments)]
     fn dispatch(
         &self,
+        kernels: &Kernels,
         pipeline: &wgpu::ComputePipeline,
         label: &str,
         view: &LightViewUniform,
-        depth: &wgpu::TextureView,
+        depth: &MapDepth,
         u: &EstimateUniform,
         chunks: &[ReceiverChunk],
     ) -> Result<()> {
@@ -224,11 +263,11 @@ impl GpuMultiSample {
                 })?;
                 groups.push(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some(label),
-                    layout: &self.layout,
+                    layout: &kernels.layout,
                     entries: &[
                         entry(0, view_buf.as_entire_binding()),
                         entry(1, est_buf.as_entire_binding()),
-                        entry(2, wgpu::BindingResource::TextureView(depth)),
+                        entry(2, depth.binding()),
                         entry(3, c.receivers.as_entire_binding()),
                         entry(4, acc.as_entire_binding()),
                         entry(5, c.out.as_entire_binding()),
@@ -280,6 +319,7 @@ impl SoftShadowEstimator for GpuMultiSample {
         let req = self.request();
         let points = self.sub_light_points(&scene.light);
         let opts = ViewOptions::from_params(&self.params);
+        let depth = DepthPrecision::from_params(&self.params);
         let ctx = self.ctx.clone();
         let gpu_scene = GpuScene::upload(&ctx, scene)?;
         let builder = self.builder.clone();
@@ -292,6 +332,7 @@ impl SoftShadowEstimator for GpuMultiSample {
                 MapOrigin::Point(y),
                 &req,
                 &opts,
+                depth,
             )
         });
         self.run(maps, &scene.light, receivers, v)

@@ -6,8 +6,8 @@
 
 @group(0) @binding(0) var<uniform> view: LightViewUniform;
 @group(0) @binding(1) var<uniform> est: EstimateUniform;
-// The sub-light's shadow map: linear light-space depth per texel, +inf where empty.
-@group(0) @binding(2) var depth_map: texture_2d<f32>;
+// Binding 2, the sub-light's shadow map, and `fn depth_texel(i, j) -> f32` come from
+// depth_f32.wgsl or depth_unorm16.wgsl (the `depth` parameter).
 @group(0) @binding(3) var<storage, read> receivers: array<ReceiverGpu>;
 // Per receiver: how many sub-lights so far light it (exact small integers in f32, as on the CPU).
 @group(0) @binding(4) var<storage, read_write> acc: array<f32>;
@@ -22,7 +22,7 @@ fn lit_at(i: i32, j: i32, zt: f32) -> bool {
     if i < 0 || j < 0 || i >= r || j >= r {
         return true;
     }
-    return textureLoad(depth_map, vec2<i32>(i, j), 0).x >= zt;
+    return depth_texel(i, j) >= zt;
 }
 
 @compute @workgroup_size(WG)
@@ -54,7 +54,8 @@ fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let n = view_dir_to_light(view, nw);
-    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias);
+    // Half a code step more under depth=unorm16 (depth_step = 0 for f32 maps).
+    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias) + 0.5 * est.depth_step;
     if lit_at(i32(floor(uv.x)), i32(floor(uv.y)), p.z - eps) {
         acc[k] += 1.0;
     }

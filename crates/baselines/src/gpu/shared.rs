@@ -64,8 +64,9 @@ pub struct EstimateUniform {
     pub max_taps: u32,
     /// Multi-sample: `1 / N` over the N sub-lights; unused elsewhere.
     pub inv_samples: f32,
-    /// Padding.
-    pub _pad0: f32,
+    /// The 16-bit map's code step s under `depth=unorm16` (decode `n + q s`, bias `+ s / 2`);
+    /// 0 for f32 maps.
+    pub depth_step: f32,
 }
 
 impl EstimateUniform {
@@ -92,7 +93,7 @@ impl EstimateUniform {
             kernel_half: 0,
             max_taps: 0,
             inv_samples: 0.0,
-            _pad0: 0.0,
+            depth_step: 0.0,
         }
     }
 }

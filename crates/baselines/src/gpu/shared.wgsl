@@ -21,5 +21,5 @@ struct EstimateUniform {
     kernel_half: i32,
     max_taps: u32,
     inv_samples: f32,
-    _pad0: f32,
+    depth_step: f32,
 }

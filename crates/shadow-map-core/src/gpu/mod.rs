@@ -24,6 +24,7 @@ pub mod gbuffer;
 pub mod light_space;
 pub mod midpoint;
 pub mod mssm;
+pub mod precision;
 pub mod raster;
 pub mod receivers;
 pub mod shared;
@@ -32,6 +33,7 @@ pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
 pub use gbuffer::{GpuGBuffer, GpuGBufferImage};
 pub use light_space::GpuLightSpace;
 pub use mssm::{GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder};
+pub use precision::{GpuUnorm16Encoder, GpuUnorm16Map};
 pub use raster::{GpuScene, GpuShadowMapper};
 pub use receivers::GpuReceivers;
 

@@ -1,0 +1,274 @@
+//! 16-bit shadow maps on the GPU (`precision.wgsl`), the twin of [`crate::precision`]: an R32Float
+//! map is encoded into a storage buffer of packed codes (two per `u32`), bit for bit the CPU's
+//! [`Unorm16Map`] codes for the same f32 depths. Kernels read a code with
+//!
+//! ```text
+//! let q = (codes[k >> 1u] >> ((k & 1u) * 16u)) & 0xffffu;   // k = j * size + i
+//! depth = select(n + f32(q) * s, +inf, q == 0xffffu);
+//! ```
+use super::{depth_map::GpuDepthMap, GpuContext};
+use crate::{
+    precision::{step_for, Unorm16Map},
+    Error, Result,
+};
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+/// WGSL source of the encoder.
+pub const PRECISION_WGSL: &str = include_str!("precision.wgsl");
+/// Workgroup size of the encoder (override `WG`).
+pub const ENCODE_WORKGROUP: u32 = 64;
+
+/// Uniform of the encoder; mirrors `EncodeParams` in `precision.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct EncodeParams {
+    /// Map side.
+    pub size: u32,
+    /// Near plane n.
+    pub near: f32,
+    /// `1 / s`, exact (s is a power of two).
+    pub inv_step: f32,
+    /// Padding.
+    pub _pad0: u32,
+}
+
+/// A map of 16-bit codes on the GPU: `ceil(size^2 / 2)` packed `u32`s in a storage buffer.
+#[derive(Debug, Clone)]
+pub struct GpuUnorm16Map {
+    /// Side in texels.
+    pub size: u32,
+    /// The near plane n (code 0).
+    pub near: f32,
+    /// The code step s.
+    pub step: f32,
+    /// The packed codes (`STORAGE | COPY_SRC | COPY_DST`).
+    pub buffer: wgpu::Buffer,
+}
+
+impl GpuUnorm16Map {
+    /// Bytes of the packed codes (2 per texel, rounded up to a whole `u32`).
+    pub fn bytes(&self) -> usize {
+        words(self.size) as usize * 4
+    }
+
+    /// Uploads CPU codes (for tests that give both twins identical data).
+    pub fn upload(ctx: &GpuContext, map: &Unorm16Map) -> Result<Self> {
+        let texels = map.size as usize * map.size as usize;
+        if map.codes.len() != texels || texels == 0 {
+            return Err(Error::Gpu {
+                stage: "unorm16 upload".into(),
+                reason: format!(
+                    "{} codes for a {}x{} map",
+                    map.codes.len(),
+                    map.size,
+                    map.size
+                ),
+            });
+        }
+        check_buffer(ctx, map.size)?;
+        let mut packed = vec![0u32; words(map.size) as usize];
+        for (k, &q) in map.codes.iter().enumerate() {
+            packed[k / 2] |= (q as u32) << (16 * (k % 2));
+        }
+        if texels % 2 == 1 {
+            *packed.last_mut().expect("non-empty") |= 0xffff << 16;
+        }
+        ctx.scoped("unorm16 upload", || GpuUnorm16Map {
+            size: map.size,
+            near: map.near,
+            step: map.step,
+            buffer: ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("unorm16 depth map"),
+                    contents: bytemuck::cast_slice(&packed),
+                    usage: USAGE,
+                }),
+        })
+    }
+
+    /// Reads the codes back (tests).
+    pub fn read(&self, ctx: &GpuContext) -> Result<Unorm16Map> {
+        let packed: Vec<u32> = ctx.read_buffer(&self.buffer, self.bytes() as u64)?;
+        let texels = self.size as usize * self.size as usize;
+        let codes = (0..texels)
+            .map(|k| ((packed[k / 2] >> (16 * (k % 2))) & 0xffff) as u16)
+            .collect();
+        Ok(Unorm16Map {
+            size: self.size,
+            near: self.near,
+            step: self.step,
+            codes,
+        })
+    }
+}
+
+const USAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+    .union(wgpu::BufferUsages::COPY_SRC)
+    .union(wgpu::BufferUsages::COPY_DST);
+
+fn words(size: u32) -> u64 {
+    (size as u64 * size as u64).div_ceil(2).max(1)
+}
+
+fn check_buffer(ctx: &GpuContext, size: u32) -> Result<()> {
+    let l = ctx.limits();
+    let max = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+    let need = words(size) * 4;
+    if need > max {
+        return Err(Error::Limit {
+            what: "16-bit shadow-map bytes in one storage binding",
+            requested: need,
+            max,
+        });
+    }
+    Ok(())
+}
+
+/// The encoder pipeline, created once per estimator.
+#[derive(Debug, Clone)]
+pub struct GpuUnorm16Encoder {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl GpuUnorm16Encoder {
+    /// Compiles the pipeline (label `unorm16 encode`).
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        ctx.scoped("unorm16 encode", || {
+            let device = &ctx.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("unorm16 encode"),
+                source: wgpu::ShaderSource::Wgsl(PRECISION_WGSL.into()),
+            });
+            let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty,
+                count: None,
+            };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("unorm16 encode"),
+                entries: &[
+                    entry(
+                        0,
+                        wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Uniform,
+                            has_dynamic_offset: false,
+                            min_binding_size: None,
+                        },
+                    ),
+                    entry(
+                        1,
+                        wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                            multisampled: false,
+                        },
+                    ),
+                    entry(
+                        2,
+                        wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Storage { read_only: false },
+                            has_dynamic_offset: false,
+                            min_binding_size: None,
+                        },
+                    ),
+                ],
+            });
+            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("unorm16 encode"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("unorm16 encode"),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some("encode_unorm16"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("WG", ENCODE_WORKGROUP as f64)],
+                    ..Default::default()
+                },
+                cache: None,
+            });
+            GpuUnorm16Encoder { layout, pipeline }
+        })
+    }
+
+    /// Encodes `map` for a view with planes `n` and `far` into a new code buffer (submitted and
+    /// finished before it returns, so the f32 map can be dropped).
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        map: &GpuDepthMap,
+        n: f32,
+        far: f32,
+    ) -> Result<GpuUnorm16Map> {
+        check_buffer(ctx, map.size)?;
+        let step = step_for(n, far);
+        let out = ctx.scoped("unorm16 encode", || {
+            let device = &ctx.device;
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("unorm16 depth map"),
+                size: words(map.size) * 4,
+                usage: USAGE,
+                mapped_at_creation: false,
+            });
+            let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("unorm16 encode"),
+                contents: bytemuck::bytes_of(&EncodeParams {
+                    size: map.size,
+                    near: n,
+                    inv_step: 1.0 / step,
+                    _pad0: 0,
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("unorm16 encode"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: params.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&map.view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: buffer.as_entire_binding(),
+                    },
+                ],
+            });
+            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("unorm16 encode"),
+            });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("unorm16 encode"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &group, &[]);
+                let groups = words(map.size).div_ceil(ENCODE_WORKGROUP as u64);
+                let max = (ctx.limits().max_compute_workgroups_per_dimension as u64).max(1);
+                // Rows of at most `max` workgroups; the shader folds (x, y) back into one index.
+                let x = groups.min(max);
+                pass.dispatch_workgroups(x as u32, groups.div_ceil(x) as u32, 1);
+            }
+            ctx.queue.submit([enc.finish()]);
+            GpuUnorm16Map {
+                size: map.size,
+                near: n,
+                step,
+                buffer,
+            }
+        })?;
+        ctx.wait()?;
+        Ok(out)
+    }
+}
