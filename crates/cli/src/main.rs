@@ -101,7 +101,10 @@ enum Cmd {
 }
 
 fn algos_help() -> String {
-    let mut s = String::from("Estimators and their parameters:\n");
+    let mut s = String::from(
+        "Estimators (name: description [backends]) and their parameters \
+         (key=default (range or choices): meaning; set with --param KEY=VALUE):\n",
+    );
     if let Ok(all) = registry() {
         for e in all {
             s.push_str(&format!(
