@@ -412,3 +412,331 @@ impl LightView {
         Ok((view, rep))
     }
 }
+
+// Fitting to receiver bounds: for receivers that stay on the GPU (a user's G-buffer), where the
+// CPU knows only a world-space box that holds them.
+
+use crate::scene::Aabb;
+
+/// The world-space box of the active receivers ([`Aabb::EMPTY`] when none is active): the bounds
+/// [`LightView::fit_bounds`] takes when the receivers themselves stay on the GPU.
+pub fn receiver_bounds(receivers: &Receivers) -> Aabb {
+    let mut b = Aabb::EMPTY;
+    for (p, &a) in receivers.position.iter().zip(&receivers.active) {
+        if a {
+            b.grow(*p);
+        }
+    }
+    b
+}
+
+/// The 8 corners of `bounds` as receivers (normals `+z`, unused by the fit), checked for a light
+/// view at `frame` in `scene`: what [`LightView::fit_bounds`] fits.
+///
+/// Errors, never a panic: [`Error::Receivers`] for an inverted or empty box (`min > max` on an
+/// axis, as [`Aabb::EMPTY`]) or a non-finite one; [`Error::LightView`] for a box with a corner at
+/// or behind the light plane (light-space `z <= 1e-6` of the scene diagonal, where
+/// [`LightView::fit_with`] counts a receiver as behind the light) or beyond the frustum
+/// (`|x/z| > MAX_TAN`), whose receivers no window could cover.
+pub fn bounds_receivers(scene: &Scene, bounds: &Aabb, frame: LightFrame) -> Result<Receivers> {
+    let (min, max) = (bounds.min, bounds.max);
+    if min.cmpgt(max).any() {
+        return Err(Error::Receivers(format!(
+            "receiver bounds are inverted or empty (min {min} > max {max} on some axis; no active \
+             receiver?)"
+        )));
+    }
+    if !(min.is_finite() && max.is_finite()) {
+        return Err(Error::Receivers(format!(
+            "receiver bounds are not finite (min {min}, max {max})"
+        )));
+    }
+    let z_eps = 1e-6 * scene.bounds().diagonal().max(1e-6);
+    let mut corners = Vec::with_capacity(8);
+    for k in 0..8 {
+        let c = Vec3::new(
+            if k & 1 == 0 { min.x } else { max.x },
+            if k & 2 == 0 { min.y } else { max.y },
+            if k & 4 == 0 { min.z } else { max.z },
+        );
+        let q = frame.to_light(c);
+        if !q.is_finite() {
+            return Err(Error::Receivers(format!(
+                "receiver bounds corner {c} overflows in light space ({q})"
+            )));
+        }
+        if q.z <= z_eps {
+            return Err(Error::LightView(format!(
+                "receiver bounds cross the light plane: corner {c} is at light-space z = {z} \
+                 (must be > {z_eps}); pass tighter bounds holding only the receivers in front of \
+                 the light (those behind it are unlit), or use fit=scene with the receivers on \
+                 the CPU",
+                z = q.z
+            )));
+        }
+        let t = DVec2::new(q.x as f64, q.y as f64) / q.z as f64;
+        if t.abs().max_element() > MAX_TAN as f64 {
+            return Err(Error::LightView(format!(
+                "receiver bounds leave the light frustum: corner {c} is at |x/z| = {} > {MAX_TAN} \
+                 in light space; pass tighter bounds",
+                t.abs().max_element()
+            )));
+        }
+        corners.push(c);
+    }
+    Receivers::from_points(corners, vec![Vec3::Z; 8])
+}
+
+impl LightView {
+    /// [`fit_with`](Self::fit_with) for receivers known only by a world-space box that holds
+    /// every one of them (`bounds`, e.g. [`receiver_bounds`] or the bounds of a user's G-buffer):
+    /// the fit runs over the box's 8 corners ([`bounds_receivers`], which also lists the errors).
+    ///
+    /// Conservative: for a receiver p in the box, the window edges its footprint reaches,
+    /// `(x_p -+ h_x) / z_p + h_x / n` (and likewise in y), are linear-fractional in p with `z_p >
+    /// 0`, so over the box they are extreme at corners; n is at most the nearest corner depth
+    /// (the nearest depth in the box) and far at least the farthest. So the window holds every
+    /// footprint of a receiver inside the box, and in `x/z` units it holds the window
+    /// [`fit_with`](Self::fit_with) fits to such receivers when n is not raised above theirs (the
+    /// unit tests check both). The price is texel density: the box's footprint is usually larger
+    /// than the receivers'.
+    pub fn fit_bounds(
+        scene: &Scene,
+        bounds: &Aabb,
+        frame: LightFrame,
+        light_half: Vec2,
+        r: u32,
+        opts: &ViewOptions,
+    ) -> Result<(LightView, FitReport)> {
+        let corners = bounds_receivers(scene, bounds, frame)?;
+        Self::fit_with(scene, &corners, frame, light_half, r, opts)
+    }
+}
+
+#[cfg(test)]
+mod bounds_tests {
+    use super::*;
+    use crate::bvh::SceneBvh;
+
+    fn fixture(name: &str) -> Scene {
+        let path = format!(
+            "{}/../../fixtures/{name}/{name}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        Scene::load(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+    }
+
+    /// Window in x/z units: (lo, hi).
+    fn tan_window(v: &LightView) -> (Vec2, Vec2) {
+        (v.window_min / v.n, (v.window_min + Vec2::splat(v.w)) / v.n)
+    }
+
+    /// Asserts the window of `vb` (from bounds) holds the window of `vr` (from receivers) in x/z
+    /// units and every active receiver's footprint at `vb`'s own n.
+    fn assert_covers(vb: &LightView, vr: &LightView, rec: &Receivers, half: Vec2, what: &str) {
+        let (lb, hb) = tan_window(vb);
+        let (lr, hr) = tan_window(vr);
+        let slack = 1e-5 * (hb - lb).max_element();
+        assert!(vb.n <= vr.n * (1.0 + 1e-6), "{what}: n {} > {}", vb.n, vr.n);
+        assert!(
+            vb.far >= vr.far * (1.0 - 1e-6),
+            "{what}: far {} < {}",
+            vb.far,
+            vr.far
+        );
+        assert!(
+            lb.cmple(lr + slack).all() && hb.cmpge(hr - slack).all(),
+            "{what}: bounds window {lb}..{hb} misses receivers window {lr}..{hr}"
+        );
+        let mut checked = 0;
+        for (p, &a) in rec.position.iter().zip(&rec.active) {
+            if !a {
+                continue;
+            }
+            let q = vb.frame.to_light(*p);
+            let t = Vec2::new(q.x, q.y) / q.z;
+            let f = half * (1.0 / vb.n - 1.0 / q.z).max(0.0);
+            assert!(
+                (t - f).cmpge(lb - slack).all() && (t + f).cmple(hb + slack).all(),
+                "{what}: footprint of {p} ({}..{}) outside {lb}..{hb}",
+                t - f,
+                t + f
+            );
+            checked += 1;
+        }
+        assert!(checked > 0, "{what}: no receiver checked");
+    }
+
+    /// The receivers' fit a bounds fit with `opts` must hold: the same options, except that
+    /// `stable` is compared with `receivers` (each snaps its own square to the power-of-two
+    /// lattice, so two stable windows of the same side need not nest; the bounds' stable window
+    /// holds the bounds' square, which holds the receivers').
+    fn reference(opts: ViewOptions) -> ViewOptions {
+        ViewOptions {
+            fit: match opts.fit {
+                FitMode::Stable => FitMode::Receivers,
+                f => f,
+            },
+            ..opts
+        }
+    }
+
+    #[test]
+    fn bounds_window_holds_the_receivers_window_on_fixtures() {
+        for name in ["parallel-squares", "stacked", "overlapping"] {
+            let scene = fixture(name);
+            let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+            let b = receiver_bounds(&rec);
+            let light = &scene.light;
+            for fit in [FitMode::Receivers, FitMode::Scene, FitMode::Stable] {
+                for nearfar in [NearFar::Clipped, NearFar::Aabb, NearFar::Frustum] {
+                    let opts = ViewOptions { fit, nearfar };
+                    let what = format!("{name} {fit:?} {nearfar:?}");
+                    let half = light.half_extent();
+                    let (vr, _) = LightView::fit_with(
+                        &scene,
+                        &rec,
+                        light.frame(),
+                        half,
+                        256,
+                        &reference(opts),
+                    )
+                    .expect("receivers fit");
+                    let (vb, rep) =
+                        LightView::fit_bounds(&scene, &b, light.frame(), half, 256, &opts)
+                            .expect("bounds fit");
+                    assert_eq!(rep.behind + rep.out_of_frustum, 0, "{what}");
+                    assert_covers(&vb, &vr, &rec, half, &what);
+                }
+            }
+        }
+    }
+
+    /// Points scattered inside a box under a tilted light (a fixed pseudo-random sequence, the
+    /// box's corners among them): the bounds window holds their window and footprints.
+    #[test]
+    fn bounds_window_holds_scattered_points() {
+        let mut scene = fixture("parallel-squares");
+        scene.light.normal = Vec3::new(0.3, -1.0, 0.2).normalize();
+        scene.light.shape = crate::LightShape::Rect { size: [0.8, 0.5] };
+        let b = Aabb {
+            min: Vec3::new(-1.5, 0.0, -1.2),
+            max: Vec3::new(1.3, 1.2, 1.6),
+        };
+        let mut seed = 0x2545_f491_u32;
+        let mut unit = move || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let mut pts: Vec<Vec3> = (0..8)
+            .map(|k| {
+                Vec3::new(
+                    if k & 1 == 0 { b.min.x } else { b.max.x },
+                    if k & 2 == 0 { b.min.y } else { b.max.y },
+                    if k & 4 == 0 { b.min.z } else { b.max.z },
+                )
+            })
+            .collect();
+        pts.extend((0..500).map(|_| b.min + (b.max - b.min) * Vec3::new(unit(), unit(), unit())));
+        // Half of them only, so the receivers' window is strictly smaller than the box's.
+        let inner: Vec<Vec3> = pts[8..258].to_vec();
+        let light = &scene.light;
+        let half = light.half_extent();
+        for (set, label) in [(pts, "with corners"), (inner, "inside")] {
+            let n = set.len();
+            let rec = Receivers::from_points(set, vec![Vec3::Y; n]).expect("points");
+            for fit in [FitMode::Receivers, FitMode::Scene, FitMode::Stable] {
+                let opts = ViewOptions {
+                    fit,
+                    nearfar: NearFar::Clipped,
+                };
+                let (vr, _) =
+                    LightView::fit_with(&scene, &rec, light.frame(), half, 128, &reference(opts))
+                        .expect("receivers fit");
+                let (vb, _) = LightView::fit_bounds(&scene, &b, light.frame(), half, 128, &opts)
+                    .expect("bounds fit");
+                assert_covers(&vb, &vr, &rec, half, &format!("{label} {fit:?}"));
+            }
+        }
+    }
+
+    #[test]
+    fn bad_bounds_are_typed_errors() {
+        let scene = fixture("parallel-squares");
+        let light = &scene.light;
+        let fit = |min: Vec3, max: Vec3| {
+            LightView::fit_bounds(
+                &scene,
+                &Aabb { min, max },
+                light.frame(),
+                light.half_extent(),
+                64,
+                &ViewOptions::default(),
+            )
+        };
+        let receivers_err = |r: Result<(LightView, FitReport)>, needle: &str| match r {
+            Err(Error::Receivers(m)) => assert!(m.contains(needle), "{m}"),
+            other => panic!("expected Error::Receivers({needle}), got {other:?}"),
+        };
+        let view_err = |r: Result<(LightView, FitReport)>, needle: &str| match r {
+            Err(Error::LightView(m)) => {
+                assert!(m.contains(needle), "{m}");
+                assert!(m.contains("tighter bounds"), "{m}");
+            }
+            other => panic!("expected Error::LightView({needle}), got {other:?}"),
+        };
+        receivers_err(
+            LightView::fit_bounds(
+                &scene,
+                &Aabb::EMPTY,
+                light.frame(),
+                light.half_extent(),
+                64,
+                &ViewOptions::default(),
+            ),
+            "inverted or empty",
+        );
+        receivers_err(fit(Vec3::ONE, Vec3::ZERO), "inverted or empty");
+        receivers_err(fit(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::ONE), "not finite");
+        receivers_err(
+            fit(Vec3::ZERO, Vec3::new(1.0, f32::INFINITY, 1.0)),
+            "not finite",
+        );
+        // Finite in the world, past f32 in a tilted light's frame.
+        let mut tilted = fixture("parallel-squares");
+        tilted.light.normal = Vec3::new(0.6, -0.8, 0.0);
+        receivers_err(
+            LightView::fit_bounds(
+                &tilted,
+                &Aabb {
+                    min: Vec3::new(3e38, -3e38, 0.0),
+                    max: Vec3::new(3.1e38, -2.9e38, 1.0),
+                },
+                tilted.light.frame(),
+                tilted.light.half_extent(),
+                64,
+                &ViewOptions::default(),
+            ),
+            "overflows in light space",
+        );
+        // The light sits at y = 3 facing down: a box reaching above y = 3 crosses its plane.
+        view_err(
+            fit(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 3.5, 1.0)),
+            "cross the light plane",
+        );
+        view_err(
+            fit(Vec3::new(-1.0, 3.0, -1.0), Vec3::new(1.0, 3.0, 1.0)),
+            "cross the light plane",
+        );
+        // Just below the light plane and far to the side: beyond MAX_TAN.
+        view_err(
+            fit(Vec3::new(-1.0, 2.9, -1.0), Vec3::new(100.0, 2.99, 1.0)),
+            "leave the light frustum",
+        );
+        // A box holding a single point in front of the light is fine.
+        let p = Vec3::new(0.2, 0.5, -0.3);
+        let (v, rep) = fit(p, p).expect("point box");
+        assert_eq!(rep.behind + rep.out_of_frustum, 0);
+        assert!(v.contains(v.project(v.frame.to_light(p))));
+    }
+}
