@@ -19,6 +19,31 @@ const DIFF: f64 = 1e-2;
 /// Largest fraction of receivers that differ.
 const MAX_DIFFERING: f64 = 0.01;
 
+/// The light-view and depth options (common techniques) joined to the cross-backend test: each
+/// set is applied to every estimator that declares all its keys, on the fixtures listed.
+const OPTION_SETS: &[(&[&str], &[(&str, &str)])] = &[
+    (
+        &[
+            "parallel-squares",
+            "overlapping",
+            "thin-sticks",
+            "strands",
+            "sphere-light",
+            "bunny",
+        ],
+        &[],
+    ),
+    (&["bunny", "sphere-light"], &[("depth", "unorm16")]),
+    (
+        &["bunny", "thin-sticks"],
+        &[("fit", "stable"), ("nearfar", "aabb")],
+    ),
+    (
+        &["bunny", "strands"],
+        &[("fit", "scene"), ("nearfar", "frustum"), ("depth", "unorm16")],
+    ),
+];
+
 #[test]
 fn gpu_backend_matches_cpu_backend_on_every_fixture() {
     let Some(_ctx) = context_for_tests("gpu_backend_matches_cpu_backend_on_every_fixture").unwrap()
@@ -27,24 +52,34 @@ fn gpu_backend_matches_cpu_backend_on_every_fixture() {
     };
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures");
     let mut worst = (0.0f64, 0.0f64);
-    for fixture in [
-        "parallel-squares",
-        "overlapping",
-        "thin-sticks",
-        "strands",
-        "sphere-light",
-        "bunny",
-    ] {
+    for (fixture, options) in OPTION_SETS
+        .iter()
+        .flat_map(|(fs, o)| fs.iter().map(move |f| (*f, *o)))
+    {
         let mut scene = Scene::load(format!("{dir}/{fixture}/{fixture}.toml")).unwrap();
         scene.camera.width = 96;
         scene.camera.height = 72;
         let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
         for &algo in ALGOS.iter().filter(|a| backends(a).contains(&"gpu")) {
+            let has = |k: &str| {
+                estimator(algo, Backend::Cpu)
+                    .unwrap()
+                    .params()
+                    .specs()
+                    .iter()
+                    .any(|s| s.key == k)
+            };
+            if !options.iter().all(|(k, _)| has(k)) {
+                continue;
+            }
             let mut out = Vec::new();
             let mut refused = Vec::new();
             for backend in [Backend::Cpu, Backend::Gpu] {
                 let mut e = estimator(algo, backend).unwrap();
                 e.set_param("resolution", "512").unwrap();
+                for (k, v) in options {
+                    e.set_param(k, v).unwrap();
+                }
                 match run(e.as_mut(), &scene, &rec) {
                     Ok((v, _)) => out.push(v),
                     // An estimator may refuse a light shape it does not model (backprojection:
@@ -77,13 +112,18 @@ fn gpu_backend_matches_cpu_backend_on_every_fixture() {
             }
             let rmse = (sq / n as f64).sqrt();
             let frac = differing as f64 / n as f64;
-            eprintln!("{algo:>12} on {fixture:<16} rmse {rmse:.2e}, differing {frac:.4}");
+            eprintln!(
+                "{algo:>12} on {fixture:<16} {options:?}: rmse {rmse:.2e}, differing {frac:.4}"
+            );
             if algo == "pcf" || algo == "pcss" {
-                assert!(rmse <= MAX_RMSE_SOFT, "{algo} on {fixture}: rmse {rmse}");
+                assert!(
+                    rmse <= MAX_RMSE_SOFT,
+                    "{algo} on {fixture} {options:?}: rmse {rmse}"
+                );
             }
             assert!(
                 frac <= MAX_DIFFERING,
-                "{algo} on {fixture}: {frac} of receivers differ"
+                "{algo} on {fixture} {options:?}: {frac} of receivers differ"
             );
             worst = (worst.0.max(rmse), worst.1.max(frac));
         }
