@@ -138,17 +138,10 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        common::check_len(receivers, v)?;
-        self.report = Report::default();
-        let t = Instant::now();
         let depth = DepthPrecision::from_params(&self.params);
-        let encoder = self.builder.encoder(&self.ctx)?;
-        let maps = GpuMaps::upload(&self.ctx, ls, depth, encoder)?;
-        self.report
-            .stages
-            .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
-        self.report.light_space_bytes = maps.bytes();
-        self.run(&maps, light, receivers, v)
+        self.run_uploaded(light, receivers, v, |e| {
+            GpuMaps::upload(&e.ctx, ls, depth, e.builder.encoder(&e.ctx)?)
+        })
     }
 
     /// Estimates V from the view of `ls` and CPU 16-bit codes uploaded as they are (the CPU
@@ -162,10 +155,23 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
+        self.run_uploaded(light, receivers, v, |e| {
+            GpuMaps::upload_unorm16(&e.ctx, ls, map)
+        })
+    }
+
+    /// The common part of `estimate_with*`: a fresh report, the upload timed, then [`run`](Self::run).
+    fn run_uploaded(
+        &mut self,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+        upload: impl FnOnce(&Self) -> Result<GpuMaps>,
+    ) -> Result<()> {
         common::check_len(receivers, v)?;
         self.report = Report::default();
         let t = Instant::now();
-        let maps = GpuMaps::upload_unorm16(&self.ctx, ls, map)?;
+        let maps = upload(self)?;
         self.report
             .stages
             .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
