@@ -13,6 +13,13 @@
 //! **Estimate.** One compute dispatch per chunk of receivers (`backprojection.wgsl`, one
 //! invocation per receiver), modelled on the baselines' GPU twins (`baselines::gpu`).
 //!
+//! **Resident receivers.** Inside a user's renderer the receivers may already be in a GPU buffer
+//! (their G-buffer pass) and V may be wanted there too:
+//! [`GpuBackprojection::build_resident`] fits the light view to a world-space box holding the
+//! receivers ([`LightView::fit_bounds`]) and [`GpuBackprojection::estimate_resident`] runs the
+//! same dispatch on a [`GpuReceivers`] into the caller's V buffer, with no readback (the
+//! `gpu_resident` example of the workspace root).
+//!
 //! The WGSL follows `cpu.rs` and [`crate::math`] step by step in f32. Known differences: the CPU
 //! sums the overlap areas in f64, the kernel in Kahan-compensated f32 (about 1e-7 of the light
 //! area); the driver may fuse a multiply and an add, which can flip a depth comparison that is a
@@ -29,15 +36,17 @@ use shadow_map_core::{
     gpu::{
         light_space::GpuLightSpace,
         raster::{GpuScene, GpuShadowMapper},
+        receivers::{GpuReceivers, RECEIVER_BYTES},
         shared::{pack_receivers, LightViewUniform, SHARED_WGSL},
         GpuContext,
     },
     light_space::LightSpace,
-    light_view::LightView,
+    light_view::{bounds_receivers, LightView},
+    scene::Aabb,
     Backend, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
-use std::{sync::Arc, time::Instant};
+use std::{num::NonZeroU64, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
 
 /// The MSSM-level copy into a texture array layer.
@@ -268,6 +277,10 @@ pub struct GpuBackprojection {
     light_space_on_cpu: bool,
     report: Report,
     chunk_cap: usize,
+    resident_counters: Option<wgpu::Buffer>,
+    /// Stages and notes of the report after the last build: each `estimate_resident` keeps
+    /// these and replaces the rest, so a report does not grow frame after frame.
+    built: (usize, usize),
 }
 
 const LABEL: &str = "backprojection estimate";
@@ -399,6 +412,8 @@ impl GpuBackprojection {
             light_space_on_cpu: false,
             report: Report::default(),
             chunk_cap: usize::MAX,
+            resident_counters: None,
+            built: (0, 0),
         })
     }
 
@@ -575,9 +590,24 @@ impl GpuBackprojection {
         v: &mut [f32],
     ) -> Result<()> {
         check_inputs(light, receivers, v)?;
+        let (eu, bpu) = self.uniforms(maps, light);
+        let (outside, nonfinite, est_ms, read_ms) = self.dispatch(maps, &eu, &bpu, receivers, v)?;
+        self.report.stages.push(("estimate".into(), est_ms));
+        self.report.stages.push(("readback".into(), read_ms));
+        self.note_estimate(maps);
+        self.report
+            .note("out_of_frustum", outside + maps.out_of_frustum);
+        self.report.note("window_scale", maps.window_scale);
+        if nonfinite > 0 {
+            self.report.note("nonfinite_replaced", nonfinite);
+        }
+        Ok(())
+    }
+
+    /// The kernel's uniforms for `maps` and the current parameters.
+    fn uniforms(&self, maps: &DeviceMaps, light: &Light) -> (EstimateUniform, BpUniform) {
         let p = self.cpu.params();
         let midpoint = p.choice("self_shadow") == "midpoint";
-        self.report.light_space_bytes = maps.bytes();
         let h = light.half_extent();
         let max_nspp = p.int("max_nspp") as u32;
         let bpu = BpUniform {
@@ -601,35 +631,31 @@ impl GpuBackprojection {
             _pad0: 0,
             _pad1: 0,
         };
-        let self_shadow = p.choice("self_shadow");
         let eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
-        let (outside, nonfinite, est_ms, read_ms) =
-            self.dispatch(&maps.view, &eu, &bpu, &maps.maps, &maps.mssm, receivers, v)?;
-        let view = &maps.view;
-        self.report.stages.push(("estimate".into(), est_ms));
-        self.report.stages.push(("readback".into(), read_ms));
+        (eu, bpu)
+    }
+
+    /// The report notes both estimate paths share.
+    fn note_estimate(&mut self, maps: &DeviceMaps) {
+        let view = maps.view;
+        let self_shadow = self.cpu.params().choice("self_shadow").to_string();
+        self.report.light_space_bytes = maps.bytes();
         self.report.note("resolution", view.r);
         self.report.note("layers", maps.layers);
         self.report.note("self_shadow", self_shadow);
         self.report.note("near", view.n);
         self.report.note("far", view.far);
-        self.report
-            .note("out_of_frustum", outside + maps.out_of_frustum);
-        self.report.note("window_scale", maps.window_scale);
-        if nonfinite > 0 {
-            self.report.note("nonfinite_replaced", nonfinite);
-        }
-        Ok(())
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// CPU receivers: uploads them chunk by chunk (a receiver and a V buffer per chunk, so any
+    /// chunk size works), runs [`submit_kernel`](Self::submit_kernel), waits and reads V and the
+    /// counters back. Returns (outside the frustum, non-finite replaced, estimate ms, readback
+    /// ms).
     fn dispatch(
         &self,
-        view: &shadow_map_core::LightView,
+        maps: &DeviceMaps,
         eu: &EstimateUniform,
         bpu: &BpUniform,
-        maps: &PlaneArray,
-        mssm: &PlaneArray,
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<(usize, usize, f64, f64)> {
@@ -640,39 +666,12 @@ impl GpuBackprojection {
         let t = Instant::now();
         let chunk = max_chunk(ctx, self.chunk_cap);
         let packed = pack_receivers(receivers);
-        let (outs, counters) = ctx.scoped(LABEL, || {
-            let uniform = |label, contents: &[u8]| {
-                ctx.device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some(label),
-                        contents,
-                        usage: wgpu::BufferUsages::UNIFORM,
-                    })
-            };
-            let view_buf = uniform(
-                "light view",
-                bytemuck::bytes_of(&LightViewUniform::from(view)),
-            );
-            let est_buf = uniform("estimate uniform", bytemuck::bytes_of(eu));
-            let bp_buf = uniform("backprojection uniform", bytemuck::bytes_of(bpu));
-            let counters = ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("backprojection counters"),
-                    contents: bytemuck::cast_slice(&[0u32; 2]),
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                });
-            let mut enc = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(LABEL) });
-            let mut outs = Vec::new();
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some(LABEL),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.pipeline);
-                for (c, part) in packed.chunks(chunk).enumerate() {
+        let (parts, counters) = ctx.scoped(LABEL, || {
+            let counters = counters_buffer(ctx);
+            let parts: Vec<(usize, usize, wgpu::Buffer, wgpu::Buffer)> = packed
+                .chunks(chunk)
+                .enumerate()
+                .map(|(c, part)| {
                     let rec = ctx
                         .device
                         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -686,37 +685,24 @@ impl GpuBackprojection {
                         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                         mapped_at_creation: false,
                     });
-                    let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
-                    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some(LABEL),
-                        layout: &self.layout,
-                        entries: &[
-                            e(0, view_buf.as_entire_binding()),
-                            e(1, est_buf.as_entire_binding()),
-                            e(2, bp_buf.as_entire_binding()),
-                            e(3, wgpu::BindingResource::TextureView(&maps.view)),
-                            e(4, wgpu::BindingResource::TextureView(&mssm.view)),
-                            e(5, rec.as_entire_binding()),
-                            e(6, out.as_entire_binding()),
-                            e(7, counters.as_entire_binding()),
-                        ],
-                    });
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.dispatch_workgroups(
-                        part.len().div_ceil(WORKGROUP_SIZE as usize) as u32,
-                        1,
-                        1,
-                    );
-                    outs.push((c * chunk, part.len(), out));
-                }
-            }
-            ctx.queue.submit([enc.finish()]);
-            (outs, counters)
+                    (c * chunk, part.len(), rec, out)
+                })
+                .collect();
+            (parts, counters)
         })?;
+        let chunks: Vec<KernelChunk> = parts
+            .iter()
+            .map(|(_, len, rec, out)| KernelChunk {
+                receivers: rec.as_entire_binding(),
+                v: out.as_entire_binding(),
+                len: *len as u32,
+            })
+            .collect();
+        self.submit_kernel(maps, eu, bpu, &chunks, &counters)?;
         ctx.wait()?;
         let est_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        for (start, len, out) in &outs {
+        for (start, len, _, out) in &parts {
             let part: Vec<f32> = ctx.read_buffer(out, (*len * 4) as u64)?;
             v[*start..*start + *len].copy_from_slice(&part);
         }
@@ -728,6 +714,247 @@ impl GpuBackprojection {
             t.elapsed().as_secs_f64() * 1e3,
         ))
     }
+
+    /// The dispatch both paths share: one submission with one compute dispatch per chunk
+    /// (`backprojection.wgsl`, one invocation per receiver), the kernel writing V bits into each
+    /// chunk's V binding and adding to `counters`. Nothing is waited for or read back.
+    fn submit_kernel(
+        &self,
+        maps: &DeviceMaps,
+        eu: &EstimateUniform,
+        bpu: &BpUniform,
+        chunks: &[KernelChunk],
+        counters: &wgpu::Buffer,
+    ) -> Result<()> {
+        let ctx = &*self.ctx;
+        ctx.scoped(LABEL, || {
+            let uniform = |label, contents: &[u8]| {
+                ctx.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents,
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    })
+            };
+            let view_buf = uniform(
+                "light view",
+                bytemuck::bytes_of(&LightViewUniform::from(&maps.view)),
+            );
+            let est_buf = uniform("estimate uniform", bytemuck::bytes_of(eu));
+            let bp_buf = uniform("backprojection uniform", bytemuck::bytes_of(bpu));
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(LABEL) });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(LABEL),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                for chunk in chunks.iter().filter(|c| c.len > 0) {
+                    let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+                    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some(LABEL),
+                        layout: &self.layout,
+                        entries: &[
+                            e(0, view_buf.as_entire_binding()),
+                            e(1, est_buf.as_entire_binding()),
+                            e(2, bp_buf.as_entire_binding()),
+                            e(3, wgpu::BindingResource::TextureView(&maps.maps.view)),
+                            e(4, wgpu::BindingResource::TextureView(&maps.mssm.view)),
+                            e(5, chunk.receivers.clone()),
+                            e(6, chunk.v.clone()),
+                            e(7, counters.as_entire_binding()),
+                        ],
+                    });
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.dispatch_workgroups(
+                        (chunk.len as usize).div_ceil(WORKGROUP_SIZE as usize) as u32,
+                        1,
+                        1,
+                    );
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })
+    }
+
+    /// Builds the light-space data for receivers that stay on the GPU, known to the CPU only by
+    /// a world-space box `bounds` that holds every one of them (e.g. from the user's G-buffer
+    /// pass, or [`receiver_bounds`](shadow_map_core::light_view::receiver_bounds)): the light view
+    /// is fitted as [`build`](SoftShadowEstimator::build) fits it, over the box's 8 corners
+    /// ([`LightView::fit_bounds`]; conservative, so the window, and the texel pitch, are usually
+    /// larger than with the receivers themselves). The rest is `build`: rendered on the GPU (or on
+    /// the CPU after [`set_light_space_on_cpu`](Self::set_light_space_on_cpu)), nothing read
+    /// back.
+    ///
+    /// Errors: [`Error::Receivers`] for an inverted, empty or non-finite box,
+    /// [`Error::LightView`] for a box crossing the light plane or leaving the frustum (see
+    /// [`bounds_receivers`]), and `build`'s errors.
+    pub fn build_resident(&mut self, scene: &Scene, bounds: &Aabb) -> Result<()> {
+        check_light(&scene.light)?;
+        let corners = bounds_receivers(scene, bounds, scene.light.frame())?;
+        self.build(scene, &corners)?;
+        self.report
+            .note("fit_bounds", format!("{}..{}", bounds.min, bounds.max));
+        self.built = (self.report.stages.len(), self.report.notes.len());
+        Ok(())
+    }
+
+    /// Estimates V for receivers already in a GPU buffer (`receivers`, e.g.
+    /// [`GpuReceivers::from_buffer`] around the user's own buffer of
+    /// [`ReceiverGpu`](shadow_map_core::gpu::shared::ReceiverGpu)) into the caller's `v_out`: a
+    /// `STORAGE` buffer of at least `receivers.count` f32 (V of receiver k at byte `4 k`; NaN for
+    /// inactive receivers, as every estimator writes). The work is submitted to the context's
+    /// queue and not waited for; nothing is read back, so the caller's later passes on the same
+    /// queue read V in order, and the caller reads it back only if and when they want to. The
+    /// counters the CPU path reports (receivers outside the light frustum, non-finite results
+    /// replaced by 0) stay on the GPU too: [`resident_counters`](Self::resident_counters).
+    ///
+    /// Light-space data come from [`build_resident`](Self::build_resident) (or
+    /// [`build`](SoftShadowEstimator::build)). Receivers beyond one storage binding are processed
+    /// in chunks ([`GpuReceivers::chunks`]) whose first receiver is a multiple of
+    /// `min_storage_buffer_offset_alignment / 4`, so both the receiver binding (32 bytes per
+    /// receiver) and the V binding (4 bytes) start on aligned offsets; a cap from
+    /// [`set_max_chunk`](Self::set_max_chunk) is rounded up to that multiple.
+    ///
+    /// Errors, never a panic: [`Error::Receivers`] when either buffer lacks the `STORAGE` usage or
+    /// is too small, [`Error::Param`] before a build or for a non-rect light, [`Error::Gpu`] for
+    /// what wgpu's validation refuses (e.g. buffers of another device, or `v_out` being the
+    /// receiver buffer). The report keeps the build's part and replaces the rest with this call's:
+    /// an `estimate` stage of the encoding and submission (not of the GPU's work, which is not
+    /// waited for) and notes.
+    pub fn estimate_resident(
+        &mut self,
+        scene: &Scene,
+        receivers: &GpuReceivers,
+        v_out: &wgpu::Buffer,
+    ) -> Result<()> {
+        let light = &scene.light;
+        check_light(light)?;
+        let count = receivers.count as u64;
+        if !receivers
+            .buffer
+            .usage()
+            .contains(wgpu::BufferUsages::STORAGE)
+        {
+            return Err(Error::Receivers(
+                "the receiver buffer needs the STORAGE usage".into(),
+            ));
+        }
+        if receivers.buffer.size() < count * RECEIVER_BYTES {
+            return Err(Error::Receivers(format!(
+                "receiver buffer of {} bytes is too small for {count} receivers ({} bytes)",
+                receivers.buffer.size(),
+                count * RECEIVER_BYTES
+            )));
+        }
+        if !v_out.usage().contains(wgpu::BufferUsages::STORAGE) {
+            return Err(Error::Receivers(
+                "the V output buffer needs the STORAGE usage".into(),
+            ));
+        }
+        if v_out.size() < count * 4 {
+            return Err(Error::Receivers(format!(
+                "V output buffer of {} bytes is too small for {count} receivers ({} bytes, one \
+                 f32 each)",
+                v_out.size(),
+                count * 4
+            )));
+        }
+        let maps = self.maps.take().ok_or_else(|| {
+            Error::param(
+                "build",
+                "estimate_resident called before build_resident (or build)",
+            )
+        })?;
+        let out = self.estimate_resident_maps(&maps, light, receivers, v_out);
+        self.maps = Some(maps);
+        out
+    }
+
+    fn estimate_resident_maps(
+        &mut self,
+        maps: &DeviceMaps,
+        light: &Light,
+        receivers: &GpuReceivers,
+        v_out: &wgpu::Buffer,
+    ) -> Result<()> {
+        let ctx = self.ctx.clone();
+        let ctx = &*ctx;
+        let t = Instant::now();
+        self.report.stages.truncate(self.built.0);
+        self.report.notes.truncate(self.built.1);
+        let (eu, bpu) = self.uniforms(maps, light);
+        let counters = ctx.scoped(LABEL, || counters_buffer(ctx))?;
+        if receivers.count > 0 {
+            let align = ctx.limits().min_storage_buffer_offset_alignment.max(4);
+            let max_bytes = max_chunk(ctx, self.chunk_cap) as u64 * RECEIVER_BYTES;
+            // Offsets of receivers (32 bytes) aligned to 8 x align: the V offsets (4 bytes per
+            // receiver) are then aligned to align.
+            let ranges = receivers.chunks(max_bytes, align.saturating_mul(8));
+            let mut chunks = Vec::with_capacity(ranges.len());
+            for range in ranges {
+                let v_offset = range.start as u64 * 4;
+                if !v_offset.is_multiple_of(align as u64) {
+                    return Err(Error::Limit {
+                        what: "V binding offset (min_storage_buffer_offset_alignment)",
+                        requested: v_offset,
+                        max: align as u64,
+                    });
+                }
+                let len = range.end - range.start;
+                chunks.push(KernelChunk {
+                    receivers: receivers.binding(range),
+                    v: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: v_out,
+                        offset: v_offset,
+                        size: NonZeroU64::new(len.max(1) as u64 * 4),
+                    }),
+                    len,
+                });
+            }
+            self.submit_kernel(maps, &eu, &bpu, &chunks, &counters)?;
+        }
+        self.resident_counters = Some(counters);
+        self.report
+            .stages
+            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.note_estimate(maps);
+        self.report.note("window_scale", maps.window_scale);
+        self.report.note(
+            "resident",
+            "V left in the caller's buffer, not read back; counters (out_of_frustum, \
+             nonfinite_replaced) left on the GPU in resident_counters()",
+        );
+        Ok(())
+    }
+
+    /// The counters of the last [`estimate_resident`](Self::estimate_resident), left on the GPU
+    /// for the caller to read when they want (e.g. [`GpuContext::read_buffer`]): two `u32`,
+    /// receivers outside the light frustum and non-finite results replaced by 0 (usages
+    /// `STORAGE | COPY_SRC`). `None` before the first call.
+    pub fn resident_counters(&self) -> Option<&wgpu::Buffer> {
+        self.resident_counters.as_ref()
+    }
+}
+
+/// One chunk of receivers for [`GpuBackprojection::submit_kernel`]: its receiver binding, its V
+/// binding (`len` u32) and its length.
+struct KernelChunk<'a> {
+    receivers: wgpu::BindingResource<'a>,
+    v: wgpu::BindingResource<'a>,
+    len: u32,
+}
+
+/// The kernel's two counters, zeroed: receivers outside the frustum, non-finite results.
+fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("backprojection counters"),
+            contents: bytemuck::cast_slice(&[0u32; 2]),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        })
 }
 
 fn check_inputs(light: &Light, receivers: &Receivers, v: &[f32]) -> Result<()> {
@@ -738,6 +965,10 @@ fn check_inputs(light: &Light, receivers: &Receivers, v: &[f32]) -> Result<()> {
             receivers.len()
         )));
     }
+    check_light(light)
+}
+
+fn check_light(light: &Light) -> Result<()> {
     if !matches!(light.shape, LightShape::Rect { .. }) {
         return Err(Error::param(
             "light",
@@ -795,6 +1026,7 @@ impl SoftShadowEstimator for GpuBackprojection {
         };
         self.report.light_space_bytes = maps.bytes();
         self.maps = Some(maps);
+        self.built = (self.report.stages.len(), self.report.notes.len());
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
