@@ -1,9 +1,8 @@
 //! A GPU estimator inside a user's own wgpu device: the user creates the instance, adapter,
 //! device and queue (here headless, as a renderer would before creating its surface), wraps them
 //! in a `GpuContext` without giving up ownership of anything else, and runs the PCSS and
-//! backprojection twins on it. Receivers come from the CPU here and V is read back; estimators
-//! that take receivers already resident in the user's GPU buffers (`GpuReceivers::from_buffer`)
-//! and leave V there are not implemented yet.
+//! backprojection twins on it. Receivers come from the CPU here and V is read back; for receivers
+//! already resident in the user's GPU buffers, with V left there, see `examples/gpu_resident.rs`.
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release --example gpu_own_device

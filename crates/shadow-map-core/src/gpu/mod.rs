@@ -12,6 +12,7 @@
 //! | [`midpoint`] (`midpoint.wgsl`) | midpoint layers (compute) | [`crate::peeling::midpoints`] |
 //! | [`mssm`] (`mssm.wgsl`) | [`GpuMssmBuilder`]: MSSM, dual MSSM, pyramid | [`crate::mssm`] |
 //! | [`depth_map`] | [`GpuDepthMap`], upload / readback | [`crate::DepthMap`] |
+//! | [`precision`] (`precision.wgsl`) | [`GpuUnorm16Encoder`], [`GpuUnorm16Map`]: 16-bit maps | [`crate::precision`] |
 //! | [`light_space`] | [`GpuLightSpace`] | [`crate::LightSpace`] |
 //! | [`receivers`] | [`GpuReceivers`] | [`crate::Receivers`] |
 //! | [`gbuffer`] (`gbuffer.wgsl`) | [`GpuGBuffer`]: camera G-buffer | [`crate::Receivers::from_camera`] |
@@ -45,6 +46,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("midpoint", midpoint::MIDPOINT_WGSL),
     ("mssm", mssm::MSSM_WGSL),
     ("gbuffer", gbuffer::GBUFFER_WGSL),
+    ("precision", precision::PRECISION_WGSL),
 ];
 
 /// A device and queue, owned or borrowed, with what the backend needs to know about them.
