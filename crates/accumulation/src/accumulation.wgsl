@@ -19,14 +19,14 @@ struct AccUniform {
     sphere_contract: u32,
     patch_rect: u32,
     overlap: u32,
-    _pad3: u32,
+    phase_x: i32,
     half: vec2<f32>,
     b0: f32,
     b1: f32,
     mssm_present: u32,
     mssm_levels: u32,
     mssm_size: u32,
-    _pad0: u32,
+    phase_y: i32,
 }
 
 const KERNEL_FIXED: u32 = 0u;
@@ -482,8 +482,12 @@ fn covers(rr: vec4<i32>, b: vec4<i32>) -> bool {
     return rr.x <= b.x && rr.y <= b.y && rr.z >= b.z && rr.w >= b.w;
 }
 
-// cpu::for_each_ring_cell over visit.
-fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: f32, eps_plane: f32, bound: vec4<i32>, c: vec2<i32>) {
+// cpu::for_each_ring_cell over visit: in lattice indices (map index + phase, cpu::ring_phase),
+// the cells handed to visit in map indices.
+fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: f32, eps_plane: f32, bound_map: vec4<i32>, c_map: vec2<i32>) {
+    let ph = vec2<i32>(acc.phase_x, acc.phase_y);
+    let bound = bound_map + vec4<i32>(ph, ph);
+    let c = c_map + ph;
     let m = i32(max((acc.k + 3u) / 4u, 1u));
     var raw = vec4<i32>(c.x - m, c.y - m, c.x + m, c.y + m);
     var inner = vec4<i32>(c.x, c.y, c.x, c.y);
@@ -505,7 +509,7 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: 
                     let j0 = max(y, bound.y);
                     let j1 = min(y + s, bound.w);
                     if i0 < i1 && j0 < j1 {
-                        if visit(st, p, r, nrm, eps, eps_plane, i0, i1, j0, j1) {
+                        if visit(st, p, r, nrm, eps, eps_plane, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y) {
                             return;
                         }
                     }

@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitReport, LightView, MAX_RESOLUTION},
+    light_view::{FitMode, FitReport, LightView, ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
@@ -109,6 +109,8 @@ pub const SPECS: &[ParamSpec] = &[
         default: "1.0",
         help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
     },
+    FIT,
+    NEARFAR,
 ];
 
 /// Which sum (paper eq. 2 or eq. 1).
@@ -163,6 +165,8 @@ pub struct Settings {
     pub b0: f32,
     /// Slope-scaled receiver bias.
     pub b1: f32,
+    /// Light-view window and near/far choice (`fit`, `nearfar`).
+    pub view: ViewOptions,
 }
 
 impl Settings {
@@ -195,13 +199,14 @@ impl Settings {
             },
             b0: p.float("bias") as f32,
             b1: p.float("slope_bias") as f32,
+            view: ViewOptions::from_params(p),
         }
     }
 }
 
 /// The light view and the request both twins build (one shadow map at the light centre, fitted
-/// to the receivers; peeled layers for the exact variant; the anchored MSSM for the adaptive
-/// kernel).
+/// to the receivers with the `fit` and `nearfar` choices of `s.view` ([`LightView::fit_with`]);
+/// peeled layers for the exact variant; the anchored MSSM for the adaptive kernel).
 ///
 /// The window is fitted to the light's bounding half extent; for the contract's sphere, whose
 /// silhouette disk leaves the light plane by up to `z_max = R |r_xy| / |r|`, to the half extent of
@@ -236,7 +241,7 @@ pub fn plan(
         }
         half *= f.min(4.0);
     }
-    let (view, fit) = LightView::fit(scene, receivers, frame, half, resolution)?;
+    let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
         let wmax =
@@ -309,6 +314,8 @@ pub enum Kernel {
         centre: [i32; 2],
         /// Ring width in cells.
         m: i32,
+        /// Lattice index of texel 0 the cells align to ([`ring_phase`]).
+        phase: [i32; 2],
     },
 }
 
@@ -316,6 +323,27 @@ pub enum Kernel {
 /// square is about K cells wide.
 pub fn ring_width(k: u32) -> i32 {
     k.div_ceil(4).max(1) as i32
+}
+
+/// Lattice index of the map's texel 0 (modulo 2^20), where the adaptive kernel's cells of side
+/// `2^l` align: `round(x0 / delta)` per axis under `fit=stable`, whose window corner is a whole
+/// number of texels on a fixed lattice, so a receiver's cells, and its V, do not change when the
+/// camera pans and the corner moves by an odd number of texels; `[0, 0]` (cells aligned to the
+/// map) otherwise. Cells never reach 2^20 texels (r <= 16384), so the modulus changes nothing.
+pub fn ring_phase(view: &LightView, fit: FitMode) -> [i32; 2] {
+    if fit != FitMode::Stable {
+        return [0, 0];
+    }
+    let delta = view.w as f64 / view.r as f64;
+    let k = |x0: f32| {
+        let k = (x0 as f64 / delta).round();
+        if k.is_finite() {
+            (k.rem_euclid((1u32 << 20) as f64)) as i32
+        } else {
+            0
+        }
+    };
+    [k(view.window_min.x), k(view.window_min.y)]
 }
 
 fn floor_to(x: i32, a: i32) -> i32 {
@@ -327,7 +355,8 @@ fn ceil_to(x: i32, a: i32) -> i32 {
 }
 
 /// The adaptive kernel's cells: level 0 is single texels in `[c - m, c + m)^2`; level l has cells
-/// of side `s = 2^l` aligned to multiples of s, filling the ring between the previous level's
+/// of side `s = 2^l` aligned to multiples of s (in lattice indices: texel i is `i + phase`,
+/// [`ring_phase`]), filling the ring between the previous level's
 /// square (extended to multiples of s) and that square grown by `m s` on every side; levels stop
 /// once a square covers `bound`. The cells tile the square exactly (no overlap, no gap), fine near
 /// the receiver's projection, where a caster close to the receiver is magnified most (its image
@@ -338,8 +367,14 @@ pub fn for_each_ring_cell(
     bound: [i32; 4],
     c: [i32; 2],
     m: i32,
+    phase: [i32; 2],
     mut f: impl FnMut(i32, i32, i32, i32) -> bool,
 ) {
+    // In lattice indices; the cells are handed back in map indices.
+    let [px, py] = phase;
+    let bound = [bound[0] + px, bound[1] + py, bound[2] + px, bound[3] + py];
+    let c = [c[0] + px, c[1] + py];
+    let mut f = |i0: i32, i1: i32, j0: i32, j1: i32| f(i0 - px, i1 - px, j0 - py, j1 - py);
     let covers =
         |r: &[i32; 4]| r[0] <= bound[0] && r[1] <= bound[1] && r[2] >= bound[2] && r[3] >= bound[3];
     let mut raw = [c[0] - m, c[1] - m, c[0] + m, c[1] + m];
@@ -460,6 +495,7 @@ impl Accumulator<'_> {
                 bound: rect,
                 centre: [(uv.x + 0.5).floor() as i32, (uv.y + 0.5).floor() as i32],
                 m: ring_width(self.s.k),
+                phase: ring_phase(view, self.s.view.fit),
             });
         }
         Some(Kernel::Uniform {
@@ -564,7 +600,12 @@ impl Accumulator<'_> {
                     }
                 }
             }
-            Kernel::Rings { bound, centre, m } => for_each_ring_cell(bound, centre, m, visit),
+            Kernel::Rings {
+                bound,
+                centre,
+                m,
+                phase,
+            } => for_each_ring_cell(bound, centre, m, phase, visit),
         }
         if exact {
             if set == nbits {
@@ -802,6 +843,7 @@ pub fn note_settings(
         );
     }
     report.note("out_of_frustum_fit", ls.fit.out_of_frustum);
+    report.note("window_scale", ls.fit.window_scale);
 }
 
 #[cfg(test)]
@@ -809,39 +851,89 @@ mod tests {
     use super::*;
 
     /// The rings tile their bound exactly: every texel in exactly one cell, single texels next
-    /// to the centre.
+    /// to the centre, unclipped cells aligned to their side in lattice indices (map index plus
+    /// phase).
     #[test]
     fn ring_cells_tile_the_bound_once() {
-        for (bound, c, m) in [
-            ([0, 0, 37, 29], [11, 13], 3),
-            ([5, 7, 300, 90], [200, 40], 1),
-            ([0, 0, 8, 8], [4, 4], 3),
-            ([10, 10, 200, 200], [10, 199], 2),
-        ] {
-            let (w, h) = (
-                (bound[2] - bound[0]) as usize,
-                (bound[3] - bound[1]) as usize,
-            );
-            let mut hits = vec![0u32; w * h];
-            let mut cells = 0;
-            for_each_ring_cell(bound, c, m, |i0, i1, j0, j1| {
-                cells += 1;
-                for j in j0..j1 {
-                    for i in i0..i1 {
-                        hits[(j - bound[1]) as usize * w + (i - bound[0]) as usize] += 1;
+        for phase in [[0, 0], [1, 3], [5, (1 << 20) - 1]] {
+            for (bound, c, m) in [
+                ([0, 0, 37, 29], [11, 13], 3),
+                ([5, 7, 300, 90], [200, 40], 1),
+                ([0, 0, 8, 8], [4, 4], 3),
+                ([10, 10, 200, 200], [10, 199], 2),
+            ] {
+                let (w, h) = (
+                    (bound[2] - bound[0]) as usize,
+                    (bound[3] - bound[1]) as usize,
+                );
+                let mut hits = vec![0u32; w * h];
+                let mut cells = 0;
+                let mut aligned = 0;
+                for_each_ring_cell(bound, c, m, phase, |i0, i1, j0, j1| {
+                    cells += 1;
+                    for j in j0..j1 {
+                        for i in i0..i1 {
+                            hits[(j - bound[1]) as usize * w + (i - bound[0]) as usize] += 1;
+                        }
                     }
-                }
-                if (c[0] - m..c[0] + m).contains(&i0) && (c[1] - m..c[1] + m).contains(&j0) {
-                    assert_eq!(
-                        (i1 - i0, j1 - j0),
-                        (1, 1),
-                        "cell near the centre is a texel"
-                    );
-                }
+                    if (c[0] - m..c[0] + m).contains(&i0) && (c[1] - m..c[1] + m).contains(&j0) {
+                        assert_eq!(
+                            (i1 - i0, j1 - j0),
+                            (1, 1),
+                            "cell near the centre is a texel"
+                        );
+                    }
+                    let side = i1 - i0;
+                    if side > 1 && i0 > bound[0] && i1 < bound[2] {
+                        assert_eq!((i0 + phase[0]) % side, 0, "{phase:?}: cell at {i0}");
+                        aligned += 1;
+                    }
+                    false
+                });
+                assert!(
+                    hits.iter().all(|&h| h == 1),
+                    "{bound:?} {c:?} {m} {phase:?}"
+                );
+                assert!(cells <= w * h, "{cells} cells for {} texels", w * h);
+                assert!(aligned > 0 || w <= 8, "{bound:?}: no coarse cell checked");
+            }
+        }
+    }
+
+    /// Moving the map's corner by t texels on a fixed lattice (bound and centre by -t in map
+    /// indices, the phase by +t) gives the same cells, moved by -t: the `fit=stable` property.
+    #[test]
+    fn ring_cells_follow_the_lattice_not_the_map() {
+        let cells = |bound: [i32; 4], c: [i32; 2], phase: [i32; 2]| {
+            let mut v = Vec::new();
+            for_each_ring_cell(bound, c, 2, phase, |i0, i1, j0, j1| {
+                v.push([i0, i1, j0, j1]);
                 false
             });
-            assert!(hits.iter().all(|&h| h == 1), "{bound:?} {c:?} {m}");
-            assert!(cells <= w * h, "{cells} cells for {} texels", w * h);
+            v
+        };
+        let (bound, c) = ([20, 30, 220, 200], [90, 120]);
+        let base = cells(bound, c, [7, 12]);
+        for t in [1, 3, 5, 17] {
+            let moved = cells(
+                [bound[0] - t, bound[1] - t, bound[2] - t, bound[3] - t],
+                [c[0] - t, c[1] - t],
+                [7 + t, 12 + t],
+            );
+            let back: Vec<[i32; 4]> = moved
+                .iter()
+                .map(|q| [q[0] + t, q[1] + t, q[2] + t, q[3] + t])
+                .collect();
+            assert_eq!(back, base, "shift {t}");
+            // Without the phase the cells would change (odd shifts re-align the coarse cells).
+            if t % 2 == 1 {
+                let unphased = cells(
+                    [bound[0] - t, bound[1] - t, bound[2] - t, bound[3] - t],
+                    [c[0] - t, c[1] - t],
+                    [7, 12],
+                );
+                assert_ne!(unphased, moved, "shift {t}");
+            }
         }
     }
 }

@@ -17,7 +17,8 @@
 //! footprint's edge or a bit on a caster square's edge when it is a tie to within f32 rounding
 //! (the twin test explains every such receiver).
 use crate::cpu::{
-    note_settings, outside_error, CpuAccumulation, KernelMode, Settings, Variant, MAX_BITS,
+    note_settings, outside_error, ring_phase, CpuAccumulation, KernelMode, Settings, Variant,
+    MAX_BITS,
 };
 use crate::math::{LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
 use baselines::gpu::{
@@ -79,8 +80,8 @@ pub struct AccUniform {
     pub patch_rect: u32,
     /// Additive: 1 for the overlap area, 0 for the paper's centre test.
     pub overlap: u32,
-    /// Padding.
-    pub _pad3: u32,
+    /// Lattice index of texel 0 the adaptive kernel's cells align to, x ([`ring_phase`]).
+    pub phase_x: i32,
     /// Rect half extents, or (R, R).
     pub half: [f32; 2],
     /// Constant receiver bias (texel footprints).
@@ -93,8 +94,8 @@ pub struct AccUniform {
     pub mssm_levels: u32,
     /// MSSM side in texels.
     pub mssm_size: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// Lattice index of texel 0, y ([`ring_phase`]).
+    pub phase_y: i32,
 }
 
 /// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
@@ -116,6 +117,7 @@ pub fn uniform_and_tables(
     for k in 0..bits * bits {
         tables.push(patch.bit_local(k % bits, k / bits, bits).to_array());
     }
+    let phase = ring_phase(&ls.view, s.view.fit);
     let u = AccUniform {
         inv_area: 1.0 / patch.area(),
         n_hull: patch.hull_points(),
@@ -134,14 +136,14 @@ pub fn uniform_and_tables(
         ),
         patch_rect,
         overlap: u32::from(s.overlap),
-        _pad3: 0,
+        phase_x: phase[0],
         half,
         b0: s.b0,
         b1: s.b1,
         mssm_present: u32::from(ls.mssm.is_some()),
         mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
         mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
-        _pad0: 0,
+        phase_y: phase[1],
     };
     (u, tables)
 }
@@ -639,6 +641,8 @@ mod tests {
                 std::mem::offset_of!(AccUniform, mssm_size)
             );
             assert_eq!(off("layers"), std::mem::offset_of!(AccUniform, layers));
+            assert_eq!(off("phase_x"), std::mem::offset_of!(AccUniform, phase_x));
+            assert_eq!(off("phase_y"), std::mem::offset_of!(AccUniform, phase_y));
         } else {
             panic!("AccUniform is not a struct");
         }

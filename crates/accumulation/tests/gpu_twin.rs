@@ -5,8 +5,8 @@
 //! (through `bias`) or moving the receiver by [`SAMPLING_NUDGE_REL`] of its distance from the origin
 //! changes the CPU's V or reproduces the GPU's (a caster centre on the footprint's edge, a bit on a
 //! caster square's edge, a kernel bound on a texel edge). Rect, disk and sphere lights; additive
-//! and exact; fixed, adaptive and lexels kernels. Cases: 16 by default,
-//! `SOFTSHADOW_PROPTEST_CASES=N` for more.
+//! and exact; fixed, adaptive and lexels kernels; every light-view `fit` and `nearfar` choice.
+//! Cases: 16 by default, `SOFTSHADOW_PROPTEST_CASES=N` for more.
 #![cfg(feature = "gpu")]
 
 use accumulation::{CpuAccumulation, GpuAccumulation};
@@ -72,7 +72,12 @@ struct Settings {
     coverage: &'static str,
     bias: f32,
     slope_bias: f32,
+    fit: &'static str,
+    nearfar: &'static str,
 }
+
+const FITS: [&str; 3] = ["receivers", "scene", "stable"];
+const NEARFARS: [&str; 3] = ["clipped", "aabb", "frustum"];
 
 #[derive(Debug, Clone)]
 struct Case {
@@ -129,6 +134,10 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
             prop_oneof![1 => 0.0f32..0.02, 3 => 0.2f32..3.0],
             prop_oneof![1 => Just(0.0f32), 3 => 0.0f32..3.0],
         ),
+        (
+            prop::sample::select(FITS.to_vec()),
+            prop::sample::select(NEARFARS.to_vec()),
+        ),
     )
         .prop_map(
             |(
@@ -138,6 +147,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                 (bits, layers),
                 (sphere, coverage),
                 (bias, slope_bias),
+                (fit, nearfar),
             )| {
                 Settings {
                     resolution,
@@ -150,6 +160,8 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                     coverage,
                     bias,
                     slope_bias,
+                    fit,
+                    nearfar,
                 }
             },
         )
@@ -343,6 +355,8 @@ fn settings_kv(s: &Settings, bias: f32) -> Vec<(&'static str, String)> {
         ("coverage", s.coverage.to_string()),
         ("bias", bias.to_string()),
         ("slope_bias", s.slope_bias.to_string()),
+        ("fit", s.fit.to_string()),
+        ("nearfar", s.nearfar.to_string()),
     ]
 }
 
@@ -526,15 +540,10 @@ fn gpu_twin_matches_cpu_twin_on_random_scenes() {
     assert!(st.classes[1] > 0, "no penumbra receiver was compared");
 }
 
-/// Every variant x kernel combination on one fixed scene with a sphere light, through the CLI
-/// path (`build` + `estimate`), chunked and not: bit-identical across chunking, within the
-/// tolerance of the CPU twin.
-#[test]
-fn cli_path_every_mode_and_chunking_match() {
-    let Some(ctx) = gpu("cli_path_every_mode_and_chunking_match") else {
-        return;
-    };
-    let mut case = Case {
+/// The fixed scene of the focused tests: a sphere light over two boxes, a line of ground
+/// receivers through their shadows, two box tops, every seventh receiver inactive.
+fn fixed_case() -> Case {
+    Case {
         light: LightSpec {
             shape: 2,
             size: (0.8, 0.8),
@@ -575,8 +584,21 @@ fn cli_path_every_mode_and_chunking_match() {
             coverage: "overlap",
             bias: 1.0,
             slope_bias: 1.0,
+            fit: "receivers",
+            nearfar: "clipped",
         },
+    }
+}
+
+/// Every variant x kernel combination on one fixed scene with a sphere light, through the CLI
+/// path (`build` + `estimate`), chunked and not: bit-identical across chunking, within the
+/// tolerance of the CPU twin.
+#[test]
+fn cli_path_every_mode_and_chunking_match() {
+    let Some(ctx) = gpu("cli_path_every_mode_and_chunking_match") else {
+        return;
     };
+    let mut case = fixed_case();
     let mut g = GpuAccumulation::new(ctx).expect("gpu twin");
     assert_eq!(g.backend(), Backend::Gpu);
     assert_eq!(g.name(), "accumulation");
@@ -621,4 +643,101 @@ fn cli_path_every_mode_and_chunking_match() {
         penumbra > 50,
         "the scene should have penumbrae ({penumbra})"
     );
+}
+
+/// A report note's value.
+fn note(r: &shadow_map_core::Report, key: &str) -> Option<String> {
+    r.notes.iter().find(|n| n.0 == key).map(|n| n.1.clone())
+}
+
+/// Every `fit` x `nearfar` combination on the fixed scene, through the CLI path on both twins:
+/// V in [0, 1] for every active receiver (NaN for inactive ones), the GPU twin within
+/// [`TWIN_TOL`] of the CPU twin (at most one tie, as above), and the choices reach the view:
+/// `nearfar` changes the near/far notes, `fit` the window (`window_scale` 1 for `receivers`, up to
+/// 2 times the stable fit's margins for `stable`).
+#[test]
+fn every_fit_and_nearfar_match_on_both_twins() {
+    let Some(ctx) = gpu("every_fit_and_nearfar_match_on_both_twins") else {
+        return;
+    };
+    let mut case = fixed_case();
+    let scene = scene_of(&case);
+    let rec = receivers_of(&case);
+    let mut g = GpuAccumulation::new(ctx).expect("gpu twin");
+    let keys: Vec<&str> = g.params().specs().iter().map(|s| s.key).collect();
+    assert!(
+        keys.contains(&"fit") && keys.contains(&"nearfar"),
+        "{keys:?}"
+    );
+    let mut planes = std::collections::HashMap::new();
+    let mut scales = std::collections::HashMap::new();
+    for (m, fit) in FITS.iter().enumerate() {
+        for (j, nearfar) in NEARFARS.iter().enumerate() {
+            case.settings.fit = fit;
+            case.settings.nearfar = nearfar;
+            // Both variants and the adaptive and fixed kernels, in turn.
+            case.settings.variant = ["additive", "exact"][(m + j) % 2];
+            case.settings.kernel = ["adaptive", "fixed", "lexels"][j];
+            let kv = settings_kv(&case.settings, 1.0);
+            let mut cpu = CpuAccumulation::new().unwrap();
+            configured(&mut cpu, &kv);
+            let (v_cpu, rc) = run(&mut cpu, &scene, &rec).expect("cpu run");
+            configured(&mut g, &kv);
+            let (v_gpu, rg) = run(&mut g, &scene, &rec).expect("gpu run");
+            let mut beyond = 0;
+            for k in 0..rec.len() {
+                let (c, x) = (v_cpu[k], v_gpu[k]);
+                if !rec.active[k] {
+                    assert!(c.is_nan() && x.is_nan(), "{fit}/{nearfar}: inactive #{k}");
+                    continue;
+                }
+                assert!(
+                    (0.0..=1.0).contains(&c) && (0.0..=1.0).contains(&x),
+                    "{fit}/{nearfar}: #{k} cpu {c} gpu {x}"
+                );
+                if (c - x).abs() > TWIN_TOL {
+                    beyond += 1;
+                }
+            }
+            assert!(
+                beyond <= 1,
+                "{fit}/{nearfar}: {beyond} receivers beyond {TWIN_TOL}"
+            );
+            for key in ["near", "far", "window_scale"] {
+                assert_eq!(note(&rc, key), note(&rg, key), "{fit}/{nearfar}: {key}");
+            }
+            let ws: f32 = note(&rc, "window_scale").unwrap().parse().unwrap();
+            match *fit {
+                "receivers" => assert!((ws - 1.0).abs() < 1e-4, "{fit}/{nearfar}: {ws}"),
+                // At most 2 (power of two) x the 3-texel margins x one texel of snapping.
+                "stable" => {
+                    let r = case.settings.resolution as f32;
+                    let max = 2.0 * (1.0 + 6.0 / r) * r / (r - 1.0);
+                    assert!((1.0..=max).contains(&ws), "{fit}/{nearfar}: {ws}")
+                }
+                _ => assert!(ws >= 1.0 - 1e-4, "{fit}/{nearfar}: {ws}"),
+            }
+            planes.insert((m, j), (note(&rc, "near"), note(&rc, "far")));
+            scales.insert((m, j), ws);
+            println!(
+                "{fit}/{nearfar}: near {:?} far {:?} window_scale {ws}",
+                note(&rc, "near"),
+                note(&rc, "far")
+            );
+        }
+    }
+    for m in 0..3 {
+        assert!(
+            planes[&(m, 0)] != planes[&(m, 1)] && planes[&(m, 0)] != planes[&(m, 2)],
+            "nearfar did not change the planes ({})",
+            FITS[m]
+        );
+    }
+    for j in 0..3 {
+        assert!(
+            scales[&(2, j)] > scales[&(0, j)],
+            "fit=stable did not change the window ({})",
+            NEARFARS[j]
+        );
+    }
 }
