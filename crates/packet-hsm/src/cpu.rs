@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light::front_fraction,
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{LightView, MAX_RESOLUTION},
+    light_view::{LightView, ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
     mssm::Mssm,
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
@@ -123,6 +123,8 @@ pub const SPECS: &[ParamSpec] = &[
         default: "1.0",
         help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
     },
+    FIT,
+    NEARFAR,
 ];
 
 /// Per-receiver diagnostics of the last estimate (Yang Figs. 5 and 8): what the EXR channels of a
@@ -151,8 +153,9 @@ pub const CLASS_PIXEL: u8 = 2;
 ///
 /// For each of the S x S sub-lights (step 2; S = `sublights`; sub-light (a, b) has centre
 /// `((a + 1/2)/S - 1/2) l_x, ((b + 1/2)/S - 1/2) l_y` and size `l/S`), one at a time:
-/// 3-4. a shadow map from the sub-light centre fitted to the receivers (plus the second peeled
-///    layer for midpoints), its MSSM and the padded dual-grid MSSM of the classification depths;
+/// 3-4. a shadow map from the sub-light centre fitted to the receivers (`fit`, `nearfar`; plus
+///    the second peeled layer for midpoints), its MSSM and the padded dual-grid MSSM of the
+///    classification depths;
 /// 5. per receiver p: the facing fraction of the sub-light (the contract's tangent-plane term),
 ///    the tight kernel from the MSSM (Yang eq. 1 with `z_m` the exact minimum depth over the
 ///    kernel, refined until it stops shrinking, SS07/GBP06), grown to every dual cell touching it;
@@ -264,6 +267,8 @@ pub struct Config {
     pub b0: f32,
     /// Slope bias.
     pub b1: f32,
+    /// Light-view window and near/far choice of every sub-light's map (`fit`, `nearfar`).
+    pub view: ViewOptions,
 }
 
 impl Config {
@@ -281,6 +286,7 @@ impl Config {
             max_bias: p.float("max_bias") as f32,
             b0: p.float("bias") as f32,
             b1: p.float("slope_bias") as f32,
+            view: ViewOptions::from_params(p),
         })
     }
     fn traversal(&self) -> Traversal {
@@ -314,7 +320,8 @@ pub struct SubView {
 
 impl SubView {
     /// Builds the data of the sub-light centred at `centre` (light-plane coordinates) with half
-    /// extents `half`.
+    /// extents `half`, its view fitted with the `fit` and `nearfar` choices of `cfg.view`
+    /// ([`LightView::fit_with`]).
     pub fn build(
         scene: &Scene,
         receivers: &Receivers,
@@ -325,7 +332,7 @@ impl SubView {
     ) -> Result<SubView> {
         let mut frame = scene.light.frame();
         frame.origin = frame.to_world(centre.extend(0.0));
-        let (view, fit) = LightView::fit(scene, receivers, frame, half, r)?;
+        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)?;
         let l = 2.0 * half.max_element();
         let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
         let levels = (wmax.log2().ceil() as u32).clamp(1, 16);
@@ -867,6 +874,10 @@ impl SoftShadowEstimator for CpuPacketHsm {
         let counters = Counters::default();
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let mut peak = 0usize;
+        // Largest window side over the tightest one, smallest near and largest far plane, over
+        // the sub-lights' fits.
+        let mut window_scale = 0.0f32;
+        let (mut near, mut far) = (f32::INFINITY, 0.0f32);
         let mut out_of_frustum = 0usize;
         for b in 0..s {
             for a in 0..s {
@@ -876,6 +887,9 @@ impl SoftShadowEstimator for CpuPacketHsm {
                 t_build += t.elapsed().as_secs_f64() * 1e3;
                 peak = peak.max(sv.bytes());
                 out_of_frustum = out_of_frustum.max(sv.ls.fit.out_of_frustum);
+                window_scale = window_scale.max(sv.ls.fit.window_scale);
+                near = near.min(sv.ls.view.n);
+                far = far.max(sv.ls.view.far);
                 let t = std::time::Instant::now();
                 estimate_sublight(&sv, &cfg, receivers, weight, &mut acc, &mut diag, &counters);
                 t_est += t.elapsed().as_secs_f64() * 1e3;
@@ -927,6 +941,9 @@ impl SoftShadowEstimator for CpuPacketHsm {
             "out_of_frustum",
             counters.outside.load(Ordering::Relaxed) as usize + out_of_frustum,
         );
+        rep.note("near", near);
+        rep.note("far", far);
+        rep.note("window_scale", window_scale);
         if nonfinite > 0 {
             rep.note("nonfinite_replaced", nonfinite);
         }

@@ -457,6 +457,10 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let mut acc = vec![0.0f32; receivers.len()];
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let mut peak = 0usize;
+        // Largest window side over the tightest one, smallest near and largest far plane, over
+        // the sub-lights' fits.
+        let mut window_scale = 0.0f32;
+        let (mut near, mut far) = (f32::INFINITY, 0.0f32);
         let mut visited = 0f64;
         let mut outside = 0usize;
         let mut counts = [0u64; 5];
@@ -468,6 +472,9 @@ impl SoftShadowEstimator for GpuPacketHsm {
                 let sv = SubView::build(scene, receivers, r, c, half, &cfg)?;
                 t_build += t.elapsed().as_secs_f64() * 1e3;
                 peak = peak.max(sv.bytes());
+                window_scale = window_scale.max(sv.ls.fit.window_scale);
+                near = near.min(sv.ls.view.n);
+                far = far.max(sv.ls.view.far);
                 let t = std::time::Instant::now();
                 let setups: Vec<ReceiverSetup> = prepare_setup(&sv, &cfg, receivers);
                 let recs: Vec<RecIn> = setups
@@ -539,6 +546,9 @@ impl SoftShadowEstimator for GpuPacketHsm {
         rep.note("loop_limit_cpu_fallbacks", fallbacks);
         rep.note("visited_nodes", visited as u64);
         rep.note("out_of_frustum", outside);
+        rep.note("near", near);
+        rep.note("far", far);
+        rep.note("window_scale", window_scale);
         if nonfinite > 0 {
             rep.note("nonfinite_replaced", nonfinite);
         }

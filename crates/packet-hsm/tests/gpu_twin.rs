@@ -1,8 +1,8 @@
 //! The GPU twin against the CPU twin on random scenes, both with the same random packet size,
-//! hierarchy, coherence, sub-lights and self-shadow settings (both build the same light-space
-//! data on the CPU). Besides V, the packet counters must agree: the same packets (same penumbra
-//! pixels) and, without the coherence test (f32 on the GPU, f64 on the CPU), the same coherent and
-//! diverging packets; and the GPU packets pass must have run.
+//! hierarchy, coherence, sub-lights, self-shadow and light-view (`fit`, `nearfar`) settings (both
+//! build the same light-space data on the CPU). Besides V, the packet counters must agree: the
+//! same packets (same penumbra pixels) and, without the coherence test (f32 on the GPU, f64 on
+//! the CPU), the same coherent and diverging packets; and the GPU packets pass must have run.
 //!
 //! Tolerance: the GPU does the light-plane geometry and the edge sum in f32 (the CPU in f64).
 //! Per receiver `|dV| <= TWIN_TOL` on at least `TWIN_MIN_WITHIN` of the active receivers, and
@@ -118,11 +118,15 @@ fn gpu_twin_matches_cpu_twin() {
         any::<bool>(),
         (prop::sample::select(vec!["1", "2"]), any::<bool>()),
         prop::sample::select(vec!["1x1", "2x2", "3x3", "4x2", "8x8"]),
+        (
+            prop::sample::select(vec!["receivers", "scene", "stable"]),
+            prop::sample::select(vec!["clipped", "aabb", "frustum"]),
+        ),
     );
     runner
         .run(
             &strat,
-            |(light, height, squares, res, hier, bias, (sl, coh), packet)| {
+            |(light, height, squares, res, hier, bias, (sl, coh), packet, (fit, nearfar))| {
                 let s = scene(light, height, &squares);
                 let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
                 let res = res.to_string();
@@ -136,6 +140,8 @@ fn gpu_twin_matches_cpu_twin() {
                     ("self_shadow", ss),
                     ("sublights", sl),
                     ("packet", packet),
+                    ("fit", fit),
+                    ("nearfar", nearfar),
                 ];
                 let mut g = g.borrow_mut();
                 for (k, v) in kv {
@@ -225,5 +231,82 @@ fn gpu_loop_limit_is_detected_not_truncated() {
             .map(|n| n.1.clone())
             .unwrap();
         eprintln!("large kernels {kv:?}: worst {worst:e}, CPU fallbacks {fb}");
+    }
+}
+
+/// Every `fit` x `nearfar` combination on one scene, 1 and 2 x 2 sub-lights, through both twins:
+/// V in [0, 1] and within the twin tolerance of the CPU twin ([`compare`]), the same views on both
+/// (`near`, `far`, `window_scale` notes), and the choices reach the views (`nearfar` moves the
+/// planes, `fit=stable` widens the window).
+#[test]
+fn every_fit_and_nearfar_match_on_both_twins() {
+    let Some(ctx) = gpu("every_fit_and_nearfar_match_on_both_twins") else {
+        return;
+    };
+    // The second square is above the light (behind it) and out of the camera's view: only the
+    // scene's bounding box sees it, so nearfar=aabb puts n at its floor.
+    let s = scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1), (3.0, -3.0, 0.5, 3.5)]);
+    let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+    let mut g = GpuPacketHsm::new(ctx).unwrap();
+    let note = |r: &shadow_map_core::Report, k: &str| {
+        r.notes
+            .iter()
+            .find(|n| n.0 == k)
+            .map(|n| n.1.clone())
+            .unwrap_or_default()
+    };
+    for sl in ["1", "2"] {
+        let mut planes = std::collections::HashMap::new();
+        let mut scales = std::collections::HashMap::new();
+        for fit in ["receivers", "scene", "stable"] {
+            for nearfar in ["clipped", "aabb", "frustum"] {
+                let kv = [
+                    ("resolution", "64"),
+                    ("sublights", sl),
+                    ("fit", fit),
+                    ("nearfar", nearfar),
+                ];
+                for (k, v) in kv {
+                    g.set_param(k, v).unwrap();
+                }
+                let (vg, rg) = run(&mut g, &s, &rec).unwrap();
+                let (vc, rc) = run(&mut hsm(&kv), &s, &rec).unwrap();
+                for key in ["near", "far", "window_scale"] {
+                    assert_eq!(note(&rc, key), note(&rg, key), "{kv:?}: {key}");
+                }
+                for (k, x) in vc.iter().enumerate() {
+                    assert!(
+                        !rec.active[k] || (0.0..=1.0).contains(x),
+                        "{kv:?}: cpu #{k} {x}"
+                    );
+                }
+                let (f, worst) = compare(&vc, &vg, &rec, &format!("{kv:?}"));
+                let ws: f32 = note(&rc, "window_scale").parse().unwrap();
+                eprintln!(
+                    "{kv:?}: within {f:.4}, worst {worst:e}, near {} far {} window_scale {ws}",
+                    note(&rc, "near"),
+                    note(&rc, "far")
+                );
+                planes.insert((fit, nearfar), (note(&rc, "near"), note(&rc, "far")));
+                scales.insert((fit, nearfar), ws);
+            }
+        }
+        for fit in ["receivers", "scene", "stable"] {
+            let p = |nf| &planes[&(fit, nf)];
+            assert!(
+                p("clipped") != p("aabb") && p("clipped") != p("frustum"),
+                "sublights {sl} fit={fit}: nearfar did not move the planes"
+            );
+        }
+        for nearfar in ["clipped", "aabb", "frustum"] {
+            let (r, st) = (
+                scales[&("receivers", nearfar)],
+                scales[&("stable", nearfar)],
+            );
+            assert!((r - 1.0).abs() < 1e-4, "sublights {sl} {nearfar}: {r}");
+            // At most 2 (power of two) x the 3-texel margins x one texel of snapping.
+            let max = 2.0 * (1.0 + 6.0 / 64.0) * 64.0 / 63.0;
+            assert!(st > 1.0 && st <= max, "sublights {sl} {nearfar}: {st}");
+        }
     }
 }
