@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::FitReport,
+    light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},
     Backend, DepthMap, Error, LightShape, LightView, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
@@ -24,11 +24,8 @@ pub fn sublight_points(scene: &Scene, s: u32) -> Vec<Vec2> {
     }
 }
 
-/// The view of the point light at `y` (light-plane coordinates): centre of projection there, axes
-/// parallel to the light frame, fitted to the receivers by [`LightView::fit`], then widened by
-/// `margin` texels on every side (keeping r), so an N x N filter kernel (`margin = N / 2`) around
-/// any receiver stays inside the map (background.md §1 "Coverage": the window must hold every
-/// receiver's projection plus half its kernel).
+/// The view of the point light at `y` (light-plane coordinates) with the default light-view
+/// options: [`sublight_view_with`] and [`ViewOptions::default`].
 pub fn sublight_view(
     scene: &Scene,
     receivers: &Receivers,
@@ -36,15 +33,136 @@ pub fn sublight_view(
     r: u32,
     margin: u32,
 ) -> Result<(LightView, FitReport)> {
+    sublight_view_with(scene, receivers, y, r, margin, &ViewOptions::default())
+}
+
+/// The view of the point light at `y` (light-plane coordinates): centre of projection there, axes
+/// parallel to the light frame, fitted to the receivers by [`LightView::fit_with`] with `opts`
+/// (`fit`, `nearfar`), then given `margin` texels on every side (keeping r), so an N x N filter
+/// kernel (`margin = N / 2`) around any receiver stays inside the map (background.md §1
+/// "Coverage": the window must hold every receiver's projection plus half its kernel).
+///
+/// `fit=receivers` and `fit=scene`: the window is widened by `margin` texels of the widened map on
+/// every side. `fit=stable`: widening would change the texel pitch and leave the fit's fixed
+/// lattice, so the margin is made on that lattice instead ([`stable_margin`]): the window is
+/// shifted by whole texels, or, where the receivers' projections plus the margins span more than
+/// r texels, its side doubled (the next power of two, corner snapped to the coarser lattice).
+/// The report's `window_scale` is the final window's.
+pub fn sublight_view_with(
+    scene: &Scene,
+    receivers: &Receivers,
+    y: Vec2,
+    r: u32,
+    margin: u32,
+    opts: &ViewOptions,
+) -> Result<(LightView, FitReport)> {
     let mut frame = scene.light.frame();
     frame.origin = frame.to_world(y.extend(0.0));
-    let (mut view, fit) = LightView::fit(scene, receivers, frame, Vec2::ZERO, r)?;
-    if margin > 0 && r > 2 * margin {
+    let (mut view, mut fit) = LightView::fit_with(scene, receivers, frame, Vec2::ZERO, r, opts)?;
+    if margin == 0 || r <= 2 * margin {
+        return Ok((view, fit));
+    }
+    let w0 = view.w;
+    if opts.fit == FitMode::Stable {
+        if let Some(v) = stable_margin(&view, receivers, margin) {
+            view = v;
+        }
+    } else {
         let w = view.w * r as f32 / (r - 2 * margin) as f32;
         view.window_min -= Vec2::splat(margin as f32 * w / r as f32);
         view.w = w;
     }
+    if w0 > 0.0 {
+        fit.window_scale *= view.w / w0;
+    }
     Ok((view, fit))
+}
+
+/// Texels of slack in [`stable_margin`]'s bounds, for the f32 rounding of the receivers'
+/// projections (the kernels are placed from `floor(u)`).
+const MARGIN_SLACK: f64 = 0.01;
+
+/// The margin of `margin` texels for a `fit=stable` view, on its texel lattice: the window's
+/// corner and side are whole multiples of the pitch `d = s / r` in `x/z` units (s, the side in
+/// `x/z` units, a power of two), so the same world point keeps the same texels, and V, while the
+/// camera pans. The window is shifted by the fewest whole texels that put every texel of every
+/// receiver's `(2 margin + 1)^2` kernel inside it; where the kernels span more than r texels, s is
+/// doubled (and the corner snapped down to the coarser lattice) until they fit. Receivers counted:
+/// active, nearer the light than n, within [`MAX_TAN`] (those the fit covers). `None` when the
+/// view is not on a power-of-two lattice (a fit with no receiver in front of the light) or
+/// nothing fits within 64 doublings: the caller keeps the view.
+pub fn stable_margin(view: &LightView, receivers: &Receivers, margin: u32) -> Option<LightView> {
+    let n = view.n as f64;
+    let r = view.r as i64;
+    let h = margin as i64;
+    // The receivers' bounds in x/z units.
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for (k, pw) in receivers.position.iter().enumerate() {
+        if !receivers.active[k] {
+            continue;
+        }
+        let p = view.frame.to_light(*pw);
+        if !(p.z > view.n) {
+            continue;
+        }
+        let t = [p.x as f64 / p.z as f64, p.y as f64 / p.z as f64];
+        if !(t[0].abs() <= MAX_TAN as f64 && t[1].abs() <= MAX_TAN as f64) {
+            continue;
+        }
+        for a in 0..2 {
+            lo[a] = lo[a].min(t[a]);
+            hi[a] = hi[a].max(t[a]);
+        }
+    }
+    if !(lo[0] <= hi[0] && lo[1] <= hi[1] && n > 0.0) || r < 1 {
+        return None;
+    }
+    // The fit's lattice: s a power of two, the corner a whole number of pitches.
+    let s0 = view.w as f64 / n;
+    let mut s = 2f64.powi(s0.log2().round() as i32);
+    if !(s.is_finite() && s > 0.0) || (s0 / s - 1.0).abs() > 1e-4 {
+        return None;
+    }
+    let mut d = s / r as f64;
+    let c = [
+        view.window_min.x as f64 / n / d,
+        view.window_min.y as f64 / n / d,
+    ];
+    if c.iter()
+        .any(|c| !c.is_finite() || (c - c.round()).abs() > 1e-3)
+    {
+        return None;
+    }
+    let mut k0 = [c[0].round() as i64, c[1].round() as i64];
+    for _ in 0..64 {
+        let mut corner = [0i64; 2];
+        let mut fits = true;
+        for a in 0..2 {
+            // Lattice indices of the first and last texel any kernel reads.
+            let first = (lo[a] / d - MARGIN_SLACK).floor() as i64 - h;
+            let last = (hi[a] / d + MARGIN_SLACK).floor() as i64 + h;
+            if last - first + 1 > r {
+                fits = false;
+                break;
+            }
+            // The corner index K keeps [first, last] inside [K, K + r - 1], nearest the fit's.
+            corner[a] = k0[a].clamp(last - r + 1, first);
+        }
+        if fits {
+            // As the fit computes it: (k d) n, in f64, then f32.
+            let at = |k: i64| (k as f64 * d * n) as f32;
+            return Some(LightView {
+                window_min: Vec2::new(at(corner[0]), at(corner[1])),
+                w: (s * n) as f32,
+                ..*view
+            });
+        }
+        s *= 2.0;
+        d *= 2.0;
+        k0 = [k0[0].div_euclid(2), k0[1].div_euclid(2)];
+    }
+    None
 }
 
 /// Texels of filter margin a view needs: `N / 2` for PCF and EDSM, 0 otherwise.
@@ -235,11 +353,20 @@ pub struct Tally {
     pub steps: u64,
     /// Receivers out of the frustum (max over views).
     pub out_of_frustum: usize,
+    /// Final window side over the tightest one (`FitReport::window_scale`, max over views).
+    pub window_scale: f32,
+    /// Near and far planes: the smallest n and the largest far over views.
+    pub planes: Option<(f32, f32)>,
     /// Peak bytes.
     pub peak: usize,
 }
 
 impl Tally {
+    /// Takes a view's near and far planes into [`Tally::planes`].
+    pub fn add_planes(&mut self, view: &LightView) {
+        let (n, f) = self.planes.unwrap_or((view.n, view.far));
+        self.planes = Some((n.min(view.n), f.max(view.far)));
+    }
     /// Adds the notes to a report.
     pub fn note(&self, rep: &mut Report, scene: &Scene, opaque: bool, views: usize) {
         if matches!(scene.light.shape, LightShape::Sphere { .. }) {
@@ -272,6 +399,11 @@ impl Tally {
             }
         }
         rep.note("out_of_frustum", self.out_of_frustum);
+        rep.note("window_scale", self.window_scale);
+        if let Some((n, f)) = self.planes {
+            rep.note("near", n);
+            rep.note("far", f);
+        }
         rep.light_space_bytes = self.peak;
     }
 }
@@ -311,9 +443,18 @@ impl SoftShadowEstimator for CpuDeepShadow {
         for y in &points {
             let t = Instant::now();
             let t_f = Instant::now();
-            let (view, fit) = sublight_view(scene, receivers, *y, s.resolution, kernel_margin(&s))?;
+            let (view, fit) = sublight_view_with(
+                scene,
+                receivers,
+                *y,
+                s.resolution,
+                kernel_margin(&s),
+                &s.view,
+            )?;
             t_fit += t_f.elapsed().as_secs_f64() * 1e3;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
+            tally.window_scale = tally.window_scale.max(fit.window_scale);
+            tally.add_planes(&view);
             let map = if opaque {
                 let ls = LightSpace::build_in_view(
                     scene,

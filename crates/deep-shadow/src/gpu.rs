@@ -19,7 +19,7 @@
 //! `atomicMin` of the depth bits into the head buffer: an ordinary shadow map, no lists) and
 //! `lookup_opaque`.
 use crate::cpu::{
-    check_len, finish, kernel_margin, lookup_settings, query, sublight_points, sublight_view,
+    check_len, finish, kernel_margin, lookup_settings, query, sublight_points, sublight_view_with,
     Query, Tally,
 };
 use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
@@ -613,8 +613,17 @@ impl SoftShadowEstimator for GpuDeepShadow {
         let mut tally = Tally::default();
         for y in &points {
             let t = Instant::now();
-            let (view, fit) = sublight_view(scene, receivers, *y, s.resolution, kernel_margin(&s))?;
+            let (view, fit) = sublight_view_with(
+                scene,
+                receivers,
+                *y,
+                s.resolution,
+                kernel_margin(&s),
+                &s.view,
+            )?;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
+            tally.window_scale = tally.window_scale.max(fit.window_scale);
+            tally.add_planes(&view);
             let map = self.build_map(scene, &view, &s)?;
             tally.fragments += map.stats.fragments;
             tally.kept += map.stats.fragments;

@@ -1,6 +1,9 @@
 //! The parameter table both twins share, and the settings read from it.
 use crate::dsm::{Filter, Traversal};
-use shadow_map_core::{light_view::MAX_RESOLUTION, Error, ParamKind, ParamSpec, Params, Result};
+use shadow_map_core::{
+    light_view::{ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
+    Error, ParamKind, ParamSpec, Params, Result,
+};
 
 /// Registry name (`--algo deep-shadow`), shared by both twins.
 pub const NAME: &str = "deep-shadow";
@@ -92,6 +95,8 @@ pub const SPECS: &[ParamSpec] = &[
         default: "67108864",
         help: "most list elements the buffer may grow to (beyond: an error naming the need)",
     },
+    FIT,
+    NEARFAR,
 ];
 
 /// The settings of one frame, read from [`Params`].
@@ -119,6 +124,8 @@ pub struct Settings {
     pub capacity: u64,
     /// Largest capacity.
     pub max_capacity: u64,
+    /// Light-view window and near/far choice of every sub-light's view (`fit`, `nearfar`).
+    pub view: ViewOptions,
 }
 
 impl Settings {
@@ -145,6 +152,7 @@ impl Settings {
             b1: p.float("slope_bias") as f32,
             capacity: p.int("capacity") as u64,
             max_capacity: p.int("max_capacity") as u64,
+            view: ViewOptions::from_params(p),
         }
     }
 }

@@ -2,14 +2,17 @@
 mod common;
 use common::*;
 use deep_shadow::{
-    cpu::{build_deep_map, sublight_view},
+    cpu::{build_deep_map, sublight_view, sublight_view_with},
     dsm::DeepShadowMap,
     params::Settings,
     shared::NIL,
     CpuDeepShadow,
 };
 use glam::Vec3;
-use shadow_map_core::{run, Error, Receivers, Scene, SoftShadowEstimator};
+use shadow_map_core::{
+    light_view::{FitMode, NearFar, ViewOptions},
+    run, Error, Receivers, Scene, SoftShadowEstimator,
+};
 
 fn est(kv: &[(&str, &str)]) -> CpuDeepShadow {
     let mut e = CpuDeepShadow::new().unwrap();
@@ -507,5 +510,136 @@ fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baseline() {
         assert!(e_soft < bound, "{name}: {e_soft}");
         assert!(e_soft < e_hard, "{name}: sub-lights should help");
         assert!(e_soft < e_ms, "{name}: transmittance should matter");
+    }
+}
+
+/// `fit=stable` with a filter margin ([`deep_shadow::cpu::stable_margin`]): the window stays on a
+/// power-of-two lattice (side `s` a power of two in `x/z` units, corner a whole number of pitches
+/// `s / r`), the fit's own lattice when the kernels fit in r texels (the corner shifted by whole
+/// texels) and a doubled one when they do not, and every texel of every receiver's kernel is
+/// inside the map. Both branches are exercised.
+#[test]
+fn stable_margin_stays_on_the_lattice_with_every_kernel_inside() {
+    let scene = sheets(&[0.5], 1.0);
+    let stable = ViewOptions {
+        fit: FitMode::Stable,
+        nearfar: NearFar::Clipped,
+    };
+    let (mut shifted, mut doubled) = (0, 0);
+    for h in [0.4f32, 1.3, 2.9] {
+        let rec = grid(h, 0.0, 23);
+        for r in [12u32, 16, 24, 64, 200] {
+            for m in 1..=3u32 {
+                for y in [glam::Vec2::ZERO, glam::Vec2::new(0.3, -0.2)] {
+                    let what = format!("h {h} r {r} margin {m} at {y}");
+                    let (v0, f0) = sublight_view_with(&scene, &rec, y, r, 0, &stable).unwrap();
+                    let (v1, f1) = sublight_view_with(&scene, &rec, y, r, m, &stable).unwrap();
+                    assert_eq!((v0.n, v0.far, v0.r), (v1.n, v1.far, v1.r), "{what}");
+                    let n = v1.n as f64;
+                    let (s0, s1) = (v0.w as f64 / n, v1.w as f64 / n);
+                    let pow2 = |x: f64| (x.log2() - x.log2().round()).abs() < 1e-5;
+                    assert!(pow2(s0) && pow2(s1) && pow2(s1 / s0), "{what}: {s0} {s1}");
+                    assert!(s1 >= s0 * (1.0 - 1e-6), "{what}: {s0} {s1}");
+                    let d = s1 / r as f64;
+                    for c in [v1.window_min.x, v1.window_min.y] {
+                        let k = c as f64 / n / d;
+                        assert!((k - k.round()).abs() < 1e-3, "{what}: corner {k} pitches");
+                    }
+                    let ratio = (f1.window_scale / f0.window_scale) as f64;
+                    assert!((ratio - s1 / s0).abs() < 1e-4, "{what}: {ratio}");
+                    if s1 > s0 * 1.5 {
+                        doubled += 1;
+                    } else if v1.window_min != v0.window_min {
+                        shifted += 1;
+                    }
+                    let m = m as i64;
+                    for p in &rec.position {
+                        let q = v1.frame.to_light(*p);
+                        let uv = v1.project(q);
+                        for u in [uv.x, uv.y] {
+                            let c = u.floor() as i64;
+                            assert!(
+                                c - m >= 0 && c + m < r as i64,
+                                "{what}: a kernel at {c} leaves the map"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        shifted > 0 && doubled > 0,
+        "shifted {shifted}, doubled {doubled}"
+    );
+}
+
+/// The camera-pan promise of `fit=stable` (as the workspace's `tests/fit_modes.rs`), with filter
+/// kernels and deep lists: ground points on a grid, the second frame panned by whole grid steps,
+/// V at the common points. Stable: within 1e-4 at 99.9% of them (float rounding); receivers: the
+/// lattice moves with the frame and V changes (so the test can see shimmer).
+#[test]
+fn stable_fit_keeps_v_with_filter_kernels_when_the_camera_pans() {
+    const N: i32 = 80;
+    const SHIFT: i32 = 17;
+    let frame = |i0: i32| {
+        let mut p = Vec::new();
+        for j in 0..N {
+            for i in i0..i0 + N {
+                p.push(Vec3::new(
+                    -2.4013 + 0.025 * i as f32,
+                    0.0,
+                    -0.9007 + 0.025 * j as f32,
+                ));
+            }
+        }
+        Receivers::from_points(p.clone(), vec![Vec3::Y; p.len()]).unwrap()
+    };
+    let (f0, f1) = (frame(0), frame(SHIFT));
+    let scene = sheets(&[0.5, 0.3], 1.0);
+    for kv in [
+        &[("filter", "none")][..],
+        &[("filter", "pcf"), ("kernel", "7")][..],
+        &[("filter", "edsm"), ("kernel", "5"), ("sublights", "2")][..],
+    ] {
+        let mut max_dv = [0.0f32; 2];
+        let mut within = 0.0;
+        for (m, fit) in ["stable", "receivers"].iter().enumerate() {
+            let mut e = est(kv);
+            e.set_param("resolution", "128").unwrap();
+            e.set_param("fit", fit).unwrap();
+            let v0 = v_of(&mut e, &scene, &f0);
+            let v1 = v_of(&mut e, &scene, &f1);
+            let mut d = Vec::new();
+            let (mut shadow, mut lit) = (false, false);
+            for j in 0..N {
+                for i in SHIFT..N {
+                    let (a, b) = (v0[(j * N + i) as usize], v1[(j * N + i - SHIFT) as usize]);
+                    shadow |= a < 0.6;
+                    lit |= a > 0.99;
+                    d.push((a - b).abs());
+                }
+            }
+            let lo = v0.iter().copied().fold(1.0f32, f32::min);
+            let hi = v0.iter().copied().fold(0.0f32, f32::max);
+            assert!(
+                shadow && lit,
+                "{kv:?}: the common region must hold shadow and light (V in [{lo}, {hi}])"
+            );
+            max_dv[m] = d.iter().copied().fold(0.0, f32::max);
+            if m == 0 {
+                within = d.iter().filter(|x| **x <= 1e-4).count() as f64 / d.len() as f64;
+            }
+        }
+        println!(
+            "{kv:?}: max |dV| stable {:.2e} (within 1e-4: {within:.4}), receivers {:.2e}",
+            max_dv[0], max_dv[1]
+        );
+        assert!(within >= 0.999, "{kv:?}: stable changed V at {within}");
+        assert!(
+            max_dv[1] > 1e-3,
+            "{kv:?}: receivers kept V ({:.2e})",
+            max_dv[1]
+        );
     }
 }

@@ -338,3 +338,76 @@ fn gpu_capacity_grows_or_fails_with_a_typed_error() {
         Ok(_) => panic!("expected a limit error"),
     }
 }
+
+/// Every `fit` x `nearfar` combination on a semi-transparent fixture (deep lists) and an opaque
+/// one, through both estimators, with a filter margin (`pcf`/`edsm`, the stable fit's lattice
+/// margin included): V in [0, 1] and finite for every active receiver, within 1e-4 of the CPU
+/// twin at 99.5% of them (the fixture rule above), the same view (`near`, `far`,
+/// `window_scale`) on both, and the choices reach the view (`fit=receivers` has window_scale 1
+/// before the filter margin, `fit=stable` more).
+#[test]
+fn every_fit_and_nearfar_match_on_both_estimators() {
+    let Some(ctx) = gpu("every_fit_and_nearfar_match_on_both_estimators") else {
+        return;
+    };
+    let note = |r: &shadow_map_core::Report, k: &str| {
+        r.notes.iter().find(|n| n.0 == k).map(|n| n.1.clone())
+    };
+    for (name, kv) in [
+        ("strands", &[("filter", "pcf"), ("kernel", "5")][..]),
+        (
+            "bunny",
+            &[("filter", "edsm"), ("kernel", "7"), ("sublights", "2")][..],
+        ),
+    ] {
+        let (scene, rec) = fixture(name, 32, 24);
+        let n = rec.active_count();
+        for fit in ["receivers", "scene", "stable"] {
+            let mut planes = Vec::new();
+            for nearfar in ["clipped", "aabb", "frustum"] {
+                let mut c = CpuDeepShadow::new().unwrap();
+                let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();
+                let all = [("resolution", "128"), ("fit", fit), ("nearfar", nearfar)];
+                for (k, v) in kv.iter().chain(&all) {
+                    c.set_param(k, v).unwrap();
+                    g.set_param(k, v).unwrap();
+                }
+                let what = format!("{name} {kv:?} fit={fit} nearfar={nearfar}");
+                let (vc, rc) = run(&mut c, &scene, &rec).unwrap();
+                let (vg, rg) = run(&mut g, &scene, &rec).unwrap();
+                check_contract(&vc, &rec);
+                check_contract(&vg, &rec);
+                for key in ["near", "far", "window_scale"] {
+                    assert_eq!(note(&rc, key), note(&rg, key), "{what}: {key}");
+                }
+                let within = vc
+                    .iter()
+                    .zip(&vg)
+                    .filter(|(a, b)| a.is_finite() && (*a - *b).abs() <= 1e-4)
+                    .count();
+                assert!(
+                    within as f64 >= 0.995 * n as f64,
+                    "{what}: {within} of {n} within 1e-4"
+                );
+                let ws: f32 = note(&rc, "window_scale").unwrap().parse().unwrap();
+                // The pcf/edsm margin widens a receivers window by r / (r - 2 margin).
+                let widen = 128.0 / (128.0 - 2.0 * (kv[1].1.parse::<f32>().unwrap() / 2.0).floor());
+                match fit {
+                    "receivers" => assert!((ws - widen).abs() < 1e-3, "{what}: {ws}"),
+                    // Power of two, 3-texel margins, a texel of snapping; the filter margin
+                    // may double the side once more.
+                    "stable" => {
+                        let max = 4.0 * (1.0 + 6.0 / 128.0) * 128.0 / 127.0;
+                        assert!(ws > 1.0 && ws <= max, "{what}: {ws}")
+                    }
+                    _ => assert!(ws >= widen - 1e-3, "{what}: {ws}"),
+                }
+                planes.push((note(&rc, "near"), note(&rc, "far")));
+            }
+            assert!(
+                planes[0] != planes[1] || planes[0] != planes[2],
+                "{name} fit={fit}: nearfar did not change the planes {planes:?}"
+            );
+        }
+    }
+}
