@@ -3,7 +3,8 @@
 //! rounding; `fit=receivers` (the tightest window, the default) does not. Frames here: the ground
 //! points a camera looking straight down sees, on a grid of pitch `STEP`; the second frame is the
 //! first panned sideways by `SHIFT` grid steps (whole pixel footprints), so common points have
-//! bit-identical positions. Every registered estimator with a `fit` parameter, both backends.
+//! bit-identical positions. Every registered estimator with a `fit` parameter (all but the ray
+//! tracer), both backends.
 use glam::Vec3;
 use shadow_map_core::{run, Receivers, Scene};
 use softshadow::{backends, estimator, Backend, ALGOS};
@@ -20,8 +21,11 @@ const X0: f32 = -2.0013;
 const Z0: f32 = -0.9007;
 /// Float rounding only: the projection `(n x / z - x0) / delta` rounds differently when the
 /// window corner `x0` moves by whole texels, which can flip a depth test or a kernel bound that is
-/// a tie to within one ulp. Measured: |dV| = 0 on the CPU for hard, PCF, multi-sample and
-/// backprojection, 1.2e-7 for PCSS (see the printout).
+/// a tie to within one ulp. Measured max |dV| under `fit=stable` (CPU / GPU on lavapipe; see the
+/// printout): 0 / 0 for hard, PCF, multi-sample, accumulation (its adaptive kernel's cells align
+/// to the lattice, not the map: `accumulation::cpu::ring_phase`) and deep-shadow (none and PCF
+/// 5 x 5); 1.2e-7 / 1.7e-6 PCSS; 1.8e-7 / 3.0e-7 backprojection; 1.8e-7 / 4.8e-7 packet-hsm.
+/// Under `fit=receivers` the same points move by 5.6e-3 (packet-hsm) to 1 (hard, deep-shadow).
 const STABLE_TOL: f32 = 1e-4;
 const STABLE_MIN_WITHIN: f64 = 0.999;
 
@@ -49,6 +53,17 @@ fn common(v0: &[f32], v1: &[f32]) -> Vec<(f32, f32)> {
     out
 }
 
+/// Settings each estimator runs under (besides resolution 256): the defaults, and for deep-shadow
+/// a PCF kernel too, whose margin the stable fit keeps on its lattice
+/// (`deep_shadow::cpu::stable_margin`; a plain widening changes the pitch and V, measured up to
+/// 0.09 at 8% of the points with a 7 x 7 kernel in deep-shadow's own pan test).
+fn settings(name: &str) -> &'static [&'static [(&'static str, &'static str)]] {
+    match name {
+        "deep-shadow" => &[&[], &[("filter", "pcf"), ("kernel", "5")]],
+        _ => &[&[]],
+    }
+}
+
 #[test]
 fn stable_fit_keeps_v_when_the_camera_pans() {
     let scene = Scene::load(concat!(
@@ -57,7 +72,7 @@ fn stable_fit_keeps_v_when_the_camera_pans() {
     ))
     .expect("fixture");
     let (f0, f1) = (frame(0), frame(SHIFT));
-    let mut checked = 0;
+    let mut checked = Vec::new();
     for name in ALGOS {
         for b in backends(name) {
             let backend = if *b == "gpu" {
@@ -72,50 +87,61 @@ fn stable_fit_keeps_v_when_the_camera_pans() {
             {
                 continue;
             }
-            let mut e = estimator(name, backend).expect("registered");
-            if e.params().get("fit").is_none() {
+            if estimator(name, backend)
+                .expect("registered")
+                .params()
+                .get("fit")
+                .is_none()
+            {
                 continue;
             }
-            e.set_param("resolution", "256").expect("resolution");
-            let mut max_dv = [0.0f32; 2];
-            let mut within = 0.0;
-            for (m, mode) in ["stable", "receivers"].iter().enumerate() {
-                e.set_param("fit", mode).expect("fit");
-                let (v0, _) = run(e.as_mut(), &scene, &f0).expect("frame 0");
-                let (v1, _) = run(e.as_mut(), &scene, &f1).expect("frame 1");
-                let c = common(&v0, &v1);
-                assert!(c
-                    .iter()
-                    .all(|(a, b)| (0.0..=1.0).contains(a) && (0.0..=1.0).contains(b)));
-                assert!(
-                    c.iter().any(|(a, _)| *a < 0.5) && c.iter().any(|(a, _)| *a > 0.99),
-                    "{name}: the common region must hold shadow and light"
-                );
-                let d: Vec<f32> = c.iter().map(|(a, b)| (a - b).abs()).collect();
-                max_dv[m] = d.iter().copied().fold(0.0, f32::max);
-                if m == 0 {
-                    within = d.iter().filter(|x| **x <= STABLE_TOL).count() as f64 / d.len() as f64;
+            for extra in settings(name) {
+                let mut e = estimator(name, backend).expect("registered");
+                e.set_param("resolution", "256").expect("resolution");
+                for (k, v) in extra.iter() {
+                    e.set_param(k, v).expect("setting");
                 }
+                let mut max_dv = [0.0f32; 2];
+                let mut within = 0.0;
+                for (m, mode) in ["stable", "receivers"].iter().enumerate() {
+                    e.set_param("fit", mode).expect("fit");
+                    let (v0, _) = run(e.as_mut(), &scene, &f0).expect("frame 0");
+                    let (v1, _) = run(e.as_mut(), &scene, &f1).expect("frame 1");
+                    let c = common(&v0, &v1);
+                    assert!(c
+                        .iter()
+                        .all(|(a, b)| (0.0..=1.0).contains(a) && (0.0..=1.0).contains(b)));
+                    assert!(
+                        c.iter().any(|(a, _)| *a < 0.5) && c.iter().any(|(a, _)| *a > 0.99),
+                        "{name} {backend} {extra:?} fit={mode}: the common region must hold shadow and light"
+                    );
+                    let d: Vec<f32> = c.iter().map(|(a, b)| (a - b).abs()).collect();
+                    max_dv[m] = d.iter().copied().fold(0.0, f32::max);
+                    if m == 0 {
+                        within =
+                            d.iter().filter(|x| **x <= STABLE_TOL).count() as f64 / d.len() as f64;
+                    }
+                }
+                println!(
+                    "{name:>15} {backend} {extra:?}: max |dV| over common points: stable {:.2e} (within {STABLE_TOL}: {:.4}), receivers {:.2e}",
+                    max_dv[0], within, max_dv[1]
+                );
+                assert!(
+                    within >= STABLE_MIN_WITHIN,
+                    "{name} {backend} {extra:?}: fit=stable changed V at {:.3}% of the common points",
+                    100.0 * (1.0 - within)
+                );
+                assert!(
+                    max_dv[1] > 1e-3,
+                    "{name} {backend} {extra:?}: fit=receivers kept V too ({:.2e}); the test would not see shimmer",
+                    max_dv[1]
+                );
+                checked.push(*name);
             }
-            println!(
-                "{name:>15} {backend}: max |dV| over common points: stable {:.2e} (within {STABLE_TOL}: {:.4}), receivers {:.2e}",
-                max_dv[0], within, max_dv[1]
-            );
-            assert!(
-                within >= STABLE_MIN_WITHIN,
-                "{name} {backend}: fit=stable changed V at {:.3}% of the common points",
-                100.0 * (1.0 - within)
-            );
-            assert!(
-                max_dv[1] > 1e-3,
-                "{name} {backend}: fit=receivers kept V too ({:.2e}); the test would not see shimmer",
-                max_dv[1]
-            );
-            checked += 1;
         }
     }
-    assert!(
-        checked >= 5,
-        "only {checked} estimators have a fit parameter"
-    );
+    // Every estimator but the ray tracer fits a light view.
+    for name in ALGOS.iter().filter(|n| **n != "reference") {
+        assert!(checked.contains(name), "{name} has no fit parameter");
+    }
 }
