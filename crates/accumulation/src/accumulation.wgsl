@@ -27,6 +27,11 @@ struct AccUniform {
     mssm_levels: u32,
     mssm_size: u32,
     phase_y: i32,
+    // Always 2: the trip count of the loop-limit probe (`loop_limit_hit`).
+    probe: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 const KERNEL_FIXED: u32 = 0u;
@@ -51,7 +56,9 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 @group(0) @binding(6) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(7) var<storage, read_write> v_out: array<u32>;
 // [0]: lit receivers outside the frustum, [1]: non-finite results.
-@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 2>;
+// [0]: lit receivers outside the frustum, [1]: non-finite V, [2]: receivers cut short by the
+// device's loop limit (flagged with CUT_BITS, redone on the CPU).
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 3>;
 
 const NAN_BITS: u32 = 0x7fc00000u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
@@ -586,6 +593,22 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     return facing * (1.0 - s);
 }
 
+// Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
+// once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), which silently
+// truncates the exact variant's bit loops (kernel K = 10 with a 16 x 16 grid runs ~70k). This
+// two-trip loop with a uniform bound trips once only when that budget is spent; the receiver is
+// then flagged, never returned as V (the twin redoes it with the CPU code on the same data).
+fn loop_limit_hit() -> bool {
+    var trips = 0u;
+    for (var i = 0u; i < acc.probe; i++) {
+        trips += 1u;
+    }
+    return trips < acc.probe;
+}
+
+// A NaN payload distinct from NAN_BITS: "cut short by the loop limit".
+const CUT_BITS: u32 = 0x7fc0dead;
+
 @compute @workgroup_size(WG)
 fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
@@ -598,6 +621,11 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let x = estimate_receiver(rec.position, rec.normal);
+    if loop_limit_hit() {
+        v_out[k] = CUT_BITS;
+        atomicAdd(&counters[2], 1u);
+        return;
+    }
     if x != x {
         v_out[k] = NAN_BITS;
     } else if is_finite(x) {

@@ -96,7 +96,19 @@ pub struct AccUniform {
     pub mssm_size: u32,
     /// Lattice index of texel 0, y ([`ring_phase`]).
     pub phase_y: i32,
+    /// Always 2: the trip count of the shader's loop-limit probe (see [`CUT_BITS`]).
+    pub probe: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
 }
+
+/// V bits of a receiver the device cut short: some devices bound the loop iterations of one
+/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run),
+/// which would silently truncate the exact variant's bit loops. The kernel detects it with a
+/// two-trip probe loop whose bound is a uniform and writes these bits; the twin then evaluates
+/// those receivers with the CPU code on the same light-space data (the same V) and reports
+/// their count as `loop_limit_cpu_fallbacks`.
+pub const CUT_BITS: u32 = 0x7fc0_dead;
 
 /// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
 pub fn uniform_and_tables(
@@ -144,6 +156,8 @@ pub fn uniform_and_tables(
         mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
         mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
         phase_y: phase[1],
+        probe: 2,
+        _pad: [0; 3],
     };
     (u, tables)
 }
@@ -424,7 +438,7 @@ impl GpuAccumulation {
             );
             let counters = init(
                 "accumulation counters",
-                bytemuck::cast_slice(&[0u32; 2]),
+                bytemuck::cast_slice(&[0u32; 3]),
                 wgpu::BufferUsages::STORAGE
                     | wgpu::BufferUsages::COPY_SRC
                     | wgpu::BufferUsages::COPY_DST,
@@ -536,10 +550,41 @@ impl GpuAccumulation {
             let part: Vec<f32> = ctx.read_buffer(out, (*len * 4) as u64)?;
             v[*start..*start + *len].copy_from_slice(&part);
         }
-        let c: Vec<u32> = ctx.read_buffer(&prep.counters, 8)?;
+        let c: Vec<u32> = ctx.read_buffer(&prep.counters, 12)?;
         self.report
             .stages
             .push(("readback".into(), t.elapsed().as_secs_f64() * 1e3));
+        // Receivers the device cut short: the CPU code on the same data.
+        let cut: Vec<usize> = (0..v.len())
+            .filter(|&k| v[k].to_bits() == CUT_BITS)
+            .collect();
+        let counted = c.get(2).copied().unwrap_or(0) as usize;
+        if counted != cut.len() {
+            return Err(Error::Gpu {
+                stage: LABEL.into(),
+                reason: format!(
+                    "{counted} receivers counted as cut short by the loop limit, {} flagged",
+                    cut.len()
+                ),
+            });
+        }
+        if !cut.is_empty() {
+            let t = Instant::now();
+            let sub = Receivers::from_points(
+                cut.iter().map(|&k| receivers.position[k]).collect(),
+                cut.iter().map(|&k| receivers.normal[k]).collect(),
+            )?;
+            let mut vs = vec![0.0f32; cut.len()];
+            self.cpu.estimate_with(ls, scene, &sub, &mut vs)?;
+            for (&k, x) in cut.iter().zip(vs) {
+                v[k] = x;
+            }
+            self.report.stages.push((
+                "estimate: CPU fallback".into(),
+                t.elapsed().as_secs_f64() * 1e3,
+            ));
+            self.report.note("loop_limit_cpu_fallbacks", cut.len());
+        }
         let s = self.cpu.settings();
         note_settings(&mut self.report, &s, ls, &scene.light, receivers, 0);
         let outside = c.first().copied().unwrap_or(0) as usize;

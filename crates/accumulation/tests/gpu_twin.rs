@@ -18,7 +18,8 @@ use proptest::{
 use shadow_map_core::{
     gpu::{context_for_tests, GpuContext},
     light_space::LightSpace,
-    run, Backend, Camera, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
+    run, Backend, Camera, Error, Light, LightShape, Receivers, Scene, SceneBvh,
+    SoftShadowEstimator,
 };
 use std::{cell::RefCell, sync::Arc};
 
@@ -738,6 +739,57 @@ fn every_fit_and_nearfar_match_on_both_twins() {
             scales[&(2, j)] > scales[&(0, j)],
             "fit=stable did not change the window ({})",
             NEARFARS[j]
+        );
+    }
+}
+
+/// A kernel heavy enough to spend llvmpipe's loop budget (65535 iterations per invocation):
+/// `variant=exact`, K = 32 fixed taps, 3 layers, 16 x 16 bits on the stacked fixture. Before the
+/// kernel probed for it, lavapipe silently returned truncated bit counts here (RMSE 0.268 against
+/// the CPU twin, 68% of receivers off by more than 0.1, at 160 x 120). Now flagged receivers are
+/// redone with the CPU code: V must equal the CPU twin's exactly, on any device; on lavapipe the
+/// report's `loop_limit_cpu_fallbacks` counts them (printed).
+#[test]
+fn loop_limit_is_detected_and_redone_not_truncated() {
+    let Some(ctx) = gpu("loop_limit_is_detected_and_redone_not_truncated") else {
+        return;
+    };
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/stacked/stacked.toml"
+    );
+    let mut scene = Scene::load(path).unwrap();
+    scene.camera.width = 40;
+    scene.camera.height = 30;
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let mut cpu = CpuAccumulation::new().unwrap();
+    let mut gpu = GpuAccumulation::new(ctx).unwrap();
+    for (k, v) in [
+        ("resolution", "512"),
+        ("variant", "exact"),
+        ("kernel", "fixed"),
+        ("k", "32"),
+        ("layers", "3"),
+    ] {
+        cpu.set_param(k, v).unwrap();
+        gpu.set_param(k, v).unwrap();
+    }
+    let (vc, _) = shadow_map_core::run(&mut cpu, &scene, &rec).unwrap();
+    let (vg, report) = shadow_map_core::run(&mut gpu, &scene, &rec).unwrap();
+    let fallbacks = report
+        .notes
+        .iter()
+        .find(|(k, _)| k == "loop_limit_cpu_fallbacks")
+        .map(|(_, v)| v.clone())
+        .unwrap_or_else(|| "0".into());
+    eprintln!(
+        "loop-limit CPU fallbacks: {fallbacks} of {} receivers",
+        rec.len()
+    );
+    for (k, (a, b)) in vc.iter().zip(&vg).enumerate() {
+        assert!(
+            a.to_bits() == b.to_bits() || (a - b).abs() <= 1e-6,
+            "receiver {k}: CPU {a}, GPU {b}"
         );
     }
 }
