@@ -195,7 +195,7 @@ pub fn encode_layer0(ls: &mut LightSpace, precision: DepthPrecision) -> Option<U
 /// the receiver bias: half a code step for 16-bit maps). Returns (non-finite results, receivers
 /// outside the frustum).
 #[allow(clippy::too_many_arguments)]
-fn filter_all<F: Filter, M: DepthLookup>(
+pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
     filter: &F,
     view: &LightView,
     map: &M,

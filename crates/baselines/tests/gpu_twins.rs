@@ -1044,3 +1044,50 @@ fn sub_light_points_match_the_cpu_twin() {
         .stratified_points(3, |k| baselines::multi_sample::jitter(11, k));
     assert_eq!(ms.sub_light_points(&scene.light), want);
 }
+
+/// A PCSS search wide enough to spend llvmpipe's loop budget (65535 iterations per invocation):
+/// parallel-squares under a 6 x 6 light at r = 1024 with max_taps = 300 (search regions of
+/// hundreds of texels, up to 90 000 cells). The kernel probes for the budget; receivers cut short
+/// are redone with the CPU filter on the map read back, so V equals the CPU twin's within the
+/// twins' tolerance on any device, and on lavapipe `loop_limit_cpu_fallbacks` counts them.
+#[test]
+fn loop_limit_is_detected_and_redone_not_truncated() {
+    let Some(ctx) = gpu("loop_limit_is_detected_and_redone_not_truncated") else {
+        return;
+    };
+    let mut scene =
+        Scene::load(fixture("parallel-squares/parallel-squares.toml")).expect("fixture");
+    scene.light.shape = LightShape::Rect { size: [6.0, 6.0] };
+    scene.camera.width = 32;
+    scene.camera.height = 24;
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    for depth in ["f32", "unorm16"] {
+        let mut cpu = PcssShadow::new().unwrap();
+        let mut gpu = GpuPcssShadow::new(ctx.clone()).unwrap();
+        for e in [&mut cpu as &mut dyn SoftShadowEstimator, &mut gpu] {
+            e.set_param("resolution", "1024").unwrap();
+            e.set_param("max_taps", "300").unwrap();
+            e.set_param("depth", depth).unwrap();
+        }
+        let (vc, _) = run(&mut cpu, &scene, &rec).unwrap();
+        let (vg, report) = run(&mut gpu, &scene, &rec).unwrap();
+        let fallbacks = report
+            .notes
+            .iter()
+            .find(|(k, _)| k == "loop_limit_cpu_fallbacks")
+            .map_or("0".to_string(), |(_, v)| v.clone());
+        eprintln!(
+            "depth={depth}: loop-limit CPU fallbacks {fallbacks} of {}",
+            rec.len()
+        );
+        let mut worst = 0.0f32;
+        for (k, (a, b)) in vc.iter().zip(&vg).enumerate() {
+            if a.is_nan() || b.is_nan() {
+                assert!(a.is_nan() && b.is_nan(), "receiver {k}: CPU {a}, GPU {b}");
+                continue;
+            }
+            worst = worst.max((a - b).abs());
+        }
+        assert!(worst <= 1e-3, "depth={depth}: max |dV| {worst}");
+    }
+}

@@ -5,7 +5,10 @@ use super::{
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
     shared::{self, EstimateUniform},
 };
-use crate::{common, map_estimator::Filter};
+use crate::{
+    common,
+    map_estimator::{filter_all, Filter},
+};
 use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
@@ -73,10 +76,19 @@ pub struct GpuMapEstimator<F: GpuFilter> {
     _f: PhantomData<fn() -> F>,
 }
 
+/// V bits of a receiver the device cut short: some devices bound the loop iterations of one
+/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run),
+/// which would silently truncate wide PCF/PCSS kernels. The kernel detects it with a two-trip
+/// probe loop whose bound is a uniform and writes these bits; the twin then reads the map back
+/// and evaluates those receivers with the CPU filter on the same map (the same V), reporting
+/// their count as `loop_limit_cpu_fallbacks`.
+pub const CUT_BITS: u32 = 0x7fc0_dead;
+
 /// What one kernel run found besides V.
 struct RunStats {
     outside: usize,
     nonfinite: usize,
+    cut: usize,
     estimate_ms: f64,
     readback_ms: f64,
 }
@@ -201,6 +213,15 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         self.report
             .stages
             .push(("estimate".into(), stats.estimate_ms));
+        if stats.cut > 0 {
+            let t = Instant::now();
+            self.redo_cut(maps, light, receivers, v, stats.cut)?;
+            self.report.stages.push((
+                "estimate: CPU fallback".into(),
+                t.elapsed().as_secs_f64() * 1e3,
+            ));
+            self.report.note("loop_limit_cpu_fallbacks", stats.cut);
+        }
         self.report
             .stages
             .push(("readback".into(), stats.readback_ms));
@@ -219,6 +240,63 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         Ok(())
     }
 
+    /// Re-evaluates the receivers flagged with [`CUT_BITS`] with the CPU filter on the map read
+    /// back from the GPU (`expected` of them, as the kernel counted).
+    fn redo_cut(
+        &self,
+        maps: &GpuMaps,
+        light: &Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+        expected: usize,
+    ) -> Result<()> {
+        let cut: Vec<usize> = (0..v.len())
+            .filter(|&k| v[k].to_bits() == CUT_BITS)
+            .collect();
+        if cut.len() != expected {
+            return Err(Error::Gpu {
+                stage: format!("{} estimate", F::NAME),
+                reason: format!(
+                    "{expected} receivers counted as cut short by the loop limit, {} flagged",
+                    cut.len()
+                ),
+            });
+        }
+        let sub = Receivers::from_points(
+            cut.iter().map(|&k| receivers.position[k]).collect(),
+            cut.iter().map(|&k| receivers.normal[k]).collect(),
+        )?;
+        let mut vs = vec![0.0f32; cut.len()];
+        let filter = F::from_params(&self.params);
+        let biases = (
+            self.params.float("bias") as f32,
+            self.params.float("slope_bias") as f32,
+        );
+        let ctx = &*self.ctx;
+        match &maps.depth {
+            MapDepth::F32(t) => {
+                let g = shadow_map_core::gpu::GpuDepthMap {
+                    size: t.size,
+                    texture: t.texture.clone(),
+                    view: t.view.clone(),
+                };
+                let map = shadow_map_core::gpu::read_depth_map(ctx, &g)?;
+                filter_all(&filter, &maps.view, &map, 0.0, light, &sub, &mut vs, biases);
+            }
+            MapDepth::Unorm16(m) => {
+                let map = m.read(ctx)?;
+                let half = map.half_step();
+                filter_all(
+                    &filter, &maps.view, &map, half, light, &sub, &mut vs, biases,
+                );
+            }
+        }
+        for (&k, x) in cut.iter().zip(vs) {
+            v[k] = x;
+        }
+        Ok(())
+    }
+
     fn dispatch(
         &self,
         maps: &GpuMaps,
@@ -229,6 +307,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         let mut stats = RunStats {
             outside: 0,
             nonfinite: 0,
+            cut: 0,
             estimate_ms: 0.0,
             readback_ms: 0.0,
         };
@@ -254,7 +333,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                     .device
                     .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                         label: Some("baselines counters"),
-                        contents: bytemuck::cast_slice(&[0u32; 2]),
+                        contents: bytemuck::cast_slice(&[0u32; 3]),
                         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                     });
                 let chunks = kernel::upload_receivers(ctx, receivers, chunk, false);
@@ -298,9 +377,10 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         stats.estimate_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
         kernel::read_v(ctx, &chunks, v)?;
-        let c: Vec<u32> = ctx.read_buffer(&counters, 8)?;
+        let c: Vec<u32> = ctx.read_buffer(&counters, 12)?;
         stats.outside = c.first().copied().unwrap_or(0) as usize;
         stats.nonfinite = c.get(1).copied().unwrap_or(0) as usize;
+        stats.cut = c.get(2).copied().unwrap_or(0) as usize;
         stats.readback_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok(stats)
     }

@@ -125,6 +125,10 @@ mod tests {
             ("max_taps", offset_of!(EstimateUniform, max_taps)),
             ("inv_samples", offset_of!(EstimateUniform, inv_samples)),
             ("depth_step", offset_of!(EstimateUniform, depth_step)),
+            ("probe", offset_of!(EstimateUniform, probe)),
+            ("_pad0", offset_of!(EstimateUniform, _pad)),
+            ("_pad1", offset_of!(EstimateUniform, _pad) + 4),
+            ("_pad2", offset_of!(EstimateUniform, _pad) + 8),
         ];
         assert_eq!(members.len(), rust.len());
         for (m, (name, off)) in members.iter().zip(rust) {

@@ -67,6 +67,10 @@ pub struct EstimateUniform {
     /// The 16-bit map's code step s under `depth=unorm16` (decode `n + q s`, bias `+ s / 2`);
     /// 0 for f32 maps.
     pub depth_step: f32,
+    /// Always 2: the trip count of the loop-limit probe (see `map_estimator::CUT_BITS`).
+    pub probe: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
 }
 
 impl EstimateUniform {
@@ -94,6 +98,8 @@ impl EstimateUniform {
             max_taps: 0,
             inv_samples: 0.0,
             depth_step: 0.0,
+            probe: 2,
+            _pad: [0; 3],
         }
     }
 }

@@ -22,4 +22,8 @@ struct EstimateUniform {
     max_taps: u32,
     inv_samples: f32,
     depth_step: f32,
+    probe: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
