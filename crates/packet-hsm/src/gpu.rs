@@ -463,6 +463,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let (mut near, mut far) = (f32::INFINITY, 0.0f32);
         let mut visited = 0f64;
         let mut outside = 0usize;
+        // The fits' own out-of-frustum counts (max over the sub-lights), as the CPU twin adds.
+        let mut fit_outside = 0usize;
         let mut counts = [0u64; 5];
         let mut fallbacks = 0usize;
         for b in 0..s {
@@ -473,6 +475,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
                 t_build += t.elapsed().as_secs_f64() * 1e3;
                 peak = peak.max(sv.bytes());
                 window_scale = window_scale.max(sv.ls.fit.window_scale);
+                fit_outside = fit_outside.max(sv.ls.fit.out_of_frustum);
                 near = near.min(sv.ls.view.n);
                 far = far.max(sv.ls.view.far);
                 let t = std::time::Instant::now();
@@ -545,7 +548,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
         rep.note("packets_loop_limit", counts[4]);
         rep.note("loop_limit_cpu_fallbacks", fallbacks);
         rep.note("visited_nodes", visited as u64);
-        rep.note("out_of_frustum", outside);
+        rep.note("out_of_frustum", outside + fit_outside);
         rep.note("near", near);
         rep.note("far", far);
         rep.note("window_scale", window_scale);

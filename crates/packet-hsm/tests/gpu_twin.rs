@@ -236,7 +236,7 @@ fn gpu_loop_limit_is_detected_not_truncated() {
 
 /// Every `fit` x `nearfar` combination on one scene, 1 and 2 x 2 sub-lights, through both twins:
 /// V in [0, 1] and within the twin tolerance of the CPU twin ([`compare`]), the same views on both
-/// (`near`, `far`, `window_scale` notes), and the choices reach the views (`nearfar` moves the
+/// (`near`, `far`, `window_scale`, `out_of_frustum` notes), and the choices reach the views (`nearfar` moves the
 /// planes, `fit=stable` widens the window).
 #[test]
 fn every_fit_and_nearfar_match_on_both_twins() {
@@ -271,7 +271,7 @@ fn every_fit_and_nearfar_match_on_both_twins() {
                 }
                 let (vg, rg) = run(&mut g, &s, &rec).unwrap();
                 let (vc, rc) = run(&mut hsm(&kv), &s, &rec).unwrap();
-                for key in ["near", "far", "window_scale"] {
+                for key in ["near", "far", "window_scale", "out_of_frustum"] {
                     assert_eq!(note(&rc, key), note(&rg, key), "{kv:?}: {key}");
                 }
                 for (k, x) in vc.iter().enumerate() {
