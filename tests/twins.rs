@@ -21,7 +21,10 @@ const MAX_DIFFERING: f64 = 0.01;
 
 /// The light-view and depth options (common techniques) joined to the cross-backend test: each
 /// set is applied to every estimator that declares all its keys, on the fixtures listed.
-const OPTION_SETS: &[(&[&str], &[(&str, &str)])] = &[
+/// Parameter settings, `(key, value)`.
+type Settings = &'static [(&'static str, &'static str)];
+
+const OPTION_SETS: &[(&[&str], Settings)] = &[
     (
         &[
             "parallel-squares",
@@ -40,7 +43,11 @@ const OPTION_SETS: &[(&[&str], &[(&str, &str)])] = &[
     ),
     (
         &["bunny", "strands"],
-        &[("fit", "scene"), ("nearfar", "frustum"), ("depth", "unorm16")],
+        &[
+            ("fit", "scene"),
+            ("nearfar", "frustum"),
+            ("depth", "unorm16"),
+        ],
     ),
 ];
 
