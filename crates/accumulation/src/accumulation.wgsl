@@ -593,22 +593,6 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     return facing * (1.0 - s);
 }
 
-// Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
-// once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), which silently
-// truncates the exact variant's bit loops (kernel K = 10 with a 16 x 16 grid runs ~70k). This
-// two-trip loop with a uniform bound trips once only when that budget is spent; the receiver is
-// then flagged, never returned as V (the twin redoes it with the CPU code on the same data).
-fn loop_limit_hit() -> bool {
-    var trips = 0u;
-    for (var i = 0u; i < acc.probe; i++) {
-        trips += 1u;
-    }
-    return trips < acc.probe;
-}
-
-// A NaN payload distinct from NAN_BITS: "cut short by the loop limit".
-const CUT_BITS: u32 = 0x7fc0dead;
-
 @compute @workgroup_size(WG)
 fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
@@ -621,7 +605,8 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let x = estimate_receiver(rec.position, rec.normal);
-    if loop_limit_hit() {
+    // Out of the device's loop budget (shared.wgsl): flagged, redone on the CPU.
+    if loop_limit_hit(acc.probe) {
         v_out[k] = CUT_BITS;
         atomicAdd(&counters[2], 1u);
         return;

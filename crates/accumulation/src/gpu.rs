@@ -30,6 +30,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
+        redo_cut_receivers,
         shared::{pack_receivers, LightViewUniform, SHARED_WGSL},
         GpuContext,
     },
@@ -96,19 +97,14 @@ pub struct AccUniform {
     pub mssm_size: u32,
     /// Lattice index of texel 0, y ([`ring_phase`]).
     pub phase_y: i32,
-    /// Always 2: the trip count of the shader's loop-limit probe (see [`CUT_BITS`]).
+    /// The loop-limit probe's bound, always
+    /// [`LOOP_PROBE`](shadow_map_core::gpu::shared::LOOP_PROBE): a receiver whose kernel runs out
+    /// of the device's loop budget comes back flagged and is redone with the CPU code on the same
+    /// light-space data (`loop_limit_cpu_fallbacks` in the report).
     pub probe: u32,
     /// Padding.
     pub _pad: [u32; 3],
 }
-
-/// V bits of a receiver the device cut short: some devices bound the loop iterations of one
-/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run),
-/// which would silently truncate the exact variant's bit loops. The kernel detects it with a
-/// two-trip probe loop whose bound is a uniform and writes these bits; the twin then evaluates
-/// those receivers with the CPU code on the same light-space data (the same V) and reports
-/// their count as `loop_limit_cpu_fallbacks`.
-pub const CUT_BITS: u32 = 0x7fc0_dead;
 
 /// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
 pub fn uniform_and_tables(
@@ -156,7 +152,7 @@ pub fn uniform_and_tables(
         mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
         mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
         phase_y: phase[1],
-        probe: 2,
+        probe: shadow_map_core::gpu::shared::LOOP_PROBE,
         _pad: [0; 3],
     };
     (u, tables)
@@ -554,36 +550,19 @@ impl GpuAccumulation {
         self.report
             .stages
             .push(("readback".into(), t.elapsed().as_secs_f64() * 1e3));
-        // Receivers the device cut short: the CPU code on the same data.
-        let cut: Vec<usize> = (0..v.len())
-            .filter(|&k| v[k].to_bits() == CUT_BITS)
-            .collect();
+        // Receivers the device's loop budget cut short: the CPU code on the same data.
+        let t = Instant::now();
         let counted = c.get(2).copied().unwrap_or(0) as usize;
-        if counted != cut.len() {
-            return Err(Error::Gpu {
-                stage: LABEL.into(),
-                reason: format!(
-                    "{counted} receivers counted as cut short by the loop limit, {} flagged",
-                    cut.len()
-                ),
-            });
-        }
-        if !cut.is_empty() {
-            let t = Instant::now();
-            let sub = Receivers::from_points(
-                cut.iter().map(|&k| receivers.position[k]).collect(),
-                cut.iter().map(|&k| receivers.normal[k]).collect(),
-            )?;
-            let mut vs = vec![0.0f32; cut.len()];
-            self.cpu.estimate_with(ls, scene, &sub, &mut vs)?;
-            for (&k, x) in cut.iter().zip(vs) {
-                v[k] = x;
-            }
+        let cpu = &self.cpu;
+        let redone = redo_cut_receivers(v, receivers, counted, LABEL, |sub, vs| {
+            cpu.estimate_with(ls, scene, sub, vs).map(|_| ())
+        })?;
+        if redone > 0 {
             self.report.stages.push((
                 "estimate: CPU fallback".into(),
                 t.elapsed().as_secs_f64() * 1e3,
             ));
-            self.report.note("loop_limit_cpu_fallbacks", cut.len());
+            self.report.note("loop_limit_cpu_fallbacks", redone);
         }
         let s = self.cpu.settings();
         note_settings(&mut self.report, &s, ls, &scene.light, receivers, 0);

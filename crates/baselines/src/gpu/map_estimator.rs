@@ -12,6 +12,7 @@ use crate::{
 use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
+        redo_cut_receivers,
         shared::{LightViewUniform, SHARED_WGSL},
         GpuContext, GpuScene,
     },
@@ -75,14 +76,6 @@ pub struct GpuMapEstimator<F: GpuFilter> {
     chunk_cap: usize,
     _f: PhantomData<fn() -> F>,
 }
-
-/// V bits of a receiver the device cut short: some devices bound the loop iterations of one
-/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run),
-/// which would silently truncate wide PCF/PCSS kernels. The kernel detects it with a two-trip
-/// probe loop whose bound is a uniform and writes these bits; the twin then reads the map back
-/// and evaluates those receivers with the CPU filter on the same map (the same V), reporting
-/// their count as `loop_limit_cpu_fallbacks`.
-pub const CUT_BITS: u32 = 0x7fc0_dead;
 
 /// What one kernel run found besides V.
 struct RunStats {
@@ -240,8 +233,9 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         Ok(())
     }
 
-    /// Re-evaluates the receivers flagged with [`CUT_BITS`] with the CPU filter on the map read
-    /// back from the GPU (`expected` of them, as the kernel counted).
+    /// Re-evaluates the receivers the device's loop budget cut short (flagged with
+    /// [`CUT_BITS`](shadow_map_core::gpu::shared::CUT_BITS), `expected` of them as the kernel
+    /// counted) with the CPU filter on the map read back from the GPU.
     fn redo_cut(
         &self,
         maps: &GpuMaps,
@@ -250,50 +244,32 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         v: &mut [f32],
         expected: usize,
     ) -> Result<()> {
-        let cut: Vec<usize> = (0..v.len())
-            .filter(|&k| v[k].to_bits() == CUT_BITS)
-            .collect();
-        if cut.len() != expected {
-            return Err(Error::Gpu {
-                stage: format!("{} estimate", F::NAME),
-                reason: format!(
-                    "{expected} receivers counted as cut short by the loop limit, {} flagged",
-                    cut.len()
-                ),
-            });
-        }
-        let sub = Receivers::from_points(
-            cut.iter().map(|&k| receivers.position[k]).collect(),
-            cut.iter().map(|&k| receivers.normal[k]).collect(),
-        )?;
-        let mut vs = vec![0.0f32; cut.len()];
         let filter = F::from_params(&self.params);
         let biases = (
             self.params.float("bias") as f32,
             self.params.float("slope_bias") as f32,
         );
         let ctx = &*self.ctx;
-        match &maps.depth {
-            MapDepth::F32(t) => {
-                let g = shadow_map_core::gpu::GpuDepthMap {
-                    size: t.size,
-                    texture: t.texture.clone(),
-                    view: t.view.clone(),
-                };
-                let map = shadow_map_core::gpu::read_depth_map(ctx, &g)?;
-                filter_all(&filter, &maps.view, &map, 0.0, light, &sub, &mut vs, biases);
+        let stage = format!("{} estimate", F::NAME);
+        redo_cut_receivers(v, receivers, expected, &stage, |sub, vs| {
+            match &maps.depth {
+                MapDepth::F32(t) => {
+                    let g = shadow_map_core::gpu::GpuDepthMap {
+                        size: t.size,
+                        texture: t.texture.clone(),
+                        view: t.view.clone(),
+                    };
+                    let map = shadow_map_core::gpu::read_depth_map(ctx, &g)?;
+                    filter_all(&filter, &maps.view, &map, 0.0, light, sub, vs, biases);
+                }
+                MapDepth::Unorm16(m) => {
+                    let map = m.read(ctx)?;
+                    let half = map.half_step();
+                    filter_all(&filter, &maps.view, &map, half, light, sub, vs, biases);
+                }
             }
-            MapDepth::Unorm16(m) => {
-                let map = m.read(ctx)?;
-                let half = map.half_step();
-                filter_all(
-                    &filter, &maps.view, &map, half, light, &sub, &mut vs, biases,
-                );
-            }
-        }
-        for (&k, x) in cut.iter().zip(vs) {
-            v[k] = x;
-        }
+            Ok(())
+        })?;
         Ok(())
     }
 

@@ -15,21 +15,6 @@
 // [2]: receivers cut short by the device's loop limit (written as CUT_BITS, redone on the CPU).
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 3>;
 
-// Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
-// once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), which silently
-// truncates wide PCF/PCSS kernels (max_taps 256: 65536 taps per pass). This two-trip loop with a
-// uniform bound trips once only when that budget is spent.
-fn loop_limit_hit() -> bool {
-    var trips = 0u;
-    for (var i = 0u; i < est.probe; i++) {
-        trips += 1u;
-    }
-    return trips < est.probe;
-}
-
-// A NaN payload distinct from NAN_BITS: "cut short by the loop limit".
-const CUT_BITS: u32 = 0x7fc0dead;
-
 const NAN_BITS: u32 = 0x7fc00000u;
 
 // map_estimator::ReceiverSample.
@@ -145,7 +130,8 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let x = estimate_receiver(rec.position, rec.normal);
-    if loop_limit_hit() {
+    // Out of the device's loop budget (shared.wgsl): flagged, redone on the CPU.
+    if loop_limit_hit(est.probe) {
         v_out[k] = CUT_BITS;
         atomicAdd(&counters[2], 1u);
         return;

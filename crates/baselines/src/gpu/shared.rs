@@ -67,7 +67,8 @@ pub struct EstimateUniform {
     /// The 16-bit map's code step s under `depth=unorm16` (decode `n + q s`, bias `+ s / 2`);
     /// 0 for f32 maps.
     pub depth_step: f32,
-    /// Always 2: the trip count of the loop-limit probe (see `map_estimator::CUT_BITS`).
+    /// The loop-limit probe's bound, always
+    /// [`LOOP_PROBE`](shadow_map_core::gpu::shared::LOOP_PROBE).
     pub probe: u32,
     /// Padding.
     pub _pad: [u32; 3],
@@ -98,7 +99,7 @@ impl EstimateUniform {
             max_taps: 0,
             inv_samples: 0.0,
             depth_step: 0.0,
-            probe: 2,
+            probe: shadow_map_core::gpu::shared::LOOP_PROBE,
             _pad: [0; 3],
         }
     }

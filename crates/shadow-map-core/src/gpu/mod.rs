@@ -49,6 +49,44 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("precision", precision::PRECISION_WGSL),
 ];
 
+/// Redoes the receivers a kernel flagged with [`shared::CUT_BITS`] (cut short by the device's
+/// loop budget): checks that the kernel's own count `expected` matches the flags (else
+/// [`Error::Gpu`] in `stage`), runs `cpu` on just those receivers (same order) and writes its V
+/// over the flags. Returns how many were redone.
+pub fn redo_cut_receivers(
+    v: &mut [f32],
+    receivers: &crate::Receivers,
+    expected: usize,
+    stage: &str,
+    cpu: impl FnOnce(&crate::Receivers, &mut [f32]) -> Result<()>,
+) -> Result<usize> {
+    let cut: Vec<usize> = (0..v.len())
+        .filter(|&k| v[k].to_bits() == shared::CUT_BITS)
+        .collect();
+    if cut.len() != expected {
+        return Err(Error::Gpu {
+            stage: stage.into(),
+            reason: format!(
+                "{expected} receivers counted as cut short by the loop limit, {} flagged",
+                cut.len()
+            ),
+        });
+    }
+    if cut.is_empty() {
+        return Ok(0);
+    }
+    let sub = crate::Receivers::from_points(
+        cut.iter().map(|&k| receivers.position[k]).collect(),
+        cut.iter().map(|&k| receivers.normal[k]).collect(),
+    )?;
+    let mut vs = vec![0.0f32; cut.len()];
+    cpu(&sub, &mut vs)?;
+    for (&k, x) in cut.iter().zip(vs) {
+        v[k] = x;
+    }
+    Ok(cut.len())
+}
+
 /// A device and queue, owned or borrowed, with what the backend needs to know about them.
 #[derive(Debug, Clone)]
 pub struct GpuContext {

@@ -7,6 +7,15 @@ use bytemuck::{Pod, Zeroable};
 /// WGSL source of the shared structs; prepend it to every shader that uses them.
 pub const SHARED_WGSL: &str = include_str!("shared.wgsl");
 
+/// V bits of a receiver whose kernel ran out of the device's loop budget (`loop_limit_hit` in
+/// [`SHARED_WGSL`]: llvmpipe ends every loop once 65535 iterations in all have run); a NaN payload
+/// no kernel writes otherwise. See [`redo_cut_receivers`](super::redo_cut_receivers).
+pub const CUT_BITS: u32 = 0x7fc0_dead;
+
+/// The uniform bound of `loop_limit_hit`'s two-trip probe loop (a uniform, so no compiler can
+/// fold the loop away).
+pub const LOOP_PROBE: u32 = 2;
+
 /// The light view as shaders see it (see [`LightView`] for the meaning of every field).
 ///
 /// Aligned to 16 bytes like its WGSL twin (whose `vec3<f32>` members align it to 16), so

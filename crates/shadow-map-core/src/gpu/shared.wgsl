@@ -37,3 +37,18 @@ fn dir_to_light(v: LightViewUniform, d: vec3<f32>) -> vec3<f32> {
 fn project(v: LightViewUniform, p: vec3<f32>) -> vec2<f32> {
     return (vec2<f32>(p.x, p.y) * (v.n / p.z) - v.window_min) / v.delta;
 }
+
+// Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
+// once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), silently. Called
+// at the end of a kernel with a uniform `probe` = 2 (gpu::shared::LOOP_PROBE), this two-trip loop
+// trips once only when that budget is spent: the receiver is then written as CUT_BITS (a NaN
+// payload distinct from a plain NaN) and redone on the CPU (gpu::redo_cut_receivers).
+fn loop_limit_hit(probe: u32) -> bool {
+    var trips = 0u;
+    for (var i = 0u; i < probe; i++) {
+        trips += 1u;
+    }
+    return trips < probe;
+}
+
+const CUT_BITS: u32 = 0x7fc0deadu;
