@@ -3,7 +3,7 @@
 # through the `device` tool. Three steps:
 #
 #   scripts/gpu-bench-h100.sh build    # here: release-build the bench, copy it to .gpu-bench/gpu-bench
-#   scripts/gpu-bench-h100.sh loader   # here, once: download the Vulkan loader .debs into .gl/ (gpu.md)
+#   scripts/gpu-bench-h100.sh loader   # here, once: download the Vulkan loader .debs into .gl/ (docs/methods.md §12)
 #   scripts/gpu-bench-h100.sh run      # there: unpack .gl/, point Vulkan at the NVIDIA ICD, run
 #
 # With the device tool: `run` with carry [".gpu-bench", ".gl"] and the command
@@ -35,8 +35,8 @@ build() {
 }
 
 loader() {
-  # gpu.md, "The NVIDIA H100 reached through the device tool": the loader and GL vendor-neutral
-  # libraries the NVIDIA ICD needs, as amd64 .debs unpacked there at run time.
+  # docs/methods.md §12, "The GPU reached through the device tool": the loader and the GL
+  # vendor-neutral libraries the NVIDIA ICD needs, as amd64 .debs unpacked there at run time.
   if ls .gl/*.deb >/dev/null 2>&1; then
     echo ".gl/ already holds $(ls .gl/*.deb | wc -l) packages"
     return

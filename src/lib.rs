@@ -21,84 +21,134 @@ pub use reference;
 pub use shadow_map_core as core;
 pub use shadow_map_core::{Backend, Error, Result, SoftShadowEstimator};
 
-/// Names of every registered estimator, in listing order.
-pub const ALGOS: &[&str] = &[
-    "reference",
-    "hard",
-    "pcf",
-    "pcss",
-    "multi-sample",
-    "backprojection",
-    "accumulation",
-    "packet-hsm",
-    "deep-shadow",
-];
+/// A GPU twin's constructor: the estimator on a given device.
+#[cfg(feature = "gpu")]
+pub type GpuConstructor =
+    fn(std::sync::Arc<core::gpu::GpuContext>) -> Result<Box<dyn SoftShadowEstimator>>;
+
+/// One registered method: its name, its CPU twin and, in builds with the `gpu` feature, its GPU
+/// twin (`None` for the CPU-only reference).
+pub struct Method {
+    /// Registry name (`--algo NAME`).
+    pub name: &'static str,
+    /// A fresh CPU estimator with default parameters.
+    pub cpu: fn() -> Result<Box<dyn SoftShadowEstimator>>,
+    /// A fresh GPU estimator on a device, with default parameters.
+    #[cfg(feature = "gpu")]
+    pub gpu: Option<GpuConstructor>,
+}
+
+/// The one list of methods: [`METHODS`] and [`ALGOS`] are both made from it, so a method is
+/// added in one place.
+macro_rules! methods {
+    ($($name:literal => $cpu:path $(, gpu $gpu:path)?;)*) => {
+        /// Every registered method, in listing order.
+        pub const METHODS: &[Method] = &[$(Method {
+            name: $name,
+            cpu: || Ok(Box::new(<$cpu>::new()?)),
+            #[cfg(feature = "gpu")]
+            gpu: methods!(@gpu $($gpu)?),
+        }),*];
+        /// Names of every registered estimator, in listing order.
+        pub const ALGOS: &[&str] = &[$($name),*];
+    };
+    (@gpu $gpu:path) => { Some(|ctx| Ok(Box::new(<$gpu>::new(ctx)?))) };
+    (@gpu) => { None };
+}
+
+methods! {
+    "reference" => reference::ReferenceEstimator;
+    "hard" => baselines::HardShadow, gpu baselines::gpu::GpuHardShadow;
+    "pcf" => baselines::PcfShadow, gpu baselines::gpu::GpuPcfShadow;
+    "pcss" => baselines::PcssShadow, gpu baselines::gpu::GpuPcssShadow;
+    "multi-sample" => baselines::MultiSample, gpu baselines::gpu::GpuMultiSample;
+    "backprojection" => backprojection::CpuBackprojection, gpu backprojection::GpuBackprojection;
+    "accumulation" => accumulation::CpuAccumulation, gpu accumulation::GpuAccumulation;
+    "packet-hsm" => packet_hsm::CpuPacketHsm, gpu packet_hsm::GpuPacketHsm;
+    "deep-shadow" => deep_shadow::CpuDeepShadow, gpu deep_shadow::GpuDeepShadow;
+}
+
+/// The registered method called `name`, or a one-line error listing the known names.
+pub fn method(name: &str) -> Result<&'static Method> {
+    METHODS.iter().find(|m| m.name == name).ok_or_else(|| {
+        Error::param(
+            "algo",
+            format!("unknown estimator {name:?} (known: {})", ALGOS.join(", ")),
+        )
+    })
+}
 
 /// A fresh estimator by registry name and backend, with default parameters. The GPU backend uses
 /// the process-wide [`core::gpu::GpuContext::shared`] device (Vulkan only).
 pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstimator>> {
-    if !ALGOS.contains(&name) {
-        return Err(Error::param(
-            "algo",
-            format!("unknown estimator {name:?} (known: {})", ALGOS.join(", ")),
-        ));
-    }
+    let m = method(name)?;
     match backend {
-        Backend::Cpu => Ok(match name {
-            "reference" => Box::new(reference::ReferenceEstimator::new()?),
-            "hard" => Box::new(baselines::HardShadow::new()?),
-            "pcf" => Box::new(baselines::PcfShadow::new()?),
-            "pcss" => Box::new(baselines::PcssShadow::new()?),
-            "backprojection" => Box::new(backprojection::CpuBackprojection::new()?),
-            "accumulation" => Box::new(accumulation::CpuAccumulation::new()?),
-            "packet-hsm" => Box::new(packet_hsm::CpuPacketHsm::new()?),
-            "deep-shadow" => Box::new(deep_shadow::CpuDeepShadow::new()?),
-            _ => Box::new(baselines::MultiSample::new()?),
-        }),
-        Backend::Gpu => gpu_estimator(name),
+        Backend::Cpu => (m.cpu)(),
+        Backend::Gpu => gpu_estimator(m),
     }
 }
 
 #[cfg(feature = "gpu")]
-fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
-    use baselines::gpu::{GpuHardShadow, GpuMultiSample, GpuPcfShadow, GpuPcssShadow};
-    if name == "reference" {
+fn gpu_estimator(m: &Method) -> Result<Box<dyn SoftShadowEstimator>> {
+    let Some(gpu) = m.gpu else {
         return Err(Error::param(
             "backend",
-            "the ray-traced reference runs on the CPU only; use --backend cpu",
+            format!(
+                "`{}` runs on the CPU only (the ray-traced reference); use --backend cpu",
+                m.name
+            ),
         ));
-    }
-    let ctx = core::gpu::GpuContext::shared()?;
-    Ok(match name {
-        "hard" => Box::new(GpuHardShadow::new(ctx)?),
-        "pcf" => Box::new(GpuPcfShadow::new(ctx)?),
-        "pcss" => Box::new(GpuPcssShadow::new(ctx)?),
-        "backprojection" => Box::new(backprojection::GpuBackprojection::new(ctx)?),
-        "accumulation" => Box::new(accumulation::GpuAccumulation::new(ctx)?),
-        "packet-hsm" => Box::new(packet_hsm::GpuPacketHsm::new(ctx)?),
-        "deep-shadow" => Box::new(deep_shadow::GpuDeepShadow::new(ctx)?),
-        _ => Box::new(GpuMultiSample::new(ctx)?),
-    })
+    };
+    gpu(core::gpu::GpuContext::shared()?)
 }
 
 #[cfg(not(feature = "gpu"))]
-fn gpu_estimator(name: &str) -> Result<Box<dyn SoftShadowEstimator>> {
+fn gpu_estimator(m: &Method) -> Result<Box<dyn SoftShadowEstimator>> {
     Err(Error::param(
         "backend",
-        format!("`{name}`: this build has no GPU backend (cargo feature `gpu` is off)"),
+        format!(
+            "`{}`: this build has no GPU backend (cargo feature `gpu` is off)",
+            m.name
+        ),
     ))
 }
 
-/// The backends each registered estimator has.
+/// The backends each registered estimator has (none for an unknown name).
 pub fn backends(name: &str) -> &'static [&'static str] {
-    match name {
-        "reference" => &["cpu"],
-        _ if cfg!(feature = "gpu") => &["cpu", "gpu"],
-        _ => &["cpu"],
+    match method(name) {
+        #[cfg(feature = "gpu")]
+        Ok(m) if m.gpu.is_some() => &["cpu", "gpu"],
+        Ok(_) => &["cpu"],
+        Err(_) => &[],
     }
 }
 
 /// Every registered CPU estimator with default parameters.
 pub fn registry() -> Result<Vec<Box<dyn SoftShadowEstimator>>> {
-    ALGOS.iter().map(|n| estimator(n, Backend::Cpu)).collect()
+    METHODS.iter().map(|m| (m.cpu)()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_names_are_errors_not_a_fallback() {
+        for backend in [Backend::Cpu, Backend::Gpu] {
+            let Err(e) = estimator("multi-samples", backend) else {
+                panic!("an unknown name made an estimator");
+            };
+            assert!(e.to_string().contains("unknown estimator"), "{e}");
+        }
+        assert!(backends("nope").is_empty());
+    }
+
+    #[test]
+    fn every_method_makes_its_own_cpu_twin() {
+        for m in METHODS {
+            let e = (m.cpu)().expect("defaults parse");
+            assert_eq!(e.name(), m.name);
+            assert_eq!(e.backend(), Backend::Cpu);
+        }
+    }
 }

@@ -1,5 +1,6 @@
-//! The contract every estimator keeps (contract.md): V in [0, 1] for every camera hit, NaN for
-//! background, never inf; the registry lists every estimator with parameters whose defaults parse.
+//! The contract every estimator keeps (docs/methods.md §11): V in [0, 1] for every camera hit,
+//! NaN for background, never inf; the registry lists every estimator with parameters whose
+//! defaults parse.
 use shadow_map_core::{run, Error, LightShape, Receivers, Scene, SceneBvh};
 use softshadow::{registry, Backend, ALGOS};
 

@@ -60,12 +60,6 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 // device's loop limit (flagged with CUT_BITS, redone on the CPU).
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 3>;
 
-const NAN_BITS: u32 = 0x7fc00000u;
-const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
-
-fn pos_inf() -> f32 {
-    return bitcast<f32>(0x7f800000u);
-}
 
 // math::LightPatch.
 struct Patch {
@@ -280,43 +274,9 @@ fn kernel_bounds(p: Patch, r: vec3<f32>, c_in: f32) -> vec4<i32> {
     return out;
 }
 
-// Mssm::query(..).min (as backprojection.wgsl): same level choice and window starts.
+// Mssm::query(..).min (math.wgsl).
 fn mssm_min(rect: vec4<i32>) -> f32 {
-    if acc.mssm_present == 0u {
-        return -pos_inf();
-    }
-    let s = i32(acc.mssm_size);
-    let x0 = clamp(rect.x, 0, s);
-    let y0 = clamp(rect.y, 0, s);
-    let x1 = clamp(rect.z, 0, s);
-    let y1 = clamp(rect.w, 0, s);
-    if !(x0 < x1 && y0 < y1) || acc.mssm_levels == 0u {
-        return pos_inf();
-    }
-    let m = u32(min(x1 - x0, y1 - y0));
-    let l = min(firstLeadingBit(m), acc.mssm_levels - 1u);
-    let h = i32(1u << l);
-    let last_x = max(x1 - h, x0);
-    let last_y = max(y1 - h, y0);
-    var best = pos_inf();
-    var y = y0;
-    loop {
-        let yc = select(last_y, y, y < last_y);
-        var x = x0;
-        loop {
-            let xc = select(last_x, x, x < last_x);
-            best = min(best, textureLoad(mssm, vec2<i32>(xc, yc), i32(l), 0).x);
-            if x >= last_x {
-                break;
-            }
-            x += h;
-        }
-        if y >= last_y {
-            break;
-        }
-        y += h;
-    }
-    return best;
+    return mssm_min_in(mssm, acc.mssm_present, acc.mssm_size, acc.mssm_levels, rect);
 }
 
 // DepthMap::at: +inf outside the map.

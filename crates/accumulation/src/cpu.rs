@@ -8,7 +8,9 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitMode, FitReport, LightView, ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
+    light_view::{
+        FitMode, FitReport, LightView, ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION, SLOPE_BIAS,
+    },
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
@@ -24,34 +26,9 @@ pub const MAX_MSSM_LEVEL: u32 = 5;
 /// Most refinement rounds of the adaptive kernel.
 pub const REFINE_ROUNDS: u32 = 16;
 
-/// The settings `softshadow report` runs besides the defaults (both twins).
-pub fn sweep(quick: bool) -> Vec<Vec<(&'static str, String)>> {
-    let one = |k: &'static str, v: &str| vec![(k, v.to_string())];
-    if quick {
-        return vec![one("resolution", "256"), one("variant", "exact")];
-    }
-    let mut s: Vec<Vec<(&'static str, String)>> =
-        ["3", "5", "15"].iter().map(|k| one("k", k)).collect();
-    s.extend([
-        one("variant", "exact"),
-        one("kernel", "fixed"),
-        one("resolution", "256"),
-        one("resolution", "2048"),
-    ]);
-    s
-}
-
 /// Parameters of [`CpuAccumulation`] (and of its GPU twin).
 pub const SPECS: &[ParamSpec] = &[
-    ParamSpec {
-        key: "resolution",
-        kind: ParamKind::Int {
-            min: 1,
-            max: MAX_RESOLUTION as i64,
-        },
-        default: "1024",
-        help: "shadow-map resolution r (texels per side)",
-    },
+    RESOLUTION,
     ParamSpec {
         key: "k",
         kind: ParamKind::Int { min: 1, max: 64 },
@@ -97,17 +74,10 @@ pub const SPECS: &[ParamSpec] = &[
         default: "contract",
         help: "sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the paper's disk perpendicular to the light normal",
     },
+    BIAS,
     ParamSpec {
-        key: "bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
-        help: "constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
-    },
-    ParamSpec {
-        key: "slope_bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
         help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
+        ..SLOPE_BIAS
     },
     FIT,
     NEARFAR,
@@ -258,17 +228,6 @@ pub fn plan(
         raster: RasterOptions::default(),
     };
     Ok((view, fit, req))
-}
-
-/// Receiver-side depth bias in world units, as in the baselines (background.md §2
-/// "Self-shadowing"): `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
-#[inline]
-pub fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
-    let texel = view.w * p.z / (view.n * view.r as f32);
-    let to_light = (-p).normalize_or_zero();
-    let cos = n.dot(to_light).abs().max(1e-6);
-    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
-    texel * (b0 + b1 * tan.min(10.0))
 }
 
 /// Half-open texel rectangle `[x0, x1) x [y0, y1)` covering continuous bounds, clamped to the map.
@@ -511,7 +470,7 @@ impl Accumulator<'_> {
         let view = &ls.view;
         let p = fp.r;
         let zp = p.z;
-        let eps = receiver_bias(view, p, nrm, self.s.b0, self.s.b1);
+        let eps = view.receiver_bias(p, nrm, self.s.b0, self.s.b1);
         // Tangent-plane margin: b0 texel footprints at the receiver.
         let eps_plane = view.w * zp / (view.n * view.r as f32) * self.s.b0;
         let Some(kernel) = self.kernel(fp, uv, zp, eps) else {
@@ -804,11 +763,6 @@ impl SoftShadowEstimator for CpuAccumulation {
     }
     fn report(&self) -> Report {
         self.report.clone()
-    }
-    /// Kernel size K (the paper's 3 to 15), the exact variant, the paper's fixed kernel, and
-    /// the resolution.
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        sweep(quick)
     }
 }
 

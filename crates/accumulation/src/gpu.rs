@@ -21,17 +21,14 @@ use crate::cpu::{
     MAX_BITS,
 };
 use crate::math::{LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
-use baselines::gpu::{
-    kernel::{max_chunk, shader_source},
-    map_estimator::COMMON_WGSL,
-    shared::{EstimateUniform, OVERRIDES, SHARED_WGSL as BASELINES_SHARED_WGSL, WORKGROUP_SIZE},
-};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
+        estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        kernel::{max_chunk, upload_planes, Binding, Kernel},
         redo_cut_receivers,
-        shared::{pack_receivers, LightViewUniform, SHARED_WGSL},
+        shared::{pack_receivers, LightViewUniform},
         GpuContext,
     },
     light_space::LightSpace,
@@ -44,12 +41,7 @@ use wgpu::util::DeviceExt;
 pub const ACCUMULATION_WGSL: &str = include_str!("accumulation.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 4] = [
-    SHARED_WGSL,
-    BASELINES_SHARED_WGSL,
-    COMMON_WGSL,
-    ACCUMULATION_WGSL,
-];
+pub const SHADER_PARTS: [&str; 2] = [ESTIMATE_HEAD_WGSL, ACCUMULATION_WGSL];
 
 /// Hull-point slots at the head of the tables buffer (WGSL `HULL_SLOTS`).
 pub const HULL_SLOTS: usize = DISK_BOUNDARY_POINTS as usize;
@@ -158,109 +150,11 @@ pub fn uniform_and_tables(
     (u, tables)
 }
 
-/// `size x size` R32Float planes in one texture array.
-struct PlaneArray {
-    texture: wgpu::Texture,
-    view: wgpu::TextureView,
-    bytes: usize,
-}
-
-/// Allocates `count` planes of side `size` (usages: read by the kernel, written by copies and by
-/// [`PLANE_TO_LAYER_WGSL`]).
-fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Result<PlaneArray> {
-    let l = ctx.limits();
-    if size == 0 || size > l.max_texture_dimension_2d {
-        return Err(Error::Limit {
-            what: "accumulation texture side",
-            requested: size as u64,
-            max: l.max_texture_dimension_2d as u64,
-        });
-    }
-    if count == 0 || count > l.max_texture_array_layers {
-        return Err(Error::Limit {
-            what: "accumulation texture array layers",
-            requested: count as u64,
-            max: l.max_texture_array_layers as u64,
-        });
-    }
-    ctx.scoped(label, || {
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: count,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_DST
-                | wgpu::TextureUsages::STORAGE_BINDING,
-            view_formats: &[],
-        });
-        let view = texture.create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
-        PlaneArray {
-            texture,
-            view,
-            bytes: size as usize * size as usize * count as usize * 4,
-        }
-    })
-}
-
-/// Uploads CPU planes into one texture array.
-fn upload_planes(
-    ctx: &GpuContext,
-    label: &str,
-    size: u32,
-    planes: &[&[f32]],
-) -> Result<PlaneArray> {
-    let array = plane_array(ctx, label, size, planes.len() as u32)?;
-    let texels = size as usize * size as usize;
-    let mut data = Vec::with_capacity(texels * planes.len());
-    for p in planes {
-        if p.len() != texels {
-            return Err(Error::Gpu {
-                stage: format!("{label} upload"),
-                reason: format!("{} depths for a {size}x{size} plane", p.len()),
-            });
-        }
-        data.extend_from_slice(p);
-    }
-    ctx.scoped(label, || {
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &array.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            bytemuck::cast_slice(&data),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * size),
-                rows_per_image: Some(size),
-            },
-            wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: planes.len() as u32,
-            },
-        );
-    })?;
-    Ok(array)
-}
-
 /// The GPU twin of [`CpuAccumulation`].
 pub struct GpuAccumulation {
     ctx: Arc<GpuContext>,
     cpu: CpuAccumulation,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Kernel,
     report: Report,
     chunk_cap: usize,
 }
@@ -285,79 +179,28 @@ impl Prepared {
 impl GpuAccumulation {
     /// With default parameters, compiling the kernel on `ctx`'s device.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let src = shader_source(&SHADER_PARTS);
-        let module = ctx.scoped(LABEL, || {
-            ctx.device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(LABEL),
-                    source: wgpu::ShaderSource::Wgsl(src.into()),
-                })
-        })?;
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2Array,
-                multisampled: false,
-            },
-            count: None,
-        };
-        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-        let (layout, pipeline) = ctx.scoped(LABEL, || {
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some(LABEL),
-                    entries: &[
-                        buffer(0, wgpu::BufferBindingType::Uniform),
-                        buffer(1, wgpu::BufferBindingType::Uniform),
-                        buffer(2, wgpu::BufferBindingType::Uniform),
-                        texture(3),
-                        texture(4),
-                        buffer(5, storage(true)),
-                        buffer(6, storage(true)),
-                        buffer(7, storage(false)),
-                        buffer(8, storage(false)),
-                    ],
-                });
-            let pl = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some(LABEL),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(LABEL),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some("estimate"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: OVERRIDES,
-                        zero_initialize_workgroup_memory: true,
-                    },
-                    cache: None,
-                });
-            (layout, pipeline)
-        })?;
+        let kernel = Kernel::new(
+            &ctx,
+            LABEL,
+            &SHADER_PARTS,
+            "estimate",
+            &[
+                Binding::Uniform,
+                Binding::Uniform,
+                Binding::Uniform,
+                Binding::Texture2dArray,
+                Binding::Texture2dArray,
+                Binding::Storage,
+                Binding::Storage,
+                Binding::StorageRw,
+                Binding::StorageRw,
+            ],
+            OVERRIDES,
+        )?;
         Ok(GpuAccumulation {
             ctx,
             cpu: CpuAccumulation::new()?,
-            layout,
-            pipeline,
+            kernel,
             report: Report::default(),
             chunk_cap: usize::MAX,
         })
@@ -401,7 +244,7 @@ impl GpuAccumulation {
         let mssm = upload_planes(ctx, "accumulation mssm", mssm_size, &mssm_planes)?;
         let (au, tables) = uniform_and_tables(&s, &light.shape, ls);
         let eu = EstimateUniform::new(light, s.b0, s.b1);
-        let chunk = max_chunk(ctx, self.chunk_cap);
+        let chunk = max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap);
         let packed = pack_receivers(receivers);
         let (groups, counters) = ctx.scoped(LABEL, || {
             let init = |label, contents: &[u8], usage| {
@@ -452,22 +295,21 @@ impl GpuAccumulation {
                     usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                     mapped_at_creation: false,
                 });
-                let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
-                let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some(LABEL),
-                    layout: &self.layout,
-                    entries: &[
-                        e(0, view_buf.as_entire_binding()),
-                        e(1, est_buf.as_entire_binding()),
-                        e(2, acc_buf.as_entire_binding()),
-                        e(3, wgpu::BindingResource::TextureView(&maps.view)),
-                        e(4, wgpu::BindingResource::TextureView(&mssm.view)),
-                        e(5, tab_buf.as_entire_binding()),
-                        e(6, rec.as_entire_binding()),
-                        e(7, out.as_entire_binding()),
-                        e(8, counters.as_entire_binding()),
+                let group = self.kernel.bind_group(
+                    ctx,
+                    LABEL,
+                    &[
+                        view_buf.as_entire_binding(),
+                        est_buf.as_entire_binding(),
+                        acc_buf.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&maps.view),
+                        wgpu::BindingResource::TextureView(&mssm.view),
+                        tab_buf.as_entire_binding(),
+                        rec.as_entire_binding(),
+                        out.as_entire_binding(),
+                        counters.as_entire_binding(),
                     ],
-                });
+                );
                 groups.push((c * chunk, part.len(), group, out));
             }
             (groups, counters)
@@ -494,7 +336,7 @@ impl GpuAccumulation {
                     label: Some(LABEL),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&self.pipeline);
+                pass.set_pipeline(&self.kernel.pipeline);
                 for _ in 0..repeats.max(1) {
                     for (_, len, group, _) in &prep.groups {
                         pass.set_bind_group(0, group, &[]);
@@ -618,58 +460,47 @@ impl SoftShadowEstimator for GpuAccumulation {
     fn report(&self) -> Report {
         self.report.clone()
     }
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        crate::cpu::sweep(quick)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use shadow_map_core::gpu::kernel::{shader_source, validate_wgsl};
 
     #[test]
     fn shader_validates_with_naga() {
-        let src = shader_source(&SHADER_PARTS);
-        let module = match naga::front::wgsl::parse_str(&src) {
-            Ok(m) => m,
-            Err(e) => panic!("{}", e.emit_to_string(&src)),
-        };
-        let mut v = naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        );
-        let info = match v.validate(&module) {
-            Ok(i) => i,
-            Err(e) => panic!("{e:?}"),
-        };
-        // The uniform's WGSL layout equals the Rust struct's.
-        let mut layouter = naga::proc::Layouter::default();
-        layouter.update(module.to_ctx()).unwrap();
-        let (h, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("AccUniform"))
-            .expect("AccUniform in the WGSL");
-        assert_eq!(layouter[h].size as usize, std::mem::size_of::<AccUniform>());
-        if let naga::TypeInner::Struct { members, .. } = &ty.inner {
-            let off = |name: &str| {
-                members
-                    .iter()
-                    .find(|m| m.name.as_deref() == Some(name))
-                    .unwrap()
-                    .offset as usize
-            };
-            assert_eq!(off("half"), std::mem::offset_of!(AccUniform, half));
-            assert_eq!(
-                off("mssm_size"),
-                std::mem::offset_of!(AccUniform, mssm_size)
-            );
-            assert_eq!(off("layers"), std::mem::offset_of!(AccUniform, layers));
-            assert_eq!(off("phase_x"), std::mem::offset_of!(AccUniform, phase_x));
-            assert_eq!(off("phase_y"), std::mem::offset_of!(AccUniform, phase_y));
-        } else {
-            panic!("AccUniform is not a struct");
+        if let Err(e) = validate_wgsl("accumulation", &shader_source(&SHADER_PARTS)) {
+            panic!("{e}");
         }
-        drop(info);
+    }
+
+    #[test]
+    fn uniform_layout_matches_wgsl() {
+        shadow_map_core::assert_wgsl_layout!(
+            shader_source(&SHADER_PARTS),
+            AccUniform {
+                inv_area,
+                n_hull,
+                bits,
+                nbits,
+                k,
+                kernel,
+                variant,
+                layers,
+                sphere_contract,
+                patch_rect,
+                overlap,
+                phase_x,
+                half,
+                b0,
+                b1,
+                mssm_present,
+                mssm_levels,
+                mssm_size,
+                phase_y,
+                probe,
+            },
+            pad _pad: 3
+        );
     }
 }

@@ -1,4 +1,4 @@
-//! Geometry of shadow accumulation (Aszódi & Szirmay-Kalos 2006, §1.1; background.md §9,
+//! Geometry of shadow accumulation (Aszódi & Szirmay-Kalos 2006, §1.1; docs/methods.md §9,
 //! "Aszodi's mapping, corrected").
 //!
 //! Conventions: light space with the light centre at the origin and `e_z` the light normal; the
@@ -361,9 +361,9 @@ impl Footprint {
 }
 
 /// Area of a convex quadrilateral (corners in order, either orientation) inside the disk of
-/// radius `r` at the origin (background.md §9, "Polygon ∩ disk"): per directed edge, pieces inside
-/// the circle add `cross(P, Q) / 2`, pieces outside add `r^2 atan2(cross, dot) / 2`; the sum is
-/// the signed area. Shortcuts: bounding boxes apart (0), every corner inside (the shoelace
+/// radius `r` at the origin (docs/methods.md §9, "Polygon ∩ disk"): per directed edge, pieces
+/// inside the circle add `cross(P, Q) / 2`, pieces outside add `r^2 atan2(cross, dot) / 2`; the
+/// sum is the signed area. Shortcuts: bounding boxes apart (0), every corner inside (the shoelace
 /// area), the disk inside the quadrilateral (`pi r^2`). Never NaN for finite inputs.
 pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
     if !(r > 0.0) {
@@ -453,7 +453,7 @@ pub fn quad_contains(q: &[Vec2; 4], flat: bool, b: Vec2) -> bool {
     pos || neg
 }
 
-/// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; background.md §9
+/// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; docs/methods.md §9
 /// with its corrections): the caster point `c = (l, n) c_z / n` behind plane point `l` seen from
 /// r lands on the plane at
 ///

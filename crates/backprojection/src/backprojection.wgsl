@@ -38,27 +38,7 @@ struct BpUniform {
 // [0]: receivers outside the light frustum, [1]: non-finite results.
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 2>;
 
-const NAN_BITS: u32 = 0x7fc00000u;
 const FAR_BOUND: f32 = 1e30;
-const F32_MAX: f32 = 3.40282347e38;
-const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
-
-fn pos_inf() -> f32 {
-    return bitcast<f32>(0x7f800000u);
-}
-
-// math::kernel_width.
-fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
-    if !(z_m < z_p) {
-        return 0.0;
-    }
-    let zm = max(z_m, F32_MIN_POSITIVE);
-    let w = alpha * l * (1.0 / zm - 1.0 / z_p);
-    if is_finite(w) {
-        return max(w, 0.0);
-    }
-    return F32_MAX;
-}
 
 // math::micropatch_scale.
 fn micropatch_scale(k: f32, z_s: f32, z_p: f32) -> f32 {
@@ -93,43 +73,9 @@ fn kernel_rect(uv: vec2<f32>, wx: f32, wy: f32) -> vec4<i32> {
     );
 }
 
-// Mssm::query(..).min: same level choice and window starts, so the same fetches.
+// Mssm::query(..).min (math.wgsl).
 fn mssm_min(rect: vec4<i32>) -> f32 {
-    if bp.mssm_present == 0u {
-        return -pos_inf();
-    }
-    let s = i32(bp.mssm_size);
-    let x0 = clamp(rect.x, 0, s);
-    let y0 = clamp(rect.y, 0, s);
-    let x1 = clamp(rect.z, 0, s);
-    let y1 = clamp(rect.w, 0, s);
-    if !(x0 < x1 && y0 < y1) || bp.mssm_levels == 0u {
-        return pos_inf();
-    }
-    let m = u32(min(x1 - x0, y1 - y0));
-    let l = min(firstLeadingBit(m), bp.mssm_levels - 1u);
-    let h = i32(1u << l);
-    let last_x = max(x1 - h, x0);
-    let last_y = max(y1 - h, y0);
-    var acc = pos_inf();
-    var y = y0;
-    loop {
-        let yc = select(last_y, y, y < last_y);
-        var x = x0;
-        loop {
-            let xc = select(last_x, x, x < last_x);
-            acc = min(acc, textureLoad(mssm, vec2<i32>(xc, yc), i32(l), 0).x);
-            if x >= last_x {
-                break;
-            }
-            x += h;
-        }
-        if y >= last_y {
-            break;
-        }
-        y += h;
-    }
-    return acc;
+    return mssm_min_in(mssm, bp.mssm_present, bp.mssm_size, bp.mssm_levels, rect);
 }
 
 // The kernel after refinement and its sampling blocks.

@@ -1,10 +1,11 @@
-//! The CPU backprojection estimator (background.md §2; Bavoil 2008 §4.1, §4.2, §5).
+//! The CPU backprojection estimator (docs/methods.md §2; Bavoil 2008 §4.1, §4.2, §5).
 use crate::math::{backprojected_micropatch, kernel_width, light_overlap_area, micropatch_scale};
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitReport, LightView, ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
+    light_view::{FitReport, LightView, ViewOptions, FIT, NEARFAR, RESOLUTION},
+    peeling::{MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
@@ -12,50 +13,22 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
 /// Parameters of [`CpuBackprojection`].
 pub const SPECS: &[ParamSpec] = &[
-    ParamSpec {
-        key: "resolution",
-        kind: ParamKind::Int {
-            min: 1,
-            max: MAX_RESOLUTION as i64,
-        },
-        default: "1024",
-        help: "shadow-map resolution r (texels per side)",
-    },
+    RESOLUTION,
     ParamSpec {
         key: "layers",
         kind: ParamKind::Int { min: 1, max: 4 },
         default: "3",
         help: "depth-peeled layers k; per texel only the furthest occluding layer is backprojected (Bavoil §4.1)",
     },
-    ParamSpec {
-        key: "self_shadow",
-        kind: ParamKind::Choice(&["midpoint", "bias"]),
-        default: "midpoint",
-        help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
-    },
-    ParamSpec {
-        key: "max_bias",
-        kind: ParamKind::Float { min: 0.0, max: 1e6 },
-        default: "4.0",
-        help: "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
-    },
-    ParamSpec {
-        key: "bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
-        help: "self_shadow=bias: constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
-    },
-    ParamSpec {
-        key: "slope_bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
-        help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
-    },
+    SELF_SHADOW,
+    MAX_BIAS,
+    SELF_SHADOW_BIAS,
+    SELF_SHADOW_SLOPE_BIAS,
     ParamSpec {
         key: "gap_filling",
         kind: ParamKind::Bool,
         default: "false",
-        help: "extend each occluding micropatch to its +u and +v occluding neighbours (background.md §2, reconstructed)",
+        help: "extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md §2, reconstructed)",
     },
     ParamSpec {
         key: "max_nspp",
@@ -103,17 +76,6 @@ impl CpuBackprojection {
     }
 }
 
-/// Receiver-side depth bias in world units, as in the baselines (background.md §2
-/// "Self-shadowing"): `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
-#[inline]
-fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
-    let texel = view.w * p.z / (view.n * view.r as f32);
-    let to_light = (-p).normalize_or_zero();
-    let cos = n.dot(to_light).abs().max(1e-6);
-    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
-    texel * (b0 + b1 * tan.min(10.0))
-}
-
 /// Settings read once per estimate.
 struct Setup<'a> {
     ls: &'a LightSpace,
@@ -145,11 +107,11 @@ impl Setup<'_> {
         let eps = if self.midpoint {
             0.0
         } else {
-            receiver_bias(view, p, n, self.b0, self.b1)
+            view.receiver_bias(p, n, self.b0, self.b1)
         };
         let (lx, ly) = (2.0 * self.half[0], 2.0 * self.half[1]);
         let alpha = view.alpha();
-        // Kernel at z_m = n, refined by the exact min over it (background.md §2).
+        // Kernel at z_m = n, refined by the exact min over it (docs/methods.md §2).
         let mut zm = view.n;
         let mut rect = kernel_rect(
             view,
@@ -439,23 +401,5 @@ impl SoftShadowEstimator for CpuBackprojection {
     }
     fn report(&self) -> Report {
         self.report.clone()
-    }
-    /// Resolution, layers (Bavoil §4.1), gap filling, bias instead of midpoints, and the sample
-    /// budget (§5).
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        let one = |k: &'static str, v: &str| vec![(k, v.to_string())];
-        if quick {
-            return vec![one("resolution", "256"), one("layers", "1")];
-        }
-        let mut s = shadow_map_core::default_sweep(&self.params, false);
-        s.extend([
-            one("layers", "1"),
-            one("layers", "2"),
-            one("gap_filling", "true"),
-            one("self_shadow", "bias"),
-            one("max_nspp", "25"),
-            one("max_nspp", "49"),
-        ]);
-        s
     }
 }

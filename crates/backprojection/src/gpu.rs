@@ -26,18 +26,15 @@
 //! tie to within f32 rounding. The GPU rasteriser's layers match the CPU's up to the ties that
 //! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
 use crate::cpu::{plan, CpuBackprojection};
-use baselines::gpu::{
-    kernel::{max_chunk, shader_source},
-    map_estimator::COMMON_WGSL,
-    shared::{EstimateUniform, OVERRIDES, SHARED_WGSL as BASELINES_SHARED_WGSL, WORKGROUP_SIZE},
-};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
+        estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        kernel::{max_chunk, plane_array, upload_planes, Binding, Kernel, PlaneArray},
         light_space::GpuLightSpace,
         raster::{GpuScene, GpuShadowMapper},
         receivers::{GpuReceivers, RECEIVER_BYTES},
-        shared::{pack_receivers, LightViewUniform, SHARED_WGSL},
+        shared::{pack_receivers, LightViewUniform},
         GpuContext,
     },
     light_space::LightSpace,
@@ -70,12 +67,7 @@ pub struct PlaneCopy {
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 4] = [
-    SHARED_WGSL,
-    BASELINES_SHARED_WGSL,
-    COMMON_WGSL,
-    BACKPROJECTION_WGSL,
-];
+pub const SHADER_PARTS: [&str; 2] = [ESTIMATE_HEAD_WGSL, BACKPROJECTION_WGSL];
 
 /// The settings the kernel reads besides the light view and the light (mirrored in
 /// `backprojection.wgsl`).
@@ -112,105 +104,6 @@ pub struct BpUniform {
     pub _pad0: u32,
     /// Padding.
     pub _pad1: u32,
-}
-
-/// `size x size` R32Float planes in one texture array.
-struct PlaneArray {
-    texture: wgpu::Texture,
-    view: wgpu::TextureView,
-    size: u32,
-    bytes: usize,
-}
-
-/// Allocates `count` planes of side `size` (usages: read by the kernel, written by copies and by
-/// [`PLANE_TO_LAYER_WGSL`]).
-fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Result<PlaneArray> {
-    let l = ctx.limits();
-    if size == 0 || size > l.max_texture_dimension_2d {
-        return Err(Error::Limit {
-            what: "backprojection texture side",
-            requested: size as u64,
-            max: l.max_texture_dimension_2d as u64,
-        });
-    }
-    if count == 0 || count > l.max_texture_array_layers {
-        return Err(Error::Limit {
-            what: "backprojection texture array layers",
-            requested: count as u64,
-            max: l.max_texture_array_layers as u64,
-        });
-    }
-    ctx.scoped(label, || {
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: count,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_DST
-                | wgpu::TextureUsages::STORAGE_BINDING,
-            view_formats: &[],
-        });
-        let view = texture.create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
-        PlaneArray {
-            texture,
-            view,
-            size,
-            bytes: size as usize * size as usize * count as usize * 4,
-        }
-    })
-}
-
-/// Uploads CPU planes into one texture array.
-fn upload_planes(
-    ctx: &GpuContext,
-    label: &str,
-    size: u32,
-    planes: &[&[f32]],
-) -> Result<PlaneArray> {
-    let array = plane_array(ctx, label, size, planes.len() as u32)?;
-    let texels = size as usize * size as usize;
-    let mut data = Vec::with_capacity(texels * planes.len());
-    for p in planes {
-        if p.len() != texels {
-            return Err(Error::Gpu {
-                stage: format!("{label} upload"),
-                reason: format!("{} depths for a {size}x{size} plane", p.len()),
-            });
-        }
-        data.extend_from_slice(p);
-    }
-    ctx.scoped(label, || {
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &array.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            bytemuck::cast_slice(&data),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * size),
-                rows_per_image: Some(size),
-            },
-            wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: planes.len() as u32,
-            },
-        );
-    })?;
-    Ok(array)
 }
 
 /// Light-space data on the device in the layout the kernel reads: depth layers then midpoint
@@ -268,10 +161,8 @@ impl DeviceMaps {
 pub struct GpuBackprojection {
     ctx: Arc<GpuContext>,
     cpu: CpuBackprojection,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
-    copy_layout: wgpu::BindGroupLayout,
-    copy_pipeline: wgpu::ComputePipeline,
+    kernel: Kernel,
+    copy: Kernel,
     mapper: Option<GpuShadowMapper>,
     maps: Option<DeviceMaps>,
     light_space_on_cpu: bool,
@@ -288,125 +179,40 @@ const LABEL: &str = "backprojection estimate";
 impl GpuBackprojection {
     /// With default parameters, compiling the kernel on `ctx`'s device.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let src = shader_source(&SHADER_PARTS);
-        let module = ctx.scoped(LABEL, || {
-            ctx.device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(LABEL),
-                    source: wgpu::ShaderSource::Wgsl(src.into()),
-                })
-        })?;
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2Array,
-                multisampled: false,
-            },
-            count: None,
-        };
-        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-        let (layout, pipeline) = ctx.scoped(LABEL, || {
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some(LABEL),
-                    entries: &[
-                        buffer(0, wgpu::BufferBindingType::Uniform),
-                        buffer(1, wgpu::BufferBindingType::Uniform),
-                        buffer(2, wgpu::BufferBindingType::Uniform),
-                        texture(3),
-                        texture(4),
-                        buffer(5, storage(true)),
-                        buffer(6, storage(false)),
-                        buffer(7, storage(false)),
-                    ],
-                });
-            let pl = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some(LABEL),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(LABEL),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some("estimate"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: OVERRIDES,
-                        zero_initialize_workgroup_memory: true,
-                    },
-                    cache: None,
-                });
-            (layout, pipeline)
-        })?;
-        let (copy_layout, copy_pipeline) = ctx.scoped("backprojection plane copy", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("backprojection plane copy"),
-                    source: wgpu::ShaderSource::Wgsl(PLANE_TO_LAYER_WGSL.into()),
-                });
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("backprojection plane copy"),
-                    entries: &[
-                        buffer(0, wgpu::BufferBindingType::Uniform),
-                        buffer(1, storage(true)),
-                        wgpu::BindGroupLayoutEntry {
-                            binding: 2,
-                            visibility: wgpu::ShaderStages::COMPUTE,
-                            ty: wgpu::BindingType::StorageTexture {
-                                access: wgpu::StorageTextureAccess::WriteOnly,
-                                format: wgpu::TextureFormat::R32Float,
-                                view_dimension: wgpu::TextureViewDimension::D2Array,
-                            },
-                            count: None,
-                        },
-                    ],
-                });
-            let pl = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("backprojection plane copy"),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("backprojection plane copy"),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some("copy_plane"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            (layout, pipeline)
-        })?;
+        let kernel = Kernel::new(
+            &ctx,
+            LABEL,
+            &SHADER_PARTS,
+            "estimate",
+            &[
+                Binding::Uniform,
+                Binding::Uniform,
+                Binding::Uniform,
+                Binding::Texture2dArray,
+                Binding::Texture2dArray,
+                Binding::Storage,
+                Binding::StorageRw,
+                Binding::StorageRw,
+            ],
+            OVERRIDES,
+        )?;
+        let copy = Kernel::new(
+            &ctx,
+            "backprojection plane copy",
+            &[PLANE_TO_LAYER_WGSL],
+            "copy_plane",
+            &[
+                Binding::Uniform,
+                Binding::Storage,
+                Binding::StorageTexture2dArrayR32Write,
+            ],
+            &[],
+        )?;
         Ok(GpuBackprojection {
             ctx,
             cpu: CpuBackprojection::new()?,
-            layout,
-            pipeline,
-            copy_layout,
-            copy_pipeline,
+            kernel,
+            copy,
             mapper: None,
             maps: None,
             light_space_on_cpu: false,
@@ -503,7 +309,7 @@ impl GpuBackprojection {
                     label: Some("backprojection mssm copy"),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&self.copy_pipeline);
+                pass.set_pipeline(&self.copy.pipeline);
                 for (l, level) in levels.iter().enumerate() {
                     let pc = PlaneCopy {
                         size: mssm.size,
@@ -518,24 +324,15 @@ impl GpuBackprojection {
                             contents: bytemuck::bytes_of(&pc),
                             usage: wgpu::BufferUsages::UNIFORM,
                         });
-                    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("backprojection plane copy"),
-                        layout: &self.copy_layout,
-                        entries: &[
-                            wgpu::BindGroupEntry {
-                                binding: 0,
-                                resource: u.as_entire_binding(),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 1,
-                                resource: level.min.as_entire_binding(),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 2,
-                                resource: wgpu::BindingResource::TextureView(&mssm.view),
-                            },
+                    let group = self.copy.bind_group(
+                        ctx,
+                        "backprojection plane copy",
+                        &[
+                            u.as_entire_binding(),
+                            level.min.as_entire_binding(),
+                            wgpu::BindingResource::TextureView(&mssm.view),
                         ],
-                    });
+                    );
                     pass.set_bind_group(0, &group, &[]);
                     let g = mssm.size.div_ceil(16);
                     pass.dispatch_workgroups(g, g, 1);
@@ -664,7 +461,7 @@ impl GpuBackprojection {
         }
         let ctx = &*self.ctx;
         let t = Instant::now();
-        let chunk = max_chunk(ctx, self.chunk_cap);
+        let chunk = max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap);
         let packed = pack_receivers(receivers);
         let (parts, counters) = ctx.scoped(LABEL, || {
             let counters = counters_buffer(ctx);
@@ -750,23 +547,22 @@ impl GpuBackprojection {
                     label: Some(LABEL),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&self.pipeline);
+                pass.set_pipeline(&self.kernel.pipeline);
                 for chunk in chunks.iter().filter(|c| c.len > 0) {
-                    let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
-                    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some(LABEL),
-                        layout: &self.layout,
-                        entries: &[
-                            e(0, view_buf.as_entire_binding()),
-                            e(1, est_buf.as_entire_binding()),
-                            e(2, bp_buf.as_entire_binding()),
-                            e(3, wgpu::BindingResource::TextureView(&maps.maps.view)),
-                            e(4, wgpu::BindingResource::TextureView(&maps.mssm.view)),
-                            e(5, chunk.receivers.clone()),
-                            e(6, chunk.v.clone()),
-                            e(7, counters.as_entire_binding()),
+                    let group = self.kernel.bind_group(
+                        ctx,
+                        LABEL,
+                        &[
+                            view_buf.as_entire_binding(),
+                            est_buf.as_entire_binding(),
+                            bp_buf.as_entire_binding(),
+                            wgpu::BindingResource::TextureView(&maps.maps.view),
+                            wgpu::BindingResource::TextureView(&maps.mssm.view),
+                            chunk.receivers.clone(),
+                            chunk.v.clone(),
+                            counters.as_entire_binding(),
                         ],
-                    });
+                    );
                     pass.set_bind_group(0, &group, &[]);
                     pass.dispatch_workgroups(
                         (chunk.len as usize).div_ceil(WORKGROUP_SIZE as usize) as u32,
@@ -889,7 +685,7 @@ impl GpuBackprojection {
         let counters = ctx.scoped(LABEL, || counters_buffer(ctx))?;
         if receivers.count > 0 {
             let align = ctx.limits().min_storage_buffer_offset_alignment.max(4);
-            let max_bytes = max_chunk(ctx, self.chunk_cap) as u64 * RECEIVER_BYTES;
+            let max_bytes = max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap) as u64 * RECEIVER_BYTES;
             // Offsets of receivers (32 bytes) aligned to 8 x align: the V offsets (4 bytes per
             // receiver) are then aligned to align.
             let ranges = receivers.chunks(max_bytes, align.saturating_mul(8));
@@ -1041,38 +837,57 @@ impl SoftShadowEstimator for GpuBackprojection {
     fn report(&self) -> Report {
         self.report.clone()
     }
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        self.cpu.sweep(quick)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use shadow_map_core::gpu::kernel::{shader_source, validate_wgsl};
 
     #[test]
     fn shader_validates_with_naga() {
-        validate(&shader_source(&SHADER_PARTS));
-        validate(PLANE_TO_LAYER_WGSL);
-    }
-
-    fn validate(src: &str) {
-        let module = match naga::front::wgsl::parse_str(src) {
-            Ok(m) => m,
-            Err(e) => panic!("{}", e.emit_to_string(src)),
-        };
-        let mut v = naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        );
-        if let Err(e) = v.validate(&module) {
-            panic!("{e:?}");
+        for (name, src) in [
+            ("backprojection", shader_source(&SHADER_PARTS)),
+            ("plane_to_layer", PLANE_TO_LAYER_WGSL.to_string()),
+        ] {
+            if let Err(e) = validate_wgsl(name, &src) {
+                panic!("{e}");
+            }
         }
     }
 
     #[test]
-    fn uniforms_have_the_wgsl_sizes() {
+    fn uniforms_match_the_wgsl() {
+        shadow_map_core::assert_wgsl_layout!(
+            shader_source(&SHADER_PARTS),
+            BpUniform {
+                half,
+                area,
+                b0,
+                b1,
+                midpoint,
+                gap_filling,
+                max_nspp,
+                sqrt_nspp,
+                layers,
+                midpoints,
+                mssm_present,
+                mssm_levels,
+                mssm_size,
+                _pad0,
+                _pad1,
+            }
+        );
         assert_eq!(std::mem::size_of::<BpUniform>(), 64);
+        shadow_map_core::assert_wgsl_layout!(
+            PLANE_TO_LAYER_WGSL,
+            PlaneCopy {
+                size,
+                layer,
+                _pad0,
+                _pad1,
+            }
+        );
         assert_eq!(std::mem::size_of::<PlaneCopy>(), 16);
     }
 }

@@ -1,4 +1,4 @@
-//! Pure geometry of micropatch backprojection (background.md §2; Bavoil 2008 eq. 1, §3).
+//! Pure geometry of micropatch backprojection (docs/methods.md §2; Bavoil 2008 eq. 1, §3).
 //!
 //! Conventions: light space with the light centre at the origin, light plane z = 0, shadow-map
 //! plane z = n, texel coordinates `u = (n x / z - x0) / delta` (see
@@ -11,30 +11,9 @@
 /// others leave it.
 pub const FAR_BOUND: f32 = 1e30;
 
-/// Kernel (search-area) width in texels along one axis (background.md §2 "Search area"; Bavoil
-/// §2 `w_0`, Yang eq. 1):
-///
-/// `W = alpha * l * (1/z_m - 1/z_p)`, `alpha = n r / w`,
-///
-/// where `l` is the light's extent on that axis, `z_m` a lower bound of the occluder depths and
-/// `z_p` the receiver depth. With `z_m = n` this is Bavoil's `w_0`. Returns 0 when `z_m >= z_p`
-/// (nothing between), and never NaN: non-positive `z_m` is treated as the smallest positive
-/// float (the kernel then saturates at `f32::MAX`).
-#[inline]
-pub fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
-    if !(z_m < z_p) {
-        return 0.0;
-    }
-    let zm = z_m.max(f32::MIN_POSITIVE);
-    let w = alpha * l * (1.0 / zm - 1.0 / z_p);
-    if w.is_finite() {
-        w.max(0.0)
-    } else {
-        f32::MAX
-    }
-}
+pub use shadow_map_core::mssm::kernel_width;
 
-/// Scale of a backprojected texel on the light plane (background.md §2 "Backprojected
+/// Scale of a backprojected texel on the light plane (docs/methods.md §2 "Backprojected
 /// micropatch"; Bavoil eq. 1 before his division by l):
 ///
 /// `S = k z_s z_p / (z_p - z_s)`, `k = w / (n r)` (the texel pitch over n).
@@ -72,7 +51,7 @@ pub struct Rect {
 /// Backprojects the micropatch covering the texel span `[i0, i1] x [j0, j1]` (texel coordinates;
 /// `[i, i+1] x [j, j+1]` for one texel, wider for the adaptive step of Bavoil §5) at depth `z_s`
 /// from the receiver at texel coordinates `(u_p, v_p)` and depth `z_p` onto the light plane
-/// (background.md §2, exact closed form; Bavoil eq. 1):
+/// (docs/methods.md §2, exact closed form; Bavoil eq. 1):
 ///
 /// `B_s = [(i0 - u_p) S, (i1 - u_p) S] x [(j0 - v_p) S, (j1 - v_p) S]`, S from
 /// [`micropatch_scale`].
@@ -106,7 +85,7 @@ pub fn backprojected_micropatch(
 }
 
 /// Area of `rect ∩ L` for the rectangle light `L = [-l_x/2, l_x/2] x [-l_y/2, l_y/2]`
-/// (background.md §2 "Estimator": `area(B_s(p) ∩ L)`). 0 for empty or inverted rectangles.
+/// (docs/methods.md §2 "Estimator": `area(B_s(p) ∩ L)`). 0 for empty or inverted rectangles.
 #[inline]
 pub fn light_overlap_area(rect: &Rect, half: [f32; 2]) -> f64 {
     let dx = (rect.x1.min(half[0]) as f64 - rect.x0.max(-half[0]) as f64).max(0.0);

@@ -1,5 +1,5 @@
 //! The hard shadow map (Williams 1978): one binary depth test at the receiver's texel, the
-//! point-light limit every soft estimator must reach as the light shrinks (background.md §10.4).
+//! point-light limit every soft estimator must reach as the light shrinks (docs/methods.md §10.4).
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
 use glam::Vec3;

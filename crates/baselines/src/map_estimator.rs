@@ -1,6 +1,6 @@
 //! One shadow map at the light centre, filtered per receiver: the frame shared by the hard, PCF
 //! and PCSS baselines. Each supplies only its [`Filter`].
-use crate::common::{self, receiver_bias};
+use crate::common;
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
     light_space::LightSpace,
@@ -225,7 +225,7 @@ pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
             outside.fetch_add(1, Ordering::Relaxed);
             return facing;
         }
-        let eps = receiver_bias(view, p, n, b0, b1) + extra_eps;
+        let eps = view.receiver_bias(p, n, b0, b1) + extra_eps;
         facing * filter.visibility(view, map, light, &ReceiverSample { p, n, uv, eps })
     });
     (nonfinite, outside.into_inner())

@@ -1,7 +1,7 @@
-//! Multi-sample shadows (Heckbert & Herf 1997; background.md §6): the average of S x S hard
+//! Multi-sample shadows (Heckbert & Herf 1997; docs/methods.md §6): the average of S x S hard
 //! shadow maps rendered from jittered stratified points on the light, the papers' brute-force
 //! reference. Only one map is alive at a time.
-use crate::common::{self, receiver_bias, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::common::{self, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::encode_layer0;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -157,7 +157,7 @@ impl SoftShadowEstimator for MultiSample {
                     return;
                 }
                 let n = view.frame.dir_to_light(nw);
-                let eps = receiver_bias(view, p, n, b0, b1) + half_step;
+                let eps = view.receiver_bias(p, n, b0, b1) + half_step;
                 let (i, j) = (uv.x.floor() as i32, uv.y.floor() as i32);
                 let z = match &q16 {
                     Some(q) => q.at(i, j),

@@ -1,5 +1,5 @@
-//! Percentage-closer filtering (Reeves, Salesin, Cook 1987; background.md §5): compare first, then
-//! filter, over an N x N block of texels centred on the receiver's texel.
+//! Percentage-closer filtering (Reeves, Salesin, Cook 1987; docs/methods.md §5): compare first,
+//! then filter, over an N x N block of texels centred on the receiver's texel.
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
 use shadow_map_core::light_view::{LightView, FIT, NEARFAR};

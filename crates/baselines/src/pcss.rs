@@ -1,4 +1,4 @@
-//! Percentage-closer soft shadows (Fernando 2005), in the exact form of background.md §5: all
+//! Percentage-closer soft shadows (Fernando 2005), in the exact form of docs/methods.md §5: all
 //! depths linear light-space z, lengths on the plane z = n, filter widths (not radii).
 use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
 use crate::map_estimator::{cells, Filter, MapEstimator, ReceiverSample};
@@ -7,7 +7,7 @@ use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
 use shadow_map_core::precision::DEPTH;
 use shadow_map_core::{DepthLookup, Light, LightShape, ParamKind, ParamSpec, Params};
 
-/// PCSS, step by step (background.md §5):
+/// PCSS, step by step (docs/methods.md §5):
 /// 1. blocker search over the cut of the receiver-light pyramid at the near plane,
 ///    `W_search = l (z_r - n) / z_r` on the plane z = n (per axis for rect lights);
 /// 2. `z_avg` = mean depth of the samples with `z_i < z_r - eps` (none: V = 1);

@@ -1,10 +1,11 @@
 //! Reading and writing visibility images (OpenEXR) and PNG previews.
 //!
-//! The EXR layout follows `notes/contract.md` exactly: one float32 channel per
-//! quantity, one pixel per camera pixel, row 0 at the top. The channels that
-//! every visibility image carries are [`CHANNEL_V`] (fraction of the light's
-//! area visible, NaN on background pixels) and [`CHANNEL_Z`] (view-space depth,
-//! +inf on background pixels); more channels may be added under their own names.
+//! The EXR layout follows the contract exactly (docs/methods.md §11, "Visibility
+//! image"): one float32 channel per quantity, one pixel per camera pixel, row 0
+//! at the top. The channels that every visibility image carries are
+//! [`CHANNEL_V`] (fraction of the light's area visible, NaN on background
+//! pixels) and [`CHANNEL_Z`] (view-space depth, +inf on background pixels);
+//! more channels may be added under their own names.
 //!
 //! Every writer in this module is atomic: the data goes to a temporary file in
 //! the target's directory (`.{name}.tmp-{pid}-{n}`), which is flushed, synced

@@ -1,9 +1,10 @@
 //! `softshadow`: render a scene's visibility with any estimator, list the estimators, score an
-//! image against a reference (contract.md, "The command line").
+//! image against a reference (docs/methods.md §11, "The command line").
 mod exr_io;
 mod path;
 mod report;
 mod score;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use serde_json::{json, Map, Value};
@@ -29,7 +30,7 @@ enum Cmd {
     /// Render the visibility image V (and view depth Z) of a scene with one estimator.
     #[command(after_help = algos_help())]
     Render {
-        /// Scene file (TOML, see contract.md).
+        /// Scene file (TOML, see docs/methods.md §11).
         scene: PathBuf,
         /// Estimator name (`softshadow algos` lists them).
         #[arg(long)]

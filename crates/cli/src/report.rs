@@ -28,8 +28,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// One setting of a sweep: `(key, value)` overrides.
-type Setting = Vec<(&'static str, String)>;
+use crate::sweep::Setting;
 
 /// The baselines, marked as such in plots and tables.
 pub const BASELINES: &[&str] = &["hard", "pcf", "pcss", "multi-sample"];
@@ -222,7 +221,7 @@ pub fn report(args: &ReportArgs) -> Result<(), String> {
             }
             let e = estimator(name, *b).map_err(|e| format!("{name} {b}: {e}"))?;
             let mut settings = vec![Vec::new()];
-            settings.extend(e.sweep(args.quick));
+            settings.extend(crate::sweep::settings(name, e.params(), args.quick));
             plan.push((name, *b, settings));
         }
     }
@@ -562,9 +561,43 @@ fn write_outputs(
     flicker: &[FlickerRow],
     seconds: f64,
 ) -> Result<(), String> {
-    let w =
-        |p: PathBuf, s: String| std::fs::write(&p, s).map_err(|e| format!("{}: {e}", p.display()));
     // CSV and JSON.
+    write_file(args.out.join("results.csv"), results_csv(rows))?;
+    write_file(
+        args.out.join("results.json"),
+        results_json(args, rows, flicker, seconds)?,
+    )?;
+    write_file(args.out.join("flicker.csv"), flicker_csv(flicker))?;
+
+    // index.md
+    let mut md = index_intro(args, fixtures, rows, seconds);
+    let budgets = [10.0, 30.0, 100.0, 300.0, 1000.0, f64::INFINITY];
+    let mut summary = summary_header(&budgets);
+    let mut matched = matched_header();
+    for fx in fixtures {
+        let fr: Vec<&Row> = rows.iter().filter(|r| &r.fixture == fx).collect();
+        let svg = format!("plot-{fx}.svg");
+        plot(&args.out.join(&svg), fx, &fr)?;
+        fixture_section(&mut md, fx, &svg, &fr);
+        summary_row(&mut summary, fx, &fr, &budgets);
+        matched_rows(&mut matched, fx, &fr);
+    }
+    md.push_str(&summary);
+    md.push('\n');
+    md.push_str(&matched);
+    md.push('\n');
+    flicker_section(&mut md, flicker);
+    write_file(args.out.join("index.md"), md)?;
+    Ok(())
+}
+
+/// Writes `s` to `p`, naming the path in the error.
+fn write_file(p: PathBuf, s: String) -> Result<(), String> {
+    std::fs::write(&p, s).map_err(|e| format!("{}: {e}", p.display()))
+}
+
+/// `results.csv`: one line per run.
+fn results_csv(rows: &[Row]) -> String {
     let mut csv = String::from("fixture,algo,backend,setting,params,status,build_ms,estimate_ms,frame_ms,rmse,mae,p99,frac_gt_0_1,nonfinite,light_space_bytes\n");
     for r in rows {
         let params: Vec<String> = r.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
@@ -588,14 +621,26 @@ fn write_outputs(
             r.light_space_bytes
         );
     }
-    w(args.out.join("results.csv"), csv)?;
-    let jnum = |x: f64| {
-        if x.is_finite() {
-            json!(x)
-        } else {
-            serde_json::Value::Null
-        }
-    };
+    csv
+}
+
+/// A JSON number, or `null` when not finite.
+fn json_num(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
+/// `results.json`: the runs and flicker rows, pretty-printed.
+fn results_json(
+    args: &ReportArgs,
+    rows: &[Row],
+    flicker: &[FlickerRow],
+    seconds: f64,
+) -> Result<String, String> {
+    let jnum = json_num;
     let jrows: Vec<serde_json::Value> = rows
         .iter()
         .map(|r| {
@@ -619,16 +664,17 @@ fn write_outputs(
             })
         })
         .collect();
-    w(
-        args.out.join("results.json"),
-        serde_json::to_string_pretty(&json!({
-            "quick": args.quick,
-            "seconds": seconds,
-            "runs": jrows,
-            "flicker": jflicker,
-        }))
-        .map_err(|e| e.to_string())?,
-    )?;
+    serde_json::to_string_pretty(&json!({
+        "quick": args.quick,
+        "seconds": seconds,
+        "runs": jrows,
+        "flicker": jflicker,
+    }))
+    .map_err(|e| e.to_string())
+}
+
+/// `flicker.csv`: one line per flicker measurement.
+fn flicker_csv(flicker: &[FlickerRow]) -> String {
     let mut fcsv = String::from("fixture,algo,backend,fit,mean_abs_dv,p99_abs_dv,pairs\n");
     for f in flicker {
         let _ = writeln!(
@@ -643,9 +689,11 @@ fn write_outputs(
             f.pairs
         );
     }
-    w(args.out.join("flicker.csv"), fcsv)?;
+    fcsv
+}
 
-    // index.md
+/// The title and opening paragraph of `index.md`.
+fn index_intro(args: &ReportArgs, fixtures: &[String], rows: &[Row], seconds: f64) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# softshadow report\n");
     let _ =
@@ -662,14 +710,18 @@ fn write_outputs(
         args.out.display(),
         if args.quick { 256 } else { 1024 }
     );
-    let budgets = [10.0, 30.0, 100.0, 300.0, 1000.0, f64::INFINITY];
+    md
+}
+
+/// The heading and table head of the summary: one column per time budget.
+fn summary_header(budgets: &[f64]) -> String {
     let mut summary = String::new();
     let _ = writeln!(
         summary,
         "## Summary: most accurate setting within each time budget\n"
     );
     let _ = write!(summary, "| fixture |");
-    for b in budgets {
+    for &b in budgets {
         if b.is_finite() {
             let _ = write!(summary, " <= {b} ms |");
         } else {
@@ -677,6 +729,11 @@ fn write_outputs(
         }
     }
     let _ = writeln!(summary, "\n|---|{}", "---|".repeat(budgets.len()));
+    summary
+}
+
+/// The heading and table head of the matched-time comparison.
+fn matched_header() -> String {
     let mut matched = String::new();
     let _ = writeln!(
         matched,
@@ -685,121 +742,129 @@ fn write_outputs(
          accurate PCSS and multi-sample setting that is no slower.\n\n\
          | fixture | backend | algorithm (setting) | ms | RMSE | PCSS RMSE within that time | multi-sample RMSE within that time |\n|---|---|---|---|---|---|---|"
     );
-    for fx in fixtures {
-        let fr: Vec<&Row> = rows.iter().filter(|r| &r.fixture == fx).collect();
-        let svg = format!("plot-{fx}.svg");
-        plot(&args.out.join(&svg), fx, &fr)?;
-        let _ = writeln!(md, "## {fx}\n\n![{fx}]({svg})\n");
-        let _ = writeln!(md, "Pareto-optimal settings:\n\n| algo | backend | setting | ms | RMSE | p99 |\n|---|---|---|---|---|---|");
-        for i in pareto(&fr) {
-            let r = fr[i];
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {:.1} | {:.4} | {:.3} |",
-                r.algo, r.backend, r.setting, r.frame_ms, r.rmse, r.p99
-            );
-        }
-        let rejected: Vec<String> = fr
-            .iter()
-            .filter(|r| r.status != "ok")
-            .map(|r| format!("{} {} ({})", r.algo, r.backend, r.status))
-            .collect::<std::collections::BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        if !rejected.is_empty() {
-            let _ = writeln!(md, "\nNot run: {}", rejected.join("; "));
-        }
-        let _ = writeln!(md, "\nMost accurate setting of each algorithm (V, then error: blue too dark, red too bright):\n");
+    matched
+}
+
+/// A fixture's section of `index.md`: its plot, Pareto table, runs not made and best images.
+fn fixture_section(md: &mut String, fx: &str, svg: &str, fr: &[&Row]) {
+    let _ = writeln!(md, "## {fx}\n\n![{fx}]({svg})\n");
+    let _ = writeln!(md, "Pareto-optimal settings:\n\n| algo | backend | setting | ms | RMSE | p99 |\n|---|---|---|---|---|---|");
+    for i in pareto(fr) {
+        let r = fr[i];
         let _ = writeln!(
             md,
-            "| reference | | |\n|---|---|---|\n| ![ref](images/{fx}-reference.png) | | |"
+            "| {} | {} | {} | {:.1} | {:.4} | {:.3} |",
+            r.algo, r.backend, r.setting, r.frame_ms, r.rmse, r.p99
         );
-        let mut algos: Vec<(String, String)> = fr
+    }
+    let rejected: Vec<String> = fr
+        .iter()
+        .filter(|r| r.status != "ok")
+        .map(|r| format!("{} {} ({})", r.algo, r.backend, r.status))
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    if !rejected.is_empty() {
+        let _ = writeln!(md, "\nNot run: {}", rejected.join("; "));
+    }
+    let _ = writeln!(md, "\nMost accurate setting of each algorithm (V, then error: blue too dark, red too bright):\n");
+    let _ = writeln!(
+        md,
+        "| reference | | |\n|---|---|---|\n| ![ref](images/{fx}-reference.png) | | |"
+    );
+    let mut algos: Vec<(String, String)> = fr
+        .iter()
+        .filter(|r| r.status == "ok")
+        .map(|r| (r.algo.clone(), r.backend.clone()))
+        .collect();
+    algos.sort();
+    algos.dedup();
+    for (a, b) in &algos {
+        let best = fr
             .iter()
-            .filter(|r| r.status == "ok")
-            .map(|r| (r.algo.clone(), r.backend.clone()))
-            .collect();
-        algos.sort();
-        algos.dedup();
-        for (a, b) in &algos {
-            let best = fr
-                .iter()
-                .filter(|r| &r.algo == a && &r.backend == b && r.rmse.is_finite())
-                .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
-            if let Some(r) = best {
-                let _ = writeln!(
-                    md,
-                    "| {a} {b} `{}` RMSE {:.4} | ![v](images/{fx}-{a}-{b}.png) | ![e](images/{fx}-{a}-{b}-error.png) |",
-                    r.setting, r.rmse
+            .filter(|r| &r.algo == a && &r.backend == b && r.rmse.is_finite())
+            .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
+        if let Some(r) = best {
+            let _ = writeln!(
+                md,
+                "| {a} {b} `{}` RMSE {:.4} | ![v](images/{fx}-{a}-{b}.png) | ![e](images/{fx}-{a}-{b}-error.png) |",
+                r.setting, r.rmse
+            );
+        }
+    }
+    let _ = writeln!(md);
+}
+
+/// A fixture's summary row: its most accurate run within each time budget.
+fn summary_row(summary: &mut String, fx: &str, fr: &[&Row], budgets: &[f64]) {
+    let _ = write!(summary, "| {fx} |");
+    for &b in budgets {
+        let best = fr
+            .iter()
+            .filter(|r| r.rmse.is_finite() && r.frame_ms <= b)
+            .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
+        match best {
+            Some(r) => {
+                let _ = write!(
+                    summary,
+                    " {} {} `{}` {:.4} |",
+                    r.algo, r.backend, r.setting, r.rmse
                 );
             }
-        }
-        let _ = writeln!(md);
-        // Summary row.
-        let _ = write!(summary, "| {fx} |");
-        for b in budgets {
-            let best = fr
-                .iter()
-                .filter(|r| r.rmse.is_finite() && r.frame_ms <= b)
-                .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
-            match best {
-                Some(r) => {
-                    let _ = write!(
-                        summary,
-                        " {} {} `{}` {:.4} |",
-                        r.algo, r.backend, r.setting, r.rmse
-                    );
-                }
-                None => {
-                    let _ = write!(summary, " none |");
-                }
-            }
-        }
-        let _ = writeln!(summary);
-        for backend in ["cpu", "gpu"] {
-            for seed in ALGOS
-                .iter()
-                .filter(|a| **a != "reference" && !BASELINES.contains(a))
-            {
-                let best = fr
-                    .iter()
-                    .filter(|r| r.algo == *seed && r.backend == backend && r.rmse.is_finite())
-                    .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
-                let Some(s) = best else { continue };
-                let within = |algo: &str| {
-                    fr.iter()
-                        .filter(|r| {
-                            r.algo == algo
-                                && r.backend == backend
-                                && r.rmse.is_finite()
-                                && r.frame_ms <= s.frame_ms
-                        })
-                        .map(|r| r.rmse)
-                        .fold(f64::INFINITY, f64::min)
-                };
-                let f = |x: f64| {
-                    if x.is_finite() {
-                        format!("{x:.4}")
-                    } else {
-                        "none that fast".into()
-                    }
-                };
-                let _ = writeln!(
-                    matched,
-                    "| {fx} | {backend} | {seed} (`{}`) | {:.1} | {:.4} | {} | {} |",
-                    s.setting,
-                    s.frame_ms,
-                    s.rmse,
-                    f(within("pcss")),
-                    f(within("multi-sample"))
-                );
+            None => {
+                let _ = write!(summary, " none |");
             }
         }
     }
-    md.push_str(&summary);
-    md.push('\n');
-    md.push_str(&matched);
-    md.push('\n');
+    let _ = writeln!(summary);
+}
+
+/// A fixture's matched-time rows: each seed algorithm's best run per backend against the best
+/// PCSS and multi-sample runs that are no slower.
+fn matched_rows(matched: &mut String, fx: &str, fr: &[&Row]) {
+    for backend in ["cpu", "gpu"] {
+        for seed in ALGOS
+            .iter()
+            .filter(|a| **a != "reference" && !BASELINES.contains(a))
+        {
+            let best = fr
+                .iter()
+                .filter(|r| r.algo == *seed && r.backend == backend && r.rmse.is_finite())
+                .min_by(|x, y| x.rmse.total_cmp(&y.rmse));
+            let Some(s) = best else { continue };
+            let within = |algo: &str| {
+                fr.iter()
+                    .filter(|r| {
+                        r.algo == algo
+                            && r.backend == backend
+                            && r.rmse.is_finite()
+                            && r.frame_ms <= s.frame_ms
+                    })
+                    .map(|r| r.rmse)
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let f = |x: f64| {
+                if x.is_finite() {
+                    format!("{x:.4}")
+                } else {
+                    "none that fast".into()
+                }
+            };
+            let _ = writeln!(
+                matched,
+                "| {fx} | {backend} | {seed} (`{}`) | {:.1} | {:.4} | {} | {} |",
+                s.setting,
+                s.frame_ms,
+                s.rmse,
+                f(within("pcss")),
+                f(within("multi-sample"))
+            );
+        }
+    }
+}
+
+/// The flicker section of `index.md`: one table row per fit-mode measurement.
+fn flicker_section(md: &mut String, flicker: &[FlickerRow]) {
     let _ = writeln!(
         md,
         "## Flicker per fit mode\n\nMean and 99th percentile of |dV| between consecutive frames \
@@ -813,6 +878,4 @@ fn write_outputs(
             f.fixture, f.algo, f.backend, f.fit, f.mean_abs_dv, f.p99_abs_dv, f.pairs
         );
     }
-    w(args.out.join("index.md"), md)?;
-    Ok(())
 }

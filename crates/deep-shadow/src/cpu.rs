@@ -39,7 +39,7 @@ pub fn sublight_view(
 /// The view of the point light at `y` (light-plane coordinates): centre of projection there, axes
 /// parallel to the light frame, fitted to the receivers by [`LightView::fit_with`] with `opts`
 /// (`fit`, `nearfar`), then given `margin` texels on every side (keeping r), so an N x N filter
-/// kernel (`margin = N / 2`) around any receiver stays inside the map (background.md §1
+/// kernel (`margin = N / 2`) around any receiver stays inside the map (docs/methods.md §1
 /// "Coverage": the window must hold every receiver's projection plus half its kernel).
 ///
 /// `fit=receivers` and `fit=scene`: the window is widened by `margin` texels of the widened map on
@@ -189,17 +189,6 @@ pub enum Query {
     },
 }
 
-/// Receiver-side depth bias in world units, as in the baselines (background.md §2
-/// "Self-shadowing"): `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
-#[inline]
-pub fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
-    let texel = view.w * p.z / (view.n * view.r as f32);
-    let to_light = (-p).normalize_or_zero();
-    let cos = n.dot(to_light).abs().max(1e-6);
-    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
-    texel * (b0 + b1 * tan.min(10.0))
-}
-
 /// The query of a receiver at world position `pw`, normal `nw`, in `view` (centre of projection
 /// `view.frame.origin`).
 pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
@@ -215,7 +204,7 @@ pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
         return Query::Fixed(1.0);
     }
     let n = view.frame.dir_to_light(nw);
-    let eps = receiver_bias(view, p, n, s.b0, s.b1);
+    let eps = view.receiver_bias(p, n, s.b0, s.b1);
     Query::Look {
         uv: view.project(p),
         d: p.z - eps,
@@ -537,10 +526,6 @@ impl SoftShadowEstimator for CpuDeepShadow {
     }
     fn report(&self) -> Report {
         self.report.clone()
-    }
-    /// Filters (the paper's Table 1.1 columns), sub-lights (soft transmittance) and resolution.
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        crate::params::sweep(quick)
     }
 }
 

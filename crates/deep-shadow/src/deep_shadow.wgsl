@@ -295,7 +295,7 @@ fn find(start: u32, d: f32) -> vec2<u32> {
     return vec2<u32>(NIL, steps);
 }
 
-// EDSM (background.md §7): prod (1 - alpha_j (1 - exp(-c' (d - z_j)))), exponents <= 0 only.
+// EDSM (docs/methods.md §7): prod (1 - alpha_j (1 - exp(-c' (d - z_j)))), exponents <= 0 only.
 fn soft_tau(k: u32, d: f32) -> f32 {
     var prod = 1.0;
     var j = k;

@@ -17,8 +17,8 @@ pub enum Filter {
     None,
     /// Percentage-closer filtering: the mean of `T(d)` over N x N texels (§1.3.5).
     Pcf,
-    /// Exponential deep shadow maps (EDSM, §1.3.5, background.md §7): the mean over N x N texels of
-    /// `tau_c(d) = prod_j (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' max(0, t))`.
+    /// Exponential deep shadow maps (EDSM, §1.3.5, docs/methods.md §7): the mean over N x N
+    /// texels of `tau_c(d) = prod_j (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' max(0, t))`.
     Edsm,
 }
 
@@ -338,7 +338,7 @@ pub fn find(nodes: &[Node], start: u32, d: f32) -> (u32, u32) {
     }
 }
 
-/// EDSM transmittance of one tap (background.md §7, the soft-tested product):
+/// EDSM transmittance of one tap (docs/methods.md §7, the soft-tested product):
 /// `tau_c(d) = prod_{z_j < d} (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' t)`.
 ///
 /// Only the exponent `-c' (d - z_j) <= 0` is ever evaluated (the log-space form: `exp(c z)` on its

@@ -252,93 +252,23 @@ impl GpuDeepShadow {
         let ctx = &self.ctx;
         let r = view.r;
         let texels = r as u64 * r as u64;
-        let l = ctx.limits();
-        if texels * 4 > l.max_storage_buffer_binding_size.min(l.max_buffer_size) {
-            return Err(Error::Limit {
-                what: "deep-shadow head buffer bytes (lower the resolution)",
-                requested: texels * 4,
-                max: l.max_storage_buffer_binding_size,
-            });
-        }
+        self.check_head_bytes(texels)?;
         let prepared = prepare(scene, view);
-        let tris: Vec<Tri> = prepared
-            .iter()
-            .map(|t| Tri {
-                u0: t.uv[0].x as f32,
-                v0: t.uv[0].y as f32,
-                u1: t.uv[1].x as f32,
-                v1: t.uv[1].y as f32,
-                u2: t.uv[2].x as f32,
-                v2: t.uv[2].y as f32,
-                iz0: t.inv_z[0] as f32,
-                iz1: t.inv_z[1] as f32,
-                iz2: t.inv_z[2] as f32,
-                alpha: t.alpha,
-                _pad0: 0,
-                _pad1: 0,
-            })
-            .collect();
-        let mut items: Vec<[u32; 4]> = Vec::new();
-        let rf = r as f64;
-        for (k, t) in prepared.iter().enumerate() {
-            let lo = t.uv[0].min(t.uv[1]).min(t.uv[2]);
-            let hi = t.uv[0].max(t.uv[1]).max(t.uv[2]);
-            let i0 = (lo.x - 0.5).ceil().clamp(0.0, rf) as u32;
-            let i1 = ((hi.x - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
-            let j0 = (lo.y - 0.5).ceil().clamp(0.0, rf) as u32;
-            let j1 = ((hi.y - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
-            if i0 >= i1 || j0 >= j1 {
-                continue;
-            }
-            for ty in j0 / TILE..=(j1 - 1) / TILE {
-                for tx in i0 / TILE..=(i1 - 1) / TILE {
-                    items.push([k as u32, tx * TILE, ty * TILE, 0]);
-                }
-            }
-        }
+        let tris = Self::gpu_triangles(&prepared);
+        let items = Self::raster_items(&prepared, r);
         let dev_cap = self.device_capacity();
         let max_cap = s.max_capacity.min(dev_cap).min(u32::MAX as u64 - 1);
-        let mut capacity = if opaque {
-            1
-        } else if s.capacity == 0 {
-            (4 * texels).max(1024)
-        } else {
-            s.capacity
-        }
-        .min(max_cap)
-        .max(1);
+        let mut capacity = Self::initial_capacity(s, opaque, texels, max_cap);
         let tri_buf = self.storage("deep-shadow triangles", bytemuck::cast_slice(&tris));
         let item_buf = self.storage("deep-shadow raster items", bytemuck::cast_slice(&items));
         let dummy = self.storage("deep-shadow unused (read)", &[0u8; 16]);
         let dummy_rw = self.storage("deep-shadow unused (write)", &[0u8; 16]);
-        let head = ctx.scoped("deep-shadow head", || {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("deep-shadow head"),
-                size: texels * 4,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
-        })?;
-        let counters = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("deep-shadow counters"),
-            size: 8,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (head, counters) = self.head_and_counters(texels)?;
         let mut passes = 0;
         let mut map;
         loop {
             passes += 1;
-            let nodes = ctx.scoped("deep-shadow element buffer", || {
-                ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("deep-shadow elements"),
-                    size: capacity * std::mem::size_of::<Node>() as u64,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
-                })
-            })?;
+            let nodes = self.element_buffer(capacity)?;
             map = GpuMap {
                 r,
                 head: head.clone(),
@@ -362,26 +292,7 @@ impl GpuDeepShadow {
                 _pad2: 0,
             });
             let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
-            ctx.scoped("deep-shadow raster", || {
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                enc.clear_buffer(&counters, 0, None);
-                {
-                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("deep-shadow build"),
-                        timestamp_writes: None,
-                    });
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.set_pipeline(&self.pipes.clear);
-                    dispatch(&mut pass, texels);
-                    pass.set_pipeline(if opaque {
-                        &self.pipes.raster_opaque
-                    } else {
-                        &self.pipes.raster
-                    });
-                    dispatch(&mut pass, items.len() as u64);
-                }
-                ctx.queue.submit([enc.finish()]);
-            })?;
+            self.run_raster(&group, &counters, texels, items.len() as u64, opaque)?;
             let count = ctx.read_buffer::<u32>(&counters, 8)?[0] as u64;
             if opaque || count <= capacity {
                 map.stats = BuildStats {
@@ -392,21 +303,7 @@ impl GpuDeepShadow {
                 };
                 // Process and link (§1.3.2, §1.3.3).
                 if !opaque {
-                    ctx.scoped("deep-shadow process", || {
-                        let mut enc = ctx.device.create_command_encoder(&Default::default());
-                        {
-                            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                                label: Some("deep-shadow process"),
-                                timestamp_writes: None,
-                            });
-                            pass.set_bind_group(0, &group, &[]);
-                            pass.set_pipeline(&self.pipes.process);
-                            dispatch(&mut pass, texels);
-                            pass.set_pipeline(&self.pipes.link);
-                            dispatch(&mut pass, texels);
-                        }
-                        ctx.queue.submit([enc.finish()]);
-                    })?;
+                    self.run_process_link(&group, texels)?;
                 }
                 ctx.wait()?;
                 return Ok(map);
@@ -421,6 +318,166 @@ impl GpuDeepShadow {
             }
             capacity = count;
         }
+    }
+
+    /// Fails with [`Error::Limit`] when the `texels`-entry head buffer exceeds what the device
+    /// can allocate and bind.
+    fn check_head_bytes(&self, texels: u64) -> Result<()> {
+        let l = self.ctx.limits();
+        if texels * 4 > l.max_storage_buffer_binding_size.min(l.max_buffer_size) {
+            return Err(Error::Limit {
+                what: "deep-shadow head buffer bytes (lower the resolution)",
+                requested: texels * 4,
+                max: l.max_storage_buffer_binding_size,
+            });
+        }
+        Ok(())
+    }
+
+    /// Creates the head buffer (one entry per texel) and the two-word counter buffer.
+    fn head_and_counters(&self, texels: u64) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+        let ctx = &self.ctx;
+        let head = ctx.scoped("deep-shadow head", || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("deep-shadow head"),
+                size: texels * 4,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        })?;
+        let counters = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("deep-shadow counters"),
+            size: 8,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok((head, counters))
+    }
+
+    /// Creates the list element buffer of `capacity` nodes.
+    fn element_buffer(&self, capacity: u64) -> Result<wgpu::Buffer> {
+        let ctx = &self.ctx;
+        ctx.scoped("deep-shadow element buffer", || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("deep-shadow elements"),
+                size: capacity * std::mem::size_of::<Node>() as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        })
+    }
+
+    /// Submits the clear and raster stages (counters zeroed first), without waiting.
+    fn run_raster(
+        &self,
+        group: &wgpu::BindGroup,
+        counters: &wgpu::Buffer,
+        texels: u64,
+        n_items: u64,
+        opaque: bool,
+    ) -> Result<()> {
+        let ctx = &self.ctx;
+        ctx.scoped("deep-shadow raster", || {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            enc.clear_buffer(counters, 0, None);
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("deep-shadow build"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(0, group, &[]);
+                pass.set_pipeline(&self.pipes.clear);
+                dispatch(&mut pass, texels);
+                pass.set_pipeline(if opaque {
+                    &self.pipes.raster_opaque
+                } else {
+                    &self.pipes.raster
+                });
+                dispatch(&mut pass, n_items);
+            }
+            ctx.queue.submit([enc.finish()]);
+        })
+    }
+
+    /// Submits the process and link stages over every texel, without waiting.
+    fn run_process_link(&self, group: &wgpu::BindGroup, texels: u64) -> Result<()> {
+        let ctx = &self.ctx;
+        ctx.scoped("deep-shadow process", || {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("deep-shadow process"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(0, group, &[]);
+                pass.set_pipeline(&self.pipes.process);
+                dispatch(&mut pass, texels);
+                pass.set_pipeline(&self.pipes.link);
+                dispatch(&mut pass, texels);
+            }
+            ctx.queue.submit([enc.finish()]);
+        })
+    }
+
+    /// The prepared triangles as the shader's [`Tri`]s (texel coordinates and 1/z in f32).
+    fn gpu_triangles(prepared: &[crate::raster::PreparedTri]) -> Vec<Tri> {
+        prepared
+            .iter()
+            .map(|t| Tri {
+                u0: t.uv[0].x as f32,
+                v0: t.uv[0].y as f32,
+                u1: t.uv[1].x as f32,
+                v1: t.uv[1].y as f32,
+                u2: t.uv[2].x as f32,
+                v2: t.uv[2].y as f32,
+                iz0: t.inv_z[0] as f32,
+                iz1: t.inv_z[1] as f32,
+                iz2: t.inv_z[2] as f32,
+                alpha: t.alpha,
+                _pad0: 0,
+                _pad1: 0,
+            })
+            .collect()
+    }
+
+    /// The raster work items `[triangle, tile x, tile y, 0]`: one per `TILE x TILE` tile of an
+    /// `r x r` map that a triangle's texel-centre bounding box touches.
+    fn raster_items(prepared: &[crate::raster::PreparedTri], r: u32) -> Vec<[u32; 4]> {
+        let mut items: Vec<[u32; 4]> = Vec::new();
+        let rf = r as f64;
+        for (k, t) in prepared.iter().enumerate() {
+            let lo = t.uv[0].min(t.uv[1]).min(t.uv[2]);
+            let hi = t.uv[0].max(t.uv[1]).max(t.uv[2]);
+            let i0 = (lo.x - 0.5).ceil().clamp(0.0, rf) as u32;
+            let i1 = ((hi.x - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
+            let j0 = (lo.y - 0.5).ceil().clamp(0.0, rf) as u32;
+            let j1 = ((hi.y - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
+            if i0 >= i1 || j0 >= j1 {
+                continue;
+            }
+            for ty in j0 / TILE..=(j1 - 1) / TILE {
+                for tx in i0 / TILE..=(i1 - 1) / TILE {
+                    items.push([k as u32, tx * TILE, ty * TILE, 0]);
+                }
+            }
+        }
+        items
+    }
+
+    /// The first build's element capacity: 1 for an opaque map, else the setting (0: four per
+    /// texel, at least 1024), within `1..=max_cap`.
+    fn initial_capacity(s: &Settings, opaque: bool, texels: u64, max_cap: u64) -> u64 {
+        if opaque {
+            1
+        } else if s.capacity == 0 {
+            (4 * texels).max(1024)
+        } else {
+            s.capacity
+        }
+        .min(max_cap)
+        .max(1)
     }
 
     /// The in-run ceiling of the build: bare list inserts per second (`ceiling_insert` in the
@@ -665,10 +722,6 @@ impl SoftShadowEstimator for GpuDeepShadow {
     }
     fn report(&self) -> Report {
         self.report.clone()
-    }
-    /// Filters (the paper's Table 1.1 columns), sub-lights (soft transmittance) and resolution.
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        crate::params::sweep(quick)
     }
 }
 

@@ -1,7 +1,7 @@
 //! The parameter table both twins share, and the settings read from it.
 use crate::dsm::{Filter, Traversal};
 use shadow_map_core::{
-    light_view::{ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
+    light_view::{ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION, SLOPE_BIAS},
     Error, ParamKind, ParamSpec, Params, Result,
 };
 
@@ -10,31 +10,9 @@ pub const NAME: &str = "deep-shadow";
 /// One-line description, shared by both twins.
 pub const DESCRIPTION: &str = "deep shadow maps: per-texel linked lists of semi-transparent fragments, sorted and truncated, PCF/EDSM with neighbour links (Fürst et al.); S x S sub-lights for soft transmittance";
 
-/// The settings `softshadow report` runs besides the defaults (both twins).
-pub fn sweep(quick: bool) -> Vec<Vec<(&'static str, String)>> {
-    let kv = |p: &[(&'static str, &str)]| p.iter().map(|(k, v)| (*k, v.to_string())).collect();
-    if quick {
-        return vec![kv(&[("resolution", "256")]), kv(&[("sublights", "2")])];
-    }
-    vec![
-        kv(&[("filter", "pcf"), ("kernel", "5")]),
-        kv(&[("filter", "edsm"), ("kernel", "5")]),
-        kv(&[("sublights", "2")]),
-        kv(&[("sublights", "3")]),
-        kv(&[("sublights", "2"), ("filter", "pcf"), ("kernel", "3")]),
-        kv(&[("resolution", "256")]),
-        kv(&[("resolution", "512")]),
-    ]
-}
-
 /// The parameters, shared by both twins.
 pub const SPECS: &[ParamSpec] = &[
-    ParamSpec {
-        key: "resolution",
-        kind: ParamKind::Int { min: 1, max: MAX_RESOLUTION as i64 },
-        default: "1024",
-        help: "shadow-map resolution r (texels per side)",
-    },
+    RESOLUTION,
     ParamSpec {
         key: "filter",
         kind: ParamKind::Choice(&["none", "pcf", "edsm", "first"]),
@@ -51,7 +29,7 @@ pub const SPECS: &[ParamSpec] = &[
         key: "c",
         kind: ParamKind::Float { min: 0.001, max: 1e6 },
         default: "80",
-        help: "EDSM sharpness c over depth normalised to [n, far] (background.md §7)",
+        help: "EDSM sharpness c over depth normalised to [n, far] (docs/methods.md §7)",
     },
     ParamSpec {
         key: "epsilon",
@@ -71,17 +49,10 @@ pub const SPECS: &[ParamSpec] = &[
         default: "1",
         help: "S: S x S point sub-lights at the strata centres of the light, one deep shadow map each, T averaged (1: the light centre)",
     },
+    BIAS,
     ParamSpec {
-        key: "bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
-        help: "constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
-    },
-    ParamSpec {
-        key: "slope_bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
         help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
+        ..SLOPE_BIAS
     },
     ParamSpec {
         key: "capacity",

@@ -6,7 +6,7 @@ pub const NIL: u32 = u32::MAX;
 
 /// One list element (Fürst et al. §1.3.1, Listing 1.1), 32 bytes.
 ///
-/// - `depth`: linear light-space z of the fragment (background.md §1), unbiased (the bias is
+/// - `depth`: linear light-space z of the fragment (docs/methods.md §1), unbiased (the bias is
 ///   applied at the receiver).
 /// - `alpha`: the fragment's opacity `alpha_i` (the mesh's `opacity`, 1 for opaque meshes).
 /// - `tau`: after processing (§1.3.2), the cumulative transmittance through this element,

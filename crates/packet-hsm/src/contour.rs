@@ -1,8 +1,8 @@
-//! Per-pixel contour backprojection (Guennebaud, Barthe, Paulin 2007, "GBP07"; background.md §3),
+//! Per-pixel contour backprojection (Guennebaud, Barthe, Paulin 2007, "GBP07"; docs/methods.md §3),
 //! the exact baseline every acceleration of this crate reproduces, and the hierarchical contour
 //! extraction over the dual-grid MSSM (Yang et al. 2009 §4.2, Algorithm 3).
 //!
-//! Conventions (background.md §1): light space with the light (or sub-light) centre at the
+//! Conventions (docs/methods.md §1): light space with the light (or sub-light) centre at the
 //! origin, light plane z = 0, continuous texel coordinates `(u, v)`, sample (i, j) centred at
 //! `(i + 1/2, j + 1/2)`. Samples outside the map are non-occluders (+inf).
 //!
@@ -10,7 +10,7 @@
 //!   `t_min = t_max = t_p`), a sample with classification depth `c_s` has status
 //!   `f(s) = 1` if `c_s < t_min`, `0` if `c_s >= t_max`, and *null* otherwise. The paper writes
 //!   `z_s <= z_pmin` for status 1; this crate uses the strict `<` so that a one-pixel packet has
-//!   exactly the per-pixel classification `c_s < t_p` (background.md §3 "Classification") and a
+//!   exactly the per-pixel classification `c_s < t_p` (docs/methods.md §3 "Classification") and a
 //!   null never arises for it. See [`Status`].
 //! - **Contour edges**: marching squares on the dual cell with corners c0 = (i, j),
 //!   c1 = (i+1, j), c2 = (i+1, j+1), c3 = (i, j+1) (counter-clockwise); one vertex at the
@@ -163,7 +163,7 @@ fn side(e: &Edge, q: DVec2) -> f64 {
 }
 
 /// Centre status c of the receiver's projection `q = (u_p, v_p)` taken from the contour
-/// (background.md §3 "Centre status"): in the dual cell `floor(q - 1/2)`, all corners agreeing
+/// (docs/methods.md §3 "Centre status"): in the dual cell `floor(q - 1/2)`, all corners agreeing
 /// give their status; otherwise q is occluded when it is left of its edge (two edges, connected
 /// rule: left of both). Returns `None` when q lies on a cell boundary or exactly on an edge (the
 /// caller nudges q, see [`Receiver::new`]).
@@ -204,8 +204,9 @@ pub struct Receiver {
 
 impl Receiver {
     /// Evaluates the centre status, nudging `uv` by a fixed `(2^-12, 2^-13)` texels (up to 8 times)
-    /// while it lies on a cell boundary or exactly on a contour edge (background.md §3: "nudge q by a
-    /// fixed tiny offset before both the status test and the projection").
+    /// while it lies on a cell boundary or exactly on a contour edge (docs/methods.md §3 "Centre
+    /// status": nudge q by a fixed tiny offset, and use the nudged q for both the status test and
+    /// the projection).
     pub fn new(grid: &SampleGrid, uv: DVec2, zp: f64, t: f32) -> Receiver {
         let mut q = uv;
         for _ in 0..8 {
@@ -231,7 +232,7 @@ impl Receiver {
 }
 
 /// Backprojects a contour vertex at texel coordinates `uv` with depth `zs` from the receiver onto
-/// the light plane (background.md §3): `x_L = k z_s z_p (u - u_p) / (z_p - z_s)`, `k = w/(n r)`.
+/// the light plane (docs/methods.md §3): `x_L = k z_s z_p (u - u_p) / (z_p - z_s)`, `k = w/(n r)`.
 /// Light-plane world coordinates relative to the (sub-)light centre. Finite for finite inputs
 /// with `zs < zp` (the difference is floored at `1e-12 z_p`).
 #[inline]
@@ -275,7 +276,7 @@ pub fn clip_to_rect(a: DVec2, b: DVec2, h: DVec2) -> Option<(DVec2, DVec2)> {
 }
 
 /// Signed area of the rectangle light `[-h.x, h.x] x [-h.y, h.y]` inside the angular wedge swept
-/// from direction `a` to direction `b` the short way (background.md §3): the shoelace area of
+/// from direction `a` to direction `b` the short way (docs/methods.md §3): the shoelace area of
 /// `0, a_R, (corners strictly inside the sweep, in sweep order), b_R`, where `a_R` is `a`
 /// projected radially onto the border. Positive for a counter-clockwise sweep.
 pub fn sector_rect(a: DVec2, b: DVec2, h: DVec2) -> f64 {
@@ -318,7 +319,7 @@ pub fn sector_rect(a: DVec2, b: DVec2, h: DVec2) -> f64 {
 }
 
 /// Contribution `tri(a', b') - sector(a', b')` of one contour edge to the occluded area of the
-/// rectangle light with half extents `h`, seen from `rec` (background.md §3 "Radial
+/// rectangle light with half extents `h`, seen from `rec` (docs/methods.md §3 "Radial
 /// integration"); 0 for edges entirely outside the light.
 #[inline]
 pub fn edge_area(e: &Edge, rec: &Receiver, k: f64, h: DVec2) -> f64 {
@@ -330,7 +331,7 @@ pub fn edge_area(e: &Edge, rec: &Receiver, k: f64, h: DVec2) -> f64 {
     }
 }
 
-/// `V = 1 - clamp01(A_occ / A_L)` with `A_occ = c A_L + sum` (background.md §3).
+/// `V = 1 - clamp01(A_occ / A_L)` with `A_occ = c A_L + sum` (docs/methods.md §3).
 #[inline]
 pub fn visibility_from_area(centre: bool, sum: f64, h: DVec2) -> f32 {
     let al = 4.0 * h.x * h.y;

@@ -9,8 +9,9 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light::front_fraction,
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{LightView, ViewOptions, FIT, MAX_RESOLUTION, NEARFAR},
+    light_view::{LightView, ViewOptions, FIT, NEARFAR, RESOLUTION},
     mssm::Mssm,
+    peeling::{MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
     Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
@@ -30,32 +31,11 @@ pub const PACKETS: &[&str] = &[
     "7x5", "7x6", "7x7", "7x8", "8x1", "8x2", "8x3", "8x4", "8x5", "8x6", "8x7", "8x8",
 ];
 
-/// The settings `softshadow report` runs besides the defaults (both twins).
-pub fn sweep(quick: bool) -> Vec<Vec<(&'static str, String)>> {
-    let one = |k: &'static str, v: &str| vec![(k, v.to_string())];
-    if quick {
-        return vec![one("resolution", "256"), one("sublights", "2")];
-    }
-    vec![
-        one("sublights", "2"),
-        one("sublights", "4"),
-        one("packet", "1x1"),
-        one("packet", "4x4"),
-        one("resolution", "256"),
-        one("resolution", "512"),
-    ]
-}
-
 /// Parameters of [`CpuPacketHsm`] (shared with the GPU twin).
 pub const SPECS: &[ParamSpec] = &[
     ParamSpec {
-        key: "resolution",
-        kind: ParamKind::Int {
-            min: 1,
-            max: MAX_RESOLUTION as i64,
-        },
-        default: "1024",
         help: "shadow-map resolution r (texels per side) of each sub-light's map",
+        ..RESOLUTION
     },
     ParamSpec {
         key: "packet",
@@ -99,30 +79,10 @@ pub const SPECS: &[ParamSpec] = &[
         default: "4.0",
         help: "Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one pixel",
     },
-    ParamSpec {
-        key: "self_shadow",
-        kind: ParamKind::Choice(&["midpoint", "bias"]),
-        default: "midpoint",
-        help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
-    },
-    ParamSpec {
-        key: "max_bias",
-        kind: ParamKind::Float { min: 0.0, max: 1e6 },
-        default: "4.0",
-        help: "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
-    },
-    ParamSpec {
-        key: "bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
-        help: "self_shadow=bias: constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
-    },
-    ParamSpec {
-        key: "slope_bias",
-        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: "1.0",
-        help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
-    },
+    SELF_SHADOW,
+    MAX_BIAS,
+    SELF_SHADOW_BIAS,
+    SELF_SHADOW_SLOPE_BIAS,
     FIT,
     NEARFAR,
 ];
@@ -214,33 +174,7 @@ pub fn parse_packet(s: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// Kernel (search-area) width in texels along one axis (Yang eq. 1, background.md §2):
-/// `W = alpha l (1/z_m - 1/z_p)`, `alpha = n r / w`; 0 when `z_m >= z_p`, saturating at
-/// `f32::MAX`, never NaN.
-#[inline]
-pub fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
-    if !(z_m < z_p) {
-        return 0.0;
-    }
-    let zm = z_m.max(f32::MIN_POSITIVE);
-    let w = alpha * l * (1.0 / zm - 1.0 / z_p);
-    if w.is_finite() {
-        w.max(0.0)
-    } else {
-        f32::MAX
-    }
-}
-
-/// Receiver-side depth bias in world units (as in the baselines):
-/// `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`.
-#[inline]
-fn receiver_bias(view: &LightView, p: Vec3, n: Vec3, b0: f32, b1: f32) -> f32 {
-    let texel = view.w * p.z / (view.n * view.r as f32);
-    let to_light = (-p).normalize_or_zero();
-    let cos = n.dot(to_light).abs().max(1e-6);
-    let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
-    texel * (b0 + b1 * tan.min(10.0))
-}
+pub use shadow_map_core::mssm::kernel_width;
 
 /// Settings of one estimate.
 #[derive(Debug, Clone, Copy)]
@@ -446,7 +380,7 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
     let t = if cfg.midpoint {
         p.z
     } else {
-        p.z - receiver_bias(view, p, n, cfg.b0, cfg.b1)
+        p.z - view.receiver_bias(p, n, cfg.b0, cfg.b1)
     };
     ReceiverSetup::Map {
         uv,
@@ -502,7 +436,7 @@ pub fn prepare(
     Prep::Penumbra { rec, cr, facing }
 }
 
-/// The tight kernel of a receiver in dual cells (Yang eq. 1 with the MSSM, background.md §2
+/// The tight kernel of a receiver in dual cells (Yang eq. 1 with the MSSM, docs/methods.md §2
 /// "Refining the kernel"), or `None` when no sample it could see is nearer than `z_p` (lit).
 ///
 /// Samples rect `[x0, x1)` from `W = alpha l (1/z_m - 1/z_p)` around `(u_p, v_p)`, starting at
@@ -951,10 +885,5 @@ impl SoftShadowEstimator for CpuPacketHsm {
     }
     fn report(&self) -> Report {
         self.report.clone()
-    }
-    /// Sub-lights (section 5), packet sizes (Algorithm 2) and resolution; hierarchy and
-    /// coherence change only the time, so the report runs their defaults.
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        crate::cpu::sweep(quick)
     }
 }

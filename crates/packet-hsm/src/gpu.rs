@@ -560,11 +560,6 @@ impl SoftShadowEstimator for GpuPacketHsm {
     fn report(&self) -> Report {
         self.report.clone()
     }
-    /// Sub-lights (section 5), packet sizes (Algorithm 2) and resolution; hierarchy and
-    /// coherence change only the time, so the report runs their defaults.
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        crate::cpu::sweep(quick)
-    }
 }
 
 #[cfg(test)]

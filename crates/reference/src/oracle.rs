@@ -1,7 +1,7 @@
 //! Closed-form visibility for configurations simple enough to integrate exactly: the test oracles
-//! of background.md §10 (items 1-3), built on the disk geometry of §9.
+//! of docs/methods.md §10 (items 1-3), built on the disk geometry of §9.
 //!
-//! Everything here works in **light space** (background.md §1): the light centre is the origin,
+//! Everything here works in **light space** (docs/methods.md §1): the light centre is the origin,
 //! the light lies in the plane `z = 0` and emits towards `+z`; a receiver `p` has `z_p > 0`.
 //! V is the contract's area fraction of a uniform emitter (not a solid-angle fraction).
 //!
@@ -28,7 +28,7 @@ pub struct RectOccluder {
 }
 
 /// Central projection from the receiver `p` onto the light plane `z = 0` of a point at depth `z_o`:
-/// the scale `s = z_p / (z_p - z_o)` (background.md §10 item 1, §9). A point `q` at depth `z_o`
+/// the scale `s = z_p / (z_p - z_o)` (docs/methods.md §10 item 1, §9). A point `q` at depth `z_o`
 /// projects to `p_xy + s (q - p_xy)`.
 #[inline]
 pub fn projection_scale(z_p: f64, z_o: f64) -> f64 {
@@ -122,7 +122,7 @@ pub fn rect_occluder_visibility(light_half: Vec2, occluders: &[RectOccluder], p:
 }
 
 /// Area of the intersection ("lens") of two disks of radii `r1`, `r2` whose centres are `d` apart
-/// (background.md §9):
+/// (docs/methods.md §9):
 ///
 /// ```text
 /// d >= r1 + r2:     A = 0
@@ -240,8 +240,9 @@ pub fn polygon_disk_area(polygon: &[DVec2], radius: f64) -> f64 {
 /// is), where [`disk_occluder_visibility`] is exact for the round disk the polygon approximates.
 ///
 /// The polygon projects from `p` to the polygon with vertices `p_xy + s (v - p_xy)`,
-/// `s = z_p / (z_p - z_o)` (background.md §10 item 1), and `V = 1 - area(projection ∩ light) / (pi R^2)`
-/// ([`polygon_disk_area`]). Same edge cases as [`disk_occluder_visibility`].
+/// `s = z_p / (z_p - z_o)` (docs/methods.md §10 item 1), and
+/// `V = 1 - area(projection ∩ light) / (pi R^2)` ([`polygon_disk_area`]). Same edge cases as
+/// [`disk_occluder_visibility`].
 pub fn polygon_occluder_disk_visibility(
     light_radius: f32,
     polygon: &[Vec2],

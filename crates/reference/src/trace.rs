@@ -11,7 +11,7 @@
 //!
 //! where `T` is the transmittance of the segment ([`SceneBvh::transmittance`]): 0 if any opaque
 //! surface is crossed, else the product of `(1 - opacity)` over every semi-transparent surface crossed
-//! (contract.md, "Visibility image"). Rect and disk lights are one-sided: a receiver with
+//! (docs/methods.md §11, "Visibility image"). Rect and disk lights are one-sided: a receiver with
 //! `(p - C).normal <= 0` gets V = 0 without tracing.
 //!
 //! **Light samples.** Rect and disk: `frame.to_world((x, y, 0))` for the points of

@@ -1,4 +1,4 @@
-//! The contract's pinhole camera (`contract.md`, "Scene file").
+//! The contract's pinhole camera (docs/methods.md §11, "Scene file").
 use glam::Vec3;
 
 /// Pinhole, right-handed camera looking from `eye` to `target`.

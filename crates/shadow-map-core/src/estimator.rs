@@ -102,24 +102,6 @@ pub trait SoftShadowEstimator: Send {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()>;
     /// What the last build and estimate cost.
     fn report(&self) -> Report;
-    /// The parameter settings `softshadow report` runs besides the defaults, each a list of
-    /// `(key, value)` overrides; `quick` asks for the small set CI runs. The default sweeps the
-    /// shadow-map resolution when there is one ([`default_sweep`]); estimators override it to add
-    /// their own axes (layers, kernel size, packet size, sub-lights, filter...).
-    fn sweep(&self, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-        default_sweep(self.params(), quick)
-    }
-}
-
-/// Resolution 256 (quick), or 256, 512 and 2048 (full), when the table has `resolution`.
-pub fn default_sweep(params: &Params, quick: bool) -> Vec<Vec<(&'static str, String)>> {
-    if params.specs().iter().all(|s| s.key != "resolution") {
-        return Vec::new();
-    }
-    let rs: &[u32] = if quick { &[256] } else { &[256, 512, 2048] };
-    rs.iter()
-        .map(|r| vec![("resolution", r.to_string())])
-        .collect()
 }
 
 /// Builds and estimates in one call, returning V and the report.

@@ -21,7 +21,7 @@ pub mod scene;
 pub use bvh::SceneBvh;
 pub use camera::Camera;
 pub use error::{Error, Result};
-pub use estimator::{default_sweep, run, Backend, Report, SoftShadowEstimator};
+pub use estimator::{run, Backend, Report, SoftShadowEstimator};
 pub use light::{Light, LightFrame, LightShape};
 pub use light_space::{LightSpace, LightSpaceRequest};
 pub use light_view::LightView;

@@ -1,4 +1,4 @@
-//! The area light and its light-space frame (background.md §1).
+//! The area light and its light-space frame (docs/methods.md §1).
 use glam::{Vec2, Vec3};
 
 /// Shape of the area light, in the light's own frame (see [`LightFrame`]).
@@ -34,13 +34,13 @@ pub struct Light {
     pub normal: Vec3,
     /// `e_x`: for rect lights the direction of the first side (orthonormalised against the
     /// normal); for disk and sphere lights derived from the world axis least aligned with the
-    /// normal (background.md §1). Unit length.
+    /// normal (docs/methods.md §1). Unit length.
     pub tangent: Vec3,
 }
 
 /// Right-handed orthonormal light-space frame: origin at the light centre, `e_z` the light normal,
 /// `e_x` the tangent, `e_y = e_z x e_x`. A world point P has light-space coordinates
-/// `((P-C).e_x, (P-C).e_y, (P-C).e_z)` (background.md §1).
+/// `((P-C).e_x, (P-C).e_y, (P-C).e_z)` (docs/methods.md §1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightFrame {
     /// The origin C.
@@ -81,7 +81,7 @@ impl LightFrame {
 }
 
 /// The tangent used for disk and sphere lights: the world axis least aligned with the normal,
-/// orthonormalised (background.md §1). Results must not depend on it.
+/// orthonormalised (docs/methods.md §1). Results must not depend on it.
 pub fn default_tangent(normal: Vec3) -> Vec3 {
     let n = normal.abs();
     let a = if n.x <= n.y && n.x <= n.z {
@@ -148,7 +148,7 @@ impl Light {
     /// `s x s` stratified points on the light, in light-plane coordinates (x, y) relative to the
     /// centre, jittered by `jitter(k) in [0,1)^2` per stratum (pass `|_| Vec2::splat(0.5)` for the
     /// regular grid of stratum centres). Rect: jittered grid; disk and sphere: the grid mapped by
-    /// Shirley's concentric square-to-disk map (background.md §6), which keeps strata compact.
+    /// Shirley's concentric square-to-disk map (docs/methods.md §6), which keeps strata compact.
     pub fn stratified_points(&self, s: u32, mut jitter: impl FnMut(u32) -> Vec2) -> Vec<Vec2> {
         let mut out = Vec::with_capacity((s * s) as usize);
         for b in 0..s {

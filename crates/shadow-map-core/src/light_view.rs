@@ -1,5 +1,5 @@
 //! The light view: a perspective projection through the light centre onto the shadow-map plane
-//! z = n (the papers' convention, background.md §1), fitted tightly to what the receivers need
+//! z = n (the papers' convention, docs/methods.md §1), fitted tightly to what the receivers need
 //! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
 use crate::{
     light::LightFrame,
@@ -23,7 +23,7 @@ pub const MAX_TAN: f32 = 20.0;
 ///
 /// `u = (n x / z - x0) / delta`, `v = (n y / z - y0) / delta`
 ///
-/// (texel (i, j) = (floor u, floor v), centre (i + 1/2, j + 1/2); background.md §1, with an
+/// (texel (i, j) = (floor u, floor v), centre (i + 1/2, j + 1/2); docs/methods.md §1, with an
 /// off-centre window so the frustum covers what the receivers need and no more).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightView {
@@ -99,6 +99,38 @@ pub struct ViewOptions {
     pub nearfar: NearFar,
 }
 
+/// `resolution`: shadow-map side in texels (every estimator with a map).
+pub const RESOLUTION: ParamSpec = ParamSpec {
+    key: "resolution",
+    kind: ParamKind::Int {
+        min: 1,
+        max: MAX_RESOLUTION as i64,
+    },
+    default: "1024",
+    help: "shadow-map resolution r (texels per side)",
+};
+/// `bias`: constant receiver bias `b0` in texel footprints ([`LightView::receiver_bias`]).
+pub const BIAS: ParamSpec = ParamSpec {
+    key: "bias",
+    kind: ParamKind::Float {
+        min: 0.0,
+        max: 1000.0,
+    },
+    default: "1.0",
+    help: "constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
+};
+/// `slope_bias`: slope-scaled receiver bias `b1` in texel footprints
+/// ([`LightView::receiver_bias`]).
+pub const SLOPE_BIAS: ParamSpec = ParamSpec {
+    key: "slope_bias",
+    kind: ParamKind::Float {
+        min: 0.0,
+        max: 1000.0,
+    },
+    default: "1.0",
+    help: "slope-scaled bias: texel footprints times min(tan(theta), 10), theta = angle(normal, light)",
+};
+
 /// `fit`: the window choice ([`FitMode`]).
 pub const FIT: ParamSpec = ParamSpec {
     key: "fit",
@@ -142,6 +174,21 @@ impl ViewOptions {
 }
 
 impl LightView {
+    /// Receiver-side depth bias in world units (docs/methods.md §2, "Self-shadowing"):
+    /// `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`, where `w z_p / (n r)` is the world
+    /// size of one texel at the receiver's depth and theta the angle between the receiver normal
+    /// `n_light` and the direction from the light-space point `p_light` to the view's centre of
+    /// projection. Scale-invariant: the same numbers work for any scene size. The WGSL twin is
+    /// `receiver_bias` in `gpu/math.wgsl`.
+    #[inline]
+    pub fn receiver_bias(&self, p_light: Vec3, n_light: Vec3, b0: f32, b1: f32) -> f32 {
+        let texel = self.w * p_light.z / (self.n * self.r as f32);
+        let to_light = (-p_light).normalize_or_zero();
+        let cos = n_light.dot(to_light).abs().max(1e-6);
+        let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
+        texel * (b0 + b1 * tan.min(10.0))
+    }
+
     /// Texel pitch on the plane z = n: `delta = w / r`.
     #[inline]
     pub fn delta(&self) -> f32 {
@@ -175,9 +222,9 @@ impl LightView {
     /// Window: an occluder that can shadow receiver p lies in the pyramid between p and the light.
     /// Projected from the centre onto z = n (the near plane: nothing nearer is recorded), that
     /// pyramid covers `q +- (1 - n/z_p) h` where `q = n p_xy / z_p` and h is the light's half
-    /// extent in the frame's x and y (background.md §1 "Coverage", §2 "Search area"). The window is
-    /// the bounding square of these footprints over all receivers (in `x/z` space, clamped to
-    /// [`MAX_TAN`]), so the frustum covers what the receivers need and no more.
+    /// extent in the frame's x and y (docs/methods.md §1 "Coverage", §2 "Search area"). The
+    /// window is the bounding square of these footprints over all receivers (in `x/z` space,
+    /// clamped to [`MAX_TAN`]), so the frustum covers what the receivers need and no more.
     ///
     /// Near and far: the papers' recommendation (common-techniques, "near and far planes"): the
     /// light frustum intersected with the scene bounds. n0 is the nearest scene vertex in front of
@@ -213,190 +260,26 @@ impl LightView {
         r: u32,
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
-        if r == 0 || r > MAX_RESOLUTION {
-            return Err(Error::Limit {
-                what: "shadow-map resolution",
-                requested: r as u64,
-                max: MAX_RESOLUTION as u64,
-            });
-        }
+        check_resolution(r)?;
         let mut rep = FitReport::default();
         let scale = scene.bounds().diagonal().max(1e-6);
         let z_eps = 1e-6 * scale;
-        // Receivers in tan space.
-        let mut rec: Vec<(DVec2, f64)> = Vec::new();
-        for (k, p) in receivers.position.iter().enumerate() {
-            if !receivers.active[k] {
-                continue;
-            }
-            let q = frame.to_light(*p);
-            if q.z <= z_eps {
-                rep.behind += 1;
-                continue;
-            }
-            let t = DVec2::new(q.x as f64, q.y as f64) / q.z as f64;
-            if t.abs().max_element() > MAX_TAN as f64 {
-                rep.out_of_frustum += 1;
-                continue;
-            }
-            rec.push((t, q.z as f64));
-        }
+        let rec = receivers_in_tan_space(receivers, frame, z_eps, &mut rep);
         if rec.is_empty() {
             // No receiver needs the map (none at all, or all behind the light, where V = 0 for a
             // one-sided light): any view is correct, so give a small one on the light axis rather
             // than an error.
-            let n = (1e-3 * scale).max(f32::MIN_POSITIVE);
-            let view = LightView {
-                frame,
-                n,
-                far: scale,
-                window_min: Vec2::splat(-n),
-                w: 2.0 * n,
-                r,
-            };
-            return Ok((view, rep));
+            return Ok((axis_view(frame, scale, r), rep));
         }
-        let zr_min = rec.iter().map(|r| r.1).fold(f64::INFINITY, f64::min) as f32;
-        let zr_max = rec.iter().map(|r| r.1).fold(0.0f64, f64::max) as f32;
-        let n_floor = (1e-4 * zr_max).max(z_eps);
-
-        let tris: Vec<[Vec3; 3]> = scene
-            .triangles
-            .iter()
-            .map(|t| t.map(|v| frame.to_light(v)))
-            .collect();
-        let half = light_half.as_dvec2();
-        let window = |n: f32| -> (DVec2, DVec2) {
-            let mut lo = DVec2::splat(f64::INFINITY);
-            let mut hi = DVec2::splat(f64::NEG_INFINITY);
-            for &(t, z) in &rec {
-                let f = half * (1.0 / n as f64 - 1.0 / z).max(0.0);
-                lo = lo.min(t - f);
-                hi = hi.max(t + f);
-            }
-            let m = MAX_TAN as f64;
-            (lo.max(DVec2::splat(-m)), hi.min(DVec2::splat(m)))
-        };
-        // Nearest and farthest geometry overlapping a tan-space window.
-        let geometry_range = |lo: DVec2, hi: DVec2| -> (f32, f32) {
-            let (lo, hi) = (lo.as_vec2(), hi.as_vec2());
-            let mut zmin = f32::INFINITY;
-            let mut zmax = 0.0f32;
-            for t in &tris {
-                let zlo = t.iter().map(|v| v.z).fold(f32::INFINITY, f32::min);
-                let zhi = t.iter().map(|v| v.z).fold(f32::NEG_INFINITY, f32::max);
-                if zhi <= n_floor {
-                    continue;
-                }
-                if zlo > n_floor {
-                    let mut tlo = Vec2::splat(f32::INFINITY);
-                    let mut thi = Vec2::splat(f32::NEG_INFINITY);
-                    for v in t {
-                        let tv = Vec2::new(v.x, v.y) / v.z;
-                        tlo = tlo.min(tv);
-                        thi = thi.max(tv);
-                    }
-                    if tlo.x > hi.x || tlo.y > hi.y || thi.x < lo.x || thi.y < lo.y {
-                        continue;
-                    }
-                }
-                zmin = zmin.min(zlo.max(n_floor));
-                zmax = zmax.max(zhi);
-            }
-            (zmin, zmax)
-        };
-        let all = (DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
-        let (n_scene, far_scene) = geometry_range(all.0, all.1);
-        let n0 = n_scene.min(zr_min * 0.999).max(n_floor);
-        // Tan-space bounds of every scene vertex in front of the light (fit=scene).
-        let scene_window = {
-            let mut lo = DVec2::splat(f64::INFINITY);
-            let mut hi = DVec2::splat(f64::NEG_INFINITY);
-            for v in tris.iter().flatten() {
-                if v.z > n_floor {
-                    let t = DVec2::new(v.x as f64, v.y as f64) / v.z as f64;
-                    lo = lo.min(t);
-                    hi = hi.max(t);
-                }
-            }
-            (lo.max(all.0), hi.min(all.1))
-        };
-        let fit_mode = opts.fit;
-        // The square window (texels are square) fitted at a given n, in x/z space.
-        let square = |n: f32| -> (DVec2, DVec2) {
-            let (mut lo, mut hi) = window(n);
-            if fit_mode == FitMode::Scene && scene_window.0.x <= scene_window.1.x {
-                lo = lo.min(scene_window.0);
-                hi = hi.max(scene_window.1);
-            }
-            // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.
-            let side = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-6);
-            let c = (lo + hi) * 0.5;
-            (c - DVec2::splat(side * 0.5), c + DVec2::splat(side * 0.5))
-        };
-        let aabb = || -> (f32, f32) {
-            let b = scene.bounds();
-            let (mut zmin, mut zmax) = (f32::INFINITY, f32::NEG_INFINITY);
-            for k in 0..8 {
-                let c = Vec3::new(
-                    if k & 1 == 0 { b.min.x } else { b.max.x },
-                    if k & 2 == 0 { b.min.y } else { b.max.y },
-                    if k & 4 == 0 { b.min.z } else { b.max.z },
-                );
-                let z = frame.to_light(c).z;
-                zmin = zmin.min(z);
-                zmax = zmax.max(z);
-            }
-            (zmin.min(zr_min * 0.999).max(n_floor), zmax.max(zr_max))
-        };
-        let (n, far) = match (opts.nearfar, fit_mode) {
-            (NearFar::Aabb, _) => aabb(),
-            (NearFar::Frustum, _) => ((zr_min * 0.999).max(n_floor), zr_max),
-            // Receiver-independent planes, so the lattice and kernels do not move with the camera.
-            (NearFar::Clipped, FitMode::Stable) => (n0, far_scene.max(zr_max)),
-            (NearFar::Clipped, _) => {
-                // Raise n from n0 (below every triangle in front of the light) to the nearest
-                // geometry inside the square window fitted at n0, and keep it only if the window
-                // refitted at the raised n (which can shift when it is squared) holds nothing
-                // nearer.
-                let mut n = n0;
-                let (z1, _) = {
-                    let (lo, hi) = square(n0);
-                    geometry_range(lo, hi)
-                };
-                if z1.is_finite() {
-                    let raised = z1.min(zr_min * 0.999).max(n0);
-                    let (lo, hi) = square(raised);
-                    let (z2, _) = geometry_range(lo, hi);
-                    if !(z2 < raised) {
-                        n = raised;
-                    }
-                }
-                let (lo, hi) = square(n);
-                let (_, far) = geometry_range(lo, hi);
-                (n, far.max(zr_max))
-            }
-        };
-        let (mut lo, mut hi) = square(n);
+        let fit = FitGeometry::new(scene, frame, light_half, rec, z_eps, opts.fit);
+        let (n, far) = fit.near_far(scene, frame, opts.nearfar);
+        let (mut lo, mut hi) = fit.square(n);
         let tight = {
-            let (lo, hi) = window(n);
+            let (lo, hi) = fit.footprints(n);
             (hi - lo).max_element().max(1e-9)
         };
-        if fit_mode == FitMode::Stable && r >= 2 {
-            // A margin of 3 texels so no search kernel (its ceil adds up to one texel) reaches the
-            // map border, where clamping would shift it differently in each frame; then the side
-            // rounded up to a power of two with room for one texel of snapping, and the corner
-            // snapped to whole texels.
-            let m = 3.0 * (hi.x - lo.x) / r as f64;
-            lo -= DVec2::splat(m);
-            hi += DVec2::splat(m);
-            let side = hi.x - lo.x;
-            let need = side * r as f64 / (r - 1) as f64;
-            let s2 = 2f64.powi(need.log2().ceil() as i32);
-            let d = s2 / r as f64;
-            let lo2 = (lo / d).floor() * d;
-            lo = lo2;
-            hi = lo2 + DVec2::splat(s2);
+        if fit.fit_mode == FitMode::Stable && r >= 2 {
+            (lo, hi) = snap_stable(lo, hi, r);
         }
         let side = hi.x - lo.x;
         rep.window_scale = (side / tight) as f32;
@@ -410,6 +293,277 @@ impl LightView {
             r,
         };
         Ok((view, rep))
+    }
+}
+
+/// Fails with [`Error::Limit`] unless the shadow-map resolution is in `1..=MAX_RESOLUTION`.
+fn check_resolution(r: u32) -> Result<()> {
+    if r == 0 || r > MAX_RESOLUTION {
+        return Err(Error::Limit {
+            what: "shadow-map resolution",
+            requested: r as u64,
+            max: MAX_RESOLUTION as u64,
+        });
+    }
+    Ok(())
+}
+
+/// The active receivers in tan space, `(x/z, y/z)` and z, counting those behind the light or
+/// beyond [`MAX_TAN`] in `rep` instead.
+fn receivers_in_tan_space(
+    receivers: &Receivers,
+    frame: LightFrame,
+    z_eps: f32,
+    rep: &mut FitReport,
+) -> Vec<(DVec2, f64)> {
+    let mut rec: Vec<(DVec2, f64)> = Vec::new();
+    for (k, p) in receivers.position.iter().enumerate() {
+        if !receivers.active[k] {
+            continue;
+        }
+        let q = frame.to_light(*p);
+        if q.z <= z_eps {
+            rep.behind += 1;
+            continue;
+        }
+        let t = DVec2::new(q.x as f64, q.y as f64) / q.z as f64;
+        if t.abs().max_element() > MAX_TAN as f64 {
+            rep.out_of_frustum += 1;
+            continue;
+        }
+        rec.push((t, q.z as f64));
+    }
+    rec
+}
+
+/// The small view on the light axis given when no receiver needs the map.
+fn axis_view(frame: LightFrame, scale: f32, r: u32) -> LightView {
+    let n = (1e-3 * scale).max(f32::MIN_POSITIVE);
+    LightView {
+        frame,
+        n,
+        far: scale,
+        window_min: Vec2::splat(-n),
+        w: 2.0 * n,
+        r,
+    }
+}
+
+/// Nearest and farthest geometry (light-space triangles `tris`, clipped at `n_floor`)
+/// overlapping a tan-space window.
+fn geometry_range(tris: &[[Vec3; 3]], n_floor: f32, lo: DVec2, hi: DVec2) -> (f32, f32) {
+    let (lo, hi) = (lo.as_vec2(), hi.as_vec2());
+    let mut zmin = f32::INFINITY;
+    let mut zmax = 0.0f32;
+    for t in tris {
+        let zlo = t.iter().map(|v| v.z).fold(f32::INFINITY, f32::min);
+        let zhi = t.iter().map(|v| v.z).fold(f32::NEG_INFINITY, f32::max);
+        if zhi <= n_floor {
+            continue;
+        }
+        if zlo > n_floor {
+            let mut tlo = Vec2::splat(f32::INFINITY);
+            let mut thi = Vec2::splat(f32::NEG_INFINITY);
+            for v in t {
+                let tv = Vec2::new(v.x, v.y) / v.z;
+                tlo = tlo.min(tv);
+                thi = thi.max(tv);
+            }
+            if tlo.x > hi.x || tlo.y > hi.y || thi.x < lo.x || thi.y < lo.y {
+                continue;
+            }
+        }
+        zmin = zmin.min(zlo.max(n_floor));
+        zmax = zmax.max(zhi);
+    }
+    (zmin, zmax)
+}
+
+/// Tan-space bounds of every scene vertex in front of the light (beyond `n_floor`), clamped to
+/// `all` (for `fit=scene`).
+fn scene_tan_bounds(tris: &[[Vec3; 3]], n_floor: f32, all: (DVec2, DVec2)) -> (DVec2, DVec2) {
+    let mut lo = DVec2::splat(f64::INFINITY);
+    let mut hi = DVec2::splat(f64::NEG_INFINITY);
+    for v in tris.iter().flatten() {
+        if v.z > n_floor {
+            let t = DVec2::new(v.x as f64, v.y as f64) / v.z as f64;
+            lo = lo.min(t);
+            hi = hi.max(t);
+        }
+    }
+    (lo.max(all.0), hi.min(all.1))
+}
+
+/// `fit=stable` window snapping: a margin of 3 texels, the side rounded up to a power of two and
+/// the corner snapped to whole texels.
+fn snap_stable(mut lo: DVec2, mut hi: DVec2, r: u32) -> (DVec2, DVec2) {
+    // A margin of 3 texels so no search kernel (its ceil adds up to one texel) reaches the
+    // map border, where clamping would shift it differently in each frame; then the side
+    // rounded up to a power of two with room for one texel of snapping, and the corner
+    // snapped to whole texels.
+    let m = 3.0 * (hi.x - lo.x) / r as f64;
+    lo -= DVec2::splat(m);
+    hi += DVec2::splat(m);
+    let side = hi.x - lo.x;
+    let need = side * r as f64 / (r - 1) as f64;
+    let s2 = 2f64.powi(need.log2().ceil() as i32);
+    let d = s2 / r as f64;
+    let lo2 = (lo / d).floor() * d;
+    lo = lo2;
+    hi = lo2 + DVec2::splat(s2);
+    (lo, hi)
+}
+
+/// The receivers and scene as [`LightView::fit_with`] sees them in light space, with the depths
+/// derived from them.
+struct FitGeometry {
+    /// Active receivers in the frustum: tan-space position and depth.
+    rec: Vec<(DVec2, f64)>,
+    /// Scene triangles in light space.
+    tris: Vec<[Vec3; 3]>,
+    /// The light's half extent in the frame's x and y.
+    half: DVec2,
+    /// Nearest and farthest receiver depth.
+    zr_min: f32,
+    zr_max: f32,
+    /// Depth below which geometry is clipped.
+    n_floor: f32,
+    /// Near plane below every triangle in front of the light (and every receiver).
+    n0: f32,
+    /// Farthest geometry in the whole frustum.
+    far_scene: f32,
+    /// Tan-space bounds of the scene in front of the light.
+    scene_window: (DVec2, DVec2),
+    /// The window choice.
+    fit_mode: FitMode,
+}
+
+impl FitGeometry {
+    /// Moves the scene into light space and derives the receiver depth range, the clipping floor,
+    /// the nearest and farthest geometry and the scene's tan-space bounds.
+    fn new(
+        scene: &Scene,
+        frame: LightFrame,
+        light_half: Vec2,
+        rec: Vec<(DVec2, f64)>,
+        z_eps: f32,
+        fit_mode: FitMode,
+    ) -> Self {
+        let zr_min = rec.iter().map(|r| r.1).fold(f64::INFINITY, f64::min) as f32;
+        let zr_max = rec.iter().map(|r| r.1).fold(0.0f64, f64::max) as f32;
+        let n_floor = (1e-4 * zr_max).max(z_eps);
+
+        let tris: Vec<[Vec3; 3]> = scene
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| frame.to_light(v)))
+            .collect();
+        let half = light_half.as_dvec2();
+        let all = (DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
+        let (n_scene, far_scene) = geometry_range(&tris, n_floor, all.0, all.1);
+        let n0 = n_scene.min(zr_min * 0.999).max(n_floor);
+        let scene_window = scene_tan_bounds(&tris, n_floor, all);
+        FitGeometry {
+            rec,
+            tris,
+            half,
+            zr_min,
+            zr_max,
+            n_floor,
+            n0,
+            far_scene,
+            scene_window,
+            fit_mode,
+        }
+    }
+
+    /// The bounding box of the receivers' occluder footprints projected onto z = n, in x/z space,
+    /// clamped to [`MAX_TAN`].
+    fn footprints(&self, n: f32) -> (DVec2, DVec2) {
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for &(t, z) in &self.rec {
+            let f = self.half * (1.0 / n as f64 - 1.0 / z).max(0.0);
+            lo = lo.min(t - f);
+            hi = hi.max(t + f);
+        }
+        let m = MAX_TAN as f64;
+        (lo.max(DVec2::splat(-m)), hi.min(DVec2::splat(m)))
+    }
+
+    /// Nearest and farthest geometry overlapping a tan-space window.
+    fn geometry_range(&self, lo: DVec2, hi: DVec2) -> (f32, f32) {
+        geometry_range(&self.tris, self.n_floor, lo, hi)
+    }
+
+    /// The square window (texels are square) fitted at a given n, in x/z space.
+    fn square(&self, n: f32) -> (DVec2, DVec2) {
+        let (mut lo, mut hi) = self.footprints(n);
+        if self.fit_mode == FitMode::Scene && self.scene_window.0.x <= self.scene_window.1.x {
+            lo = lo.min(self.scene_window.0);
+            hi = hi.max(self.scene_window.1);
+        }
+        // A hair of slack (1e-6 relative) so f32 rounding never drops a footprint corner.
+        let side = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-6);
+        let c = (lo + hi) * 0.5;
+        (c - DVec2::splat(side * 0.5), c + DVec2::splat(side * 0.5))
+    }
+
+    /// The near and far planes for a [`NearFar`] choice.
+    fn near_far(&self, scene: &Scene, frame: LightFrame, nearfar: NearFar) -> (f32, f32) {
+        let (zr_min, zr_max, n_floor) = (self.zr_min, self.zr_max, self.n_floor);
+        match (nearfar, self.fit_mode) {
+            (NearFar::Aabb, _) => self.aabb_near_far(scene, frame),
+            (NearFar::Frustum, _) => ((zr_min * 0.999).max(n_floor), zr_max),
+            // Receiver-independent planes, so the lattice and kernels do not move with the camera.
+            (NearFar::Clipped, FitMode::Stable) => (self.n0, self.far_scene.max(zr_max)),
+            (NearFar::Clipped, _) => self.clipped_near_far(),
+        }
+    }
+
+    /// `nearfar=aabb`: the light-space depth range of the scene's bounding-box corners.
+    fn aabb_near_far(&self, scene: &Scene, frame: LightFrame) -> (f32, f32) {
+        let b = scene.bounds();
+        let (mut zmin, mut zmax) = (f32::INFINITY, f32::NEG_INFINITY);
+        for k in 0..8 {
+            let c = Vec3::new(
+                if k & 1 == 0 { b.min.x } else { b.max.x },
+                if k & 2 == 0 { b.min.y } else { b.max.y },
+                if k & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let z = frame.to_light(c).z;
+            zmin = zmin.min(z);
+            zmax = zmax.max(z);
+        }
+        (
+            zmin.min(self.zr_min * 0.999).max(self.n_floor),
+            zmax.max(self.zr_max),
+        )
+    }
+
+    /// `nearfar=clipped`: n raised from n0 to the nearest geometry in the window, far the farthest.
+    fn clipped_near_far(&self) -> (f32, f32) {
+        let (n0, zr_min, zr_max) = (self.n0, self.zr_min, self.zr_max);
+        // Raise n from n0 (below every triangle in front of the light) to the nearest
+        // geometry inside the square window fitted at n0, and keep it only if the window
+        // refitted at the raised n (which can shift when it is squared) holds nothing
+        // nearer.
+        let mut n = n0;
+        let (z1, _) = {
+            let (lo, hi) = self.square(n0);
+            self.geometry_range(lo, hi)
+        };
+        if z1.is_finite() {
+            let raised = z1.min(zr_min * 0.999).max(n0);
+            let (lo, hi) = self.square(raised);
+            let (z2, _) = self.geometry_range(lo, hi);
+            if !(z2 < raised) {
+                n = raised;
+            }
+        }
+        let (lo, hi) = self.square(n);
+        let (_, far) = self.geometry_range(lo, hi);
+        (n, far.max(zr_max))
     }
 }
 

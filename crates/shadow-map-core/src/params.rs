@@ -200,3 +200,161 @@ pub fn parse_assignment(kv: &str) -> Result<(&str, &str)> {
         _ => Err(Error::param(kv, "expected KEY=VALUE")),
     }
 }
+
+/// A Rust type a parameter's value can be read as (see [`typed_params!`](crate::typed_params)).
+pub trait FromParam: Sized {
+    /// The value, or `None` when the declared kind does not convert to `Self`.
+    fn from_param(v: ParamValue) -> Option<Self>;
+}
+
+macro_rules! from_int {
+    ($($t:ty),*) => {$(
+        impl FromParam for $t {
+            fn from_param(v: ParamValue) -> Option<Self> {
+                match v {
+                    ParamValue::Int(i) => <$t>::try_from(i).ok(),
+                    _ => None,
+                }
+            }
+        }
+    )*};
+}
+from_int!(i64, i32, u32, u64, usize);
+
+impl FromParam for f64 {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Float(x) => Some(x),
+            ParamValue::Int(i) => Some(i as f64),
+            _ => None,
+        }
+    }
+}
+impl FromParam for f32 {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        f64::from_param(v).map(|x| x as f32)
+    }
+}
+impl FromParam for bool {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Bool(b) => Some(b),
+            _ => None,
+        }
+    }
+}
+impl FromParam for &'static str {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice(w) => Some(w),
+            _ => None,
+        }
+    }
+}
+
+impl Params {
+    /// The value of `spec` as a `T`: a one-line error when `spec` is not in this table or its
+    /// kind does not convert (both are bugs of the code that asks, caught by its first test).
+    pub fn typed<T: FromParam>(&self, spec: &ParamSpec) -> Result<T> {
+        let v = self
+            .get(spec.key)
+            .ok_or_else(|| Error::param(spec.key, "not in this estimator's parameter table"))?;
+        T::from_param(v).ok_or_else(|| {
+            Error::param(
+                spec.key,
+                format!("{v} does not convert to {}", std::any::type_name::<T>()),
+            )
+        })
+    }
+}
+
+/// Whether two strings are equal, in a `const` context ([`typed_params!`](crate::typed_params)
+/// checks at compile time that every field is named like its key).
+pub const fn same_key(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// Declares an estimator's parameters once: a struct with one typed field a parameter, its
+/// [`ParamSpec`] table (`SPECS`, what `softshadow algos`, `--param` and
+/// [`SoftShadowEstimator::set_param`](crate::SoftShadowEstimator::set_param) use) and
+/// `from_params`, which reads every field from a [`Params`] of that table. A field must be named
+/// like its key (checked at compile time), so code never spells a key as a string.
+///
+/// ```
+/// use shadow_map_core::{light_view::RESOLUTION, ParamKind, ParamSpec, Params};
+/// shadow_map_core::typed_params! {
+///     /// Settings of a demo estimator.
+///     pub struct Demo {
+///         /// Shadow-map side.
+///         resolution: u32 = RESOLUTION,
+///         /// Kernel side.
+///         kernel: u32 = ParamSpec {
+///             key: "kernel",
+///             kind: ParamKind::Int { min: 1, max: 9 },
+///             default: "3",
+///             help: "kernel side",
+///         },
+///     }
+/// }
+/// let mut p = Params::new(Demo::SPECS).unwrap();
+/// p.set("kernel", "5").unwrap();
+/// let d = Demo::from_params(&p).unwrap();
+/// assert_eq!((d.resolution, d.kernel), (1024, 5));
+/// assert!(p.set("kernle", "5").is_err());
+/// ```
+#[macro_export]
+macro_rules! typed_params {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident {
+            $( $(#[$fmeta:meta])* $field:ident : $ty:ty = $spec:expr ),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        $vis struct $name {
+            $( $(#[$fmeta])* pub $field: $ty, )*
+        }
+
+        impl $name {
+            /// The parameter table, in declaration order.
+            pub const SPECS: &'static [$crate::ParamSpec] = &[$($spec),*];
+
+            /// Every field read from `p` (a [`Params`]($crate::Params) of [`Self::SPECS`]).
+            pub fn from_params(p: &$crate::Params) -> $crate::Result<Self> {
+                let specs = Self::SPECS;
+                let mut k = 0usize;
+                $(
+                    let $field: $ty = p.typed(&specs[k])?;
+                    k += 1;
+                )*
+                let _ = k;
+                Ok(Self { $($field),* })
+            }
+        }
+
+        const _: () = {
+            let specs = $name::SPECS;
+            let mut k = 0usize;
+            $(
+                assert!(
+                    $crate::params::same_key(stringify!($field), specs[k].key),
+                    concat!("typed_params!: field `", stringify!($field), "` is not named like its key")
+                );
+                k += 1;
+            )*
+            let _ = k;
+        };
+    };
+}

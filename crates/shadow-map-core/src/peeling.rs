@@ -1,7 +1,37 @@
 //! Depth peeling (Bavoil, Callahan, Silva 2008, §4.1; Everitt 2001): k layers per texel, nearest
 //! first, layer m+1 the nearest surface strictly behind layer m, `z > z_m (1 + PEEL_EPS_REL)`
 //! (see [`crate::raster::PEEL_EPS_REL`]). One rasterisation pass per layer, as on a GPU.
-use crate::raster::{DepthBias, DepthMap, PreparedScene};
+use crate::{
+    light_view::{BIAS, SLOPE_BIAS},
+    raster::{DepthBias, DepthMap, PreparedScene},
+    ParamKind, ParamSpec,
+};
+
+/// `self_shadow`: how an estimator with midpoint layers tells a receiver's own surface from an
+/// occluder (Bavoil §4.2): by the midpoint layers (parameter-free) or by a receiver bias.
+pub const SELF_SHADOW: ParamSpec = ParamSpec {
+    key: "self_shadow",
+    kind: ParamKind::Choice(&["midpoint", "bias"]),
+    default: "midpoint",
+    help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
+};
+/// `max_bias`: the clamp of [`midpoint`], in texel footprints at the far plane.
+pub const MAX_BIAS: ParamSpec = ParamSpec {
+    key: "max_bias",
+    kind: ParamKind::Float { min: 0.0, max: 1e6 },
+    default: "4.0",
+    help: "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
+};
+/// [`BIAS`] where it applies only under `self_shadow=bias`.
+pub const SELF_SHADOW_BIAS: ParamSpec = ParamSpec {
+    help: "self_shadow=bias: constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
+    ..BIAS
+};
+/// [`SLOPE_BIAS`] where it applies only under `self_shadow=bias`.
+pub const SELF_SHADOW_SLOPE_BIAS: ParamSpec = ParamSpec {
+    help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
+    ..SLOPE_BIAS
+};
 
 /// Peels `k` layers (k >= 1). Layer 0 is the ordinary shadow map. Texels with fewer than m+1
 /// surfaces hold +inf in layer m.

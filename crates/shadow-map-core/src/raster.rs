@@ -69,7 +69,7 @@ impl DepthMap {
         }
     }
     /// Depth at texel (i, j); +inf outside the map (samples outside the map are non-occluders,
-    /// background.md §1 "Coverage").
+    /// docs/methods.md §1 "Coverage").
     #[inline]
     pub fn at(&self, i: i32, j: i32) -> f32 {
         if i < 0 || j < 0 || i >= self.size as i32 || j >= self.size as i32 {

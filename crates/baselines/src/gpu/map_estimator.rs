@@ -3,7 +3,6 @@
 use super::{
     kernel::{self, ReceiverChunk},
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
-    shared::{self, EstimateUniform},
 };
 use crate::{
     common,
@@ -12,8 +11,9 @@ use crate::{
 use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
+        estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
         redo_cut_receivers,
-        shared::{LightViewUniform, SHARED_WGSL},
+        shared::LightViewUniform,
         GpuContext, GpuScene,
     },
     light_space::LightSpace,
@@ -25,8 +25,6 @@ use wgpu::util::DeviceExt;
 
 /// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point, `cells`).
 pub const MAP_ESTIMATOR_WGSL: &str = include_str!("map_estimator.wgsl");
-/// WGSL twins of `common.rs` and the core's light helpers.
-pub const COMMON_WGSL: &str = include_str!("common.wgsl");
 
 /// The GPU side of a [`Filter`]: WGSL defining `fn facing(p_world, n_world) -> f32` and
 /// `fn visibility(r: ReceiverSample) -> f32` exactly as the CPU filter computes them, and the
@@ -39,11 +37,9 @@ pub trait GpuFilter: Filter {
 }
 
 /// The WGSL parts of the kernel of filter `F` reading a map of precision `depth`, in order.
-pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 6] {
+pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 4] {
     [
-        SHARED_WGSL,
-        shared::SHARED_WGSL,
-        COMMON_WGSL,
+        ESTIMATE_HEAD_WGSL,
         kernel::depth_wgsl(depth),
         MAP_ESTIMATOR_WGSL,
         F::WGSL,
@@ -111,9 +107,10 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         if slot.is_none() {
             let label = format!("{} estimate", F::NAME);
             let module = kernel::shader_module(&self.ctx, &label, &shader_parts::<F>(depth))?;
-            let layout = kernel::bind_group_layout(&self.ctx, &label, depth);
-            let pipeline =
-                kernel::compute_pipeline(&self.ctx, &label, &module, &layout, "estimate")?;
+            let layout = kernel::map_layout(&self.ctx, &label, depth);
+            let pipeline = kernel::compute_pipeline(
+                &self.ctx, &label, &module, &layout, "estimate", OVERRIDES,
+            )?;
             *slot = Some(Kernel { layout, pipeline });
         }
         slot.as_ref().ok_or_else(|| Error::Gpu {
@@ -299,7 +296,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                 reason: "kernel not compiled".into(),
             })?;
         let t = Instant::now();
-        let chunk = kernel::max_chunk(ctx, self.chunk_cap);
+        let chunk = kernel::max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap);
         let (chunks, counters) =
             ctx.scoped(&label, || -> Result<(Vec<ReceiverChunk>, wgpu::Buffer)> {
                 let view_buf =
@@ -312,7 +309,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                         contents: bytemuck::cast_slice(&[0u32; 3]),
                         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                     });
-                let chunks = kernel::upload_receivers(ctx, receivers, chunk, false);
+                let chunks = kernel::upload_receivers(ctx, "baselines", receivers, chunk, false);
                 let groups: Vec<wgpu::BindGroup> = chunks
                     .iter()
                     .map(|c| {
@@ -343,7 +340,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                     pass.set_pipeline(&k.pipeline);
                     for (c, g) in chunks.iter().zip(&groups) {
                         pass.set_bind_group(0, g, &[]);
-                        pass.dispatch_workgroups(c.workgroups(), 1, 1);
+                        pass.dispatch_workgroups(c.workgroups(WORKGROUP_SIZE), 1, 1);
                     }
                 }
                 ctx.queue.submit([enc.finish()]);

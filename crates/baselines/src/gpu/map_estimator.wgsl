@@ -15,7 +15,6 @@
 // [2]: receivers cut short by the device's loop limit (written as CUT_BITS, redone on the CPU).
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 3>;
 
-const NAN_BITS: u32 = 0x7fc00000u;
 
 // map_estimator::ReceiverSample.
 struct ReceiverSample {

@@ -11,7 +11,7 @@
 //! `backend() == Backend::Gpu` and the CPU twin's name, description and parameter table, and
 //! offers `estimate_with`, which takes the light-space data as input so a test can give both
 //! twins identical data. The per-receiver stage is a compute kernel (one invocation per receiver,
-//! [`WORKGROUP_SIZE`] per workgroup, receivers in chunks that fit the device's limits) reading
+//! [`WORKGROUP_SIZE`](shadow_map_core::gpu::estimate::WORKGROUP_SIZE) per workgroup, receivers in chunks that fit the device's limits) reading
 //! receivers as the core's `ReceiverGpu`, the shadow map as an R32Float texture, and writing V
 //! to a storage buffer that is read back.
 //!
@@ -31,7 +31,6 @@ pub mod maps;
 pub mod multi_sample;
 pub mod pcf;
 pub mod pcss;
-pub mod shared;
 
 pub use hard::GpuHardShadow;
 pub use map_estimator::{GpuFilter, GpuMapEstimator};
@@ -39,7 +38,6 @@ pub use maps::{DepthTexture, GpuMaps, MapBuilder, MapDepth, MapOrigin};
 pub use multi_sample::GpuMultiSample;
 pub use pcf::GpuPcfShadow;
 pub use pcss::GpuPcssShadow;
-pub use shared::{EstimateUniform, WORKGROUP_SIZE};
 
 use crate::{hard::Hard, pcf::Pcf, pcss::Pcss};
 
@@ -61,79 +59,13 @@ const U16: shadow_map_core::DepthPrecision = shadow_map_core::DepthPrecision::Un
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::mem::{align_of, offset_of, size_of};
-
-    fn parse(name: &str, parts: &[&str]) -> naga::Module {
-        let src = kernel::shader_source(parts);
-        match naga::front::wgsl::parse_str(&src) {
-            Ok(m) => m,
-            Err(e) => panic!("{name}: {}", e.emit_to_string(&src)),
-        }
-    }
 
     #[test]
     fn every_shader_validates_with_naga() {
         for (name, parts) in SHADERS {
-            let module = parse(name, parts);
-            let mut v = naga::valid::Validator::new(
-                naga::valid::ValidationFlags::all(),
-                naga::valid::Capabilities::all(),
-            );
-            if let Err(e) = v.validate(&module) {
-                panic!("{name}: {e:?}");
+            if let Err(e) = kernel::validate_wgsl(name, &kernel::shader_source(parts)) {
+                panic!("{e}");
             }
-        }
-    }
-
-    #[test]
-    fn estimate_uniform_layout_matches_wgsl() {
-        let module = parse("shared", &[shared::SHARED_WGSL]);
-        let mut layouter = naga::proc::Layouter::default();
-        layouter.update(module.to_ctx()).expect("layout");
-        let (handle, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("EstimateUniform"))
-            .expect("EstimateUniform in shared.wgsl");
-        let naga::TypeInner::Struct { members, span } = &ty.inner else {
-            panic!("EstimateUniform is not a struct");
-        };
-        assert_eq!(*span as usize, size_of::<EstimateUniform>());
-        assert_eq!(
-            (layouter[handle].alignment * 1u32) as usize,
-            align_of::<EstimateUniform>()
-        );
-        let rust = [
-            ("light_center", offset_of!(EstimateUniform, light_center)),
-            ("light_shape", offset_of!(EstimateUniform, light_shape)),
-            ("light_ex", offset_of!(EstimateUniform, light_ex)),
-            ("light_size_x", offset_of!(EstimateUniform, light_size_x)),
-            ("light_ey", offset_of!(EstimateUniform, light_ey)),
-            ("light_size_y", offset_of!(EstimateUniform, light_size_y)),
-            ("light_ez", offset_of!(EstimateUniform, light_ez)),
-            (
-                "light_one_sided",
-                offset_of!(EstimateUniform, light_one_sided),
-            ),
-            (
-                "light_half_extent",
-                offset_of!(EstimateUniform, light_half_extent),
-            ),
-            ("bias", offset_of!(EstimateUniform, bias)),
-            ("slope_bias", offset_of!(EstimateUniform, slope_bias)),
-            ("kernel_half", offset_of!(EstimateUniform, kernel_half)),
-            ("max_taps", offset_of!(EstimateUniform, max_taps)),
-            ("inv_samples", offset_of!(EstimateUniform, inv_samples)),
-            ("depth_step", offset_of!(EstimateUniform, depth_step)),
-            ("probe", offset_of!(EstimateUniform, probe)),
-            ("_pad0", offset_of!(EstimateUniform, _pad)),
-            ("_pad1", offset_of!(EstimateUniform, _pad) + 4),
-            ("_pad2", offset_of!(EstimateUniform, _pad) + 8),
-        ];
-        assert_eq!(members.len(), rust.len());
-        for (m, (name, off)) in members.iter().zip(rust) {
-            assert_eq!(m.name.as_deref(), Some(name));
-            assert_eq!(m.offset as usize, off, "offset of {name}");
         }
     }
 }

@@ -3,9 +3,8 @@
 //! `finalize` dispatch divides by the number of sub-lights at the end.
 use super::{
     kernel::{self, ReceiverChunk},
-    map_estimator::{entry, COMMON_WGSL},
+    map_estimator::entry,
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
-    shared::{self, EstimateUniform},
 };
 use crate::{
     common,
@@ -15,7 +14,8 @@ use bytemuck::Zeroable;
 use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
-        shared::{LightViewUniform, SHARED_WGSL},
+        estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        shared::LightViewUniform,
         GpuContext, GpuScene,
     },
     light_space::{LightSpace, LightSpaceRequest},
@@ -28,11 +28,9 @@ use std::{sync::Arc, time::Instant};
 pub const MULTI_SAMPLE_WGSL: &str = include_str!("multi_sample.wgsl");
 
 /// The WGSL parts of the multi-sample kernels reading maps of precision `depth`, in order.
-pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 5] {
+pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 3] {
     [
-        SHARED_WGSL,
-        shared::SHARED_WGSL,
-        COMMON_WGSL,
+        ESTIMATE_HEAD_WGSL,
         kernel::depth_wgsl(depth),
         MULTI_SAMPLE_WGSL,
     ]
@@ -51,16 +49,23 @@ impl Kernels {
     fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
         let label = "multi-sample";
         let module = kernel::shader_module(ctx, label, &shader_parts(depth))?;
-        let layout = kernel::bind_group_layout(ctx, label, depth);
+        let layout = kernel::map_layout(ctx, label, depth);
         let accumulate = kernel::compute_pipeline(
             ctx,
             "multi-sample accumulate",
             &module,
             &layout,
             "accumulate",
+            OVERRIDES,
         )?;
-        let finalize =
-            kernel::compute_pipeline(ctx, "multi-sample finalize", &module, &layout, "finalize")?;
+        let finalize = kernel::compute_pipeline(
+            ctx,
+            "multi-sample finalize",
+            &module,
+            &layout,
+            "finalize",
+            OVERRIDES,
+        )?;
         Ok(Kernels {
             layout,
             accumulate,
@@ -171,7 +176,13 @@ impl GpuMultiSample {
             self.params.float("slope_bias") as f32,
         );
         let chunks = ctx.scoped("multi-sample receivers", || {
-            kernel::upload_receivers(ctx, receivers, kernel::max_chunk(ctx, self.chunk_cap), true)
+            kernel::upload_receivers(
+                ctx,
+                "baselines",
+                receivers,
+                kernel::max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap),
+                true,
+            )
         })?;
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let (mut peak, mut behind, mut n_points) = (0usize, 0usize, 0usize);
@@ -285,7 +296,7 @@ impl GpuMultiSample {
                 pass.set_pipeline(pipeline);
                 for (c, g) in chunks.iter().zip(&groups) {
                     pass.set_bind_group(0, g, &[]);
-                    pass.dispatch_workgroups(c.workgroups(), 1, 1);
+                    pass.dispatch_workgroups(c.workgroups(WORKGROUP_SIZE), 1, 1);
                 }
             }
             ctx.queue.submit([enc.finish()]);

@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/multi_sample.rs (Heckbert & Herf 1997, background.md §6):
+// Twin of crates/baselines/src/multi_sample.rs (Heckbert & Herf 1997, docs/methods.md §6):
 // `accumulate` adds one sub-light's hard test into a per-receiver count, once per sub-light map;
 // `finalize` divides by the number of sub-lights and applies the one-sided and inactive rules.
 // The view uniform is the sub-light's: its origin is the light point y_k (world), bit for bit
@@ -14,7 +14,6 @@
 // V per receiver as f32 bits (written by `finalize`).
 @group(0) @binding(5) var<storage, read_write> v_out: array<u32>;
 
-const NAN_BITS: u32 = 0x7fc00000u;
 
 // DepthMap::at(i, j) >= zt, with texels outside the map +inf (always lit).
 fn lit_at(i: i32, j: i32, zt: f32) -> bool {

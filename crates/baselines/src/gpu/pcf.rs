@@ -1,9 +1,7 @@
 //! GPU twin of [`crate::pcf`]: the N x N percentage-closer block in `pcf.wgsl`.
-use super::{
-    map_estimator::{GpuFilter, GpuMapEstimator},
-    shared::EstimateUniform,
-};
+use super::map_estimator::{GpuFilter, GpuMapEstimator};
 use crate::{map_estimator::Filter, pcf::Pcf};
+use shadow_map_core::gpu::EstimateUniform;
 use shadow_map_core::Params;
 
 /// WGSL of PCF (`facing`, `visibility`).

@@ -1,9 +1,7 @@
 //! GPU twin of [`crate::pcss`]: blocker search, penumbra estimate and weighted PCF in `pcss.wgsl`.
-use super::{
-    map_estimator::{GpuFilter, GpuMapEstimator},
-    shared::EstimateUniform,
-};
+use super::map_estimator::{GpuFilter, GpuMapEstimator};
 use crate::{map_estimator::Filter, pcss::Pcss};
+use shadow_map_core::gpu::EstimateUniform;
 use shadow_map_core::Params;
 
 /// WGSL of PCSS (`facing`, `visibility`).

@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/pcss.rs (Fernando 2005, background.md §5): blocker search over
+// Twin of crates/baselines/src/pcss.rs (Fernando 2005, docs/methods.md §5): blocker search over
 // W_search = l (z_r - n) / z_r, z_avg, penumbra w_p = (z_r - z_avg) l / z_avg, then PCF over
 // W_filter = w_p n / z_r with overlap weights (a disk of that diameter for disk and sphere lights).
 //

@@ -465,23 +465,7 @@ impl GpuGBuffer {
         let uniform = GBufferCamera::new(camera)?;
         let limits = ctx.limits();
         let (w, h) = (camera.width, camera.height);
-        let max_side = limits.max_texture_dimension_2d;
-        if w.max(h) > max_side {
-            return Err(Error::Limit {
-                what: "G-buffer image side (max_texture_dimension_2d)",
-                requested: w.max(h) as u64,
-                max: max_side as u64,
-            });
-        }
-        let pixels = w as u64 * h as u64;
-        let max_pixels = (limits.max_buffer_size / RECEIVER_BYTES).min(u32::MAX as u64);
-        if pixels > max_pixels {
-            return Err(Error::Limit {
-                what: "G-buffer pixels (max_buffer_size / 32 bytes)",
-                requested: pixels,
-                max: max_pixels,
-            });
-        }
+        let pixels = check_image_size(&limits, w, h)?;
         let chunks = self.chunks(ctx, pixels as u32);
         let max_groups = limits.max_compute_workgroups_per_dimension.max(1) as u64;
         ctx.scoped("gbuffer", || {
@@ -491,198 +475,280 @@ impl GpuGBuffer {
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-            let target = |label, format, usage| {
-                device
-                    .create_texture(&wgpu::TextureDescriptor {
-                        label: Some(label),
-                        size: wgpu::Extent3d {
-                            width: w,
-                            height: h,
-                            depth_or_array_layers: 1,
-                        },
-                        mip_level_count: 1,
-                        sample_count: 1,
-                        dimension: wgpu::TextureDimension::D2,
-                        format,
-                        usage,
-                        view_formats: &[],
-                    })
-                    .create_view(&Default::default())
-            };
-            let sampled =
-                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-            let normal_t = target("gbuffer.normal_t", NORMAL_T_FORMAT, sampled);
-            let triangle = target("gbuffer.triangle", TRIANGLE_FORMAT, sampled);
-            let depth_test = target(
-                "gbuffer.depth_test",
-                DEPTH_TEST_FORMAT,
-                wgpu::TextureUsages::RENDER_ATTACHMENT,
-            );
-            let out_buffer = |label, bytes: u64, usage| {
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size: bytes.max(RECEIVER_BYTES),
-                    usage,
-                    mapped_at_creation: false,
-                })
-            };
-            let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
-            let receivers = out_buffer(
-                "gbuffer.receivers",
-                pixels * RECEIVER_BYTES,
-                storage | wgpu::BufferUsages::COPY_DST,
-            );
-            let depth = out_buffer("gbuffer.depth", pixels * 4, storage);
-            let triangles = out_buffer("gbuffer.triangles", pixels * 4, storage);
+            let res = RenderResources::new(device, w, h, pixels);
 
             let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("gbuffer"),
             });
-            {
-                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("gbuffer.raster"),
-                    layout: &self.raster_layout,
-                    entries: &[wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: cam.as_entire_binding(),
-                    }],
-                });
-                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("gbuffer.raster"),
-                    color_attachments: &[
-                        Some(wgpu::RenderPassColorAttachment {
-                            view: &normal_t,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color {
-                                    r: 0.0,
-                                    g: 0.0,
-                                    b: 1.0,
-                                    a: f64::INFINITY,
-                                }),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        }),
-                        Some(wgpu::RenderPassColorAttachment {
-                            view: &triangle,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color {
-                                    r: NO_TRIANGLE as f64,
-                                    g: 0.0,
-                                    b: 0.0,
-                                    a: 0.0,
-                                }),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        }),
-                    ],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &depth_test,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(0.0),
-                            store: wgpu::StoreOp::Discard,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-                if scene.triangles > 0 {
-                    pass.set_pipeline(&self.raster);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.set_vertex_buffer(0, scene.vertices.slice(..scene.triangles as u64 * 48));
-                    pass.draw(0..3, 0..scene.triangles);
-                }
-            }
-            let groups: Vec<(wgpu::BindGroup, (u32, u32))> = chunks
-                .iter()
-                .map(|c| {
-                    let count = c.end - c.start;
-                    let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("gbuffer.resolve"),
-                        contents: bytemuck::bytes_of(&ResolveParams {
-                            width: w,
-                            first: c.start,
-                            count,
-                            background_z: f32::INFINITY,
-                        }),
-                        usage: wgpu::BufferUsages::UNIFORM,
-                    });
-                    let first = c.start as u64;
-                    let n = count as u64;
-                    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("gbuffer.resolve"),
-                        layout: &self.resolve_layout,
-                        entries: &[
-                            wgpu::BindGroupEntry {
-                                binding: 0,
-                                resource: cam.as_entire_binding(),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 1,
-                                resource: params.as_entire_binding(),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 2,
-                                resource: wgpu::BindingResource::TextureView(&normal_t),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 3,
-                                resource: wgpu::BindingResource::TextureView(&triangle),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 4,
-                                resource: range(
-                                    &receivers,
-                                    first * RECEIVER_BYTES,
-                                    n * RECEIVER_BYTES,
-                                ),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 5,
-                                resource: range(&depth, first * 4, n * 4),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 6,
-                                resource: range(&triangles, first * 4, n * 4),
-                            },
-                        ],
-                    });
-                    let wg = n.div_ceil(RESOLVE_WORKGROUP as u64);
-                    let gx = wg.clamp(1, max_groups);
-                    let gy = wg.div_ceil(gx).max(1);
-                    (group, (gx as u32, gy as u32))
-                })
-                .collect();
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("gbuffer.resolve"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.resolve);
-                for (group, (gx, gy)) in &groups {
-                    pass.set_bind_group(0, group, &[]);
-                    pass.dispatch_workgroups(*gx, *gy, 1);
-                }
-            }
+            self.encode_raster(device, &mut enc, scene, &cam, &res);
+            let groups = self.resolve_groups(device, &chunks, w, &cam, &res, max_groups);
+            self.encode_resolve(&mut enc, &groups);
             ctx.queue.submit([enc.finish()]);
             GpuGBufferImage {
                 receivers: GpuReceivers {
-                    buffer: receivers,
+                    buffer: res.receivers,
                     count: pixels as u32,
                 },
-                depth,
-                triangles,
+                depth: res.depth,
+                triangles: res.triangles,
                 layout: ImageLayout {
                     width: w,
                     height: h,
                 },
             }
         })
+    }
+
+    /// Records the raster pass: clears the targets and draws every triangle of `scene` into them.
+    fn encode_raster(
+        &self,
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        cam: &wgpu::Buffer,
+        res: &RenderResources,
+    ) {
+        let (normal_t, triangle, depth_test) = (&res.normal_t, &res.triangle, &res.depth_test);
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("gbuffer.raster"),
+            layout: &self.raster_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: cam.as_entire_binding(),
+            }],
+        });
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("gbuffer.raster"),
+            color_attachments: &[
+                Some(wgpu::RenderPassColorAttachment {
+                    view: normal_t,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: 0.0,
+                            g: 0.0,
+                            b: 1.0,
+                            a: f64::INFINITY,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+                Some(wgpu::RenderPassColorAttachment {
+                    view: triangle,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: NO_TRIANGLE as f64,
+                            g: 0.0,
+                            b: 0.0,
+                            a: 0.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth_test,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if scene.triangles > 0 {
+            pass.set_pipeline(&self.raster);
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_vertex_buffer(0, scene.vertices.slice(..scene.triangles as u64 * 48));
+            pass.draw(0..3, 0..scene.triangles);
+        }
+    }
+
+    /// One resolve bind group per pixel chunk, with its workgroup grid.
+    fn resolve_groups(
+        &self,
+        device: &wgpu::Device,
+        chunks: &[std::ops::Range<u32>],
+        w: u32,
+        cam: &wgpu::Buffer,
+        res: &RenderResources,
+        max_groups: u64,
+    ) -> Vec<(wgpu::BindGroup, (u32, u32))> {
+        let (normal_t, triangle) = (&res.normal_t, &res.triangle);
+        let (receivers, depth, triangles) = (&res.receivers, &res.depth, &res.triangles);
+        chunks
+            .iter()
+            .map(|c| {
+                let count = c.end - c.start;
+                let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("gbuffer.resolve"),
+                    contents: bytemuck::bytes_of(&ResolveParams {
+                        width: w,
+                        first: c.start,
+                        count,
+                        background_z: f32::INFINITY,
+                    }),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+                let first = c.start as u64;
+                let n = count as u64;
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("gbuffer.resolve"),
+                    layout: &self.resolve_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: cam.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(normal_t),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: wgpu::BindingResource::TextureView(triangle),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: range(receivers, first * RECEIVER_BYTES, n * RECEIVER_BYTES),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: range(depth, first * 4, n * 4),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: range(triangles, first * 4, n * 4),
+                        },
+                    ],
+                });
+                let wg = n.div_ceil(RESOLVE_WORKGROUP as u64);
+                let gx = wg.clamp(1, max_groups);
+                let gy = wg.div_ceil(gx).max(1);
+                (group, (gx as u32, gy as u32))
+            })
+            .collect()
+    }
+
+    /// Records the resolve pass: one dispatch per chunk's bind group.
+    fn encode_resolve(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        groups: &[(wgpu::BindGroup, (u32, u32))],
+    ) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("gbuffer.resolve"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.resolve);
+        for (group, (gx, gy)) in groups {
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+        }
+    }
+}
+
+/// Checks a `w x h` G-buffer against the device's texture side and buffer size limits; returns
+/// its pixel count.
+fn check_image_size(limits: &wgpu::Limits, w: u32, h: u32) -> Result<u64> {
+    let max_side = limits.max_texture_dimension_2d;
+    if w.max(h) > max_side {
+        return Err(Error::Limit {
+            what: "G-buffer image side (max_texture_dimension_2d)",
+            requested: w.max(h) as u64,
+            max: max_side as u64,
+        });
+    }
+    let pixels = w as u64 * h as u64;
+    let max_pixels = (limits.max_buffer_size / RECEIVER_BYTES).min(u32::MAX as u64);
+    if pixels > max_pixels {
+        return Err(Error::Limit {
+            what: "G-buffer pixels (max_buffer_size / 32 bytes)",
+            requested: pixels,
+            max: max_pixels,
+        });
+    }
+    Ok(pixels)
+}
+
+/// The render targets and output buffers of one [`GpuGBuffer::render`].
+struct RenderResources {
+    /// Unit normal and ray distance t (`Rgba32Float`).
+    normal_t: wgpu::TextureView,
+    /// Triangle index (`R32Uint`).
+    triangle: wgpu::TextureView,
+    /// The reversed-Z depth test attachment.
+    depth_test: wgpu::TextureView,
+    /// One [`ReceiverGpu`] per pixel.
+    receivers: wgpu::Buffer,
+    /// View depth per pixel.
+    depth: wgpu::Buffer,
+    /// Triangle index per pixel.
+    triangles: wgpu::Buffer,
+}
+
+impl RenderResources {
+    /// Creates the three `w x h` render targets, then the three output buffers of `pixels`.
+    fn new(device: &wgpu::Device, w: u32, h: u32, pixels: u64) -> Self {
+        let target = |label, format, usage| {
+            device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d {
+                        width: w,
+                        height: h,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default())
+        };
+        let sampled = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let normal_t = target("gbuffer.normal_t", NORMAL_T_FORMAT, sampled);
+        let triangle = target("gbuffer.triangle", TRIANGLE_FORMAT, sampled);
+        let depth_test = target(
+            "gbuffer.depth_test",
+            DEPTH_TEST_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let out_buffer = |label, bytes: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(RECEIVER_BYTES),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let receivers = out_buffer(
+            "gbuffer.receivers",
+            pixels * RECEIVER_BYTES,
+            storage | wgpu::BufferUsages::COPY_DST,
+        );
+        let depth = out_buffer("gbuffer.depth", pixels * 4, storage);
+        let triangles = out_buffer("gbuffer.triangles", pixels * 4, storage);
+        RenderResources {
+            normal_t,
+            triangle,
+            depth_test,
+            receivers,
+            depth,
+            triangles,
+        }
     }
 }
 

@@ -1,8 +1,8 @@
 //! The wgpu backend of the shadow-map core (cargo feature `gpu`).
 //!
 //! A [`GpuContext`] either creates its own headless device (Vulkan requested explicitly: wgpu never
-//! falls back to GL silently, `gpu.md`) or wraps a user's `wgpu::Device` and `wgpu::Queue`, so the
-//! estimators can run inside someone else's renderer.
+//! falls back to GL silently, docs/methods.md §12) or wraps a user's `wgpu::Device` and
+//! `wgpu::Queue`, so the estimators can run inside someone else's renderer.
 //!
 //! Stages, each a module with its WGSL beside it (listed in [`SHADERS`]) and a CPU twin:
 //!
@@ -17,11 +17,15 @@
 //! | [`receivers`] | [`GpuReceivers`] | [`crate::Receivers`] |
 //! | [`gbuffer`] (`gbuffer.wgsl`) | [`GpuGBuffer`]: camera G-buffer | [`crate::Receivers::from_camera`] |
 //! | [`shared`] (`shared.wgsl`) | structs both sides read | |
+//! | [`estimate`] (`estimate.wgsl`, `math.wgsl`) | [`EstimateUniform`]: the light and bias every estimate kernel reads, f32 light math | [`crate::light`], [`crate::LightView::receiver_bias`] |
+//! | [`kernel`] | [`Kernel`]: layouts from a binding list, pipelines, chunked receivers, readback, naga checks | |
 use crate::{Error, Result};
 use std::sync::{Arc, Mutex, OnceLock};
 
 pub mod depth_map;
+pub mod estimate;
 pub mod gbuffer;
+pub mod kernel;
 pub mod light_space;
 pub mod midpoint;
 pub mod mssm;
@@ -31,7 +35,9 @@ pub mod receivers;
 pub mod shared;
 
 pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
+pub use estimate::EstimateUniform;
 pub use gbuffer::{GpuGBuffer, GpuGBufferImage};
+pub use kernel::{Binding, Kernel};
 pub use light_space::GpuLightSpace;
 pub use mssm::{GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder};
 pub use precision::{GpuUnorm16Encoder, GpuUnorm16Map};
@@ -47,6 +53,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("mssm", mssm::MSSM_WGSL),
     ("gbuffer", gbuffer::GBUFFER_WGSL),
     ("precision", precision::PRECISION_WGSL),
+    ("estimate", estimate::ESTIMATE_HEAD_WGSL),
 ];
 
 /// Redoes the receivers a kernel flagged with [`shared::CUT_BITS`] (cut short by the device's

@@ -1,6 +1,6 @@
 //! The scene model: world-space triangles with per-mesh opacity, one area light, one camera.
 //!
-//! Model only what a scene needs (contract.md): no materials, no textures, no scene graph.
+//! Model only what a scene needs (docs/methods.md §11): no materials, no textures, no scene graph.
 mod obj;
 mod toml;
 
@@ -74,8 +74,8 @@ impl Aabb {
 pub const DEGENERATE_REL: f32 = 1e-12;
 
 impl Scene {
-    /// Loads a scene file exactly as `contract.md` defines it. Every error names the file and the
-    /// key or line; nothing is written.
+    /// Loads a scene file exactly as the contract defines it (docs/methods.md §11, "Scene file").
+    /// Every error names the file and the key or line; nothing is written.
     pub fn load(path: impl AsRef<Path>) -> crate::Result<Scene> {
         toml::load(path.as_ref())
     }

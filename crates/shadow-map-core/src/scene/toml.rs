@@ -1,4 +1,5 @@
-//! The scene TOML of `contract.md`, parsed with `toml` + `serde` and validated key by key.
+//! The contract's scene TOML (docs/methods.md §11, "Scene file"), parsed with `toml` + `serde`
+//! and validated key by key.
 use super::Scene;
 use crate::{
     camera::Camera,

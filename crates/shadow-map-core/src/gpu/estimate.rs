@@ -1,15 +1,28 @@
-//! Data the baselines' shaders read besides the core's [`LightViewUniform`] and [`ReceiverGpu`]:
-//! one `#[repr(C)]` bytemuck struct, mirrored field for field (same names) in `shared.wgsl`, and
-//! the light-shape codes, which reach WGSL as pipeline `override` constants (never copied by hand).
+//! What every per-receiver estimate kernel reads besides [`LightViewUniform`] and
+//! [`ReceiverGpu`]: the light and the receiver-bias settings as one `#[repr(C)]` bytemuck struct,
+//! [`EstimateUniform`], mirrored field for field (same names) in `estimate.wgsl`; the light-shape
+//! codes and the workgroup size, which reach WGSL as pipeline `override` constants (never copied
+//! by hand); and `math.wgsl`, the f32 twins of the light geometry and of
+//! [`LightView::receiver_bias`](crate::LightView::receiver_bias) that the kernels include.
 //!
-//! [`LightViewUniform`]: shadow_map_core::gpu::shared::LightViewUniform
-//! [`ReceiverGpu`]: shadow_map_core::gpu::shared::ReceiverGpu
+//! [`LightViewUniform`]: super::shared::LightViewUniform
+//! [`ReceiverGpu`]: super::shared::ReceiverGpu
+use crate::{Light, LightShape};
 use bytemuck::{Pod, Zeroable};
-use shadow_map_core::{Light, LightShape};
 
-/// WGSL source of [`EstimateUniform`] and the shape-code overrides; prepended (after the core's
-/// `SHARED_WGSL`) to every baseline shader.
-pub const SHARED_WGSL: &str = include_str!("shared.wgsl");
+/// WGSL source of [`EstimateUniform`] and the override constants; prepended (after the core's
+/// `SHARED_WGSL`) to every estimate kernel.
+pub const ESTIMATE_WGSL: &str = include_str!("estimate.wgsl");
+/// WGSL twins of the core's light helpers and of the receiver bias, in the CPU's operation order
+/// (after [`ESTIMATE_WGSL`]).
+pub const MATH_WGSL: &str = include_str!("math.wgsl");
+/// The head of every estimate kernel: the core's shared structs, [`ESTIMATE_WGSL`] and
+/// [`MATH_WGSL`], in that order; a kernel appends its own WGSL.
+pub const ESTIMATE_HEAD_WGSL: &str = concat!(
+    include_str!("shared.wgsl"),
+    include_str!("estimate.wgsl"),
+    include_str!("math.wgsl")
+);
 
 /// `light_shape` of a rect light (WGSL override `LIGHT_RECT`).
 pub const LIGHT_RECT: u32 = 0;
@@ -18,10 +31,10 @@ pub const LIGHT_DISK: u32 = 1;
 /// `light_shape` of a sphere light (WGSL override `LIGHT_SPHERE`).
 pub const LIGHT_SPHERE: u32 = 2;
 
-/// Threads per workgroup of every baseline kernel (WGSL override `WG`).
+/// Threads per workgroup of every per-receiver estimate kernel (WGSL override `WG`).
 pub const WORKGROUP_SIZE: u32 = 64;
 
-/// The pipeline-overridable constants every baseline shader declares, as wgpu wants them.
+/// The pipeline-overridable constants [`ESTIMATE_WGSL`] declares, as wgpu wants them.
 pub const OVERRIDES: &[(&str, f64)] = &[
     ("WG", WORKGROUP_SIZE as f64),
     ("LIGHT_RECT", LIGHT_RECT as f64),
@@ -29,7 +42,7 @@ pub const OVERRIDES: &[(&str, f64)] = &[
     ("LIGHT_SPHERE", LIGHT_SPHERE as f64),
 ];
 
-/// The light and the estimator's settings as the baseline shaders see them.
+/// The light and the estimator's settings as the estimate kernels see them.
 ///
 /// The light frame is `Light::frame()` as the CPU computes it (`ey = ez x ex` in glam), so the
 /// shaders never rebuild it.
@@ -54,7 +67,7 @@ pub struct EstimateUniform {
     pub light_one_sided: u32,
     /// `Light::half_extent()`: `(l_x / 2, l_y / 2)`.
     pub light_half_extent: [f32; 2],
-    /// Constant receiver bias `b0` in texel footprints (`common::receiver_bias`).
+    /// Constant receiver bias `b0` in texel footprints ([`LightView::receiver_bias`](crate::LightView::receiver_bias)).
     pub bias: f32,
     /// Slope-scaled receiver bias `b1` in texel footprints.
     pub slope_bias: f32,
@@ -68,7 +81,7 @@ pub struct EstimateUniform {
     /// 0 for f32 maps.
     pub depth_step: f32,
     /// The loop-limit probe's bound, always
-    /// [`LOOP_PROBE`](shadow_map_core::gpu::shared::LOOP_PROBE).
+    /// [`LOOP_PROBE`](super::shared::LOOP_PROBE).
     pub probe: u32,
     /// Padding.
     pub _pad: [u32; 3],
@@ -99,8 +112,46 @@ impl EstimateUniform {
             max_taps: 0,
             inv_samples: 0.0,
             depth_step: 0.0,
-            probe: shadow_map_core::gpu::shared::LOOP_PROBE,
+            probe: super::shared::LOOP_PROBE,
             _pad: [0; 3],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn estimate_uniform_layout_matches_wgsl() {
+        crate::assert_wgsl_layout!(
+            [super::super::shared::SHARED_WGSL, ESTIMATE_WGSL].concat(),
+            EstimateUniform {
+                light_center,
+                light_shape,
+                light_ex,
+                light_size_x,
+                light_ey,
+                light_size_y,
+                light_ez,
+                light_one_sided,
+                light_half_extent,
+                bias,
+                slope_bias,
+                kernel_half,
+                max_taps,
+                inv_samples,
+                depth_step,
+                probe,
+            },
+            pad _pad: 3
+        );
+        assert_eq!(std::mem::align_of::<EstimateUniform>(), 16);
+    }
+
+    #[test]
+    fn head_is_the_parts_in_order() {
+        let parts = [super::super::shared::SHARED_WGSL, ESTIMATE_WGSL, MATH_WGSL].concat();
+        assert_eq!(parts, ESTIMATE_HEAD_WGSL);
     }
 }

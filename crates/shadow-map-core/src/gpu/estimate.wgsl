@@ -1,4 +1,4 @@
-// Mirrors crates/baselines/src/gpu/shared.rs field for field (the layout test in gpu/mod.rs
+// Mirrors crates/shadow-map-core/src/gpu/estimate.rs field for field (the layout test there
 // checks offsets with naga). Shape codes and the workgroup size are set from Rust as overrides.
 
 override WG: u32;

@@ -1,5 +1,5 @@
-// Twins of crates/baselines/src/common.rs (receiver_bias) and of the pieces of
-// shadow_map_core::light the baselines use (LightFrame::to_light, default_tangent, front_fraction,
+// Twins of shadow_map_core::light_view::LightView::receiver_bias and of the pieces of
+// shadow_map_core::light the estimators use (LightFrame::to_light, default_tangent, front_fraction,
 // Light::front_fraction_world), in f32 and in the CPU's operation order: glam's dot, cross and
 // normalize are written out rather than left to builtins whose order the driver picks.
 //
@@ -9,6 +9,14 @@
 
 const PI_F32: f32 = 3.14159265358979;
 const HALF_PI_F32: f32 = 1.57079632679490;
+// The quiet NaN every kernel writes for an inactive receiver.
+const NAN_BITS: u32 = 0x7fc00000u;
+const F32_MAX: f32 = 3.40282347e38;
+const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
+
+fn pos_inf() -> f32 {
+    return bitcast<f32>(0x7f800000u);
+}
 
 // glam::Vec3::dot: (x x') + (y y') + (z z').
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
@@ -79,7 +87,7 @@ fn view_contains(v: LightViewUniform, uv: vec2<f32>) -> bool {
     return uv.x >= 0.0 && uv.y >= 0.0 && uv.x < r && uv.y < r;
 }
 
-// baselines::common::receiver_bias: eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10)).
+// LightView::receiver_bias: eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10)).
 fn receiver_bias(v: LightViewUniform, p: vec3<f32>, n: vec3<f32>, b0: f32, b1: f32) -> f32 {
     let texel = v.w * p.z / (v.n * f32(v.r));
     let to_light = normalize_or_zero(-p);
@@ -223,4 +231,59 @@ fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
         frame_to_light(u.light_center, ex, ey, dz, p),
         frame_dir_to_light(ex, ey, dz, n),
     );
+}
+
+// shadow_map_core::mssm::kernel_width: the blocker-search kernel width in texels (Guennebaud's
+// search area, Yang eq. 1), 0 when nothing nearer than the receiver, f32::MAX when not finite.
+fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
+    if !(z_m < z_p) {
+        return 0.0;
+    }
+    let zm = max(z_m, F32_MIN_POSITIVE);
+    let w = alpha * l * (1.0 / zm - 1.0 / z_p);
+    if is_finite(w) {
+        return max(w, 0.0);
+    }
+    return F32_MAX;
+}
+
+// shadow_map_core::mssm::Mssm::query(..).min over the texel rectangle (x0, y0, x1, y1) of an MSSM
+// stored as the levels of a texture array: the same level choice and window starts as the CPU,
+// so the same fetches. -inf when there is no MSSM (`present == 0`), +inf for an empty rectangle.
+fn mssm_min_in(mssm: texture_2d_array<f32>, present: u32, size: u32, levels: u32, rect: vec4<i32>) -> f32 {
+    if present == 0u {
+        return -pos_inf();
+    }
+    let s = i32(size);
+    let x0 = clamp(rect.x, 0, s);
+    let y0 = clamp(rect.y, 0, s);
+    let x1 = clamp(rect.z, 0, s);
+    let y1 = clamp(rect.w, 0, s);
+    if !(x0 < x1 && y0 < y1) || levels == 0u {
+        return pos_inf();
+    }
+    let m = u32(min(x1 - x0, y1 - y0));
+    let l = min(firstLeadingBit(m), levels - 1u);
+    let h = i32(1u << l);
+    let last_x = max(x1 - h, x0);
+    let last_y = max(y1 - h, y0);
+    var best = pos_inf();
+    var y = y0;
+    loop {
+        let yc = select(last_y, y, y < last_y);
+        var x = x0;
+        loop {
+            let xc = select(last_x, x, x < last_x);
+            best = min(best, textureLoad(mssm, vec2<i32>(xc, yc), i32(l), 0).x);
+            if x >= last_x {
+                break;
+            }
+            x += h;
+        }
+        if y >= last_y {
+            break;
+        }
+        y += h;
+    }
+    return best;
 }

@@ -1,0 +1,483 @@
+//! The compute-kernel layer every estimator's GPU twin builds on: shader modules assembled from
+//! WGSL parts, bind-group layouts and bind groups from a binding list (binding `k` is entry `k`),
+//! compute pipelines with their override constants, all inside labelled error scopes; uniform
+//! buffers; receivers split into chunks that fit the device's limits, and V read back per chunk.
+//!
+//! One kernel in three lines:
+//!
+//! ```no_run
+//! use shadow_map_core::gpu::{kernel::{Binding, Kernel}, GpuContext};
+//! # fn demo(ctx: &GpuContext, wgsl: &str) -> shadow_map_core::Result<()> {
+//! let k = Kernel::new(ctx, "my estimate", &[wgsl], "estimate",
+//!     &[Binding::Uniform, Binding::Storage, Binding::StorageRw], &[("WG", 64.0)])?;
+//! # let _ = k; Ok(()) }
+//! ```
+use super::{shared::pack_receivers, shared::ReceiverGpu, GpuContext};
+use crate::{Receivers, Result};
+use wgpu::util::DeviceExt;
+
+/// What one binding of a compute kernel is (its number is its position in the list).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Binding {
+    /// `var<uniform>`.
+    Uniform,
+    /// `var<storage, read>`.
+    Storage,
+    /// `var<storage, read_write>`.
+    StorageRw,
+    /// `texture_2d<f32>`, not filterable (R32Float maps).
+    Texture2d,
+    /// `texture_2d_array<f32>`, not filterable (layers, MSSM levels).
+    Texture2dArray,
+    /// `texture_storage_2d_array<r32float, write>`.
+    StorageTexture2dArrayR32Write,
+}
+
+impl Binding {
+    /// The layout entry of this binding at `binding` (compute stage only).
+    pub fn entry(self, binding: u32) -> wgpu::BindGroupLayoutEntry {
+        let buffer = |ty| wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        };
+        let texture = |view_dimension| wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension,
+            multisampled: false,
+        };
+        let ty = match self {
+            Binding::Uniform => buffer(wgpu::BufferBindingType::Uniform),
+            Binding::Storage => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
+            Binding::StorageRw => buffer(wgpu::BufferBindingType::Storage { read_only: false }),
+            Binding::Texture2d => texture(wgpu::TextureViewDimension::D2),
+            Binding::Texture2dArray => texture(wgpu::TextureViewDimension::D2Array),
+            Binding::StorageTexture2dArrayR32Write => wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: wgpu::TextureFormat::R32Float,
+                view_dimension: wgpu::TextureViewDimension::D2Array,
+            },
+        };
+        wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty,
+            count: None,
+        }
+    }
+}
+
+/// Concatenates WGSL parts (shared structs first) into one module source.
+pub fn shader_source(parts: &[&str]) -> String {
+    parts.concat()
+}
+
+/// Creates a shader module from its parts inside an error scope named after `label`.
+pub fn shader_module(ctx: &GpuContext, label: &str, parts: &[&str]) -> Result<wgpu::ShaderModule> {
+    let src = shader_source(parts);
+    ctx.scoped(label, || {
+        ctx.device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+    })
+}
+
+/// The bind-group layout of `bindings` (binding `k` is `bindings[k]`).
+pub fn bind_group_layout(
+    ctx: &GpuContext,
+    label: &str,
+    bindings: &[Binding],
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = bindings
+        .iter()
+        .zip(0u32..)
+        .map(|(b, k)| b.entry(k))
+        .collect();
+    ctx.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(label),
+            entries: &entries,
+        })
+}
+
+/// A compute pipeline for entry point `entry` of `module` over one bind group of `layout`, with
+/// the pipeline-overridable `constants` set, inside an error scope named after `label`.
+pub fn compute_pipeline(
+    ctx: &GpuContext,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::BindGroupLayout,
+    entry: &str,
+    constants: &[(&str, f64)],
+) -> Result<wgpu::ComputePipeline> {
+    ctx.scoped(label, || {
+        let pl = ctx
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &[Some(layout)],
+                immediate_size: 0,
+            });
+        ctx.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pl),
+                module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    zero_initialize_workgroup_memory: true,
+                },
+                cache: None,
+            })
+    })
+}
+
+/// One compiled compute kernel: its bind-group layout and pipeline.
+#[derive(Debug, Clone)]
+pub struct Kernel {
+    /// The layout of its one bind group.
+    pub layout: wgpu::BindGroupLayout,
+    /// The pipeline.
+    pub pipeline: wgpu::ComputePipeline,
+}
+
+impl Kernel {
+    /// Compiles `parts` (joined in order) and makes the pipeline of `entry` over `bindings`,
+    /// with the override `constants` set; errors are typed and named after `label`.
+    pub fn new(
+        ctx: &GpuContext,
+        label: &str,
+        parts: &[&str],
+        entry: &str,
+        bindings: &[Binding],
+        constants: &[(&str, f64)],
+    ) -> Result<Self> {
+        let module = shader_module(ctx, label, parts)?;
+        let layout = ctx.scoped(label, || bind_group_layout(ctx, label, bindings))?;
+        let pipeline = compute_pipeline(ctx, label, &module, &layout, entry, constants)?;
+        Ok(Kernel { layout, pipeline })
+    }
+
+    /// A bind group of this kernel's layout: `resources[k]` at binding `k`.
+    pub fn bind_group(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        resources: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
+        bind_group(ctx, label, &self.layout, resources)
+    }
+}
+
+/// A bind group of `layout`: `resources[k]` at binding `k`.
+pub fn bind_group(
+    ctx: &GpuContext,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: &[wgpu::BindingResource<'_>],
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = resources
+        .iter()
+        .zip(0u32..)
+        .map(|(r, k)| wgpu::BindGroupEntry {
+            binding: k,
+            resource: r.clone(),
+        })
+        .collect();
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// A uniform buffer holding `value`.
+pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(value),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
+/// Most receivers one dispatch of `workgroup_size`-wide workgroups may cover on this device:
+/// limited by the storage-binding and buffer sizes (one [`ReceiverGpu`] per receiver), by 1D
+/// dispatch (`max workgroups per dimension x workgroup_size`) and by `cap` (tests pass small
+/// values to exercise chunking).
+pub fn max_chunk(ctx: &GpuContext, workgroup_size: u32, cap: usize) -> usize {
+    let l = ctx.limits();
+    let per = std::mem::size_of::<ReceiverGpu>() as u64;
+    let by_binding = l.max_storage_buffer_binding_size / per;
+    let by_buffer = l.max_buffer_size / per;
+    let by_dispatch = l.max_compute_workgroups_per_dimension as u64 * workgroup_size as u64;
+    let m = by_binding.min(by_buffer).min(by_dispatch).min(cap as u64);
+    (m as usize).max(1)
+}
+
+/// One chunk of receivers: its slice of the receiver array and its own buffers.
+#[derive(Debug)]
+pub struct ReceiverChunk {
+    /// First receiver index of the chunk.
+    pub start: usize,
+    /// Receivers in the chunk (> 0).
+    pub len: usize,
+    /// `array<ReceiverGpu>` of the chunk.
+    pub receivers: wgpu::Buffer,
+    /// `array<u32>`: V bits per receiver (copied back).
+    pub out: wgpu::Buffer,
+    /// `array<f32>` per receiver, zeroed (an accumulator), when asked for.
+    pub acc: Option<wgpu::Buffer>,
+}
+
+impl ReceiverChunk {
+    /// Workgroups of `workgroup_size` covering the chunk.
+    pub fn workgroups(&self, workgroup_size: u32) -> u32 {
+        self.len.div_ceil(workgroup_size as usize) as u32
+    }
+}
+
+/// Packs and uploads the receivers in chunks of at most `chunk` (none for zero receivers), each
+/// with a zeroed V buffer and, with `with_acc`, a zeroed accumulator; buffers are labelled
+/// `"{label} receivers"`, `"{label} V"`, `"{label} accumulator"`.
+pub fn upload_receivers(
+    ctx: &GpuContext,
+    label: &str,
+    receivers: &Receivers,
+    chunk: usize,
+    with_acc: bool,
+) -> Vec<ReceiverChunk> {
+    let packed = pack_receivers(receivers);
+    let chunk = chunk.max(1);
+    packed
+        .chunks(chunk)
+        .enumerate()
+        .map(|(c, part)| {
+            let len = part.len();
+            let receivers = ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(&format!("{label} receivers")),
+                    contents: bytemuck::cast_slice(part),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+            let storage = |what: &str| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(&format!("{label} {what}")),
+                    size: (len * 4) as u64,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    // Zeroed by wgpu on creation.
+                    mapped_at_creation: false,
+                })
+            };
+            ReceiverChunk {
+                start: c * chunk,
+                len,
+                receivers,
+                out: storage("V"),
+                acc: with_acc.then(|| storage("accumulator")),
+            }
+        })
+        .collect()
+}
+
+/// Reads every chunk's V back into `v` (f32 bits; NaN bits for inactive receivers).
+pub fn read_v(ctx: &GpuContext, chunks: &[ReceiverChunk], v: &mut [f32]) -> Result<()> {
+    for c in chunks {
+        let part: Vec<f32> = ctx.read_buffer(&c.out, (c.len * 4) as u64)?;
+        v[c.start..c.start + c.len].copy_from_slice(&part);
+    }
+    Ok(())
+}
+
+/// `size x size` R32Float planes in one texture array.
+#[derive(Debug)]
+pub struct PlaneArray {
+    /// The `D2` texture, one array layer a plane.
+    pub texture: wgpu::Texture,
+    /// Its `D2Array` view.
+    pub view: wgpu::TextureView,
+    /// Side of every plane.
+    pub size: u32,
+    /// Bytes on the device.
+    pub bytes: usize,
+}
+
+/// Allocates `count` planes of side `size` (usages: read by kernels as a texture, written by
+/// copies and by storage-texture stores); sizes beyond the device's limits are
+/// [`Error::Limit`](crate::Error::Limit).
+pub fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Result<PlaneArray> {
+    let l = ctx.limits();
+    if size == 0 || size > l.max_texture_dimension_2d {
+        return Err(crate::Error::Limit {
+            what: "texture-array side",
+            requested: size as u64,
+            max: l.max_texture_dimension_2d as u64,
+        });
+    }
+    if count == 0 || count > l.max_texture_array_layers {
+        return Err(crate::Error::Limit {
+            what: "texture-array layers",
+            requested: count as u64,
+            max: l.max_texture_array_layers as u64,
+        });
+    }
+    ctx.scoped(label, || {
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: count,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::STORAGE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        PlaneArray {
+            texture,
+            view,
+            size,
+            bytes: size as usize * size as usize * count as usize * 4,
+        }
+    })
+}
+
+/// Uploads CPU planes (each `size x size`, row-major) into one texture array.
+pub fn upload_planes(
+    ctx: &GpuContext,
+    label: &str,
+    size: u32,
+    planes: &[&[f32]],
+) -> Result<PlaneArray> {
+    let array = plane_array(ctx, label, size, planes.len() as u32)?;
+    let texels = size as usize * size as usize;
+    let mut data = Vec::with_capacity(texels * planes.len());
+    for p in planes {
+        if p.len() != texels {
+            return Err(crate::Error::Gpu {
+                stage: format!("{label} upload"),
+                reason: format!("{} depths for a {size}x{size} plane", p.len()),
+            });
+        }
+        data.extend_from_slice(p);
+    }
+    ctx.scoped(label, || {
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &array.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&data),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * size),
+                rows_per_image: Some(size),
+            },
+            wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: planes.len() as u32,
+            },
+        );
+    })?;
+    Ok(array)
+}
+
+/// Checks WGSL without a device: parses and validates `src` with naga, or returns the error
+/// rendered against the source, prefixed with `name`.
+pub fn validate_wgsl(name: &str, src: &str) -> std::result::Result<naga::Module, String> {
+    let module = naga::front::wgsl::parse_str(src)
+        .map_err(|e| format!("{name}: {}", e.emit_to_string(src)))?;
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .map_err(|e| format!("{name}: {}", e.emit_to_string(src)))?;
+    Ok(module)
+}
+
+/// Checks a `#[repr(C)]` Rust mirror of a WGSL struct: `fields` are the Rust side's `(name,
+/// byte offset)` in declaration order (padding arrays spelled out as the WGSL names them) and
+/// `size` its `size_of`; the WGSL struct `name` in `src` must have the same member names at the
+/// same offsets and the same size. Returns what differs, in one line.
+pub fn check_struct_layout<S: AsRef<str>>(
+    src: &str,
+    name: &str,
+    size: usize,
+    fields: &[(S, usize)],
+) -> std::result::Result<(), String> {
+    let module = validate_wgsl(name, src)?;
+    let ty = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .map(|(_, t)| t)
+        .ok_or_else(|| format!("struct {name} is not in the WGSL"))?;
+    let naga::TypeInner::Struct { members, span } = &ty.inner else {
+        return Err(format!("{name} is not a struct in the WGSL"));
+    };
+    let wgsl: Vec<(String, usize)> = members
+        .iter()
+        .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
+        .collect();
+    let rust: Vec<(String, usize)> = fields
+        .iter()
+        .map(|(n, o)| (n.as_ref().to_string(), *o))
+        .collect();
+    if wgsl != rust {
+        return Err(format!(
+            "{name}: WGSL members {wgsl:?} differ from the Rust mirror {rust:?}"
+        ));
+    }
+    if *span as usize != size {
+        return Err(format!(
+            "{name}: WGSL size {span} differs from the Rust size {size}"
+        ));
+    }
+    Ok(())
+}
+
+/// Asserts that a `#[repr(C)]` Rust struct and its WGSL mirror agree member by member (names and
+/// offsets, with [`check_struct_layout`]) and in size: `assert_wgsl_layout!(src, Ty { a, b, c })`,
+/// with `, pad _pad: 3` when a trailing `_pad: [u32; 3]` is spelled `_pad0.._pad2` in the WGSL.
+#[macro_export]
+macro_rules! assert_wgsl_layout {
+    ($src:expr, $ty:ident { $($field:ident),* $(,)? } $(, pad $pad:ident : $n:literal)?) => {{
+        #[allow(unused_mut)]
+        let mut fields: Vec<(String, usize)> = vec![
+            $((stringify!($field).to_string(), std::mem::offset_of!($ty, $field))),*
+        ];
+        $(
+            for i in 0..$n {
+                fields.push((
+                    format!("{}{}", stringify!($pad), i),
+                    std::mem::offset_of!($ty, $pad) + 4 * i,
+                ));
+            }
+        )?
+        if let Err(e) = $crate::gpu::kernel::check_struct_layout(
+            &$src,
+            stringify!($ty),
+            std::mem::size_of::<$ty>(),
+            &fields,
+        ) {
+            panic!("{e}");
+        }
+    }};
+}
