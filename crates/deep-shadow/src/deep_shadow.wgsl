@@ -4,9 +4,10 @@
 // (atomicMin of the depth bits) and lookup_opaque.
 // Structs mirror shared.rs field for field.
 
-const NIL: u32 = 0xffffffffu;
-const WG: u32 = 64u;
-const EDSM_CUTOFF: f32 = 16.0;
+// Set from Rust as pipeline overrides (shared::NIL, gpu::WORKGROUP_SIZE, dsm::EDSM_CUTOFF).
+override NIL: u32;
+override WG: u32;
+override EDSM_CUTOFF: f32;
 const SORT_LOCAL: u32 = 64u;
 const FILTER_FIRST: u32 = 0u;
 const FILTER_NONE: u32 = 1u;
@@ -67,7 +68,7 @@ fn linear_id(wid: vec3<u32>, nwg: vec3<u32>, lid: vec3<u32>) -> u32 {
     return (wid.y * nwg.x + wid.x) * WG + lid.x;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn clear(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
          @builtin(local_invocation_id) lid: vec3<u32>) {
     let t = linear_id(wid, nwg, lid);
@@ -148,13 +149,13 @@ fn raster_item(k: u32, mode: u32) {
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn raster(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_id) lid: vec3<u32>) {
     raster_item(linear_id(wid, nwg, lid), 0u);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn raster_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                  @builtin(local_invocation_id) lid: vec3<u32>) {
     raster_item(linear_id(wid, nwg, lid), 1u);
@@ -167,7 +168,7 @@ fn less(za: f32, aa: f32, zb: f32, ab: f32) -> bool {
 // §1.3.2, one texel per invocation: sort the payloads by (depth, alpha) (insertion sort in a
 // private array for lists up to SORT_LOCAL, selection sort in place beyond), then tau, prev and
 // truncation after the first element with tau <= epsilon.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn process(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
            @builtin(local_invocation_id) lid: vec3<u32>) {
     let t = linear_id(wid, nwg, lid);
@@ -257,7 +258,7 @@ fn link_list(a: u32, b: u32, upper: bool) {
 }
 
 // §1.3.3, one texel per invocation.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn link(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
         @builtin(local_invocation_id) lid: vec3<u32>) {
     let t = linear_id(wid, nwg, lid);
@@ -314,7 +315,7 @@ fn kernel_side() -> i32 {
 }
 
 // §1.3.4, §1.3.5: one query per invocation, as DeepShadowMap::transmittance.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_id) lid: vec3<u32>) {
     let q_id = linear_id(wid, nwg, lid);
@@ -383,7 +384,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
 }
 
 // The opaque path: head[] holds the nearest depth's bits (NIL: empty), no lists.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                  @builtin(local_invocation_id) lid: vec3<u32>) {
     let q_id = linear_id(wid, nwg, lid);
@@ -423,7 +424,7 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
 
 // The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one
 // element write) at hashed texels, nothing else. Measured by GpuDeepShadow::insert_ceiling.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn ceiling_insert(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                   @builtin(local_invocation_id) lid: vec3<u32>) {
     let k = linear_id(wid, nwg, lid);

@@ -39,6 +39,14 @@ pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
 /// Every shader of the crate as `(name, source)` (validated with naga by a unit test).
 pub const SHADERS: &[(&str, &str)] = &[("deep_shadow", DEEP_SHADOW_WGSL)];
 
+/// The constants the kernels share with the CPU twin, passed as pipeline overrides (never copied
+/// into the WGSL by hand).
+const OVERRIDES: &[(&str, f64)] = &[
+    ("NIL", crate::shared::NIL as f64),
+    ("WG", WORKGROUP_SIZE as f64),
+    ("EDSM_CUTOFF", crate::dsm::EDSM_CUTOFF as f64),
+];
+
 /// Workgroup size of every entry point (`WG` in the WGSL).
 pub const WORKGROUP_SIZE: u32 = 64;
 
@@ -133,7 +141,10 @@ impl GpuDeepShadow {
                     layout: Some(&pl),
                     module: &module,
                     entry_point: Some(entry),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: OVERRIDES,
+                        zero_initialize_workgroup_memory: true,
+                    },
                     cache: None,
                 })
             };
@@ -732,44 +743,61 @@ mod tests {
     #[test]
     fn shader_validates_with_naga() {
         for (name, src) in SHADERS {
-            let module = match naga::front::wgsl::parse_str(src) {
-                Ok(m) => m,
-                Err(e) => panic!("{name}: {}", e.emit_to_string(src)),
-            };
-            let mut v = naga::valid::Validator::new(
-                naga::valid::ValidationFlags::all(),
-                naga::valid::Capabilities::all(),
-            );
-            if let Err(e) = v.validate(&module) {
-                panic!("{name}: {e:?}");
+            if let Err(e) = shadow_map_core::gpu::kernel::validate_wgsl(name, src) {
+                panic!("{e}");
             }
         }
     }
 
+    /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.
     #[test]
     fn shared_structs_match_the_wgsl_layouts() {
-        let module = naga::front::wgsl::parse_str(DEEP_SHADOW_WGSL).unwrap();
-        let mut layouter = naga::proc::Layouter::default();
-        layouter.update(module.to_ctx()).unwrap();
-        let want = [
-            ("Node", std::mem::size_of::<Node>()),
-            ("Tri", std::mem::size_of::<Tri>()),
-            ("DsUniform", std::mem::size_of::<DsUniform>()),
-        ];
-        for (name, size) in want {
-            let (h, ty) = module
-                .types
-                .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("{name} not in the WGSL"));
-            assert_eq!(layouter[h].size as usize, size, "{name}");
-            if let naga::TypeInner::Struct { members, .. } = &ty.inner {
-                // Every member is 4 bytes, in order, as in the #[repr(C)] struct.
-                for (k, m) in members.iter().enumerate() {
-                    assert_eq!(m.offset as usize, 4 * k, "{name}.{:?}", m.name);
-                }
-                assert_eq!(members.len() * 4, size, "{name}");
+        shadow_map_core::assert_wgsl_layout!(
+            DEEP_SHADOW_WGSL,
+            Node {
+                depth,
+                alpha,
+                tau,
+                next,
+                prev,
+                right,
+                upper,
+                _pad0,
             }
-        }
+        );
+        shadow_map_core::assert_wgsl_layout!(
+            DEEP_SHADOW_WGSL,
+            Tri {
+                u0,
+                v0,
+                u1,
+                v1,
+                u2,
+                v2,
+                iz0,
+                iz1,
+                iz2,
+                alpha,
+                _pad0,
+                _pad1,
+            }
+        );
+        shadow_map_core::assert_wgsl_layout!(
+            DEEP_SHADOW_WGSL,
+            DsUniform {
+                r,
+                capacity,
+                n_items,
+                n_queries,
+                epsilon,
+                filter_mode,
+                kernel,
+                traversal,
+                c_world,
+                _pad0,
+                _pad1,
+                _pad2,
+            }
+        );
     }
 }

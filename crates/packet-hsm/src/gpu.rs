@@ -196,7 +196,10 @@ impl GpuPacketHsm {
                         layout: Some(&pl),
                         module: &module,
                         entry_point: Some(entry),
-                        compilation_options: Default::default(),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &[("WG", WORKGROUP as f64)],
+                            zero_initialize_workgroup_memory: true,
+                        },
                         cache: None,
                     })
             };
@@ -249,18 +252,7 @@ impl GpuPacketHsm {
         let limit = ctx.limits().max_storage_buffer_binding_size;
         let grid = sv.grid(cfg);
         let r = grid.size;
-        let m = &sv.mssm;
-        let mut mssm = Vec::with_capacity(m.levels() as usize * (r * r) as usize);
-        for l in 0..m.levels() {
-            mssm.extend_from_slice(m.level(l).0);
-        }
-        let d = &sv.dual.mssm;
-        let (mut dmin, mut dmax) = (Vec::new(), Vec::new());
-        for l in 0..d.levels() {
-            let (a, b) = d.level(l);
-            dmin.extend_from_slice(a);
-            dmax.extend_from_slice(b);
-        }
+        let (mssm, dmin, dmax) = flatten_hierarchies(sv, r);
         if recs.is_empty() {
             return Ok((Vec::new(), [0; 5]));
         }
@@ -289,51 +281,32 @@ impl GpuPacketHsm {
                 mapped_at_creation: false,
             })
         })?;
-        let view = &sv.ls.view;
         let max_groups = ctx.limits().max_compute_workgroups_per_dimension.max(1);
         let per = (max_groups * WORKGROUP) as usize;
-        let (pw, ph) = cfg.packet;
-        let packet_mode = layout.is_some() && (pw, ph) != (1, 1);
-        let (width, height) = layout.map_or((0, 0), |l| (l.width, l.height));
-        let packets_x = if packet_mode { width.div_ceil(pw) } else { 0 };
-        let packets = if packet_mode {
-            packets_x * height.div_ceil(ph)
-        } else {
-            0
-        };
-        if packets as usize > per {
-            return Err(Error::Limit {
-                what: "packet-hsm packets per dispatch",
-                requested: packets as u64,
-                max: per as u64,
-            });
-        }
-        let uniform = |count: usize, base: usize| HsmUniform {
-            r,
-            padded: d.size(),
-            mssm_levels: m.levels().max(1),
-            dual_levels: d.levels().max(1),
-            alpha: view.alpha(),
-            n: view.n,
-            k: view.delta() / view.n,
-            hierarchy: cfg.hierarchy as u32,
-            hx: sv.half.x,
-            hy: sv.half.y,
-            count: count as u32,
-            base: base as u32,
-            width,
-            height,
-            pw,
-            ph,
-            packets_x,
-            packets,
-            coherence: cfg.coherence as u32,
-            td: cfg.td as f32,
-            qe: cfg.qe as f32,
-            qv: cfg.qv as f32,
-            far: view.far,
-            probe: 2,
-        };
+        let plan = PacketPlan::new(cfg, layout, per)?;
+        let uniform = |count: usize, base: usize| hsm_uniform(sv, cfg, r, &plan, count, base);
+        let bufs = [
+            &b_depth, &b_class, &b_mssm, &b_dmin, &b_dmax, &b_recs, &out, &b_prep, &b_count,
+        ];
+        self.submit_stages(recs.len(), per, &plan, &uniform, bufs)?;
+        let v: Vec<[f32; 2]> = ctx.read_buffer(&out, out_bytes)?;
+        let c: Vec<u32> = ctx.read_buffer(&b_count, 20)?;
+        Ok((v, [c[0], c[1], c[2], c[3], c[4]]))
+    }
+
+    /// Encodes and submits `prepare` (in chunks of `per` receivers), `packets` (in packet mode)
+    /// and `pixels` (in chunks), each with its own uniform over the nine storage buffers `bufs`.
+    fn submit_stages(
+        &self,
+        n_recs: usize,
+        per: usize,
+        plan: &PacketPlan,
+        uniform: &dyn Fn(usize, usize) -> HsmUniform,
+        bufs: [&wgpu::Buffer; 9],
+    ) -> Result<()> {
+        let ctx = &*self.ctx;
+        let [b_depth, b_class, b_mssm, b_dmin, b_dmax, b_recs, out, b_prep, b_count] = bufs;
+        let (packet_mode, packets) = (plan.packet_mode, plan.packets);
         ctx.scoped(LABEL, || {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             let mut keep = Vec::new();
@@ -349,8 +322,7 @@ impl GpuPacketHsm {
                         usage: wgpu::BufferUsages::UNIFORM,
                     });
                 let bufs = [
-                    &ub, &b_depth, &b_class, &b_mssm, &b_dmin, &b_dmax, &b_recs, &out, &b_prep,
-                    &b_count,
+                    &ub, b_depth, b_class, b_mssm, b_dmin, b_dmax, b_recs, out, b_prep, b_count,
                 ];
                 let entries: Vec<wgpu::BindGroupEntry> = bufs
                     .iter()
@@ -377,8 +349,8 @@ impl GpuPacketHsm {
             };
             let chunks = |f: &mut dyn FnMut(usize, usize)| {
                 let mut base = 0usize;
-                while base < recs.len() {
-                    let count = (recs.len() - base).min(per);
+                while base < n_recs {
+                    let count = (n_recs - base).min(per);
                     f(count, base);
                     base += count;
                 }
@@ -408,10 +380,109 @@ impl GpuPacketHsm {
                 )
             });
             ctx.queue.submit([enc.finish()]);
-        })?;
-        let v: Vec<[f32; 2]> = ctx.read_buffer(&out, out_bytes)?;
-        let c: Vec<u32> = ctx.read_buffer(&b_count, 20)?;
-        Ok((v, [c[0], c[1], c[2], c[3], c[4]]))
+        })
+    }
+}
+
+/// The sub-light's MSSM levels (minima) and padded dual MSSM levels (minima, maxima), each
+/// flattened level after level.
+fn flatten_hierarchies(sv: &SubView, r: u32) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let m = &sv.mssm;
+    let mut mssm = Vec::with_capacity(m.levels() as usize * (r * r) as usize);
+    for l in 0..m.levels() {
+        mssm.extend_from_slice(m.level(l).0);
+    }
+    let d = &sv.dual.mssm;
+    let (mut dmin, mut dmax) = (Vec::new(), Vec::new());
+    for l in 0..d.levels() {
+        let (a, b) = d.level(l);
+        dmin.extend_from_slice(a);
+        dmax.extend_from_slice(b);
+    }
+    (mssm, dmin, dmax)
+}
+
+/// The packet pass of one [`GpuPacketHsm::run_sublight`]: whether it runs and over what grid.
+struct PacketPlan {
+    /// True when an image layout is given and the packet is larger than 1x1.
+    packet_mode: bool,
+    /// Image size (0 x 0 without a layout).
+    width: u32,
+    height: u32,
+    /// Packet size.
+    pw: u32,
+    ph: u32,
+    /// Packets per image row, and in all (0 outside packet mode).
+    packets_x: u32,
+    packets: u32,
+}
+
+impl PacketPlan {
+    /// Plans the packet pass; [`Error::Limit`] when the packets exceed one dispatch of `per`.
+    fn new(cfg: &Config, layout: Option<ImageLayout>, per: usize) -> Result<Self> {
+        let (pw, ph) = cfg.packet;
+        let packet_mode = layout.is_some() && (pw, ph) != (1, 1);
+        let (width, height) = layout.map_or((0, 0), |l| (l.width, l.height));
+        let packets_x = if packet_mode { width.div_ceil(pw) } else { 0 };
+        let packets = if packet_mode {
+            packets_x * height.div_ceil(ph)
+        } else {
+            0
+        };
+        if packets as usize > per {
+            return Err(Error::Limit {
+                what: "packet-hsm packets per dispatch",
+                requested: packets as u64,
+                max: per as u64,
+            });
+        }
+        Ok(PacketPlan {
+            packet_mode,
+            width,
+            height,
+            pw,
+            ph,
+            packets_x,
+            packets,
+        })
+    }
+}
+
+/// The uniform of one dispatch over `count` receivers from `base` (0, 0 for the packet pass).
+fn hsm_uniform(
+    sv: &SubView,
+    cfg: &Config,
+    r: u32,
+    plan: &PacketPlan,
+    count: usize,
+    base: usize,
+) -> HsmUniform {
+    let (m, d, view) = (&sv.mssm, &sv.dual.mssm, &sv.ls.view);
+    HsmUniform {
+        r,
+        padded: d.size(),
+        mssm_levels: m.levels().max(1),
+        dual_levels: d.levels().max(1),
+        alpha: view.alpha(),
+        n: view.n,
+        k: view.delta() / view.n,
+        hierarchy: cfg.hierarchy as u32,
+        hx: sv.half.x,
+        hy: sv.half.y,
+        count: count as u32,
+        base: base as u32,
+        width: plan.width,
+        height: plan.height,
+        pw: plan.pw,
+        ph: plan.ph,
+        packets_x: plan.packets_x,
+        packets: plan.packets,
+        coherence: cfg.coherence as u32,
+        td: cfg.td as f32,
+        qe: cfg.qe as f32,
+        qv: cfg.qv as f32,
+        far: view.far,
+        probe: 2,
     }
 }
 
@@ -564,17 +635,57 @@ impl SoftShadowEstimator for GpuPacketHsm {
 
 #[cfg(test)]
 mod tests {
+    use super::{HsmUniform, PrepGpu, RecIn, PACKET_HSM_WGSL};
+
+    /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.
+    #[test]
+    fn mirrored_structs_match_the_wgsl() {
+        shadow_map_core::assert_wgsl_layout!(
+            PACKET_HSM_WGSL,
+            HsmUniform {
+                r,
+                padded,
+                mssm_levels,
+                dual_levels,
+                alpha,
+                n,
+                k,
+                hierarchy,
+                hx,
+                hy,
+                count,
+                base,
+                width,
+                height,
+                pw,
+                ph,
+                packets_x,
+                packets,
+                coherence,
+                td,
+                qe,
+                qv,
+                far,
+                probe,
+            }
+        );
+        shadow_map_core::assert_wgsl_layout!(
+            PACKET_HSM_WGSL,
+            PrepGpu {
+                cr,
+                q,
+                state,
+                centre,
+            }
+        );
+        shadow_map_core::assert_wgsl_layout!(PACKET_HSM_WGSL, RecIn { uv, zp, t });
+    }
+
     /// The kernel parses and validates with naga (no device needed).
     #[test]
     fn wgsl_validates_with_naga() {
-        let src = super::PACKET_HSM_WGSL;
-        let module = naga::front::wgsl::parse_str(src)
-            .unwrap_or_else(|e| panic!("packet_hsm.wgsl: {}", e.emit_to_string(src)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("packet_hsm.wgsl: {}", e.emit_to_string(src)));
+        if let Err(e) = shadow_map_core::gpu::kernel::validate_wgsl("packet_hsm", PACKET_HSM_WGSL) {
+            panic!("{e}");
+        }
     }
 }

@@ -11,6 +11,9 @@
 // (1e-12 z_p on the CPU); the nudge of a receiver on a cell boundary is added in f32.
 
 // Mirrors gpu.rs HsmUniform field for field.
+// Threads per workgroup, set from Rust (gpu::WORKGROUP) as a pipeline override.
+override WG: u32;
+
 struct HsmUniform {
     r: u32,
     padded: u32,
@@ -475,7 +478,7 @@ fn cell_area(i: i32, j: i32, t: f32, q: vec2<f32>, zp: f32) -> f32 {
     return s;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = u.base + gid.x;
     if gid.x >= u.count {
@@ -548,7 +551,7 @@ fn finish(sum: f32, centre: u32) -> f32 {
 }
 
 // Per-pixel GBP07 for every penumbra receiver the packets pass left.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = u.base + gid.x;
     if gid.x >= u.count {
@@ -695,7 +698,7 @@ fn packet_coherent(k: vec4<i32>, tmin: f32, tmax: f32, sides: ptr<function, arra
 }
 
 // Yang Algorithm 2 for one packet (cpu.rs estimate_sublight, packet branch).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pk = gid.x;
     if pk >= u.packets {

@@ -272,3 +272,21 @@ impl GpuUnorm16Encoder {
         Ok(out)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn encode_params_match_the_wgsl() {
+        crate::assert_wgsl_layout!(
+            PRECISION_WGSL,
+            EncodeParams {
+                size,
+                near,
+                inv_step,
+                _pad0,
+            }
+        );
+    }
+}
