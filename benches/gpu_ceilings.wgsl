@@ -1,4 +1,4 @@
-// Ceilings of the GPU bench (benches/gpu.rs, which embeds this file with include_str!): the most
+// Ceilings of the GPU bench (benches/gpu.rs; embedded by benches/gpu/ceilings.rs): the most
 // this adapter does of the three kinds of work the softshadow stages are made of, each measured
 // as the plain kernel with nothing else around it.
 //
@@ -21,7 +21,7 @@ override WG: u32 = 8;
 override WG_LINEAR: u32 = 256;
 
 // PCG hash (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering", JCGT 9(3), pcg).
-// benches/gpu.rs has the same function (`pcg_hash`) for the CPU twin of taps_kernel.
+// benches/gpu/ceilings.rs has the same function (`pcg_hash`) for the CPU twin of taps_kernel.
 fn pcg_hash(v: u32) -> u32 {
     let state = v * 747796405u + 2891336453u;
     let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
@@ -35,7 +35,7 @@ fn receiver_z(k: u32) -> f32 {
 
 // ---- taps_kernel -------------------------------------------------------------------------------
 
-// Mirrors `TapsParams` in benches/gpu.rs.
+// Mirrors `TapsParams` in benches/gpu/ceilings.rs.
 struct TapsParams {
     // Receivers form a width x height grid (a G-buffer); receiver (x, y) sits over texel
     // (x * size / width, y * size / height) of the size x size map.
@@ -81,7 +81,7 @@ fn tri_vs(@location(0) position: vec4<f32>) -> @builtin(position) vec4<f32> {
 
 // ---- atomic_insert -----------------------------------------------------------------------------
 
-// Mirrors `InsertParams` in benches/gpu.rs.
+// Mirrors `InsertParams` in benches/gpu/ceilings.rs.
 struct InsertParams {
     // Inserts (threads doing work).
     count: u32,

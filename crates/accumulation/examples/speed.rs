@@ -9,7 +9,7 @@
 //!
 //! GPU time: `reps` dispatches between one submit and one wait, divided by `reps` (no upload, no
 //! readback). Taps: lexel fetches per receiver as the CPU twin counts them (same kernel), so
-//! taps/s = taps / GPU time; compare with the texture-fetch ceiling in `shared/notes/gpu.md`.
+//! taps/s = taps / GPU time; compare with the texture-fetch ceiling in docs/methods.md §12.
 use accumulation::{CpuAccumulation, GpuAccumulation};
 use shadow_map_core::{
     gpu::GpuContext, run, LightShape, Receivers, Scene, SceneBvh, SoftShadowEstimator,

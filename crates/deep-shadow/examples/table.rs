@@ -53,6 +53,22 @@ fn with(est: &mut dyn SoftShadowEstimator, kv: &[(&str, &str)]) {
     }
 }
 
+/// The ray-traced reference's V with parameters `kv`.
+fn reference_v(scene: &Scene, rec: &Receivers, kv: &[(&str, &str)]) -> Vec<f32> {
+    let mut reference = reference::ReferenceEstimator::new().unwrap();
+    with(&mut reference, kv);
+    run(&mut reference, scene, rec).unwrap().0
+}
+
+/// A CPU deep shadow map with each parameter list of `kvs` set in turn.
+fn cpu_ds(kvs: &[&[(&str, &str)]]) -> CpuDeepShadow {
+    let mut e = CpuDeepShadow::new().unwrap();
+    for kv in kvs {
+        with(&mut e, kv);
+    }
+    e
+}
+
 #[cfg(feature = "gpu")]
 fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
     let ctx = shadow_map_core::gpu::GpuContext::shared().ok()?;
@@ -107,21 +123,15 @@ fn accuracy() {
     println!("|---|---|---|---|---|");
     for name in ["strands", "hair"] {
         let (scene, rec) = load(name, w, h);
-        let mut reference = reference::ReferenceEstimator::new().unwrap();
-        with(&mut reference, &[("spp", &spp)]);
-        let (vref, _) = run(&mut reference, &scene, &rec).unwrap();
+        let vref = reference_v(&scene, &rec, &[("spp", &spp)]);
         // The reference's own noise: a second, independent run.
-        let mut ref2 = reference::ReferenceEstimator::new().unwrap();
-        with(&mut ref2, &[("spp", &spp), ("seed", "12345")]);
-        let (vref2, _) = run(&mut ref2, &scene, &rec).unwrap();
+        let vref2 = reference_v(&scene, &rec, &[("spp", &spp), ("seed", "12345")]);
         println!(
             "| {name} | reference vs itself (other seed), / sqrt 2 | {:.4} | | |",
             rmse(&vref, &vref2, &rec.active) / 2f64.sqrt()
         );
         for (label, kv) in &rows {
-            let mut e = CpuDeepShadow::new().unwrap();
-            with(&mut e, &[("resolution", &res)]);
-            with(&mut e, kv);
+            let mut e = cpu_ds(&[&[("resolution", &res)], kv]);
             let (v, rep) = run(&mut e, &scene, &rec).unwrap();
             println!(
                 "| {name} | {label} | {:.4} | {:.1} | {:.1} |",
@@ -209,6 +219,31 @@ fn ceilings() -> (f64, f64) {
     (inserts, taps)
 }
 
+/// What the speed tables share: the hair fixture at the speed size, the estimator factory and
+/// the ceilings.
+struct SpeedRun<'a> {
+    scene: Scene,
+    rec: Receivers,
+    resolutions: Vec<String>,
+    backend: &'static str,
+    mk: &'a dyn Fn() -> Box<dyn SoftShadowEstimator>,
+    /// List inserts per second (the GPU's when on the GPU).
+    ins: f64,
+    /// CPU element reads per second.
+    taps: f64,
+}
+
+impl SpeedRun<'_> {
+    /// [`time`] (3 runs) of a fresh estimator with each parameter list of `kvs` set in turn.
+    fn time(&self, kvs: &[&[(&str, &str)]]) -> (f64, f64, shadow_map_core::Report) {
+        let mut e = (self.mk)();
+        for kv in kvs {
+            with(e.as_mut(), kv);
+        }
+        time(e.as_mut(), &self.scene, &self.rec, 3)
+    }
+}
+
 fn speed(use_gpu: bool, table: bool) {
     let (w, h) = (env("DS_SPEED_W", 1280), env("DS_SPEED_H", 720));
     let resolutions: Vec<String> = std::env::var("DS_SPEED_RES")
@@ -239,6 +274,24 @@ fn speed(use_gpu: bool, table: bool) {
             ins / 1e6
         );
     }
+    let run = SpeedRun {
+        scene,
+        rec,
+        resolutions,
+        backend,
+        mk: &mk,
+        ins,
+        taps,
+    };
+    if table {
+        speed_table(&run);
+    }
+    speedups(&run);
+}
+
+/// Table 1.1: build + estimate per configuration and resolution, with the last (EDSM7) run's
+/// fragments and throughputs as fractions of the ceilings, then its stages.
+fn speed_table(run: &SpeedRun) {
     let cols: Vec<(&str, Vec<(&str, &str)>)> = vec![
         ("SM", vec![("filter", "first")]),
         ("DSM", vec![("filter", "none")]),
@@ -249,103 +302,68 @@ fn speed(use_gpu: bool, table: bool) {
         ("EDSM5", vec![("filter", "edsm"), ("kernel", "5")]),
         ("EDSM7", vec![("filter", "edsm"), ("kernel", "7")]),
     ];
-    if table {
-        print!("| SM res |");
-        for c in &cols {
-            print!(" {} ms |", c.0);
-        }
-        println!(" fragments | build ms | inserts/s as fraction of insert ceiling | EDSM7 element visits/s as fraction of CPU read ceiling |");
-        println!("|{}", "---|".repeat(cols.len() + 5));
-        let mut breakdown = Vec::new();
-        for res in &resolutions {
-            print!("| {res} |");
-            let mut last = None;
-            for (_, kv) in &cols {
-                let mut e = mk();
-                with(e.as_mut(), &[("resolution", res)]);
-                with(e.as_mut(), kv);
-                let (b, est, rep) = time(e.as_mut(), &scene, &rec, 3);
-                print!(" {:.1} |", b + est);
-                last = Some((b, est, rep));
-            }
-            let (b, est, rep) = last.unwrap();
-            breakdown.push((
-                res.clone(),
-                rep.stages
-                    .iter()
-                    .map(|(k, v)| format!("{k} {v:.1}"))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            ));
-            let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
-            let visits: f64 = note(&rep, "elements_per_lookup").parse().unwrap_or(0.0)
-                * rec.active_count() as f64;
-            println!(
-                " {frags} | {b:.1} | {:.3} | {:.3} |",
-                frags / (b / 1e3) / ins,
-                visits / (est / 1e3) / taps
-            );
-        }
-        println!();
-        println!("Stages of the last EDSM7 run (ms):");
-        for (res, b) in &breakdown {
-            println!("- {res}: {b}");
-        }
-        println!();
+    print!("| SM res |");
+    for c in &cols {
+        print!(" {} ms |", c.0);
     }
+    println!(" fragments | build ms | inserts/s as fraction of insert ceiling | EDSM7 element visits/s as fraction of CPU read ceiling |");
+    println!("|{}", "---|".repeat(cols.len() + 5));
+    let mut breakdown = Vec::new();
+    for res in &run.resolutions {
+        print!("| {res} |");
+        let mut last = None;
+        for (_, kv) in &cols {
+            let (b, est, rep) = run.time(&[&[("resolution", res)], kv]);
+            print!(" {:.1} |", b + est);
+            last = Some((b, est, rep));
+        }
+        let (b, est, rep) = last.unwrap();
+        breakdown.push((
+            res.clone(),
+            rep.stages
+                .iter()
+                .map(|(k, v)| format!("{k} {v:.1}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+        ));
+        let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
+        let visits: f64 = note(&rep, "elements_per_lookup").parse().unwrap_or(0.0)
+            * run.rec.active_count() as f64;
+        println!(
+            " {frags} | {b:.1} | {:.3} | {:.3} |",
+            frags / (b / 1e3) / run.ins,
+            visits / (est / 1e3) / run.taps
+        );
+    }
+    println!();
+    println!("Stages of the last EDSM7 run (ms):");
+    for (res, b) in &breakdown {
+        println!("- {res}: {b}");
+    }
+    println!();
+}
+
+/// The two speed-ups at PCF 7x7: neighbour links vs naive traversal, truncation vs none.
+fn speedups(run: &SpeedRun) {
+    let backend = run.backend;
     println!("| speed-up ({backend}) | res | config A ms (estimate) | config B ms (estimate) | B/A - 1 | elements visited per lookup A / B | paper |");
     println!("|---|---|---|---|---|---|---|");
-    for res in &resolutions {
-        let mut a = mk();
-        with(
-            a.as_mut(),
-            &[
-                ("resolution", res),
-                ("filter", "pcf"),
-                ("kernel", "7"),
-                ("traversal", "linked"),
-            ],
-        );
-        let (_, ea, ra) = time(a.as_mut(), &scene, &rec, 3);
-        let mut b = mk();
-        with(
-            b.as_mut(),
-            &[
-                ("resolution", res),
-                ("filter", "pcf"),
-                ("kernel", "7"),
-                ("traversal", "naive"),
-            ],
-        );
-        let (_, eb, rb) = time(b.as_mut(), &scene, &rec, 3);
+    for res in &run.resolutions {
+        let pcf7 = [
+            ("resolution", res.as_str()),
+            ("filter", "pcf"),
+            ("kernel", "7"),
+        ];
+        let (_, ea, ra) = run.time(&[&pcf7, &[("traversal", "linked")]]);
+        let (_, eb, rb) = run.time(&[&pcf7, &[("traversal", "naive")]]);
         println!(
             "| links (A) vs naive (B), PCF 7x7 | {res} | {ea:.1} | {eb:.1} | {:+.0}% | {} / {} | +50% (720p), +100% (1080p) |",
             (eb / ea - 1.0) * 100.0,
             note(&ra, "elements_per_lookup"),
             note(&rb, "elements_per_lookup")
         );
-        let mut a = mk();
-        with(
-            a.as_mut(),
-            &[
-                ("resolution", res),
-                ("filter", "pcf"),
-                ("kernel", "7"),
-                ("epsilon", "0.001"),
-            ],
-        );
-        let (ba, ea, ra) = time(a.as_mut(), &scene, &rec, 3);
-        let mut b = mk();
-        with(
-            b.as_mut(),
-            &[
-                ("resolution", res),
-                ("filter", "pcf"),
-                ("kernel", "7"),
-                ("epsilon", "0"),
-            ],
-        );
-        let (bb, eb, rb) = time(b.as_mut(), &scene, &rec, 3);
+        let (ba, ea, ra) = run.time(&[&pcf7, &[("epsilon", "0.001")]]);
+        let (bb, eb, rb) = run.time(&[&pcf7, &[("epsilon", "0")]]);
         println!(
             "| truncation eps=1e-3 (A) vs none (B), PCF 7x7, build+estimate | {res} | {:.1} | {:.1} | {:+.0}% | {} / {} | about +40% frame time |",
             ba + ea,
@@ -367,20 +385,14 @@ fn extra() {
     println!("|---|---|---|");
     for name in ["strands", "hair"] {
         let (scene, rec) = load(name, w, h);
-        let mut reference = reference::ReferenceEstimator::new().unwrap();
-        with(&mut reference, &[("spp", &spp)]);
-        let (vref, _) = run(&mut reference, &scene, &rec).unwrap();
+        let vref = reference_v(&scene, &rec, &[("spp", &spp)]);
         for filter in [
             &[("filter", "none")][..],
             &[("filter", "pcf"), ("kernel", "7")][..],
         ] {
-            let mut a = CpuDeepShadow::new().unwrap();
-            with(&mut a, &[("resolution", &res), ("epsilon", "0.001")]);
-            with(&mut a, filter);
+            let mut a = cpu_ds(&[&[("resolution", &res), ("epsilon", "0.001")], filter]);
             let (va, ra) = run(&mut a, &scene, &rec).unwrap();
-            let mut b = CpuDeepShadow::new().unwrap();
-            with(&mut b, &[("resolution", &res), ("epsilon", "0")]);
-            with(&mut b, filter);
+            let mut b = cpu_ds(&[&[("resolution", &res), ("epsilon", "0")], filter]);
             let (vb, _) = run(&mut b, &scene, &rec).unwrap();
             let worst = va
                 .iter()
@@ -396,17 +408,13 @@ fn extra() {
             );
         }
         for c in ["20", "80", "300", "1000", "10000"] {
-            let mut e = CpuDeepShadow::new().unwrap();
-            with(
-                &mut e,
-                &[
-                    ("resolution", &res),
-                    ("filter", "edsm"),
-                    ("kernel", "5"),
-                    ("c", c),
-                ],
-            );
-            let (v, _) = run(&mut e, &scene, &rec).unwrap();
+            let kv = [
+                ("resolution", res.as_str()),
+                ("filter", "edsm"),
+                ("kernel", "5"),
+                ("c", c),
+            ];
+            let (v, _) = run(&mut cpu_ds(&[&kv]), &scene, &rec).unwrap();
             println!(
                 "| {name} | EDSM 5, c = {c}: RMSE | {:.4} |",
                 rmse(&v, &vref, &rec.active)

@@ -56,6 +56,25 @@ fn load(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
     (scene, rec)
 }
 
+/// The settings of the speed, tune and gpu sections (see the module docs).
+struct Settings {
+    name: String,
+    w: u32,
+    h: u32,
+    res: String,
+    runs: u32,
+}
+
+fn settings() -> Settings {
+    Settings {
+        name: env("HSM_SCENE", "bunny"),
+        w: envu("HSM_W", 160),
+        h: envu("HSM_H", 120),
+        res: env("HSM_RES", "512"),
+        runs: envu("HSM_RUNS", 3),
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -98,6 +117,19 @@ fn hsm(kv: &[(&str, &str)]) -> CpuPacketHsm {
     e
 }
 
+fn boxed(e: impl SoftShadowEstimator + 'static) -> Box<dyn SoftShadowEstimator> {
+    Box::new(e)
+}
+
+/// Micropatch backprojection with the parameters `kv`.
+fn bp(kv: &[(&str, &str)]) -> Box<dyn SoftShadowEstimator> {
+    let mut e = CpuBackprojection::new().expect("bp");
+    for (k, v) in kv {
+        e.set_param(k, v).expect("p");
+    }
+    Box::new(e)
+}
+
 fn max_diff(a: &[f32], b: &[f32]) -> f32 {
     a.iter()
         .zip(b)
@@ -118,11 +150,42 @@ fn rmse(a: &[f32], b: &[f32], active: &[bool]) -> f64 {
     (s / n.max(1) as f64).sqrt()
 }
 
+/// The speed tables' four variants: GBP07 per pixel, hierarchy alone, packets alone, packets +
+/// hierarchy.
+const VARIANTS: [&[(&str, &str)]; 4] = [
+    &[
+        ("packet", "1x1"),
+        ("hierarchy", "false"),
+        ("coherence", "false"),
+    ],
+    &[("packet", "1x1"), ("hierarchy", "true")],
+    &[("packet", "3x3"), ("hierarchy", "false")],
+    &[("packet", "3x3"), ("hierarchy", "true")],
+];
+
+/// The speed tables' time columns from the [`VARIANTS`]' estimate ms: the four times, then GBP07
+/// over each of the other three.
+fn variant_columns(ms: [f64; 4]) -> String {
+    format!(
+        "{:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2}",
+        ms[0],
+        ms[1],
+        ms[2],
+        ms[3],
+        ms[0] / ms[1],
+        ms[0] / ms[2],
+        ms[0] / ms[3],
+    )
+}
+
 fn speed() {
-    let name = env("HSM_SCENE", "bunny");
-    let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
-    let res = env("HSM_RES", "512");
-    let runs = envu("HSM_RUNS", 3);
+    let Settings {
+        name,
+        w,
+        h,
+        res,
+        runs,
+    } = settings();
     let (mut scene, rec) = load(&name, w, h);
     let base_light = scene.light;
     println!("\n## speed: {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}), one shadow map (S = 1), 3x3 packets");
@@ -130,18 +193,8 @@ fn speed() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
         scene.light = base_light.scaled(scale);
-        let variants: [&[(&str, &str)]; 4] = [
-            &[
-                ("packet", "1x1"),
-                ("hierarchy", "false"),
-                ("coherence", "false"),
-            ],
-            &[("packet", "1x1"), ("hierarchy", "true")],
-            &[("packet", "3x3"), ("hierarchy", "false")],
-            &[("packet", "3x3"), ("hierarchy", "true")],
-        ];
         let mut out = Vec::new();
-        for kv in variants {
+        for kv in VARIANTS {
             let mut kv = kv.to_vec();
             kv.push(("resolution", &res));
             let mut e = hsm(&kv);
@@ -154,14 +207,8 @@ fn speed() {
         let coh = note(&out[3].3, "packets_coherent");
         let pk = note(&out[3].3, "packets");
         println!(
-            "| {scale} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {dv:.1e} | {} | {} | {} | {coh}/{pk} |",
-            out[0].0,
-            out[1].0,
-            out[2].0,
-            out[3].0,
-            out[0].0 / out[1].0,
-            out[0].0 / out[2].0,
-            out[0].0 / out[3].0,
+            "| {scale} | {} | {dv:.1e} | {} | {} | {} | {coh}/{pk} |",
+            variant_columns([out[0].0, out[1].0, out[2].0, out[3].0]),
             note(&out[0].3, "penumbra_evaluations"),
             note(&out[0].3, "visited_per_penumbra_pixel"),
             note(&out[3].3, "visited_per_penumbra_pixel"),
@@ -329,10 +376,13 @@ fn sweep() {
 }
 
 fn tune() {
-    let name = env("HSM_SCENE", "bunny");
-    let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
-    let res = env("HSM_RES", "512");
-    let runs = envu("HSM_RUNS", 3);
+    let Settings {
+        name,
+        w,
+        h,
+        res,
+        runs,
+    } = settings();
     let (mut scene, rec) = load(&name, w, h);
     scene.light = scene.light.scaled(2.0);
     let grid = ["0", "1", "2", "4", "8", "16"];
@@ -386,66 +436,40 @@ fn accuracy() {
     let rows: Vec<(&str, Make)> = vec![
         (
             "GBP07 per pixel (S=1)",
-            Box::new(|| {
-                Box::new(hsm(&[
-                    ("packet", "1x1"),
-                    ("hierarchy", "false"),
-                    ("coherence", "false"),
-                ])) as Box<dyn SoftShadowEstimator>
-            }),
+            Box::new(|| boxed(hsm(VARIANTS[0]))),
         ),
         (
             "packet-hsm S=1 (3x3, hierarchy)",
-            Box::new(|| Box::new(hsm(&[("sublights", "1")])) as Box<dyn SoftShadowEstimator>),
+            Box::new(|| boxed(hsm(&[("sublights", "1")]))),
         ),
         (
             "packet-hsm S=2",
-            Box::new(|| Box::new(hsm(&[("sublights", "2")])) as Box<dyn SoftShadowEstimator>),
+            Box::new(|| boxed(hsm(&[("sublights", "2")]))),
         ),
         (
             "packet-hsm S=4",
-            Box::new(|| Box::new(hsm(&[("sublights", "4")])) as Box<dyn SoftShadowEstimator>),
+            Box::new(|| boxed(hsm(&[("sublights", "4")]))),
         ),
         (
             "backprojection 1 layer",
-            Box::new(|| {
-                let mut e = CpuBackprojection::new().expect("bp");
-                e.set_param("layers", "1").expect("p");
-                Box::new(e) as Box<dyn SoftShadowEstimator>
-            }),
+            Box::new(|| bp(&[("layers", "1")])),
         ),
         (
             "backprojection 3 layers",
-            Box::new(|| {
-                let mut e = CpuBackprojection::new().expect("bp");
-                e.set_param("layers", "3").expect("p");
-                Box::new(e) as Box<dyn SoftShadowEstimator>
-            }),
+            Box::new(|| bp(&[("layers", "3")])),
         ),
         (
             "backprojection 4 layers",
-            Box::new(|| {
-                let mut e = CpuBackprojection::new().expect("bp");
-                e.set_param("layers", "4").expect("p");
-                Box::new(e) as Box<dyn SoftShadowEstimator>
-            }),
+            Box::new(|| bp(&[("layers", "4")])),
         ),
         (
             "backprojection 4 layers, max_nspp 4096 (no adaptive step up to 64x64 kernels)",
-            Box::new(|| {
-                let mut e = CpuBackprojection::new().expect("bp");
-                e.set_param("layers", "4").expect("p");
-                e.set_param("max_nspp", "4096").expect("p");
-                Box::new(e) as Box<dyn SoftShadowEstimator>
-            }),
+            Box::new(|| bp(&[("layers", "4"), ("max_nspp", "4096")])),
         ),
-        (
-            "PCSS",
-            Box::new(|| Box::new(PcssShadow::new().expect("pcss")) as Box<dyn SoftShadowEstimator>),
-        ),
+        ("PCSS", Box::new(|| boxed(PcssShadow::new().expect("pcss")))),
         (
             "multi-sample (4x4)",
-            Box::new(|| Box::new(MultiSample::new().expect("ms")) as Box<dyn SoftShadowEstimator>),
+            Box::new(|| boxed(MultiSample::new().expect("ms"))),
         ),
     ];
     let mut fig11 = Vec::new();
@@ -500,10 +524,13 @@ fn gpu() {
             return;
         }
     };
-    let name = env("HSM_SCENE", "bunny");
-    let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
-    let res = env("HSM_RES", "512");
-    let runs = envu("HSM_RUNS", 3);
+    let Settings {
+        name,
+        w,
+        h,
+        res,
+        runs,
+    } = settings();
     let (mut scene, rec) = load(&name, w, h);
     let base_light = scene.light;
     println!("\n## gpu twin ({}): {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}; maps built on the CPU and uploaded, not counted), S = 1, 3x3 packets", ctx.describe());
@@ -511,20 +538,10 @@ fn gpu() {
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
         scene.light = base_light.scaled(scale);
-        let variants: [&[(&str, &str)]; 4] = [
-            &[
-                ("packet", "1x1"),
-                ("hierarchy", "false"),
-                ("coherence", "false"),
-            ],
-            &[("packet", "1x1"), ("hierarchy", "true")],
-            &[("packet", "3x3"), ("hierarchy", "false")],
-            &[("packet", "3x3"), ("hierarchy", "true")],
-        ];
         let mut cpu = hsm(&[("resolution", &res)]);
         let (_, _, vc, _) = time(&mut cpu, &scene, &rec, 1);
         let mut out = Vec::new();
-        for kv in variants {
+        for kv in VARIANTS {
             let mut e = packet_hsm::GpuPacketHsm::new(ctx.clone()).expect("gpu");
             e.set_param("resolution", &res).expect("res");
             for (k, v) in kv {
@@ -538,14 +555,8 @@ fn gpu() {
             .map(|o| note(&o.3, "loop_limit_cpu_fallbacks"))
             .collect();
         println!(
-            "| {scale} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {dv:.1e} | {} |",
-            out[0].0,
-            out[1].0,
-            out[2].0,
-            out[3].0,
-            out[0].0 / out[1].0,
-            out[0].0 / out[2].0,
-            out[0].0 / out[3].0,
+            "| {scale} | {} | {dv:.1e} | {} |",
+            variant_columns([out[0].0, out[1].0, out[2].0, out[3].0]),
             fb.join(" / ")
         );
     }
@@ -562,23 +573,17 @@ fn main() {
         "packet-hsm measurements ({} threads)",
         rayon::current_num_threads()
     );
-    let all = what == "all";
-    if all || what == "speed" {
-        speed();
-    }
-    if all || what == "visits" {
-        visits();
-    }
-    if all || what == "sweep" {
-        sweep();
-    }
-    if all || what == "tune" {
-        tune();
-    }
-    if all || what == "gpu" {
-        gpu();
-    }
-    if all || what == "accuracy" {
-        accuracy();
+    let sections: [(&str, fn()); 6] = [
+        ("speed", speed),
+        ("visits", visits),
+        ("sweep", sweep),
+        ("tune", tune),
+        ("gpu", gpu),
+        ("accuracy", accuracy),
+    ];
+    for (name, section) in sections {
+        if what == "all" || what == name {
+            section();
+        }
     }
 }

@@ -1,4 +1,4 @@
-//! The ray tracer against the closed forms of background.md §9-§10, and the contract's rules
+//! The ray tracer against the closed forms of docs/methods.md §9-§10, and the contract's rules
 //! (one-sided lights, tangent plane, transmittance, empty scenes).
 use glam::{Vec2, Vec3};
 use proptest::{prelude::*, test_runner::FileFailurePersistence};
@@ -142,8 +142,9 @@ fn rect_scene(light: Light, occluders: &[RectOccluder], ground: bool) -> Scene {
     Scene::from_meshes("test", camera(), light, meshes).expect("scene")
 }
 
-#[test]
-fn a_rect_light_rect_occluder_matches_closed_form() {
+/// The standard occluded scene: [`down_light`], one opaque rectangle occluder at light depth 1.5
+/// and the ground plane.
+fn occluded_scene() -> (Light, [RectOccluder; 1], Scene) {
     let light = down_light();
     let occ = [RectOccluder {
         min: Vec2::new(-0.4, -0.3),
@@ -151,6 +152,41 @@ fn a_rect_light_rect_occluder_matches_closed_form() {
         z: 1.5,
     }];
     let scene = rect_scene(light, &occ, true);
+    (light, occ, scene)
+}
+
+/// One polygon occluder (opaque) at light-space depth z of `frame` under `light`.
+fn polygon_scene(name: &str, light: Light, frame: &LightFrame, poly: &[Vec2], z: f32) -> Scene {
+    Scene::from_meshes(
+        name,
+        camera(),
+        light,
+        vec![(polygon_mesh(frame, poly, z), 1.0)],
+    )
+    .expect("scene")
+}
+
+/// Receivers at `pos`, all facing up (+y).
+fn facing_up(pos: &[Vec3]) -> Receivers {
+    Receivers::from_points(pos.to_vec(), vec![Vec3::Y; pos.len()]).expect("receivers")
+}
+
+/// The RMS error against `oracle` at 16, 64, 256 and 1024 spp, printed under `what`; asserts it
+/// falls at every step and by more than 4 x from 16 to 1024 spp.
+fn assert_error_falls(what: &str, scene: &Scene, r: &Receivers, oracle: &[f64]) {
+    let mut rms = Vec::new();
+    for n in [16u32, 64, 256, 1024] {
+        let (_, e) = errors(&trace(scene, r, spp(n)), oracle);
+        rms.push(e);
+    }
+    println!("{what} RMS error at 16/64/256/1024 spp: {rms:?}");
+    assert!(rms.windows(2).all(|w| w[1] < w[0]), "{rms:?}");
+    assert!(rms[3] < rms[0] / 4.0, "{rms:?}");
+}
+
+#[test]
+fn a_rect_light_rect_occluder_matches_closed_form() {
+    let (light, occ, scene) = occluded_scene();
     let pos = ground_receivers();
     let f = light.frame();
     let oracle: Vec<f64> = pos
@@ -160,7 +196,7 @@ fn a_rect_light_rect_occluder_matches_closed_form() {
     // The line crosses umbra, penumbra and lit regions.
     assert!(oracle.contains(&0.0) && oracle.contains(&1.0));
     assert!(oracle.iter().filter(|&&o| o > 0.05 && o < 0.95).count() > 50);
-    let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
+    let r = facing_up(&pos);
     let v = trace(&scene, &r, spp(1024));
     let (max, rms) = errors(&v, &oracle);
     println!(
@@ -227,13 +263,7 @@ fn b_disk_light_disk_occluder_matches_lens_formula() {
     };
     let f = light.frame();
     let poly = ngon(c_o, r_o, 64);
-    let scene = Scene::from_meshes(
-        "disk",
-        camera(),
-        light,
-        vec![(polygon_mesh(&f, &poly, z_o), 1.0)],
-    )
-    .expect("scene");
+    let scene = polygon_scene("disk", light, &f, &poly, z_o);
     let pos = ground_receivers();
     let lp: Vec<Vec3> = pos.iter().map(|p| f.to_light(*p)).collect();
     let lens: Vec<f64> = lp
@@ -257,7 +287,7 @@ fn b_disk_light_disk_occluder_matches_lens_formula() {
         poly_err <= bound + 1e-6,
         "polygon error {poly_err} above bound {bound}"
     );
-    let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
+    let r = facing_up(&pos);
     let v = trace(&scene, &r, spp(1024));
     let (max, rms) = errors(&v, &lens);
     let (max_poly, rms_poly) = errors(&v, &exact);
@@ -360,7 +390,7 @@ fn c_stacked_semi_transparent_sheets_multiply() {
     let pos: Vec<Vec3> = (0..25)
         .map(|k| Vec3::new(-1.0 + 0.08 * k as f32, 0.0, 0.5 - 0.04 * k as f32))
         .collect();
-    let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
+    let r = facing_up(&pos);
     let v = trace(&scene, &r, spp(1024));
     let want = 0.7 * 0.5;
     for (p, x) in pos.iter().zip(&v) {
@@ -455,13 +485,7 @@ fn f_no_occluders_gives_exactly_one() {
 
 #[test]
 fn g_error_falls_with_sample_count() {
-    let light = down_light();
-    let occ = [RectOccluder {
-        min: Vec2::new(-0.4, -0.3),
-        max: Vec2::new(0.6, 0.5),
-        z: 1.5,
-    }];
-    let scene = rect_scene(light, &occ, true);
+    let (light, occ, scene) = occluded_scene();
     // The penumbra of the occluder's +x edge (x from 0.7 to 1.7 on the ground).
     let pos: Vec<Vec3> = (0..200)
         .map(|k| Vec3::new(0.72 + 0.0048 * k as f32, 0.0, 0.05 + 0.001 * k as f32))
@@ -472,15 +496,8 @@ fn g_error_falls_with_sample_count() {
         .map(|p| rect_occluder_visibility(Vec2::splat(0.5), &occ, f.to_light(*p)))
         .collect();
     assert!(oracle.iter().all(|&o| o > 0.0 && o < 1.0));
-    let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
-    let mut rms = Vec::new();
-    for n in [16u32, 64, 256, 1024] {
-        let (_, e) = errors(&trace(&scene, &r, spp(n)), &oracle);
-        rms.push(e);
-    }
-    println!("penumbra RMS error at 16/64/256/1024 spp: {rms:?}");
-    assert!(rms.windows(2).all(|w| w[1] < w[0]), "{rms:?}");
-    assert!(rms[3] < rms[0] / 4.0, "{rms:?}");
+    let r = facing_up(&pos);
+    assert_error_falls("penumbra", &scene, &r, &oracle);
 
     // The same for a curved edge (disk light, 64-gon occluder vs its exact oracle), where
     // multi-jittering helps less.
@@ -488,13 +505,7 @@ fn g_error_falls_with_sample_count() {
     disk.shape = LightShape::Disk { radius: 0.6 };
     let fd = disk.frame();
     let poly = ngon(Vec2::new(0.1, -0.05), 0.35, 64);
-    let scene = Scene::from_meshes(
-        "disk",
-        camera(),
-        disk,
-        vec![(polygon_mesh(&fd, &poly, 1.5), 1.0)],
-    )
-    .expect("scene");
+    let scene = polygon_scene("disk", disk, &fd, &poly, 1.5);
     let pos: Vec<Vec3> = (0..200)
         .map(|k| Vec3::new(0.45 + 0.005 * k as f32, 0.0, 0.3 - 0.002 * k as f32))
         .collect();
@@ -502,15 +513,8 @@ fn g_error_falls_with_sample_count() {
         .iter()
         .map(|p| polygon_occluder_disk_visibility(0.6, &poly, 1.5, fd.to_light(*p)))
         .collect();
-    let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
-    let mut rms = Vec::new();
-    for n in [16u32, 64, 256, 1024] {
-        let (_, e) = errors(&trace(&scene, &r, spp(n)), &oracle);
-        rms.push(e);
-    }
-    println!("disk penumbra RMS error at 16/64/256/1024 spp: {rms:?}");
-    assert!(rms.windows(2).all(|w| w[1] < w[0]), "{rms:?}");
-    assert!(rms[3] < rms[0] / 4.0, "{rms:?}");
+    let r = facing_up(&pos);
+    assert_error_falls("disk penumbra", &scene, &r, &oracle);
 }
 
 #[test]
@@ -535,13 +539,7 @@ fn inactive_receivers_get_nan_and_lengths_are_checked() {
 
 #[test]
 fn camera_receivers_are_finite_in_range_and_deterministic() {
-    let light = down_light();
-    let occ = [RectOccluder {
-        min: Vec2::new(-0.4, -0.3),
-        max: Vec2::new(0.6, 0.5),
-        z: 1.5,
-    }];
-    let scene = rect_scene(light, &occ, true);
+    let (_, _, scene) = occluded_scene();
     let bvh = SceneBvh::new(&scene);
     let r = Receivers::from_camera(&scene, &bvh);
     assert!(r.active_count() > 0 && r.active_count() < r.len());
@@ -565,15 +563,9 @@ fn camera_receivers_are_finite_in_range_and_deterministic() {
 
 #[test]
 fn estimator_runs_reports_and_validates() {
-    let light = down_light();
-    let occ = [RectOccluder {
-        min: Vec2::new(-0.4, -0.3),
-        max: Vec2::new(0.6, 0.5),
-        z: 1.5,
-    }];
-    let scene = rect_scene(light, &occ, true);
+    let (_, _, scene) = occluded_scene();
     let pos = ground_receivers();
-    let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
+    let r = facing_up(&pos);
     let mut est = ReferenceEstimator::new()
         .expect("defaults parse")
         .with_progress(false);
@@ -627,25 +619,14 @@ fn disk_light_result_does_not_depend_on_tangent() {
         };
         // The occluder is fixed in world space (built in the +x tangent frame).
         let f0 = LightFrame::new(light.center, light.normal, Vec3::X).expect("frame");
-        let scene = Scene::from_meshes(
-            "t",
-            camera(),
-            light,
-            vec![(polygon_mesh(&f0, &occ, 1.5), 1.0)],
-        )
-        .expect("scene");
+        let scene = polygon_scene("t", light, &f0, &occ, 1.5);
         let pos = ground_receivers();
-        let r = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).expect("receivers");
+        let r = facing_up(&pos);
         out.push(trace(&scene, &r, spp(1024)));
     }
-    let (max, _) = errors(
-        &out[1],
-        &out[0].iter().map(|&x| x as f64).collect::<Vec<_>>(),
-    );
-    let (max2, _) = errors(
-        &out[2],
-        &out[0].iter().map(|&x| x as f64).collect::<Vec<_>>(),
-    );
+    let first: Vec<f64> = out[0].iter().map(|&x| x as f64).collect();
+    let (max, _) = errors(&out[1], &first);
+    let (max2, _) = errors(&out[2], &first);
     assert!(
         max <= 2.0 * TOL_1024 && max2 <= 2.0 * TOL_1024,
         "{max} {max2}"
@@ -662,7 +643,7 @@ proptest! {
     /// Random rect lights, 1-3 random rect occluders, random receivers facing the light:
     /// V in [0, 1], never NaN, within 0.02 of the closed form at 1024 spp. Up to three occluders put
     /// up to 12 edges across the light; jittered sampling's error per edge is about 0.3 N^-3/4
-    /// (background.md §6), so 0.02 is about four standard deviations for the worst case (at 256
+    /// (docs/methods.md §6), so 0.02 is about four standard deviations for the worst case (at 256
     /// spp a run of this property once measured 0.021: the bound must hold at every seed).
     #[test]
     fn h_random_rect_configurations_match_closed_form(

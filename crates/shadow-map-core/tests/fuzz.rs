@@ -5,31 +5,15 @@
 //!
 //! Cases per property: 10^4 by default (what CI runs); `SOFTSHADOW_FUZZ_CASES=1000000` for the
 //! long run.
+mod common;
+
+use common::{good_scene_toml, QUAD};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 use shadow_map_core::{params::parse_assignment, Error, ParamKind, ParamSpec, Params, Scene};
 use std::path::Path;
 
-const QUAD: &str = "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nf 1 2 3\nf 1 3 4\n";
-const GOOD: &str = r#"[camera]
-eye = [0.0, 3.0, 6.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 32
-height = 24
-
-[light]
-shape = "rect"
-center = [0.0, 6.0, 0.0]
-normal = [0.0, -1.0, 0.0]
-tangent = [1.0, 0.0, 0.0]
-size = [2.0, 2.0]
-
-[[mesh]]
-path = "quad.obj"
-opacity = 0.5
-"#;
+const GOOD: &str = concat!(good_scene_toml!(), "opacity = 0.5\n");
 
 fn cases() -> u32 {
     std::env::var("SOFTSHADOW_FUZZ_CASES")

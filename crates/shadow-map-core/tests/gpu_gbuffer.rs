@@ -17,17 +17,18 @@
 //! fractions and maximum errors are printed.
 #![cfg(feature = "gpu")]
 
+mod common;
+
+use common::check_layout;
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
-        context_for_tests,
         gbuffer::{GBufferCamera, ResolveParams, NO_TRIANGLE},
         shared::pack_receivers,
-        GpuContext, GpuGBuffer, GpuScene, SHADERS,
+        GpuContext, GpuGBuffer, GpuScene,
     },
     Camera, Error, Light, LightShape, Receivers, Scene, SceneBvh,
 };
-use std::mem::{align_of, offset_of, size_of};
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
@@ -47,21 +48,7 @@ type Gpu = (Arc<GpuContext>, Arc<GpuGBuffer>);
 /// The shared context and one G-buffer for the whole binary, or `None` after a loud skip.
 fn gpu(test: &str) -> Result<Option<Gpu>, Error> {
     static GBUFFER: OnceLock<Result<Arc<GpuGBuffer>, String>> = OnceLock::new();
-    let Some(ctx) = context_for_tests(test)? else {
-        return Ok(None);
-    };
-    let g = GBUFFER
-        .get_or_init(|| {
-            GpuGBuffer::new(&ctx)
-                .map(Arc::new)
-                .map_err(|e| e.to_string())
-        })
-        .clone()
-        .map_err(|reason| Error::Gpu {
-            stage: "test gbuffer".into(),
-            reason,
-        })?;
-    Ok(Some((ctx, g)))
+    common::gpu_with(test, &GBUFFER, "test gbuffer", GpuGBuffer::new)
 }
 
 fn fixtures() -> Vec<PathBuf> {
@@ -82,6 +69,14 @@ fn fixtures() -> Vec<PathBuf> {
     out.sort();
     assert!(out.len() >= 6, "expected the fixture scenes, found {out:?}");
     out
+}
+
+/// The fixture scene file `fixtures/<name>/<name>.toml`.
+fn fixture(name: &str) -> PathBuf {
+    fixtures()
+        .into_iter()
+        .find(|p| p.ends_with(format!("{name}/{name}.toml")))
+        .unwrap_or_else(|| panic!("{name} fixture"))
 }
 
 /// The CPU triangle index per pixel (`None` for background), rays exactly as `from_camera`.
@@ -342,10 +337,7 @@ fn chunked_resolve_is_identical() -> TestResult {
     let Some((ctx, _)) = gpu("chunked_resolve_is_identical")? else {
         return Ok(());
     };
-    let path = fixtures()
-        .into_iter()
-        .find(|p| p.ends_with("bunny/bunny.toml"))
-        .expect("bunny fixture");
+    let path = fixture("bunny");
     let mut scene = Scene::load(&path)?;
     scene.camera.width = 97;
     scene.camera.height = 41;
@@ -383,10 +375,7 @@ fn oversized_images_and_degenerate_cameras_are_refused() -> TestResult {
     let Some((ctx, gb)) = gpu("oversized_images_and_degenerate_cameras_are_refused")? else {
         return Ok(());
     };
-    let path = fixtures()
-        .into_iter()
-        .find(|p| p.ends_with("parallel-squares/parallel-squares.toml"))
-        .expect("parallel-squares fixture");
+    let path = fixture("parallel-squares");
     let scene = Scene::load(&path)?;
     let gscene = GpuScene::upload(&ctx, &scene)?;
     let side = ctx.limits().max_texture_dimension_2d;
@@ -414,64 +403,16 @@ fn oversized_images_and_degenerate_cameras_are_refused() -> TestResult {
     Ok(())
 }
 
-/// naga's (span, alignment, [(member, offset, size)]) of struct `name` in the `gbuffer` shader.
-fn wgsl_struct(name: &str) -> (u32, u32, Vec<(String, u32, u32)>) {
-    let src = SHADERS
-        .iter()
-        .find(|(n, _)| *n == "gbuffer")
-        .expect("gbuffer is in SHADERS")
-        .1;
-    let module = naga::front::wgsl::parse_str(src)
-        .unwrap_or_else(|e| panic!("gbuffer: {}", e.emit_to_string(src)));
-    let mut layouter = naga::proc::Layouter::default();
-    layouter.update(module.to_ctx()).expect("layouter");
-    let (handle, ty) = module
-        .types
-        .iter()
-        .find(|(_, t)| t.name.as_deref() == Some(name))
-        .unwrap_or_else(|| panic!("no struct {name}"));
-    let naga::TypeInner::Struct { members, span } = &ty.inner else {
-        panic!("{name} is not a struct");
-    };
-    let members = members
-        .iter()
-        .map(|m| {
-            (
-                m.name.clone().unwrap_or_default(),
-                m.offset,
-                layouter[m.ty].size,
-            )
-        })
-        .collect();
-    (*span, layouter[handle].alignment.round_up(1), members)
-}
-
-macro_rules! check_layout {
-    ($wgsl:literal, $rust:ty, [$($field:ident),* $(,)?]) => {{
-        let (span, align, members) = wgsl_struct($wgsl);
-        assert_eq!(span as usize, size_of::<$rust>(), "{}: span", $wgsl);
-        assert_eq!(align as usize, align_of::<$rust>(), "{}: alignment", $wgsl);
-        let zero: $rust = bytemuck::Zeroable::zeroed();
-        let rust: Vec<(&str, usize, usize)> = vec![
-            $((stringify!($field), offset_of!($rust, $field), std::mem::size_of_val(&zero.$field))),*
-        ];
-        assert_eq!(members.len(), rust.len(), "{}: member count", $wgsl);
-        for ((wname, woff, wsize), (rname, roff, rsize)) in members.iter().zip(&rust) {
-            assert_eq!(wname, rname, "{}: member order", $wgsl);
-            assert_eq!(*woff as usize, *roff, "{}.{}: offset", $wgsl, wname);
-            assert_eq!(*wsize as usize, *rsize, "{}.{}: size", $wgsl, wname);
-        }
-    }};
-}
-
 #[test]
 fn gbuffer_structs_match_wgsl() {
     check_layout!(
+        "gbuffer",
         "GBufferCamera",
         GBufferCamera,
         [eye, t, forward, aspect, right, near, true_up, width, height, _pad0, _pad1, _pad2,]
     );
     check_layout!(
+        "gbuffer",
         "ResolveParams",
         ResolveParams,
         [width, first, count, background_z]

@@ -20,12 +20,14 @@
 #![cfg(feature = "gpu")]
 #![allow(clippy::needless_range_loop)] // texel loops read clearer with indices
 
-use glam::{DVec2, DVec3, Vec2, Vec3};
+mod common;
+
+use common::{quad_uv, unit_light, unit_view};
+use glam::{DVec2, DVec3, Vec3};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, FileFailurePersistence, TestRunner};
 use shadow_map_core::{
     gpu::{
-        context_for_tests,
         mssm::MinMaxRequest,
         read_depth_map,
         receivers::RECEIVER_BYTES,
@@ -57,21 +59,7 @@ type Gpu = (Arc<GpuContext>, Arc<GpuShadowMapper>);
 /// The shared context and one mapper for the whole binary, or `None` after a loud skip.
 fn gpu(test: &str) -> Result<Option<Gpu>, Error> {
     static MAPPER: OnceLock<Result<Arc<GpuShadowMapper>, String>> = OnceLock::new();
-    let Some(ctx) = context_for_tests(test)? else {
-        return Ok(None);
-    };
-    let mapper = MAPPER
-        .get_or_init(|| {
-            GpuShadowMapper::new(&ctx)
-                .map(Arc::new)
-                .map_err(|e| e.to_string())
-        })
-        .clone()
-        .map_err(|reason| Error::Gpu {
-            stage: "test mapper".into(),
-            reason,
-        })?;
-    Ok(Some((ctx, mapper)))
+    common::gpu_with(test, &MAPPER, "test mapper", GpuShadowMapper::new)
 }
 
 fn proptest_config(default_cases: u32) -> Config {
@@ -108,41 +96,6 @@ fn rect_light(center: Vec3, normal: Vec3, size: [f32; 2]) -> Light {
         normal: frame.ez,
         tangent: frame.ex,
     }
-}
-
-/// Light at the origin looking down +z, n = 1, window [0, r]^2: at z = 1, texel coordinates
-/// equal x and y.
-fn unit_view(r: u32) -> LightView {
-    LightView {
-        frame: LightFrame {
-            origin: Vec3::ZERO,
-            ex: Vec3::X,
-            ey: Vec3::Y,
-            ez: Vec3::Z,
-        },
-        n: 1.0,
-        far: 100.0,
-        window_min: Vec2::ZERO,
-        w: r as f32,
-        r,
-    }
-}
-
-fn unit_light() -> Light {
-    Light {
-        shape: LightShape::Rect { size: [1.0, 1.0] },
-        center: Vec3::ZERO,
-        normal: Vec3::Z,
-        tangent: Vec3::X,
-    }
-}
-
-/// Two triangles covering texels [u0, u1] x [v0, v1] of [`unit_view`] at depth z, facing the
-/// light at the origin.
-fn quad_uv(u0: f32, v0: f32, u1: f32, v1: f32, z: f32) -> Vec<[Vec3; 3]> {
-    let p = |u: f32, v: f32| Vec3::new(u * z, v * z, z);
-    let (a, b, c, d) = (p(u0, v0), p(u1, v0), p(u1, v1), p(u0, v1));
-    vec![[a, c, b], [a, d, c]]
 }
 
 fn scene_of(light: Light, tris: Vec<[Vec3; 3]>) -> Result<Scene, Error> {

@@ -1,13 +1,16 @@
 #![allow(clippy::needless_range_loop)] // texel loops read clearer with indices
 //! The CPU shadow-map core: fill rule, orientation, perspective-correct linear depth, bias,
 //! culling, peeling, midpoints and the light-view fit.
+mod common;
+
+use common::{quad_uv, unit_light, unit_view};
 use glam::{Vec2, Vec3};
 use proptest::prelude::*;
 use shadow_map_core::{
     light_view::LightView,
     peeling::{midpoint, midpoints, peel},
     raster::{PreparedScene, PEEL_EPS_REL},
-    Camera, Cull, DepthBias, Light, LightFrame, LightShape, Receivers, Scene,
+    Camera, Cull, DepthBias, Light, LightShape, Receivers, Scene,
 };
 
 fn camera() -> Camera {
@@ -21,41 +24,14 @@ fn camera() -> Camera {
     }
 }
 
-/// Light at the origin looking down +z (light space = world space).
-fn light() -> Light {
-    Light {
-        shape: LightShape::Rect { size: [1.0, 1.0] },
-        center: Vec3::ZERO,
-        normal: Vec3::Z,
-        tangent: Vec3::X,
-    }
-}
-
 fn scene(meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
     Scene::from_meshes(
         "test",
         camera(),
-        light(),
+        unit_light(),
         meshes.into_iter().map(|m| (m, 1.0)).collect(),
     )
     .unwrap()
-}
-
-/// A view with n = 1 and the window [0, r] x [0, r]: at z = 1, texel coordinates equal x and y.
-fn unit_view(r: u32) -> LightView {
-    LightView {
-        frame: LightFrame {
-            origin: Vec3::ZERO,
-            ex: Vec3::X,
-            ey: Vec3::Y,
-            ez: Vec3::Z,
-        },
-        n: 1.0,
-        far: 100.0,
-        window_min: Vec2::ZERO,
-        w: r as f32,
-        r,
-    }
 }
 
 fn quad(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Vec3; 3]> {
@@ -67,11 +43,6 @@ fn quad(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Vec3; 3]> {
     );
     // Winding with normal -z: facing the light at the origin.
     vec![[a, c, b], [a, d, c]]
-}
-
-/// A quad at depth z whose projection covers texels [u0, u1] x [v0, v1] of [`unit_view`].
-fn quad_uv(u0: f32, v0: f32, u1: f32, v1: f32, z: f32) -> Vec<[Vec3; 3]> {
-    quad(u0 * z, v0 * z, u1 * z, v1 * z, z)
 }
 
 fn covered(s: &Scene, view: &LightView) -> Vec<bool> {

@@ -1,29 +1,12 @@
 //! Every way a scene file or an OBJ can be wrong gets a one-line error naming the file and the
 //! key or line; zero-area triangles are skipped and counted; nothing panics.
+mod common;
+
+use common::{good_scene_toml, QUAD};
 use shadow_map_core::{Error, Scene};
 use std::path::Path;
 
-const QUAD: &str = "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nf 1 2 3\nf 1 3 4\n";
-
-const GOOD: &str = r#"
-[camera]
-eye = [0.0, 3.0, 6.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 32
-height = 24
-
-[light]
-shape = "rect"
-center = [0.0, 6.0, 0.0]
-normal = [0.0, -1.0, 0.0]
-tangent = [1.0, 0.0, 0.0]
-size = [2.0, 2.0]
-
-[[mesh]]
-path = "quad.obj"
-"#;
+const GOOD: &str = concat!("\n", good_scene_toml!());
 
 fn write_scene(dir: &Path, toml: &str, obj: &str) -> std::path::PathBuf {
     std::fs::write(dir.join("quad.obj"), obj).unwrap();

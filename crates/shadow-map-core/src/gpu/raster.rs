@@ -381,30 +381,8 @@ impl GpuShadowMapper {
         };
         ctx.scoped("raster", || -> Result<GpuLightSpace> {
             let device = &ctx.device;
-            let view_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("raster.view"),
-                contents: bytemuck::bytes_of(&LightViewUniform::from(view)),
-                usage: wgpu::BufferUsages::UNIFORM
-                    | wgpu::BufferUsages::COPY_DST
-                    | wgpu::BufferUsages::COPY_SRC,
-            });
-            let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("raster.params"),
-                contents: bytemuck::bytes_of(&RasterParams::from(bias)),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let depth_test = device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some("raster.depth_test"),
-                    size: extent(r),
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: DEPTH_TEST_FORMAT,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-                    view_formats: &[],
-                })
-                .create_view(&Default::default());
+            let (view_uniform, params) = create_raster_uniforms(device, view, bias);
+            let depth_test = create_depth_test(device, r);
             let mut layers = Vec::with_capacity(k as usize);
             for m in 0..k {
                 layers.push(GpuDepthMap::new(ctx, r, &format!("raster.layer{m}"))?);
@@ -418,53 +396,8 @@ impl GpuShadowMapper {
                 } else {
                     &layers[m - 1].view
                 };
-                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("raster"),
-                    layout: &self.layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: view_uniform.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: params.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: wgpu::BindingResource::TextureView(prev),
-                        },
-                    ],
-                });
-                let label = format!("raster.layer{m}");
-                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some(&label),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &layers[m].view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: f64::INFINITY,
-                                g: 0.0,
-                                b: 0.0,
-                                a: 0.0,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &depth_test,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(0.0),
-                            store: wgpu::StoreOp::Discard,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let group = self.layer_bind_group(device, &view_uniform, &params, prev);
+                let mut pass = begin_layer_pass(&mut enc, m, &layers[m].view, &depth_test);
                 if scene.triangles > 0 {
                     let pipeline = match (&peel, m) {
                         (Some(p), 1..) => p,
@@ -511,4 +444,107 @@ impl GpuShadowMapper {
             })
         })?
     }
+
+    /// Binds a peeling pass's uniforms and its previous layer `prev` (label `raster`).
+    fn layer_bind_group(
+        &self,
+        device: &wgpu::Device,
+        view_uniform: &wgpu::Buffer,
+        params: &wgpu::Buffer,
+        prev: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("raster"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: view_uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(prev),
+                },
+            ],
+        })
+    }
+}
+
+/// Creates the view uniform (`raster.view`), then the bias parameters (`raster.params`).
+fn create_raster_uniforms(
+    device: &wgpu::Device,
+    view: &LightView,
+    bias: DepthBias,
+) -> (wgpu::Buffer, wgpu::Buffer) {
+    let view_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("raster.view"),
+        contents: bytemuck::bytes_of(&LightViewUniform::from(view)),
+        usage: wgpu::BufferUsages::UNIFORM
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+    });
+    let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("raster.params"),
+        contents: bytemuck::bytes_of(&RasterParams::from(bias)),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    (view_uniform, params)
+}
+
+/// Creates the `r` x `r` depth attachment of the nearest-surface test (`raster.depth_test`).
+fn create_depth_test(device: &wgpu::Device, r: u32) -> wgpu::TextureView {
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("raster.depth_test"),
+            size: extent(r),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_TEST_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+/// Begins layer `m`'s render pass (`raster.layer{m}`): colour cleared to +inf, depth to 0.
+fn begin_layer_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    m: usize,
+    target: &wgpu::TextureView,
+    depth_test: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    let label = format!("raster.layer{m}");
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(&label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: f64::INFINITY,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 0.0,
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth_test,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(0.0),
+                store: wgpu::StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }

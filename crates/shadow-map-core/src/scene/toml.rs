@@ -92,11 +92,44 @@ fn line_of(text: &str, offset: usize) -> usize {
 }
 
 pub(super) fn load(path: &Path) -> Result<Scene> {
+    let file = read_scene_file(path)?;
+    let cx = Ctx { path };
+    let camera = parse_camera(&cx, &file.camera)?;
+    let light = parse_light(&cx, &file.light)?;
+
+    let mut scene = Scene {
+        path: path.to_path_buf(),
+        camera,
+        light,
+        triangles: Vec::new(),
+        triangle_mesh: Vec::new(),
+        meshes: Vec::new(),
+        skipped_degenerate: 0,
+    };
+    if file.mesh.is_empty() {
+        return Err(cx.err("mesh", "the scene has no [[mesh]] entries"));
+    }
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    for (k, m) in file.mesh.iter().enumerate() {
+        let (obj_path, opacity, tris) = load_mesh(&cx, &dir, k, m)?;
+        scene.push_mesh(obj_path, opacity, tris);
+    }
+    if scene.triangles.is_empty() {
+        return Err(Error::EmptyScene {
+            path: path.to_path_buf(),
+            skipped: scene.skipped_degenerate,
+        });
+    }
+    Ok(scene)
+}
+
+/// Reads `path` and parses it as a [`SceneFile`], TOML errors prefixed with their line.
+fn read_scene_file(path: &Path) -> Result<SceneFile> {
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let file: SceneFile = ::toml::from_str(&text).map_err(|e| {
+    ::toml::from_str(&text).map_err(|e| {
         let line = e
             .span()
             .map(|s| format!("line {}: ", line_of(&text, s.start)))
@@ -106,11 +139,11 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
             key: None,
             reason: format!("{line}{}", e.message().replace('\n', " ")),
         }
-    })?;
-    let cx = Ctx { path };
+    })
+}
 
-    // Camera.
-    let c = &file.camera;
+/// Validates the `[camera]` table into a [`Camera`].
+fn parse_camera(cx: &Ctx<'_>, c: &CameraFile) -> Result<Camera> {
     let eye = cx.vec3("camera.eye", c.eye)?;
     let target = cx.vec3("camera.target", c.target)?;
     let up = cx.unit("camera.up", c.up)?;
@@ -132,72 +165,23 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
             return Err(cx.err(k, format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}")));
         }
     }
-    let camera = Camera {
+    Ok(Camera {
         eye,
         target,
         up,
         fov_y_deg: c.fov_y_deg,
         width: c.width,
         height: c.height,
-    };
+    })
+}
 
-    // Light.
-    let l = &file.light;
+/// Validates the `[light]` table into a [`Light`].
+fn parse_light(cx: &Ctx<'_>, l: &LightFile) -> Result<Light> {
     let center = cx.vec3("light.center", l.center)?;
     let normal = cx.unit("light.normal", l.normal)?;
-    let positive = |key: &str, v: f32| -> Result<f32> {
-        if v.is_finite() && v > 0.0 {
-            Ok(v)
-        } else {
-            Err(cx.err(key, format!("must be a finite number > 0, got {v}")))
-        }
-    };
     let (shape, tangent) = match l.shape.as_str() {
-        "rect" => {
-            if l.radius.is_some() {
-                return Err(cx.err("light.radius", "not used by rect lights (use `size`)"));
-            }
-            let size = l
-                .size
-                .ok_or_else(|| cx.err("light.size", "missing (required for rect lights)"))?;
-            let size = [
-                positive("light.size", size[0])?,
-                positive("light.size", size[1])?,
-            ];
-            let t = l
-                .tangent
-                .ok_or_else(|| cx.err("light.tangent", "missing (required for rect lights)"))?;
-            let t = cx.unit("light.tangent", t)?;
-            let ortho = t - t.dot(normal) * normal;
-            let t = ortho
-                .try_normalize()
-                .filter(|_| ortho.length() > 1e-4)
-                .ok_or_else(|| cx.err("light.tangent", "must not be parallel to light.normal"))?;
-            (LightShape::Rect { size }, t)
-        }
-        "disk" | "sphere" => {
-            for (k, present) in [
-                ("light.size", l.size.is_some()),
-                ("light.tangent", l.tangent.is_some()),
-            ] {
-                if present {
-                    return Err(cx.err(k, format!("not used by {} lights (use `radius`)", l.shape)));
-                }
-            }
-            let r = l.radius.ok_or_else(|| {
-                cx.err(
-                    "light.radius",
-                    format!("missing (required for {} lights)", l.shape),
-                )
-            })?;
-            let r = positive("light.radius", r)?;
-            let shape = if l.shape == "disk" {
-                LightShape::Disk { radius: r }
-            } else {
-                LightShape::Sphere { radius: r }
-            };
-            (shape, default_tangent(normal))
-        }
+        "rect" => rect_light(cx, l, normal)?,
+        "disk" | "sphere" => round_light(cx, l, normal)?,
         other => {
             return Err(cx.err(
                 "light.shape",
@@ -205,58 +189,102 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
             ))
         }
     };
-    let light = Light {
+    Ok(Light {
         shape,
         center,
         normal,
         tangent,
-    };
+    })
+}
 
-    let mut scene = Scene {
-        path: path.to_path_buf(),
-        camera,
-        light,
-        triangles: Vec::new(),
-        triangle_mesh: Vec::new(),
-        meshes: Vec::new(),
-        skipped_degenerate: 0,
+/// Checks that the light parameter `v` (at `key`) is a finite number > 0.
+fn positive(cx: &Ctx<'_>, key: &str, v: f32) -> Result<f32> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(cx.err(key, format!("must be a finite number > 0, got {v}")))
+    }
+}
+
+/// Validates a rect light's `size` and `tangent` (made orthogonal to `normal`).
+fn rect_light(cx: &Ctx<'_>, l: &LightFile, normal: Vec3) -> Result<(LightShape, Vec3)> {
+    if l.radius.is_some() {
+        return Err(cx.err("light.radius", "not used by rect lights (use `size`)"));
+    }
+    let size = l
+        .size
+        .ok_or_else(|| cx.err("light.size", "missing (required for rect lights)"))?;
+    let size = [
+        positive(cx, "light.size", size[0])?,
+        positive(cx, "light.size", size[1])?,
+    ];
+    let t = l
+        .tangent
+        .ok_or_else(|| cx.err("light.tangent", "missing (required for rect lights)"))?;
+    let t = cx.unit("light.tangent", t)?;
+    let ortho = t - t.dot(normal) * normal;
+    let t = ortho
+        .try_normalize()
+        .filter(|_| ortho.length() > 1e-4)
+        .ok_or_else(|| cx.err("light.tangent", "must not be parallel to light.normal"))?;
+    Ok((LightShape::Rect { size }, t))
+}
+
+/// Validates a disk or sphere light's `radius` (no `size`, no `tangent`).
+fn round_light(cx: &Ctx<'_>, l: &LightFile, normal: Vec3) -> Result<(LightShape, Vec3)> {
+    for (k, present) in [
+        ("light.size", l.size.is_some()),
+        ("light.tangent", l.tangent.is_some()),
+    ] {
+        if present {
+            return Err(cx.err(k, format!("not used by {} lights (use `radius`)", l.shape)));
+        }
+    }
+    let r = l.radius.ok_or_else(|| {
+        cx.err(
+            "light.radius",
+            format!("missing (required for {} lights)", l.shape),
+        )
+    })?;
+    let r = positive(cx, "light.radius", r)?;
+    let shape = if l.shape == "disk" {
+        LightShape::Disk { radius: r }
+    } else {
+        LightShape::Sphere { radius: r }
     };
-    if file.mesh.is_empty() {
-        return Err(cx.err("mesh", "the scene has no [[mesh]] entries"));
+    Ok((shape, default_tangent(normal)))
+}
+
+/// Validates `[[mesh]]` entry `k` and loads its OBJ (relative to `dir`) into world space.
+fn load_mesh(
+    cx: &Ctx<'_>,
+    dir: &Path,
+    k: usize,
+    m: &MeshFile,
+) -> Result<(PathBuf, f32, Vec<[Vec3; 3]>)> {
+    let key = |f: &str| format!("mesh[{k}].{f}");
+    let scale = m.scale.unwrap_or(1.0);
+    if !(scale.is_finite() && scale != 0.0) {
+        return Err(cx.err(
+            &key("scale"),
+            format!("must be finite and non-zero, got {scale}"),
+        ));
     }
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    for (k, m) in file.mesh.iter().enumerate() {
-        let key = |f: &str| format!("mesh[{k}].{f}");
-        let scale = m.scale.unwrap_or(1.0);
-        if !(scale.is_finite() && scale != 0.0) {
-            return Err(cx.err(
-                &key("scale"),
-                format!("must be finite and non-zero, got {scale}"),
-            ));
-        }
-        let rot = m.rotate_y_deg.unwrap_or(0.0);
-        if !rot.is_finite() {
-            return Err(cx.err(&key("rotate_y_deg"), format!("must be finite, got {rot}")));
-        }
-        let translate = cx.vec3(&key("translate"), m.translate.unwrap_or([0.0; 3]))?;
-        let opacity = m.opacity.unwrap_or(1.0);
-        if !(0.0..=1.0).contains(&opacity) {
-            return Err(cx.err(&key("opacity"), format!("must be in [0, 1], got {opacity}")));
-        }
-        let obj_path: PathBuf = dir.join(&m.path);
-        let local = super::obj::load_obj_triangles(&obj_path)?;
-        let rotation = glam::Quat::from_rotation_y(rot.to_radians());
-        let tris = local
-            .into_iter()
-            .map(|t| t.map(|v| rotation * (v * scale) + translate))
-            .collect();
-        scene.push_mesh(obj_path, opacity, tris);
+    let rot = m.rotate_y_deg.unwrap_or(0.0);
+    if !rot.is_finite() {
+        return Err(cx.err(&key("rotate_y_deg"), format!("must be finite, got {rot}")));
     }
-    if scene.triangles.is_empty() {
-        return Err(Error::EmptyScene {
-            path: path.to_path_buf(),
-            skipped: scene.skipped_degenerate,
-        });
+    let translate = cx.vec3(&key("translate"), m.translate.unwrap_or([0.0; 3]))?;
+    let opacity = m.opacity.unwrap_or(1.0);
+    if !(0.0..=1.0).contains(&opacity) {
+        return Err(cx.err(&key("opacity"), format!("must be in [0, 1], got {opacity}")));
     }
-    Ok(scene)
+    let obj_path: PathBuf = dir.join(&m.path);
+    let local = super::obj::load_obj_triangles(&obj_path)?;
+    let rotation = glam::Quat::from_rotation_y(rot.to_radians());
+    let tris = local
+        .into_iter()
+        .map(|t| t.map(|v| rotation * (v * scale) + translate))
+        .collect();
+    Ok((obj_path, opacity, tris))
 }
