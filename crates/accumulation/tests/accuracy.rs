@@ -5,83 +5,12 @@ use baselines::HardShadow;
 use glam::Vec3;
 use reference::ReferenceEstimator;
 use shadow_map_core::{
-    light::default_tangent, run, Camera, Error, Light, LightShape, Receivers, Scene, SceneBvh,
-    SoftShadowEstimator,
+    light::default_tangent, run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
 };
+use test_support::fixtures::{check_contract, cuboid, fixture, points, quad, rmse, with_params};
 
-fn camera() -> Camera {
-    Camera {
-        eye: Vec3::new(0.0, 4.0, 5.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        fov_y_deg: 40.0,
-        width: 8,
-        height: 8,
-    }
-}
-
-/// A horizontal quad at height y, facing up (+y).
-fn quad(x0: f32, z0: f32, x1: f32, z1: f32, y: f32) -> Vec<[Vec3; 3]> {
-    let (a, b, c, d) = (
-        Vec3::new(x0, y, z0),
-        Vec3::new(x0, y, z1),
-        Vec3::new(x1, y, z1),
-        Vec3::new(x1, y, z0),
-    );
-    vec![[a, b, c], [a, c, d]]
-}
-
-/// A closed axis-aligned box.
-fn cube(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
-    let p = |x: bool, y: bool, z: bool| {
-        Vec3::new(
-            if x { hi.x } else { lo.x },
-            if y { hi.y } else { lo.y },
-            if z { hi.z } else { lo.z },
-        )
-    };
-    let f = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [[a, b, c], [a, c, d]];
-    [
-        f(
-            p(false, true, false),
-            p(false, true, true),
-            p(true, true, true),
-            p(true, true, false),
-        ),
-        f(
-            p(false, false, false),
-            p(true, false, false),
-            p(true, false, true),
-            p(false, false, true),
-        ),
-        f(
-            p(false, false, false),
-            p(false, false, true),
-            p(false, true, true),
-            p(false, true, false),
-        ),
-        f(
-            p(true, false, false),
-            p(true, true, false),
-            p(true, true, true),
-            p(true, false, true),
-        ),
-        f(
-            p(false, false, false),
-            p(false, true, false),
-            p(true, true, false),
-            p(true, false, false),
-        ),
-        f(
-            p(false, false, true),
-            p(true, false, true),
-            p(true, true, true),
-            p(false, true, true),
-        ),
-    ]
-    .into_iter()
-    .flatten()
-    .collect()
+fn camera() -> shadow_map_core::Camera {
+    test_support::fixtures::camera(8, 8)
 }
 
 fn light(shape: LightShape, height: f32) -> Light {
@@ -100,17 +29,8 @@ fn scene(light: Light, meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
     Scene::from_meshes("test", camera(), light, all).unwrap()
 }
 
-fn points(p: Vec<Vec3>, n: Vec3) -> Receivers {
-    let len = p.len();
-    Receivers::from_points(p, vec![n; len]).unwrap()
-}
-
 fn acc(kv: &[(&str, &str)]) -> CpuAccumulation {
-    let mut e = CpuAccumulation::new().unwrap();
-    for (k, v) in kv {
-        e.set_param(k, v).unwrap();
-    }
-    e
+    with_params(CpuAccumulation::new().unwrap(), kv)
 }
 
 /// Every (variant, kernel, coverage) the estimator offers, as parameter sets.
@@ -126,16 +46,6 @@ fn modes() -> Vec<Vec<(&'static str, &'static str)>> {
         out.push(vec![("variant", "exact"), ("kernel", kernel)]);
     }
     out
-}
-
-fn check_range(v: &[f32], r: &Receivers) {
-    for (k, x) in v.iter().enumerate() {
-        if r.active[k] {
-            assert!((0.0..=1.0).contains(x), "receiver {k}: V = {x}");
-        } else {
-            assert!(x.is_nan(), "inactive receiver {k}: V = {x}");
-        }
-    }
 }
 
 fn reference(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f32> {
@@ -162,7 +72,7 @@ fn half_occluder_through_the_estimator() {
             kv.push(("resolution", "256"));
             kv.push(("k", "64"));
             let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-            check_range(&v, &r);
+            check_contract(&v, &r);
             for x in &v {
                 assert!((x - 0.5).abs() < 0.03, "{shape:?} {mode:?}: V = {x}");
             }
@@ -191,7 +101,7 @@ fn light_radius_to_zero_converges_to_the_hard_shadow_map() {
             let mut kv = mode.clone();
             kv.push(("resolution", "256"));
             let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-            check_range(&v, &r);
+            check_contract(&v, &r);
             if mode.contains(&("coverage", "centre")) {
                 // The paper's centre test does not converge: a backprojected lexel is far larger
                 // than the footprint, counted in full (clamped to 1) or not at all.
@@ -228,7 +138,7 @@ fn light_radius_to_zero_converges_to_the_hard_shadow_map() {
 fn receiver_behind_a_touching_occluder() {
     let s = scene(
         light(LightShape::Sphere { radius: 0.4 }, 2.5),
-        vec![cube(Vec3::new(0.2, 0.0, -0.3), Vec3::new(0.8, 0.6, 0.3))],
+        vec![cuboid(Vec3::new(0.2, 0.0, -0.3), Vec3::new(0.8, 0.6, 0.3))],
     );
     // Ground receivers from the box's far wall (x = 0.8) outwards.
     let pos: Vec<Vec3> = (0..40)
@@ -240,7 +150,7 @@ fn receiver_behind_a_touching_occluder() {
         let mut kv = mode.clone();
         kv.push(("resolution", "512"));
         let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-        check_range(&v, &r);
+        check_contract(&v, &r);
         // The first receivers touch the wall: the reference is well below 1 there.
         assert!(vr[0] < 0.6, "reference at the wall {}", vr[0]);
         let mae: f32 = v.iter().zip(&vr).map(|(a, b)| (a - b).abs()).sum::<f32>() / v.len() as f32;
@@ -277,7 +187,7 @@ fn caster_nearer_than_the_papers_plane() {
     );
     let err = |kv: &[(&str, &str)]| {
         let (v, report) = run(&mut acc(kv), &s, &r).unwrap();
-        check_range(&v, &r);
+        check_contract(&v, &r);
         let e = v
             .iter()
             .zip(&vr)
@@ -336,7 +246,7 @@ fn grazing_receivers() {
         let mut kv = mode.clone();
         kv.push(("resolution", "512"));
         let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-        check_range(&v, &r);
+        check_contract(&v, &r);
         for k in 0..v.len() {
             assert!(
                 (v[k] - vr[k]).abs() < 0.05,
@@ -375,33 +285,6 @@ fn receivers_outside_the_frustum_are_an_error() {
     assert!((0.0..=1.0).contains(&v[0]));
 }
 
-fn fixture(name: &str) -> String {
-    format!(
-        "{}/../../fixtures/{name}/{name}.toml",
-        env!("CARGO_MANIFEST_DIR")
-    )
-}
-
-fn small_fixture(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
-    let mut s = Scene::load(fixture(name)).unwrap();
-    s.camera.width = w;
-    s.camera.height = h;
-    let r = Receivers::from_camera(&s, &SceneBvh::new(&s));
-    (s, r)
-}
-
-fn rmse(v: &[f32], r: &[f32], active: &[bool]) -> f64 {
-    let (mut s, mut n) = (0.0f64, 0usize);
-    for k in 0..v.len() {
-        if active[k] {
-            let d = v[k] as f64 - r[k] as f64;
-            s += d * d;
-            n += 1;
-        }
-    }
-    (s / n.max(1) as f64).sqrt()
-}
-
 /// RMSE against the reference (256 spp) at 64 x 48, resolution 512, K = 10. Measured
 /// (`cargo run --release -p accumulation --example sweep -- --size 64x48 --spp 256 --res 512
 /// --k 10 --fixtures sphere-light,strands,overlapping`), additive / exact:
@@ -425,7 +308,7 @@ fn rmse_against_the_reference_on_fixtures() {
         ("strands", "adaptive", 0.17),
         ("overlapping", "adaptive", 0.04),
     ] {
-        let (s, r) = small_fixture(name, 64, 48);
+        let (s, r) = fixture(name, 64, 48);
         let vr = reference(&s, &r, 256);
         for variant in ["additive", "exact"] {
             let mut e = acc(&[
@@ -434,7 +317,7 @@ fn rmse_against_the_reference_on_fixtures() {
                 ("kernel", kernel),
             ]);
             let (v, _) = run(&mut e, &s, &r).unwrap();
-            check_range(&v, &r);
+            check_contract(&v, &r);
             let err = rmse(&v, &vr, &r.active);
             assert!(
                 err < bound,
@@ -457,11 +340,11 @@ fn every_fixture_gives_v_in_range() {
         "stacked",
         "hair",
     ] {
-        let (s, r) = small_fixture(name, 24, 18);
+        let (s, r) = fixture(name, 24, 18);
         for variant in ["additive", "exact"] {
             let mut e = acc(&[("resolution", "128"), ("variant", variant), ("layers", "2")]);
             let (v, _) = run(&mut e, &s, &r).unwrap();
-            check_range(&v, &r);
+            check_contract(&v, &r);
         }
     }
 }
@@ -496,7 +379,7 @@ fn sphere_models_off_axis() {
                     ("k", "15"),
                 ];
                 let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-                check_range(&v, &r);
+                check_contract(&v, &r);
                 rmse(&v, &vr, &r.active)
             };
             let (c, p) = (err("contract"), err("paper"));

@@ -1,103 +1,25 @@
-//! The backprojection estimator against closed forms and its limits (background.md §2, §10).
+//! The backprojection estimator against closed forms and its limits (docs/methods.md §2, §10).
 use backprojection::CpuBackprojection;
 use baselines::HardShadow;
-use glam::{Vec2, Vec3};
-use reference::oracle::{rect_occluder_visibility, RectOccluder};
-use shadow_map_core::{
-    run, Camera, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
+use glam::Vec3;
+use shadow_map_core::{run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
+use test_support::fixtures::{
+    assert_valid, errors, line_receivers, oracle, quad, rect_light, with_params, Occ, SQUARE,
 };
 
-fn camera() -> Camera {
-    Camera {
-        eye: Vec3::new(0.0, 4.0, 5.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        fov_y_deg: 40.0,
-        width: 8,
-        height: 8,
-    }
+fn camera() -> shadow_map_core::Camera {
+    test_support::fixtures::camera(8, 8)
 }
-
-/// A horizontal quad at height y, facing up (+y).
-fn quad(x0: f32, z0: f32, x1: f32, z1: f32, y: f32) -> Vec<[Vec3; 3]> {
-    let (a, b, c, d) = (
-        Vec3::new(x0, y, z0),
-        Vec3::new(x0, y, z1),
-        Vec3::new(x1, y, z1),
-        Vec3::new(x1, y, z0),
-    );
-    vec![[a, b, c], [a, c, d]]
-}
-
-fn rect_light(l: f32, height: f32) -> Light {
-    Light {
-        shape: LightShape::Rect { size: [l, l] },
-        center: Vec3::new(0.0, height, 0.0),
-        normal: -Vec3::Y,
-        tangent: Vec3::X,
-    }
-}
-
-/// Square occluders as `(x0, z0, x1, z1, height)`.
-type Occ = (f32, f32, f32, f32, f32);
-
-const SQUARE: Occ = (-0.5, -0.5, 0.5123, 0.5, 1.5);
 
 fn scene_with(light: Light, occ: &[Occ]) -> Scene {
-    let mut meshes = vec![(quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0)];
-    for o in occ {
-        meshes.push((quad(o.0, o.1, o.2, o.3, o.4), 1.0));
-    }
-    Scene::from_meshes("test", camera(), light, meshes).unwrap()
-}
-
-/// Ground receivers on a line through the umbra, penumbra and lit region.
-fn line_receivers() -> Receivers {
-    let pos: Vec<Vec3> = (0..241)
-        .map(|k| Vec3::new(-1.5 + k as f32 * 0.0125, 0.0, 0.13))
-        .collect();
-    Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap()
-}
-
-fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
-    let f = scene.light.frame();
-    let occs: Vec<RectOccluder> = occ
-        .iter()
-        .map(|o| {
-            let c = [Vec3::new(o.0, o.4, o.1), Vec3::new(o.2, o.4, o.3)].map(|c| f.to_light(c));
-            let (a, b) = (Vec2::new(c[0].x, c[0].y), Vec2::new(c[1].x, c[1].y));
-            RectOccluder {
-                min: a.min(b),
-                max: a.max(b),
-                z: c[0].z,
-            }
-        })
-        .collect();
-    r.position
-        .iter()
-        .map(|p| rect_occluder_visibility(scene.light.half_extent(), &occs, f.to_light(*p)))
-        .collect()
+    test_support::fixtures::scene_with(light, occ, 8, 8)
 }
 
 fn bp(kv: &[(&str, &str)]) -> CpuBackprojection {
-    let mut e = CpuBackprojection::new().unwrap();
-    for (k, v) in kv {
-        e.set_param(k, v).unwrap();
-    }
-    e
+    with_params(CpuBackprojection::new().unwrap(), kv)
 }
 
-fn errors(v: &[f32], o: &[f64]) -> (f64, f64) {
-    let d: Vec<f64> = v
-        .iter()
-        .zip(o)
-        .map(|(a, b)| (*a as f64 - b).abs())
-        .collect();
-    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
-    (rms, d.iter().cloned().fold(0.0, f64::max))
-}
-
-/// A fronto-parallel square occluder: its micropatches tile exactly (background.md §2), so the
+/// A fronto-parallel square occluder: its micropatches tile exactly (docs/methods.md §2), so the
 /// only error is where the rasteriser puts the occluder's edge, within one texel of the true edge.
 ///
 /// Bound: one texel at the occluder depth z_o backprojects from a receiver at depth z_p to a strip
@@ -162,7 +84,7 @@ fn flat_occluder_matches_the_closed_form() {
 }
 
 /// As the light shrinks, V equals the nearest-texel hard test with the same bias
-/// (background.md §2 "Tests"), away from the hard edge.
+/// (docs/methods.md §2 "Tests"), away from the hard edge.
 #[test]
 fn tiny_light_equals_the_hard_shadow() {
     let s = scene_with(rect_light(1e-4, 3.0), &[SQUARE]);
@@ -293,15 +215,6 @@ fn midpoints_remove_acne() {
     eprintln!("acne: clean fraction midpoint {fm:.4}, bias=0 {fb:.4}");
     assert!(fm >= 0.99, "midpoints: {fm}");
     assert!(fb < 0.99, "bias=0: {fb}");
-}
-
-fn assert_valid(v: &[f32], what: &str) {
-    for (k, x) in v.iter().enumerate() {
-        assert!(
-            x.is_finite() && (0.0..=1.0).contains(x),
-            "{what}: V[{k}] = {x}"
-        );
-    }
 }
 
 /// Degenerate geometry: no NaN or inf, V in [0, 1].

@@ -1,58 +1,41 @@
-//! The GPU twin of the backprojection estimator against the CPU twin: given the CPU twin's own
-//! light-space data (layers, midpoints, MSSM), V must agree per receiver within [`TWIN_TOL`] on at
-//! least [`TWIN_MIN_WITHIN`] of the receivers; each receiver beyond must be a depth tie (bias
-//! mode: nudging the depth threshold by [`TIE_NUDGE_REL`] of the depth changes the CPU's V or
-//! reproduces the GPU's). Generators copied from `crates/baselines/tests/gpu_twins.rs` (rect
-//! lights only). Cases: 12 by default, `SOFTSHADOW_PROPTEST_CASES=N` for more.
+//! The GPU twin of the backprojection estimator against the CPU twin: the conformance suite of
+//! `test-support` (`twin::backprojection`), with what is specific to backprojection here.
+//!
+//! Given the CPU twin's own light-space data (layers, midpoints, MSSM), V must agree per
+//! receiver within [`TWIN`] (`|dV| <= 1e-4` on 99.9% of the receivers); each receiver beyond
+//! must be a depth tie (bias mode: nudging the depth threshold by [`TIE_NUDGE_REL`] of the depth
+//! changes the CPU's V or reproduces the GPU's; midpoint mode has no tie to explain). Random
+//! scenes with rect lights only, no grazing or outside receivers. Cases: 12 by default,
+//! `SOFTSHADOW_PROPTEST_CASES=N` for more.
 #![cfg(feature = "gpu")]
 
 use backprojection::{CpuBackprojection, GpuBackprojection};
-use glam::Vec3;
-use proptest::{
-    prelude::*,
-    test_runner::{TestCaseError, TestRunner},
+use proptest::prelude::*;
+use shadow_map_core::{gpu::GpuContext, run, Backend, Receivers, Scene, SoftShadowEstimator};
+use std::sync::Arc;
+use test_support::{
+    conformance::{random_twins, FixedCase, Params, TwinPair},
+    fixtures::configure,
+    proptest_config,
+    scenes::{arb_bias, arb_case, BoxSpec, LightSpec, SceneRanges, SceneSpec, Shapes},
+    CaseStats, Tolerance, Verdict,
 };
-use shadow_map_core::{
-    gpu::{context_for_tests, GpuContext},
-    run, Backend, Camera, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
-};
-use std::{cell::RefCell, sync::Arc};
 
-const TWIN_TOL: f32 = 1e-4;
-const TWIN_MIN_WITHIN: f64 = 0.999;
+const TWIN: Tolerance = Tolerance::TWIN;
 const TIE_NUDGE_REL: f32 = 1e-5;
 
-fn gpu(test: &str) -> Option<Arc<GpuContext>> {
-    match context_for_tests(test) {
-        Ok(c) => c,
-        Err(e) => panic!("{test}: {e}"),
-    }
+test_support::twin_suite! {
+    backprojection [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin]
+        => Backprojection,
 }
 
-fn cases() -> u32 {
-    std::env::var("SOFTSHADOW_PROPTEST_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(12)
-}
-
-#[derive(Debug, Clone)]
-struct LightSpec {
-    size: (f32, f32),
-    center: (f32, f32, f32),
-    tilt: (f32, f32),
-}
-
-/// An axis-aligned box: centre (x, z) on the ground plane, sides, bottom height, height.
-#[derive(Debug, Clone)]
-struct BoxSpec {
-    x: f32,
-    z: f32,
-    sx: f32,
-    sz: f32,
-    y0: f32,
-    h: f32,
-}
+/// Rect lights, no grazing or outside receivers.
+const RANGES: SceneRanges = SceneRanges {
+    shapes: Shapes::Rect,
+    grazing: false,
+    outside: false,
+    ..SceneRanges::ALL
+};
 
 #[derive(Debug, Clone)]
 struct Settings {
@@ -65,40 +48,7 @@ struct Settings {
     max_nspp: u32,
 }
 
-#[derive(Debug, Clone)]
-struct Case {
-    light: LightSpec,
-    boxes: Vec<BoxSpec>,
-    ground: Vec<(f32, f32)>,
-    tops: Vec<(usize, f32, f32)>,
-    inactive_every: Option<usize>,
-    settings: Settings,
-}
-
-fn arb_light() -> impl Strategy<Value = LightSpec> {
-    (
-        (0.05f32..1.5, 0.05f32..1.5),
-        (-1.0f32..1.0, 2.5f32..5.0, -1.0f32..1.0),
-        (-0.4f32..0.4, -0.4f32..0.4),
-    )
-        .prop_map(|(size, center, tilt)| LightSpec { size, center, tilt })
-}
-
-fn arb_box() -> impl Strategy<Value = BoxSpec> {
-    (
-        (-2.0f32..2.0, -2.0f32..2.0),
-        (0.1f32..1.2, 0.1f32..1.2),
-        (0.0f32..1.5, 0.05f32..0.8),
-    )
-        .prop_map(|((x, z), (sx, sz), (y0, h))| BoxSpec {
-            x,
-            z,
-            sx,
-            sz,
-            y0,
-            h,
-        })
-}
+type Case = test_support::scenes::Case<Settings>;
 
 fn arb_settings() -> impl Strategy<Value = Settings> {
     (
@@ -106,10 +56,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
         1u32..=4,
         any::<bool>(),
         any::<bool>(),
-        (
-            prop_oneof![1 => 0.0f32..0.02, 3 => 0.2f32..3.0],
-            prop_oneof![1 => Just(0.0f32), 3 => 0.0f32..3.0],
-        ),
+        arb_bias(),
         prop_oneof![Just(121u32), 1u32..=64, 100u32..=400],
     )
         .prop_map(
@@ -125,157 +72,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
         )
 }
 
-fn arb_case() -> impl Strategy<Value = Case> {
-    (
-        arb_light(),
-        prop::collection::vec(arb_box(), 0..4),
-        prop::collection::vec((-3.5f32..3.5, -3.5f32..3.5), 1..160),
-        prop::collection::vec((0usize..4, 0.0f32..1.0, 0.0f32..1.0), 0..12),
-        prop::option::of(2usize..8),
-        arb_settings(),
-    )
-        .prop_map(
-            |(light, boxes, ground, tops, inactive_every, settings)| Case {
-                light,
-                boxes,
-                ground,
-                tops,
-                inactive_every,
-                settings,
-            },
-        )
-}
-
-fn camera() -> Camera {
-    Camera {
-        eye: Vec3::new(0.0, 5.0, 8.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        fov_y_deg: 40.0,
-        width: 8,
-        height: 8,
-    }
-}
-
-fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [[Vec3; 3]; 2] {
-    [[a, b, c], [a, c, d]]
-}
-
-fn box_triangles(b: &BoxSpec) -> Vec<[Vec3; 3]> {
-    let lo = Vec3::new(b.x - 0.5 * b.sx, b.y0, b.z - 0.5 * b.sz);
-    let hi = Vec3::new(b.x + 0.5 * b.sx, b.y0 + b.h, b.z + 0.5 * b.sz);
-    let p = |x: bool, y: bool, z: bool| {
-        Vec3::new(
-            if x { hi.x } else { lo.x },
-            if y { hi.y } else { lo.y },
-            if z { hi.z } else { lo.z },
-        )
-    };
-    // Outward-facing (counter-clockwise seen from outside) faces.
-    let faces = [
-        quad(
-            p(false, true, false),
-            p(false, true, true),
-            p(true, true, true),
-            p(true, true, false),
-        ),
-        quad(
-            p(false, false, false),
-            p(true, false, false),
-            p(true, false, true),
-            p(false, false, true),
-        ),
-        quad(
-            p(false, false, false),
-            p(false, false, true),
-            p(false, true, true),
-            p(false, true, false),
-        ),
-        quad(
-            p(true, false, false),
-            p(true, true, false),
-            p(true, true, true),
-            p(true, false, true),
-        ),
-        quad(
-            p(false, false, false),
-            p(false, true, false),
-            p(true, true, false),
-            p(true, false, false),
-        ),
-        quad(
-            p(false, false, true),
-            p(true, false, true),
-            p(true, true, true),
-            p(false, true, true),
-        ),
-    ];
-    faces.into_iter().flatten().collect()
-}
-
-fn light_of(l: &LightSpec) -> Light {
-    let normal = Vec3::new(l.tilt.0, -1.0, l.tilt.1).normalize();
-    Light {
-        shape: LightShape::Rect {
-            size: [l.size.0, l.size.1],
-        },
-        center: Vec3::new(l.center.0, l.center.1, l.center.2),
-        normal,
-        tangent: (Vec3::X - Vec3::X.dot(normal) * normal).normalize(),
-    }
-}
-
-fn scene_of(case: &Case) -> Scene {
-    let ground = quad(
-        Vec3::new(-4.0, 0.0, -4.0),
-        Vec3::new(-4.0, 0.0, 4.0),
-        Vec3::new(4.0, 0.0, 4.0),
-        Vec3::new(4.0, 0.0, -4.0),
-    )
-    .to_vec();
-    let mut meshes = vec![(ground, 1.0)];
-    for b in &case.boxes {
-        meshes.push((box_triangles(b), 1.0));
-    }
-    match Scene::from_meshes("gpu-twins", camera(), light_of(&case.light), meshes) {
-        Ok(s) => s,
-        Err(e) => panic!("scene: {e}"),
-    }
-}
-
-fn receivers_of(case: &Case) -> Receivers {
-    let mut pos = Vec::new();
-    let mut nrm = Vec::new();
-    for &(x, z) in &case.ground {
-        pos.push(Vec3::new(x, 0.0, z));
-        nrm.push(Vec3::Y);
-    }
-    if !case.boxes.is_empty() {
-        for &(k, u, v) in &case.tops {
-            let b = &case.boxes[k % case.boxes.len()];
-            pos.push(Vec3::new(
-                b.x + (u - 0.5) * b.sx,
-                b.y0 + b.h,
-                b.z + (v - 0.5) * b.sz,
-            ));
-            nrm.push(Vec3::Y);
-        }
-    }
-    let mut r = match Receivers::from_points(pos, nrm) {
-        Ok(r) => r,
-        Err(e) => panic!("receivers: {e}"),
-    };
-    if let Some(m) = case.inactive_every {
-        for (k, a) in r.active.iter_mut().enumerate() {
-            if k > 0 && k % m == m - 1 {
-                *a = false;
-            }
-        }
-    }
-    r
-}
-
-fn settings_kv(s: &Settings, bias: f32) -> Vec<(&'static str, String)> {
+fn settings_kv(s: &Settings, bias: f32) -> Params {
     vec![
         ("resolution", s.resolution.to_string()),
         ("layers", s.layers.to_string()),
@@ -290,14 +87,6 @@ fn settings_kv(s: &Settings, bias: f32) -> Vec<(&'static str, String)> {
     ]
 }
 
-fn configured<E: SoftShadowEstimator + ?Sized>(e: &mut E, kv: &[(&'static str, String)]) {
-    for (k, v) in kv {
-        if let Err(err) = e.set_param(k, v) {
-            panic!("set {k}={v}: {err}");
-        }
-    }
-}
-
 /// The CPU twin's V and its light-space data.
 fn run_cpu(
     scene: &Scene,
@@ -306,163 +95,65 @@ fn run_cpu(
     bias: f32,
 ) -> (Vec<f32>, CpuBackprojection) {
     let mut e = CpuBackprojection::new().expect("cpu twin");
-    configured(&mut e, &settings_kv(s, bias));
+    configure(&mut e, &settings_kv(s, bias));
     let (v, _) = run(&mut e, scene, rec).expect("cpu run");
     (v, e)
 }
 
-#[derive(Debug, Default, Clone, Copy)]
-struct Stats {
-    receivers: usize,
-    beyond: usize,
-    ties: usize,
-    max_dv: f32,
-    classes: [usize; 3],
-}
-
-fn check_case(case: &Case, gpu: &mut GpuBackprojection, stats: &mut Stats) -> Result<(), String> {
-    let scene = scene_of(case);
-    let rec = receivers_of(case);
+fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseStats>, String> {
+    let scene = case.scene.scene();
+    let rec = case.scene.receivers(&scene.light);
     let s = &case.settings;
     let (v_cpu, cpu) = run_cpu(&scene, &rec, s, s.bias);
     let ls = cpu.light_space().ok_or("no light space")?;
-    configured(gpu, &settings_kv(s, s.bias));
+    configure(gpu, &settings_kv(s, s.bias));
     let mut v_gpu = vec![0.5f32; rec.len()];
     gpu.estimate_with(ls, &scene.light, &rec, &mut v_gpu)
         .map_err(|e| format!("gpu: {e}"))?;
-    let mut beyond = Vec::new();
-    let mut n = 0usize;
-    for k in 0..rec.len() {
-        let (c, g) = (v_cpu[k], v_gpu[k]);
-        if !rec.active[k] {
-            if !(c.is_nan() && g.is_nan()) {
-                return Err(format!("inactive receiver {k}: cpu {c}, gpu {g}"));
-            }
-            continue;
-        }
-        if !(0.0..=1.0).contains(&g) {
-            return Err(format!("receiver {k}: gpu V {g} outside [0, 1]"));
-        }
-        n += 1;
-        stats.classes[if c <= 0.0 {
-            0
-        } else if c < 1.0 {
-            1
+    let cmp = TWIN.compare("backprojection", &rec.active, &v_cpu, &v_gpu)?;
+    let st = TWIN.judge("backprojection", &cmp, &rec, &v_cpu, &v_gpu, |beyond| {
+        // Depth ties: in bias mode, move z - eps by TIE_NUDGE_REL z (through `bias`, in texel
+        // footprints) both ways; a tie changes the CPU's V or reproduces the GPU's.
+        let view = ls.view;
+        let nudge = TIE_NUDGE_REL * view.n * view.r as f32 / view.w;
+        let nudged: Vec<Vec<f32>> = if s.midpoint {
+            Vec::new()
         } else {
-            2
-        }] += 1;
-        let d = (c - g).abs();
-        stats.max_dv = stats.max_dv.max(d);
-        if d > TWIN_TOL {
-            beyond.push(k);
-        }
-    }
-    stats.receivers += n;
-    stats.beyond += beyond.len();
-    if beyond.is_empty() {
-        return Ok(());
-    }
-    // Depth ties: in bias mode, move z - eps by TIE_NUDGE_REL z (through `bias`, in texel
-    // footprints) both ways; a tie changes the CPU's V or reproduces the GPU's.
-    let view = ls.view;
-    let nudge = TIE_NUDGE_REL * view.n * view.r as f32 / view.w;
-    let nudged: Vec<Vec<f32>> = if s.midpoint {
-        Vec::new()
-    } else {
-        [s.bias + nudge, (s.bias - nudge).max(0.0)]
+            [s.bias + nudge, (s.bias - nudge).max(0.0)]
+                .iter()
+                .map(|&b| run_cpu(&scene, &rec, s, b).0)
+                .collect()
+        };
+        Ok(beyond
             .iter()
-            .map(|&b| run_cpu(&scene, &rec, s, b).0)
-            .collect()
-    };
-    let mut unexplained = Vec::new();
-    for &k in &beyond {
-        let (c, g) = (v_cpu[k], v_gpu[k]);
-        let tie = nudged
-            .iter()
-            .any(|v| (v[k] - c).abs() > TWIN_TOL || (v[k] - g).abs() <= TWIN_TOL);
-        if tie {
-            stats.ties += 1;
-        } else {
-            unexplained.push(format!(
-                "#{k}: p {:?} cpu {c} gpu {g} |dV| {:.3e}",
-                rec.position[k],
-                (c - g).abs()
-            ));
-        }
-    }
-    let allowed = ((1.0 - TWIN_MIN_WITHIN) * n as f64).ceil() as usize;
-    if !unexplained.is_empty() || beyond.len() > allowed {
-        return Err(format!(
-            "{} of {n} receivers beyond |dV| {TWIN_TOL} ({allowed} allowed), not ties:\n{}",
-            beyond.len(),
-            unexplained.join("\n")
-        ));
-    }
-    Ok(())
+            .map(|&k| {
+                let (c, g) = (v_cpu[k], v_gpu[k]);
+                let tie = nudged
+                    .iter()
+                    .any(|v| (v[k] - c).abs() > TWIN.abs || (v[k] - g).abs() <= TWIN.abs);
+                Verdict::of(tie, false)
+            })
+            .collect())
+    })?;
+    Ok(Some(st))
 }
 
-#[test]
-fn gpu_twin_matches_cpu_twin_on_random_scenes() {
-    let Some(ctx) = gpu("gpu_twin_matches_cpu_twin_on_random_scenes") else {
-        return;
-    };
-    let twin = RefCell::new(GpuBackprojection::new(ctx).expect("gpu twin"));
-    let stats = RefCell::new(Stats::default());
-    let mut runner = TestRunner::new(ProptestConfig {
-        cases: cases(),
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    });
-    let result = runner.run(&arb_case(), |case| {
-        let mut st = Stats::default();
-        check_case(&case, &mut twin.borrow_mut(), &mut st).map_err(TestCaseError::fail)?;
-        let mut all = stats.borrow_mut();
-        all.receivers += st.receivers;
-        all.beyond += st.beyond;
-        all.ties += st.ties;
-        all.max_dv = all.max_dv.max(st.max_dv);
-        for (a, b) in all.classes.iter_mut().zip(st.classes) {
-            *a += b;
-        }
-        Ok(())
-    });
-    let st = *stats.borrow();
-    println!(
-        "backprojection twin: {} receivers, {} beyond {TWIN_TOL} ({} ties), max |dV| {:.3e}, \
-         classes (umbra, penumbra, lit) {:?}",
-        st.receivers, st.beyond, st.ties, st.max_dv, st.classes
-    );
-    if let Err(e) = result {
-        panic!("{e}");
-    }
-    let within = 1.0 - st.beyond as f64 / st.receivers.max(1) as f64;
-    assert!(within >= TWIN_MIN_WITHIN, "{within}");
-}
-
-#[test]
-fn cli_path_and_chunking_match() {
-    let Some(ctx) = gpu("cli_path_and_chunking_match") else {
-        return;
-    };
-    let case = Case {
-        light: LightSpec {
-            size: (0.8, 0.6),
-            center: (0.2, 3.0, -0.1),
-            tilt: (0.1, -0.05),
+/// The fixed case: a rect light over one box, a line of 200 ground receivers through its
+/// shadow, a box top, every seventh receiver inactive; 3 layers, midpoints, gap filling.
+fn fixed_case() -> Case {
+    Case {
+        scene: SceneSpec {
+            light: LightSpec::new(0, (0.8, 0.6), (0.2, 3.0, -0.1), (0.1, -0.05)),
+            boxes: vec![BoxSpec::new(0.0, 0.0, 0.8, 0.6, 0.5, 0.3)],
+            ground: (0..200)
+                .map(|k| (-2.0 + 0.02 * k as f32, -1.0 + 0.01 * k as f32))
+                .collect(),
+            tops: vec![(0, 0.5, 0.5)],
+            grazing: vec![],
+            outside: vec![],
+            inactive_every: Some(7),
+            ground_near_boxes: false,
         },
-        boxes: vec![BoxSpec {
-            x: 0.0,
-            z: 0.0,
-            sx: 0.8,
-            sz: 0.6,
-            y0: 0.5,
-            h: 0.3,
-        }],
-        ground: (0..200)
-            .map(|k| (-2.0 + 0.02 * k as f32, -1.0 + 0.01 * k as f32))
-            .collect(),
-        tops: vec![(0, 0.5, 0.5)],
-        inactive_every: Some(7),
         settings: Settings {
             resolution: 64,
             layers: 3,
@@ -472,43 +163,84 @@ fn cli_path_and_chunking_match() {
             slope_bias: 1.0,
             max_nspp: 121,
         },
-    };
-    let scene = scene_of(&case);
-    let rec = receivers_of(&case);
-    let (v_cpu, _) = run_cpu(&scene, &rec, &case.settings, 1.0);
-    let mut g = GpuBackprojection::new(ctx).expect("gpu twin");
-    assert_eq!(g.backend(), Backend::Gpu);
-    assert_eq!(g.name(), "backprojection");
-    configured(&mut g, &settings_kv(&case.settings, 1.0));
-    let (v1, _) = run(&mut g, &scene, &rec).expect("gpu run");
-    g.set_max_chunk(13);
-    let (v2, _) = run(&mut g, &scene, &rec).expect("gpu run chunked");
-    // The light space rendered on the GPU (the default) against the CPU's, uploaded.
-    g.set_light_space_on_cpu(true);
-    let (v3, report) = run(&mut g, &scene, &rec).expect("gpu run, CPU light space");
-    assert!(report.stages.iter().any(|s| s.0 == "upload"), "{report:?}");
-    let mut umbra_pen = 0;
-    for k in 0..rec.len() {
-        if !rec.active[k] {
-            assert!(v1[k].is_nan() && v2[k].is_nan());
-            continue;
-        }
-        assert_eq!(v1[k].to_bits(), v2[k].to_bits(), "chunking changed #{k}");
-        assert!(
-            (v1[k] - v3[k]).abs() <= TWIN_TOL,
-            "#{k}: GPU-rendered maps {} vs CPU-built maps {}",
-            v1[k],
-            v3[k]
-        );
-        assert!(
-            (v1[k] - v_cpu[k]).abs() <= TWIN_TOL,
-            "#{k}: {} vs {}",
-            v1[k],
-            v_cpu[k]
-        );
-        if v_cpu[k] < 1.0 {
-            umbra_pen += 1;
-        }
     }
-    assert!(umbra_pen > 0, "the fixed case casts no shadow");
+}
+
+/// The backprojection twins, as the conformance suite drives them.
+struct Backprojection;
+
+impl TwinPair for Backprojection {
+    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
+        Box::new(CpuBackprojection::new().expect("cpu twin"))
+    }
+
+    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
+        Box::new(GpuBackprojection::new(ctx.clone()).expect("gpu twin"))
+    }
+
+    fn gpu_chunked(&self, ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
+        let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
+        g.set_max_chunk(13);
+        Some(Box::new(g))
+    }
+
+    fn fixed_case(&self) -> FixedCase {
+        let case = fixed_case();
+        FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
+    }
+
+    fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
+        let mut twin = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
+        random_twins(
+            "backprojection",
+            proptest_config(source_file, 12),
+            &arb_case(&RANGES, arb_settings()),
+            &TWIN,
+            |case| check_case(case, &mut twin),
+        );
+    }
+
+    /// The fixed case through the CLI path, with the light space rendered on the GPU (the
+    /// default) and with the CPU's uploaded: each within the tolerance of the CPU twin at every
+    /// receiver, NaN at inactive ones, and some umbra or penumbra.
+    fn cli_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
+        let case = fixed_case();
+        let scene = case.scene.scene();
+        let rec = case.scene.receivers(&scene.light);
+        let (v_cpu, _) = run_cpu(&scene, &rec, &case.settings, 1.0);
+        let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
+        assert_eq!(g.backend(), Backend::Gpu);
+        assert_eq!(g.name(), "backprojection");
+        configure(&mut g, &settings_kv(&case.settings, 1.0));
+        let (v1, _) = run(&mut g, &scene, &rec).expect("gpu run");
+        // The light space rendered on the GPU (the default) against the CPU's, uploaded (in
+        // chunks: chunking itself is `chunked_dispatch_equals_one_dispatch`).
+        g.set_max_chunk(13);
+        g.set_light_space_on_cpu(true);
+        let (v3, report) = run(&mut g, &scene, &rec).expect("gpu run, CPU light space");
+        assert!(report.stages.iter().any(|s| s.0 == "upload"), "{report:?}");
+        let mut umbra_pen = 0;
+        for k in 0..rec.len() {
+            if !rec.active[k] {
+                assert!(v1[k].is_nan());
+                continue;
+            }
+            assert!(
+                (v1[k] - v3[k]).abs() <= TWIN.abs,
+                "#{k}: GPU-rendered maps {} vs CPU-built maps {}",
+                v1[k],
+                v3[k]
+            );
+            assert!(
+                (v1[k] - v_cpu[k]).abs() <= TWIN.abs,
+                "#{k}: {} vs {}",
+                v1[k],
+                v_cpu[k]
+            );
+            if v_cpu[k] < 1.0 {
+                umbra_pen += 1;
+            }
+        }
+        assert!(umbra_pen > 0, "the fixed case casts no shadow");
+    }
 }

@@ -1,90 +1,25 @@
-//! CPU baselines against closed forms and their limits (background.md §5, §6, §10).
+//! CPU baselines against closed forms and their limits (docs/methods.md §5, §6, §10).
 use baselines::{HardShadow, MultiSample, PcfShadow, PcssShadow};
-use glam::{Vec2, Vec3};
-use reference::oracle::{rect_occluder_visibility, RectOccluder};
-use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
-
-fn camera() -> Camera {
-    Camera {
-        eye: Vec3::new(0.0, 4.0, 5.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        fov_y_deg: 40.0,
-        width: 8,
-        height: 8,
-    }
-}
-
-/// A horizontal quad at height y, facing up (+y).
-fn quad(x0: f32, z0: f32, x1: f32, z1: f32, y: f32) -> Vec<[Vec3; 3]> {
-    let (a, b, c, d) = (
-        Vec3::new(x0, y, z0),
-        Vec3::new(x0, y, z1),
-        Vec3::new(x1, y, z1),
-        Vec3::new(x1, y, z0),
-    );
-    vec![[a, b, c], [a, c, d]]
-}
+use glam::Vec3;
+use shadow_map_core::{run, Receivers, Scene, SoftShadowEstimator};
+use test_support::fixtures::{errors, line_receivers, rect_light, scene_with, SQUARE};
 
 /// Rect light `l x l` at height 3 pointing down, over a square occluder at 1.5 (its +x edge
 /// deliberately off the texel grid) and a ground.
 fn parallel_squares(l: f32) -> Scene {
-    let light = Light {
-        shape: LightShape::Rect { size: [l, l] },
-        center: Vec3::new(0.0, 3.0, 0.0),
-        normal: -Vec3::Y,
-        tangent: Vec3::X,
-    };
-    Scene::from_meshes(
-        "parallel-squares",
-        camera(),
-        light,
-        vec![
-            (quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0),
-            (quad(-0.5, -0.5, 0.5123, 0.5, 1.5), 1.0),
-        ],
-    )
-    .unwrap()
+    scene_with(rect_light(l, 3.0), &[SQUARE], 8, 8)
 }
 
-/// Ground receivers on a line through the umbra, penumbra and lit region.
-fn line_receivers() -> Receivers {
-    let pos: Vec<Vec3> = (0..241)
-        .map(|k| Vec3::new(-1.5 + k as f32 * 0.0125, 0.0, 0.13))
-        .collect();
-    Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap()
-}
-
+/// The closed form of [`parallel_squares`] at each receiver.
 fn oracle(scene: &Scene, r: &Receivers) -> Vec<f64> {
-    let f = scene.light.frame();
-    let c = [Vec3::new(-0.5, 1.5, -0.5), Vec3::new(0.5123, 1.5, 0.5)].map(|c| f.to_light(c));
-    let (a, b) = (Vec2::new(c[0].x, c[0].y), Vec2::new(c[1].x, c[1].y));
-    let occ = RectOccluder {
-        min: a.min(b),
-        max: a.max(b),
-        z: c[0].z,
-    };
-    r.position
-        .iter()
-        .map(|p| rect_occluder_visibility(scene.light.half_extent(), &[occ], f.to_light(*p)))
-        .collect()
+    test_support::fixtures::oracle(scene, &[SQUARE], r)
 }
 
 fn estimate(est: &mut dyn SoftShadowEstimator, scene: &Scene, r: &Receivers) -> Vec<f32> {
     run(est, scene, r).unwrap().0
 }
 
-fn errors(v: &[f32], o: &[f64]) -> (f64, f64) {
-    let d: Vec<f64> = v
-        .iter()
-        .zip(o)
-        .map(|(a, b)| (*a as f64 - b).abs())
-        .collect();
-    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
-    (rms, d.iter().cloned().fold(0.0, f64::max))
-}
-
-/// PCSS is exact for one planar blocker parallel to the light (background.md §5), up to the
+/// PCSS is exact for one planar blocker parallel to the light (docs/methods.md §5), up to the
 /// rasterisation of the occluder's edge, which the map places within half a texel.
 #[test]
 fn pcss_matches_the_parallel_plane_closed_form() {
@@ -112,7 +47,7 @@ fn pcss_matches_the_parallel_plane_closed_form() {
 }
 
 /// As the light shrinks, PCSS and multi-sample converge to the hard shadow map
-/// (background.md §10.4) away from the hard edge.
+/// (docs/methods.md §10.4) away from the hard edge.
 #[test]
 fn tiny_light_converges_to_the_hard_shadow() {
     let s = parallel_squares(1e-4);
@@ -141,7 +76,8 @@ fn tiny_light_converges_to_the_hard_shadow() {
     }
 }
 
-/// Multi-sample shadows converge to the closed form as S grows (background.md §6: jittered strata).
+/// Multi-sample shadows converge to the closed form as S grows, the sub-lights being jittered
+/// strata (docs/methods.md §6).
 #[test]
 fn multi_sample_converges_with_more_sub_lights() {
     let s = parallel_squares(1.0);
@@ -172,19 +108,7 @@ fn all() -> Vec<Box<dyn SoftShadowEstimator>> {
 /// Without occluders every receiver facing the light sees all of it: V = 1 exactly.
 #[test]
 fn empty_scene_is_fully_lit() {
-    let light = Light {
-        shape: LightShape::Rect { size: [1.0, 1.0] },
-        center: Vec3::new(0.0, 3.0, 0.0),
-        normal: -Vec3::Y,
-        tangent: Vec3::X,
-    };
-    let s = Scene::from_meshes(
-        "ground",
-        camera(),
-        light,
-        vec![(quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0)],
-    )
-    .unwrap();
+    let s = scene_with(rect_light(1.0, 3.0), &[], 8, 8);
     let r = line_receivers();
     for mut e in all() {
         let v = estimate(e.as_mut(), &s, &r);

@@ -1,10 +1,13 @@
-//! The GPU twin against the CPU twin (proptest): per texel, the processed lists as sorted
-//! sequences (depth within `DEPTH_REL`, alpha and tau equal), the truncation points, the
-//! neighbour links (as ranks in the neighbour's list: element indices depend on insertion order)
-//! and the filtered transmittance of every filter mode and traversal (within `T_TOL`), on scenes of
-//! parallel sheets whose edges sit a quarter texel off the texel centres, so the f32 (GPU) and f64
-//! (CPU) edge tests cannot disagree. Then the estimators on fixtures, capacity growth and the
-//! typed error. Cases: 8 by default, `SOFTSHADOW_PROPTEST_CASES=N` for more.
+//! The GPU twin of the deep shadow map against the CPU twin: the conformance suite of
+//! `test-support` (`twin::deep_shadow`), with what is specific to deep shadow maps here.
+//!
+//! On random scenes (proptest): per texel, the processed lists as sorted sequences (depth within
+//! `DEPTH_REL`, alpha and tau equal), the truncation points, the neighbour links (as ranks in the
+//! neighbour's list: element indices depend on insertion order) and the filtered transmittance of
+//! every filter mode and traversal (within `T_TOL`), on scenes of parallel sheets whose edges sit
+//! a quarter texel off the texel centres, so the f32 (GPU) and f64 (CPU) edge tests cannot
+//! disagree. Then the estimators on fixtures (the CLI path), capacity growth and the typed error.
+//! Cases: 8 by default, `SOFTSHADOW_PROPTEST_CASES=N` for more.
 #![cfg(feature = "gpu")]
 mod common;
 use common::*;
@@ -21,26 +24,20 @@ use proptest::{
     test_runner::{TestCaseError, TestRunner},
 };
 use shadow_map_core::{
-    gpu::{context_for_tests, GpuContext},
-    run, Error, LightFrame, LightView, Scene, SoftShadowEstimator,
+    gpu::GpuContext, run, Error, LightFrame, LightView, Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
+use test_support::{
+    conformance::{FixedCase, TwinPair},
+    fixtures::note,
+    proptest_config,
+};
 
 const DEPTH_REL: f32 = 2e-6;
 const T_TOL: f32 = 2e-5;
 
-fn gpu(test: &str) -> Option<Arc<GpuContext>> {
-    match context_for_tests(test) {
-        Ok(c) => c,
-        Err(e) => panic!("{test}: {e}"),
-    }
-}
-
-fn cases() -> u32 {
-    std::env::var("SOFTSHADOW_PROPTEST_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(8)
+test_support::twin_suite! {
+    deep_shadow [cli_path_matches_the_cpu_twin] => DeepShadow,
 }
 
 /// A sheet: texel rectangle [a0, a1) x [b0, b1), depth index, alpha.
@@ -203,117 +200,146 @@ fn compare_maps(c: &DeepShadowMap, g: &DeepShadowMap) -> Result<(), TestCaseErro
     Ok(())
 }
 
+/// The estimators on a fixture: V within 1e-4 of the CPU twin's (and finite) at 99.5% of the
+/// `n` active receivers. Coverage ties (texel centres within ~1e-6 texel of an edge, decided in
+/// f32 on the GPU and f64 on the CPU) may flip a few.
+fn assert_fixture_within(what: &str, vc: &[f32], vg: &[f32], n: usize) {
+    let within = vc
+        .iter()
+        .zip(vg)
+        .filter(|(a, b)| a.is_finite() && (*a - *b).abs() <= 1e-4)
+        .count();
+    assert!(
+        within as f64 >= 0.995 * n as f64,
+        "{what}: {within} of {n} within 1e-4"
+    );
+}
+
 fn settings() -> Settings {
     Settings::from_params(CpuDeepShadow::new().unwrap().params())
 }
 
-#[test]
-fn gpu_lists_links_and_transmittance_match_the_cpu_twin() {
-    let Some(ctx) = gpu("gpu_lists_links_and_transmittance_match_the_cpu_twin") else {
-        return;
-    };
-    let g = GpuDeepShadow::new(ctx).unwrap();
-    let mut runner = TestRunner::new(ProptestConfig {
-        cases: cases(),
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    });
-    runner
-        .run(&arb_case(), |c| {
-            let scene = scene_of(&c);
-            let v = view(c.r);
-            let mut s = settings();
-            s.resolution = c.r;
-            s.epsilon = c.epsilon;
-            let cm = build_deep_map(&scene, &v, &s).unwrap();
-            let gm = g.build_lists(&scene, &v, &s).unwrap();
-            let gr = g.read_map(&gm).unwrap();
-            compare_maps(&cm, &gr)?;
-            let queries: Vec<[f32; 4]> = c.queries.iter().map(|q| [q.0, q.1, q.2, -1.0]).collect();
-            for filter in [Filter::First, Filter::None, Filter::Pcf, Filter::Edsm] {
-                for kernel in [3, 7] {
-                    for traversal in [Traversal::Linked, Traversal::Naive] {
-                        let ls = LookupSettings {
-                            filter,
-                            kernel,
-                            c_world: 30.0,
-                            traversal,
-                        };
-                        let (tg, _) = g.lookup(&gm, &ls, &queries).unwrap();
-                        for (q, t) in queries.iter().zip(&tg) {
-                            let (tc, _) = cm.transmittance(Vec2::new(q[0], q[1]), q[2], &ls);
-                            prop_assert!(
-                                (tc - t).abs() <= T_TOL,
-                                "{:?} at {:?}: CPU {} GPU {}",
-                                ls,
-                                q,
-                                tc,
-                                t
-                            );
+/// The fixture `strands` at 32 x 24 with every seventh receiver inactive, `pcf` over 5 x 5.
+fn strands_case() -> FixedCase {
+    let (scene, mut receivers) = fixture("strands", 32, 24);
+    for (k, a) in receivers.active.iter_mut().enumerate() {
+        if k % 7 == 6 {
+            *a = false;
+        }
+    }
+    let params = [("resolution", "128"), ("filter", "pcf"), ("kernel", "5")];
+    FixedCase {
+        scene,
+        receivers,
+        params: params.iter().map(|(k, v)| (*k, v.to_string())).collect(),
+    }
+}
+
+/// The deep-shadow twins, as the conformance suite drives them.
+struct DeepShadow;
+
+impl TwinPair for DeepShadow {
+    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
+        Box::new(CpuDeepShadow::new().unwrap())
+    }
+
+    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
+        Box::new(GpuDeepShadow::new(ctx.clone()).unwrap())
+    }
+
+    fn fixed_case(&self) -> FixedCase {
+        strands_case()
+    }
+
+    /// The lists, links and transmittance of the GPU twin's map against the CPU twin's.
+    fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
+        let g = GpuDeepShadow::new(ctx.clone()).unwrap();
+        let mut runner = TestRunner::new(proptest_config(source_file, 8));
+        runner
+            .run(&arb_case(), |c| {
+                let scene = scene_of(&c);
+                let v = view(c.r);
+                let mut s = settings();
+                s.resolution = c.r;
+                s.epsilon = c.epsilon;
+                let cm = build_deep_map(&scene, &v, &s).unwrap();
+                let gm = g.build_lists(&scene, &v, &s).unwrap();
+                let gr = g.read_map(&gm).unwrap();
+                compare_maps(&cm, &gr)?;
+                let queries: Vec<[f32; 4]> =
+                    c.queries.iter().map(|q| [q.0, q.1, q.2, -1.0]).collect();
+                for filter in [Filter::First, Filter::None, Filter::Pcf, Filter::Edsm] {
+                    for kernel in [3, 7] {
+                        for traversal in [Traversal::Linked, Traversal::Naive] {
+                            let ls = LookupSettings {
+                                filter,
+                                kernel,
+                                c_world: 30.0,
+                                traversal,
+                            };
+                            let (tg, _) = g.lookup(&gm, &ls, &queries).unwrap();
+                            for (q, t) in queries.iter().zip(&tg) {
+                                let (tc, _) = cm.transmittance(Vec2::new(q[0], q[1]), q[2], &ls);
+                                prop_assert!(
+                                    (tc - t).abs() <= T_TOL,
+                                    "{:?} at {:?}: CPU {} GPU {}",
+                                    ls,
+                                    q,
+                                    tc,
+                                    t
+                                );
+                            }
                         }
                     }
                 }
-            }
-            Ok(())
-        })
-        .unwrap();
-}
+                Ok(())
+            })
+            .unwrap();
+    }
 
-#[test]
-fn gpu_estimator_matches_the_cpu_estimator_on_fixtures() {
-    let Some(ctx) = gpu("gpu_estimator_matches_the_cpu_estimator_on_fixtures") else {
-        return;
-    };
-    for name in ["hair", "strands", "bunny"] {
-        let (scene, rec) = fixture(name, 40, 30);
-        for kv in [
-            &[("filter", "none")][..],
-            &[("filter", "pcf"), ("kernel", "5"), ("sublights", "2")][..],
-            &[("filter", "edsm"), ("kernel", "7")][..],
-            &[("filter", "first")][..],
-        ] {
-            let mut c = CpuDeepShadow::new().unwrap();
-            let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();
-            for (k, v) in kv.iter().chain(&[("resolution", "256")]) {
-                c.set_param(k, v).unwrap();
-                g.set_param(k, v).unwrap();
+    /// Both estimators on the fixtures `hair`, `strands` and `bunny` through the CLI path, every
+    /// filter mode: the same name, description and path, fragment counts within coverage ties,
+    /// V within 1e-4 at 99.5% of the receivers.
+    fn cli_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
+        for name in ["hair", "strands", "bunny"] {
+            let (scene, rec) = fixture(name, 40, 30);
+            for kv in [
+                &[("filter", "none")][..],
+                &[("filter", "pcf"), ("kernel", "5"), ("sublights", "2")][..],
+                &[("filter", "edsm"), ("kernel", "7")][..],
+                &[("filter", "first")][..],
+            ] {
+                let mut c = CpuDeepShadow::new().unwrap();
+                let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();
+                for (k, v) in kv.iter().chain(&[("resolution", "256")]) {
+                    c.set_param(k, v).unwrap();
+                    g.set_param(k, v).unwrap();
+                }
+                assert_eq!((c.name(), c.description()), (g.name(), g.description()));
+                let (vc, rc) = run(&mut c, &scene, &rec).unwrap();
+                let (vg, rg) = run(&mut g, &scene, &rec).unwrap();
+                check_contract(&vg, &rec);
+                assert_eq!(note(&rc, "path"), note(&rg, "path"));
+                // Fragment counts agree up to coverage ties: texel centres within ~1e-6 texel of
+                // an arbitrary edge, decided in f32 on the GPU and f64 on the CPU (1 in 2e5 on
+                // hair).
+                let frags = |r: &shadow_map_core::Report| -> i64 {
+                    note(r, "fragments").map_or(0, |f| f.parse().unwrap())
+                };
+                let (fc, fg) = (frags(&rc), frags(&rg));
+                assert!(
+                    (fc - fg).abs() <= 2 + fc / 10_000,
+                    "{name} {kv:?}: fragments {fc} vs {fg}"
+                );
+                assert_fixture_within(&format!("{name} {kv:?}"), &vc, &vg, rec.active_count());
             }
-            assert_eq!((c.name(), c.description()), (g.name(), g.description()));
-            let (vc, rc) = run(&mut c, &scene, &rec).unwrap();
-            let (vg, rg) = run(&mut g, &scene, &rec).unwrap();
-            check_contract(&vg, &rec);
-            let note = |r: &shadow_map_core::Report, k: &str| {
-                r.notes.iter().find(|n| n.0 == k).map(|n| n.1.clone())
-            };
-            assert_eq!(note(&rc, "path"), note(&rg, "path"));
-            // Fragment counts agree up to coverage ties: texel centres within ~1e-6 texel of an
-            // arbitrary edge, decided in f32 on the GPU and f64 on the CPU (1 in 2e5 on hair).
-            let frags = |r: &shadow_map_core::Report| -> i64 {
-                note(r, "fragments").map_or(0, |f| f.parse().unwrap())
-            };
-            let (fc, fg) = (frags(&rc), frags(&rg));
-            assert!(
-                (fc - fg).abs() <= 2 + fc / 10_000,
-                "{name} {kv:?}: fragments {fc} vs {fg}"
-            );
-            let n = rec.active_count();
-            let within = vc
-                .iter()
-                .zip(&vg)
-                .filter(|(a, b)| a.is_finite() && (*a - *b).abs() <= 1e-4)
-                .count();
-            // Coverage ties (texel centres within ~1e-6 texel of an edge, f32 vs f64) may flip a few.
-            assert!(
-                within as f64 >= 0.995 * n as f64,
-                "{name} {kv:?}: {within} of {n} within 1e-4"
-            );
         }
     }
 }
 
 #[test]
 fn gpu_capacity_grows_or_fails_with_a_typed_error() {
-    let Some(ctx) = gpu("gpu_capacity_grows_or_fails_with_a_typed_error") else {
+    let Some(ctx) = test_support::gpu("gpu_capacity_grows_or_fails_with_a_typed_error") else {
         return;
     };
     let (scene, rec) = fixture("strands", 32, 24);
@@ -347,11 +373,8 @@ fn gpu_capacity_grows_or_fails_with_a_typed_error() {
 /// before the filter margin, `fit=stable` more).
 #[test]
 fn every_fit_and_nearfar_match_on_both_estimators() {
-    let Some(ctx) = gpu("every_fit_and_nearfar_match_on_both_estimators") else {
+    let Some(ctx) = test_support::gpu("every_fit_and_nearfar_match_on_both_estimators") else {
         return;
-    };
-    let note = |r: &shadow_map_core::Report, k: &str| {
-        r.notes.iter().find(|n| n.0 == k).map(|n| n.1.clone())
     };
     for (name, kv) in [
         ("strands", &[("filter", "pcf"), ("kernel", "5")][..]),
@@ -380,15 +403,7 @@ fn every_fit_and_nearfar_match_on_both_estimators() {
                 for key in ["near", "far", "window_scale"] {
                     assert_eq!(note(&rc, key), note(&rg, key), "{what}: {key}");
                 }
-                let within = vc
-                    .iter()
-                    .zip(&vg)
-                    .filter(|(a, b)| a.is_finite() && (*a - *b).abs() <= 1e-4)
-                    .count();
-                assert!(
-                    within as f64 >= 0.995 * n as f64,
-                    "{what}: {within} of {n} within 1e-4"
-                );
+                assert_fixture_within(&what, &vc, &vg, n);
                 let ws: f32 = note(&rc, "window_scale").unwrap().parse().unwrap();
                 // The pcf/edsm margin widens a receivers window by r / (r - 2 margin).
                 let widen = 128.0 / (128.0 - 2.0 * (kv[1].1.parse::<f32>().unwrap() / 2.0).floor());

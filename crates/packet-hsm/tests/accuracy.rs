@@ -1,4 +1,4 @@
-//! The contour estimator against closed forms (background.md §10), the micropatch estimator on
+//! The contour estimator against closed forms (docs/methods.md §10), the micropatch estimator on
 //! flat occluders, and the hard cases of issue 7.
 mod common;
 use backprojection::CpuBackprojection;
@@ -74,7 +74,7 @@ fn flat_occluder_matches_micropatches() {
     }
 }
 
-/// Light size -> 0: V equals the hard shadow away from the hard edge (background.md §10 item 4).
+/// Light size -> 0: V equals the hard shadow away from the hard edge (docs/methods.md §10 item 4).
 #[test]
 fn tiny_light_converges_to_hard_shadows() {
     let s = scene_with(rect_light(1e-4, 3.0), &[SQUARE], 8, 8);

@@ -1,12 +1,15 @@
-//! The GPU twin against the CPU twin on random scenes, both with the same random packet size,
+//! The GPU twin of packet-based HSM against the CPU twin: the conformance suite of
+//! `test-support` (`twin::packet_hsm`), with what is specific to packet HSM here.
+//!
+//! On random scenes, both with the same random packet size,
 //! hierarchy, coherence, sub-lights, self-shadow and light-view (`fit`, `nearfar`) settings (both
 //! build the same light-space data on the CPU). Besides V, the packet counters must agree: the
 //! same packets (same penumbra pixels) and, without the coherence test (f32 on the GPU, f64 on
 //! the CPU), the same coherent and diverging packets; and the GPU packets pass must have run.
 //!
 //! Tolerance: the GPU does the light-plane geometry and the edge sum in f32 (the CPU in f64).
-//! Per receiver `|dV| <= TWIN_TOL` on at least `TWIN_MIN_WITHIN` of the active receivers, and
-//! every receiver within `TWIN_MAX` (rare f32 ties: a receiver's projection within an f32 ulp of
+//! Per receiver `|dV| <= 1e-4` on at least 99.9% of the active receivers, and every receiver
+//! within 0.05 ([`TWIN`]; rare f32 ties: a receiver's projection within an f32 ulp of
 //! a cell boundary is nudged on one side only, or a sample almost at the receiver's depth
 //! backprojects to a huge scale whose f32 and f64 clips differ).
 #![cfg(feature = "gpu")]
@@ -15,28 +18,18 @@ use common::*;
 use glam::Vec3;
 use packet_hsm::{CpuPacketHsm, GpuPacketHsm};
 use proptest::{prelude::*, test_runner::TestRunner};
-use shadow_map_core::{
-    gpu::{context_for_tests, GpuContext},
-    run, Backend, Receivers, Scene, SceneBvh, SoftShadowEstimator,
-};
+use shadow_map_core::{gpu::GpuContext, run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
 use std::{cell::RefCell, sync::Arc};
+use test_support::{
+    conformance::{FixedCase, TwinPair},
+    proptest_config, Tolerance,
+};
 
-const TWIN_TOL: f32 = 1e-4;
-const TWIN_MIN_WITHIN: f64 = 0.999;
-const TWIN_MAX: f32 = 0.05;
+/// `|dV| <= 1e-4` on 99.9% of the active receivers, every one within 0.05.
+const TWIN: Tolerance = Tolerance::TWIN.with_max(0.05);
 
-fn gpu(test: &str) -> Option<Arc<GpuContext>> {
-    match context_for_tests(test) {
-        Ok(c) => c,
-        Err(e) => panic!("{test}: {e}"),
-    }
-}
-
-fn cases() -> u32 {
-    std::env::var("SOFTSHADOW_PROPTEST_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(8)
+test_support::twin_suite! {
+    packet_hsm [loop_limit_is_detected_and_redone] => PacketHsm,
 }
 
 fn scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)]) -> Scene {
@@ -59,130 +52,158 @@ fn scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)]) -> Scene {
     Scene::from_meshes("twin", camera(32, 24), rect_light(light, height), meshes).unwrap()
 }
 
-fn compare(cpu: &[f32], gpu: &[f32], rec: &Receivers, what: &str) -> (f64, f32) {
-    let mut within = 0usize;
-    let mut active = 0usize;
-    let mut worst = 0.0f32;
-    for k in 0..cpu.len() {
-        if !rec.active[k] {
-            assert!(cpu[k].is_nan() && gpu[k].is_nan(), "{what}: inactive {k}");
-            continue;
-        }
-        active += 1;
-        let d = (cpu[k] - gpu[k]).abs();
-        assert!(
-            gpu[k].is_finite() && (0.0..=1.0).contains(&gpu[k]),
-            "{what}: {k} {}",
-            gpu[k]
-        );
-        assert!(
-            d <= TWIN_MAX,
-            "{what}: receiver {k}: cpu {} gpu {}",
-            cpu[k],
-            gpu[k]
-        );
-        if d <= TWIN_TOL {
-            within += 1;
-        }
-        worst = worst.max(d);
-    }
-    let f = within as f64 / active.max(1) as f64;
-    assert!(f >= TWIN_MIN_WITHIN, "{what}: only {f} within {TWIN_TOL}");
-    (f, worst)
+/// A report note's value, "" when absent.
+fn note(r: &shadow_map_core::Report, key: &str) -> String {
+    test_support::fixtures::note(r, key).unwrap_or_default()
 }
 
-#[test]
-fn gpu_twin_matches_cpu_twin() {
-    let Some(ctx) = gpu("gpu_twin_matches_cpu_twin") else {
-        return;
-    };
-    let g = RefCell::new(GpuPacketHsm::new(ctx).unwrap());
-    assert_eq!(g.borrow().backend(), Backend::Gpu);
-    let c = CpuPacketHsm::new().unwrap();
-    assert_eq!(g.borrow().name(), c.name());
-    assert_eq!(g.borrow().params().specs(), c.params().specs());
-    let gpu_packets = RefCell::new(0u64);
-    let mut runner = TestRunner::new(ProptestConfig {
-        cases: cases(),
-        ..ProptestConfig::default()
-    });
-    let strat = (
-        0.3f32..2.0,
-        2.5f32..4.0,
-        prop::collection::vec(
-            (-1.5f32..1.0, -1.5f32..1.0, 0.2f32..1.0, 0.05f32..2.0),
-            0..3,
-        ),
-        prop::sample::select(vec![32u32, 64, 128]),
-        any::<bool>(),
-        any::<bool>(),
-        (prop::sample::select(vec!["1", "2"]), any::<bool>()),
-        prop::sample::select(vec!["1x1", "2x2", "3x3", "4x2", "8x8"]),
-        (
-            prop::sample::select(vec!["receivers", "scene", "stable"]),
-            prop::sample::select(vec!["clipped", "aabb", "frustum"]),
-        ),
-    );
-    runner
-        .run(
-            &strat,
-            |(light, height, squares, res, hier, bias, (sl, coh), packet, (fit, nearfar))| {
-                let s = scene(light, height, &squares);
-                let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
-                let res = res.to_string();
-                let hier = hier.to_string();
-                let ss = if bias { "bias" } else { "midpoint" };
-                let coh = coh.to_string();
-                let kv = [
-                    ("coherence", coh.as_str()),
-                    ("resolution", res.as_str()),
-                    ("hierarchy", hier.as_str()),
-                    ("self_shadow", ss),
-                    ("sublights", sl),
-                    ("packet", packet),
-                    ("fit", fit),
-                    ("nearfar", nearfar),
-                ];
-                let mut g = g.borrow_mut();
-                for (k, v) in kv {
-                    g.set_param(k, v).unwrap();
-                }
-                let (vg, rg) = run(&mut *g, &s, &rec).unwrap();
-                let (vc, rc) = run(&mut hsm(&kv), &s, &rec).unwrap();
-                // Same penumbra pixels, so the same packets; without the (f32 vs f64) coherence
-                // test the same packets go packet-wise and the same ones diverge.
-                let note = |r: &shadow_map_core::Report, k: &str| {
-                    r.notes
-                        .iter()
-                        .find(|n| n.0 == k)
-                        .map(|n| n.1.clone())
-                        .unwrap_or_default()
-                };
-                assert_eq!(note(&rg, "packets"), note(&rc, "packets"));
-                // Packets that hit llvmpipe's loop limit (65535 iterations per invocation) are
-                // redone pixel-wise (same V) and so counted differently: compare the counters
-                // only where the GPU finished every packet itself.
-                let cut = note(&rg, "packets_loop_limit").parse::<u64>().unwrap_or(0)
-                    + note(&rg, "loop_limit_cpu_fallbacks")
-                        .parse::<u64>()
-                        .unwrap_or(0);
-                if coh == "false" && cut == 0 {
-                    assert_eq!(note(&rg, "packets_coherent"), note(&rc, "packets_coherent"));
-                    assert_eq!(note(&rg, "packets_diverged"), note(&rc, "packets_diverged"));
-                }
-                *gpu_packets.borrow_mut() += note(&rg, "packets_coherent").parse::<u64>().unwrap();
-                let (f, worst) = compare(&vc, &vg, &rec, &format!("{kv:?}"));
-                eprintln!("gpu twin {kv:?}: within {f:.4}, worst {worst:e}");
-                Ok(())
-            },
-        )
-        .unwrap();
+/// The twins' outputs under [`TWIN`] ([`Tolerance::assert_twins`]): the fraction within 1e-4
+/// and the largest |dV|.
+fn compare(cpu: &[f32], gpu: &[f32], rec: &Receivers, what: &str) -> (f64, f32) {
+    TWIN.assert_twins(what, &rec.active, cpu, gpu)
+}
+
+/// The fixed case: the random scenes' scene with one square, the camera's receivers with every
+/// seventh one inactive, resolution 64.
+fn fixed_case() -> FixedCase {
+    let scene = scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1)]);
+    let mut receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    for (k, a) in receivers.active.iter_mut().enumerate() {
+        if k % 7 == 6 {
+            *a = false;
+        }
+    }
+    FixedCase {
+        scene,
+        receivers,
+        params: vec![("resolution", "64".to_string())],
+    }
+}
+
+/// The packet-HSM twins, as the conformance suite drives them.
+struct PacketHsm;
+
+impl TwinPair for PacketHsm {
+    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
+        Box::new(CpuPacketHsm::new().unwrap())
+    }
+
+    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
+        Box::new(GpuPacketHsm::new(ctx.clone()).unwrap())
+    }
+
+    fn fixed_case(&self) -> FixedCase {
+        fixed_case()
+    }
+
+    /// Random scenes, packet sizes, hierarchy, coherence, sub-lights, self-shadow and light
+    /// views, through the CLI path on both twins: V and the packet counters.
+    fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
+        let g = RefCell::new(GpuPacketHsm::new(ctx.clone()).unwrap());
+        let gpu_packets = RefCell::new(0u64);
+        let mut runner = TestRunner::new(proptest_config(source_file, 8));
+        let strat = (
+            0.3f32..2.0,
+            2.5f32..4.0,
+            prop::collection::vec(
+                (-1.5f32..1.0, -1.5f32..1.0, 0.2f32..1.0, 0.05f32..2.0),
+                0..3,
+            ),
+            prop::sample::select(vec![32u32, 64, 128]),
+            any::<bool>(),
+            any::<bool>(),
+            (prop::sample::select(vec!["1", "2"]), any::<bool>()),
+            prop::sample::select(vec!["1x1", "2x2", "3x3", "4x2", "8x8"]),
+            (
+                prop::sample::select(vec!["receivers", "scene", "stable"]),
+                prop::sample::select(vec!["clipped", "aabb", "frustum"]),
+            ),
+        );
+        runner
+            .run(
+                &strat,
+                |(light, height, squares, res, hier, bias, (sl, coh), packet, (fit, nearfar))| {
+                    let s = scene(light, height, &squares);
+                    let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+                    let res = res.to_string();
+                    let hier = hier.to_string();
+                    let ss = if bias { "bias" } else { "midpoint" };
+                    let coh = coh.to_string();
+                    let kv = [
+                        ("coherence", coh.as_str()),
+                        ("resolution", res.as_str()),
+                        ("hierarchy", hier.as_str()),
+                        ("self_shadow", ss),
+                        ("sublights", sl),
+                        ("packet", packet),
+                        ("fit", fit),
+                        ("nearfar", nearfar),
+                    ];
+                    let mut g = g.borrow_mut();
+                    for (k, v) in kv {
+                        g.set_param(k, v).unwrap();
+                    }
+                    let (vg, rg) = run(&mut *g, &s, &rec).unwrap();
+                    let (vc, rc) = run(&mut hsm(&kv), &s, &rec).unwrap();
+                    // Same penumbra pixels, so the same packets; without the (f32 vs f64) coherence
+                    // test the same packets go packet-wise and the same ones diverge.
+                    assert_eq!(note(&rg, "packets"), note(&rc, "packets"));
+                    // Packets that hit llvmpipe's loop limit (65535 iterations per invocation) are
+                    // redone pixel-wise (same V) and so counted differently: compare the counters
+                    // only where the GPU finished every packet itself.
+                    let cut = note(&rg, "packets_loop_limit").parse::<u64>().unwrap_or(0)
+                        + note(&rg, "loop_limit_cpu_fallbacks")
+                            .parse::<u64>()
+                            .unwrap_or(0);
+                    if coh == "false" && cut == 0 {
+                        assert_eq!(note(&rg, "packets_coherent"), note(&rc, "packets_coherent"));
+                        assert_eq!(note(&rg, "packets_diverged"), note(&rc, "packets_diverged"));
+                    }
+                    *gpu_packets.borrow_mut() +=
+                        note(&rg, "packets_coherent").parse::<u64>().unwrap();
+                    let (f, worst) = compare(&vc, &vg, &rec, &format!("{kv:?}"));
+                    eprintln!("gpu twin {kv:?}: within {f:.4}, worst {worst:e}");
+                    Ok(())
+                },
+            )
+            .unwrap();
+    }
+
+    /// Large kernels without the hierarchy (an occluder near the light, a large light): on lavapipe a
+    /// flat scan exceeds llvmpipe's 65535 loop iterations per invocation; the kernel must flag those
+    /// receivers and the twin must redo them, so V still matches the CPU (the count is reported).
+    fn loop_limit_is_detected_and_redone(&self, ctx: &Arc<GpuContext>) {
+        let s = scene_with(
+            rect_light(2.0, 3.0),
+            &[(-0.5, -0.5, 0.5, 0.5, 2.6), SQUARE],
+            8,
+            8,
+        );
+        let r = line_receivers();
+        for (p, h) in [("1x1", "false"), ("8x8", "false"), ("1x1", "true")] {
+            let kv = [("resolution", "256"), ("packet", p), ("hierarchy", h)];
+            let mut g = GpuPacketHsm::new(ctx.clone()).unwrap();
+            for (k, v) in kv {
+                g.set_param(k, v).unwrap();
+            }
+            let (vg, rep) = run(&mut g, &s, &r).unwrap();
+            let vc = run(&mut hsm(&kv), &s, &r).unwrap().0;
+            let (_, worst) = compare(&vc, &vg, &r, "large kernels");
+            let fb = rep
+                .notes
+                .iter()
+                .find(|n| n.0 == "loop_limit_cpu_fallbacks")
+                .map(|n| n.1.clone())
+                .unwrap();
+            eprintln!("large kernels {kv:?}: worst {worst:e}, CPU fallbacks {fb}");
+        }
+    }
 }
 
 /// Hard cases on the GPU: huge kernels, touching occluder, receivers behind the light; finite.
 #[test]
 fn gpu_hard_cases_stay_finite() {
-    let Some(ctx) = gpu("gpu_hard_cases_stay_finite") else {
+    let Some(ctx) = test_support::gpu("gpu_hard_cases_stay_finite") else {
         return;
     };
     let mut g = GpuPacketHsm::new(ctx).unwrap();
@@ -200,47 +221,13 @@ fn gpu_hard_cases_stay_finite() {
     }
 }
 
-/// Large kernels without the hierarchy (an occluder near the light, a large light): on lavapipe a
-/// flat scan exceeds llvmpipe's 65535 loop iterations per invocation; the kernel must flag those
-/// receivers and the twin must redo them, so V still matches the CPU (the count is reported).
-#[test]
-fn gpu_loop_limit_is_detected_not_truncated() {
-    let Some(ctx) = gpu("gpu_loop_limit_is_detected_not_truncated") else {
-        return;
-    };
-    let s = scene_with(
-        rect_light(2.0, 3.0),
-        &[(-0.5, -0.5, 0.5, 0.5, 2.6), SQUARE],
-        8,
-        8,
-    );
-    let r = line_receivers();
-    for (p, h) in [("1x1", "false"), ("8x8", "false"), ("1x1", "true")] {
-        let kv = [("resolution", "256"), ("packet", p), ("hierarchy", h)];
-        let mut g = GpuPacketHsm::new(ctx.clone()).unwrap();
-        for (k, v) in kv {
-            g.set_param(k, v).unwrap();
-        }
-        let (vg, rep) = run(&mut g, &s, &r).unwrap();
-        let vc = run(&mut hsm(&kv), &s, &r).unwrap().0;
-        let (_, worst) = compare(&vc, &vg, &r, "large kernels");
-        let fb = rep
-            .notes
-            .iter()
-            .find(|n| n.0 == "loop_limit_cpu_fallbacks")
-            .map(|n| n.1.clone())
-            .unwrap();
-        eprintln!("large kernels {kv:?}: worst {worst:e}, CPU fallbacks {fb}");
-    }
-}
-
 /// Every `fit` x `nearfar` combination on one scene, 1 and 2 x 2 sub-lights, through both twins:
 /// V in [0, 1] and within the twin tolerance of the CPU twin ([`compare`]), the same views on both
 /// (`near`, `far`, `window_scale`, `out_of_frustum` notes), and the choices reach the views (`nearfar` moves the
 /// planes, `fit=stable` widens the window).
 #[test]
 fn every_fit_and_nearfar_match_on_both_twins() {
-    let Some(ctx) = gpu("every_fit_and_nearfar_match_on_both_twins") else {
+    let Some(ctx) = test_support::gpu("every_fit_and_nearfar_match_on_both_twins") else {
         return;
     };
     // The second square is above the light (behind it) and out of the camera's view: only the
@@ -248,13 +235,6 @@ fn every_fit_and_nearfar_match_on_both_twins() {
     let s = scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1), (3.0, -3.0, 0.5, 3.5)]);
     let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
     let mut g = GpuPacketHsm::new(ctx).unwrap();
-    let note = |r: &shadow_map_core::Report, k: &str| {
-        r.notes
-            .iter()
-            .find(|n| n.0 == k)
-            .map(|n| n.1.clone())
-            .unwrap_or_default()
-    };
     for sl in ["1", "2"] {
         let mut planes = std::collections::HashMap::new();
         let mut scales = std::collections::HashMap::new();

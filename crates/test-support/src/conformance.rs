@@ -1,0 +1,418 @@
+//! The CPU-vs-GPU conformance suite.
+//!
+//! Every method's GPU twin must be its CPU twin on another backend: the same V on the same
+//! light-space data (random scenes, within a [`Tolerance`]), NaN for inactive receivers, the
+//! same answer to no receivers at all, V independent of how receivers are chunked into
+//! dispatches, the same name, description and parameter table, and agreement through the CLI
+//! path (`build` + `estimate`), kernels cut short by a device's loop budget redone rather than
+//! truncated. A method implements [`TwinPair`] in its twin test file and instantiates the
+//! suite with [`twin_suite!`](crate::twin_suite); the checks are also callable one by one.
+
+use crate::{
+    fixtures::{check_contract, note, set_params},
+    scenes::SceneSpec,
+    tolerance::{CaseStats, RunStats, Tolerance},
+};
+use proptest::{
+    strategy::Strategy,
+    test_runner::{Config, TestCaseError, TestRunner},
+};
+use shadow_map_core::{
+    gpu::GpuContext, run, Backend, Receivers, Report, Scene, SoftShadowEstimator,
+};
+use std::{cell::RefCell, fmt::Debug, sync::Arc};
+
+/// Parameters for both twins: `(key, value)`.
+pub type Params = Vec<(&'static str, String)>;
+
+/// The fixed case of the focused checks: a scene, its receivers (some inactive) and the
+/// parameters both twins are given.
+pub struct FixedCase {
+    /// The scene.
+    pub scene: Scene,
+    /// The receivers; at least one inactive.
+    pub receivers: Receivers,
+    /// Parameters for both twins.
+    pub params: Params,
+}
+
+impl FixedCase {
+    /// The scene and receivers of `spec`, and `params`.
+    pub fn new(spec: &SceneSpec, params: Params) -> FixedCase {
+        let scene = spec.scene();
+        let receivers = spec.receivers(&scene.light);
+        FixedCase {
+            scene,
+            receivers,
+            params,
+        }
+    }
+}
+
+/// One method's CPU and GPU twins, as the conformance suite drives them.
+///
+/// The methods named like tests are the suite's optional checks: [`twin_suite!`] generates a
+/// test of that name for each one listed after the pair; their default bodies panic (not part
+/// of this method's suite) unless the method gives one, except chunking, which needs only
+/// [`TwinPair::gpu_chunked`].
+///
+/// [`twin_suite!`]: crate::twin_suite
+pub trait TwinPair {
+    /// The label of messages: the twins' name by default.
+    fn label(&self) -> String {
+        self.cpu().name().to_string()
+    }
+
+    /// A new CPU twin, default parameters.
+    fn cpu(&self) -> Box<dyn SoftShadowEstimator>;
+
+    /// A new GPU twin on `ctx`, default parameters.
+    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator>;
+
+    /// A new GPU twin on `ctx` that splits its receivers into small dispatches, if it can.
+    fn gpu_chunked(&self, _ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
+        None
+    }
+
+    /// The focused checks' case.
+    fn fixed_case(&self) -> FixedCase;
+
+    /// CPU vs GPU on random scenes, each method with its own scenes, settings and tie
+    /// explainer (usually through [`random_twins`]); failures persist beside `source_file`.
+    fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str);
+
+    /// Check: [`chunked_dispatch_equals_one_dispatch`] on the fixed case.
+    fn chunked_dispatch_equals_one_dispatch(&self, ctx: &Arc<GpuContext>) {
+        let label = self.label();
+        let Some(mut chunked) = self.gpu_chunked(ctx) else {
+            panic!("{label}: the GPU twin does not chunk its dispatches");
+        };
+        let case = self.fixed_case();
+        chunked_dispatch_equals_one_dispatch(&label, &mut *self.gpu(ctx), &mut *chunked, &case);
+    }
+
+    /// Check: the CLI path (`build` + `estimate` on both twins) agrees, the method's way.
+    fn cli_path_matches_the_cpu_twin(&self, _ctx: &Arc<GpuContext>) {
+        panic!("{}: no CLI-path check in this method's suite", self.label());
+    }
+
+    /// Check: work past a device's loop budget is detected and redone, not truncated.
+    fn loop_limit_is_detected_and_redone(&self, _ctx: &Arc<GpuContext>) {
+        panic!(
+            "{}: no loop-limit check in this method's suite",
+            self.label()
+        );
+    }
+}
+
+/// Instantiates the conformance suite for each `algorithm => pair` (a [`TwinPair`]): a module
+/// `twin::<algorithm>` with the tests
+///
+/// - `gpu_matches_cpu_on_random_scenes` ([`TwinPair::random_scenes`]),
+/// - `same_name_description_and_parameters` ([`same_name_description_and_parameters`]),
+/// - `inactive_receivers_are_nan_on_gpu` ([`inactive_receivers_are_nan`], fixed case),
+/// - `zero_receivers_work_like_the_cpu_twin` ([`zero_receivers_work_alike`], fixed case),
+///
+/// and one test per optional check listed in brackets after the algorithm, named as the
+/// [`TwinPair`] method it calls (`chunked_dispatch_equals_one_dispatch`,
+/// `cli_path_matches_the_cpu_twin`, `loop_limit_is_detected_and_redone`). Each test passes the
+/// GPU gate first ([`gpu`](crate::gpu)). Needs the `gpu` feature; the invoking file must see
+/// every name that the pair expressions use.
+///
+/// ```ignore
+/// test_support::twin_suite! {
+///     pcss [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin] => Baseline(Which::Pcss),
+///     hard [chunked_dispatch_equals_one_dispatch] => Baseline(Which::Hard),
+/// }
+/// ```
+#[macro_export]
+macro_rules! twin_suite {
+    ($($algo:ident $([$($check:ident),* $(,)?])? => $pair:expr),+ $(,)?) => {
+        /// The CPU-vs-GPU conformance suite, one module per algorithm.
+        mod twin {
+            $(
+                mod $algo {
+                    #[allow(unused_imports)]
+                    use super::super::*;
+                    #[allow(unused_imports)]
+                    use $crate::conformance::TwinPair as _;
+
+                    fn ctx(test: &str) -> ::std::option::Option<$crate::gate::SharedContext> {
+                        $crate::gate::gpu(&::std::format!("{}::{test}", ::std::module_path!()))
+                    }
+
+                    #[test]
+                    fn gpu_matches_cpu_on_random_scenes() {
+                        let Some(ctx) = ctx("gpu_matches_cpu_on_random_scenes") else {
+                            return;
+                        };
+                        $crate::conformance::TwinPair::random_scenes(&$pair, &ctx, file!());
+                    }
+
+                    #[test]
+                    fn same_name_description_and_parameters() {
+                        let Some(ctx) = ctx("same_name_description_and_parameters") else {
+                            return;
+                        };
+                        let pair = $pair;
+                        let label = $crate::conformance::TwinPair::label(&pair);
+                        let cpu = $crate::conformance::TwinPair::cpu(&pair);
+                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
+                        $crate::conformance::same_name_description_and_parameters(
+                            &label, &*cpu, &mut *gpu,
+                        );
+                    }
+
+                    #[test]
+                    fn inactive_receivers_are_nan_on_gpu() {
+                        let Some(ctx) = ctx("inactive_receivers_are_nan_on_gpu") else {
+                            return;
+                        };
+                        let pair = $pair;
+                        let label = $crate::conformance::TwinPair::label(&pair);
+                        let case = $crate::conformance::TwinPair::fixed_case(&pair);
+                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
+                        $crate::conformance::inactive_receivers_are_nan(&label, &mut *gpu, &case);
+                    }
+
+                    #[test]
+                    fn zero_receivers_work_like_the_cpu_twin() {
+                        let Some(ctx) = ctx("zero_receivers_work_like_the_cpu_twin") else {
+                            return;
+                        };
+                        let pair = $pair;
+                        let label = $crate::conformance::TwinPair::label(&pair);
+                        let case = $crate::conformance::TwinPair::fixed_case(&pair);
+                        let mut cpu = $crate::conformance::TwinPair::cpu(&pair);
+                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
+                        $crate::conformance::zero_receivers_work_alike(
+                            &label, &mut *cpu, &mut *gpu, &case,
+                        );
+                    }
+
+                    $($(
+                        #[test]
+                        fn $check() {
+                            let Some(ctx) = ctx(stringify!($check)) else {
+                                return;
+                            };
+                            $crate::conformance::TwinPair::$check(&$pair, &ctx);
+                        }
+                    )*)?
+                }
+            )+
+        }
+    };
+}
+
+/// Runs a random twin test: `config` ([`proptest_config`](crate::proptest_config)), cases from
+/// `strategy`, each compared by `check` (`Ok(None)`: both twins refused the case alike), the
+/// counts summed and printed; then at least [`Tolerance::min_within`] of all receivers must
+/// be within the tolerance. Returns the counts for the method's own whole-run checks (say
+/// [`RunStats::assert_met`]). Panics, naming `label`, on the first failing case (shrunk).
+pub fn random_twins<S>(
+    label: &str,
+    config: Config,
+    strategy: &S,
+    tol: &Tolerance,
+    check: impl FnMut(&S::Value) -> Result<Option<CaseStats>, String>,
+) -> RunStats
+where
+    S: Strategy,
+    S::Value: Debug,
+{
+    let stats = RefCell::new(RunStats::default());
+    let check = RefCell::new(check);
+    let mut runner = TestRunner::new(config);
+    let result = runner.run(strategy, |case| {
+        let st = (check.borrow_mut())(&case).map_err(TestCaseError::fail)?;
+        let mut all = stats.borrow_mut();
+        match st {
+            Some(st) => all.add(&st),
+            None => all.refused += 1,
+        }
+        Ok(())
+    });
+    let st = stats.into_inner();
+    eprintln!("{}", st.summary(label, tol));
+    if let Err(e) = result {
+        panic!("{label}: {e}");
+    }
+    st.assert_within(label, tol);
+    st
+}
+
+/// Both twins give the same name, description and parameter table (specs and values), each
+/// reports its backend, and the GPU twin refuses an unknown key.
+pub fn same_name_description_and_parameters(
+    label: &str,
+    cpu: &dyn SoftShadowEstimator,
+    gpu: &mut dyn SoftShadowEstimator,
+) {
+    assert_eq!(gpu.backend(), Backend::Gpu, "{label}");
+    assert_eq!(cpu.backend(), Backend::Cpu, "{label}");
+    assert_eq!(gpu.name(), cpu.name(), "{label}");
+    assert_eq!(gpu.description(), cpu.description(), "{label}");
+    assert_eq!(gpu.params().specs(), cpu.params().specs(), "{label}");
+    assert_eq!(gpu.params(), cpu.params(), "{label}");
+    assert!(gpu.set_param("no_such_key", "1").is_err(), "{label}");
+}
+
+/// Through the CLI path on the fixed case (which must have an inactive receiver): every active
+/// V in [0, 1], every inactive one NaN.
+pub fn inactive_receivers_are_nan(
+    label: &str,
+    gpu: &mut dyn SoftShadowEstimator,
+    case: &FixedCase,
+) {
+    let rec = &case.receivers;
+    assert!(
+        rec.active.iter().any(|a| !a),
+        "{label}: the fixed case has no inactive receiver"
+    );
+    if let Err(e) = set_params(gpu, &case.params) {
+        panic!("{label}: {e}");
+    }
+    let (v, _) = match run(gpu, &case.scene, rec) {
+        Ok(x) => x,
+        Err(e) => panic!("{label}: {e}"),
+    };
+    for (k, (x, a)) in v.iter().zip(&rec.active).enumerate() {
+        if *a {
+            assert!((0.0..=1.0).contains(x), "{label} #{k}: {x}");
+        } else {
+            assert!(x.is_nan(), "{label} #{k}: {x} for an inactive receiver");
+        }
+    }
+}
+
+/// With no receivers at all, both twins (as given: default parameters in the suite) succeed
+/// with an empty output or fail alike (the same message) through the CLI path; then a GPU
+/// output slice of the wrong length for the fixed case's receivers is refused.
+pub fn zero_receivers_work_alike(
+    label: &str,
+    cpu: &mut dyn SoftShadowEstimator,
+    gpu: &mut dyn SoftShadowEstimator,
+    case: &FixedCase,
+) {
+    let none = Receivers::default();
+    let scene = &case.scene;
+    match (run(cpu, scene, &none), run(gpu, scene, &none)) {
+        (Ok((a, _)), Ok((b, _))) => assert!(a.is_empty() && b.is_empty(), "{label}"),
+        (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "{label}"),
+        (a, b) => panic!(
+            "{label}: cpu {:?} vs gpu {:?}",
+            a.map(|x| x.0),
+            b.map(|x| x.0)
+        ),
+    }
+    let mut short = vec![0.0f32; 1];
+    assert!(
+        gpu.estimate(scene, &case.receivers, &mut short).is_err(),
+        "{label}: a wrong output length was not refused"
+    );
+}
+
+/// The fixed case through the CLI path on a GPU twin dispatching everything at once and on one
+/// split into small dispatches: bit-identical V. Returns that V.
+pub fn chunked_dispatch_equals_one_dispatch(
+    label: &str,
+    whole: &mut dyn SoftShadowEstimator,
+    chunked: &mut dyn SoftShadowEstimator,
+    case: &FixedCase,
+) -> Vec<f32> {
+    let run_one = |e: &mut dyn SoftShadowEstimator| {
+        if let Err(err) = set_params(e, &case.params) {
+            panic!("{label}: {err}");
+        }
+        match run(e, &case.scene, &case.receivers) {
+            Ok((v, _)) => v,
+            Err(err) => panic!("{label}: {err}"),
+        }
+    };
+    let (a, b) = (run_one(whole), run_one(chunked));
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&b), "{label}: chunking changed V");
+    a
+}
+
+/// Both twins through the CLI path (`build` + `estimate`) on the same scene and receivers.
+#[derive(Debug, Clone)]
+pub struct CliRun {
+    /// The CPU twin's V.
+    pub cpu: Vec<f32>,
+    /// The GPU twin's V.
+    pub gpu: Vec<f32>,
+    /// The CPU twin's report.
+    pub cpu_report: Report,
+    /// The GPU twin's report.
+    pub gpu_report: Report,
+}
+
+impl CliRun {
+    /// Runs both twins (configured by the caller) on `scene` and `rec`; an error panics,
+    /// naming `label`.
+    pub fn new(
+        label: &str,
+        cpu: &mut dyn SoftShadowEstimator,
+        gpu: &mut dyn SoftShadowEstimator,
+        scene: &Scene,
+        rec: &Receivers,
+    ) -> CliRun {
+        let (cpu, cpu_report) = match run(cpu, scene, rec) {
+            Ok(x) => x,
+            Err(e) => panic!("{label}: cpu: {e}"),
+        };
+        let (gpu, gpu_report) = match run(gpu, scene, rec) {
+            Ok(x) => x,
+            Err(e) => panic!("{label}: gpu: {e}"),
+        };
+        CliRun {
+            cpu,
+            gpu,
+            cpu_report,
+            gpu_report,
+        }
+    }
+
+    /// Over the active receivers of `rec` (every inactive one NaN on both twins, asserted):
+    /// how many, the RMSE of `V_cpu - V_gpu`, and the largest `|dV|`.
+    pub fn rmse(&self, label: &str, rec: &Receivers) -> (usize, f64, f32) {
+        let (mut se, mut n, mut max) = (0.0f64, 0usize, 0.0f32);
+        for k in 0..rec.len() {
+            let (a, b) = (self.cpu[k], self.gpu[k]);
+            if !rec.active[k] {
+                assert!(a.is_nan() && b.is_nan(), "{label} #{k}");
+                continue;
+            }
+            let d = a - b;
+            se += (d as f64).powi(2);
+            n += 1;
+            max = max.max(d.abs());
+        }
+        (n, (se / n.max(1) as f64).sqrt(), max)
+    }
+
+    /// Both reports have the same value (or none) for each note of `keys`.
+    pub fn assert_same_notes(&self, label: &str, keys: &[&str]) {
+        for key in keys {
+            assert_eq!(
+                note(&self.cpu_report, key),
+                note(&self.gpu_report, key),
+                "{label}: note {key}"
+            );
+        }
+    }
+
+    /// Both outputs keep the estimator contract ([`check_contract`]).
+    pub fn check_contract(&self, rec: &Receivers) {
+        check_contract(&self.cpu, rec);
+        check_contract(&self.gpu, rec);
+    }
+
+    /// The GPU report's count of receivers redone on the CPU after a kernel hit the device's
+    /// loop budget (`loop_limit_cpu_fallbacks`, "0" when absent).
+    pub fn loop_limit_fallbacks(&self) -> String {
+        note(&self.gpu_report, "loop_limit_cpu_fallbacks").unwrap_or_else(|| "0".to_string())
+    }
+}

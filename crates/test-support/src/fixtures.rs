@@ -1,0 +1,238 @@
+//! Small fixed scenes and helpers of the accuracy and twin tests.
+//!
+//! The scenes: an opaque ground `[-4, 4]^2` at y = 0, horizontal square occluders ([`Occ`]),
+//! a rect light pointing down ([`rect_light`]) and a camera looking at the origin ([`camera`]);
+//! the scene fixtures of the repository's `fixtures/` folder ([`fixture`]).
+
+use glam::Vec3;
+use shadow_map_core::{
+    Camera, Error, Light, LightShape, Receivers, Report, Scene, SceneBvh, SoftShadowEstimator,
+};
+
+/// The fixed scenes' camera: from (0, 4, 5) at the origin, 40 degrees vertical field of view,
+/// `w x h` pixels.
+pub fn camera(w: u32, h: u32) -> Camera {
+    Camera {
+        eye: Vec3::new(0.0, 4.0, 5.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        width: w,
+        height: h,
+    }
+}
+
+/// A horizontal quad `[x0, x1] x [z0, z1]` at height y, facing up (+y), as two triangles.
+pub fn quad(x0: f32, z0: f32, x1: f32, z1: f32, y: f32) -> Vec<[Vec3; 3]> {
+    let (a, b, c, d) = (
+        Vec3::new(x0, y, z0),
+        Vec3::new(x0, y, z1),
+        Vec3::new(x1, y, z1),
+        Vec3::new(x1, y, z0),
+    );
+    vec![[a, b, c], [a, c, d]]
+}
+
+/// A closed axis-aligned box from `lo` to `hi`: twelve triangles, counter-clockwise seen from
+/// outside (top, bottom, -x, +x, -z, +z).
+pub fn cuboid(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
+    let p = |x: bool, y: bool, z: bool| {
+        Vec3::new(
+            if x { hi.x } else { lo.x },
+            if y { hi.y } else { lo.y },
+            if z { hi.z } else { lo.z },
+        )
+    };
+    let f = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [[a, b, c], [a, c, d]];
+    let (o, i) = (false, true);
+    [
+        f(p(o, i, o), p(o, i, i), p(i, i, i), p(i, i, o)),
+        f(p(o, o, o), p(i, o, o), p(i, o, i), p(o, o, i)),
+        f(p(o, o, o), p(o, o, i), p(o, i, i), p(o, i, o)),
+        f(p(i, o, o), p(i, i, o), p(i, i, i), p(i, o, i)),
+        f(p(o, o, o), p(o, i, o), p(i, i, o), p(i, o, o)),
+        f(p(o, o, i), p(i, o, i), p(i, i, i), p(o, i, i)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// An `l x l` rect light centred at (0, height, 0), pointing down, tangent +x.
+pub fn rect_light(l: f32, height: f32) -> Light {
+    Light {
+        shape: LightShape::Rect { size: [l, l] },
+        center: Vec3::new(0.0, height, 0.0),
+        normal: -Vec3::Y,
+        tangent: Vec3::X,
+    }
+}
+
+/// A horizontal square occluder `(x0, z0, x1, z1, height)`.
+pub type Occ = (f32, f32, f32, f32, f32);
+
+/// The occluder of `parallel-squares`: its +x edge deliberately off the texel grid.
+pub const SQUARE: Occ = (-0.5, -0.5, 0.5123, 0.5, 1.5);
+
+/// The ground and the occluders `occ` (all opaque) under `light`, seen by [`camera`]`(w, h)`.
+pub fn scene_with(light: Light, occ: &[Occ], w: u32, h: u32) -> Scene {
+    let mut meshes = vec![(quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0)];
+    for o in occ {
+        meshes.push((quad(o.0, o.1, o.2, o.3, o.4), 1.0));
+    }
+    match Scene::from_meshes("test", camera(w, h), light, meshes) {
+        Ok(s) => s,
+        Err(e) => panic!("scene: {e}"),
+    }
+}
+
+/// 241 ground receivers on the line z = 0.13, x from -1.5 to 1.5, through the umbra, penumbra
+/// and lit region of [`SQUARE`].
+pub fn line_receivers() -> Receivers {
+    let pos: Vec<Vec3> = (0..241)
+        .map(|k| Vec3::new(-1.5 + k as f32 * 0.0125, 0.0, 0.13))
+        .collect();
+    points(pos, Vec3::Y)
+}
+
+/// Receivers at `p`, all with the normal `n`, all active.
+pub fn points(p: Vec<Vec3>, n: Vec3) -> Receivers {
+    let len = p.len();
+    match Receivers::from_points(p, vec![n; len]) {
+        Ok(r) => r,
+        Err(e) => panic!("receivers: {e}"),
+    }
+}
+
+/// The path of the scene fixture `fixtures/<name>/<name>.toml`.
+pub fn fixture_path(name: &str) -> String {
+    format!(
+        "{}/../../fixtures/{name}/{name}.toml",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// The scene fixture `name` with its camera set to `w x h` pixels, and the camera's receivers.
+pub fn fixture(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
+    let mut scene = match Scene::load(fixture_path(name)) {
+        Ok(s) => s,
+        Err(e) => panic!("fixture {name}: {e}"),
+    };
+    scene.camera.width = w;
+    scene.camera.height = h;
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    (scene, rec)
+}
+
+/// Sets every `(key, value)` of `kv` on `e`, stopping at the first error.
+pub fn set_params<K, V>(
+    e: &mut (impl SoftShadowEstimator + ?Sized),
+    kv: &[(K, V)],
+) -> Result<(), Error>
+where
+    K: AsRef<str>,
+    V: AsRef<str>,
+{
+    for (k, v) in kv {
+        e.set_param(k.as_ref(), v.as_ref())?;
+    }
+    Ok(())
+}
+
+/// Sets every `(key, value)` of `kv` on `e`; a refused one panics, naming it.
+pub fn configure<K, V>(e: &mut (impl SoftShadowEstimator + ?Sized), kv: &[(K, V)])
+where
+    K: AsRef<str>,
+    V: AsRef<str>,
+{
+    for (k, v) in kv {
+        let (k, v) = (k.as_ref(), v.as_ref());
+        if let Err(err) = e.set_param(k, v) {
+            panic!("set {k}={v}: {err}");
+        }
+    }
+}
+
+/// `e` with every `(key, value)` of `kv` set ([`configure`]).
+pub fn with_params<E: SoftShadowEstimator>(mut e: E, kv: &[(&str, &str)]) -> E {
+    configure(&mut e, kv);
+    e
+}
+
+/// The value of a report's note `key`, if it has one.
+pub fn note(r: &Report, key: &str) -> Option<String> {
+    r.notes.iter().find(|n| n.0 == key).map(|n| n.1.clone())
+}
+
+/// RMS and maximum of `|v - o|` over all receivers.
+pub fn errors(v: &[f32], o: &[f64]) -> (f64, f64) {
+    let d: Vec<f64> = v
+        .iter()
+        .zip(o)
+        .map(|(a, b)| (*a as f64 - b).abs())
+        .collect();
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+    (rms, d.iter().cloned().fold(0.0, f64::max))
+}
+
+/// RMS of `a - b` over the active receivers (0 when none is active).
+pub fn rmse(a: &[f32], b: &[f32], active: &[bool]) -> f64 {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for k in 0..a.len() {
+        if active[k] {
+            let d = a[k] as f64 - b[k] as f64;
+            s += d * d;
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64).sqrt()
+}
+
+/// The estimator contract on an output: every active V finite in [0, 1], every inactive one NaN.
+pub fn check_contract(v: &[f32], r: &Receivers) {
+    for (k, x) in v.iter().enumerate() {
+        if r.active[k] {
+            assert!(
+                x.is_finite() && (0.0..=1.0).contains(x),
+                "receiver {k}: V = {x}"
+            );
+        } else {
+            assert!(x.is_nan(), "inactive receiver {k}: V = {x}");
+        }
+    }
+}
+
+/// Every V finite in [0, 1] (all receivers active); `what` names the case in a failure.
+pub fn assert_valid(v: &[f32], what: &str) {
+    for (k, x) in v.iter().enumerate() {
+        assert!(
+            x.is_finite() && (0.0..=1.0).contains(x),
+            "{what}: V[{k}] = {x}"
+        );
+    }
+}
+
+/// The closed-form visibility of the rect light of `scene` past the square occluders `occ`
+/// (parallel to the light plane) at each receiver.
+#[cfg(feature = "oracle")]
+pub fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
+    use glam::Vec2;
+    use reference::oracle::{rect_occluder_visibility, RectOccluder};
+    let f = scene.light.frame();
+    let occs: Vec<RectOccluder> = occ
+        .iter()
+        .map(|o| {
+            let c = [Vec3::new(o.0, o.4, o.1), Vec3::new(o.2, o.4, o.3)].map(|c| f.to_light(c));
+            let (a, b) = (Vec2::new(c[0].x, c[0].y), Vec2::new(c[1].x, c[1].y));
+            RectOccluder {
+                min: a.min(b),
+                max: a.max(b),
+                z: c[0].z,
+            }
+        })
+        .collect();
+    r.position
+        .iter()
+        .map(|p| rect_occluder_visibility(scene.light.half_extent(), &occs, f.to_light(*p)))
+        .collect()
+}
