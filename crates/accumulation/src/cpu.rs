@@ -9,9 +9,11 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{
-        FitMode, FitReport, LightView, ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION, SLOPE_BIAS,
+        FitMode, FitReport, LightView, NearFar, ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION,
+        SLOPE_BIAS,
     },
-    Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
+    params::FromParam,
+    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
@@ -25,63 +27,6 @@ pub const MASK_WORDS: usize = (MAX_BITS * MAX_BITS / 32) as usize;
 pub const MAX_MSSM_LEVEL: u32 = 5;
 /// Most refinement rounds of the adaptive kernel.
 pub const REFINE_ROUNDS: u32 = 16;
-
-/// Parameters of [`CpuAccumulation`] (and of its GPU twin).
-pub const SPECS: &[ParamSpec] = &[
-    RESOLUTION,
-    ParamSpec {
-        key: "k",
-        kind: ParamKind::Int { min: 1, max: 64 },
-        default: "10",
-        help: "kernel size K: taps per side (the paper: 5 for speed, 10 for quality)",
-    },
-    ParamSpec {
-        key: "variant",
-        kind: ParamKind::Choice(&["additive", "exact"]),
-        default: "additive",
-        help: "additive: shadowing factors summed and clamped (paper eq. 2); exact: occlusion bits on the light, a union (eq. 1)",
-    },
-    ParamSpec {
-        key: "kernel",
-        kind: ParamKind::Choice(&["fixed", "adaptive", "lexels"]),
-        default: "adaptive",
-        help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: multi-resolution rings (single lexels near the receiver, cells doubling outwards, ~K per side per level) over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
-    },
-    ParamSpec {
-        key: "coverage",
-        kind: ParamKind::Choice(&["overlap", "centre"]),
-        default: "overlap",
-        help: "variant=additive: a caster counts with its overlap area with the footprint, or in full when its centre is inside (the paper's test)",
-    },
-    ParamSpec {
-        key: "bits",
-        kind: ParamKind::Int {
-            min: 2,
-            max: MAX_BITS as i64,
-        },
-        default: "16",
-        help: "variant=exact: occlusion-bit grid side B (B x B equal-area bits on the light)",
-    },
-    ParamSpec {
-        key: "layers",
-        kind: ParamKind::Int { min: 1, max: 4 },
-        default: "1",
-        help: "variant=exact: depth-peeled layers whose casters set occlusion bits (additive uses layer 0, as the paper)",
-    },
-    ParamSpec {
-        key: "sphere",
-        kind: ParamKind::Choice(&["contract", "paper"]),
-        default: "contract",
-        help: "sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the paper's disk perpendicular to the light normal",
-    },
-    BIAS,
-    ParamSpec {
-        help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
-        ..SLOPE_BIAS
-    },
-    FIT,
-    NEARFAR,
-];
 
 /// Which sum (paper eq. 2 or eq. 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -114,62 +59,149 @@ pub enum KernelMode {
     Lexels,
 }
 
-/// The parameters, typed; read by both twins.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Settings {
-    /// Additive or exact.
-    pub variant: Variant,
-    /// Fixed, adaptive or lexels.
-    pub kernel: KernelMode,
-    /// Kernel size K (taps per side).
-    pub k: u32,
-    /// Additive: overlap area (true) or the paper's centre test (false).
-    pub overlap: bool,
-    /// Exact: bit-grid side B.
-    pub bits: u32,
-    /// Layers feeding the exact variant (1 for additive).
-    pub layers: u32,
-    /// Sphere model.
-    pub sphere: SphereModel,
-    /// Constant receiver bias (texel footprints).
-    pub b0: f32,
-    /// Slope-scaled receiver bias.
-    pub b1: f32,
-    /// Light-view window and near/far choice (`fit`, `nearfar`).
-    pub view: ViewOptions,
+/// How an additive caster counts (`coverage`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coverage {
+    /// With its overlap area with the footprint.
+    Overlap,
+    /// In full when its centre is inside the footprint (the paper's test).
+    Centre,
 }
 
+impl FromParam for Variant {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("additive") => Some(Variant::Additive),
+            ParamValue::Choice("exact") => Some(Variant::Exact),
+            _ => None,
+        }
+    }
+}
+
+impl FromParam for KernelMode {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("fixed") => Some(KernelMode::Fixed),
+            ParamValue::Choice("adaptive") => Some(KernelMode::Adaptive),
+            ParamValue::Choice("lexels") => Some(KernelMode::Lexels),
+            _ => None,
+        }
+    }
+}
+
+impl FromParam for Coverage {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("overlap") => Some(Coverage::Overlap),
+            ParamValue::Choice("centre") => Some(Coverage::Centre),
+            _ => None,
+        }
+    }
+}
+
+impl FromParam for SphereModel {
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("contract") => Some(SphereModel::Contract),
+            ParamValue::Choice("paper") => Some(SphereModel::Paper),
+            _ => None,
+        }
+    }
+}
+
+shadow_map_core::typed_params! {
+    /// The parameters, typed; read by both twins.
+    pub struct Settings {
+        /// Shadow-map resolution r.
+        resolution: u32 = RESOLUTION,
+        /// Kernel size K (taps per side).
+        k: u32 = ParamSpec {
+            key: "k",
+            kind: ParamKind::Int { min: 1, max: 64 },
+            default: "10",
+            help: "kernel size K: taps per side (the paper: 5 for speed, 10 for quality)",
+        },
+        /// Additive or exact.
+        variant: Variant = ParamSpec {
+            key: "variant",
+            kind: ParamKind::Choice(&["additive", "exact"]),
+            default: "additive",
+            help: "additive: shadowing factors summed and clamped (paper eq. 2); exact: occlusion bits on the light, a union (eq. 1)",
+        },
+        /// Fixed, adaptive or lexels.
+        kernel: KernelMode = ParamSpec {
+            key: "kernel",
+            kind: ParamKind::Choice(&["fixed", "adaptive", "lexels"]),
+            default: "adaptive",
+            help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: multi-resolution rings (single lexels near the receiver, cells doubling outwards, ~K per side per level) over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
+        },
+        /// Additive: overlap area or the paper's centre test ([`Settings::overlap`]).
+        coverage: Coverage = ParamSpec {
+            key: "coverage",
+            kind: ParamKind::Choice(&["overlap", "centre"]),
+            default: "overlap",
+            help: "variant=additive: a caster counts with its overlap area with the footprint, or in full when its centre is inside (the paper's test)",
+        },
+        /// Exact: bit-grid side B.
+        bits: u32 = ParamSpec {
+            key: "bits",
+            kind: ParamKind::Int {
+                min: 2,
+                max: MAX_BITS as i64,
+            },
+            default: "16",
+            help: "variant=exact: occlusion-bit grid side B (B x B equal-area bits on the light)",
+        },
+        /// Exact: depth-peeled layers, as set (the layers used are [`Settings::peeled_layers`]).
+        layers: u32 = ParamSpec {
+            key: "layers",
+            kind: ParamKind::Int { min: 1, max: 4 },
+            default: "1",
+            help: "variant=exact: depth-peeled layers whose casters set occlusion bits (additive uses layer 0, as the paper)",
+        },
+        /// Sphere model.
+        sphere: SphereModel = ParamSpec {
+            key: "sphere",
+            kind: ParamKind::Choice(&["contract", "paper"]),
+            default: "contract",
+            help: "sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the paper's disk perpendicular to the light normal",
+        },
+        /// Constant receiver bias b0 (texel footprints).
+        bias: f32 = BIAS,
+        /// Slope-scaled receiver bias b1.
+        slope_bias: f32 = ParamSpec {
+            help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
+            ..SLOPE_BIAS
+        },
+        /// Light-view window choice.
+        fit: FitMode = FIT,
+        /// Near/far choice.
+        nearfar: NearFar = NEARFAR,
+    }
+}
+
+/// Parameters of [`CpuAccumulation`] (and of its GPU twin).
+pub const SPECS: &[ParamSpec] = Settings::SPECS;
+
 impl Settings {
-    /// Reads the parameters.
-    pub fn from_params(p: &Params) -> Settings {
-        let variant = if p.choice("variant") == "exact" {
-            Variant::Exact
+    /// Additive: whether a caster counts with its overlap area (`coverage=overlap`) rather than
+    /// the paper's centre test.
+    pub fn overlap(&self) -> bool {
+        self.coverage != Coverage::Centre
+    }
+    /// The layers feeding the estimate: `layers` for the exact variant, 1 for additive.
+    pub fn peeled_layers(&self) -> u32 {
+        if self.variant == Variant::Exact {
+            self.layers
         } else {
-            Variant::Additive
-        };
-        Settings {
-            variant,
-            kernel: match p.choice("kernel") {
-                "fixed" => KernelMode::Fixed,
-                "lexels" => KernelMode::Lexels,
-                _ => KernelMode::Adaptive,
-            },
-            k: p.int("k") as u32,
-            overlap: p.choice("coverage") != "centre",
-            bits: p.int("bits") as u32,
-            layers: if variant == Variant::Exact {
-                p.int("layers") as u32
-            } else {
-                1
-            },
-            sphere: if p.choice("sphere") == "paper" {
-                SphereModel::Paper
-            } else {
-                SphereModel::Contract
-            },
-            b0: p.float("bias") as f32,
-            b1: p.float("slope_bias") as f32,
-            view: ViewOptions::from_params(p),
+            1
+        }
+    }
+    /// Light-view window and near/far choice (`fit`, `nearfar`).
+    pub fn view(&self) -> ViewOptions {
+        ViewOptions {
+            fit: self.fit,
+            nearfar: self.nearfar,
         }
     }
 }
@@ -211,7 +243,7 @@ pub fn plan(
         }
         half *= f.min(4.0);
     }
-    let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
+    let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view())?;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
         let wmax =
@@ -220,7 +252,7 @@ pub fn plan(
     });
     let req = LightSpaceRequest {
         resolution,
-        layers: s.layers.max(1),
+        layers: s.peeled_layers().max(1),
         midpoints: None,
         mssm_levels,
         dual_mssm_levels: None,
@@ -454,7 +486,7 @@ impl Accumulator<'_> {
                 bound: rect,
                 centre: [(uv.x + 0.5).floor() as i32, (uv.y + 0.5).floor() as i32],
                 m: ring_width(self.s.k),
-                phase: ring_phase(view, self.s.view.fit),
+                phase: ring_phase(view, self.s.fit),
             });
         }
         Some(Kernel::Uniform {
@@ -470,14 +502,16 @@ impl Accumulator<'_> {
         let view = &ls.view;
         let p = fp.r;
         let zp = p.z;
-        let eps = view.receiver_bias(p, nrm, self.s.b0, self.s.b1);
+        let eps = view.receiver_bias(p, nrm, self.s.bias, self.s.slope_bias);
         // Tangent-plane margin: b0 texel footprints at the receiver.
-        let eps_plane = view.w * zp / (view.n * view.r as f32) * self.s.b0;
+        let eps_plane = view.w * zp / (view.n * view.r as f32) * self.s.bias;
         let Some(kernel) = self.kernel(fp, uv, zp, eps) else {
             return 0.0;
         };
         let delta = view.delta();
-        let layers = (self.s.layers as usize).min(ls.layers.len()).max(1);
+        let layers = (self.s.peeled_layers() as usize)
+            .min(ls.layers.len())
+            .max(1);
         let exact = self.s.variant == Variant::Exact;
         let nbits = (self.s.bits * self.s.bits) as usize;
         // Parallel lights: the backprojected caster is an axis-aligned rectangle.
@@ -512,7 +546,7 @@ impl Accumulator<'_> {
                 let hx = 0.5 * (i1 - i0) as f32 * delta * size;
                 let hy = 0.5 * (j1 - j0) as f32 * delta * size;
                 if !exact {
-                    s_add += if self.s.overlap {
+                    s_add += if self.s.overlap() {
                         fp.overlap_term(lr, hx, hy)
                     } else {
                         fp.additive_term(lr, 4.0 * hx * hy)
@@ -600,6 +634,8 @@ impl Accumulator<'_> {
 /// All surfaces are treated as opaque (the shadow map stores no opacity).
 pub struct CpuAccumulation {
     params: Params,
+    /// `params`, typed (re-read on every `set_param`).
+    settings: Settings,
     ls: Option<LightSpace>,
     report: Report,
 }
@@ -607,8 +643,10 @@ pub struct CpuAccumulation {
 impl CpuAccumulation {
     /// With default parameters.
     pub fn new() -> Result<Self> {
+        let params = Params::new(SPECS)?;
         Ok(CpuAccumulation {
-            params: Params::new(SPECS)?,
+            settings: Settings::from_params(&params)?,
+            params,
             ls: None,
             report: Report::default(),
         })
@@ -619,7 +657,7 @@ impl CpuAccumulation {
     }
     /// The typed settings.
     pub fn settings(&self) -> Settings {
-        Settings::from_params(&self.params)
+        self.settings
     }
 
     /// Estimates V from given light-space data (as `build` makes them). Returns the lexel taps
@@ -710,26 +748,17 @@ pub fn outside_error(count: usize, light: &shadow_map_core::Light) -> Error {
 }
 
 impl SoftShadowEstimator for CpuAccumulation {
-    fn name(&self) -> &'static str {
-        "accumulation"
-    }
-    fn description(&self) -> &'static str {
-        "shadow accumulation over a kernel of elementary casters, additive or exact occlusion bits (Aszodi & Szirmay-Kalos 2006)"
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!("accumulation", "shadow accumulation over a kernel of elementary casters, additive or exact occlusion bits (Aszodi & Szirmay-Kalos 2006)", Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
+        self.params.set(key, value)?;
+        self.settings = Settings::from_params(&self.params)?;
+        Ok(())
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.ls = None;
         let s = self.settings();
-        let r = self.params.int("resolution") as u32;
+        let r = s.resolution;
         let ls = self.report.time("build", || -> Result<LightSpace> {
             let (view, fit, req) = plan(scene, receivers, &s, r)?;
             Ok(LightSpace::build_in_view(scene, view, fit, &req))
@@ -779,7 +808,7 @@ pub fn note_settings(
     report.note("resolution", view.r);
     report.note("variant", format!("{:?}", s.variant).to_lowercase());
     report.note("kernel", format!("{:?}", s.kernel).to_lowercase());
-    report.note("layers", s.layers);
+    report.note("layers", s.peeled_layers());
     report.note("near", view.n);
     report.note("far", view.far);
     if s.kernel == KernelMode::Lexels {

@@ -32,7 +32,7 @@ use shadow_map_core::{
         GpuContext,
     },
     light_space::LightSpace,
-    Backend, Error, LightShape, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Error, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -117,7 +117,7 @@ pub fn uniform_and_tables(
     for k in 0..bits * bits {
         tables.push(patch.bit_local(k % bits, k / bits, bits).to_array());
     }
-    let phase = ring_phase(&ls.view, s.view.fit);
+    let phase = ring_phase(&ls.view, s.fit);
     let u = AccUniform {
         inv_area: 1.0 / patch.area(),
         n_hull: patch.hull_points(),
@@ -130,16 +130,16 @@ pub fn uniform_and_tables(
             KernelMode::Lexels => 2,
         },
         variant: u32::from(s.variant == Variant::Exact),
-        layers: (s.layers as usize).min(ls.layers.len()).max(1) as u32,
+        layers: (s.peeled_layers() as usize).min(ls.layers.len()).max(1) as u32,
         sphere_contract: u32::from(
             matches!(shape, LightShape::Sphere { .. }) && s.sphere == SphereModel::Contract,
         ),
         patch_rect,
-        overlap: u32::from(s.overlap),
+        overlap: u32::from(s.overlap()),
         phase_x: phase[0],
         half,
-        b0: s.b0,
-        b1: s.b1,
+        b0: s.bias,
+        b1: s.slope_bias,
         mssm_present: u32::from(ls.mssm.is_some()),
         mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
         mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
@@ -243,7 +243,7 @@ impl GpuAccumulation {
         };
         let mssm = upload_planes(ctx, "accumulation mssm", mssm_size, &mssm_planes)?;
         let (au, tables) = uniform_and_tables(&s, &light.shape, ls);
-        let eu = EstimateUniform::new(light, s.b0, s.b1);
+        let eu = EstimateUniform::new(light, s.bias, s.slope_bias);
         let chunk = max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap);
         let packed = pack_receivers(receivers);
         let (groups, counters) = ctx.scoped(LABEL, || {
@@ -423,21 +423,7 @@ impl GpuAccumulation {
 }
 
 impl SoftShadowEstimator for GpuAccumulation {
-    fn name(&self) -> &'static str {
-        self.cpu.name()
-    }
-    fn description(&self) -> &'static str {
-        self.cpu.description()
-    }
-    fn backend(&self) -> Backend {
-        Backend::Gpu
-    }
-    fn params(&self) -> &Params {
-        self.cpu.params()
-    }
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.cpu.set_param(key, value)
-    }
+    shadow_map_core::estimator_identity!(twin of cpu, Gpu);
     /// Builds the light-space data on the CPU, exactly as [`CpuAccumulation`] does.
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.cpu.build(scene, receivers)?;

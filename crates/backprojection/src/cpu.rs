@@ -4,41 +4,70 @@ use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitReport, LightView, ViewOptions, FIT, NEARFAR, RESOLUTION},
-    peeling::{MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
-    Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
-    Result, Scene, SoftShadowEstimator,
+    light_view::{FitMode, FitReport, LightView, NearFar, ViewOptions, FIT, NEARFAR, RESOLUTION},
+    peeling::{SelfShadow, MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
+    Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
+shadow_map_core::typed_params! {
+    /// Settings of [`CpuBackprojection`] (and its GPU twin), one field a parameter.
+    pub struct Settings {
+        /// Shadow-map resolution r.
+        resolution: u32 = RESOLUTION,
+        /// Depth-peeled layers k.
+        layers: u32 = ParamSpec {
+            key: "layers",
+            kind: ParamKind::Int { min: 1, max: 4 },
+            default: "3",
+            help: "depth-peeled layers k; per texel only the furthest occluding layer is backprojected (Bavoil §4.1)",
+        },
+        /// Midpoint layers or a receiver bias.
+        self_shadow: SelfShadow = SELF_SHADOW,
+        /// Midpoint clamp, in texel footprints at the far plane.
+        max_bias: f32 = MAX_BIAS,
+        /// Constant receiver bias b0 (`self_shadow=bias`).
+        bias: f32 = SELF_SHADOW_BIAS,
+        /// Slope-scaled receiver bias b1 (`self_shadow=bias`).
+        slope_bias: f32 = SELF_SHADOW_SLOPE_BIAS,
+        /// Extend occluding micropatches to their +u and +v neighbours.
+        gap_filling: bool = ParamSpec {
+            key: "gap_filling",
+            kind: ParamKind::Bool,
+            default: "false",
+            help: "extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md §2, reconstructed)",
+        },
+        /// Most samples per receiver.
+        max_nspp: u32 = ParamSpec {
+            key: "max_nspp",
+            kind: ParamKind::Int { min: 1, max: 4096 },
+            default: "121",
+            help: "most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp)) (Bavoil §5)",
+        },
+        /// Light-view window choice.
+        fit: FitMode = FIT,
+        /// Near/far choice.
+        nearfar: NearFar = NEARFAR,
+    }
+}
+
+impl Settings {
+    /// Whether receivers are classified by midpoint layers (`self_shadow=midpoint`).
+    pub fn midpoint(&self) -> bool {
+        self.self_shadow == SelfShadow::Midpoint
+    }
+    /// The light-view options (`fit`, `nearfar`).
+    pub fn view(&self) -> ViewOptions {
+        ViewOptions {
+            fit: self.fit,
+            nearfar: self.nearfar,
+        }
+    }
+}
+
 /// Parameters of [`CpuBackprojection`].
-pub const SPECS: &[ParamSpec] = &[
-    RESOLUTION,
-    ParamSpec {
-        key: "layers",
-        kind: ParamKind::Int { min: 1, max: 4 },
-        default: "3",
-        help: "depth-peeled layers k; per texel only the furthest occluding layer is backprojected (Bavoil §4.1)",
-    },
-    SELF_SHADOW,
-    MAX_BIAS,
-    SELF_SHADOW_BIAS,
-    SELF_SHADOW_SLOPE_BIAS,
-    ParamSpec {
-        key: "gap_filling",
-        kind: ParamKind::Bool,
-        default: "false",
-        help: "extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md §2, reconstructed)",
-    },
-    ParamSpec {
-        key: "max_nspp",
-        kind: ParamKind::Int { min: 1, max: 4096 },
-        default: "121",
-        help: "most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp)) (Bavoil §5)",
-    },
-    FIT,
-    NEARFAR,
-];
+pub const SPECS: &[ParamSpec] = Settings::SPECS;
 
 /// Soft shadows by micropatch backprojection onto a rectangle light (Guennebaud et al. 2006),
 /// with Bavoil's (2008) depth-peeled layers (§4.1: per texel, only the furthest occluding layer
@@ -57,6 +86,8 @@ pub const SPECS: &[ParamSpec] = &[
 /// Rect lights only; disk and sphere lights are a [`Error::Param`] with key `light` from `build`.
 pub struct CpuBackprojection {
     params: Params,
+    /// `params`, typed (re-read on every `set_param`).
+    settings: Settings,
     ls: Option<LightSpace>,
     report: Report,
 }
@@ -64,8 +95,10 @@ pub struct CpuBackprojection {
 impl CpuBackprojection {
     /// With default parameters.
     pub fn new() -> Result<Self> {
+        let params = Params::new(SPECS)?;
         Ok(CpuBackprojection {
-            params: Params::new(SPECS)?,
+            settings: Settings::from_params(&params)?,
+            params,
             ls: None,
             report: Report::default(),
         })
@@ -73,6 +106,10 @@ impl CpuBackprojection {
     /// The light-space data of the last build.
     pub fn light_space(&self) -> Option<&LightSpace> {
         self.ls.as_ref()
+    }
+    /// The current parameters, typed.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
     }
 }
 
@@ -251,7 +288,7 @@ impl Setup<'_> {
 /// binds tighter than `max_bias` footprints at the receiver); an anchored MSSM with enough levels
 /// for the largest kernel (at `z_m = n`, `z_p = far`).
 pub fn plan(
-    params: &Params,
+    settings: &Settings,
     scene: &Scene,
     receivers: &Receivers,
 ) -> Result<(LightView, FitReport, LightSpaceRequest)> {
@@ -262,8 +299,8 @@ pub fn plan(
             "backprojection supports rect lights only",
         ));
     }
-    let r = params.int("resolution") as u32;
-    let opts = ViewOptions::from_params(params);
+    let r = settings.resolution;
+    let opts = settings.view();
     let (view, fit) = LightView::fit_with(
         scene,
         receivers,
@@ -276,11 +313,11 @@ pub fn plan(
     let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
     let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
     let footprint = view.w * view.far / (view.n * view.r as f32);
-    let mb = (params.float("max_bias") as f32 * footprint).min(f32::MAX);
+    let mb = (settings.max_bias * footprint).min(f32::MAX);
     let req = LightSpaceRequest {
         resolution: r,
-        layers: params.int("layers") as u32,
-        midpoints: (params.choice("self_shadow") == "midpoint").then_some(mb),
+        layers: settings.layers,
+        midpoints: settings.midpoint().then_some(mb),
         mssm_levels: Some(levels),
         dual_mssm_levels: None,
         pyramid: false,
@@ -290,26 +327,17 @@ pub fn plan(
 }
 
 impl SoftShadowEstimator for CpuBackprojection {
-    fn name(&self) -> &'static str {
-        "backprojection"
-    }
-    fn description(&self) -> &'static str {
-        "micropatch backprojection onto a rect light with depth-peeled layers and midpoints (Guennebaud 2006, Bavoil 2008)"
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!("backprojection", "micropatch backprojection onto a rect light with depth-peeled layers and midpoints (Guennebaud 2006, Bavoil 2008)", Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
+        self.params.set(key, value)?;
+        self.settings = Settings::from_params(&self.params)?;
+        Ok(())
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.ls = None;
         let ls = self.report.time("build", || -> Result<LightSpace> {
-            let (view, fit, req) = plan(&self.params, scene, receivers)?;
+            let (view, fit, req) = plan(&self.settings, scene, receivers)?;
             Ok(LightSpace::build_in_view(scene, view, fit, &req))
         })?;
         self.report.light_space_bytes = ls.bytes();
@@ -334,11 +362,11 @@ impl SoftShadowEstimator for CpuBackprojection {
             ls,
             half: [h.x, h.y],
             area: 4.0 * h.x as f64 * h.y as f64,
-            midpoint: self.params.choice("self_shadow") == "midpoint",
-            gap_filling: self.params.flag("gap_filling"),
-            max_nspp: self.params.int("max_nspp") as u32,
-            b0: self.params.float("bias") as f32,
-            b1: self.params.float("slope_bias") as f32,
+            midpoint: self.settings.midpoint(),
+            gap_filling: self.settings.gap_filling,
+            max_nspp: self.settings.max_nspp,
+            b0: self.settings.bias,
+            b1: self.settings.slope_bias,
             max_step: AtomicU32::new(1),
         };
         let view = &ls.view;
@@ -383,8 +411,7 @@ impl SoftShadowEstimator for CpuBackprojection {
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         self.report.note("resolution", view.r);
         self.report.note("layers", ls.layers.len());
-        self.report
-            .note("self_shadow", self.params.choice("self_shadow"));
+        self.report.note("self_shadow", self.settings.self_shadow);
         self.report
             .note("max_step", setup.max_step.load(Ordering::Relaxed));
         self.report.note("near", view.n);

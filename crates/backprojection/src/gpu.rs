@@ -40,8 +40,7 @@ use shadow_map_core::{
     light_space::LightSpace,
     light_view::{bounds_receivers, LightView},
     scene::Aabb,
-    Backend, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    Error, Light, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{num::NonZeroU64, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -232,7 +231,7 @@ impl GpuBackprojection {
     /// Renders the light-space data for this frame on the GPU and lays them out for the kernel;
     /// one submission, nothing read back.
     fn build_on_gpu(&mut self, scene: &Scene, receivers: &Receivers) -> Result<DeviceMaps> {
-        let (view, fit, req) = plan(self.cpu.params(), scene, receivers)?;
+        let (view, fit, req) = plan(self.cpu.settings(), scene, receivers)?;
         let ctx = self.ctx.clone();
         let ctx = &*ctx;
         if self.mapper.is_none() {
@@ -370,7 +369,7 @@ impl GpuBackprojection {
         check_inputs(light, receivers, v)?;
         self.report = Report::default();
         let t = Instant::now();
-        let midpoint = self.cpu.params().choice("self_shadow") == "midpoint";
+        let midpoint = self.cpu.settings().midpoint();
         let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
         self.report
             .stages
@@ -403,17 +402,17 @@ impl GpuBackprojection {
 
     /// The kernel's uniforms for `maps` and the current parameters.
     fn uniforms(&self, maps: &DeviceMaps, light: &Light) -> (EstimateUniform, BpUniform) {
-        let p = self.cpu.params();
-        let midpoint = p.choice("self_shadow") == "midpoint";
+        let s = self.cpu.settings();
+        let midpoint = s.midpoint();
         let h = light.half_extent();
-        let max_nspp = p.int("max_nspp") as u32;
+        let max_nspp = s.max_nspp;
         let bpu = BpUniform {
             half: [h.x, h.y],
             area: (4.0 * h.x as f64 * h.y as f64) as f32,
-            b0: p.float("bias") as f32,
-            b1: p.float("slope_bias") as f32,
+            b0: s.bias,
+            b1: s.slope_bias,
             midpoint: u32::from(midpoint),
-            gap_filling: u32::from(p.flag("gap_filling")),
+            gap_filling: u32::from(s.gap_filling),
             max_nspp,
             sqrt_nspp: (max_nspp as f32).sqrt(),
             layers: maps.layers,
@@ -435,7 +434,7 @@ impl GpuBackprojection {
     /// The report notes both estimate paths share.
     fn note_estimate(&mut self, maps: &DeviceMaps) {
         let view = maps.view;
-        let self_shadow = self.cpu.params().choice("self_shadow").to_string();
+        let self_shadow = self.cpu.settings().self_shadow;
         self.report.light_space_bytes = maps.bytes();
         self.report.note("resolution", view.r);
         self.report.note("layers", maps.layers);
@@ -775,21 +774,7 @@ fn check_light(light: &Light) -> Result<()> {
 }
 
 impl SoftShadowEstimator for GpuBackprojection {
-    fn name(&self) -> &'static str {
-        self.cpu.name()
-    }
-    fn description(&self) -> &'static str {
-        self.cpu.description()
-    }
-    fn backend(&self) -> Backend {
-        Backend::Gpu
-    }
-    fn params(&self) -> &Params {
-        self.cpu.params()
-    }
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.cpu.set_param(key, value)
-    }
+    shadow_map_core::estimator_identity!(twin of cpu, Gpu);
     /// Builds the light-space data on the GPU (or, after
     /// [`set_light_space_on_cpu`](Self::set_light_space_on_cpu), on the CPU and uploads them).
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
@@ -803,7 +788,7 @@ impl SoftShadowEstimator for GpuBackprojection {
                 .cpu
                 .light_space()
                 .ok_or_else(|| Error::param("build", "CPU light space missing"))?;
-            let midpoint = self.cpu.params().choice("self_shadow") == "midpoint";
+            let midpoint = self.cpu.settings().midpoint();
             let t = Instant::now();
             let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
             self.ctx.wait()?;

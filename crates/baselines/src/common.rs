@@ -3,8 +3,11 @@
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
-    light_space::LightSpaceRequest, Cull, DepthBias, Error, ParamKind, ParamSpec, Params,
-    RasterOptions, Receivers, Result,
+    light_space::LightSpaceRequest,
+    light_view::{FitMode, NearFar, ViewOptions, FIT, NEARFAR},
+    precision::DEPTH,
+    Cull, DepthBias, DepthPrecision, Error, ParamKind, ParamSpec, Params, RasterOptions, Receivers,
+    Result,
 };
 
 pub use shadow_map_core::light_view::{BIAS, RESOLUTION, SLOPE_BIAS};
@@ -17,26 +20,59 @@ pub const CULL: ParamSpec = ParamSpec {
     help: "face culling in the shadow-map pass (winding-based, as seen from the light)",
 };
 
-/// The light-space request every baseline makes: one shadow map at the `resolution` parameter,
-/// rasterised with [`raster_options`]. Shared by the CPU and GPU twins so both ask for the same map.
-pub fn map_request(p: &Params) -> LightSpaceRequest {
-    let mut req = LightSpaceRequest::single(p.int("resolution") as u32);
-    req.raster = raster_options(p);
-    req
+shadow_map_core::typed_params! {
+    /// The parameters every baseline shares, the head of each baseline's table (its own follow,
+    /// see [`shadow_map_core::concat_specs!`]).
+    pub struct MapSettings {
+        /// Shadow-map resolution r (texels per side).
+        resolution: u32 = RESOLUTION,
+        /// Constant receiver bias b0, in texel footprints.
+        bias: f32 = BIAS,
+        /// Slope-scaled receiver bias b1, in texel footprints.
+        slope_bias: f32 = SLOPE_BIAS,
+        /// Face culling in the shadow-map pass.
+        cull: Cull = CULL,
+        /// Light-view window choice.
+        fit: FitMode = FIT,
+        /// Near/far choice.
+        nearfar: NearFar = NEARFAR,
+        /// Stored shadow-map depth precision.
+        depth: DepthPrecision = DEPTH,
+    }
 }
 
-/// Raster options from the `cull` parameter (the map itself is stored unbiased; the bias is applied
-/// at the receiver, see [`shadow_map_core::LightView::receiver_bias`]).
-pub fn raster_options(p: &Params) -> RasterOptions {
-    let cull = match p.choice("cull") {
-        "back" => Cull::Back,
-        "front" => Cull::Front,
-        _ => Cull::None,
-    };
-    RasterOptions {
-        bias: DepthBias::default(),
-        cull,
+impl MapSettings {
+    /// The light-space request every baseline makes: one shadow map at `resolution`, rasterised
+    /// with [`raster`](Self::raster). Shared by the CPU and GPU twins so both ask for the same map.
+    pub fn request(&self) -> LightSpaceRequest {
+        let mut req = LightSpaceRequest::single(self.resolution);
+        req.raster = self.raster();
+        req
     }
+    /// Raster options from `cull` (the map itself is stored unbiased; the bias is applied at the
+    /// receiver, see [`shadow_map_core::LightView::receiver_bias`]).
+    pub fn raster(&self) -> RasterOptions {
+        RasterOptions {
+            bias: DepthBias::default(),
+            cull: self.cull,
+        }
+    }
+    /// The light-view options (`fit`, `nearfar`).
+    pub fn view(&self) -> ViewOptions {
+        ViewOptions {
+            fit: self.fit,
+            nearfar: self.nearfar,
+        }
+    }
+    /// `(bias, slope_bias)`: the receiver bias terms (b0, b1).
+    pub fn biases(&self) -> (f32, f32) {
+        (self.bias, self.slope_bias)
+    }
+}
+
+/// [`MapSettings::request`] of a baseline's parameters (`p` must hold the [`MapSettings`] table).
+pub fn map_request(p: &Params) -> Result<LightSpaceRequest> {
+    Ok(MapSettings::from_params(p)?.request())
 }
 
 /// Checks the output slice length.

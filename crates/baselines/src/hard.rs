@@ -1,11 +1,10 @@
 //! The hard shadow map (Williams 1978): one binary depth test at the receiver's texel, the
 //! point-light limit every soft estimator must reach as the light shrinks (docs/methods.md §10.4).
-use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::common::MapSettings;
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
 use glam::Vec3;
-use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
-use shadow_map_core::precision::DEPTH;
-use shadow_map_core::{DepthLookup, Light, ParamSpec, Params};
+use shadow_map_core::light_view::LightView;
+use shadow_map_core::{DepthLookup, Light, ParamSpec, Params, Result};
 
 /// The hard test: `V = [z_p - eps <= D(floor u, floor v)]`, and 0 when the light centre is
 /// behind the receiver's tangent plane.
@@ -18,9 +17,9 @@ impl Filter for Hard {
     const NAME: &'static str = "hard";
     const DESCRIPTION: &'static str =
         "hard shadow map: one binary depth test from the light centre (Williams 1978)";
-    const SPECS: &'static [ParamSpec] = &[RESOLUTION, BIAS, SLOPE_BIAS, CULL, FIT, NEARFAR, DEPTH];
-    fn from_params(_: &Params) -> Self {
-        Hard
+    const SPECS: &'static [ParamSpec] = MapSettings::SPECS;
+    fn from_params(_: &Params) -> Result<Self> {
+        Ok(Hard)
     }
     fn visibility<M: DepthLookup>(
         &self,

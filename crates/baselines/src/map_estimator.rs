@@ -1,12 +1,10 @@
 //! One shadow map at the light centre, filtered per receiver: the frame shared by the hard, PCF
 //! and PCSS baselines. Each supplies only its [`Filter`].
-use crate::common;
+use crate::common::{self, MapSettings};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::LightSpace,
-    light_view::{LightView, ViewOptions},
-    Backend, DepthLookup, DepthPrecision, Error, Light, ParamSpec, Params, Receivers, Report,
-    Result, Scene, SoftShadowEstimator, Unorm16Map,
+    light_space::LightSpace, light_view::LightView, DepthLookup, DepthPrecision, Error, Light,
+    ParamSpec, Params, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -26,15 +24,16 @@ pub struct ReceiverSample {
 }
 
 /// The per-receiver part of a single-map baseline.
-pub trait Filter: Send + Sync {
+pub trait Filter: Send + Sync + Sized {
     /// Registry name.
     const NAME: &'static str;
     /// One-line description.
     const DESCRIPTION: &'static str;
-    /// Parameters (the shared resolution/bias/cull ones included).
+    /// Parameters: [`MapSettings::SPECS`] first, then the filter's own.
     const SPECS: &'static [ParamSpec];
-    /// Reads the typed settings from the parameters.
-    fn from_params(p: &Params) -> Self;
+    /// The filter with its own settings read from the parameters (a [`Params`] of
+    /// [`SPECS`](Self::SPECS)).
+    fn from_params(p: &Params) -> Result<Self>;
     /// Visibility of the light from the receiver as this filter estimates it, before the
     /// tangent-plane factor, in [0, 1], reading the shadow map `map` (f32 or 16-bit) of `view`.
     fn visibility<M: DepthLookup>(
@@ -85,29 +84,18 @@ impl<F: Filter> MapEstimator<F> {
 }
 
 impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
-    fn name(&self) -> &'static str {
-        F::NAME
-    }
-    fn description(&self) -> &'static str {
-        F::DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(F::NAME, F::DESCRIPTION, Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
-        let req = common::map_request(&self.params);
-        let precision = DepthPrecision::from_params(&self.params);
+        let settings = MapSettings::from_params(&self.params)?;
+        let req = settings.request();
         let (ls, q16) = self.report.time("build", || -> Result<_> {
-            let opts = ViewOptions::from_params(&self.params);
+            let opts = settings.view();
             let mut ls = LightSpace::build_with(scene, receivers, &req, &opts)?;
-            let q16 = encode_layer0(&mut ls, precision);
+            let q16 = encode_layer0(&mut ls, settings.depth);
             Ok((ls, q16))
         })?;
         self.report.light_space_bytes = ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes);
@@ -121,11 +109,8 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
             .ls
             .as_ref()
             .ok_or_else(|| Error::param("build", "estimate called before build"))?;
-        let filter = F::from_params(&self.params);
-        let (b0, b1) = (
-            self.params.float("bias") as f32,
-            self.params.float("slope_bias") as f32,
-        );
+        let filter = F::from_params(&self.params)?;
+        let (b0, b1) = MapSettings::from_params(&self.params)?.biases();
         let light = &scene.light;
         let t = std::time::Instant::now();
         let (nonfinite, outside) = match &self.q16 {

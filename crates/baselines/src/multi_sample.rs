@@ -1,15 +1,13 @@
 //! Multi-sample shadows (Heckbert & Herf 1997; docs/methods.md §6): the average of S x S hard
 //! shadow maps rendered from jittered stratified points on the light, the papers' brute-force
 //! reference. Only one map is alive at a time.
-use crate::common::{self, BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::common::{self, MapSettings};
 use crate::map_estimator::encode_layer0;
 use glam::Vec2;
 use rayon::prelude::*;
-use shadow_map_core::light_view::{ViewOptions, FIT, NEARFAR};
-use shadow_map_core::precision::DEPTH;
 use shadow_map_core::{
-    light_space::LightSpace, Backend, DepthLookup, DepthPrecision, Error, LightShape, ParamKind,
-    ParamSpec, Params, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
+    light_space::LightSpace, DepthLookup, Error, LightShape, ParamKind, ParamSpec, Params,
+    Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 
 /// Registry name of multi-sample shadows (shared with the GPU twin).
@@ -18,31 +16,33 @@ pub const NAME: &str = "multi-sample";
 pub const DESCRIPTION: &str =
     "average of S x S hard shadow maps from jittered points on the light (Heckbert & Herf 1997)";
 
-/// The parameters of multi-sample shadows (shared with the GPU twin).
-pub const SPECS: &[ParamSpec] = &[
-    RESOLUTION,
-    BIAS,
-    SLOPE_BIAS,
-    CULL,
-    FIT,
-    NEARFAR,
-    DEPTH,
-    ParamSpec {
-        key: "sublights",
-        kind: ParamKind::Int { min: 1, max: 64 },
-        default: "4",
-        help: "S: S x S light samples, one hard shadow map each",
-    },
-    ParamSpec {
-        key: "seed",
-        kind: ParamKind::Int {
-            min: 0,
-            max: 1 << 31,
+shadow_map_core::typed_params! {
+    /// The own parameters of multi-sample shadows (after the shared [`MapSettings`]).
+    pub struct MultiSampleParams {
+        /// S: S x S light samples.
+        sublights: u32 = ParamSpec {
+            key: "sublights",
+            kind: ParamKind::Int { min: 1, max: 64 },
+            default: "4",
+            help: "S: S x S light samples, one hard shadow map each",
         },
-        default: "7",
-        help: "seed of the stratum jitter (fixed, so images are deterministic)",
-    },
-];
+        /// Seed of the stratum jitter ([`jitter`]).
+        seed: u64 = ParamSpec {
+            key: "seed",
+            kind: ParamKind::Int {
+                min: 0,
+                max: 1 << 31,
+            },
+            default: "7",
+            help: "seed of the stratum jitter (fixed, so images are deterministic)",
+        },
+    }
+}
+
+/// The parameters of multi-sample shadows (shared with the GPU twin): [`MapSettings::SPECS`],
+/// then [`MultiSampleParams::SPECS`].
+pub const SPECS: &[ParamSpec] =
+    shadow_map_core::concat_specs!(MapSettings::SPECS, MultiSampleParams::SPECS);
 
 /// `V(p) = (1/N) sum_k [y_k in front of p's tangent plane] [z_k(p) - eps_k <= D_k(u_k(p))]`
 /// over N = S^2 jittered strata y_k of the light (concentric-mapped for disks). Each map has its
@@ -81,18 +81,7 @@ pub fn jitter(seed: u64, k: u32) -> Vec2 {
 }
 
 impl SoftShadowEstimator for MultiSample {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn description(&self) -> &'static str {
-        DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
     }
@@ -103,15 +92,13 @@ impl SoftShadowEstimator for MultiSample {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         common::check_len(receivers, v)?;
-        let s = self.params.int("sublights") as u32;
-        let seed = self.params.int("seed") as u64;
-        let (b0, b1) = (
-            self.params.float("bias") as f32,
-            self.params.float("slope_bias") as f32,
-        );
-        let req = common::map_request(&self.params);
-        let opts = ViewOptions::from_params(&self.params);
-        let precision = DepthPrecision::from_params(&self.params);
+        let settings = MapSettings::from_params(&self.params)?;
+        let MultiSampleParams { sublights: s, seed } =
+            MultiSampleParams::from_params(&self.params)?;
+        let (b0, b1) = settings.biases();
+        let req = settings.request();
+        let opts = settings.view();
+        let precision = settings.depth;
         let light = scene.light;
         let points = light.stratified_points(s, |k| jitter(seed, k));
         let frame = light.frame();

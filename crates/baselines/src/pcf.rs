@@ -1,10 +1,22 @@
 //! Percentage-closer filtering (Reeves, Salesin, Cook 1987; docs/methods.md §5): compare first,
 //! then filter, over an N x N block of texels centred on the receiver's texel.
-use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::common::MapSettings;
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
-use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
-use shadow_map_core::precision::DEPTH;
-use shadow_map_core::{DepthLookup, Light, ParamKind, ParamSpec, Params};
+use shadow_map_core::light_view::LightView;
+use shadow_map_core::{DepthLookup, Light, ParamKind, ParamSpec, Params, Result};
+
+shadow_map_core::typed_params! {
+    /// PCF's own parameter (after the shared [`MapSettings`]).
+    pub struct PcfParams {
+        /// Filter size N.
+        kernel: i32 = ParamSpec {
+            key: "kernel",
+            kind: ParamKind::Int { min: 1, max: 63 },
+            default: "5",
+            help: "filter size N (texels per side; even N rounds up to N+1)",
+        },
+    }
+}
 
 /// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`.
 pub struct Pcf {
@@ -25,25 +37,12 @@ impl Filter for Pcf {
     const NAME: &'static str = "pcf";
     const DESCRIPTION: &'static str =
         "percentage-closer filtering over an N x N texel block (Reeves et al. 1987)";
-    const SPECS: &'static [ParamSpec] = &[
-        RESOLUTION,
-        BIAS,
-        SLOPE_BIAS,
-        CULL,
-        FIT,
-        NEARFAR,
-        DEPTH,
-        ParamSpec {
-            key: "kernel",
-            kind: ParamKind::Int { min: 1, max: 63 },
-            default: "5",
-            help: "filter size N (texels per side; even N rounds up to N+1)",
-        },
-    ];
-    fn from_params(p: &Params) -> Self {
-        Pcf {
-            half: (p.int("kernel") as i32) / 2,
-        }
+    const SPECS: &'static [ParamSpec] =
+        shadow_map_core::concat_specs!(MapSettings::SPECS, PcfParams::SPECS);
+    fn from_params(p: &Params) -> Result<Self> {
+        Ok(Pcf {
+            half: PcfParams::from_params(p)?.kernel / 2,
+        })
     }
     fn visibility<M: DepthLookup>(
         &self,

@@ -1,11 +1,23 @@
 //! Percentage-closer soft shadows (Fernando 2005), in the exact form of docs/methods.md §5: all
 //! depths linear light-space z, lengths on the plane z = n, filter widths (not radii).
-use crate::common::{BIAS, CULL, RESOLUTION, SLOPE_BIAS};
+use crate::common::MapSettings;
 use crate::map_estimator::{cells, Filter, MapEstimator, ReceiverSample};
 use glam::Vec2;
-use shadow_map_core::light_view::{LightView, FIT, NEARFAR};
-use shadow_map_core::precision::DEPTH;
-use shadow_map_core::{DepthLookup, Light, LightShape, ParamKind, ParamSpec, Params};
+use shadow_map_core::light_view::LightView;
+use shadow_map_core::{DepthLookup, Light, LightShape, ParamKind, ParamSpec, Params, Result};
+
+shadow_map_core::typed_params! {
+    /// PCSS's own parameter (after the shared [`MapSettings`]).
+    pub struct PcssParams {
+        /// Most samples per side in the blocker search and in the filter.
+        max_taps: u32 = ParamSpec {
+            key: "max_taps",
+            kind: ParamKind::Int { min: 1, max: 1024 },
+            default: "32",
+            help: "most samples per side in the blocker search and in the filter",
+        },
+    }
+}
 
 /// PCSS, step by step (docs/methods.md §5):
 /// 1. blocker search over the cut of the receiver-light pyramid at the near plane,
@@ -36,25 +48,12 @@ impl Filter for Pcss {
     const NAME: &'static str = "pcss";
     const DESCRIPTION: &'static str =
         "percentage-closer soft shadows: blocker search, penumbra estimate, PCF (Fernando 2005)";
-    const SPECS: &'static [ParamSpec] = &[
-        RESOLUTION,
-        BIAS,
-        SLOPE_BIAS,
-        CULL,
-        FIT,
-        NEARFAR,
-        DEPTH,
-        ParamSpec {
-            key: "max_taps",
-            kind: ParamKind::Int { min: 1, max: 1024 },
-            default: "32",
-            help: "most samples per side in the blocker search and in the filter",
-        },
-    ];
-    fn from_params(p: &Params) -> Self {
-        Pcss {
-            max_taps: p.int("max_taps") as u32,
-        }
+    const SPECS: &'static [ParamSpec] =
+        shadow_map_core::concat_specs!(MapSettings::SPECS, PcssParams::SPECS);
+    fn from_params(p: &Params) -> Result<Self> {
+        Ok(Pcss {
+            max_taps: PcssParams::from_params(p)?.max_taps,
+        })
     }
     fn visibility<M: DepthLookup>(
         &self,

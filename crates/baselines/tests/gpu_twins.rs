@@ -247,7 +247,7 @@ fn run_cpu(
             set_params(&mut e, &kv)?;
             let (v, _) = run(&mut e, scene, rec)?;
             // The same sub-light maps the CPU twin builds inside `estimate` (deterministic).
-            let req = baselines::common::map_request(e.params());
+            let req = baselines::common::map_request(e.params())?;
             assert_eq!(req.resolution, s.resolution);
             let seed = s.seed as u64;
             let maps: Vec<Result<LightSpace, Error>> = scene

@@ -284,7 +284,10 @@ pub fn report(args: &ReportArgs) -> Result<(), String> {
         // Flicker per fit mode: a short pan, every estimator with a `fit` parameter, defaults.
         for (algo, backend, _) in &plan {
             let e = estimator(algo, *backend).map_err(|e| e.to_string())?;
-            if e.params().get("fit").is_none() {
+            if e.params()
+                .get(shadow_map_core::light_view::FIT.key)
+                .is_none()
+            {
                 continue;
             }
             for fit in ["receivers", "scene", "stable"] {

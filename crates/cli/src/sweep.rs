@@ -1,7 +1,7 @@
 //! The parameter settings `softshadow report` runs for each method besides its defaults: the
 //! axes its paper varies (layers, kernel size, packet size, sub-lights, filter) and the
 //! shadow-map resolution. A report concern, so it lives here and not in the estimator trait.
-use shadow_map_core::Params;
+use shadow_map_core::{light_view::RESOLUTION, Params};
 
 /// One setting: `(key, value)` overrides of the defaults.
 pub type Setting = Vec<(&'static str, String)>;
@@ -65,7 +65,7 @@ pub fn settings(name: &str, params: &Params, quick: bool) -> Vec<Setting> {
 
 /// Resolution 256 (quick), or 256, 512 and 2048 (full), when the table has `resolution`.
 fn resolutions(params: &Params, quick: bool) -> Vec<Setting> {
-    if params.specs().iter().all(|s| s.key != "resolution") {
+    if params.specs().iter().all(|s| s.key != RESOLUTION.key) {
         return Vec::new();
     }
     let rs: &[u32] = if quick { &[256] } else { &[256, 512, 2048] };

@@ -27,7 +27,7 @@ fn setup() -> (Scene, Receivers) {
 
 fn bench(c: &mut Criterion) {
     let (scene, rec) = setup();
-    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params()).unwrap();
     s.resolution = R;
     s.kernel = 7;
     let (view, _) = sublight_view(&scene, &rec, Vec2::ZERO, R, 3).unwrap();

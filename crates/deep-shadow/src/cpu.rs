@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},
-    Backend, DepthMap, Error, LightShape, LightView, Params, Receivers, Report, Result, Scene,
+    DepthMap, Error, LightShape, LightView, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
 use std::time::Instant;
@@ -204,7 +204,7 @@ pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
         return Query::Fixed(1.0);
     }
     let n = view.frame.dir_to_light(nw);
-    let eps = view.receiver_bias(p, n, s.b0, s.b1);
+    let eps = view.receiver_bias(p, n, s.bias, s.slope_bias);
     Query::Look {
         uv: view.project(p),
         d: p.z - eps,
@@ -263,20 +263,24 @@ pub fn build_deep_map_timed(
 /// same filters (`--stats` note `path`).
 pub struct CpuDeepShadow {
     params: Params,
+    /// `params`, typed (re-read on every `set_param`).
+    settings: Settings,
     report: Report,
 }
 
 impl CpuDeepShadow {
     /// With default parameters.
     pub fn new() -> Result<Self> {
+        let params = Params::new(SPECS)?;
         Ok(CpuDeepShadow {
-            params: Params::new(SPECS)?,
+            settings: Settings::from_params(&params)?,
+            params,
             report: Report::default(),
         })
     }
     /// The current settings.
     pub fn settings(&self) -> Settings {
-        Settings::from_params(&self.params)
+        self.settings
     }
 }
 
@@ -398,20 +402,10 @@ impl Tally {
 }
 
 impl SoftShadowEstimator for CpuDeepShadow {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn description(&self) -> &'static str {
-        DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        params::set(&mut self.params, key, value)
+        self.settings = params::set(&mut self.params, key, value)?;
+        Ok(())
     }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
@@ -438,7 +432,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
                 *y,
                 s.resolution,
                 kernel_margin(&s),
-                &s.view,
+                &s.view(),
             )?;
             t_fit += t_f.elapsed().as_secs_f64() * 1e3;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);

@@ -27,8 +27,11 @@ use crate::params::{self, Settings, SPECS};
 use crate::raster::prepare;
 use crate::shared::{DsUniform, Node, Tri};
 use shadow_map_core::{
-    gpu::GpuContext, Backend, Error, LightView, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    gpu::{
+        kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
+        GpuContext,
+    },
+    Error, LightView, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -85,6 +88,8 @@ pub struct GpuMap {
 pub struct GpuDeepShadow {
     ctx: Arc<GpuContext>,
     params: Params,
+    /// `params`, typed (re-read on every `set_param`).
+    settings: Settings,
     report: Report,
     pipes: Pipelines,
 }
@@ -99,70 +104,40 @@ fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
 impl GpuDeepShadow {
     /// Compiles the pipelines on `ctx`.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let pipes = ctx.scoped("deep-shadow pipelines", || {
-            let d = &ctx.device;
-            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("deep_shadow.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(DEEP_SHADOW_WGSL.into()),
-            });
-            let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
-            let ro = wgpu::BufferBindingType::Storage { read_only: true };
-            let rw = wgpu::BufferBindingType::Storage { read_only: false };
-            let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("deep-shadow"),
-                entries: &[
-                    buffer(0, wgpu::BufferBindingType::Uniform),
-                    buffer(1, ro),
-                    buffer(2, ro),
-                    buffer(3, rw),
-                    buffer(4, rw),
-                    buffer(5, rw),
-                    buffer(6, ro),
-                    buffer(7, rw),
+        let module = shader_module(&ctx, "deep_shadow.wgsl", &[DEEP_SHADOW_WGSL])?;
+        let layout = ctx.scoped("deep-shadow pipelines", || {
+            bind_group_layout(
+                &ctx,
+                "deep-shadow",
+                &[
+                    Binding::Uniform,
+                    Binding::Storage,
+                    Binding::Storage,
+                    Binding::StorageRw,
+                    Binding::StorageRw,
+                    Binding::StorageRw,
+                    Binding::Storage,
+                    Binding::StorageRw,
                 ],
-            });
-            let pl = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("deep-shadow"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let mk = |entry: &str| {
-                d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: OVERRIDES,
-                        zero_initialize_workgroup_memory: true,
-                    },
-                    cache: None,
-                })
-            };
-            Pipelines {
-                clear: mk("clear"),
-                raster: mk("raster"),
-                raster_opaque: mk("raster_opaque"),
-                process: mk("process"),
-                link: mk("link"),
-                lookup: mk("lookup"),
-                lookup_opaque: mk("lookup_opaque"),
-                ceiling_insert: mk("ceiling_insert"),
-                layout,
-            }
+            )
         })?;
+        let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, OVERRIDES);
+        let pipes = Pipelines {
+            clear: mk("clear")?,
+            raster: mk("raster")?,
+            raster_opaque: mk("raster_opaque")?,
+            process: mk("process")?,
+            link: mk("link")?,
+            lookup: mk("lookup")?,
+            lookup_opaque: mk("lookup_opaque")?,
+            ceiling_insert: mk("ceiling_insert")?,
+            layout,
+        };
+        let params = Params::new(SPECS)?;
         Ok(GpuDeepShadow {
             ctx,
-            params: Params::new(SPECS)?,
+            settings: Settings::from_params(&params)?,
+            params,
             report: Report::default(),
             pipes,
         })
@@ -170,7 +145,7 @@ impl GpuDeepShadow {
 
     /// The current settings.
     pub fn settings(&self) -> Settings {
-        Settings::from_params(&self.params)
+        self.settings
     }
 
     fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -651,20 +626,10 @@ pub fn pack_query(q: Query) -> [f32; 4] {
 }
 
 impl SoftShadowEstimator for GpuDeepShadow {
-    fn name(&self) -> &'static str {
-        params::NAME
-    }
-    fn description(&self) -> &'static str {
-        params::DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Gpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(params::NAME, params::DESCRIPTION, Gpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        params::set(&mut self.params, key, value)
+        self.settings = params::set(&mut self.params, key, value)?;
+        Ok(())
     }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
@@ -687,7 +652,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
                 *y,
                 s.resolution,
                 kernel_margin(&s),
-                &s.view,
+                &s.view(),
             )?;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
             tally.window_scale = tally.window_scale.max(fit.window_scale);

@@ -117,7 +117,7 @@ fn truncation_cuts_lists_and_stays_within_epsilon() {
     let scene = sheets(&alphas, 0.5);
     let rec = grid(0.3, 0.0, 5);
     let (view, _) = sublight_view(&scene, &rec, glam::Vec2::ZERO, 64, 0).unwrap();
-    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params()).unwrap();
     s.resolution = 64;
     let dsm = build_deep_map(&scene, &view, &s).unwrap();
     let covered = dsm.head.iter().filter(|h| **h != NIL).count() as u64;
@@ -180,7 +180,7 @@ fn one_fragment_texel_and_receivers_before_every_fragment() {
     }
     let rec = grid(0.3, 0.0, 5);
     let (view, _) = sublight_view(&scene, &rec, glam::Vec2::ZERO, 16, 0).unwrap();
-    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params()).unwrap();
     s.resolution = 16;
     let dsm = build_deep_map(&scene, &view, &s).unwrap();
     assert_eq!(dsm.stats.max_len, 1);
@@ -282,7 +282,7 @@ fn linked_and_naive_traversal_agree_exactly() {
 #[test]
 fn links_point_at_the_depth_nearest_neighbour() {
     let (scene, rec) = fixture("hair", 32, 24);
-    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params());
+    let mut s = Settings::from_params(CpuDeepShadow::new().unwrap().params()).unwrap();
     s.resolution = 128;
     let (view, _) = sublight_view(&scene, &rec, glam::Vec2::ZERO, 128, 0).unwrap();
     let dsm = build_deep_map(&scene, &view, &s).unwrap();
@@ -445,6 +445,9 @@ fn parameters_are_checked() {
     assert!(matches!(e.set_param("nope", "1"), Err(Error::Param { .. })));
     e.set_param("kernel", "7").unwrap();
     assert_eq!(e.params().int("kernel"), 7);
+    assert_eq!(e.settings().kernel, 7);
+    assert!(e.set_param("kernel", "4").is_err());
+    assert_eq!(e.settings().kernel, 7);
 }
 
 #[test]

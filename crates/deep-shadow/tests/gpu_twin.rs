@@ -216,7 +216,7 @@ fn assert_fixture_within(what: &str, vc: &[f32], vg: &[f32], n: usize) {
 }
 
 fn settings() -> Settings {
-    Settings::from_params(CpuDeepShadow::new().unwrap().params())
+    Settings::from_params(CpuDeepShadow::new().unwrap().params()).unwrap()
 }
 
 /// The fixture `strands` at 32 x 24 with every seventh receiver inactive, `pcf` over 5 x 5.

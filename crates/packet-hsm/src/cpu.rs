@@ -9,10 +9,11 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light::front_fraction,
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{LightView, ViewOptions, FIT, NEARFAR, RESOLUTION},
+    light_view::{FitMode, LightView, NearFar, ViewOptions, FIT, NEARFAR, RESOLUTION},
     mssm::Mssm,
-    peeling::{MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
-    Backend, Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, Receivers, Report,
+    params::FromParam,
+    peeling::{SelfShadow, MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
+    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, Receivers, Report,
     Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -32,60 +33,7 @@ pub const PACKETS: &[&str] = &[
 ];
 
 /// Parameters of [`CpuPacketHsm`] (shared with the GPU twin).
-pub const SPECS: &[ParamSpec] = &[
-    ParamSpec {
-        help: "shadow-map resolution r (texels per side) of each sub-light's map",
-        ..RESOLUTION
-    },
-    ParamSpec {
-        key: "packet",
-        kind: ParamKind::Choice(PACKETS),
-        default: "3x3",
-        help: "packet of WxH neighbouring pixels (Yang §4.1; 1x1 = per pixel); receivers without an image layout are processed pixel-wise",
-    },
-    ParamSpec {
-        key: "sublights",
-        kind: ParamKind::Int { min: 1, max: 4 },
-        default: "1",
-        help: "S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V averaged (Yang §5)",
-    },
-    ParamSpec {
-        key: "td",
-        kind: ParamKind::Float { min: 0.0, max: 1.0 },
-        default: "0.8",
-        help: "Td: a packet whose diverging probability P_d (Yang eq. 5) exceeds Td is processed pixel-wise",
-    },
-    ParamSpec {
-        key: "hierarchy",
-        kind: ParamKind::Bool,
-        default: "true",
-        help: "hierarchical contour extraction over the dual-grid MSSM (Yang §4.2, Algorithm 3); false: every 2x2 block of the kernel (GBP07)",
-    },
-    ParamSpec {
-        key: "coherence",
-        kind: ParamKind::Bool,
-        default: "true",
-        help: "coherence test (Yang §4.3: P_d > Td or cost ratio eq. 6 > 1 sends a packet pixel-wise); false: every packet is tried packet-wise",
-    },
-    ParamSpec {
-        key: "qe",
-        kind: ParamKind::Float { min: 0.0, max: 1e6 },
-        default: "2.0",
-        help: "Q_e of the cost model (eq. 6): cost of extracting an edge, in units of Q_n = 1 (a node)",
-    },
-    ParamSpec {
-        key: "qv",
-        kind: ParamKind::Float { min: 0.0, max: 1e6 },
-        default: "4.0",
-        help: "Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one pixel",
-    },
-    SELF_SHADOW,
-    MAX_BIAS,
-    SELF_SHADOW_BIAS,
-    SELF_SHADOW_SLOPE_BIAS,
-    FIT,
-    NEARFAR,
-];
+pub const SPECS: &[ParamSpec] = Config::SPECS;
 
 /// Per-receiver diagnostics of the last estimate (Yang Figs. 5 and 8): what the EXR channels of a
 /// diagnostic image would hold.
@@ -176,52 +124,121 @@ pub fn parse_packet(s: &str) -> Result<(u32, u32)> {
 
 pub use shadow_map_core::mssm::kernel_width;
 
-/// Settings of one estimate.
-#[derive(Debug, Clone, Copy)]
-pub struct Config {
-    /// Packet size (w, h).
-    pub packet: (u32, u32),
-    /// Sub-lights per side S.
-    pub sublights: u32,
-    /// Hierarchical extraction.
-    pub hierarchy: bool,
-    /// Coherence test.
-    pub coherence: bool,
-    /// Td.
-    pub td: f64,
-    /// Q_e.
-    pub qe: f64,
-    /// Q_v.
-    pub qv: f64,
-    /// Midpoint classification (else bias).
-    pub midpoint: bool,
-    /// Midpoint clamp in footprints at the far plane.
-    pub max_bias: f32,
-    /// Bias constants.
-    pub b0: f32,
-    /// Slope bias.
-    pub b1: f32,
-    /// Light-view window and near/far choice of every sub-light's map (`fit`, `nearfar`).
-    pub view: ViewOptions,
+/// A packet size `WxH` (the `packet` parameter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Packet {
+    /// Pixels per packet row, W.
+    pub w: u32,
+    /// Rows per packet, H.
+    pub h: u32,
+}
+
+impl Packet {
+    /// `(w, h)`.
+    pub fn size(self) -> (u32, u32) {
+        (self.w, self.h)
+    }
+}
+
+impl std::fmt::Display for Packet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.w, self.h)
+    }
+}
+
+impl FromParam for Packet {
+    /// A `WxH` word ([`parse_packet`]); `None` for anything else.
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice(word) => parse_packet(word).ok().map(|(w, h)| Packet { w, h }),
+            _ => None,
+        }
+    }
+}
+
+shadow_map_core::typed_params! {
+    /// Settings of one estimate, one field a parameter ([`SPECS`]).
+    pub struct Config {
+        /// Shadow-map resolution r of each sub-light's map.
+        resolution: u32 = ParamSpec {
+            help: "shadow-map resolution r (texels per side) of each sub-light's map",
+            ..RESOLUTION
+        },
+        /// Packet size.
+        packet: Packet = ParamSpec {
+            key: "packet",
+            kind: ParamKind::Choice(PACKETS),
+            default: "3x3",
+            help: "packet of WxH neighbouring pixels (Yang §4.1; 1x1 = per pixel); receivers without an image layout are processed pixel-wise",
+        },
+        /// Sub-lights per side S.
+        sublights: u32 = ParamSpec {
+            key: "sublights",
+            kind: ParamKind::Int { min: 1, max: 4 },
+            default: "1",
+            help: "S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V averaged (Yang §5)",
+        },
+        /// Td.
+        td: f64 = ParamSpec {
+            key: "td",
+            kind: ParamKind::Float { min: 0.0, max: 1.0 },
+            default: "0.8",
+            help: "Td: a packet whose diverging probability P_d (Yang eq. 5) exceeds Td is processed pixel-wise",
+        },
+        /// Hierarchical extraction.
+        hierarchy: bool = ParamSpec {
+            key: "hierarchy",
+            kind: ParamKind::Bool,
+            default: "true",
+            help: "hierarchical contour extraction over the dual-grid MSSM (Yang §4.2, Algorithm 3); false: every 2x2 block of the kernel (GBP07)",
+        },
+        /// Coherence test.
+        coherence: bool = ParamSpec {
+            key: "coherence",
+            kind: ParamKind::Bool,
+            default: "true",
+            help: "coherence test (Yang §4.3: P_d > Td or cost ratio eq. 6 > 1 sends a packet pixel-wise); false: every packet is tried packet-wise",
+        },
+        /// Q_e.
+        qe: f64 = ParamSpec {
+            key: "qe",
+            kind: ParamKind::Float { min: 0.0, max: 1e6 },
+            default: "2.0",
+            help: "Q_e of the cost model (eq. 6): cost of extracting an edge, in units of Q_n = 1 (a node)",
+        },
+        /// Q_v.
+        qv: f64 = ParamSpec {
+            key: "qv",
+            kind: ParamKind::Float { min: 0.0, max: 1e6 },
+            default: "4.0",
+            help: "Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one pixel",
+        },
+        /// Midpoint classification or a receiver bias ([`Config::midpoint`]).
+        self_shadow: SelfShadow = SELF_SHADOW,
+        /// Midpoint clamp in footprints at the far plane.
+        max_bias: f32 = MAX_BIAS,
+        /// Constant receiver bias b0 (`self_shadow=bias`).
+        bias: f32 = SELF_SHADOW_BIAS,
+        /// Slope-scaled receiver bias b1 (`self_shadow=bias`).
+        slope_bias: f32 = SELF_SHADOW_SLOPE_BIAS,
+        /// Light-view window choice of every sub-light's map.
+        fit: FitMode = FIT,
+        /// Near/far choice of every sub-light's map.
+        nearfar: NearFar = NEARFAR,
+    }
 }
 
 impl Config {
-    /// Reads the parameters.
-    pub fn from_params(p: &Params) -> Result<Config> {
-        Ok(Config {
-            packet: parse_packet(p.choice("packet"))?,
-            sublights: p.int("sublights") as u32,
-            hierarchy: p.flag("hierarchy"),
-            coherence: p.flag("coherence"),
-            td: p.float("td"),
-            qe: p.float("qe"),
-            qv: p.float("qv"),
-            midpoint: p.choice("self_shadow") == "midpoint",
-            max_bias: p.float("max_bias") as f32,
-            b0: p.float("bias") as f32,
-            b1: p.float("slope_bias") as f32,
-            view: ViewOptions::from_params(p),
-        })
+    /// Midpoint classification (`self_shadow=midpoint`; else bias).
+    pub fn midpoint(&self) -> bool {
+        self.self_shadow == SelfShadow::Midpoint
+    }
+    /// Light-view window and near/far choice of every sub-light's map (`fit`, `nearfar`).
+    pub fn view(&self) -> ViewOptions {
+        ViewOptions {
+            fit: self.fit,
+            nearfar: self.nearfar,
+        }
     }
     fn traversal(&self) -> Traversal {
         if self.hierarchy {
@@ -254,7 +271,7 @@ pub struct SubView {
 
 impl SubView {
     /// Builds the data of the sub-light centred at `centre` (light-plane coordinates) with half
-    /// extents `half`, its view fitted with the `fit` and `nearfar` choices of `cfg.view`
+    /// extents `half`, its view fitted with the `fit` and `nearfar` choices of `cfg.view()`
     /// ([`LightView::fit_with`]).
     pub fn build(
         scene: &Scene,
@@ -266,7 +283,7 @@ impl SubView {
     ) -> Result<SubView> {
         let mut frame = scene.light.frame();
         frame.origin = frame.to_world(centre.extend(0.0));
-        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)?;
+        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view())?;
         let l = 2.0 * half.max_element();
         let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
         let levels = (wmax.log2().ceil() as u32).clamp(1, 16);
@@ -275,7 +292,7 @@ impl SubView {
         let req = LightSpaceRequest {
             resolution: r,
             layers: 1,
-            midpoints: cfg.midpoint.then_some(mb),
+            midpoints: cfg.midpoint().then_some(mb),
             mssm_levels: None,
             dual_mssm_levels: None,
             pyramid: false,
@@ -284,7 +301,7 @@ impl SubView {
         let ls = LightSpace::build_in_view(scene, view, fit, &req);
         let l0 = &ls.layers[0];
         let mssm = Mssm::build(&l0.depth, l0.size, levels);
-        let class = if cfg.midpoint {
+        let class = if cfg.midpoint() {
             ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
         } else {
             &l0.depth
@@ -301,7 +318,7 @@ impl SubView {
     /// The sample grid (true and classification depths).
     pub fn grid(&self, cfg: &Config) -> SampleGrid<'_> {
         let l0 = &self.ls.layers[0];
-        let class = if cfg.midpoint {
+        let class = if cfg.midpoint() {
             self.ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
         } else {
             &l0.depth
@@ -377,10 +394,10 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
     if !view.contains(uv) {
         return ReceiverSetup::Outside(facing);
     }
-    let t = if cfg.midpoint {
+    let t = if cfg.midpoint() {
         p.z
     } else {
-        p.z - view.receiver_bias(p, n, cfg.b0, cfg.b1)
+        p.z - view.receiver_bias(p, n, cfg.bias, cfg.slope_bias)
     };
     ReceiverSetup::Map {
         uv,
@@ -593,7 +610,7 @@ pub fn estimate_sublight(
     let h = sv.half.as_dvec2();
     let far = sv.ls.view.far;
     let (pw, ph) = match receivers.layout {
-        Some(_) => cfg.packet,
+        Some(_) => cfg.packet.size(),
         None => (1, 1),
     };
     let width = receivers.layout.map_or(256, |l| l.width as usize).max(1);
@@ -767,18 +784,7 @@ impl CpuPacketHsm {
 }
 
 impl SoftShadowEstimator for CpuPacketHsm {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn description(&self) -> &'static str {
-        DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
     }
@@ -799,7 +805,7 @@ impl SoftShadowEstimator for CpuPacketHsm {
         }
         Self::check_light(scene)?;
         let cfg = Config::from_params(&self.params)?;
-        let r = self.params.int("resolution") as u32;
+        let r = cfg.resolution;
         let s = cfg.sublights;
         let half = scene.light.half_extent() / s as f32;
         let weight = 1.0 / (s * s) as f32;
@@ -847,7 +853,7 @@ impl SoftShadowEstimator for CpuPacketHsm {
         rep.light_space_bytes = peak;
         rep.note("resolution", r);
         rep.note("sublights", s * s);
-        rep.note("packet", self.params.choice("packet"));
+        rep.note("packet", cfg.packet);
         rep.note("hierarchy", cfg.hierarchy);
         rep.note("coherence", cfg.coherence);
         let pen = counters.penumbra.load(Ordering::Relaxed);

@@ -21,11 +21,14 @@
 //! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added in
 //! f32; see `tests/gpu_twin.rs` for the measured agreement.
 use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
-use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView, DESCRIPTION, NAME};
+use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
-    gpu::GpuContext, Backend, Error, ImageLayout, LightShape, Params, Receivers, Report, Result,
-    Scene, SoftShadowEstimator,
+    gpu::{
+        kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
+        GpuContext,
+    },
+    Error, ImageLayout, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
@@ -147,64 +150,16 @@ pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 impl GpuPacketHsm {
     /// With default parameters, compiling the kernel on `ctx`'s device.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let (layout, prepare, packets, pixels) = ctx.scoped(LABEL, || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(LABEL),
-                    source: wgpu::ShaderSource::Wgsl(PACKET_HSM_WGSL.into()),
-                });
-            let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
-            let ro = wgpu::BufferBindingType::Storage { read_only: true };
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some(LABEL),
-                    entries: &[
-                        buffer(0, wgpu::BufferBindingType::Uniform),
-                        buffer(1, ro),
-                        buffer(2, ro),
-                        buffer(3, ro),
-                        buffer(4, ro),
-                        buffer(5, ro),
-                        buffer(6, ro),
-                        buffer(7, wgpu::BufferBindingType::Storage { read_only: false }),
-                        buffer(8, wgpu::BufferBindingType::Storage { read_only: false }),
-                        buffer(9, wgpu::BufferBindingType::Storage { read_only: false }),
-                    ],
-                });
-            let pl = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some(LABEL),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-            let make = |entry: &str| {
-                ctx.device
-                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some(LABEL),
-                        layout: Some(&pl),
-                        module: &module,
-                        entry_point: Some(entry),
-                        compilation_options: wgpu::PipelineCompilationOptions {
-                            constants: &[("WG", WORKGROUP as f64)],
-                            zero_initialize_workgroup_memory: true,
-                        },
-                        cache: None,
-                    })
-            };
-            (layout, make("prepare"), make("packets"), make("pixels"))
+        let module = shader_module(&ctx, LABEL, &[PACKET_HSM_WGSL])?;
+        let layout = ctx.scoped(LABEL, || {
+            let mut bindings = vec![Binding::Uniform];
+            bindings.extend([Binding::Storage; 6]);
+            bindings.extend([Binding::StorageRw; 3]);
+            bind_group_layout(&ctx, LABEL, &bindings)
         })?;
+        let constants = [("WG", WORKGROUP as f64)];
+        let make = |entry: &str| compute_pipeline(&ctx, LABEL, &module, &layout, entry, &constants);
+        let (prepare, packets, pixels) = (make("prepare")?, make("packets")?, make("pixels")?);
         Ok(GpuPacketHsm {
             ctx,
             cpu: CpuPacketHsm::new()?,
@@ -420,7 +375,7 @@ struct PacketPlan {
 impl PacketPlan {
     /// Plans the packet pass; [`Error::Limit`] when the packets exceed one dispatch of `per`.
     fn new(cfg: &Config, layout: Option<ImageLayout>, per: usize) -> Result<Self> {
-        let (pw, ph) = cfg.packet;
+        let (pw, ph) = cfg.packet.size();
         let packet_mode = layout.is_some() && (pw, ph) != (1, 1);
         let (width, height) = layout.map_or((0, 0), |l| (l.width, l.height));
         let packets_x = if packet_mode { width.div_ceil(pw) } else { 0 };
@@ -487,21 +442,7 @@ fn hsm_uniform(
 }
 
 impl SoftShadowEstimator for GpuPacketHsm {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn description(&self) -> &'static str {
-        DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Gpu
-    }
-    fn params(&self) -> &Params {
-        self.cpu.params()
-    }
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.cpu.set_param(key, value)
-    }
+    shadow_map_core::estimator_identity!(twin of cpu, Gpu);
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.cpu.build(scene, receivers)
@@ -521,7 +462,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
             ));
         }
         let cfg = Config::from_params(self.cpu.params())?;
-        let r = self.cpu.params().int("resolution") as u32;
+        let r = cfg.resolution;
         let s = cfg.sublights;
         let half = scene.light.half_extent() / s as f32;
         let weight = 1.0 / (s * s) as f32;
@@ -610,7 +551,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
         rep.note("resolution", r);
         rep.note("sublights", s * s);
         rep.note("hierarchy", cfg.hierarchy);
-        rep.note("packet", self.cpu.params().choice("packet"));
+        rep.note("packet", cfg.packet);
         rep.note("coherence", cfg.coherence);
         rep.note("packets", counts[0]);
         rep.note("packets_coherent", counts[1]);

@@ -1,30 +1,37 @@
 //! The reference as a [`SoftShadowEstimator`] (`--algo reference`).
 use crate::trace::{visibility, TraceOptions};
 use shadow_map_core::{
-    estimator::{Backend, Report, SoftShadowEstimator},
+    estimator::{Report, SoftShadowEstimator},
     Error, ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
 };
 
-/// The reference's parameters.
-pub const PARAMS: &[ParamSpec] = &[
-    ParamSpec {
-        key: "spp",
-        kind: ParamKind::Int { min: 1, max: 65536 },
-        default: "1024",
-        help:
-            "light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))), \
-               the count used is reported in the notes",
-    },
-    ParamSpec {
-        key: "seed",
-        kind: ParamKind::Int {
-            min: 0,
-            max: 1 << 31,
+shadow_map_core::typed_params! {
+    /// The reference's settings, one field a parameter.
+    pub struct ReferenceSettings {
+        /// Light samples per receiver (rounded up to a square by [`TraceOptions::from_spp`]).
+        spp: u32 = ParamSpec {
+            key: "spp",
+            kind: ParamKind::Int { min: 1, max: 65536 },
+            default: "1024",
+            help:
+                "light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))), \
+                   the count used is reported in the notes",
         },
-        default: "1",
-        help: "seed of the deterministic sample jitter (same seed, same V bit for bit)",
-    },
-];
+        /// Seed of the sample jitter.
+        seed: u64 = ParamSpec {
+            key: "seed",
+            kind: ParamKind::Int {
+                min: 0,
+                max: 1 << 31,
+            },
+            default: "1",
+            help: "seed of the deterministic sample jitter (same seed, same V bit for bit)",
+        },
+    }
+}
+
+/// The reference's parameters.
+pub const PARAMS: &[ParamSpec] = ReferenceSettings::SPECS;
 
 /// Ray-traced ground truth: stratified light samples through the scene's BVH, with transmittance
 /// for semi-transparent meshes ([`crate::trace`]).
@@ -34,6 +41,8 @@ pub const PARAMS: &[ParamSpec] = &[
 /// `active_receivers`, `triangles`.
 pub struct ReferenceEstimator {
     params: Params,
+    /// `params`, typed (re-read on every `set_param`).
+    settings: ReferenceSettings,
     bvh: Option<SceneBvh>,
     report: Report,
     progress: bool,
@@ -53,8 +62,10 @@ impl ReferenceEstimator {
     /// The reference at its defaults (1024 samples per receiver, seed 1), progress bar off. Fails
     /// only if a declared default does not parse (a bug).
     pub fn new() -> Result<Self> {
+        let params = Params::new(PARAMS)?;
         Ok(ReferenceEstimator {
-            params: Params::new(PARAMS)?,
+            settings: ReferenceSettings::from_params(&params)?,
+            params,
             bvh: None,
             report: Report::default(),
             progress: false,
@@ -71,27 +82,22 @@ impl ReferenceEstimator {
     }
     /// The trace options the current parameters give (`s = ceil(sqrt(spp))`).
     pub fn options(&self) -> TraceOptions {
-        let spp = self.params.int("spp").clamp(1, u32::MAX as i64) as u32;
-        TraceOptions::from_spp(spp, self.params.int("seed").max(0) as u64)
+        TraceOptions::from_spp(self.settings.spp, self.settings.seed)
     }
 }
 
 impl SoftShadowEstimator for ReferenceEstimator {
-    fn name(&self) -> &'static str {
-        "reference"
-    }
-    fn description(&self) -> &'static str {
+    shadow_map_core::estimator_identity!(
+        "reference",
         "ray-traced ground truth: stratified light samples through the BVH (transmittance for \
-         semi-transparent meshes)"
-    }
-    fn backend(&self) -> Backend {
-        Backend::Cpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+         semi-transparent meshes)",
+        Cpu,
+        params
+    );
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
+        self.params.set(key, value)?;
+        self.settings = ReferenceSettings::from_params(&self.params)?;
+        Ok(())
     }
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         self.report = Report::default();

@@ -115,3 +115,45 @@ pub fn run(
     est.estimate(scene, receivers, &mut v)?;
     Ok((v, est.report()))
 }
+
+/// The identity half of a [`SoftShadowEstimator`] impl (`name`, `description`, `backend`,
+/// `params`, and for a twin `set_param`), written once:
+///
+/// - `estimator_identity!(NAME, DESCRIPTION, Cpu, params)`: the estimator owns its [`Params`]
+///   in the field `params` (`set_param` is left to the impl, which may refresh typed settings);
+/// - `estimator_identity!(twin of cpu, Gpu)`: a GPU twin that keeps its CPU twin in the field
+///   `cpu` and shares its name, description and parameter table.
+#[macro_export]
+macro_rules! estimator_identity {
+    ($name:expr, $description:expr, $backend:ident, $params:ident) => {
+        fn name(&self) -> &'static str {
+            $name
+        }
+        fn description(&self) -> &'static str {
+            $description
+        }
+        fn backend(&self) -> $crate::Backend {
+            $crate::Backend::$backend
+        }
+        fn params(&self) -> &$crate::Params {
+            &self.$params
+        }
+    };
+    (twin of $cpu:ident, $backend:ident) => {
+        fn name(&self) -> &'static str {
+            self.$cpu.name()
+        }
+        fn description(&self) -> &'static str {
+            self.$cpu.description()
+        }
+        fn backend(&self) -> $crate::Backend {
+            $crate::Backend::$backend
+        }
+        fn params(&self) -> &$crate::Params {
+            self.$cpu.params()
+        }
+        fn set_param(&mut self, key: &str, value: &str) -> $crate::Result<()> {
+            self.$cpu.set_param(key, value)
+        }
+    };
+}

@@ -25,7 +25,7 @@ pub use estimator::{run, Backend, Report, SoftShadowEstimator};
 pub use light::{Light, LightFrame, LightShape};
 pub use light_space::{LightSpace, LightSpaceRequest};
 pub use light_view::LightView;
-pub use params::{ParamKind, ParamSpec, ParamValue, Params};
+pub use params::{FromParam, ParamKind, ParamSpec, ParamValue, Params};
 pub use precision::{DepthLookup, DepthPrecision, Unorm16Map};
 pub use raster::{Cull, DepthBias, DepthMap, RasterOptions};
 pub use receivers::{ImageLayout, Receivers};

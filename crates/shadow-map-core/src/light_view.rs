@@ -3,7 +3,7 @@
 //! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
 use crate::{
     light::LightFrame,
-    params::{ParamKind, ParamSpec, Params},
+    params::{FromParam, ParamKind, ParamSpec, ParamValue},
     receivers::Receivers,
     scene::Scene,
     Error, Result,
@@ -147,29 +147,27 @@ pub const NEARFAR: ParamSpec = ParamSpec {
     help: "near/far planes: light frustum clipped to the scene, scene AABB, or the view frustum (receivers; clips casters nearer than them)",
 };
 
-impl ViewOptions {
-    /// From the `fit` and `nearfar` parameters (defaults where a table lacks them).
-    pub fn from_params(p: &Params) -> Self {
-        let has = |k: &str| p.specs().iter().any(|s| s.key == k);
-        let fit = if has("fit") {
-            match p.choice("fit") {
-                "scene" => FitMode::Scene,
-                "stable" => FitMode::Stable,
-                _ => FitMode::Receivers,
-            }
-        } else {
-            FitMode::default()
-        };
-        let nearfar = if has("nearfar") {
-            match p.choice("nearfar") {
-                "aabb" => NearFar::Aabb,
-                "frustum" => NearFar::Frustum,
-                _ => NearFar::Clipped,
-            }
-        } else {
-            NearFar::default()
-        };
-        ViewOptions { fit, nearfar }
+impl FromParam for FitMode {
+    /// The [`FIT`] words; `None` for any other value.
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("receivers") => Some(FitMode::Receivers),
+            ParamValue::Choice("scene") => Some(FitMode::Scene),
+            ParamValue::Choice("stable") => Some(FitMode::Stable),
+            _ => None,
+        }
+    }
+}
+
+impl FromParam for NearFar {
+    /// The [`NEARFAR`] words; `None` for any other value.
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("clipped") => Some(NearFar::Clipped),
+            ParamValue::Choice("aabb") => Some(NearFar::Aabb),
+            ParamValue::Choice("frustum") => Some(NearFar::Frustum),
+            _ => None,
+        }
     }
 }
 
@@ -892,5 +890,54 @@ mod bounds_tests {
         let (v, rep) = fit(p, p).expect("point box");
         assert_eq!(rep.behind + rep.out_of_frustum, 0);
         assert!(v.contains(v.project(v.frame.to_light(p))));
+    }
+}
+
+#[cfg(test)]
+mod param_tests {
+    use super::*;
+    use crate::{precision::DEPTH, Cull, DepthPrecision};
+
+    /// Every word of a choice converts, nothing else does.
+    fn words_convert<T: FromParam>(spec: &ParamSpec) {
+        let ParamKind::Choice(words) = spec.kind else {
+            panic!("{} is not a choice", spec.key);
+        };
+        for w in words {
+            assert!(
+                T::from_param(ParamValue::Choice(w)).is_some(),
+                "{}={w}",
+                spec.key
+            );
+        }
+        assert!(T::from_param(ParamValue::Choice("nonsense")).is_none());
+        assert!(T::from_param(ParamValue::Int(0)).is_none());
+    }
+
+    #[test]
+    fn choice_enums_cover_their_words() {
+        words_convert::<FitMode>(&FIT);
+        words_convert::<NearFar>(&NEARFAR);
+        words_convert::<DepthPrecision>(&DEPTH);
+        let cull = ParamSpec {
+            key: "cull",
+            kind: ParamKind::Choice(&["none", "back", "front"]),
+            default: "none",
+            help: "",
+        };
+        words_convert::<Cull>(&cull);
+        words_convert::<crate::peeling::SelfShadow>(&crate::peeling::SELF_SHADOW);
+        for w in ["midpoint", "bias"] {
+            let s = crate::peeling::SelfShadow::from_param(ParamValue::Choice(w)).unwrap();
+            assert_eq!(s.word(), w);
+        }
+        assert_eq!(
+            FitMode::from_param(ParamValue::Choice("receivers")),
+            Some(FitMode::default())
+        );
+        assert_eq!(
+            NearFar::from_param(ParamValue::Choice("clipped")),
+            Some(NearFar::default())
+        );
     }
 }

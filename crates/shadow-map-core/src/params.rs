@@ -285,6 +285,71 @@ pub const fn same_key(a: &str, b: &str) -> bool {
     true
 }
 
+/// `a` followed by `b`, as an array of `N = a.len() + b.len()` specs, in a `const` context (see
+/// [`concat_specs!`](crate::concat_specs), which supplies `N`).
+pub const fn concat_spec_arrays<const N: usize>(
+    a: &[ParamSpec],
+    b: &[ParamSpec],
+) -> [ParamSpec; N] {
+    assert!(
+        a.len() + b.len() == N,
+        "concat_spec_arrays: N is not the sum of the lengths"
+    );
+    const BLANK: ParamSpec = ParamSpec {
+        key: "",
+        kind: ParamKind::Bool,
+        default: "",
+        help: "",
+    };
+    let mut out = [BLANK; N];
+    let mut i = 0;
+    while i < a.len() {
+        out[i] = a[i];
+        i += 1;
+    }
+    let mut j = 0;
+    while j < b.len() {
+        out[i + j] = b[j];
+        j += 1;
+    }
+    out
+}
+
+/// The parameter table `$a` followed by `$b` (both `&[ParamSpec]` constants), as a
+/// `&'static [ParamSpec]` constant: a table shared by several estimators (one
+/// [`typed_params!`](crate::typed_params) struct's `SPECS`) followed by one estimator's own (a
+/// second struct's), each read by its own `from_params` from the same [`Params`].
+///
+/// ```
+/// use shadow_map_core::{light_view::{BIAS, RESOLUTION}, ParamKind, ParamSpec, Params};
+/// shadow_map_core::typed_params! {
+///     /// Shared.
+///     pub struct Shared { resolution: u32 = RESOLUTION, bias: f32 = BIAS }
+/// }
+/// shadow_map_core::typed_params! {
+///     /// Own.
+///     pub struct Own {
+///         kernel: u32 = ParamSpec {
+///             key: "kernel",
+///             kind: ParamKind::Int { min: 1, max: 9 },
+///             default: "3",
+///             help: "kernel side",
+///         },
+///     }
+/// }
+/// const SPECS: &[ParamSpec] = shadow_map_core::concat_specs!(Shared::SPECS, Own::SPECS);
+/// let keys: Vec<_> = SPECS.iter().map(|s| s.key).collect();
+/// assert_eq!(keys, ["resolution", "bias", "kernel"]);
+/// let p = Params::new(SPECS).unwrap();
+/// assert_eq!((Shared::from_params(&p).unwrap().resolution, Own::from_params(&p).unwrap().kernel), (1024, 3));
+/// ```
+#[macro_export]
+macro_rules! concat_specs {
+    ($a:expr, $b:expr $(,)?) => {
+        &$crate::params::concat_spec_arrays::<{ $a.len() + $b.len() }>($a, $b)
+    };
+}
+
 /// Declares an estimator's parameters once: a struct with one typed field a parameter, its
 /// [`ParamSpec`] table (`SPECS`, what `softshadow algos`, `--param` and
 /// [`SoftShadowEstimator::set_param`](crate::SoftShadowEstimator::set_param) use) and

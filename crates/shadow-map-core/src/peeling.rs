@@ -3,6 +3,7 @@
 //! (see [`crate::raster::PEEL_EPS_REL`]). One rasterisation pass per layer, as on a GPU.
 use crate::{
     light_view::{BIAS, SLOPE_BIAS},
+    params::{FromParam, ParamValue},
     raster::{DepthBias, DepthMap, PreparedScene},
     ParamKind, ParamSpec,
 };
@@ -15,6 +16,43 @@ pub const SELF_SHADOW: ParamSpec = ParamSpec {
     default: "midpoint",
     help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
 };
+/// How receivers are told from occluders ([`SELF_SHADOW`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum SelfShadow {
+    /// By the midpoint layers (parameter-free), the default.
+    #[default]
+    Midpoint,
+    /// By a receiver bias.
+    Bias,
+}
+
+impl SelfShadow {
+    /// The [`SELF_SHADOW`] word.
+    pub fn word(self) -> &'static str {
+        match self {
+            SelfShadow::Midpoint => "midpoint",
+            SelfShadow::Bias => "bias",
+        }
+    }
+}
+
+impl std::fmt::Display for SelfShadow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.word())
+    }
+}
+
+impl FromParam for SelfShadow {
+    /// The [`SELF_SHADOW`] words; `None` for any other value.
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("midpoint") => Some(SelfShadow::Midpoint),
+            ParamValue::Choice("bias") => Some(SelfShadow::Bias),
+            _ => None,
+        }
+    }
+}
+
 /// `max_bias`: the clamp of [`midpoint`], in texel footprints at the far plane.
 pub const MAX_BIAS: ParamSpec = ParamSpec {
     key: "max_bias",

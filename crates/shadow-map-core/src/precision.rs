@@ -18,7 +18,7 @@
 //! `unorm16`: the quantisation never adds acne, at the price of up to `s / 2` more
 //! peter-panning (measured in `scripts/depth-table.sh`).
 use crate::{
-    params::{ParamKind, ParamSpec, Params},
+    params::{FromParam, ParamKind, ParamSpec, ParamValue},
     raster::DepthMap,
 };
 
@@ -45,15 +45,18 @@ pub const DEPTH: ParamSpec = ParamSpec {
     help: "stored shadow-map depth: 32-bit float, or 16-bit codes over [near, far] (half the memory; bias grows by half a code step)",
 };
 
-impl DepthPrecision {
-    /// From the `depth` parameter ([`DepthPrecision::F32`] where a table lacks it).
-    pub fn from_params(p: &Params) -> Self {
-        if p.specs().iter().any(|s| s.key == "depth") && p.choice("depth") == "unorm16" {
-            DepthPrecision::Unorm16
-        } else {
-            DepthPrecision::F32
+impl FromParam for DepthPrecision {
+    /// The [`DEPTH`] words; `None` for any other value.
+    fn from_param(v: ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice("f32") => Some(DepthPrecision::F32),
+            ParamValue::Choice("unorm16") => Some(DepthPrecision::Unorm16),
+            _ => None,
         }
     }
+}
+
+impl DepthPrecision {
     /// Bytes per stored texel.
     pub fn bytes_per_texel(self) -> usize {
         match self {

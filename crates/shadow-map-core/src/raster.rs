@@ -33,6 +33,18 @@ pub enum Cull {
     Front,
 }
 
+impl crate::params::FromParam for Cull {
+    /// The words of a `cull` choice (`none`, `back`, `front`); `None` for any other value.
+    fn from_param(v: crate::params::ParamValue) -> Option<Self> {
+        match v {
+            crate::params::ParamValue::Choice("none") => Some(Cull::None),
+            crate::params::ParamValue::Choice("back") => Some(Cull::Back),
+            crate::params::ParamValue::Choice("front") => Some(Cull::Front),
+            _ => None,
+        }
+    }
+}
+
 /// Depth bias added to stored depths.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DepthBias {

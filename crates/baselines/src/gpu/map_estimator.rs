@@ -5,10 +5,9 @@ use super::{
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
 };
 use crate::{
-    common,
+    common::{self, MapSettings},
     map_estimator::{filter_all, Filter},
 };
-use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
@@ -17,8 +16,8 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::LightSpace,
-    Backend, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator, Unorm16Map,
+    DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Unorm16Map,
 };
 use std::{marker::PhantomData, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -32,8 +31,8 @@ pub const MAP_ESTIMATOR_WGSL: &str = include_str!("map_estimator.wgsl");
 pub trait GpuFilter: Filter {
     /// The filter's WGSL (appended after [`MAP_ESTIMATOR_WGSL`]).
     const WGSL: &'static str;
-    /// Writes the filter's settings, parsed by the CPU filter's own `from_params`.
-    fn set_uniform(_p: &Params, _u: &mut EstimateUniform) {}
+    /// Writes the filter's settings (as the CPU filter's own `from_params` read them).
+    fn set_uniform(&self, _u: &mut EstimateUniform) {}
 }
 
 /// The WGSL parts of the kernel of filter `F` reading a map of precision `depth`, in order.
@@ -140,7 +139,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        let depth = DepthPrecision::from_params(&self.params);
+        let depth = MapSettings::from_params(&self.params)?.depth;
         self.run_uploaded(light, receivers, v, |e| {
             GpuMaps::upload(&e.ctx, ls, depth, e.builder.encoder(&e.ctx)?)
         })
@@ -190,12 +189,9 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        let mut u = EstimateUniform::new(
-            light,
-            self.params.float("bias") as f32,
-            self.params.float("slope_bias") as f32,
-        );
-        F::set_uniform(&self.params, &mut u);
+        let (b0, b1) = MapSettings::from_params(&self.params)?.biases();
+        let mut u = EstimateUniform::new(light, b0, b1);
+        F::from_params(&self.params)?.set_uniform(&mut u);
         u.depth_step = maps.depth.step();
         self.kernel(maps.depth.precision())?;
         let stats = self.dispatch(maps, &u, receivers, v)?;
@@ -241,11 +237,8 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         v: &mut [f32],
         expected: usize,
     ) -> Result<()> {
-        let filter = F::from_params(&self.params);
-        let biases = (
-            self.params.float("bias") as f32,
-            self.params.float("slope_bias") as f32,
-        );
+        let filter = F::from_params(&self.params)?;
+        let biases = MapSettings::from_params(&self.params)?.biases();
         let ctx = &*self.ctx;
         let stage = format!("{} estimate", F::NAME);
         redo_cut_receivers(v, receivers, expected, &stage, |sub, vs| {
@@ -365,27 +358,15 @@ pub(crate) fn entry(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::
 }
 
 impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
-    fn name(&self) -> &'static str {
-        F::NAME
-    }
-    fn description(&self) -> &'static str {
-        F::DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Gpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(F::NAME, F::DESCRIPTION, Gpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.maps = None;
-        let req = common::map_request(&self.params);
-        let opts = ViewOptions::from_params(&self.params);
-        let depth = DepthPrecision::from_params(&self.params);
+        let settings = MapSettings::from_params(&self.params)?;
+        let (req, opts, depth) = (settings.request(), settings.view(), settings.depth);
         let ctx = self.ctx.clone();
         let builder = &self.builder;
         let maps = self.report.time("build", || {

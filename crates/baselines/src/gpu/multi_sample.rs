@@ -7,11 +7,10 @@ use super::{
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
 };
 use crate::{
-    common,
-    multi_sample::{jitter, DESCRIPTION, NAME, SPECS},
+    common::{self, MapSettings},
+    multi_sample::{jitter, MultiSampleParams, DESCRIPTION, NAME, SPECS},
 };
 use bytemuck::Zeroable;
-use shadow_map_core::light_view::ViewOptions;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
@@ -19,7 +18,7 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::{LightSpace, LightSpaceRequest},
-    Backend, DepthPrecision, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
+    DepthPrecision, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
@@ -81,6 +80,10 @@ impl Kernels {
 pub struct GpuMultiSample {
     ctx: Arc<GpuContext>,
     params: Params,
+    /// The shared settings, as `params` holds them (re-read on every `set_param`).
+    map: MapSettings,
+    /// The own settings, as `params` holds them (re-read on every `set_param`).
+    own: MultiSampleParams,
     /// Kernels per depth precision (f32, unorm16), compiled on first use.
     kernels: [Option<Arc<Kernels>>; 2],
     builder: Arc<MapBuilder>,
@@ -93,9 +96,12 @@ impl GpuMultiSample {
     /// on first use).
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
         let builder = Arc::new(MapBuilder::new(&ctx)?);
+        let params = Params::new(SPECS)?;
         let mut e = GpuMultiSample {
             builder,
-            params: Params::new(SPECS)?,
+            map: MapSettings::from_params(&params)?,
+            own: MultiSampleParams::from_params(&params)?,
+            params,
             ctx,
             kernels: [None, None],
             report: Report::default(),
@@ -127,14 +133,13 @@ impl GpuMultiSample {
 
     /// The shadow-map request of every sub-light (resolution and culling from the parameters).
     pub fn request(&self) -> LightSpaceRequest {
-        common::map_request(&self.params)
+        self.map.request()
     }
 
     /// The sub-light points (light-plane coordinates), exactly as the CPU twin draws them.
     pub fn sub_light_points(&self, light: &Light) -> Vec<glam::Vec2> {
-        let s = self.params.int("sublights") as u32;
-        let seed = self.params.int("seed") as u64;
-        light.stratified_points(s, |k| jitter(seed, k))
+        let MultiSampleParams { sublights, seed } = self.own;
+        light.stratified_points(sublights, |k| jitter(seed, k))
     }
 
     /// Estimates V from given light-space data, one item per sub-light, consumed one at a time
@@ -150,7 +155,7 @@ impl GpuMultiSample {
         v: &mut [f32],
     ) -> Result<()> {
         let ctx = self.ctx.clone();
-        let depth = DepthPrecision::from_params(&self.params);
+        let depth = self.map.depth;
         let builder = self.builder.clone();
         let maps = sub_lights.into_iter().map(move |ls| {
             ls.and_then(|ls| GpuMaps::upload(&ctx, &ls, depth, builder.encoder(&ctx)?))
@@ -168,13 +173,10 @@ impl GpuMultiSample {
     ) -> Result<()> {
         common::check_len(receivers, v)?;
         self.report = Report::default();
-        let kernels = self.kernels(DepthPrecision::from_params(&self.params))?;
+        let kernels = self.kernels(self.map.depth)?;
         let ctx = &*self.ctx;
-        let mut u = EstimateUniform::new(
-            light,
-            self.params.float("bias") as f32,
-            self.params.float("slope_bias") as f32,
-        );
+        let (b0, b1) = self.map.biases();
+        let mut u = EstimateUniform::new(light, b0, b1);
         let chunks = ctx.scoped("multi-sample receivers", || {
             kernel::upload_receivers(
                 ctx,
@@ -235,7 +237,7 @@ impl GpuMultiSample {
         }
         t_est += t.elapsed().as_secs_f64() * 1e3;
         kernel::read_v(ctx, &chunks, v)?;
-        let s = self.params.int("sublights") as u32;
+        let s = self.own.sublights;
         self.report.stages.push(("build".into(), t_build));
         self.report.stages.push(("estimate".into(), t_est));
         self.report.light_space_bytes = peak;
@@ -306,20 +308,12 @@ impl GpuMultiSample {
 }
 
 impl SoftShadowEstimator for GpuMultiSample {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn description(&self) -> &'static str {
-        DESCRIPTION
-    }
-    fn backend(&self) -> Backend {
-        Backend::Gpu
-    }
-    fn params(&self) -> &Params {
-        &self.params
-    }
+    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Gpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
+        self.params.set(key, value)?;
+        self.map = MapSettings::from_params(&self.params)?;
+        self.own = MultiSampleParams::from_params(&self.params)?;
+        Ok(())
     }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
@@ -329,8 +323,7 @@ impl SoftShadowEstimator for GpuMultiSample {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         let req = self.request();
         let points = self.sub_light_points(&scene.light);
-        let opts = ViewOptions::from_params(&self.params);
-        let depth = DepthPrecision::from_params(&self.params);
+        let (opts, depth) = (self.map.view(), self.map.depth);
         let ctx = self.ctx.clone();
         let gpu_scene = GpuScene::upload(&ctx, scene)?;
         let builder = self.builder.clone();

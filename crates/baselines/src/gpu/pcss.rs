@@ -1,8 +1,7 @@
 //! GPU twin of [`crate::pcss`]: blocker search, penumbra estimate and weighted PCF in `pcss.wgsl`.
 use super::map_estimator::{GpuFilter, GpuMapEstimator};
-use crate::{map_estimator::Filter, pcss::Pcss};
+use crate::pcss::Pcss;
 use shadow_map_core::gpu::EstimateUniform;
-use shadow_map_core::Params;
 
 /// WGSL of PCSS (`facing`, `visibility`).
 pub const PCSS_WGSL: &str = include_str!("pcss.wgsl");
@@ -12,7 +11,7 @@ pub type GpuPcssShadow = GpuMapEstimator<Pcss>;
 
 impl GpuFilter for Pcss {
     const WGSL: &'static str = PCSS_WGSL;
-    fn set_uniform(p: &Params, u: &mut EstimateUniform) {
-        u.max_taps = Pcss::from_params(p).max_taps();
+    fn set_uniform(&self, u: &mut EstimateUniform) {
+        u.max_taps = self.max_taps();
     }
 }

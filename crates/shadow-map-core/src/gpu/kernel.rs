@@ -31,6 +31,8 @@ pub enum Binding {
     Texture2dArray,
     /// `texture_storage_2d_array<r32float, write>`.
     StorageTexture2dArrayR32Write,
+    /// `texture_storage_2d<r32float, write>`.
+    StorageTexture2dR32Write,
 }
 
 impl Binding {
@@ -56,6 +58,11 @@ impl Binding {
                 access: wgpu::StorageTextureAccess::WriteOnly,
                 format: wgpu::TextureFormat::R32Float,
                 view_dimension: wgpu::TextureViewDimension::D2Array,
+            },
+            Binding::StorageTexture2dR32Write => wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: wgpu::TextureFormat::R32Float,
+                view_dimension: wgpu::TextureViewDimension::D2,
             },
         };
         wgpu::BindGroupLayoutEntry {

@@ -3,7 +3,8 @@
 //! each reading two peeled layers and writing a storage texture. The arithmetic is the CPU's, in
 //! the same f32 order, so results are bit-identical for identical layers.
 use super::{
-    depth_map::{GpuDepthMap, DEPTH_MAP_FORMAT},
+    depth_map::GpuDepthMap,
+    kernel::{Binding, Kernel},
     GpuContext,
 };
 use crate::Result;
@@ -40,68 +41,21 @@ pub struct GpuMidpoints {
 impl GpuMidpoints {
     /// Compiles the pipeline (label `midpoint`).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        ctx.scoped("midpoint", || {
-            let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("midpoint"),
-                source: wgpu::ShaderSource::Wgsl(MIDPOINT_WGSL.into()),
-            });
-            let texture = |binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("midpoint"),
-                entries: &[
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 0,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Uniform,
-                            has_dynamic_offset: false,
-                            min_binding_size: None,
-                        },
-                        count: None,
-                    },
-                    texture(1),
-                    texture(2),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 3,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::StorageTexture {
-                            access: wgpu::StorageTextureAccess::WriteOnly,
-                            format: DEPTH_MAP_FORMAT,
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                        },
-                        count: None,
-                    },
-                ],
-            });
-            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("midpoint"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let wg = MIDPOINT_WORKGROUP as f64;
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("midpoint"),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some("midpoint_layer"),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("WG_X", wg), ("WG_Y", wg)],
-                    ..Default::default()
-                },
-                cache: None,
-            });
-            GpuMidpoints { layout, pipeline }
-        })
+        let wg = MIDPOINT_WORKGROUP as f64;
+        let Kernel { layout, pipeline } = Kernel::new(
+            ctx,
+            "midpoint",
+            &[MIDPOINT_WGSL],
+            "midpoint_layer",
+            &[
+                Binding::Uniform,
+                Binding::Texture2d,
+                Binding::Texture2d,
+                Binding::StorageTexture2dR32Write,
+            ],
+            &[("WG_X", wg), ("WG_Y", wg)],
+        )?;
+        Ok(GpuMidpoints { layout, pipeline })
     }
 
     /// Records one dispatch per midpoint layer: `out[m]` from `layers[m]` and `layers[m + 1]`

@@ -6,7 +6,11 @@
 //! let q = (codes[k >> 1u] >> ((k & 1u) * 16u)) & 0xffffu;   // k = j * size + i
 //! depth = select(n + f32(q) * s, +inf, q == 0xffffu);
 //! ```
-use super::{depth_map::GpuDepthMap, GpuContext};
+use super::{
+    depth_map::GpuDepthMap,
+    kernel::{Binding, Kernel},
+    GpuContext,
+};
 use crate::{
     precision::{step_for, Unorm16Map},
     Error, Result,
@@ -136,65 +140,15 @@ pub struct GpuUnorm16Encoder {
 impl GpuUnorm16Encoder {
     /// Compiles the pipeline (label `unorm16 encode`).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        ctx.scoped("unorm16 encode", || {
-            let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("unorm16 encode"),
-                source: wgpu::ShaderSource::Wgsl(PRECISION_WGSL.into()),
-            });
-            let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty,
-                count: None,
-            };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("unorm16 encode"),
-                entries: &[
-                    entry(
-                        0,
-                        wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Uniform,
-                            has_dynamic_offset: false,
-                            min_binding_size: None,
-                        },
-                    ),
-                    entry(
-                        1,
-                        wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                            multisampled: false,
-                        },
-                    ),
-                    entry(
-                        2,
-                        wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Storage { read_only: false },
-                            has_dynamic_offset: false,
-                            min_binding_size: None,
-                        },
-                    ),
-                ],
-            });
-            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("unorm16 encode"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("unorm16 encode"),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some("encode_unorm16"),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("WG", ENCODE_WORKGROUP as f64)],
-                    ..Default::default()
-                },
-                cache: None,
-            });
-            GpuUnorm16Encoder { layout, pipeline }
-        })
+        let Kernel { layout, pipeline } = Kernel::new(
+            ctx,
+            "unorm16 encode",
+            &[PRECISION_WGSL],
+            "encode_unorm16",
+            &[Binding::Uniform, Binding::Texture2d, Binding::StorageRw],
+            &[("WG", ENCODE_WORKGROUP as f64)],
+        )?;
+        Ok(GpuUnorm16Encoder { layout, pipeline })
     }
 
     /// Encodes `map` for a view with planes `n` and `far` into a new code buffer (submitted and

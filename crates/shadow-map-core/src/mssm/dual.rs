@@ -1,7 +1,7 @@
 //! [`DualMssm`]: the MSSM on the dual grid of depth samples (Yang et al. 2009, §4.2).
 use super::{
-    anchored_step, clamp_rect, floor_log2, sanitized_level0, window_start_count, window_starts,
-    MinMax, Planes,
+    anchored_step, clamp_rect, fetch_level, floor_log2, level_planes, push_anchored,
+    sanitized_level0, window_start_count, window_starts, MinMax, Planes,
 };
 
 /// Dual-grid anchored MSSM (Yang et al. 2009, *Packet-based Hierarchical
@@ -59,15 +59,7 @@ impl DualMssm {
             min,
             max: Some(max),
         });
-        for l in 0..top {
-            let h = 1usize << l;
-            let Some(prev) = levels.last() else { break };
-            let (min, max) = anchored_step(prev.min(), prev.max(), s, h);
-            levels.push(Planes {
-                min,
-                max: Some(max),
-            });
-        }
+        push_anchored(&mut levels, s, top);
         DualMssm { size: s, levels }
     }
 
@@ -85,21 +77,14 @@ impl DualMssm {
     /// The `(min, max)` planes of level `l` (`size x size` anchors,
     /// row-major). Empty slices if `l` is out of range.
     pub fn level(&self, l: u32) -> (&[f32], &[f32]) {
-        match self.levels.get(l as usize) {
-            Some(p) => (p.min(), p.max()),
-            None => (&[], &[]),
-        }
+        level_planes(&self.levels, l)
     }
 
     /// `Y_l(x, y)`: min/max over samples `[x, x+2^l] x [y, y+2^l]`
     /// (inclusive, clamped to the map). [`MinMax::EMPTY`] if `l`, `x` or `y`
     /// is out of range.
     pub fn fetch(&self, l: u32, x: u32, y: u32) -> MinMax {
-        let (x, y) = (x as usize, y as usize);
-        match self.levels.get(l as usize) {
-            Some(p) if x < self.size && y < self.size => p.get(y * self.size + x),
-            _ => MinMax::EMPTY,
-        }
+        fetch_level(&self.levels, self.size, l, x, y)
     }
 
     /// Clamped cell rectangle and its level / window size.

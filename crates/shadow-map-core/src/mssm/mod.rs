@@ -255,6 +255,37 @@ fn window_start_count(lo: usize, hi: usize, h: usize) -> u64 {
     ((last - lo).div_ceil(h) + 1) as u64
 }
 
+/// Appends levels `1..=top` of an anchored structure to `levels` (level 0 already there): each
+/// level one anchored step of the previous with the window doubling, `h = 2^(l-1)`.
+fn push_anchored(levels: &mut Vec<Planes>, s: usize, top: u32) {
+    for l in 0..top {
+        let h = 1usize << l;
+        let Some(prev) = levels.last() else { break };
+        let (min, max) = anchored_step(prev.min(), prev.max(), s, h);
+        levels.push(Planes {
+            min,
+            max: Some(max),
+        });
+    }
+}
+
+/// Level `l` of `levels` as `(min, max)` planes; empty slices when out of range.
+fn level_planes(levels: &[Planes], l: u32) -> (&[f32], &[f32]) {
+    match levels.get(l as usize) {
+        Some(p) => (p.min(), p.max()),
+        None => (&[], &[]),
+    }
+}
+
+/// Anchor `(x, y)` of level `l` of `size x size` planes; [`MinMax::EMPTY`] when out of range.
+fn fetch_level(levels: &[Planes], size: usize, l: u32, x: u32, y: u32) -> MinMax {
+    let (x, y) = (x as usize, y as usize);
+    match levels.get(l as usize) {
+        Some(p) if x < size && y < size => p.get(y * size + x),
+        _ => MinMax::EMPTY,
+    }
+}
+
 /// Brute-force min/max over the half-open texel rectangle
 /// `[x0, x1) x [y0, y1)` of `depth` (`size x size`, row-major), clamped to
 /// the map. Returns [`MinMax::EMPTY`] if the rectangle is empty after
@@ -409,15 +440,7 @@ impl Mssm {
         let top = max_level.min(floor_log2(s));
         let mut levels = Vec::with_capacity(top as usize + 1);
         levels.push(Planes { min: d, max: None });
-        for l in 0..top {
-            let h = 1usize << l;
-            let Some(prev) = levels.last() else { break };
-            let (min, max) = anchored_step(prev.min(), prev.max(), s, h);
-            levels.push(Planes {
-                min,
-                max: Some(max),
-            });
-        }
+        push_anchored(&mut levels, s, top);
         Mssm { size: s, levels }
     }
 
@@ -436,20 +459,13 @@ impl Mssm {
     /// (for level 0 both slices are the depth map). Empty slices if `l` is
     /// out of range.
     pub fn level(&self, l: u32) -> (&[f32], &[f32]) {
-        match self.levels.get(l as usize) {
-            Some(p) => (p.min(), p.max()),
-            None => (&[], &[]),
-        }
+        level_planes(&self.levels, l)
     }
 
     /// `M_l(x, y)`: min/max over `[x, x+2^l) x [y, y+2^l)` clamped to the
     /// map. [`MinMax::EMPTY`] if `l`, `x` or `y` is out of range.
     pub fn fetch(&self, l: u32, x: u32, y: u32) -> MinMax {
-        let (x, y) = (x as usize, y as usize);
-        match self.levels.get(l as usize) {
-            Some(p) if x < self.size && y < self.size => p.get(y * self.size + x),
-            _ => MinMax::EMPTY,
-        }
+        fetch_level(&self.levels, self.size, l, x, y)
     }
 
     /// Level used for a clamped rectangle, and its window size `h = 2^l`.
