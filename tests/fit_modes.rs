@@ -5,9 +5,10 @@
 //! first panned sideways by `SHIFT` grid steps (whole pixel footprints), so common points have
 //! bit-identical positions. Every registered estimator with a `fit` parameter (all but the ray
 //! tracer), both backends.
+mod support;
 use glam::Vec3;
 use shadow_map_core::{run, Receivers, Scene};
-use softshadow::{backends, estimator, Backend, ALGOS};
+use softshadow::{backends, estimator, ALGOS};
 
 const STEP: f32 = 0.02;
 const N: i32 = 100;
@@ -75,18 +76,9 @@ fn stable_fit_keeps_v_when_the_camera_pans() {
     let mut checked = Vec::new();
     for name in ALGOS {
         for b in backends(name) {
-            let backend = if *b == "gpu" {
-                Backend::Gpu
-            } else {
-                Backend::Cpu
-            };
-            if backend == Backend::Gpu
-                && shadow_map_core::gpu::context_for_tests("stable_fit (gpu rows)")
-                    .expect("adapter")
-                    .is_none()
-            {
+            let Some(backend) = support::runnable(b, "stable_fit (gpu rows)") else {
                 continue;
-            }
+            };
             if estimator(name, backend)
                 .expect("registered")
                 .params()

@@ -6,6 +6,7 @@
 //! sequence. A failing case is fixed in the estimator, not removed.
 //!
 //! `cargo test --test stability -- --nocapture` prints a line per case and estimator.
+mod support;
 use glam::{Mat3, Vec3};
 use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
 use softshadow::{backends, estimator, Backend, SoftShadowEstimator, ALGOS};
@@ -259,18 +260,9 @@ fn estimators() -> Vec<(Box<dyn SoftShadowEstimator>, &'static str)> {
     let mut out = Vec::new();
     for name in ALGOS {
         for b in backends(name) {
-            let backend = if *b == "gpu" {
-                Backend::Gpu
-            } else {
-                Backend::Cpu
-            };
-            if backend == Backend::Gpu
-                && shadow_map_core::gpu::context_for_tests("stability (gpu rows)")
-                    .expect("adapter")
-                    .is_none()
-            {
+            let Some(backend) = support::runnable(b, "stability (gpu rows)") else {
                 continue;
-            }
+            };
             out.push((estimator(name, backend).expect("registered"), *b));
         }
     }

@@ -44,6 +44,30 @@ shadow_map_core::typed_params! {
 pub const SPECS: &[ParamSpec] =
     shadow_map_core::concat_specs!(MapSettings::SPECS, MultiSampleParams::SPECS);
 
+/// The report of one multi-sample run (both twins): build and estimate stage times (ms), peak
+/// light-space bytes, the `S x S` sub-lights, receivers behind every sub-light's frustum, and
+/// the sphere-light approximation when it applies.
+pub(crate) fn note_run(
+    report: &mut Report,
+    (t_build, t_est): (f64, f64),
+    peak: usize,
+    s: u32,
+    behind: usize,
+    light: &shadow_map_core::Light,
+) {
+    report.stages.push(("build".into(), t_build));
+    report.stages.push(("estimate".into(), t_est));
+    report.light_space_bytes = peak;
+    report.note("sublights", s * s);
+    report.note("out_of_frustum", behind);
+    if matches!(light.shape, LightShape::Sphere { .. }) {
+        report.note(
+            "approximation",
+            "sphere sampled on the disk perpendicular to the light normal",
+        );
+    }
+}
+
 /// `V(p) = (1/N) sum_k [y_k in front of p's tangent plane] [z_k(p) - eps_k <= D_k(u_k(p))]`
 /// over N = S^2 jittered strata y_k of the light (concentric-mapped for disks). Each map has its
 /// centre of projection at y_k with axes parallel to the light frame and its own fitted window.
@@ -167,17 +191,7 @@ impl SoftShadowEstimator for MultiSample {
                 (acc[k] * inv).clamp(0.0, 1.0)
             };
         }
-        self.report.stages.push(("build".into(), t_build));
-        self.report.stages.push(("estimate".into(), t_est));
-        self.report.light_space_bytes = peak;
-        self.report.note("sublights", s * s);
-        self.report.note("out_of_frustum", behind);
-        if matches!(light.shape, LightShape::Sphere { .. }) {
-            self.report.note(
-                "approximation",
-                "sphere sampled on the disk perpendicular to the light normal",
-            );
-        }
+        note_run(&mut self.report, (t_build, t_est), peak, s, behind, &light);
         Ok(())
     }
     fn report(&self) -> Report {

@@ -8,7 +8,7 @@ use super::{
 };
 use crate::{
     common::{self, MapSettings},
-    multi_sample::{jitter, MultiSampleParams, DESCRIPTION, NAME, SPECS},
+    multi_sample::{jitter, note_run, MultiSampleParams, DESCRIPTION, NAME, SPECS},
 };
 use bytemuck::Zeroable;
 use shadow_map_core::{
@@ -18,8 +18,7 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::{LightSpace, LightSpaceRequest},
-    DepthPrecision, Error, Light, LightShape, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 
@@ -238,17 +237,7 @@ impl GpuMultiSample {
         t_est += t.elapsed().as_secs_f64() * 1e3;
         kernel::read_v(ctx, &chunks, v)?;
         let s = self.own.sublights;
-        self.report.stages.push(("build".into(), t_build));
-        self.report.stages.push(("estimate".into(), t_est));
-        self.report.light_space_bytes = peak;
-        self.report.note("sublights", s * s);
-        self.report.note("out_of_frustum", behind);
-        if matches!(light.shape, LightShape::Sphere { .. }) {
-            self.report.note(
-                "approximation",
-                "sphere sampled on the disk perpendicular to the light normal",
-            );
-        }
+        note_run(&mut self.report, (t_build, t_est), peak, s, behind, light);
         Ok(())
     }
 
