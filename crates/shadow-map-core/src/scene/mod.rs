@@ -74,6 +74,19 @@ impl Aabb {
 pub const DEGENERATE_REL: f32 = 1e-12;
 
 impl Scene {
+    /// A scene with its camera and light and no meshes yet (meshes are added with `push_mesh`).
+    pub(crate) fn empty(path: PathBuf, camera: Camera, light: Light) -> Scene {
+        Scene {
+            path,
+            camera,
+            light,
+            triangles: Vec::new(),
+            triangle_mesh: Vec::new(),
+            meshes: Vec::new(),
+            skipped_degenerate: 0,
+        }
+    }
+
     /// Loads a scene file exactly as the contract defines it (docs/methods.md §11, "Scene file").
     /// Every error names the file and the key or line; nothing is written.
     pub fn load(path: impl AsRef<Path>) -> crate::Result<Scene> {
@@ -88,15 +101,7 @@ impl Scene {
         light: Light,
         meshes: Vec<(Vec<[Vec3; 3]>, f32)>,
     ) -> crate::Result<Scene> {
-        let mut scene = Scene {
-            path: PathBuf::from(name),
-            camera,
-            light,
-            triangles: Vec::new(),
-            triangle_mesh: Vec::new(),
-            meshes: Vec::new(),
-            skipped_degenerate: 0,
-        };
+        let mut scene = Scene::empty(PathBuf::from(name), camera, light);
         for (k, (tris, opacity)) in meshes.into_iter().enumerate() {
             if !(0.0..=1.0).contains(&opacity) {
                 return Err(crate::Error::Scene {

@@ -97,15 +97,7 @@ pub(super) fn load(path: &Path) -> Result<Scene> {
     let camera = parse_camera(&cx, &file.camera)?;
     let light = parse_light(&cx, &file.light)?;
 
-    let mut scene = Scene {
-        path: path.to_path_buf(),
-        camera,
-        light,
-        triangles: Vec::new(),
-        triangle_mesh: Vec::new(),
-        meshes: Vec::new(),
-        skipped_degenerate: 0,
-    };
+    let mut scene = Scene::empty(path.to_path_buf(), camera, light);
     if file.mesh.is_empty() {
         return Err(cx.err("mesh", "the scene has no [[mesh]] entries"));
     }
