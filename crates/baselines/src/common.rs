@@ -6,6 +6,7 @@ use shadow_map_core::{
     light_space::LightSpaceRequest,
     light_view::{FitMode, NearFar, ViewOptions, FIT, NEARFAR},
     precision::DEPTH,
+    receiver_plane::RECEIVER_PLANE,
     Cull, DepthBias, DepthPrecision, Error, ParamKind, ParamSpec, Params, RasterOptions, Receivers,
     Result,
 };
@@ -30,6 +31,8 @@ shadow_map_core::typed_params! {
         bias: f32 = BIAS,
         /// Slope-scaled receiver bias b1, in texel footprints.
         slope_bias: f32 = SLOPE_BIAS,
+        /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
+        receiver_plane: bool = RECEIVER_PLANE,
         /// Face culling in the shadow-map pass.
         cull: Cull = CULL,
         /// Light-view window choice.
@@ -67,6 +70,11 @@ impl MapSettings {
     /// `(bias, slope_bias)`: the receiver bias terms (b0, b1).
     pub fn biases(&self) -> (f32, f32) {
         (self.bias, self.slope_bias)
+    }
+    /// The caster test's settings, `(receiver_plane, (b0, b1))`, as
+    /// [`ReceiverPlane::new`](shadow_map_core::ReceiverPlane::new) takes them.
+    pub fn caster_test(&self) -> (bool, (f32, f32)) {
+        (self.receiver_plane, self.biases())
     }
 }
 

@@ -28,13 +28,7 @@ impl Filter for Hard {
         _: &Light,
         r: &ReceiverSample,
     ) -> f32 {
-        lit(
-            map,
-            r.uv.x.floor() as i32,
-            r.uv.y.floor() as i32,
-            r.p.z,
-            r.eps,
-        )
+        lit(map, r.uv.x.floor() as i32, r.uv.y.floor() as i32, r)
     }
     fn facing(&self, light: &Light, p: Vec3, n: Vec3) -> f32 {
         let behind = light.one_sided() && (p - light.center).dot(light.normal) <= 0.0;

@@ -4,12 +4,13 @@ use crate::common::{self, MapSettings};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
     light_space::LightSpace, light_view::LightView, DepthLookup, DepthPrecision, Error, Light,
-    ParamSpec, Params, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
+    ParamSpec, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Unorm16Map,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// What one receiver looks like to a filter: light-space position and normal, continuous texel
-/// coordinates, and its depth bias.
+/// coordinates, and its caster test.
 #[derive(Debug, Clone, Copy)]
 pub struct ReceiverSample {
     /// Light-space position (z > n).
@@ -18,9 +19,18 @@ pub struct ReceiverSample {
     pub n: Vec3,
     /// Continuous texel coordinates (inside the map).
     pub uv: Vec2,
-    /// Depth bias in world units: a sample occludes when `z_s < p.z - eps` (half a code step
-    /// more under `depth=unorm16`, see [`shadow_map_core::precision`]).
-    pub eps: f32,
+    /// Which samples shadow this receiver: receiver-plane rejection, or the classic
+    /// `z_s < p.z - eps` under `receiver_plane=false` (half a code step more under
+    /// `depth=unorm16`, see [`shadow_map_core::precision`]).
+    pub plane: ReceiverPlane,
+}
+
+impl ReceiverSample {
+    /// True when the sample at depth `z` in texel (i, j) shadows this receiver.
+    #[inline]
+    pub fn caster(&self, i: i32, j: i32, z: f32) -> bool {
+        self.plane.caster(i, j, z)
+    }
 }
 
 /// The per-receiver part of a single-map baseline.
@@ -110,7 +120,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
             .as_ref()
             .ok_or_else(|| Error::param("build", "estimate called before build"))?;
         let filter = F::from_params(&self.params)?;
-        let (b0, b1) = MapSettings::from_params(&self.params)?.biases();
+        let test = MapSettings::from_params(&self.params)?.caster_test();
         let light = &scene.light;
         let t = std::time::Instant::now();
         let (nonfinite, outside) = match &self.q16 {
@@ -122,7 +132,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
                 light,
                 receivers,
                 v,
-                (b0, b1),
+                test,
             ),
             None => filter_all(
                 &filter,
@@ -132,7 +142,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
                 light,
                 receivers,
                 v,
-                (b0, b1),
+                test,
             ),
         };
         let view = &ls.view;
@@ -176,9 +186,9 @@ pub fn encode_layer0(ls: &mut LightSpace, precision: DepthPrecision) -> Option<U
     Some(q)
 }
 
-/// Runs `filter` over every receiver with the map `map` (f32 or 16-bit; `extra_eps` is added to
-/// the receiver bias: half a code step for 16-bit maps). Returns (non-finite results, receivers
-/// outside the frustum).
+/// Runs `filter` over every receiver with the map `map` (f32 or 16-bit; `extra_eps` is half a
+/// code step for 16-bit maps, else 0) and the caster test `(receiver_plane, (b0, b1))`. Returns
+/// (non-finite results, receivers outside the frustum).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
     filter: &F,
@@ -188,7 +198,7 @@ pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
     light: &Light,
     receivers: &Receivers,
     v: &mut [f32],
-    (b0, b1): (f32, f32),
+    (on, biases): (bool, (f32, f32)),
 ) -> (usize, usize) {
     let outside = AtomicUsize::new(0);
     let nonfinite = common::for_each_receiver(receivers, v, |pw, nw| {
@@ -210,16 +220,16 @@ pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
             outside.fetch_add(1, Ordering::Relaxed);
             return facing;
         }
-        let eps = view.receiver_bias(p, n, b0, b1) + extra_eps;
-        facing * filter.visibility(view, map, light, &ReceiverSample { p, n, uv, eps })
+        let plane = ReceiverPlane::new(on, view, p, n, biases, extra_eps);
+        facing * filter.visibility(view, map, light, &ReceiverSample { p, n, uv, plane })
     });
     (nonfinite, outside.into_inner())
 }
 
-/// `1` when the map sample at texel (i, j) does not occlude a receiver at depth `z - eps`.
+/// `1` when the map sample at texel (i, j) does not shadow the receiver `r`.
 #[inline]
-pub fn lit<M: DepthLookup>(map: &M, i: i32, j: i32, z: f32, eps: f32) -> f32 {
-    if map.at(i, j) < z - eps {
+pub fn lit<M: DepthLookup>(map: &M, i: i32, j: i32, r: &ReceiverSample) -> f32 {
+    if r.caster(i, j, map.at(i, j)) {
         0.0
     } else {
         1.0

@@ -7,7 +7,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::LightSpace, DepthLookup, Error, LightShape, ParamKind, ParamSpec, Params,
-    Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
+    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 
 /// Registry name of multi-sample shadows (shared with the GPU twin).
@@ -119,7 +119,7 @@ impl SoftShadowEstimator for MultiSample {
         let settings = MapSettings::from_params(&self.params)?;
         let MultiSampleParams { sublights: s, seed } =
             MultiSampleParams::from_params(&self.params)?;
-        let (b0, b1) = settings.biases();
+        let (on, biases) = settings.caster_test();
         let req = settings.request();
         let opts = settings.view();
         let precision = settings.depth;
@@ -168,13 +168,13 @@ impl SoftShadowEstimator for MultiSample {
                     return;
                 }
                 let n = view.frame.dir_to_light(nw);
-                let eps = view.receiver_bias(p, n, b0, b1) + half_step;
+                let plane = ReceiverPlane::new(on, view, p, n, biases, half_step);
                 let (i, j) = (uv.x.floor() as i32, uv.y.floor() as i32);
                 let z = match &q16 {
                     Some(q) => q.at(i, j),
                     None => ls.layers[0].at(i, j),
                 };
-                if z >= p.z - eps {
+                if !plane.caster(i, j, z) {
                     *a += 1.0;
                 }
             });

@@ -55,7 +55,7 @@ impl Filter for Pcf {
         let mut sum = 0.0;
         for dj in -self.half..=self.half {
             for di in -self.half..=self.half {
-                sum += lit(map, i0 + di, j0 + dj, r.p.z, r.eps);
+                sum += lit(map, i0 + di, j0 + dj, r);
             }
         }
         let side = (2 * self.half + 1) as f32;

@@ -80,7 +80,7 @@ impl Filter for Pcss {
                     self.max_taps,
                     |i, wx| {
                         let z = d.at(i, j);
-                        if z < zr - r.eps {
+                        if r.caster(i, j, z) {
                             let w = wx * wy;
                             sum.add(w * z);
                             count.add(w);
@@ -123,7 +123,7 @@ impl Filter for Pcss {
                         }
                         let w = wx * wy * edge;
                         total.add(w);
-                        if d.at(i, j) >= zr - r.eps {
+                        if !r.caster(i, j, d.at(i, j)) {
                             lit.add(w);
                         }
                     },

@@ -51,7 +51,15 @@ pub struct Score {
     /// this field: a candidate with non-finite output is broken even when its
     /// errors look small.
     pub nonfinite_v: usize,
+    /// Scored pixels whose reference is fully lit (`Vr >= 1 - 1e-6`): where any darkening is
+    /// false shadow (self-shadowing acne, a filter reaching the receiver's own surface).
+    pub lit_pixels: usize,
+    /// Mean of `|e|` over the [`lit_pixels`](Self::lit_pixels) (0 when there are none).
+    pub lit_mae: f64,
 }
+
+/// Reference V at or above which a pixel counts as fully lit ([`Score::lit_pixels`]).
+pub const FULLY_LIT: f64 = 1.0 - 1e-6;
 
 /// The class of one pixel; see the module documentation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -176,6 +184,7 @@ pub fn score(
     let mut sum_sq = 0.0f64;
     let mut sum_abs = 0.0f64;
     let mut large = 0usize;
+    let (mut lit_pixels, mut lit_abs) = (0usize, 0.0f64);
 
     for (vc, zc, vr, zr) in p.pixels() {
         if zr.is_finite() {
@@ -194,6 +203,10 @@ pub fn score(
                     large += 1;
                 }
                 abs_errors.push(a);
+                if f64::from(vr) >= FULLY_LIT {
+                    lit_pixels += 1;
+                    lit_abs += a;
+                }
             }
             PixelClass::Background | PixelClass::Unmatched => {}
         }
@@ -230,6 +243,12 @@ pub fn score(
         p99_abs_error: finite_or_zero(p99),
         frac_abs_error_gt_0_1: finite_or_zero(frac),
         nonfinite_v,
+        lit_pixels,
+        lit_mae: if lit_pixels == 0 {
+            0.0
+        } else {
+            finite_or_zero(lit_abs / lit_pixels as f64)
+        },
     })
 }
 
@@ -324,6 +343,7 @@ mod tests {
             s.mae,
             s.p99_abs_error,
             s.frac_abs_error_gt_0_1,
+            s.lit_mae,
         ] {
             assert!(x.is_finite(), "{s:?}");
         }
@@ -350,8 +370,21 @@ mod tests {
                 p99_abs_error: 0.0,
                 frac_abs_error_gt_0_1: 0.0,
                 nonfinite_v: 0,
+                lit_pixels: 1,
+                lit_mae: 0.0,
             }
         );
+    }
+
+    #[test]
+    fn lit_mae_counts_only_fully_lit_reference_pixels() {
+        // Reference: two fully lit pixels, one in penumbra; the candidate darkens all three.
+        let r = image(3, 1, vec![1.0, 1.0, 0.5], vec![1.0; 3]);
+        let c = image(3, 1, vec![0.75, 0.5, 0.0], vec![1.0; 3]);
+        let s = score(&c, &r).unwrap();
+        assert_eq!(s.lit_pixels, 2);
+        assert!((s.lit_mae - 0.375).abs() < 1e-12, "{s:?}");
+        assert!((s.mae - (0.25 + 0.5 + 0.5) / 3.0).abs() < 1e-12, "{s:?}");
     }
 
     #[test]

@@ -15,6 +15,7 @@ pub mod params;
 pub mod peeling;
 pub mod precision;
 pub mod raster;
+pub mod receiver_plane;
 pub mod receivers;
 pub mod scene;
 
@@ -28,6 +29,7 @@ pub use light_view::LightView;
 pub use params::{FromParam, ParamKind, ParamSpec, ParamValue, Params};
 pub use precision::{DepthLookup, DepthPrecision, Unorm16Map};
 pub use raster::{Cull, DepthBias, DepthMap, RasterOptions};
+pub use receiver_plane::ReceiverPlane;
 pub use receivers::{ImageLayout, Receivers};
 pub use scene::Scene;
 #[cfg(feature = "gpu")]

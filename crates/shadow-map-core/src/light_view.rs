@@ -187,6 +187,17 @@ impl LightView {
         texel * (b0 + b1 * tan.min(10.0))
     }
 
+    /// The longest texel ray direction `|unproject_dir(u)|` over the window (at a corner): the
+    /// scale of [`crate::receiver_plane`]'s rounding allowance.
+    pub fn max_dir_len(&self) -> f32 {
+        let a = self
+            .window_min
+            .abs()
+            .max((self.window_min + Vec2::splat(self.w)).abs())
+            / self.n;
+        (a.length_squared() + 1.0).sqrt()
+    }
+
     /// Texel pitch on the plane z = n: `delta = w / r`.
     #[inline]
     pub fn delta(&self) -> f32 {

@@ -10,5 +10,5 @@ fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
 }
 
 fn visibility(r: ReceiverSample) -> f32 {
-    return lit(i32(floor(r.uv.x)), i32(floor(r.uv.y)), r.p.z, r.eps);
+    return lit(i32(floor(r.uv.x)), i32(floor(r.uv.y)), r);
 }

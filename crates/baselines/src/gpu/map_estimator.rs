@@ -189,8 +189,10 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        let (b0, b1) = MapSettings::from_params(&self.params)?.biases();
+        let settings = MapSettings::from_params(&self.params)?;
+        let (b0, b1) = settings.biases();
         let mut u = EstimateUniform::new(light, b0, b1);
+        u.receiver_plane = u32::from(settings.receiver_plane);
         F::from_params(&self.params)?.set_uniform(&mut u);
         u.depth_step = maps.depth.step();
         self.kernel(maps.depth.precision())?;
@@ -238,7 +240,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         expected: usize,
     ) -> Result<()> {
         let filter = F::from_params(&self.params)?;
-        let biases = MapSettings::from_params(&self.params)?.biases();
+        let biases = MapSettings::from_params(&self.params)?.caster_test();
         let ctx = &*self.ctx;
         let stage = format!("{} estimate", F::NAME);
         redo_cut_receivers(v, receivers, expected, &stage, |sub, vs| {

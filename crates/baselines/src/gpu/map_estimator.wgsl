@@ -21,16 +21,16 @@ struct ReceiverSample {
     p: vec3<f32>,
     n: vec3<f32>,
     uv: vec2<f32>,
-    eps: f32,
+    plane: ReceiverPlane,
 }
 
-// DepthMap::at(i, j) < zt, with texels outside the map +inf (never occluding).
-fn occludes(i: i32, j: i32, zt: f32) -> bool {
-    let r = i32(view.r);
-    if i < 0 || j < 0 || i >= r || j >= r {
+// ReceiverSample::caster on DepthMap::at(i, j), with texels outside the map +inf (never casters).
+fn caster(r: ReceiverSample, i: i32, j: i32) -> bool {
+    let size = i32(view.r);
+    if i < 0 || j < 0 || i >= size || j >= size {
         return false;
     }
-    return depth_texel(i, j) < zt;
+    return plane_caster(r.plane, i, j, depth_texel(i, j));
 }
 
 // DepthMap::at for a texel inside the map.
@@ -38,9 +38,9 @@ fn depth_at(i: i32, j: i32) -> f32 {
     return depth_texel(i, j);
 }
 
-// map_estimator::lit: 1 when the sample at (i, j) does not occlude a receiver at depth z - eps.
-fn lit(i: i32, j: i32, z: f32, eps: f32) -> f32 {
-    return select(1.0, 0.0, occludes(i, j, z - eps));
+// map_estimator::lit: 1 when the sample at (i, j) does not shadow the receiver r.
+fn lit(i: i32, j: i32, r: ReceiverSample) -> f32 {
+    return select(1.0, 0.0, caster(r, i, j));
 }
 
 // map_estimator::cells, as an indexable range: [a, b) split in whole texels clipped to the
@@ -111,8 +111,8 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
         return fac;
     }
     // Half a code step more under depth=unorm16 (depth_step = 0 for f32 maps).
-    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias) + 0.5 * est.depth_step;
-    return fac * visibility(ReceiverSample(p, n, uv, eps));
+    let plane = plane_new(est.receiver_plane != 0u, view, p, n, est.bias, est.slope_bias, 0.5 * est.depth_step);
+    return fac * visibility(ReceiverSample(p, n, uv, plane));
 }
 
 // common::for_each_receiver: NaN for inactive receivers, results clamped to [0, 1], non-finite

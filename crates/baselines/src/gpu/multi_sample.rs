@@ -176,6 +176,7 @@ impl GpuMultiSample {
         let ctx = &*self.ctx;
         let (b0, b1) = self.map.biases();
         let mut u = EstimateUniform::new(light, b0, b1);
+        u.receiver_plane = u32::from(self.map.receiver_plane);
         let chunks = ctx.scoped("multi-sample receivers", || {
             kernel::upload_receivers(
                 ctx,

@@ -15,13 +15,13 @@
 @group(0) @binding(5) var<storage, read_write> v_out: array<u32>;
 
 
-// DepthMap::at(i, j) >= zt, with texels outside the map +inf (always lit).
-fn lit_at(i: i32, j: i32, zt: f32) -> bool {
+// No caster at texel (i, j) (ReceiverPlane::caster), texels outside the map +inf (always lit).
+fn lit_at(rp: ReceiverPlane, i: i32, j: i32) -> bool {
     let r = i32(view.r);
     if i < 0 || j < 0 || i >= r || j >= r {
         return true;
     }
-    return depth_texel(i, j) >= zt;
+    return !plane_caster(rp, i, j, depth_texel(i, j));
 }
 
 @compute @workgroup_size(WG)
@@ -54,8 +54,8 @@ fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let n = view_dir_to_light(view, nw);
     // Half a code step more under depth=unorm16 (depth_step = 0 for f32 maps).
-    let eps = receiver_bias(view, p, n, est.bias, est.slope_bias) + 0.5 * est.depth_step;
-    if lit_at(i32(floor(uv.x)), i32(floor(uv.y)), p.z - eps) {
+    let rp = plane_new(est.receiver_plane != 0u, view, p, n, est.bias, est.slope_bias, 0.5 * est.depth_step);
+    if lit_at(rp, i32(floor(uv.x)), i32(floor(uv.y))) {
         acc[k] += 1.0;
     }
 }

@@ -1,5 +1,5 @@
 // Twin of crates/baselines/src/pcf.rs (Reeves, Salesin, Cook 1987):
-// V = (1/N^2) sum_{|di|,|dj| <= half} [z_p - eps <= D(i + di, j + dj)], N = 2 half + 1.
+// V = (1/N^2) sum_{|di|,|dj| <= half} [D(i + di, j + dj) is no caster], N = 2 half + 1.
 
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
     return front_fraction_world(est, p, n);
@@ -12,7 +12,7 @@ fn visibility(r: ReceiverSample) -> f32 {
     var sum = 0.0;
     for (var dj = -half; dj <= half; dj++) {
         for (var di = -half; di <= half; di++) {
-            sum += lit(i0 + di, j0 + dj, r.p.z, r.eps);
+            sum += lit(i0 + di, j0 + dj, r);
         }
     }
     let side = f32(2 * half + 1);

@@ -25,7 +25,6 @@ fn visibility(r: ReceiverSample) -> f32 {
     let zr = r.p.z;
     let l = 2.0 * est.light_half_extent;
     let to_texels = f32(view.r) / view.w;
-    let zt = zr - r.eps;
     // 1. Blocker search.
     let ws = l * ((zr - view.n) / zr) * to_texels;
     let cy = cells_new(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, est.max_taps);
@@ -42,7 +41,7 @@ fn visibility(r: ReceiverSample) -> f32 {
             if !ci.valid {
                 continue;
             }
-            if occludes(ci.i, cj.i, zt) {
+            if caster(r, ci.i, cj.i) {
                 let w = ci.w * cj.w;
                 sum = sum_add(sum, w * depth_at(ci.i, cj.i));
                 count = sum_add(count, w);
@@ -82,7 +81,7 @@ fn visibility(r: ReceiverSample) -> f32 {
             }
             let w = ci.w * cj.w * edge;
             total = sum_add(total, w);
-            if !occludes(ci.i, cj.i, zt) {
+            if !caster(r, ci.i, cj.i) {
                 lit_sum = sum_add(lit_sum, w);
             }
         }

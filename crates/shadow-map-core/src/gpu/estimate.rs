@@ -40,6 +40,8 @@ pub const OVERRIDES: &[(&str, f64)] = &[
     ("LIGHT_RECT", LIGHT_RECT as f64),
     ("LIGHT_DISK", LIGHT_DISK as f64),
     ("LIGHT_SPHERE", LIGHT_SPHERE as f64),
+    ("PLANE_ROUNDING", crate::receiver_plane::ROUNDING as f64),
+    ("PLANE_SNAP", crate::receiver_plane::SNAP as f64),
 ];
 
 /// The light and the estimator's settings as the estimate kernels see them.
@@ -83,8 +85,11 @@ pub struct EstimateUniform {
     /// The loop-limit probe's bound, always
     /// [`LOOP_PROBE`](super::shared::LOOP_PROBE).
     pub probe: u32,
+    /// 1: receiver-plane rejection ([`crate::receiver_plane`], `plane_new` in `math.wgsl`);
+    /// 0: the classic depth test against `z - receiver_bias`.
+    pub receiver_plane: u32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 
 impl EstimateUniform {
@@ -113,7 +118,8 @@ impl EstimateUniform {
             inv_samples: 0.0,
             depth_step: 0.0,
             probe: super::shared::LOOP_PROBE,
-            _pad: [0; 3],
+            receiver_plane: 0,
+            _pad: [0; 2],
         }
     }
 }
@@ -143,8 +149,9 @@ mod tests {
                 inv_samples,
                 depth_step,
                 probe,
+                receiver_plane,
             },
-            pad _pad: 3
+            pad _pad: 2
         );
         assert_eq!(std::mem::align_of::<EstimateUniform>(), 16);
     }

@@ -5,6 +5,8 @@ override WG: u32;
 override LIGHT_RECT: u32;
 override LIGHT_DISK: u32;
 override LIGHT_SPHERE: u32;
+override PLANE_ROUNDING: f32;
+override PLANE_SNAP: f32;
 
 struct EstimateUniform {
     light_center: vec3<f32>,
@@ -23,7 +25,7 @@ struct EstimateUniform {
     inv_samples: f32,
     depth_step: f32,
     probe: u32,
+    receiver_plane: u32,
     _pad0: u32,
     _pad1: u32,
-    _pad2: u32,
 }

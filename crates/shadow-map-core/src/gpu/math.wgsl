@@ -287,3 +287,59 @@ fn mssm_min_in(mssm: texture_2d_array<f32>, present: u32, size: u32, levels: u32
     }
     return best;
 }
+
+// shadow_map_core::light_view::LightView::max_dir_len.
+fn view_max_dir_len(v: LightViewUniform) -> f32 {
+    let a = max(abs(v.window_min), abs(v.window_min + vec2<f32>(v.w))) / v.n;
+    return sqrt(dot2(a, a) + 1.0);
+}
+
+// shadow_map_core::receiver_plane::ReceiverPlane (docs/methods.md §2, "Receiver plane"): a sample
+// at depth z on the ray through texel coordinates uv is a caster when
+// z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c. PLANE_ROUNDING and PLANE_SNAP are overrides set
+// from receiver_plane::{ROUNDING, SNAP}.
+struct ReceiverPlane {
+    g0: f32,
+    gu: f32,
+    gv: f32,
+    c: f32,
+    zp: f32,
+    hs: f32,
+}
+
+// ReceiverPlane::new: the plane test when `on`, else the classic z < z_p - receiver_bias.
+fn plane_new(on: bool, v: LightViewUniform, p: vec3<f32>, n: vec3<f32>, b0: f32, b1: f32, hs: f32) -> ReceiverPlane {
+    if !on {
+        return ReceiverPlane(1.0, 0.0, 0.0, p.z - receiver_bias(v, p, n, b0, b1), p.z, hs);
+    }
+    let texel = v.w * p.z / (v.n * f32(v.r));
+    let kappa = PLANE_ROUNDING * view_max_dir_len(v);
+    let tau = PLANE_ROUNDING * sqrt(dot3(p, p)) + (PLANE_SNAP + b0) * texel;
+    let s = v.delta / v.n;
+    let o = v.window_min / v.n;
+    return ReceiverPlane(-(n.x * o.x + n.y * o.y + n.z) + kappa, -n.x * s, -n.y * s, -dot3(n, p) - tau, p.z, hs);
+}
+
+fn plane_slope_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
+    return rp.g0 + rp.gu * uv.x + rp.gv * uv.y;
+}
+
+fn plane_caster_at(rp: ReceiverPlane, uv: vec2<f32>, z: f32) -> bool {
+    return is_finite(z) && z < rp.zp && (z + rp.hs) * plane_slope_at(rp, uv) < rp.c;
+}
+
+fn plane_caster(rp: ReceiverPlane, i: i32, j: i32, z: f32) -> bool {
+    return plane_caster_at(rp, vec2<f32>(f32(i) + 0.5, f32(j) + 0.5), z);
+}
+
+// ReceiverPlane::threshold_at.
+fn plane_threshold_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
+    let g = plane_slope_at(rp, uv);
+    var t = -pos_inf();
+    if g > 0.0 {
+        t = rp.c / g - rp.hs;
+    } else if rp.c > 0.0 {
+        t = pos_inf();
+    }
+    return min(t, rp.zp);
+}

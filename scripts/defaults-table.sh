@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Every estimator at its defaults on every fixture (or the scenes given), one backend: RMSE and
+# lit MAE (mean |V - Vr| over pixels whose reference is fully lit: false shadow) against the
+# ray-traced reference (1024 spp, rendered once and kept in OUT_DIR), and the estimator's own
+# stage time (--stats). Prints a markdown table; the before/after tables of issue 16 come from it.
+#   scripts/defaults-table.sh [OUT_DIR] [BACKEND] [SCENE.toml...]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${1:-target/defaults-table}
+backend=${2:-cpu}
+shift 2 || true
+scenes=("$@")
+[ ${#scenes[@]} -gt 0 ] || scenes=(fixtures/*/*.toml)
+bin=${SOFTSHADOW_BIN:-target/release/softshadow}
+[ -n "${SOFTSHADOW_BIN:-}" ] || cargo build --release -q -p softshadow-cli
+algos=(hard pcf pcss multi-sample backprojection accumulation packet-hsm deep-shadow)
+mkdir -p "$out"
+echo "| fixture | algo | backend | RMSE | lit MAE | lit px | estimate ms |"
+echo "|---|---|---|---|---|---|---|"
+for scene in "${scenes[@]}"; do
+  name=$(basename "$scene" .toml)
+  ref="$out/$name-reference.exr"
+  [ -f "$ref" ] || $bin render "$scene" --algo reference --out "$ref" >/dev/null
+  for algo in "${algos[@]}"; do
+    img="$out/$name-$algo-$backend.exr"
+    if ! stats=$($bin render "$scene" --algo "$algo" --backend "$backend" --out "$img" --stats 2>&1); then
+      echo "| $name | $algo | $backend | error: $(echo "$stats" | tail -1) | | | |"
+      continue
+    fi
+    s=$($bin score "$img" "$ref")
+    python3 - "$name" "$algo" "$backend" "$s" "$stats" <<'PY'
+import json, sys
+name, algo, backend, s, stats = sys.argv[1:6]
+j = json.loads(s)
+ms = ""
+for line in stats.splitlines():
+    try:
+        st = json.loads(line)
+    except ValueError:
+        continue
+    stages = st.get("stages_ms") or {}
+    if isinstance(stages, dict):
+        ms = "%.1f" % sum(float(v) for k, v in stages.items() if "estimate" in k)
+    elif isinstance(stages, list):
+        ms = "%.1f" % sum(float(v) for k, v in stages if "estimate" in k)
+print("| %s | %s | %s | %.4f | %.4f | %d | %s |" % (name, algo, backend, j["rmse"], j["lit_mae"], j["lit_pixels"], ms))
+PY
+  done
+done
