@@ -2,13 +2,14 @@
 //! for back-face, front-face and no culling, and constant / slope-scaled receiver bias, the acne
 //! (wrongly shadowed receivers on an unoccluded tilted plane, and on the lit faces of a box) and
 //! the peter-panning (shadow missing near the contact line of a box standing on the ground), of
-//! the hard shadow map; midpoints from the backprojection crate beside them (a 1e-3 light, so its
-//! V is the hard shadow classified by midpoints, no bias). Ground truth is a ray from the receiver
-//! to the light centre through the BVH. `cargo test --test culling_bias -- --nocapture` prints
-//! the table.
+//! the hard shadow map under the classic depth test (`receiver_plane=false`); midpoints from the
+//! backprojection crate beside them (a 1e-3 light, so its V is the hard shadow classified by
+//! midpoints, no bias); then every estimator at its defaults, receiver-plane rejection included
+//! (docs/methods.md §2 "Receiver plane"). Ground truth is a ray from the receiver to the light
+//! centre through the BVH. `cargo test --test culling_bias -- --nocapture` prints the table.
 use glam::{Mat3, Vec3};
 use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
-use softshadow::{estimator, Backend};
+use softshadow::{estimator, Backend, ALGOS};
 
 fn light(center: Vec3, size: f32) -> Light {
     let normal = (-center).normalize();
@@ -204,6 +205,7 @@ fn culling_and_bias_table() {
         ] {
             let mut e = estimator("hard", Backend::Cpu).unwrap();
             e.set_param("resolution", "512").unwrap();
+            e.set_param("receiver_plane", "false").unwrap();
             e.set_param("cull", cull).unwrap();
             e.set_param("bias", &b0.to_string()).unwrap();
             e.set_param("slope_bias", &b1.to_string()).unwrap();
@@ -216,11 +218,32 @@ fn culling_and_bias_table() {
     }
     let mut mid = estimator("backprojection", Backend::Cpu).unwrap();
     mid.set_param("resolution", "512").unwrap();
+    if mid.params().get("receiver_plane").is_some() {
+        mid.set_param("receiver_plane", "false").unwrap();
+    }
     let r = cases
         .iter()
         .map(|c| score(c, &run(mid.as_mut(), &c.scene, &c.rec).unwrap().0))
         .collect();
     rows.push(("backprojection midpoints (no bias)".into(), r));
+    // Every estimator with receiver-plane rejection (the `receiver_plane` parameter).
+    let defaults: Vec<&str> = ALGOS
+        .iter()
+        .copied()
+        .filter(|n| {
+            let e = estimator(n, Backend::Cpu).unwrap();
+            e.params().get("receiver_plane").is_some()
+        })
+        .collect();
+    assert!(defaults.len() >= 4, "{defaults:?}");
+    for name in &defaults {
+        let mut e = estimator(name, Backend::Cpu).unwrap();
+        let r = cases
+            .iter()
+            .map(|c| score(c, &run(e.as_mut(), &c.scene, &c.rec).unwrap().0))
+            .collect();
+        rows.push((format!("{name} at defaults"), r));
+    }
     print!("| setting |");
     for c in &cases {
         print!(" acne {} |", c.name);
@@ -261,6 +284,27 @@ fn culling_and_bias_table() {
             "midpoints: acne on {}: {:?}",
             cases[k].name,
             midpoints[k]
+        );
+    }
+    // Receiver-plane rejection, every estimator at its defaults: no acne on any plane, grazing
+    // included, nor on the box's lit faces (beyond the 0.5% edge texels every setting shares),
+    // and no more peter-panning than the classic default.
+    for name in &defaults {
+        let r = get(&format!("{name} at defaults"));
+        for (k, c) in cases.iter().enumerate() {
+            let limit = if k == 4 { 0.01 } else { 0.002 };
+            assert!(
+                r[k].0 <= limit,
+                "{name} at defaults: acne {:?} on {}",
+                r[k],
+                c.name
+            );
+        }
+        assert!(
+            r[4].1 <= default[4].1 + 0.05,
+            "{name} at defaults: peter-panning {:?} (classic default {:?})",
+            r[4],
+            default[4]
         );
     }
     // Front-face culling stores the back faces of the closed box: no acne on its lit faces
