@@ -110,8 +110,80 @@ fn at_depth(r: vec3<f32>, x: vec3<f32>, c: f32) -> vec2<f32> {
     return r2 + (vec2<f32>(x.x, x.y) - r2) * s;
 }
 
-// Footprint::additive_term.
-fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32) -> f32 {
+// math::FrontEdge: the receiver's tangent plane on the patch (in-plane coordinates x in front
+// when a.x > c); whole: every hull point in front; fraction: the patch's front fraction.
+struct Front {
+    a: vec2<f32>,
+    c: f32,
+    whole: bool,
+    fraction: f32,
+}
+
+// FrontEdge::new.
+fn front_new(p: Patch, r: vec3<f32>, nrm: vec3<f32>) -> Front {
+    let a = vec2<f32>(dot3(nrm, p.e1), dot3(nrm, p.e2));
+    let c = dot3(nrm, r);
+    var whole = true;
+    for (var k = 0u; k < acc.n_hull; k++) {
+        if !(dot2(a, tables[k]) > c) {
+            whole = false;
+        }
+    }
+    var fraction = 1.0;
+    if !whole {
+        let pl = vec3<f32>(dot3(r, p.e1), dot3(r, p.e2), dot3(r, p.a));
+        let nl = vec3<f32>(a.x, a.y, dot3(nrm, p.a));
+        if acc.patch_rect != 0u {
+            fraction = front_fraction(LIGHT_RECT, 2.0 * acc.half, pl, nl);
+        } else {
+            fraction = front_fraction(LIGHT_DISK, acc.half, pl, nl);
+        }
+    }
+    return Front(a, c, whole, fraction);
+}
+
+fn front_of(f: Front, l: vec2<f32>) -> bool {
+    return dot2(f.a, l) > f.c;
+}
+
+// A convex polygon of up to 5 corners (a quadrilateral clipped by one line).
+struct Poly {
+    q: array<vec2<f32>, 5>,
+    m: u32,
+}
+
+// FrontEdge::clip.
+fn front_clip(f: Front, q: array<vec2<f32>, 4>) -> Poly {
+    var out: Poly;
+    out.m = 0u;
+    for (var k = 0u; k < 4u; k++) {
+        let p0 = q[k];
+        let p1 = q[(k + 1u) % 4u];
+        let f0 = dot2(f.a, p0) - f.c;
+        let f1 = dot2(f.a, p1) - f.c;
+        if f0 > 0.0 {
+            out.q[out.m] = p0;
+            out.m += 1u;
+        }
+        if (f0 > 0.0) != (f1 > 0.0) {
+            out.q[out.m] = p0 + (p1 - p0) * (f0 / (f0 - f1));
+            out.m += 1u;
+        }
+    }
+    return out;
+}
+
+// math::poly_area.
+fn poly_area(pq: Poly) -> f32 {
+    var a = 0.0;
+    for (var k = 0u; k < pq.m; k++) {
+        a += perp_dot(pq.q[k], pq.q[(k + 1u) % pq.m]);
+    }
+    return abs(0.5 * a);
+}
+
+// Footprint::additive_term_front.
+fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32, f: Front) -> f32 {
     let d = vec3<f32>(lr.x - r.x, lr.y - r.y, view.n - r.z);
     let da = dot3(d, p.a);
     let u = -dot3(r, p.a) / da;
@@ -120,7 +192,7 @@ fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32) -> f32 {
     }
     let x = r + d * u;
     let local = vec2<f32>(dot3(x, p.e1), dot3(x, p.e2));
-    if !patch_contains(local) {
+    if !patch_contains(local) || !(f.whole || front_of(f, local)) {
         return 0.0;
     }
     let jac = u * u * (abs(d.z) / abs(da));
@@ -137,37 +209,53 @@ fn seg_outside(p: vec2<f32>, q: vec2<f32>, r: f32) -> f32 {
 }
 
 // math::quad_disk_area.
-fn quad_disk_area(q: array<vec2<f32>, 4>, r: f32) -> f32 {
-    if !(r > 0.0) {
+fn quad_disk_area(q4: array<vec2<f32>, 4>, r: f32) -> f32 {
+    var pq: Poly;
+    pq.m = 4u;
+    for (var k = 0u; k < 4u; k++) {
+        pq.q[k] = q4[k];
+    }
+    return poly_disk_area(pq, r);
+}
+
+// math::poly_disk_area.
+fn poly_disk_area(pq: Poly, r: f32) -> f32 {
+    let m = pq.m;
+    var q = pq.q;
+    if !(r > 0.0) || m < 3u {
         return 0.0;
     }
-    let lo = min(min(min(q[0], q[1]), q[2]), q[3]);
-    let hi = max(max(max(q[0], q[1]), q[2]), q[3]);
+    var lo = q[0];
+    var hi = q[0];
+    for (var k = 1u; k < m; k++) {
+        lo = min(lo, q[k]);
+        hi = max(hi, q[k]);
+    }
     if !(lo.x < r && lo.y < r && hi.x > -r && hi.y > -r) {
         return 0.0;
     }
     let full = PI_F32 * r * r;
     var all_in = true;
-    for (var k = 0u; k < 4u; k++) {
+    for (var k = 0u; k < m; k++) {
         if !(dot2(q[k], q[k]) <= r * r) {
             all_in = false;
         }
     }
     if all_in {
         var a = 0.0;
-        for (var k = 0u; k < 4u; k++) {
-            a += perp_dot(q[k], q[(k + 1u) % 4u]);
+        for (var k = 0u; k < m; k++) {
+            a += perp_dot(q[k], q[(k + 1u) % m]);
         }
         return min(abs(0.5 * a), full);
     }
     var a2 = 0.0;
-    for (var k = 0u; k < 4u; k++) {
-        a2 += perp_dot(q[k], q[(k + 1u) % 4u]);
+    for (var k = 0u; k < m; k++) {
+        a2 += perp_dot(q[k], q[(k + 1u) % m]);
     }
     let orient = select(1.0, -1.0, a2 < 0.0);
     var contains = true;
-    for (var k = 0u; k < 4u; k++) {
-        let e = q[(k + 1u) % 4u] - q[k];
+    for (var k = 0u; k < m; k++) {
+        let e = q[(k + 1u) % m] - q[k];
         let d = orient * perp_dot(e, -q[k]);
         if !(d >= r * sqrt(dot2(e, e))) {
             contains = false;
@@ -177,9 +265,9 @@ fn quad_disk_area(q: array<vec2<f32>, 4>, r: f32) -> f32 {
         return full;
     }
     var area = 0.0;
-    for (var k = 0u; k < 4u; k++) {
+    for (var k = 0u; k < m; k++) {
         let p0 = q[k];
-        let p1 = q[(k + 1u) % 4u];
+        let p1 = q[(k + 1u) % m];
         let d = p1 - p0;
         let a = dot2(d, d);
         let b = dot2(p0, d);
@@ -226,8 +314,8 @@ fn to_patch(p: Patch, r: vec3<f32>, pt: vec2<f32>) -> Local {
     return Local(vec2<f32>(dot3(x, p.e1), dot3(x, p.e2)), jac * acc.inv_area, true);
 }
 
-// Footprint::overlap_term.
-fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32) -> f32 {
+// Footprint::overlap_term_front.
+fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32, f: Front) -> f32 {
     var area = 0.0;
     if acc.patch_rect != 0u {
         let lc = to_patch(p, r, lr);
@@ -237,9 +325,17 @@ fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32) -> f32 
         let sj = sqrt(lc.w / acc.inv_area);
         let ax = hx * sj;
         let ay = hy * sj;
-        let dx = max(min(lc.p.x + ax, acc.half.x) - max(lc.p.x - ax, -acc.half.x), 0.0);
-        let dy = max(min(lc.p.y + ay, acc.half.y) - max(lc.p.y - ay, -acc.half.y), 0.0);
+        let x0 = max(lc.p.x - ax, -acc.half.x);
+        let x1 = min(lc.p.x + ax, acc.half.x);
+        let y0 = max(lc.p.y - ay, -acc.half.y);
+        let y1 = min(lc.p.y + ay, acc.half.y);
+        let dx = max(x1 - x0, 0.0);
+        let dy = max(y1 - y0, 0.0);
         area = dx * dy;
+        if !f.whole && area != 0.0 {
+            let q = array<vec2<f32>, 4>(vec2<f32>(x0, y0), vec2<f32>(x1, y0), vec2<f32>(x1, y1), vec2<f32>(x0, y1));
+            area = poly_area(front_clip(f, q));
+        }
     } else {
         var q: array<vec2<f32>, 4>;
         for (var k = 0u; k < 4u; k++) {
@@ -249,7 +345,11 @@ fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32) -> f32 
             }
             q[k] = lc.p;
         }
-        area = quad_disk_area(q, acc.half.x);
+        if f.whole {
+            area = quad_disk_area(q, acc.half.x);
+        } else {
+            area = poly_disk_area(front_clip(f, q), acc.half.x);
+        }
     }
     return area * acc.inv_area;
 }
@@ -303,7 +403,7 @@ struct Kernel {
 }
 
 // Accumulator::kernel.
-fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
+fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, rp: ReceiverPlane) -> Kernel {
     let none = vec2<i32>(0);
     if acc.kernel == KERNEL_LEXELS {
         let i0 = fixed_kernel_start(uv.x, acc.k);
@@ -316,7 +416,7 @@ fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, eps: f32) -> Kernel {
         var zm = view.n;
         for (var it = 0; it < REFINE_ROUNDS; it++) {
             let zmin = mssm_min(rect);
-            if zmin >= r.z - eps {
+            if zmin >= plane_max_threshold(rp, f32(rect.x), f32(rect.z), f32(rect.y), f32(rect.w)) {
                 return Kernel(rect, 1u, true, false, none);
             }
             if !(zmin > zm) {
@@ -353,7 +453,7 @@ struct State {
 }
 
 // The per-cell body of Accumulator::shadowing; true when every bit is set.
-fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: f32, eps_plane: f32, i0: i32, i1: i32, j0: i32, j1: i32) -> bool {
+fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f: Front, i0: i32, i1: i32, j0: i32, j1: i32) -> bool {
     let delta = view.delta;
     let n = view.n;
     let r2 = vec2<f32>(r.x, r.y);
@@ -362,13 +462,9 @@ fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: 
     let l = view.window_min + vec2<f32>(f32(i0 + i1), f32(j0 + j1)) * (0.5 * delta);
     for (var layer = 0u; layer < acc.layers; layer++) {
         let cz = depth_at(ic, jc, layer);
-        if !(cz < r.z - eps) {
+        // The receiver-plane test of the sample (cpu.rs: deeper layers fail too).
+        if !plane_caster(rp, ic, jc, cz) {
             break;
-        }
-        // In front of the receiver's tangent plane.
-        let c = vec3<f32>(l.x, l.y, n) * (cz / n);
-        if !(dot3(nrm, c - r) > eps_plane) {
-            continue;
         }
         // math::caster.
         if !(cz > 0.0) || !(cz < r.z) {
@@ -384,9 +480,9 @@ fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: 
         let hy = 0.5 * f32(j1 - j0) * delta * size;
         if acc.variant != VARIANT_EXACT {
             if acc.overlap != 0u {
-                (*st).s_add += overlap_term(p, r, lr, hx, hy);
+                (*st).s_add += overlap_term(p, r, lr, hx, hy, f);
             } else {
-                (*st).s_add += additive_term(p, r, lr, 4.0 * hx * hy);
+                (*st).s_add += additive_term(p, r, lr, 4.0 * hx * hy, f);
             }
             continue;
         }
@@ -451,7 +547,7 @@ fn covers(rr: vec4<i32>, b: vec4<i32>) -> bool {
 
 // cpu::for_each_ring_cell over visit: in lattice indices (map index + phase, cpu::ring_phase),
 // the cells handed to visit in map indices.
-fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: f32, eps_plane: f32, bound_map: vec4<i32>, c_map: vec2<i32>) {
+fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f: Front, bound_map: vec4<i32>, c_map: vec2<i32>) {
     let ph = vec2<i32>(acc.phase_x, acc.phase_y);
     let bound = bound_map + vec4<i32>(ph, ph);
     let c = c_map + ph;
@@ -476,7 +572,7 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: 
                     let j0 = max(y, bound.y);
                     let j1 = min(y + s, bound.w);
                     if i0 < i1 && j0 < j1 {
-                        if visit(st, p, r, nrm, eps, eps_plane, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y) {
+                        if visit(st, p, r, rp, f, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y) {
                             return;
                         }
                     }
@@ -494,15 +590,29 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, nrm: vec3<f32>, eps: 
 
 // Accumulator::shadowing: the shadowing factor s in [0, 1].
 fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
-    let eps = receiver_bias(view, r, nrm, acc.b0, acc.b1);
-    let eps_plane = view.w * r.z / (view.n * f32(view.r)) * acc.b0;
-    let kr = kernel(p, r, uv, eps);
+    let rp = plane_new(est.receiver_plane != 0u, view, r, nrm, acc.b0, acc.b1, 0.0);
+    let f = front_new(p, r, nrm);
+    if !(f.fraction > 0.0) {
+        return 0.0;
+    }
+    let kr = kernel(p, r, uv, rp);
     if kr.empty {
         return 0.0;
     }
     var st = State(array<u32, 8>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u), 0u, 0.0);
+    // The exact variant: bits behind the tangent plane set from the start, never counted.
+    var behind = 0u;
+    if acc.variant == VARIANT_EXACT && !f.whole {
+        for (var k = 0u; k < acc.nbits; k++) {
+            if !front_of(f, tables[HULL_SLOTS + k]) {
+                st.mask[k / 32u] |= 1u << (k % 32u);
+                behind += 1u;
+            }
+        }
+        st.n_set = behind;
+    }
     if kr.rings {
-        rings(&st, p, r, nrm, eps, eps_plane, kr.rect, kr.centre);
+        rings(&st, p, r, rp, f, kr.rect, kr.centre);
     } else {
         let rect = kr.rect;
         let step = kr.step;
@@ -515,7 +625,7 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
             for (var a = 0u; a < bx; a++) {
                 let i0 = rect.x + i32(a * step);
                 let i1 = min(i0 + i32(step), rect.z);
-                if visit(&st, p, r, nrm, eps, eps_plane, i0, i1, j0, j1) {
+                if visit(&st, p, r, rp, f, i0, i1, j0, j1) {
                     full = true;
                     break;
                 }
@@ -526,12 +636,12 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
         if st.n_set == acc.nbits {
             return 1.0;
         }
-        return f32(st.n_set) / f32(acc.nbits);
+        return f32(st.n_set - behind) / f32(acc.nbits - behind);
     }
-    if st.s_add >= 1.0 - 1e-6 {
+    if st.s_add >= f.fraction * (1.0 - 1e-6) {
         return 1.0;
     }
-    return clamp(st.s_add, 0.0, 1.0);
+    return clamp(st.s_add / f.fraction, 0.0, 1.0);
 }
 
 // CpuAccumulation::estimate_with, per receiver; NaN for a lit receiver outside the frustum

@@ -1,8 +1,8 @@
 //! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
 //! [`crate::math`]).
 use crate::math::{
-    caster, fixed_kernel_start, paper_plane_distance, quad_contains, Footprint, LightPatch,
-    SphereModel,
+    caster, fixed_kernel_start, paper_plane_distance, quad_contains, Footprint, FrontEdge,
+    LightPatch, SphereModel,
 };
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -13,8 +13,9 @@ use shadow_map_core::{
         SLOPE_BIAS,
     },
     params::FromParam,
-    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, Receivers, Report,
-    Result, Scene, SoftShadowEstimator,
+    receiver_plane::RECEIVER_PLANE,
+    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, ReceiverPlane,
+    Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -173,6 +174,8 @@ shadow_map_core::typed_params! {
             help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
             ..SLOPE_BIAS
         },
+        /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
+        receiver_plane: bool = RECEIVER_PLANE,
         /// Light-view window choice.
         fit: FitMode = FIT,
         /// Near/far choice.
@@ -184,6 +187,18 @@ shadow_map_core::typed_params! {
 pub const SPECS: &[ParamSpec] = Settings::SPECS;
 
 impl Settings {
+    /// The caster test of the receiver at light-space `p` with light-space unit normal `n` in
+    /// `view` ([`ReceiverPlane::new`] with `receiver_plane`, `bias`, `slope_bias`).
+    pub fn plane(&self, view: &LightView, p: Vec3, n: Vec3) -> ReceiverPlane {
+        ReceiverPlane::new(
+            self.receiver_plane,
+            view,
+            p,
+            n,
+            (self.bias, self.slope_bias),
+            0.0,
+        )
+    }
     /// Additive: whether a caster counts with its overlap area (`coverage=overlap`) rather than
     /// the paper's centre test.
     pub fn overlap(&self) -> bool {
@@ -420,8 +435,9 @@ pub struct TapStats {
     pub taps: u64,
 }
 
-/// The per-receiver algorithm over given light-space data: the shadowing factor s in [0, 1]
-/// (V = facing (1 - s)).
+/// The per-receiver algorithm over given light-space data: the shadowing factor s in [0, 1], the
+/// occluded fraction of the part of the light in front of the receiver's tangent plane
+/// (V = facing (1 - s), i.e. `facing - s_front`, see [`CpuAccumulation`]).
 pub struct Accumulator<'a> {
     /// The maps.
     pub ls: &'a LightSpace,
@@ -430,9 +446,10 @@ pub struct Accumulator<'a> {
 }
 
 impl Accumulator<'_> {
-    /// The kernel of one receiver: `None` when the adaptive kernel proves that no lexel occludes
-    /// (MSSM minimum at or behind the receiver).
-    pub fn kernel(&self, fp: &Footprint, uv: Vec2, zp: f32, eps: f32) -> Option<Kernel> {
+    /// The kernel of one receiver: `None` when the adaptive kernel proves that no lexel is a
+    /// caster for `plane` (the MSSM minimum over the kernel at or beyond the largest caster
+    /// threshold of its texels, [`ReceiverPlane::max_threshold`]).
+    pub fn kernel(&self, fp: &Footprint, uv: Vec2, plane: &ReceiverPlane) -> Option<Kernel> {
         let view = &self.ls.view;
         let bounds =
             |z: f32| bounds_rect(fp.texel_bounds(z, view.window_min, view.delta()), view.r);
@@ -457,7 +474,13 @@ impl Accumulator<'_> {
                         Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
                         None => f32::NEG_INFINITY,
                     };
-                    if zmin >= zp - eps {
+                    let bound = plane.max_threshold(
+                        rect[0] as f32,
+                        rect[2] as f32,
+                        rect[1] as f32,
+                        rect[3] as f32,
+                    );
+                    if zmin >= bound {
                         return None;
                     }
                     if !(zmin > zm) {
@@ -496,16 +519,18 @@ impl Accumulator<'_> {
     }
 
     /// The shadowing factor of the receiver at light-space `p` (normal `nrm`, texel coordinates
-    /// `uv`) with footprint `fp`.
+    /// `uv`) with footprint `fp`: the occluded fraction of the light in front of its tangent
+    /// plane.
     pub fn shadowing(&self, fp: &Footprint, nrm: Vec3, uv: Vec2, stats: &mut TapStats) -> f32 {
         let ls = self.ls;
         let view = &ls.view;
         let p = fp.r;
-        let zp = p.z;
-        let eps = view.receiver_bias(p, nrm, self.s.bias, self.s.slope_bias);
-        // Tangent-plane margin: b0 texel footprints at the receiver.
-        let eps_plane = view.w * zp / (view.n * view.r as f32) * self.s.bias;
-        let Some(kernel) = self.kernel(fp, uv, zp, eps) else {
+        let plane = self.s.plane(view, p, nrm);
+        let front = FrontEdge::new(&fp.patch, p, nrm);
+        if !(front.fraction > 0.0) {
+            return 0.0;
+        }
+        let Some(kernel) = self.kernel(fp, uv, &plane) else {
             return 0.0;
         };
         let delta = view.delta();
@@ -519,7 +544,11 @@ impl Accumulator<'_> {
         let mut bit_pts: Vec<Vec2> = Vec::new();
         let mut mask = [0u32; MASK_WORDS];
         let mut set = 0usize;
+        // Bits behind the tangent plane: set from the start, never counted as occluded.
+        let mut behind = 0usize;
         let mut s_add = 0.0f32;
+        // Additive: the front part of the light is fully occluded at this sum.
+        let s_full = front.fraction * (1.0 - 1e-6);
         // One cell [i0, i1) x [j0, j1): its centre texel's depth stands for the whole cell (a lexel
         // of a coarser map). Returns true when every bit is set.
         let mut visit = |i0: i32, i1: i32, j0: i32, j1: i32| -> bool {
@@ -530,15 +559,12 @@ impl Accumulator<'_> {
             for layer in &ls.layers[..layers] {
                 stats.taps += 1;
                 let cz = layer.at(ic, jc);
-                if !(cz < zp - eps) {
-                    break; // deeper layers are further still
-                }
-                // Only casters in front of the receiver's tangent plane can block the light the
-                // facing factor keeps (a segment from p to a light point in front of the plane
-                // stays in front of it): the receiver's own surface never occludes.
-                let c = Vec3::new(l.x, l.y, view.n) * (cz / view.n);
-                if !(nrm.dot(c - p) > eps_plane) {
-                    continue;
+                // The receiver-plane test of the sample itself (texel (ic, jc)): only samples in
+                // front of the receiver's tangent plane can block light that reaches it, and
+                // the receiver's own surface never does. A sample that fails is no nearer than
+                // the texel's threshold depth, and deeper layers are further still.
+                if !plane.caster(ic, jc, cz) {
+                    break;
                 }
                 let Some((lr, size)) = caster(p, view.n, l, cz) else {
                     continue;
@@ -547,9 +573,9 @@ impl Accumulator<'_> {
                 let hy = 0.5 * (j1 - j0) as f32 * delta * size;
                 if !exact {
                     s_add += if self.s.overlap() {
-                        fp.overlap_term(lr, hx, hy)
+                        fp.overlap_term_front(lr, hx, hy, &front)
                     } else {
-                        fp.additive_term(lr, 4.0 * hx * hy)
+                        fp.additive_term_front(lr, 4.0 * hx * hy, &front)
                     };
                     continue;
                 }
@@ -563,6 +589,15 @@ impl Accumulator<'_> {
                     bit_pts = (0..nbits as u32)
                         .map(|k| fp.patch.bit_local(k % bits, k / bits, bits))
                         .collect();
+                    if !front.whole {
+                        for (k, b) in bit_pts.iter().enumerate() {
+                            if !front.front(*b) {
+                                mask[k / 32] |= 1u32 << (k % 32);
+                                behind += 1;
+                            }
+                        }
+                        set = behind;
+                    }
                 }
                 for (k, b) in bit_pts.iter().enumerate() {
                     let (w, m) = (k / 32, 1u32 << (k % 32));
@@ -604,11 +639,11 @@ impl Accumulator<'_> {
             if set == nbits {
                 return 1.0;
             }
-            set as f32 / nbits as f32
-        } else if s_add >= 1.0 - 1e-6 {
+            (set - behind) as f32 / (nbits - behind) as f32
+        } else if s_add >= s_full {
             1.0
         } else {
-            s_add.clamp(0.0, 1.0)
+            (s_add / front.fraction).clamp(0.0, 1.0)
         }
     }
 }
@@ -624,12 +659,22 @@ impl Accumulator<'_> {
 ///    centre's plane or beyond 87 degrees off its axis) makes `estimate` fail with
 ///    [`Error::Receivers`] naming the count: V is never silently set to full light there.
 /// 3. The kernel ([`Accumulator::kernel`]); per lexel (and per peeled layer for the exact
-///    variant) with depth `c_z < z_p - eps` whose surface point lies in front of p's tangent plane
-///    (by `b0` texel footprints; points behind it cannot block the light the facing factor
-///    keeps), the elementary caster ([`caster`]).
-/// 4. additive: `s = clamp01(sum |Q_c ∩ F| J / A_L)` ([`Footprint::overlap_term`]) or, with
-///    `coverage = centre`, the paper's `clamp01(sum (size delta)^2 J(l_r) / A_L [l_r in F])`; exact:
-///    `s = popcount(bits) / B^2`. `V = facing (1 - s)`.
+///    variant) whose sample is a caster for p ([`ReceiverPlane`], `receiver_plane`: in front of
+///    p's tangent plane and nearer the light than p; the classic `c_z < z_p - eps` with
+///    `receiver_plane=false`), the elementary caster ([`caster`]). This is the one caster test:
+///    the receiver's own surface never shadows it, at any kernel size or angle, and no caster
+///    behind the tangent plane is taken (it could block only light the receiver does not see).
+/// 4. Occlusion is measured on the part of the light in front of p's tangent plane
+///    ([`FrontEdge`]: each caster's image on the light clipped by the plane's trace), the only
+///    light that reaches p: additive, `s_front = sum |Q_c ∩ F ∩ front| J / A_L`
+///    ([`Footprint::overlap_term_front`]) or, with `coverage = centre`, the paper's
+///    `sum (size delta)^2 J(l_r) / A_L [l_r in F, in front]`; exact, the bits behind the plane are
+///    set from the start and never counted, `s_front = popcount(front bits set) / B^2`.
+///    `V = facing - s_front`, computed as `facing (1 - min(1, s_front / f))` with `f` the patch's
+///    own front fraction (equal to `facing` when the patch is the light: rect, disk, the contract's
+///    sphere; the ratio keeps a fully covered front part at V = 0 for the paper's sphere model and
+///    for the bit grid). The former `V = facing (1 - s)`, s normalised over the whole light,
+///    was too bright by `s_front (1 - facing) / facing` on receivers lit at grazing angles.
 ///
 /// All surfaces are treated as opaque (the shadow map stores no opacity).
 pub struct CpuAccumulation {

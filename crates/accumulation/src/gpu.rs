@@ -243,7 +243,8 @@ impl GpuAccumulation {
         };
         let mssm = upload_planes(ctx, "accumulation mssm", mssm_size, &mssm_planes)?;
         let (au, tables) = uniform_and_tables(&s, &light.shape, ls);
-        let eu = EstimateUniform::new(light, s.bias, s.slope_bias);
+        let mut eu = EstimateUniform::new(light, s.bias, s.slope_bias);
+        eu.receiver_plane = u32::from(s.receiver_plane);
         let chunk = max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap);
         let packed = pack_receivers(receivers);
         let (groups, counters) = ctx.scoped(LABEL, || {

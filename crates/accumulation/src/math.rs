@@ -281,8 +281,19 @@ impl Footprint {
     /// `area` (plane units): `area J(lr) / A_L` when `lr` lies in the footprint, else 0.
     #[inline]
     pub fn additive_term(&self, lr: Vec2, area: f32) -> f32 {
+        self.additive_term_front(lr, area, &FrontEdge::EVERYTHING)
+    }
+
+    /// [`Footprint::additive_term`] on the part of the light in front of the receiver's tangent
+    /// plane: 0 unless `lr` backprojects onto the patch in front of `front`.
+    #[inline]
+    pub fn additive_term_front(&self, lr: Vec2, area: f32, front: &FrontEdge) -> f32 {
         match self.to_patch(lr) {
-            Some((local, w)) if self.patch.contains(local) => area * w,
+            Some((local, w))
+                if self.patch.contains(local) && (front.whole || front.front(local)) =>
+            {
+                area * w
+            }
             _ => 0.0,
         }
     }
@@ -297,6 +308,14 @@ impl Footprint {
     /// lights, R -> 0: the hard-shadow limit).
     #[inline]
     pub fn overlap_term(&self, lr: Vec2, hx: f32, hy: f32) -> f32 {
+        self.overlap_term_front(lr, hx, hy, &FrontEdge::EVERYTHING)
+    }
+
+    /// [`Footprint::overlap_term`] on the part of the light in front of the receiver's tangent
+    /// plane: the caster's image on the patch clipped by `front` ([`FrontEdge::clip`]) before
+    /// its area is taken (not clipped when the whole patch is in front).
+    #[inline]
+    pub fn overlap_term_front(&self, lr: Vec2, hx: f32, hy: f32, front: &FrontEdge) -> f32 {
         let area = match self.patch.shape {
             PatchShape::Rect(h) => {
                 let Some((local, w)) = self.to_patch(lr) else {
@@ -305,9 +324,23 @@ impl Footprint {
                 // w = J / A_L, so J = w / inv_area.
                 let sj = (w / self.inv_area).sqrt();
                 let (ax, ay) = (hx * sj, hy * sj);
-                let dx = ((local.x + ax).min(h.x) - (local.x - ax).max(-h.x)).max(0.0);
-                let dy = ((local.y + ay).min(h.y) - (local.y - ay).max(-h.y)).max(0.0);
-                dx * dy
+                let (x0, x1) = ((local.x - ax).max(-h.x), (local.x + ax).min(h.x));
+                let (y0, y1) = ((local.y - ay).max(-h.y), (local.y + ay).min(h.y));
+                let dx = (x1 - x0).max(0.0);
+                let dy = (y1 - y0).max(0.0);
+                if front.whole || dx * dy == 0.0 {
+                    dx * dy
+                } else {
+                    let q = [
+                        Vec2::new(x0, y0),
+                        Vec2::new(x1, y0),
+                        Vec2::new(x1, y1),
+                        Vec2::new(x0, y1),
+                    ];
+                    let mut c = [Vec2::ZERO; MAX_CLIP];
+                    let m = front.clip(&q, &mut c);
+                    poly_area(&c[..m])
+                }
             }
             PatchShape::Disk(r) => {
                 let mut q = [Vec2::ZERO; 4];
@@ -320,7 +353,13 @@ impl Footprint {
                     };
                     q[k] = local;
                 }
-                quad_disk_area(q, r)
+                if front.whole {
+                    quad_disk_area(q, r)
+                } else {
+                    let mut c = [Vec2::ZERO; MAX_CLIP];
+                    let m = front.clip(&q, &mut c);
+                    poly_disk_area(&c[..m], r)
+                }
             }
         };
         area * self.inv_area
@@ -366,32 +405,44 @@ impl Footprint {
 /// sum is the signed area. Shortcuts: bounding boxes apart (0), every corner inside (the shoelace
 /// area), the disk inside the quadrilateral (`pi r^2`). Never NaN for finite inputs.
 pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
-    if !(r > 0.0) {
+    poly_disk_area(&q, r)
+}
+
+/// [`quad_disk_area`] for any convex polygon (corners in order, either orientation; up to
+/// [`MAX_CLIP`] of them): the quadrilateral clipped by the receiver's tangent plane
+/// ([`FrontEdge::clip`]) takes it.
+pub fn poly_disk_area(q: &[Vec2], r: f32) -> f32 {
+    let m = q.len();
+    if !(r > 0.0) || m < 3 {
         return 0.0;
     }
-    let lo = q[0].min(q[1]).min(q[2]).min(q[3]);
-    let hi = q[0].max(q[1]).max(q[2]).max(q[3]);
+    let mut lo = q[0];
+    let mut hi = q[0];
+    for p in &q[1..] {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
     if !(lo.x < r && lo.y < r && hi.x > -r && hi.y > -r) {
         return 0.0;
     }
     let full = std::f32::consts::PI * r * r;
     if q.iter().all(|p| p.length_squared() <= r * r) {
         let mut a = 0.0f32;
-        for k in 0..4 {
-            a += q[k].perp_dot(q[(k + 1) % 4]);
+        for k in 0..m {
+            a += q[k].perp_dot(q[(k + 1) % m]);
         }
         return (0.5 * a).abs().min(full);
     }
-    // The disk inside the quadrilateral: the centre at least r inside every edge (signed by the
+    // The disk inside the polygon: the centre at least r inside every edge (signed by the
     // orientation).
     let mut a2 = 0.0f32;
-    for k in 0..4 {
-        a2 += q[k].perp_dot(q[(k + 1) % 4]);
+    for k in 0..m {
+        a2 += q[k].perp_dot(q[(k + 1) % m]);
     }
     let orient = if a2 < 0.0 { -1.0f32 } else { 1.0 };
     let mut contains = true;
-    for k in 0..4 {
-        let e = q[(k + 1) % 4] - q[k];
+    for k in 0..m {
+        let e = q[(k + 1) % m] - q[k];
         // Signed distance of the origin from the edge line, positive inside.
         let d = orient * e.perp_dot(-q[k]);
         if !(d >= r * e.length()) {
@@ -403,9 +454,9 @@ pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
     }
     let outside = |p: Vec2, e: Vec2| 0.5 * r * r * p.perp_dot(e).atan2(p.dot(e));
     let mut area = 0.0f32;
-    for k in 0..4 {
+    for k in 0..m {
         let p0 = q[k];
-        let p1 = q[(k + 1) % 4];
+        let p1 = q[(k + 1) % m];
         let d = p1 - p0;
         let a = d.dot(d);
         let b = p0.dot(d);
@@ -431,6 +482,102 @@ pub fn quad_disk_area(q: [Vec2; 4], r: f32) -> f32 {
         }
     }
     area.abs().min(full)
+}
+
+/// Most corners of a convex quadrilateral clipped by one half-plane.
+pub const MAX_CLIP: usize = 5;
+
+/// The trace of the receiver's tangent plane on the light patch, in the patch's in-plane
+/// coordinates: the light point `X = e1 x + e2 y` lies in front of the plane through `p` with
+/// normal `nrm` (`nrm.(X - p) > 0`) when `a.(x, y) > c`, `a = (nrm.e1, nrm.e2)`, `c = nrm.p`.
+///
+/// Only light in front of the plane reaches the receiver, and a caster can hide only that part
+/// (the line from p through a caster in front of the plane meets the light in front of it), so
+/// the estimators measure occlusion on the front part: `s_front`, the occluded fraction of the
+/// light's area that lies in front, and `V = facing - s_front` (docs: [`crate::cpu`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrontEdge {
+    /// `(nrm.e1, nrm.e2)`.
+    pub a: Vec2,
+    /// `nrm.p`.
+    pub c: f32,
+    /// The whole patch is in front (every hull point): nothing to clip.
+    pub whole: bool,
+    /// The fraction of the patch's area in front of the plane
+    /// ([`shadow_map_core::light::front_fraction`] on the patch).
+    pub fraction: f32,
+}
+
+impl FrontEdge {
+    /// No plane: the whole light counts (the plain [`Footprint::overlap_term`]).
+    pub const EVERYTHING: FrontEdge = FrontEdge {
+        a: Vec2::ZERO,
+        c: -1.0,
+        whole: true,
+        fraction: 1.0,
+    };
+    /// The tangent plane of the receiver `p` (light space) with unit normal `nrm`, on `patch`.
+    pub fn new(patch: &LightPatch, p: Vec3, nrm: Vec3) -> FrontEdge {
+        let a = Vec2::new(nrm.dot(patch.e1), nrm.dot(patch.e2));
+        let c = nrm.dot(p);
+        let whole = (0..patch.hull_points()).all(|k| a.dot(patch.hull_local(k)) > c);
+        let fraction = if whole {
+            1.0
+        } else {
+            let shape = match patch.shape {
+                PatchShape::Disk(r) => LightShape::Disk { radius: r },
+                PatchShape::Rect(h) => LightShape::Rect {
+                    size: [2.0 * h.x, 2.0 * h.y],
+                },
+            };
+            let pl = Vec3::new(p.dot(patch.e1), p.dot(patch.e2), p.dot(patch.a));
+            let nl = Vec3::new(a.x, a.y, nrm.dot(patch.a));
+            shadow_map_core::light::front_fraction(&shape, pl, nl)
+        };
+        FrontEdge {
+            a,
+            c,
+            whole,
+            fraction,
+        }
+    }
+    /// The patch plane's point `local` (in-plane coordinates) lies in front.
+    #[inline]
+    pub fn front(&self, local: Vec2) -> bool {
+        self.a.dot(local) > self.c
+    }
+    /// The convex polygon `q` clipped to the front (Sutherland-Hodgman, one edge): its corners
+    /// in `out`, their count returned (0 when `q` lies behind).
+    #[inline]
+    pub fn clip(&self, q: &[Vec2; 4], out: &mut [Vec2; MAX_CLIP]) -> usize {
+        let mut m = 0;
+        for k in 0..4 {
+            let p0 = q[k];
+            let p1 = q[(k + 1) % 4];
+            let f0 = self.a.dot(p0) - self.c;
+            let f1 = self.a.dot(p1) - self.c;
+            if f0 > 0.0 {
+                out[m] = p0;
+                m += 1;
+            }
+            if (f0 > 0.0) != (f1 > 0.0) {
+                out[m] = p0 + (p1 - p0) * (f0 / (f0 - f1));
+                m += 1;
+            }
+        }
+        m
+    }
+}
+
+/// Shoelace area of a polygon (corners in order, either orientation).
+#[inline]
+pub fn poly_area(q: &[Vec2]) -> f32 {
+    let m = q.len();
+    let mut a = 0.0f32;
+    for k in 0..m {
+        a += q[k].perp_dot(q[(k + 1) % m]);
+    }
+    (0.5 * a).abs()
 }
 
 /// True when `b` lies in the convex quadrilateral `q` (either orientation, boundary included).

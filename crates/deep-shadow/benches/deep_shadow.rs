@@ -59,10 +59,10 @@ fn bench(c: &mut Criterion) {
     });
     let mut dsm = processed.clone();
     dsm.link();
-    let looks: Vec<(Vec2, f32)> = (0..rec.len())
+    let looks: Vec<(Vec2, shadow_map_core::ReceiverPlane)> = (0..rec.len())
         .filter(|&k| rec.active[k])
         .filter_map(|k| match query(&view, rec.position[k], rec.normal[k], &s) {
-            Query::Look { uv, d } => Some((uv, d)),
+            Query::Look { uv, plane } => Some((uv, plane)),
             Query::Fixed(_) => None,
         })
         .collect();
@@ -83,7 +83,7 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| {
                     looks
                         .iter()
-                        .map(|(uv, d)| dsm.transmittance(*uv, *d, &ls).0)
+                        .map(|(uv, plane)| dsm.transmittance_plane(*uv, plane, &ls).0)
                         .sum::<f32>()
                 })
             });

@@ -1,6 +1,6 @@
 //! The CPU twin, [`CpuDeepShadow`], and the per-view set-up both twins share: sub-light points,
 //! the fitted view of each, and what each receiver looks up in it.
-use crate::dsm::{transmittance_opaque, DeepShadowMap, Filter, LookupSettings};
+use crate::dsm::{transmittance_opaque_plane, DeepShadowMap, Filter, LookupSettings};
 use crate::params::{self, Settings, DESCRIPTION, NAME, SPECS};
 use crate::raster::{fragments, prepare};
 use glam::{Vec2, Vec3};
@@ -8,8 +8,8 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},
-    DepthMap, Error, LightShape, LightView, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    DepthMap, Error, LightShape, LightView, Params, ReceiverPlane, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::time::Instant;
 
@@ -180,12 +180,13 @@ pub enum Query {
     /// plane or the receiver behind the light point; 1 when the receiver is nearer than n (nothing
     /// recorded is nearer).
     Fixed(f32),
-    /// Look up at continuous texel coordinates `uv` and depth `d = z_p - eps`.
+    /// Look up at continuous texel coordinates `uv` with the receiver's caster test.
     Look {
         /// Texel coordinates.
         uv: Vec2,
-        /// Biased receiver depth.
-        d: f32,
+        /// Which fragments attenuate: receiver-plane rejection, or the classic `z < z_p - eps`
+        /// with `receiver_plane=false` ([`ReceiverPlane::new`]).
+        plane: ReceiverPlane,
     },
 }
 
@@ -204,10 +205,9 @@ pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
         return Query::Fixed(1.0);
     }
     let n = view.frame.dir_to_light(nw);
-    let eps = view.receiver_bias(p, n, s.bias, s.slope_bias);
     Query::Look {
         uv: view.project(p),
-        d: p.z - eps,
+        plane: ReceiverPlane::new(s.receiver_plane, view, p, n, (s.bias, s.slope_bias), 0.0),
     }
 }
 
@@ -255,7 +255,8 @@ pub fn build_deep_map_timed(
 /// Deep shadow maps on the CPU (Fürst et al.), with soft transmittance from S x S sub-lights.
 ///
 /// Per sub-light point y: a deep shadow map from y ([`build_deep_map`]), then for each receiver p
-/// `T_y(p)` = the filtered transmittance at `d = z_p - eps` ([`DeepShadowMap::transmittance`]),
+/// `T_y(p)` = the filtered transmittance of the fragments that are casters for p (receiver-plane
+/// rejection, or `z < z_p - eps` with `receiver_plane=false`; [`DeepShadowMap::transmittance_plane`]),
 /// 0 when y is behind p's tangent plane. `V(p) = (1/S^2) sum_y T_y(p)`, 0 behind a one-sided light.
 /// One map is alive at a time.
 ///
@@ -479,13 +480,13 @@ impl SoftShadowEstimator for CpuDeepShadow {
                             *a += x;
                             (0, 0)
                         }
-                        Query::Look { uv, d } => match &map {
+                        Query::Look { uv, plane } => match &map {
                             Source::Opaque(m) => {
-                                *a += transmittance_opaque(m, uv, d, &ls);
+                                *a += transmittance_opaque_plane(m, uv, &plane, &ls);
                                 (1, 0)
                             }
                             Source::Deep(dsm) => {
-                                let (tr, st) = dsm.transmittance(uv, d, &ls);
+                                let (tr, st) = dsm.transmittance_plane(uv, &plane, &ls);
                                 *a += tr;
                                 (1, st as u64)
                             }

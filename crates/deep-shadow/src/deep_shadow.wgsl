@@ -60,7 +60,8 @@ struct Counters {
 @group(0) @binding(3) var<storage, read_write> head: array<atomic<u32>>;
 @group(0) @binding(4) var<storage, read_write> nodes: array<Node>;
 @group(0) @binding(5) var<storage, read_write> counters: Counters;
-// (u, v, d, fixed): fixed >= 0 is the transmittance without a lookup.
+// Two per query (gpu.rs PackedQuery): (u, v, z_p, fixed), fixed >= 0 the transmittance without a
+// lookup; then the caster test (g0, gu, gv, c) of shadow_map_core::ReceiverPlane (hs = 0).
 @group(0) @binding(6) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> out_t: array<f32>;
 
@@ -275,6 +276,45 @@ fn link(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
     link_list(h, upper, true);
 }
 
+// ReceiverPlane::caster (math.wgsl plane_caster, hs = 0): the fragment at depth z in texel (i, j)
+// attenuates the receiver of query q0 = (u, v, z_p, _), q1 = (g0, gu, gv, c).
+fn q_caster(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32, z: f32) -> bool {
+    let g = q1.x + q1.y * (f32(i) + 0.5) + q1.z * (f32(j) + 0.5);
+    return z == z && abs(z) <= 3.40282347e38 && z < q0.z && z * g < q1.w;
+}
+
+// dsm::caster_depth: ReceiverPlane::threshold_at at the centre of texel (i, j): exact where the
+// ray descends towards the tangent plane (g > 0), z_p elsewhere.
+fn q_threshold(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> f32 {
+    let g = q1.x + q1.y * (f32(i) + 0.5) + q1.z * (f32(j) + 0.5);
+    if g > 0.0 {
+        return min(q1.w / g, q0.z);
+    }
+    return q0.z;
+}
+
+// dsm::find_by with q_caster in texel (i, j): the last element that is a caster, searched from
+// `start` along next or prev; and the steps.
+fn find_caster(start: u32, q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> vec2<u32> {
+    var s = start;
+    var steps = 1u;
+    if (q_caster(q0, q1, i, j, nodes[s].depth)) {
+        loop {
+            let nx = nodes[s].next;
+            if (nx != NIL && q_caster(q0, q1, i, j, nodes[nx].depth)) { s = nx; steps++; } else { break; }
+        }
+        return vec2<u32>(s, steps);
+    }
+    loop {
+        let pv = nodes[s].prev;
+        if (pv == NIL) { return vec2<u32>(NIL, steps); }
+        s = pv;
+        steps++;
+        if (q_caster(q0, q1, i, j, nodes[s].depth)) { return vec2<u32>(s, steps); }
+    }
+    return vec2<u32>(NIL, steps);
+}
+
 // The last element with depth < d, searched from `start` along next or prev; and the steps.
 fn find(start: u32, d: f32) -> vec2<u32> {
     var s = start;
@@ -320,10 +360,10 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
           @builtin(local_invocation_id) lid: vec3<u32>) {
     let q_id = linear_id(wid, nwg, lid);
     if (q_id >= P.n_queries) { return; }
-    let q = queries[q_id];
+    let q = queries[2u * q_id];
+    let q1 = queries[2u * q_id + 1u];
     if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
     let r = i32(P.r);
-    let d = q.z;
     let ci = i32(floor(q.x));
     let cj = i32(floor(q.y));
     let n = kernel_side();
@@ -351,7 +391,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
             }
             if (P.filter_mode == FILTER_FIRST) {
                 steps++;
-                if (!(nodes[hd].depth < d)) { sum += 1.0; }
+                if (!q_caster(q, q1, i, j, nodes[hd].depth)) { sum += 1.0; }
                 continue;
             }
             var start = hd;
@@ -364,7 +404,14 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
                     if (link != NIL) { start = link; }
                 }
             }
-            let f = find(start, d);
+            var f: vec2<u32>;
+            var d = 0.0;
+            if (P.filter_mode == FILTER_EDSM) {
+                d = q_threshold(q, q1, i, j);
+                f = find(start, d);
+            } else {
+                f = find_caster(start, q, q1, i, j);
+            }
             let k = f.x;
             steps += f.y;
             if (P.filter_mode == FILTER_EDSM) {
@@ -389,10 +436,10 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
                  @builtin(local_invocation_id) lid: vec3<u32>) {
     let q_id = linear_id(wid, nwg, lid);
     if (q_id >= P.n_queries) { return; }
-    let q = queries[q_id];
+    let q = queries[2u * q_id];
+    let q1 = queries[2u * q_id + 1u];
     if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
     let r = i32(P.r);
-    let d = q.z;
     let ci = i32(floor(q.x));
     let cj = i32(floor(q.y));
     let n = kernel_side();
@@ -407,10 +454,10 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
                 let bits = atomicLoad(&head[u32(j * r + i)]);
                 if (bits != NIL) {
                     let z = bitcast<f32>(bits);
-                    if (z < d) {
+                    if (q_caster(q, q1, i, j, z)) {
                         lit = 0.0;
                         if (P.filter_mode == FILTER_EDSM) {
-                            let t = (d - z) * P.c_world;
+                            let t = max((q_threshold(q, q1, i, j) - z) * P.c_world, 0.0);
                             if (t < EDSM_CUTOFF) { lit = exp(-t); }
                         }
                     }

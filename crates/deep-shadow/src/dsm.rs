@@ -6,7 +6,7 @@ use crate::raster::Fragment;
 use crate::shared::{Node, NIL};
 use glam::Vec2;
 use rayon::prelude::*;
-use shadow_map_core::{DepthMap, Error, Result};
+use shadow_map_core::{DepthMap, Error, ReceiverPlane, Result};
 
 /// How a lookup filters the transmittance over the shadow-map plane.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -219,9 +219,25 @@ impl DeepShadowMap {
         });
     }
 
-    /// Transmittance at light-space depth `d` (the receiver depth minus its bias) for the point
-    /// with continuous texel coordinates `uv`, filtered as `s` says. Returns `(T, elements visited)`.
+    /// Transmittance at light-space depth `d` for the point with continuous texel coordinates
+    /// `uv`, filtered as `s` says: [`DeepShadowMap::transmittance_plane`] with the plain depth
+    /// test `z < d` ([`depth_test`]). Returns `(T, elements visited)`.
     pub fn transmittance(&self, uv: Vec2, d: f32, s: &LookupSettings) -> (f32, u32) {
+        self.transmittance_plane(uv, &depth_test(d), s)
+    }
+
+    /// Transmittance for the receiver with continuous texel coordinates `uv` and caster test
+    /// `plane` ([`ReceiverPlane`]: receiver-plane rejection, or the classic `z < z_p - eps`),
+    /// filtered as `s` says. In tap (i, j) a fragment attenuates only when it is a caster,
+    /// `plane.caster(i, j, z)` (`first`, `none`, `pcf`); EDSM, continuous in depth, measures
+    /// `d - z_j` from the tap's threshold depth `d` ([`caster_depth`]: `plane.threshold_at` at
+    /// the texel centre), the per-texel form of `z_p - eps`. Returns `(T, elements visited)`.
+    pub fn transmittance_plane(
+        &self,
+        uv: Vec2,
+        plane: &ReceiverPlane,
+        s: &LookupSettings,
+    ) -> (f32, u32) {
         let r = self.r as i32;
         let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
         let n = match s.filter {
@@ -256,7 +272,7 @@ impl DeepShadowMap {
                 }
                 if s.filter == Filter::First {
                     steps += 1;
-                    sum += if self.nodes[hd as usize].depth < d {
+                    sum += if plane.caster(i, j, self.nodes[hd as usize].depth) {
                         0.0
                     } else {
                         1.0
@@ -281,7 +297,14 @@ impl DeepShadowMap {
                         }
                     }
                 };
-                let (k, st) = find(&self.nodes, start, d);
+                let (k, st, d) = if s.filter == Filter::Edsm {
+                    let d = caster_depth(plane, i, j);
+                    let (k, st) = find(&self.nodes, start, d);
+                    (k, st, d)
+                } else {
+                    let (k, st) = find_by(&self.nodes, start, |z| plane.caster(i, j, z));
+                    (k, st, 0.0)
+                };
                 steps += st;
                 sum += match s.filter {
                     Filter::Edsm => soft_tau(&self.nodes, k, d, s.c_world),
@@ -308,16 +331,45 @@ impl DeepShadowMap {
     }
 }
 
+/// The depth EDSM measures a tap's fragments from, in texel (i, j): the plane's caster-depth bound
+/// at the texel centre ([`ReceiverPlane::threshold_at`]: `z_p - eps` under the classic test;
+/// `z_p` where the ray does not descend towards the tangent plane).
+#[inline]
+pub fn caster_depth(plane: &ReceiverPlane, i: i32, j: i32) -> f32 {
+    plane.threshold_at(Vec2::new(i as f32 + 0.5, j as f32 + 0.5))
+}
+
+/// The caster test of a plain depth `d`: `z < d` (the form the lookups took before receiver-plane
+/// rejection; [`ReceiverPlane::caster`] of it is exactly `z < d` for finite z).
+pub fn depth_test(d: f32) -> ReceiverPlane {
+    ReceiverPlane {
+        g0: 1.0,
+        gu: 0.0,
+        gv: 0.0,
+        c: d,
+        zp: d,
+        hs: 0.0,
+    }
+}
+
 /// The last element of a sorted list with `depth < d` ([`NIL`] when none), searched from `start`
 /// (any element of the list) along `next` or `prev`. Returns it and the elements visited.
 #[inline]
 pub fn find(nodes: &[Node], start: u32, d: f32) -> (u32, u32) {
+    find_by(nodes, start, |z| z < d)
+}
+
+/// [`find`] with any test `caster(depth)` that holds for a prefix of the sorted list (true up to
+/// some depth, false beyond, as [`ReceiverPlane::caster`] in one texel): the last element that
+/// passes ([`NIL`] when none). Returns it and the elements visited.
+#[inline]
+pub fn find_by(nodes: &[Node], start: u32, caster: impl Fn(f32) -> bool) -> (u32, u32) {
     let mut s = start;
     let mut steps = 1;
-    if nodes[s as usize].depth < d {
+    if caster(nodes[s as usize].depth) {
         loop {
             let nx = nodes[s as usize].next;
-            if nx != NIL && nodes[nx as usize].depth < d {
+            if nx != NIL && caster(nodes[nx as usize].depth) {
                 s = nx;
                 steps += 1;
             } else {
@@ -332,7 +384,7 @@ pub fn find(nodes: &[Node], start: u32, d: f32) -> (u32, u32) {
         }
         s = pv;
         steps += 1;
-        if nodes[s as usize].depth < d {
+        if caster(nodes[s as usize].depth) {
             return (s, steps);
         }
     }
@@ -460,6 +512,18 @@ unsafe fn link_list(nodes: *mut Node, a: u32, b: u32, upper: bool) {
 /// The opaque path: no lists, an ordinary shadow map (the nearest depth per texel) read with the
 /// same filters; each texel acts as a one-element list with alpha = 1.
 pub fn transmittance_opaque(map: &DepthMap, uv: Vec2, d: f32, s: &LookupSettings) -> f32 {
+    transmittance_opaque_plane(map, uv, &depth_test(d), s)
+}
+
+/// [`transmittance_opaque`] with the caster test `plane`: a tap's sample occludes when
+/// `plane.caster(i, j, z)`; EDSM's soft factor `exp(-c' (d - z))` measures from the tap's
+/// threshold depth `d` ([`caster_depth`], as [`DeepShadowMap::transmittance_plane`]).
+pub fn transmittance_opaque_plane(
+    map: &DepthMap,
+    uv: Vec2,
+    plane: &ReceiverPlane,
+    s: &LookupSettings,
+) -> f32 {
     let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
     let n = match s.filter {
         Filter::First | Filter::None => 1,
@@ -469,10 +533,12 @@ pub fn transmittance_opaque(map: &DepthMap, uv: Vec2, d: f32, s: &LookupSettings
     let mut sum = 0.0;
     for b in 0..n {
         for a in 0..n {
-            let z = map.at(ci - h + a, cj - h + b);
-            sum += if z < d {
+            let (i, j) = (ci - h + a, cj - h + b);
+            let z = map.at(i, j);
+            sum += if plane.caster(i, j, z) {
                 if s.filter == Filter::Edsm {
-                    let t = (d - z) * s.c_world;
+                    let d = caster_depth(plane, i, j);
+                    let t = ((d - z) * s.c_world).max(0.0);
                     if t >= EDSM_CUTOFF {
                         0.0
                     } else {

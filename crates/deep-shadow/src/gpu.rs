@@ -14,7 +14,7 @@
 //! `atomicExchange` on the head; past the capacity only the counter moves), a counter readback
 //! (capacity check: grow and rebuild, or [`Error::Limit`]), `process` (sort, tau, prev, truncation),
 //! `link`, then `lookup` per receiver. The receivers' light-space queries (texel coordinates,
-//! biased depth, facing) are computed on the CPU with the CPU twin's code
+//! caster test, facing) are computed on the CPU with the CPU twin's code
 //! ([`crate::cpu::query`]) and uploaded. A fully opaque scene takes `raster_opaque` (an
 //! `atomicMin` of the depth bits into the head buffer: an ordinary shadow map, no lists) and
 //! `lookup_opaque`.
@@ -26,6 +26,7 @@ use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
 use crate::params::{self, Settings, SPECS};
 use crate::raster::prepare;
 use crate::shared::{DsUniform, Node, Tri};
+use glam::Vec2;
 use shadow_map_core::{
     gpu::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
@@ -544,20 +545,21 @@ impl GpuDeepShadow {
         })
     }
 
-    /// Filtered transmittance for each query `(u, v, d, fixed)` (fixed >= 0: no lookup), and the
-    /// list elements visited.
+    /// Filtered transmittance for each packed query ([`pack_query`]; fixed >= 0: no lookup), and
+    /// the list elements visited.
     pub fn lookup(
         &self,
         map: &GpuMap,
         ls: &LookupSettings,
-        queries: &[[f32; 4]],
+        queries: &[PackedQuery],
     ) -> Result<(Vec<f32>, u64)> {
         let ctx = &self.ctx;
         let n = queries.len();
         if n == 0 {
             return Ok((Vec::new(), 0));
         }
-        let max_q = (ctx.limits().max_storage_buffer_binding_size as usize) / 16;
+        let max_q = (ctx.limits().max_storage_buffer_binding_size as usize)
+            / std::mem::size_of::<PackedQuery>();
         let mut out = Vec::with_capacity(n);
         let mut steps = 0u64;
         for part in queries.chunks(max_q.max(1)) {
@@ -617,12 +619,26 @@ impl GpuDeepShadow {
     }
 }
 
-/// Packs a [`Query`] as the WGSL reads it.
-pub fn pack_query(q: Query) -> [f32; 4] {
+/// A [`Query`] as the WGSL reads it, two `vec4`s: `(u, v, z_p, fixed)` (fixed >= 0: the
+/// transmittance, no lookup) and the caster test's `(g0, gu, gv, c)` ([`shadow_map_core::ReceiverPlane`]; its
+/// `hs` is always 0 here, deep shadow maps store f32 depths).
+pub type PackedQuery = [f32; 8];
+
+/// Packs a [`Query`] as the WGSL reads it ([`PackedQuery`]).
+pub fn pack_query(q: Query) -> PackedQuery {
     match q {
-        Query::Fixed(x) => [0.0, 0.0, 0.0, x],
-        Query::Look { uv, d } => [uv.x, uv.y, d, -1.0],
+        Query::Fixed(x) => [0.0, 0.0, 0.0, x, 0.0, 0.0, 0.0, 0.0],
+        Query::Look { uv, plane: p } => [uv.x, uv.y, p.zp, -1.0, p.g0, p.gu, p.gv, p.c],
     }
+}
+
+/// The packed query of a lookup at `uv` with the plain depth test `z < d`
+/// ([`crate::dsm::depth_test`]).
+pub fn pack_depth_query(uv: Vec2, d: f32) -> PackedQuery {
+    pack_query(Query::Look {
+        uv,
+        plane: crate::dsm::depth_test(d),
+    })
 }
 
 impl SoftShadowEstimator for GpuDeepShadow {
@@ -667,12 +683,12 @@ impl SoftShadowEstimator for GpuDeepShadow {
                 .max((map.head.size() + map.nodes.size()) as usize);
             t_build += t.elapsed().as_secs_f64() * 1e3;
             let t = Instant::now();
-            let queries: Vec<[f32; 4]> = (0..receivers.len())
+            let queries: Vec<PackedQuery> = (0..receivers.len())
                 .map(|k| {
                     if receivers.active[k] {
                         pack_query(query(&view, receivers.position[k], receivers.normal[k], &s))
                     } else {
-                        [0.0; 4]
+                        [0.0; 8]
                     }
                 })
                 .collect();

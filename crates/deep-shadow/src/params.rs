@@ -3,6 +3,7 @@ use crate::dsm::{Filter, Traversal};
 use shadow_map_core::{
     light_view::{FitMode, NearFar, ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION, SLOPE_BIAS},
     params::FromParam,
+    receiver_plane::RECEIVER_PLANE,
     Error, ParamKind, ParamSpec, ParamValue, Params, Result,
 };
 
@@ -89,6 +90,8 @@ shadow_map_core::typed_params! {
             help: "slope-scaled bias: texel footprints times min(tan(theta), 10)",
             ..SLOPE_BIAS
         },
+        /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
+        receiver_plane: bool = RECEIVER_PLANE,
         /// Initial capacity (0: auto).
         capacity: u64 = ParamSpec {
             key: "capacity",

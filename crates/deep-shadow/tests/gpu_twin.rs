@@ -14,6 +14,7 @@ use common::*;
 use deep_shadow::{
     cpu::{build_deep_map, sublight_view},
     dsm::{DeepShadowMap, Filter, LookupSettings, Traversal},
+    gpu::{pack_depth_query, PackedQuery},
     params::Settings,
     shared::NIL,
     CpuDeepShadow, GpuDeepShadow,
@@ -266,8 +267,11 @@ impl TwinPair for DeepShadow {
                 let gm = g.build_lists(&scene, &v, &s).unwrap();
                 let gr = g.read_map(&gm).unwrap();
                 compare_maps(&cm, &gr)?;
-                let queries: Vec<[f32; 4]> =
-                    c.queries.iter().map(|q| [q.0, q.1, q.2, -1.0]).collect();
+                let queries: Vec<PackedQuery> = c
+                    .queries
+                    .iter()
+                    .map(|q| pack_depth_query(Vec2::new(q.0, q.1), q.2))
+                    .collect();
                 for filter in [Filter::First, Filter::None, Filter::Pcf, Filter::Edsm] {
                     for kernel in [3, 7] {
                         for traversal in [Traversal::Linked, Traversal::Naive] {

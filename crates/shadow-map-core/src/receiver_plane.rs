@@ -142,20 +142,20 @@ impl ReceiverPlane {
     pub fn caster(&self, i: i32, j: i32, z: f32) -> bool {
         self.caster_at(Vec2::new(i as f32 + 0.5, j as f32 + 0.5), z)
     }
-    /// The depth below which a sample on the ray through `uv` is a caster (`+inf` when every
-    /// finite sample on it is): the per-texel form of `z_p - eps`, for estimators that need a
-    /// depth (a min-depth hierarchy's bound, a blocker's distance).
+    /// An upper bound on the depth of any caster on the ray through `uv`, the per-texel form of
+    /// `z_p - eps` for estimators that need a depth (a min-depth hierarchy's bound, a blocker's
+    /// distance). Where the ray descends towards the plane (`g > 0`) it is exact: a sample is a
+    /// caster iff its depth is below `min(z_p, c / g - hs)`. Where it does not (`g <= 0`) the
+    /// casters are the samples deeper than `c / g` (every one when `c > 0`) and nearer than
+    /// `z_p`, so the bound is `z_p`.
     #[inline]
     pub fn threshold_at(&self, uv: Vec2) -> f32 {
         let g = self.slope_at(uv);
-        let t = if g > 0.0 {
-            self.c / g - self.hs
-        } else if self.c > 0.0 {
-            f32::INFINITY
+        if g > 0.0 {
+            (self.c / g - self.hs).min(self.zp)
         } else {
-            f32::NEG_INFINITY
-        };
-        t.min(self.zp)
+            self.zp
+        }
     }
     /// The largest [`threshold_at`](Self::threshold_at) over the texel rectangle
     /// `[u0, u1] x [v0, v1]` (continuous coordinates): `g` is affine, so the extreme is at a

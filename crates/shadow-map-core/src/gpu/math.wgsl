@@ -335,11 +335,16 @@ fn plane_caster(rp: ReceiverPlane, i: i32, j: i32, z: f32) -> bool {
 // ReceiverPlane::threshold_at.
 fn plane_threshold_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
     let g = plane_slope_at(rp, uv);
-    var t = -pos_inf();
     if g > 0.0 {
-        t = rp.c / g - rp.hs;
-    } else if rp.c > 0.0 {
-        t = pos_inf();
+        return min(rp.c / g - rp.hs, rp.zp);
     }
-    return min(t, rp.zp);
+    return rp.zp;
+}
+
+// ReceiverPlane::max_threshold over the texel rectangle [u0, u1] x [v0, v1] (g is affine: the
+// largest bound is at a corner).
+fn plane_max_threshold(rp: ReceiverPlane, u0: f32, u1: f32, v0: f32, v1: f32) -> f32 {
+    let a = max(plane_threshold_at(rp, vec2<f32>(u0, v0)), plane_threshold_at(rp, vec2<f32>(u1, v0)));
+    let b = max(plane_threshold_at(rp, vec2<f32>(u0, v1)), plane_threshold_at(rp, vec2<f32>(u1, v1)));
+    return max(a, b);
 }
