@@ -22,7 +22,7 @@ struct BpUniform {
     mssm_present: u32,
     mssm_levels: u32,
     mssm_size: u32,
-    _pad0: u32,
+    first_nonzero: u32,
     _pad1: u32,
 }
 
@@ -86,26 +86,66 @@ struct Kernel {
     by: u32,
 }
 
-// cpu.rs: true depth of the furthest occluding layer at block (a, b)'s centre texel, or +inf.
-fn block_occluder(kr: Kernel, a: u32, b: u32, zp: f32, eps: f32) -> f32 {
+// plane_max_threshold (ReceiverPlane::max_threshold) is core's, in math.wgsl.
+
+// The receiver as the kernel's caster test sees it: depth, bias (bias mode, plane off), texel
+// coordinates and the receiver plane (est.receiver_plane != 0).
+struct Rec {
+    zp: f32,
+    eps: f32,
+    uv: vec2<f32>,
+    plane: ReceiverPlane,
+}
+
+// cpu.rs: true depth of the occluding layer backprojected at block (a, b)'s centre texel
+// (layer_rule: the deepest occluding one, or the deepest whose micropatch overlaps the light),
+// or +inf.
+fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> f32 {
+    let zp = rc.zp;
     let j0 = kr.rect.y + i32(b * kr.step);
     let j1 = min(j0 + i32(kr.step), kr.rect.w);
     let jc = j0 + (j1 - j0 - 1) / 2;
     let i0 = kr.rect.x + i32(a * kr.step);
     let i1 = min(i0 + i32(kr.step), kr.rect.z);
     let ic = i0 + (i1 - i0 - 1) / 2;
+    let on = est.receiver_plane != 0u;
+    let first_nonzero = bp.first_nonzero != 0u && bp.area > 0.0;
+    let k = view.delta / view.n;
     for (var mm = i32(bp.layers) - 1; mm >= 0; mm--) {
         let z = textureLoad(maps, vec2<i32>(ic, jc), mm, 0).x;
-        var cls = z + eps;
+        var occludes = false;
         if bp.midpoint != 0u {
-            cls = z;
+            var cls = z;
             if u32(mm) < bp.midpoints {
                 cls = textureLoad(maps, vec2<i32>(ic, jc), i32(bp.layers) + mm, 0).x;
             }
+            if on {
+                occludes = cls < zp && plane_caster(rc.plane, ic, jc, z);
+            } else {
+                occludes = cls < zp && z < zp;
+            }
+        } else if on {
+            occludes = plane_caster(rc.plane, ic, jc, z);
+        } else {
+            occludes = z + rc.eps < zp && z < zp;
         }
-        if cls < zp && z < zp {
-            return z;
+        if !occludes {
+            continue;
         }
+        if first_nonzero {
+            // The block's own micropatch (before gap filling) against the light.
+            let s = micropatch_scale(k, z, zp);
+            let x0 = bound(f32(i0), rc.uv.x, s);
+            let x1 = bound(f32(i1), rc.uv.x, s);
+            let y0 = bound(f32(j0), rc.uv.y, s);
+            let y1 = bound(f32(j1), rc.uv.y, s);
+            let dx = max(min(x1, bp.half.x) - max(x0, -bp.half.x), 0.0);
+            let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
+            if !(dx * dy > 0.0) {
+                continue;
+            }
+        }
+        return z;
     }
     return pos_inf();
 }
@@ -129,6 +169,10 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
     if bp.midpoint == 0u {
         eps = receiver_bias(view, p, n, bp.b0, bp.b1);
     }
+    let on = est.receiver_plane != 0u;
+    // The plane test when on (plane_new's classic form is unused: the plane-off tests are
+    // written out as cpu.rs has them).
+    let rc = Rec(zp, eps, uv, plane_new(on, view, p, n, bp.b0, bp.b1, 0.0));
     let lx = 2.0 * bp.half.x;
     let ly = 2.0 * bp.half.y;
     let alpha = view.n * f32(view.r) / view.w;
@@ -136,7 +180,11 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
     var rect = kernel_rect(uv, kernel_width(alpha, lx, zm, zp), kernel_width(alpha, ly, zm, zp));
     for (var it = 0; it < 16; it++) {
         let zmin = mssm_min(rect);
-        if zmin >= zp - eps {
+        var zbound = zp - eps;
+        if on {
+            zbound = plane_max_threshold(rc.plane, f32(rect.x), f32(rect.z), f32(rect.y), f32(rect.w));
+        }
+        if zmin >= zbound {
             return 1.0;
         }
         if !(zmin > zm) {
@@ -169,7 +217,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
         let j0 = rect.y + i32(b * step);
         let j1 = min(j0 + i32(step), rect.w);
         for (var a = 0u; a < bx; a++) {
-            let z = block_occluder(kr, a, b, zp, eps);
+            let z = block_occluder(kr, a, b, rc);
             if !is_finite(z) {
                 continue;
             }
@@ -182,7 +230,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
             var y1 = bound(f32(j1), uv.y, s);
             if bp.gap_filling != 0u {
                 if a + 1u < bx {
-                    let zt = block_occluder(kr, a + 1u, b, zp, eps);
+                    let zt = block_occluder(kr, a + 1u, b, rc);
                     if is_finite(zt) {
                         let st = micropatch_scale(k, zt, zp);
                         let d = f32(i1) - uv.x;
@@ -192,7 +240,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
                     }
                 }
                 if b + 1u < by {
-                    let zt = block_occluder(kr, a, b + 1u, zp, eps);
+                    let zt = block_occluder(kr, a, b + 1u, rc);
                     if is_finite(zt) {
                         let st = micropatch_scale(k, zt, zp);
                         let d = f32(j1) - uv.y;

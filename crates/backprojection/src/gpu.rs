@@ -25,7 +25,7 @@
 //! area); the driver may fuse a multiply and an add, which can flip a depth comparison that is a
 //! tie to within f32 rounding. The GPU rasteriser's layers match the CPU's up to the ties that
 //! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
-use crate::cpu::{plan, CpuBackprojection};
+use crate::cpu::{plan, CpuBackprojection, LayerRule};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
@@ -99,8 +99,8 @@ pub struct BpUniform {
     pub mssm_levels: u32,
     /// MSSM side in texels.
     pub mssm_size: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// 1: `layer_rule=first_nonzero` (Bavoil §4.2); 0: `deepest`.
+    pub first_nonzero: u32,
     /// Padding.
     pub _pad1: u32,
 }
@@ -424,10 +424,11 @@ impl GpuBackprojection {
             } else {
                 0
             },
-            _pad0: 0,
+            first_nonzero: u32::from(s.layer_rule == LayerRule::FirstNonzero),
             _pad1: 0,
         };
-        let eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
+        let mut eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
+        eu.receiver_plane = u32::from(s.receiver_plane);
         (eu, bpu)
     }
 
@@ -439,6 +440,10 @@ impl GpuBackprojection {
         self.report.note("resolution", view.r);
         self.report.note("layers", maps.layers);
         self.report.note("self_shadow", self_shadow);
+        self.report
+            .note("layer_rule", self.cpu.settings().layer_rule);
+        self.report
+            .note("receiver_plane", self.cpu.settings().receiver_plane);
         self.report.note("near", view.n);
         self.report.note("far", view.far);
     }
@@ -859,7 +864,7 @@ mod tests {
                 mssm_present,
                 mssm_levels,
                 mssm_size,
-                _pad0,
+                first_nonzero,
                 _pad1,
             }
         );

@@ -3,8 +3,9 @@
 //!
 //! Given the CPU twin's own light-space data (layers, midpoints, MSSM), V must agree per
 //! receiver within [`TWIN`] (`|dV| <= 1e-4` on 99.9% of the receivers); each receiver beyond
-//! must be a depth tie (bias mode: nudging the depth threshold by [`TIE_NUDGE_REL`] of the depth
-//! changes the CPU's V or reproduces the GPU's; midpoint mode has no tie to explain). Random
+//! must be a depth tie (bias mode or receiver plane: nudging the depth threshold or the plane by
+//! [`TIE_NUDGE_REL`] of the depth changes the CPU's V or reproduces the GPU's; midpoint mode
+//! without the plane has no tie to explain). Random
 //! scenes with rect lights only, no grazing or outside receivers. Cases: 12 by default,
 //! `SOFTSHADOW_PROPTEST_CASES=N` for more.
 #![cfg(feature = "gpu")]
@@ -46,6 +47,8 @@ struct Settings {
     bias: f32,
     slope_bias: f32,
     max_nspp: u32,
+    receiver_plane: bool,
+    first_nonzero: bool,
 }
 
 type Case = test_support::scenes::Case<Settings>;
@@ -58,9 +61,18 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
         any::<bool>(),
         arb_bias(),
         prop_oneof![Just(121u32), 1u32..=64, 100u32..=400],
+        (any::<bool>(), any::<bool>()),
     )
         .prop_map(
-            |(resolution, layers, midpoint, gap_filling, (bias, slope_bias), max_nspp)| Settings {
+            |(
+                resolution,
+                layers,
+                midpoint,
+                gap_filling,
+                (bias, slope_bias),
+                max_nspp,
+                (receiver_plane, first_nonzero),
+            )| Settings {
                 resolution,
                 layers,
                 midpoint,
@@ -68,6 +80,8 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                 bias,
                 slope_bias,
                 max_nspp,
+                receiver_plane,
+                first_nonzero,
             },
         )
 }
@@ -84,6 +98,16 @@ fn settings_kv(s: &Settings, bias: f32) -> Params {
         ("bias", bias.to_string()),
         ("slope_bias", s.slope_bias.to_string()),
         ("max_nspp", s.max_nspp.to_string()),
+        ("receiver_plane", s.receiver_plane.to_string()),
+        (
+            "layer_rule",
+            if s.first_nonzero {
+                "first_nonzero"
+            } else {
+                "deepest"
+            }
+            .to_string(),
+        ),
     ]
 }
 
@@ -113,10 +137,12 @@ fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseSta
     let cmp = TWIN.compare("backprojection", &rec.active, &v_cpu, &v_gpu)?;
     let st = TWIN.judge("backprojection", &cmp, &rec, &v_cpu, &v_gpu, |beyond| {
         // Depth ties: in bias mode, move z - eps by TIE_NUDGE_REL z (through `bias`, in texel
-        // footprints) both ways; a tie changes the CPU's V or reproduces the GPU's.
+        // footprints) both ways; with the receiver plane (either mode), `bias` is the plane's
+        // tolerance and moves the plane by TIE_NUDGE_REL z the same way. A tie changes the
+        // CPU's V or reproduces the GPU's.
         let view = ls.view;
         let nudge = TIE_NUDGE_REL * view.n * view.r as f32 / view.w;
-        let nudged: Vec<Vec<f32>> = if s.midpoint {
+        let nudged: Vec<Vec<f32>> = if s.midpoint && !s.receiver_plane {
             Vec::new()
         } else {
             [s.bias + nudge, (s.bias - nudge).max(0.0)]
@@ -162,6 +188,8 @@ fn fixed_case() -> Case {
             bias: 1.0,
             slope_bias: 1.0,
             max_nspp: 121,
+            receiver_plane: true,
+            first_nonzero: true,
         },
     }
 }
@@ -242,5 +270,53 @@ impl TwinPair for Backprojection {
             }
         }
         assert!(umbra_pen > 0, "the fixed case casts no shadow");
+    }
+}
+
+/// The GPU twin of `accuracy.rs`'s `grazing_plane_is_not_self_shadowed` (issue 16): an
+/// unoccluded plane lit at 85 degrees from its normal, at the defaults (receiver-plane
+/// rejection on), keeps V >= facing - 0.02 at every receiver, with midpoints and with the bias.
+#[test]
+fn gpu_grazing_plane_is_not_self_shadowed() {
+    let Some(ctx) = test_support::gpu("gpu_grazing_plane_is_not_self_shadowed") else {
+        return;
+    };
+    let th = 85f32.to_radians();
+    let n = glam::Vec3::new(th.sin(), th.cos(), 0.0);
+    let t = glam::Vec3::new(th.cos(), -th.sin(), 0.0);
+    let c = |a: f32, b: f32| a * t + b * glam::Vec3::Z;
+    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
+    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
+        vec![[p0, p1, p2], [p0, p2, p3]]
+    } else {
+        vec![[p0, p2, p1], [p0, p3, p2]]
+    };
+    let s = Scene::from_meshes(
+        "tilted",
+        test_support::fixtures::camera(8, 8),
+        test_support::fixtures::rect_light(1.0, 3.0),
+        vec![(tris, 1.0)],
+    )
+    .unwrap();
+    let pos: Vec<glam::Vec3> = (0..30 * 30)
+        .map(|k| {
+            c(
+                -1.0 + (k % 30) as f32 * 0.066 + 0.0137,
+                -1.0 + (k / 30) as f32 * 0.066 + 0.0071,
+            )
+        })
+        .collect();
+    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
+    let mut g = GpuBackprojection::new(ctx).unwrap();
+    for ss in ["midpoint", "bias"] {
+        g.set_param("self_shadow", ss).unwrap();
+        let v = run(&mut g, &s, &r).unwrap().0;
+        let worst = pos
+            .iter()
+            .zip(&v)
+            .map(|(p, x)| s.light.front_fraction_world(*p, n) - x)
+            .fold(f32::NEG_INFINITY, f32::max);
+        eprintln!("gpu 85 deg plane, self_shadow={ss}: most below facing {worst:.4}");
+        assert!(worst <= 0.02, "self_shadow={ss}: V below facing by {worst}");
     }
 }

@@ -27,7 +27,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 use backprojection::CpuBackprojection;
 use baselines::{MultiSample, PcssShadow};
-use packet_hsm::contour::{extract, CellRect, Traversal};
+use packet_hsm::contour::{extract, CellRect, Planes, Traversal};
 use packet_hsm::cpu::{prepare, Config, Prep, SubView};
 use packet_hsm::CpuPacketHsm;
 use reference::ReferenceEstimator;
@@ -320,11 +320,17 @@ fn visits() {
                 pen += 1;
                 flat += ((cr[2] - cr[0]) as u64) * ((cr[3] - cr[1]) as u64);
                 let mut n = 0;
+                let one = [r.test()];
                 extract(
                     &grid,
                     &sv.dual,
                     &cr,
                     [r.t, r.t],
+                    Planes {
+                        members: if r.plane.is_some() { &one } else { &[] },
+                        class_is_depth: grid.class_is_depth(),
+                        depth: Some(&sv.mssm),
+                    },
                     Traversal::Hierarchical,
                     &mut n,
                     |_, _, _| {},

@@ -11,7 +11,10 @@
 //!   `f(s) = 1` if `c_s < t_min`, `0` if `c_s >= t_max`, and *null* otherwise. The paper writes
 //!   `z_s <= z_pmin` for status 1; this crate uses the strict `<` so that a one-pixel packet has
 //!   exactly the per-pixel classification `c_s < t_p` (docs/methods.md §3 "Classification") and a
-//!   null never arises for it. See [`Status`].
+//!   null never arises for it. See [`Status`]. With receiver-plane rejection a sample occludes a
+//!   receiver only if it also passes the receiver's plane test on its true depth
+//!   ([`OccluderTest`]); a packet's status is then occluder / free / null as every member /
+//!   none / some of them see it ([`Planes`]).
 //! - **Contour edges**: marching squares on the dual cell with corners c0 = (i, j),
 //!   c1 = (i+1, j), c2 = (i+1, j+1), c3 = (i, j+1) (counter-clockwise); one vertex at the
 //!   midpoint of each side whose corners differ, with the depth of the side's occluder sample;
@@ -27,8 +30,11 @@
 //!
 //! All light-plane geometry is in f64, so the only difference between evaluation orders
 //! (per pixel, per packet, flat or hierarchical) is the order of an f64 sum.
-use glam::DVec2;
-use shadow_map_core::mssm::DualMssm;
+use glam::{DVec2, Vec2};
+use shadow_map_core::{
+    mssm::{DualMssm, Mssm},
+    ReceiverPlane,
+};
 
 /// Texel coordinates and depths a cell is read from: the true depth (for backprojection) and the
 /// classification depth (for the occluder status: the true depth, or Bavoil's midpoint between the
@@ -44,6 +50,10 @@ pub struct SampleGrid<'a> {
 }
 
 impl SampleGrid<'_> {
+    /// True when the classification depths are the true depths (one slice for both).
+    pub fn class_is_depth(&self) -> bool {
+        std::ptr::eq(self.depth, self.class)
+    }
     /// `(true depth, classification depth)` of sample (i, j); `(+inf, +inf)` outside the map.
     #[inline]
     pub fn at(&self, i: i32, j: i32) -> (f32, f32) {
@@ -141,14 +151,122 @@ pub fn cell_edges(i: i32, j: i32, occ: [bool; 4], z: [f32; 4]) -> ([Edge; 2], us
     (out, n)
 }
 
-/// Occluder flags and true depths of the corners of cell (i, j) for one receiver threshold.
+/// What makes a sample an occluder of one receiver: its classification depth below the
+/// threshold `t` and, with receiver-plane rejection ([`shadow_map_core::receiver_plane`]), its
+/// true depth in front of the receiver's tangent plane ([`ReceiverPlane::caster`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OccluderTest {
+    /// Classification threshold `t_p`.
+    pub t: f32,
+    /// The receiver plane (`receiver_plane=true`), or `None` for the classic test `c_s < t_p`.
+    pub plane: Option<ReceiverPlane>,
+}
+
+impl OccluderTest {
+    /// The classic test `c_s < t`.
+    pub fn classic(t: f32) -> Self {
+        OccluderTest { t, plane: None }
+    }
+    /// True when the sample (i, j) with true depth `zs` and classification depth `cs` occludes.
+    #[inline]
+    pub fn occludes(&self, i: i32, j: i32, zs: f32, cs: f32) -> bool {
+        cs < self.t && self.plane.as_ref().is_none_or(|p| p.caster(i, j, zs))
+    }
+}
+
+/// Relative margin of the plane-threshold pruning bounds: [`ReceiverPlane::threshold_at`] divides
+/// where [`ReceiverPlane::caster`] multiplies, so a bound is widened by a few ulps (2^-20 of it)
+/// and a pruned node never holds a sample the per-cell test would classify otherwise.
+pub const PRUNE_MARGIN: f32 = 1.0 / 1_048_576.0;
+
+/// Depth bounds of one plane's caster test on the ray through `uv`: `(lower, upper)` with every
+/// finite sample `z < lower` a caster and no sample `z >= upper` one.
+///
+/// With slope `g > 0` both are `min(c / g - hs, z_p)`. With `g <= 0` the casters are the
+/// samples `z > c / g` nearer than `z_p`: `upper = z_p` (the core's
+/// [`ReceiverPlane::threshold_at`]), and `lower = z_p` when `c > 0` (every sample nearer than
+/// `z_p`), else `-inf` (a receiver whose tangent plane passes above the light's centre: only
+/// samples deeper than `c / g` are casters there).
 #[inline]
-pub fn cell_corners(grid: &SampleGrid, i: i32, j: i32, t: f32) -> ([bool; 4], [f32; 4]) {
+pub fn caster_bounds(p: &ReceiverPlane, uv: Vec2) -> (f32, f32) {
+    let g = p.slope_at(uv);
+    if g > 0.0 {
+        let t = (p.c / g - p.hs).min(p.zp);
+        (t, t)
+    } else if p.c > 0.0 {
+        (p.zp, p.zp)
+    } else {
+        (f32::NEG_INFINITY, p.zp)
+    }
+}
+
+/// `(min lower, max upper)` of [`caster_bounds`] over the centres of samples `[i0, i1] x
+/// [j0, j1]` (inclusive) for every plane of `members`, widened by [`PRUNE_MARGIN`] (min lowered,
+/// max raised): every sample whose true depth is below the first is a caster for every member,
+/// none at or above the second for any. Both bounds are monotone in the plane's affine slope
+/// (a sign change of `g` inside the rectangle shows at a corner), so the extremes are at the
+/// rectangle's corners.
+pub fn plane_threshold_range(members: &[OccluderTest], [i0, j0, i1, j1]: [i32; 4]) -> (f32, f32) {
+    let (u0, u1) = (i0 as f32 + 0.5, i1 as f32 + 0.5);
+    let (v0, v1) = (j0 as f32 + 0.5, j1 as f32 + 0.5);
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for m in members {
+        let Some(p) = &m.plane else {
+            return (f32::NEG_INFINITY, f32::INFINITY);
+        };
+        for uv in [
+            Vec2::new(u0, v0),
+            Vec2::new(u1, v0),
+            Vec2::new(u0, v1),
+            Vec2::new(u1, v1),
+        ] {
+            let (l, h) = caster_bounds(p, uv);
+            lo = lo.min(l);
+            hi = hi.max(h);
+        }
+    }
+    (lo - lo.abs() * PRUNE_MARGIN, hi + hi.abs() * PRUNE_MARGIN)
+}
+
+/// `(max lower, min upper)` of [`caster_bounds`] over the same corners as
+/// [`plane_threshold_range`], widened the other way (max raised, min lowered): every node inside
+/// the rectangle has its own `plane_threshold_range` lower bound at most the first and upper
+/// bound at least the second.
+pub fn plane_inner_range(members: &[OccluderTest], [i0, j0, i1, j1]: [i32; 4]) -> (f32, f32) {
+    let (u0, u1) = (i0 as f32 + 0.5, i1 as f32 + 0.5);
+    let (v0, v1) = (j0 as f32 + 0.5, j1 as f32 + 0.5);
+    let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
+    for m in members {
+        let Some(p) = &m.plane else {
+            return (f32::INFINITY, f32::NEG_INFINITY);
+        };
+        for uv in [
+            Vec2::new(u0, v0),
+            Vec2::new(u1, v0),
+            Vec2::new(u0, v1),
+            Vec2::new(u1, v1),
+        ] {
+            let (l, h) = caster_bounds(p, uv);
+            lo = lo.max(l);
+            hi = hi.min(h);
+        }
+    }
+    (lo + lo.abs() * PRUNE_MARGIN, hi - hi.abs() * PRUNE_MARGIN)
+}
+
+/// Occluder flags and true depths of the corners of cell (i, j) for one receiver's test.
+#[inline]
+pub fn cell_corners(
+    grid: &SampleGrid,
+    i: i32,
+    j: i32,
+    test: &OccluderTest,
+) -> ([bool; 4], [f32; 4]) {
     let mut occ = [false; 4];
     let mut z = [0.0f32; 4];
     for (k, (di, dj)) in CORNERS.iter().enumerate() {
         let (zs, cs) = grid.at(i + di, j + dj);
-        occ[k] = cs < t;
+        occ[k] = test.occludes(i + di, j + dj, zs, cs);
         z[k] = zs;
     }
     (occ, z)
@@ -167,13 +285,13 @@ fn side(e: &Edge, q: DVec2) -> f64 {
 /// give their status; otherwise q is occluded when it is left of its edge (two edges, connected
 /// rule: left of both). Returns `None` when q lies on a cell boundary or exactly on an edge (the
 /// caller nudges q, see [`Receiver::new`]).
-pub fn centre_status(grid: &SampleGrid, q: DVec2, t: f32) -> Option<bool> {
+pub fn centre_status(grid: &SampleGrid, q: DVec2, test: &OccluderTest) -> Option<bool> {
     let (fi, fj) = ((q.x - 0.5).floor(), (q.y - 0.5).floor());
     if fi == q.x - 0.5 || fj == q.y - 0.5 {
         return None;
     }
     let (i, j) = (fi as i32, fj as i32);
-    let (occ, z) = cell_corners(grid, i, j, t);
+    let (occ, z) = cell_corners(grid, i, j, test);
     let (edges, n) = cell_edges(i, j, occ, z);
     if n == 0 {
         return Some(occ[0]);
@@ -200,33 +318,53 @@ pub struct Receiver {
     pub t: f32,
     /// Centre status c (1: the light centre is occluded).
     pub centre: bool,
+    /// The receiver plane of its occluder test ([`OccluderTest::plane`]).
+    pub plane: Option<ReceiverPlane>,
 }
 
 impl Receiver {
     /// Evaluates the centre status, nudging `uv` by a fixed `(2^-12, 2^-13)` texels (up to 8 times)
     /// while it lies on a cell boundary or exactly on a contour edge (docs/methods.md §3 "Centre
     /// status": nudge q by a fixed tiny offset, and use the nudged q for both the status test and
-    /// the projection).
+    /// the projection). The classic occluder test `c_s < t`.
     pub fn new(grid: &SampleGrid, uv: DVec2, zp: f64, t: f32) -> Receiver {
+        Self::with_test(grid, uv, zp, OccluderTest::classic(t))
+    }
+    /// [`new`](Self::new) with the occluder test `test` (receiver-plane rejection when it holds
+    /// a plane).
+    pub fn with_test(grid: &SampleGrid, uv: DVec2, zp: f64, test: OccluderTest) -> Receiver {
+        let t = test.t;
+        let plane = test.plane;
         let mut q = uv;
         for _ in 0..8 {
-            if let Some(c) = centre_status(grid, q, t) {
+            if let Some(c) = centre_status(grid, q, &test) {
                 return Receiver {
                     uv: q,
                     zp,
                     t,
                     centre: c,
+                    plane,
                 };
             }
             q += DVec2::new(1.0 / 4096.0, 1.0 / 8192.0);
         }
         // Unreachable in practice; take the nearest-sample status.
-        let (_, c) = grid.at(q.x.floor() as i32, q.y.floor() as i32);
+        let (i, j) = (q.x.floor() as i32, q.y.floor() as i32);
+        let (zs, c) = grid.at(i, j);
         Receiver {
             uv: q,
             zp,
             t,
-            centre: c < t,
+            centre: test.occludes(i, j, zs, c),
+            plane,
+        }
+    }
+    /// The receiver's occluder test.
+    #[inline]
+    pub fn test(&self) -> OccluderTest {
+        OccluderTest {
+            t: self.t,
+            plane: self.plane,
         }
     }
 }
@@ -416,21 +554,43 @@ pub const STACK_CAPACITY: usize = 3 * 32 + 64;
 /// occludes: case 4) holds no contour and is pruned; otherwise (cases 1-3, 6) its four children
 /// `(x, y), (x+h, y), (x, y+h), (x+h, y+h)`, `h = 2^(l-1)`, that start inside the kernel are
 /// pushed; level-0 nodes are cells. The stack is explicit (no recursion, as in WGSL).
+#[allow(clippy::too_many_arguments)]
 pub fn extract(
     grid: &SampleGrid,
     dm: &PaddedDualMssm,
     cr: &CellRect,
     [t_min, t_max]: [f32; 2],
+    planes: Planes<'_>,
     traversal: Traversal,
     visited: &mut u64,
     mut emit: impl FnMut(i32, i32, &Edge),
 ) -> bool {
+    let members = planes.members;
+    // The plane bounds over the whole kernel (cells [x0, x1) touch samples [x0, x1]): quick
+    // statuses and prunes before the per-member, per-node work.
+    let kb = if members.is_empty() {
+        (f32::NEG_INFINITY, f32::INFINITY)
+    } else {
+        plane_threshold_range(members, [cr[0], cr[1], cr[2], cr[3]])
+    };
+    // And the other ends over the kernel (largest lower, smallest upper bound): a node's own
+    // range reaches them, so a node failing them fails its own too.
+    let kb_inner = if members.is_empty() {
+        (f32::NEG_INFINITY, f32::INFINITY)
+    } else {
+        plane_inner_range(members, [cr[0], cr[1], cr[2], cr[3]])
+    };
     let mut cell = |i: i32, j: i32| -> bool {
         let mut occ = [false; 4];
         let mut z = [0.0f32; 4];
         for (k, (di, dj)) in CORNERS.iter().enumerate() {
             let (zs, cs) = grid.at(i + di, j + dj);
-            match status(cs, t_min, t_max) {
+            let st = if members.is_empty() {
+                status(cs, t_min, t_max)
+            } else {
+                planes.status(i + di, j + dj, zs, cs, [t_min, t_max], kb)
+            };
+            match st {
                 Status::Occluder => occ[k] = true,
                 Status::Free => {}
                 Status::Null => return false,
@@ -481,8 +641,16 @@ pub fn extract(
             while let Some((x, y, l)) = stack.pop() {
                 *visited += 1;
                 let mm = m.fetch(l, x as u32, y as u32);
-                if mm.max < t_min || !(mm.min < t_max) {
-                    continue; // Fig. 6 cases 4 and 5: no contour below this node
+                if members.is_empty() {
+                    if mm.max < t_min || !(mm.min < t_max) {
+                        continue; // Fig. 6 cases 4 and 5: no contour below this node
+                    }
+                } else {
+                    // The node's samples, unpadded: [x - 1, x - 1 + 2^l] x [y - 1, y - 1 + 2^l].
+                    let s = [x - 1, y - 1, x - 1 + (1 << l), y - 1 + (1 << l)];
+                    if planes.prunable(mm.min, mm.max, [t_min, t_max], s, kb, kb_inner) {
+                        continue;
+                    }
                 }
                 if l == 0 {
                     if !cell(x - 1, y - 1) {
@@ -503,11 +671,129 @@ pub fn extract(
     }
 }
 
+/// The receiver-plane part of an extraction's occluder test: empty for the classic test (the
+/// status from the threshold range alone, Yang eq. 3).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Planes<'a> {
+    /// One [`OccluderTest`] per receiver the extraction serves (one for a pixel, the penumbra
+    /// pixels of a packet), each with its plane; a sample is an occluder when it occludes every
+    /// one, free when none, null otherwise.
+    pub members: &'a [OccluderTest],
+    /// The classification depths are the true depths (`self_shadow=bias`): the dual MSSM then
+    /// bounds the plane test's depths too, and a node can be pruned as free from the planes'
+    /// thresholds. With midpoints (classification >= true depth) the "every sample occludes"
+    /// pruning may use the dual MSSM, the "none occludes" one needs [`depth`](Self::depth).
+    pub class_is_depth: bool,
+    /// The anchored MSSM of the true depths (the sub-view's), for the "none occludes" pruning
+    /// when the classification depths are midpoints; `None`: no such pruning.
+    pub depth: Option<&'a Mssm>,
+}
+
+impl Planes<'_> {
+    /// The status of sample (i, j) (true depth `zs`, classification depth `cs`) for every
+    /// member; `[t_min, t_max]` the members' threshold range, `kb` the members'
+    /// [`plane_threshold_range`] over the kernel holding the sample (quick answers; the same as
+    /// the per-member tests, which they bound).
+    #[inline]
+    fn status(
+        &self,
+        i: i32,
+        j: i32,
+        zs: f32,
+        cs: f32,
+        [t_min, t_max]: [f32; 2],
+        kb: (f32, f32),
+    ) -> Status {
+        if !(cs < t_max) || zs >= kb.1 {
+            return Status::Free;
+        }
+        if cs < t_min && zs < kb.0 {
+            return Status::Occluder;
+        }
+        let mut any = false;
+        let mut all = true;
+        for m in self.members {
+            let o = m.occludes(i, j, zs, cs);
+            any |= o;
+            all &= o;
+        }
+        match (any, all) {
+            (true, true) => Status::Occluder,
+            (false, _) => Status::Free,
+            _ => Status::Null,
+        }
+    }
+    /// True when a node whose classification depths span `[min, max]` over the samples `s`
+    /// (inclusive texel rectangle) holds no contour for any member: no sample occludes any
+    /// member, or every sample occludes every member. Conservative (never prunes a node the
+    /// per-cell tests would find a contour in).
+    /// `kb`: the members' [`plane_threshold_range`] over the whole kernel (tried first, it
+    /// bounds the node's).
+    fn prunable(
+        &self,
+        min: f32,
+        max: f32,
+        [t_min, t_max]: [f32; 2],
+        s: [i32; 4],
+        kb: (f32, f32),
+        kb_inner: (f32, f32),
+    ) -> bool {
+        if !(min < t_max) {
+            return true;
+        }
+        // Every classification test passes, and every plane test too when the node's largest
+        // true depth (at most its largest classification depth) is below every lower bound.
+        let all_class = max < t_min;
+        if all_class && max < kb.0 {
+            return true;
+        }
+        // The node's smallest lower bound is at most the kernel's largest (`kb_inner.0`), its
+        // largest upper bound at least the kernel's smallest (`kb_inner.1`): nodes that cannot
+        // pass their own tests are settled without computing them. The smallest true depth is
+        // at most the classification minimum.
+        let occ_possible = all_class && max < kb_inner.0;
+        let free_possible = min >= kb_inner.1;
+        if !occ_possible && !free_possible {
+            return false;
+        }
+        // No plane test passes: the node's smallest true depth reaches every upper bound.
+        let tm = if free_possible {
+            true_min(self.class_is_depth, self.depth, min, s)
+        } else {
+            f32::NEG_INFINITY
+        };
+        if tm >= kb.1 {
+            return true;
+        }
+        if !occ_possible && !(tm >= kb_inner.1) {
+            return false;
+        }
+        let (lo, hi) = plane_threshold_range(self.members, s);
+        (occ_possible && max < lo) || tm >= hi
+    }
+}
+
+/// The smallest true depth over the samples `s` (inclusive texel rectangle): `class_min` (the
+/// classification minimum) when the classification depths are the true depths, else from the
+/// true-depth MSSM `depth`, else `-inf` (unknown).
+#[inline]
+pub fn true_min(class_is_depth: bool, depth: Option<&Mssm>, class_min: f32, s: [i32; 4]) -> f32 {
+    if class_is_depth {
+        class_min
+    } else {
+        depth.map_or(f32::NEG_INFINITY, |m| {
+            m.query(s[0], s[1], s[2] + 1, s[3] + 1).min
+        })
+    }
+}
+
 /// Per-pixel GBP07 on a kernel `cr`: the visibility (before the receiver-facing factor) of one
 /// receiver, and the nodes visited.
+#[allow(clippy::too_many_arguments)]
 pub fn pixel_visibility(
     grid: &SampleGrid,
     dm: &PaddedDualMssm,
+    depth: Option<&Mssm>,
     cr: &CellRect,
     rec: &Receiver,
     k: f64,
@@ -516,11 +802,18 @@ pub fn pixel_visibility(
 ) -> (f32, u64) {
     let mut sum = 0.0f64;
     let mut visited = 0u64;
+    let test = [rec.test()];
+    let planes = Planes {
+        members: if rec.plane.is_some() { &test } else { &[] },
+        class_is_depth: grid.class_is_depth(),
+        depth,
+    };
     extract(
         grid,
         dm,
         cr,
         [rec.t, rec.t],
+        planes,
         traversal,
         &mut visited,
         |_, _, e| {
@@ -597,11 +890,11 @@ mod tests {
         let h = DVec2::new(0.5, 0.5);
         for t in [Traversal::Flat, Traversal::Hierarchical] {
             // Kernel inside the map: no edges, centre occluded.
-            let (v, _) = pixel_visibility(&g, &dm, &[4, 4, 12, 12], &rec, 0.01, h, t);
+            let (v, _) = pixel_visibility(&g, &dm, None, &[4, 4, 12, 12], &rec, 0.01, h, t);
             assert_eq!(v, 0.0);
             // Threshold below every sample: lit.
             let rec2 = Receiver::new(&g, DVec2::new(8.3, 8.1), 2.0, 0.5);
-            let (v, _) = pixel_visibility(&g, &dm, &[-1, -1, 16, 16], &rec2, 0.01, h, t);
+            let (v, _) = pixel_visibility(&g, &dm, None, &[-1, -1, 16, 16], &rec2, 0.01, h, t);
             assert_eq!(v, 1.0);
         }
     }
@@ -631,10 +924,19 @@ mod tests {
             let rec = Receiver::new(&g, uv, 3.0, 1.5);
             let cr = [-1, 2, 20, 24];
             let h = DVec2::new(0.4, 0.6);
-            let (vf, nf) = pixel_visibility(&g, &dm, &cr, &rec, 0.02, h, Traversal::Flat);
-            let (vh, _) = pixel_visibility(&g, &dm, &cr, &rec, 0.02, h, Traversal::Hierarchical);
-            let (vc, _) =
-                pixel_visibility(&g, &capped, &cr, &rec, 0.02, h, Traversal::Hierarchical);
+            let (vf, nf) = pixel_visibility(&g, &dm, None, &cr, &rec, 0.02, h, Traversal::Flat);
+            let (vh, _) =
+                pixel_visibility(&g, &dm, None, &cr, &rec, 0.02, h, Traversal::Hierarchical);
+            let (vc, _) = pixel_visibility(
+                &g,
+                &capped,
+                None,
+                &cr,
+                &rec,
+                0.02,
+                h,
+                Traversal::Hierarchical,
+            );
             assert!((vf - vh).abs() < 1e-6, "{vf} {vh}");
             assert!((vf - vc).abs() < 1e-6, "{vf} {vc}");
             assert_eq!(nf, 21 * 22);

@@ -1,8 +1,8 @@
 //! The CPU estimator: Yang et al. 2009, Algorithm 1, steps 2-8, over the exact per-pixel contour
 //! backprojection of [`crate::contour`].
 use crate::contour::{
-    edge_area, extract, pixel_visibility, visibility_from_area, CellRect, Edge, PaddedDualMssm,
-    Receiver, SampleGrid, Traversal,
+    edge_area, extract, pixel_visibility, plane_threshold_range, true_min, visibility_from_area,
+    CellRect, Edge, OccluderTest, PaddedDualMssm, Planes, Receiver, SampleGrid, Traversal,
 };
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -13,8 +13,9 @@ use shadow_map_core::{
     mssm::Mssm,
     params::FromParam,
     peeling::{SelfShadow, MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
-    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, Receivers, Report,
-    Result, Scene, SoftShadowEstimator,
+    receiver_plane::RECEIVER_PLANE,
+    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, ReceiverPlane,
+    Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -68,7 +69,9 @@ pub const CLASS_PIXEL: u8 = 2;
 ///    the tight kernel from the MSSM (Yang eq. 1 with `z_m` the exact minimum depth over the
 ///    kernel, refined until it stops shrinking, SS07/GBP06), grown to every dual cell touching it;
 ///    fully lit when no sample of the kernel occludes, fully occluded when all do (exact for the
-///    contour method);
+///    contour method; with `receiver_plane=true` a sample occludes only if its true depth also
+///    passes the receiver's [`ReceiverPlane::caster`], and these tests, like the hierarchy's
+///    pruning, bound it with the plane's per-texel thresholds, see [`trivial`]);
 /// 6. packets of w x h pixels of the image layout; the coherence test
 ///    ([`coherence`]: P_null eq. 4, P_d eq. 5 against Td, cost ratio eq. 6);
 /// 7. coherent packets: one contour extraction over the packet's extended kernel with the
@@ -217,10 +220,13 @@ shadow_map_core::typed_params! {
         self_shadow: SelfShadow = SELF_SHADOW,
         /// Midpoint clamp in footprints at the far plane.
         max_bias: f32 = MAX_BIAS,
-        /// Constant receiver bias b0 (`self_shadow=bias`).
+        /// Constant receiver bias b0 (`self_shadow=bias`); with `receiver_plane=true`, the
+        /// receiver plane's tolerance in texel footprints (both modes).
         bias: f32 = SELF_SHADOW_BIAS,
-        /// Slope-scaled receiver bias b1 (`self_shadow=bias`).
+        /// Slope-scaled receiver bias b1 (`self_shadow=bias`, `receiver_plane=false`).
         slope_bias: f32 = SELF_SHADOW_SLOPE_BIAS,
+        /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
+        receiver_plane: bool = RECEIVER_PLANE,
         /// Light-view window choice of every sub-light's map.
         fit: FitMode = FIT,
         /// Near/far choice of every sub-light's map.
@@ -364,10 +370,13 @@ pub enum ReceiverSetup {
         uv: Vec2,
         /// `z_p`.
         zp: f32,
-        /// `t_p` (`z_p` with midpoints, `z_p - eps` with the bias).
+        /// `t_p` (`z_p` with midpoints or the receiver plane, `z_p - eps` with the bias).
         t: f32,
         /// Fraction of the sub-light in front of the receiver's tangent plane.
         facing: f32,
+        /// The receiver plane (`receiver_plane=true`): a sample occludes only if it also passes
+        /// [`ReceiverPlane::caster`] on its true depth (with the bias, instead of the bias test).
+        plane: Option<ReceiverPlane>,
     },
 }
 
@@ -394,16 +403,20 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
     if !view.contains(uv) {
         return ReceiverSetup::Outside(facing);
     }
-    let t = if cfg.midpoint() {
+    let t = if cfg.midpoint() || cfg.receiver_plane {
         p.z
     } else {
         p.z - view.receiver_bias(p, n, cfg.bias, cfg.slope_bias)
     };
+    let plane = cfg
+        .receiver_plane
+        .then(|| ReceiverPlane::plane(view, p, n, cfg.bias, 0.0));
     ReceiverSetup::Map {
         uv,
         zp: p.z,
         t,
         facing,
+        plane,
     }
 }
 
@@ -431,26 +444,68 @@ pub fn prepare(
     nw: Vec3,
     outside: &mut bool,
 ) -> Prep {
-    let (uv, zp, t, facing) = match setup_receiver(sv, cfg, pw, nw) {
+    let (uv, zp, t, facing, plane) = match setup_receiver(sv, cfg, pw, nw) {
         ReceiverSetup::Settled(x) => return Prep::Done(x),
         ReceiverSetup::Outside(x) => {
             *outside = true;
             return Prep::Done(x);
         }
-        ReceiverSetup::Map { uv, zp, t, facing } => (uv, zp, t, facing),
+        ReceiverSetup::Map {
+            uv,
+            zp,
+            t,
+            facing,
+            plane,
+        } => (uv, zp, t, facing, plane),
     };
     let Some(cr) = kernel_cells(&sv.ls.view, &sv.mssm, uv, zp, 2.0 * sv.half) else {
         return Prep::Done(facing);
     };
     let mm = sv.dual.query(&cr);
-    if !(mm.min < t) {
+    let test = OccluderTest { t, plane };
+    let (lit, umbra) = trivial(mm.min, mm.max, &test, &cr, || {
+        true_min(
+            grid.class_is_depth(),
+            Some(&sv.mssm),
+            mm.min,
+            [cr[0], cr[1], cr[2], cr[3]],
+        )
+    });
+    if lit {
         return Prep::Done(facing); // fully lit
     }
-    if mm.max < t {
+    if umbra {
         return Prep::Done(0.0); // fully occluded (umbra)
     }
-    let rec = Receiver::new(grid, uv.as_dvec2(), zp as f64, t);
+    let rec = Receiver::with_test(grid, uv.as_dvec2(), zp as f64, test);
     Prep::Penumbra { rec, cr, facing }
+}
+
+/// Step 5's trivial classification of a kernel `cr` whose classification depths span
+/// `[min, max]`: `(fully lit, fully occluded)`. Classic test: `min >= t` / `max < t`. With a
+/// receiver plane, fully occluded also needs `max` below the plane's smallest threshold over the
+/// kernel's samples, and fully lit also holds when the kernel's smallest true depth
+/// (`true_min()`, see [`true_min`]) reaches its largest threshold ([`plane_threshold_range`],
+/// conservative).
+pub fn trivial(
+    min: f32,
+    max: f32,
+    test: &OccluderTest,
+    cr: &CellRect,
+    true_min: impl FnOnce() -> f32,
+) -> (bool, bool) {
+    if test.plane.is_none() {
+        return (!(min < test.t), max < test.t);
+    }
+    if !(min < test.t) {
+        return (true, false);
+    }
+    // Cells [x0, x1) touch samples [x0, x1] (inclusive).
+    let (lo, hi) = plane_threshold_range(std::slice::from_ref(test), [cr[0], cr[1], cr[2], cr[3]]);
+    if true_min() >= hi {
+        return (true, false);
+    }
+    (false, max < test.t && max < lo)
 }
 
 /// The tight kernel of a receiver in dual cells (Yang eq. 1 with the MSSM, docs/methods.md §2
@@ -586,6 +641,7 @@ fn pixel_wise(
     let (v, n) = pixel_visibility(
         grid,
         &sv.dual,
+        Some(&sv.mssm),
         cr,
         rec,
         k,
@@ -624,6 +680,7 @@ pub fn estimate_sublight(
             let mut pens: Vec<(usize, Receiver, CellRect, f32)> = Vec::with_capacity(64);
             let mut sides: Vec<u32> = Vec::with_capacity(64);
             let mut edges: Vec<(i32, i32, Edge)> = Vec::new();
+            let mut members: Vec<OccluderTest> = Vec::with_capacity(64);
             let mut outside = 0u64;
             let mut local = [0u64; 6]; // penumbra, visited, packets, coherent, rejected, diverged
             let mut bx = 0usize;
@@ -687,12 +744,22 @@ pub fn estimate_sublight(
                         local[4] += 1;
                     } else {
                         edges.clear();
+                        members.clear();
+                        if cfg.receiver_plane {
+                            members.extend(pens.iter().map(|(_, rec, _, _)| rec.test()));
+                        }
+                        let planes = Planes {
+                            members: &members,
+                            class_is_depth: grid.class_is_depth(),
+                            depth: Some(&sv.mssm),
+                        };
                         let mut visited = 0u64;
                         let ok = extract(
                             &grid,
                             &sv.dual,
                             &kk,
                             [tmin, tmax],
+                            planes,
                             cfg.traversal(),
                             &mut visited,
                             |i, j, e| {

@@ -19,7 +19,10 @@
 //!
 //! Known differences from the CPU: f32 light-plane geometry and sums (f64 on the CPU), a
 //! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added in
-//! f32; see `tests/gpu_twin.rs` for the measured agreement.
+//! f32; see `tests/gpu_twin.rs` for the measured agreement. The receiver plane
+//! (`receiver_plane=true`) is built on the CPU by [`crate::cpu::setup_receiver`] and passed in
+//! [`RecIn`]; the shader's caster test is the same product and comparison in f32 (a fused
+//! multiply-add can flip a tie).
 use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
 use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView};
 use bytemuck::{Pod, Zeroable};
@@ -28,7 +31,8 @@ use shadow_map_core::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
         GpuContext,
     },
-    Error, ImageLayout, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Error, ImageLayout, LightShape, ReceiverPlane, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
@@ -88,6 +92,14 @@ pub struct HsmUniform {
     pub far: f32,
     /// Always 2: the trip count of the shader's loop-limit probe.
     pub probe: u32,
+    /// 1: receiver-plane rejection (`receiver_plane=true`, [`RecIn`]'s plane).
+    pub receiver_plane: u32,
+    /// 1: the classification depths are the true depths (`self_shadow=bias`).
+    pub class_is_depth: u32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
 }
 
 /// Per-receiver state between the passes (mirrors `PrepGpu`): kernel cells, nudged texel
@@ -116,6 +128,14 @@ pub struct RecIn {
     pub zp: f32,
     /// `t_p`.
     pub t: f32,
+    /// [`ReceiverPlane::g0`](shadow_map_core::ReceiverPlane::g0) (0 without the plane).
+    pub g0: f32,
+    /// [`ReceiverPlane::gu`](shadow_map_core::ReceiverPlane::gu).
+    pub gu: f32,
+    /// [`ReceiverPlane::gv`](shadow_map_core::ReceiverPlane::gv).
+    pub gv: f32,
+    /// [`ReceiverPlane::c`](shadow_map_core::ReceiverPlane::c).
+    pub c: f32,
 }
 
 const LABEL: &str = "packet-hsm estimate";
@@ -438,6 +458,10 @@ fn hsm_uniform(
         qv: cfg.qv as f32,
         far: view.far,
         probe: 2,
+        receiver_plane: cfg.receiver_plane as u32,
+        class_is_depth: sv.grid(cfg).class_is_depth() as u32,
+        _pad0: 0,
+        _pad1: 0,
     }
 }
 
@@ -499,12 +523,32 @@ impl SoftShadowEstimator for GpuPacketHsm {
                             uv: [0.0; 2],
                             zp: 0.0,
                             t: 0.0,
+                            g0: 0.0,
+                            gu: 0.0,
+                            gv: 0.0,
+                            c: 0.0,
                         },
-                        ReceiverSetup::Map { uv, zp, t, .. } => RecIn {
-                            uv: [uv.x, uv.y],
-                            zp: *zp,
-                            t: *t,
-                        },
+                        ReceiverSetup::Map {
+                            uv, zp, t, plane, ..
+                        } => {
+                            let pl = plane.unwrap_or(ReceiverPlane {
+                                g0: 0.0,
+                                gu: 0.0,
+                                gv: 0.0,
+                                c: 0.0,
+                                zp: *zp,
+                                hs: 0.0,
+                            });
+                            RecIn {
+                                uv: [uv.x, uv.y],
+                                zp: *zp,
+                                t: *t,
+                                g0: pl.g0,
+                                gu: pl.gu,
+                                gv: pl.gv,
+                                c: pl.c,
+                            }
+                        }
                     })
                     .collect();
                 let (out, c) = self.run_sublight(&sv, &cfg, &recs, receivers.layout)?;
@@ -608,6 +652,10 @@ mod tests {
                 qv,
                 far,
                 probe,
+                receiver_plane,
+                class_is_depth,
+                _pad0,
+                _pad1,
             }
         );
         shadow_map_core::assert_wgsl_layout!(
@@ -619,7 +667,18 @@ mod tests {
                 centre,
             }
         );
-        shadow_map_core::assert_wgsl_layout!(PACKET_HSM_WGSL, RecIn { uv, zp, t });
+        shadow_map_core::assert_wgsl_layout!(
+            PACKET_HSM_WGSL,
+            RecIn {
+                uv,
+                zp,
+                t,
+                g0,
+                gu,
+                gv,
+                c
+            }
+        );
     }
 
     /// The kernel parses and validates with naga (no device needed).

@@ -40,6 +40,12 @@ struct HsmUniform {
     far: f32,
     // Always 2: the trip count of the loop-limit probe (a uniform, so it is not unrolled).
     probe: u32,
+    // 1: receiver-plane rejection (RecIn's plane); 0: the classic test c_s < t_p.
+    receiver_plane: u32,
+    // 1: the classification depths are the true depths (self_shadow=bias).
+    class_is_depth: u32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 // Per-receiver state between the passes (mirrors gpu.rs PrepGpu).
@@ -55,11 +61,16 @@ const STATE_DONE: u32 = 0u;
 const STATE_PENUMBRA: u32 = 2u;
 
 // Mirrors gpu.rs RecIn: texel coordinates, depth z_p and classification threshold t_p;
-// zp <= 0 marks a receiver the CPU already settled (not evaluated here).
+// zp <= 0 marks a receiver the CPU already settled (not evaluated here). g0, gu, gv, c: the
+// receiver plane (shadow_map_core::ReceiverPlane, built on the CPU; its zp is z_p, hs 0).
 struct RecIn {
     uv: vec2<f32>,
     zp: f32,
     t: f32,
+    g0: f32,
+    gu: f32,
+    gv: f32,
+    c: f32,
 }
 
 @group(0) @binding(0) var<uniform> u: HsmUniform;
@@ -249,6 +260,76 @@ fn sample(i: i32, j: i32) -> vec2<f32> {
     return vec2<f32>(depth[k], class_z[k]);
 }
 
+fn finite(x: f32) -> bool {
+    return x == x && abs(x) <= F32_MAX;
+}
+
+// contour::OccluderTest::occludes for receiver rec and sample (i, j) = (true, class depth) s.
+fn occludes(rec: RecIn, i: i32, j: i32, s: vec2<f32>) -> bool {
+    if !(s.y < rec.t) {
+        return false;
+    }
+    if u.receiver_plane == 0u {
+        return true;
+    }
+    let g = rec.g0 + rec.gu * (f32(i) + 0.5) + rec.gv * (f32(j) + 0.5);
+    return finite(s.x) && s.x < rec.zp && s.x * g < rec.c;
+}
+
+// contour::caster_bounds: (lower, upper) depth bounds of rec's caster test on the ray through uv.
+fn caster_bounds(rec: RecIn, uv: vec2<f32>) -> vec2<f32> {
+    let g = rec.g0 + rec.gu * uv.x + rec.gv * uv.y;
+    if g > 0.0 {
+        let t = min(rec.c / g, rec.zp);
+        return vec2<f32>(t, t);
+    }
+    if rec.c > 0.0 {
+        return vec2<f32>(rec.zp, rec.zp);
+    }
+    return vec2<f32>(-pos_inf(), rec.zp);
+}
+
+// contour::plane_threshold_range for one receiver, before the margin: (min lower, max upper) over
+// the centres of samples [s.x, s.z] x [s.y, s.w].
+fn threshold_range(rec: RecIn, s: vec4<i32>) -> vec2<f32> {
+    let u0 = f32(s.x) + 0.5;
+    let u1 = f32(s.z) + 0.5;
+    let v0 = f32(s.y) + 0.5;
+    let v1 = f32(s.w) + 0.5;
+    let a = caster_bounds(rec, vec2<f32>(u0, v0));
+    let b = caster_bounds(rec, vec2<f32>(u1, v0));
+    let c = caster_bounds(rec, vec2<f32>(u0, v1));
+    let d = caster_bounds(rec, vec2<f32>(u1, v1));
+    return vec2<f32>(min(min(a.x, b.x), min(c.x, d.x)), max(max(a.y, b.y), max(c.y, d.y)));
+}
+
+// contour::PRUNE_MARGIN applied to a threshold range.
+const PRUNE_MARGIN: f32 = 1.0 / 1048576.0;
+fn widen(r: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(r.x - abs(r.x) * PRUNE_MARGIN, r.y + abs(r.y) * PRUNE_MARGIN);
+}
+
+// contour::true_min: the smallest true depth over samples [s.x, s.z] x [s.y, s.w] (inclusive),
+// class_min when the classification depths are the true depths, else from the true-depth MSSM.
+fn true_min(class_min: f32, s: vec4<i32>) -> f32 {
+    if u.class_is_depth != 0u {
+        return class_min;
+    }
+    return mssm_query_min(s.x, s.y, s.z + 1, s.w + 1);
+}
+
+// contour::Planes::prunable's plane part, given the node's classification range mm, the packet
+// range [tmin, tmax], the threshold range th (widened) over the node's samples s.
+fn plane_prunable(mm: vec2<f32>, tmin: f32, tmax: f32, th: vec2<f32>, s: vec4<i32>) -> bool {
+    if !(mm.x < tmax) {
+        return true;
+    }
+    if mm.y < tmin && mm.y < th.x {
+        return true;
+    }
+    return true_min(mm.x, s) >= th.y;
+}
+
 struct Edge {
     a: vec2<f32>,
     b: vec2<f32>,
@@ -317,22 +398,22 @@ fn cell_edges(i: i32, j: i32, occ: u32, z: vec4<f32>) -> Cell {
     return c;
 }
 
-fn cell_at(i: i32, j: i32, t: f32) -> Cell {
+fn cell_at(i: i32, j: i32, rec: RecIn) -> Cell {
     let s0 = sample(i, j);
     let s1 = sample(i + 1, j);
     let s2 = sample(i + 1, j + 1);
     let s3 = sample(i, j + 1);
     var occ = 0u;
-    if s0.y < t {
+    if occludes(rec, i, j, s0) {
         occ |= 1u;
     }
-    if s1.y < t {
+    if occludes(rec, i + 1, j, s1) {
         occ |= 2u;
     }
-    if s2.y < t {
+    if occludes(rec, i + 1, j + 1, s2) {
         occ |= 4u;
     }
-    if s3.y < t {
+    if occludes(rec, i, j + 1, s3) {
         occ |= 8u;
     }
     return cell_edges(i, j, occ, vec4<f32>(s0.x, s1.x, s2.x, s3.x));
@@ -345,13 +426,13 @@ fn edge_side(e: Edge, q: vec2<f32>) -> f32 {
 }
 
 // contour::centre_status: 1 occluded, 0 free, 2 degenerate (nudge).
-fn centre_status(q: vec2<f32>, t: f32) -> u32 {
+fn centre_status(q: vec2<f32>, rec: RecIn) -> u32 {
     let fi = floor(q.x - 0.5);
     let fj = floor(q.y - 0.5);
     if fi == q.x - 0.5 || fj == q.y - 0.5 {
         return 2u;
     }
-    let c = cell_at(i32(fi), i32(fj), t);
+    let c = cell_at(i32(fi), i32(fj), rec);
     if c.n == 0u {
         return select(0u, 1u, c.occ0);
     }
@@ -466,8 +547,8 @@ fn edge_area(e: Edge, q: vec2<f32>, zp: f32) -> f32 {
     return 0.5 * cross2(ca, cb) - sector_rect(ca, cb);
 }
 
-fn cell_area(i: i32, j: i32, t: f32, q: vec2<f32>, zp: f32) -> f32 {
-    let c = cell_at(i, j, t);
+fn cell_area(i: i32, j: i32, rec: RecIn, q: vec2<f32>, zp: f32) -> f32 {
+    let c = cell_at(i, j, rec);
     var s = 0.0;
     if c.n >= 1u {
         s += edge_area(c.e0, q, zp);
@@ -498,11 +579,19 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     var valid = false;
     let cr = kernel_cells(rec.uv, rec.zp, &valid);
     let mm = dual_query(cr);
-    if !valid || !(mm.x < rec.t) || mm.y < rec.t {
+    // cpu.rs trivial: fully lit, fully occluded.
+    var lit = !(mm.x < rec.t);
+    var umbra = !lit && mm.y < rec.t;
+    if valid && !lit && u.receiver_plane != 0u {
+        let th = widen(threshold_range(rec, cr));
+        lit = true_min(mm.x, cr) >= th.y;
+        umbra = !lit && mm.y < rec.t && mm.y < th.x;
+    }
+    if !valid || lit || umbra {
         prep[idx] = p;
         if loop_limit_hit() {
             v_out[idx] = vec2<f32>(0.0, TRUNCATED);
-        } else if !valid || !(mm.x < rec.t) {
+        } else if !valid || lit {
             v_out[idx] = vec2<f32>(1.0, 0.0);
         } else {
             v_out[idx] = vec2<f32>(0.0, 0.0);
@@ -513,15 +602,16 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     var q = rec.uv;
     var centre = 2u;
     for (var it = 0; it < 8; it++) {
-        centre = centre_status(q, rec.t);
+        centre = centre_status(q, rec);
         if centre != 2u {
             break;
         }
         q += vec2<f32>(1.0 / 4096.0, 1.0 / 8192.0);
     }
     if centre == 2u {
-        let s = sample(i32(floor(q.x)), i32(floor(q.y)));
-        centre = select(0u, 1u, s.y < rec.t);
+        let ci = i32(floor(q.x));
+        let cj = i32(floor(q.y));
+        centre = select(0u, 1u, occludes(rec, ci, cj, sample(ci, cj)));
     }
     p.cr = cr;
     p.q = q;
@@ -578,7 +668,7 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
             let i = cr.x + kk % wc;
             let j = cr.y + kk / wc;
             visited += 1u;
-            sum += cell_area(i, j, rec.t, q, rec.zp);
+            sum += cell_area(i, j, rec, q, rec.zp);
             kk += 1;
         }
         complete = kk >= total;
@@ -597,11 +687,19 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
             let l = u32(nd.z);
             let mm = node(nd);
             // Fig. 6 cases 4 and 5: no contour below this node.
-            if mm.y < rec.t || !(mm.x < rec.t) {
-                continue;
+            if u.receiver_plane == 0u {
+                if mm.y < rec.t || !(mm.x < rec.t) {
+                    continue;
+                }
+            } else {
+                let span = i32(1u << l);
+                let ns = vec4<i32>(nd.x - 1, nd.y - 1, nd.x - 1 + span, nd.y - 1 + span);
+                if plane_prunable(mm, rec.t, rec.t, widen(threshold_range(rec, ns)), ns) {
+                    continue;
+                }
             }
             if l == 0u {
-                sum += cell_area(nd.x - 1, nd.y - 1, rec.t, q, rec.zp);
+                sum += cell_area(nd.x - 1, nd.y - 1, rec, q, rec.zp);
                 continue;
             }
             sp = push_children(&stack, sp, nd, x1, y1);
@@ -783,8 +881,21 @@ fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
             let nd = stack[sp];
             visited += 1u;
             let mm = node(nd);
-            if mm.y < tmin || !(mm.x < tmax) {
-                continue;
+            if u.receiver_plane == 0u {
+                if mm.y < tmin || !(mm.x < tmax) {
+                    continue;
+                }
+            } else {
+                let span = i32(1u << u32(nd.z));
+                let ns = vec4<i32>(nd.x - 1, nd.y - 1, nd.x - 1 + span, nd.y - 1 + span);
+                var th = vec2<f32>(pos_inf(), -pos_inf());
+                for (var i = 0u; i < n; i++) {
+                    let r = threshold_range(recs[ids[i]], ns);
+                    th = vec2<f32>(min(th.x, r.x), max(th.y, r.y));
+                }
+                if plane_prunable(mm, tmin, tmax, widen(th), ns) {
+                    continue;
+                }
             }
             if nd.z > 0 {
                 sp = push_children(&stack, sp, nd, x1, y1);
@@ -799,12 +910,30 @@ fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
         var null_status = false;
         let offs = array<vec2<i32>, 4>(vec2<i32>(0, 0), vec2<i32>(1, 0), vec2<i32>(1, 1), vec2<i32>(0, 1));
         for (var c = 0u; c < 4u; c++) {
-            let s = sample(ci + offs[c].x, cj + offs[c].y);
+            let si = ci + offs[c].x;
+            let sj = cj + offs[c].y;
+            let s = sample(si, sj);
             z[c] = s.x;
-            if s.y < tmin {
-                occ |= 1u << c;
+            if u.receiver_plane == 0u {
+                if s.y < tmin {
+                    occ |= 1u << c;
+                } else if s.y < tmax {
+                    null_status = true;
+                }
             } else if s.y < tmax {
-                null_status = true;
+                // contour::Planes::status: every member, none, or some.
+                var any = false;
+                var all = true;
+                for (var i = 0u; i < n; i++) {
+                    let o = occludes(recs[ids[i]], si, sj, s);
+                    any = any || o;
+                    all = all && o;
+                }
+                if any && all {
+                    occ |= 1u << c;
+                } else if any {
+                    null_status = true;
+                }
             }
         }
         if null_status {

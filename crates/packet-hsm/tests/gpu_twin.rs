@@ -111,7 +111,7 @@ impl TwinPair for PacketHsm {
             ),
             prop::sample::select(vec![32u32, 64, 128]),
             any::<bool>(),
-            any::<bool>(),
+            (any::<bool>(), any::<bool>()),
             (prop::sample::select(vec!["1", "2"]), any::<bool>()),
             prop::sample::select(vec!["1x1", "2x2", "3x3", "4x2", "8x8"]),
             (
@@ -122,13 +122,24 @@ impl TwinPair for PacketHsm {
         runner
             .run(
                 &strat,
-                |(light, height, squares, res, hier, bias, (sl, coh), packet, (fit, nearfar))| {
+                |(
+                    light,
+                    height,
+                    squares,
+                    res,
+                    hier,
+                    (bias, plane),
+                    (sl, coh),
+                    packet,
+                    (fit, nearfar),
+                )| {
                     let s = scene(light, height, &squares);
                     let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
                     let res = res.to_string();
                     let hier = hier.to_string();
                     let ss = if bias { "bias" } else { "midpoint" };
                     let coh = coh.to_string();
+                    let plane = plane.to_string();
                     let kv = [
                         ("coherence", coh.as_str()),
                         ("resolution", res.as_str()),
@@ -138,6 +149,7 @@ impl TwinPair for PacketHsm {
                         ("packet", packet),
                         ("fit", fit),
                         ("nearfar", nearfar),
+                        ("receiver_plane", plane.as_str()),
                     ];
                     let mut g = g.borrow_mut();
                     for (k, v) in kv {
@@ -288,5 +300,53 @@ fn every_fit_and_nearfar_match_on_both_twins() {
             let max = 2.0 * (1.0 + 6.0 / 64.0) * 64.0 / 63.0;
             assert!(st > 1.0 && st <= max, "sublights {sl} {nearfar}: {st}");
         }
+    }
+}
+
+/// The GPU twin of `accuracy.rs`'s `grazing_plane_is_not_self_shadowed` (issue 16): an
+/// unoccluded plane lit at 85 degrees from its normal, at the defaults (receiver-plane
+/// rejection on), keeps V >= facing - 0.02 at every receiver, with midpoints and with the bias.
+#[test]
+fn gpu_grazing_plane_is_not_self_shadowed() {
+    let Some(ctx) = test_support::gpu("gpu_grazing_plane_is_not_self_shadowed") else {
+        return;
+    };
+    let th = 85f32.to_radians();
+    let n = glam::Vec3::new(th.sin(), th.cos(), 0.0);
+    let t = glam::Vec3::new(th.cos(), -th.sin(), 0.0);
+    let c = |a: f32, b: f32| a * t + b * glam::Vec3::Z;
+    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
+    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
+        vec![[p0, p1, p2], [p0, p2, p3]]
+    } else {
+        vec![[p0, p2, p1], [p0, p3, p2]]
+    };
+    let s = Scene::from_meshes(
+        "tilted",
+        test_support::fixtures::camera(8, 8),
+        test_support::fixtures::rect_light(1.0, 3.0),
+        vec![(tris, 1.0)],
+    )
+    .unwrap();
+    let pos: Vec<glam::Vec3> = (0..30 * 30)
+        .map(|k| {
+            c(
+                -1.0 + (k % 30) as f32 * 0.066 + 0.0137,
+                -1.0 + (k / 30) as f32 * 0.066 + 0.0071,
+            )
+        })
+        .collect();
+    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
+    let mut g = GpuPacketHsm::new(ctx).unwrap();
+    for ss in ["midpoint", "bias"] {
+        g.set_param("self_shadow", ss).unwrap();
+        let v = run(&mut g, &s, &r).unwrap().0;
+        let worst = pos
+            .iter()
+            .zip(&v)
+            .map(|(p, x)| s.light.front_fraction_world(*p, n) - x)
+            .fold(f32::NEG_INFINITY, f32::max);
+        eprintln!("gpu 85 deg plane, self_shadow={ss}: most below facing {worst:.4}");
+        assert!(worst <= 0.02, "self_shadow={ss}: V below facing by {worst}");
     }
 }

@@ -117,7 +117,7 @@ pub const BIAS: ParamSpec = ParamSpec {
         max: 1000.0,
     },
     default: "1.0",
-    help: "constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",
+    help: "constant bias in world-space texel footprints at the receiver (w z / (n r)): along the normal under receiver_plane=true (tolerance of the tangent-plane test), along z under receiver_plane=false",
 };
 /// `slope_bias`: slope-scaled receiver bias `b1` in texel footprints
 /// ([`LightView::receiver_bias`]).
@@ -128,7 +128,7 @@ pub const SLOPE_BIAS: ParamSpec = ParamSpec {
         max: 1000.0,
     },
     default: "1.0",
-    help: "slope-scaled bias: texel footprints times min(tan(theta), 10), theta = angle(normal, light)",
+    help: "slope-scaled bias (receiver_plane=false only): texel footprints times min(tan(theta), 10), theta = angle(normal, light)",
 };
 
 /// `fit`: the window choice ([`FitMode`]).
