@@ -254,19 +254,7 @@ fn fixed_case() -> Case {
 struct Accumulation;
 
 impl TwinPair for Accumulation {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuAccumulation::new().expect("cpu twin"))
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuAccumulation::new(ctx.clone()).expect("gpu twin"))
-    }
-
-    fn gpu_chunked(&self, ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
-        let mut g = GpuAccumulation::new(ctx.clone()).expect("gpu twin");
-        g.set_max_chunk(13);
-        Some(Box::new(g))
-    }
+    test_support::twin_constructors!(CpuAccumulation, GpuAccumulation, chunk = 13);
 
     fn fixed_case(&self) -> FixedCase {
         let case = fixed_case();

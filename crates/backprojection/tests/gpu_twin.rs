@@ -170,19 +170,7 @@ fn fixed_case() -> Case {
 struct Backprojection;
 
 impl TwinPair for Backprojection {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuBackprojection::new().expect("cpu twin"))
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuBackprojection::new(ctx.clone()).expect("gpu twin"))
-    }
-
-    fn gpu_chunked(&self, ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
-        let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
-        g.set_max_chunk(13);
-        Some(Box::new(g))
-    }
+    test_support::twin_constructors!(CpuBackprojection, GpuBackprojection, chunk = 13);
 
     fn fixed_case(&self) -> FixedCase {
         let case = fixed_case();

@@ -239,13 +239,7 @@ fn strands_case() -> FixedCase {
 struct DeepShadow;
 
 impl TwinPair for DeepShadow {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuDeepShadow::new().unwrap())
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuDeepShadow::new(ctx.clone()).unwrap())
-    }
+    test_support::twin_constructors!(CpuDeepShadow, GpuDeepShadow);
 
     fn fixed_case(&self) -> FixedCase {
         strands_case()

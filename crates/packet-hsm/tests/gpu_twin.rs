@@ -84,13 +84,7 @@ fn fixed_case() -> FixedCase {
 struct PacketHsm;
 
 impl TwinPair for PacketHsm {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuPacketHsm::new().unwrap())
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuPacketHsm::new(ctx.clone()).unwrap())
-    }
+    test_support::twin_constructors!(CpuPacketHsm, GpuPacketHsm);
 
     fn fixed_case(&self) -> FixedCase {
         fixed_case()

@@ -17,10 +17,14 @@ use proptest::{
     strategy::Strategy,
     test_runner::{Config, TestCaseError, TestRunner},
 };
-use shadow_map_core::{
-    gpu::GpuContext, run, Backend, Receivers, Report, Scene, SoftShadowEstimator,
-};
+use shadow_map_core::{run, Backend, Receivers, Report, Scene, SoftShadowEstimator};
 use std::{cell::RefCell, fmt::Debug, sync::Arc};
+
+/// The GPU context the twins run on (re-exported for [`twin_constructors!`]).
+pub use shadow_map_core::gpu::GpuContext;
+
+/// A boxed estimator, as [`TwinPair`] hands out its twins.
+pub type BoxedEstimator = Box<dyn SoftShadowEstimator>;
 
 /// Parameters for both twins: `(key, value)`.
 pub type Params = Vec<(&'static str, String)>;
@@ -202,6 +206,44 @@ macro_rules! twin_suite {
                 }
             )+
         }
+    };
+}
+
+/// The constructors of a [`TwinPair`] inside its `impl` block: [`TwinPair::cpu`] is
+/// `<$cpu>::new()`, [`TwinPair::gpu`] is `<$gpu>::new(ctx)` (default parameters, a failure to
+/// build panics), and with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
+/// `set_max_chunk(N)`.
+///
+/// ```ignore
+/// impl TwinPair for Accumulation {
+///     test_support::twin_constructors!(CpuAccumulation, GpuAccumulation, chunk = 13);
+///     // fixed_case, random_scenes, ...
+/// }
+/// ```
+#[macro_export]
+macro_rules! twin_constructors {
+    ($cpu:ty, $gpu:ty $(, chunk = $chunk:expr)? $(,)?) => {
+        fn cpu(&self) -> $crate::conformance::BoxedEstimator {
+            ::std::boxed::Box::new(<$cpu>::new().expect("cpu twin"))
+        }
+
+        fn gpu(
+            &self,
+            ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
+        ) -> $crate::conformance::BoxedEstimator {
+            ::std::boxed::Box::new(<$gpu>::new(ctx.clone()).expect("gpu twin"))
+        }
+
+        $(
+            fn gpu_chunked(
+                &self,
+                ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
+            ) -> ::std::option::Option<$crate::conformance::BoxedEstimator> {
+                let mut g = <$gpu>::new(ctx.clone()).expect("gpu twin");
+                g.set_max_chunk($chunk);
+                ::std::option::Option::Some(::std::boxed::Box::new(g))
+            }
+        )?
     };
 }
 
