@@ -6,7 +6,7 @@ use crate::{
     timing::{time_cpu, Gpu, Stamp, StampAt, Timing},
     BenchResult,
 };
-use shadow_map_core::gpu::GpuContext;
+use shadow_map_core::gpu::{depth_map::texture_desc, raster::VERTEX_BUFFERS, GpuContext};
 use std::hint::black_box;
 use wgpu::util::DeviceExt;
 
@@ -139,29 +139,6 @@ fn compute_pass(
     pass.dispatch_workgroups(x, y, 1);
 }
 
-/// One `r x r` 2D texture, one mip, one sample.
-fn square_texture(
-    label: &str,
-    r: u32,
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::TextureDescriptor<'_> {
-    wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: r,
-            height: r,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    }
-}
-
 /// The random `r x r` map of the tap ceilings (depths in [0, 1)).
 pub fn random_map(r: u32) -> Vec<f32> {
     (0..r * r).map(|k| unit(1, k)).collect()
@@ -187,9 +164,11 @@ pub fn ceiling_taps(
     let (group, out) = ctx.scoped("taps_kernel", || {
         let texture = ctx.device.create_texture_with_data(
             &ctx.queue,
-            &square_texture(
+            &texture_desc(
                 "bench.taps.map",
                 r,
+                r,
+                1,
                 wgpu::TextureFormat::R32Float,
                 wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             ),
@@ -319,15 +298,7 @@ pub fn ceiling_triangles(g: &Gpu, cfg: &Config, module: &wgpu::ShaderModule) -> 
                     module,
                     entry_point: Some("tri_vs"),
                     compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: 16,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &[wgpu::VertexAttribute {
-                            format: wgpu::VertexFormat::Float32x4,
-                            offset: 0,
-                            shader_location: 0,
-                        }],
-                    })],
+                    buffers: VERTEX_BUFFERS,
                 },
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
@@ -355,9 +326,11 @@ pub fn ceiling_triangles(g: &Gpu, cfg: &Config, module: &wgpu::ShaderModule) -> 
             });
         let depth = ctx
             .device
-            .create_texture(&square_texture(
+            .create_texture(&texture_desc(
                 "bench.triangles.depth",
                 r,
+                r,
+                1,
                 wgpu::TextureFormat::Depth32Float,
                 wgpu::TextureUsages::RENDER_ATTACHMENT,
             ))

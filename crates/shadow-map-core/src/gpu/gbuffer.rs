@@ -47,7 +47,8 @@
 //! `min_storage_buffer_offset_alignment`, so images larger than one storage binding are chunked,
 //! not refused.
 use super::{
-    raster::{GpuScene, DEPTH_TEST_FORMAT},
+    depth_map::texture_desc,
+    raster::{begin_depth_tested_pass, nearest_surface_test, GpuScene, DEPTH_TEST_FORMAT},
     receivers::{GpuReceivers, RECEIVER_BYTES},
     shared::ReceiverGpu,
     GpuContext,
@@ -350,13 +351,7 @@ impl GpuGBuffer {
                     cull_mode: None,
                     ..Default::default()
                 },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_TEST_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
+                depth_stencil: Some(nearest_surface_test()),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
@@ -517,50 +512,24 @@ impl GpuGBuffer {
                 resource: cam.as_entire_binding(),
             }],
         });
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("gbuffer.raster"),
-            color_attachments: &[
-                Some(wgpu::RenderPassColorAttachment {
-                    view: normal_t,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.0,
-                            g: 0.0,
-                            b: 1.0,
-                            a: f64::INFINITY,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
-                Some(wgpu::RenderPassColorAttachment {
-                    view: triangle,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: NO_TRIANGLE as f64,
-                            g: 0.0,
-                            b: 0.0,
-                            a: 0.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
-            ],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: depth_test,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(0.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let background = wgpu::Color {
+            r: 0.0,
+            g: 0.0,
+            b: 1.0,
+            a: f64::INFINITY,
+        };
+        let no_triangle = wgpu::Color {
+            r: NO_TRIANGLE as f64,
+            g: 0.0,
+            b: 0.0,
+            a: 0.0,
+        };
+        let mut pass = begin_depth_tested_pass(
+            enc,
+            "gbuffer.raster",
+            &[(normal_t, background), (triangle, no_triangle)],
+            depth_test,
+        );
         if scene.triangles > 0 {
             pass.set_pipeline(&self.raster);
             pass.set_bind_group(0, &group, &[]);
@@ -701,20 +670,7 @@ impl RenderResources {
     fn new(device: &wgpu::Device, w: u32, h: u32, pixels: u64) -> Self {
         let target = |label, format, usage| {
             device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d {
-                        width: w,
-                        height: h,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
+                .create_texture(&texture_desc(label, w, h, 1, format, usage))
                 .create_view(&Default::default())
         };
         let sampled = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;

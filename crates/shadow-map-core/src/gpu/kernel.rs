@@ -12,7 +12,7 @@
 //!     &[Binding::Uniform, Binding::Storage, Binding::StorageRw], &[("WG", 64.0)])?;
 //! # let _ = k; Ok(()) }
 //! ```
-use super::{shared::pack_receivers, shared::ReceiverGpu, GpuContext};
+use super::{depth_map::texture_desc, shared::pack_receivers, shared::ReceiverGpu, GpuContext};
 use crate::{Receivers, Result};
 use wgpu::util::DeviceExt;
 
@@ -333,22 +333,16 @@ pub fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Resu
         });
     }
     ctx.scoped(label, || {
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: count,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING
+        let texture = ctx.device.create_texture(&texture_desc(
+            label,
+            size,
+            size,
+            count,
+            wgpu::TextureFormat::R32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_DST
                 | wgpu::TextureUsages::STORAGE_BINDING,
-            view_formats: &[],
-        });
+        ));
         let view = texture.create_view(&wgpu::TextureViewDescriptor {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()

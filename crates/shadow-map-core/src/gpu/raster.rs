@@ -34,7 +34,7 @@
 //! `!(z > prev * (1 + PEEL_EPS_REL))`, `PEEL_EPS_REL` passed as a WGSL override constant from
 //! [`crate::raster::PEEL_EPS_REL`].
 use super::{
-    depth_map::{check_size, extent, GpuDepthMap, DEPTH_MAP_FORMAT},
+    depth_map::{check_size, texture_desc, GpuDepthMap, DEPTH_MAP_FORMAT},
     light_space::GpuLightSpace,
     midpoint::GpuMidpoints,
     mssm::{GpuMssmBuilder, MinMaxRequest},
@@ -58,6 +58,19 @@ pub const RASTER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!(
 
 /// Format of the depth attachment used for the nearest-surface test.
 pub const DEPTH_TEST_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The vertex buffers of every raster pipeline: one, a `vec4<f32>` position per vertex at
+/// location 0 (the vertices of [`GpuScene`]).
+pub const VERTEX_BUFFERS: &[Option<wgpu::VertexBufferLayout<'static>>] =
+    &[Some(wgpu::VertexBufferLayout {
+        array_stride: 16,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &[wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32x4,
+            offset: 0,
+            shader_location: 0,
+        }],
+    })];
 
 /// Uniform of the raster passes; mirrors `RasterParams` in `raster.wgsl`.
 #[repr(C)]
@@ -211,16 +224,14 @@ impl GpuShadowMapper {
                 immediate_size: 0,
             });
             let no_prev = device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some("raster.no_prev"),
-                    size: extent(1),
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: DEPTH_MAP_FORMAT,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                })
+                .create_texture(&texture_desc(
+                    "raster.no_prev",
+                    1,
+                    1,
+                    1,
+                    DEPTH_MAP_FORMAT,
+                    wgpu::TextureUsages::TEXTURE_BINDING,
+                ))
                 .create_view(&Default::default());
             (module, layout, pipeline_layout, no_prev)
         })?;
@@ -274,15 +285,7 @@ impl GpuShadowMapper {
                             constants: &constants,
                             ..Default::default()
                         },
-                        buffers: &[Some(wgpu::VertexBufferLayout {
-                            array_stride: 16,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &[wgpu::VertexAttribute {
-                                format: wgpu::VertexFormat::Float32x4,
-                                offset: 0,
-                                shader_location: 0,
-                            }],
-                        })],
+                        buffers: VERTEX_BUFFERS,
                     },
                     primitive: wgpu::PrimitiveState {
                         topology: wgpu::PrimitiveTopology::TriangleList,
@@ -294,13 +297,7 @@ impl GpuShadowMapper {
                         },
                         ..Default::default()
                     },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH_TEST_FORMAT,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Greater),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
+                    depth_stencil: Some(nearest_surface_test()),
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &self.module,
@@ -498,16 +495,14 @@ fn create_raster_uniforms(
 /// Creates the `r` x `r` depth attachment of the nearest-surface test (`raster.depth_test`).
 fn create_depth_test(device: &wgpu::Device, r: u32) -> wgpu::TextureView {
     device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some("raster.depth_test"),
-            size: extent(r),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_TEST_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        })
+        .create_texture(&texture_desc(
+            "raster.depth_test",
+            r,
+            r,
+            1,
+            DEPTH_TEST_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        ))
         .create_view(&Default::default())
 }
 
@@ -518,23 +513,58 @@ fn begin_layer_pass<'e>(
     target: &wgpu::TextureView,
     depth_test: &wgpu::TextureView,
 ) -> wgpu::RenderPass<'e> {
-    let label = format!("raster.layer{m}");
+    let inf = wgpu::Color {
+        r: f64::INFINITY,
+        g: 0.0,
+        b: 0.0,
+        a: 0.0,
+    };
+    begin_depth_tested_pass(
+        enc,
+        &format!("raster.layer{m}"),
+        &[(target, inf)],
+        depth_test,
+    )
+}
+
+/// The nearest-surface test of the raster pipelines: reversed z on a [`DEPTH_TEST_FORMAT`]
+/// attachment (cleared to 0), the greater depth wins and is written.
+pub(crate) fn nearest_surface_test() -> wgpu::DepthStencilState {
+    wgpu::DepthStencilState {
+        format: DEPTH_TEST_FORMAT,
+        depth_write_enabled: Some(true),
+        depth_compare: Some(wgpu::CompareFunction::Greater),
+        stencil: Default::default(),
+        bias: Default::default(),
+    }
+}
+
+/// Begins the render pass `label` into `targets`, each cleared to its colour and stored, with
+/// the nearest-surface test `depth_test` (a [`DEPTH_TEST_FORMAT`] attachment cleared to 0 and
+/// discarded after the pass).
+pub(crate) fn begin_depth_tested_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    targets: &[(&wgpu::TextureView, wgpu::Color)],
+    depth_test: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    let color_attachments: Vec<_> = targets
+        .iter()
+        .map(|&(view, clear)| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect();
     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some(&label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: target,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color {
-                    r: f64::INFINITY,
-                    g: 0.0,
-                    b: 0.0,
-                    a: 0.0,
-                }),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
+        label: Some(label),
+        color_attachments: &color_attachments,
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: depth_test,
             depth_ops: Some(wgpu::Operations {
