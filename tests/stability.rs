@@ -320,12 +320,7 @@ fn every_estimator_survives_every_hard_case() {
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} failures:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert_no_failures(&failures);
 }
 
 /// Receivers behind the light get 0 from every estimator (contract: one-sided lights).
@@ -409,7 +404,7 @@ fn shrinking_light_converges_to_the_hard_shadow() {
             failures.push(format!("{} {backend}: {errs:?}", e.name()));
         }
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_failures(&failures);
 }
 
 /// `depth=unorm16` through the whole catalogue, on every estimator that offers it (both
@@ -465,12 +460,7 @@ fn unorm16_depth_survives_every_hard_case() {
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} failures:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert_no_failures(&failures);
 }
 
 /// The resolution limit: on a floating square over the ground under a rect light (std camera),
@@ -518,7 +508,7 @@ fn growing_resolution_shrinks_the_error() {
             failures.push(format!("{} {backend}: {errs:?}", e.name()));
         }
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_failures(&failures);
 }
 
 /// The other end of the resolution range: the largest map the parameter allows (16384, also the
@@ -595,5 +585,15 @@ fn resolution_at_the_maximum_works_and_beyond_is_refused() {
         e.set_param("resolution", "64").unwrap();
         run(e.as_mut(), &case.scene, &case.receivers).unwrap();
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_failures(&failures);
+}
+
+/// Fails listing every collected failure, one a line, when there is any.
+fn assert_no_failures(failures: &[String]) {
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
