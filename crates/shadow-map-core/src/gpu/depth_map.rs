@@ -109,20 +109,26 @@ pub(crate) fn check_size(ctx: &GpuContext, size: u32) -> Result<()> {
     Ok(())
 }
 
+/// The [`Error::Gpu`] of the upload `stage` given `len` `what` (depths, codes) for a square map
+/// of side `size`.
+pub(crate) fn upload_len_error(stage: &str, what: &str, len: usize, size: u32) -> Error {
+    Error::Gpu {
+        stage: stage.into(),
+        reason: format!("{len} {what} for a {size}x{size} map"),
+    }
+}
+
 /// Uploads a CPU depth map (bit for bit). Fails with [`Error::Limit`] when its side is 0 or
 /// beyond `max_texture_dimension_2d`, and with [`Error::Gpu`] when `depth.len() != size^2`.
 pub fn upload_depth_map(ctx: &GpuContext, map: &DepthMap) -> Result<GpuDepthMap> {
     let n = map.size as usize * map.size as usize;
     if map.depth.len() != n {
-        return Err(Error::Gpu {
-            stage: "depth-map upload".into(),
-            reason: format!(
-                "{} depths for a {}x{} map",
-                map.depth.len(),
-                map.size,
-                map.size
-            ),
-        });
+        return Err(upload_len_error(
+            "depth-map upload",
+            "depths",
+            map.depth.len(),
+            map.size,
+        ));
     }
     ctx.scoped("depth-map upload", || -> Result<GpuDepthMap> {
         let gpu = GpuDepthMap::new(ctx, map.size, "depth-map upload")?;

@@ -48,6 +48,7 @@
 //! not refused.
 use super::{
     depth_map::texture_desc,
+    kernel::{buffer_init, wgsl_module, Binding},
     raster::{begin_depth_tested_pass, nearest_surface_test, GpuScene, DEPTH_TEST_FORMAT},
     receivers::{GpuReceivers, RECEIVER_BYTES},
     shared::ReceiverGpu,
@@ -61,7 +62,6 @@ use crate::{
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use std::num::NonZeroU64;
-use wgpu::util::DeviceExt;
 
 /// WGSL source of the G-buffer: `shared.wgsl` followed by `gbuffer.wgsl`.
 pub const GBUFFER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("gbuffer.wgsl"));
@@ -257,34 +257,6 @@ pub struct GpuGBuffer {
     max_binding_bytes: Option<u64>,
 }
 
-/// A storage-buffer layout entry of the resolve pass.
-fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A uniform-buffer layout entry.
-fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 /// A sampled-texture layout entry of the resolve pass.
 fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -313,13 +285,10 @@ impl GpuGBuffer {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         ctx.scoped("gbuffer", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("gbuffer"),
-                source: wgpu::ShaderSource::Wgsl(GBUFFER_WGSL.into()),
-            });
+            let module = wgsl_module(device, "gbuffer", GBUFFER_WGSL);
             let raster_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("gbuffer.raster"),
-                entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
+                entries: &[Binding::Uniform.entry_in(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
             });
             let raster_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("gbuffer.raster"),
@@ -377,13 +346,13 @@ impl GpuGBuffer {
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("gbuffer.resolve"),
                     entries: &[
-                        uniform_entry(0, wgpu::ShaderStages::COMPUTE),
-                        uniform_entry(1, wgpu::ShaderStages::COMPUTE),
+                        Binding::Uniform.entry(0),
+                        Binding::Uniform.entry(1),
                         texture_entry(2, wgpu::TextureSampleType::Float { filterable: false }),
                         texture_entry(3, wgpu::TextureSampleType::Uint),
-                        storage_entry(4),
-                        storage_entry(5),
-                        storage_entry(6),
+                        Binding::StorageRw.entry(4),
+                        Binding::StorageRw.entry(5),
+                        Binding::StorageRw.entry(6),
                     ],
                 });
             let resolve_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -465,11 +434,12 @@ impl GpuGBuffer {
         let max_groups = limits.max_compute_workgroups_per_dimension.max(1) as u64;
         ctx.scoped("gbuffer", || {
             let device = &ctx.device;
-            let cam = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("gbuffer.camera"),
-                contents: bytemuck::bytes_of(&uniform),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+            let cam = buffer_init(
+                device,
+                "gbuffer.camera",
+                bytemuck::bytes_of(&uniform),
+                wgpu::BufferUsages::UNIFORM,
+            );
             let res = RenderResources::new(device, w, h, pixels);
 
             let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -554,16 +524,17 @@ impl GpuGBuffer {
             .iter()
             .map(|c| {
                 let count = c.end - c.start;
-                let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("gbuffer.resolve"),
-                    contents: bytemuck::bytes_of(&ResolveParams {
+                let params = buffer_init(
+                    device,
+                    "gbuffer.resolve",
+                    bytemuck::bytes_of(&ResolveParams {
                         width: w,
                         first: c.start,
                         count,
                         background_z: f32::INFINITY,
                     }),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
+                    wgpu::BufferUsages::UNIFORM,
+                );
                 let first = c.start as u64;
                 let n = count as u64;
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -19,7 +19,11 @@
 //! [`Mssm`]: crate::mssm::Mssm
 //! [`DualMssm`]: crate::mssm::DualMssm
 //! [`MinMaxPyramid`]: crate::mssm::MinMaxPyramid
-use super::{depth_map::GpuDepthMap, GpuContext};
+use super::{
+    depth_map::GpuDepthMap,
+    kernel::{wgsl_module, Binding},
+    GpuContext,
+};
 use crate::{Error, Result};
 use bytemuck::{Pod, Zeroable};
 use std::num::NonZeroU64;
@@ -508,10 +512,7 @@ impl GpuMssmBuilder {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         ctx.scoped("mssm", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("mssm"),
-                source: wgpu::ShaderSource::Wgsl(MSSM_WGSL.into()),
-            });
+            let module = wgsl_module(device, "mssm", MSSM_WGSL);
             let uniform = wgpu::BindGroupLayoutEntry {
                 binding: 0,
                 visibility: wgpu::ShaderStages::COMPUTE,
@@ -522,26 +523,11 @@ impl GpuMssmBuilder {
                 },
                 count: None,
             };
-            let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
+            let storage = |binding, read_only| match read_only {
+                true => Binding::Storage.entry(binding),
+                false => Binding::StorageRw.entry(binding),
             };
-            let texture = wgpu::BindGroupLayoutEntry {
-                binding: 1,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            };
+            let texture = Binding::Texture2d.entry(1);
             let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some(label),

@@ -35,6 +35,7 @@
 //! [`crate::raster::PEEL_EPS_REL`].
 use super::{
     depth_map::{check_size, texture_desc, GpuDepthMap, DEPTH_MAP_FORMAT},
+    kernel::{buffer_init, wgsl_module, Binding},
     light_space::GpuLightSpace,
     midpoint::GpuMidpoints,
     mssm::{GpuMssmBuilder, MinMaxRequest},
@@ -42,7 +43,7 @@ use super::{
     GpuContext,
 };
 use crate::{
-    light_view::{FitReport, LightView},
+    light_view::{FitReport, LightView, ViewOptions},
     raster::{Cull, DepthBias, PEEL_EPS_REL},
     receivers::Receivers,
     scene::Scene,
@@ -51,7 +52,6 @@ use crate::{
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
 use std::sync::Mutex;
-use wgpu::util::DeviceExt;
 
 /// WGSL source of the rasteriser: `shared.wgsl` followed by `raster.wgsl`.
 pub const RASTER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("raster.wgsl"));
@@ -130,15 +130,14 @@ impl GpuScene {
             verts.push([0.0; 4]);
         }
         ctx.scoped("raster.scene", || GpuScene {
-            vertices: ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("raster.scene"),
-                    contents: bytemuck::cast_slice(&verts),
-                    usage: wgpu::BufferUsages::VERTEX
-                        | wgpu::BufferUsages::STORAGE
-                        | wgpu::BufferUsages::COPY_DST,
-                }),
+            vertices: buffer_init(
+                &ctx.device,
+                "raster.scene",
+                bytemuck::cast_slice(&verts),
+                wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST,
+            ),
             triangles: n as u32,
         })
     }
@@ -187,35 +186,15 @@ impl GpuShadowMapper {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let (module, layout, pipeline_layout, no_prev) = ctx.scoped("raster", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("raster"),
-                source: wgpu::ShaderSource::Wgsl(RASTER_WGSL.into()),
-            });
-            let uniform = |binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
+            let module = wgsl_module(device, "raster", RASTER_WGSL);
+            let uniform =
+                |binding| Binding::Uniform.entry_in(binding, wgpu::ShaderStages::VERTEX_FRAGMENT);
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("raster"),
                 entries: &[
                     uniform(0),
                     uniform(1),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 2,
-                        visibility: wgpu::ShaderStages::FRAGMENT,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
+                    Binding::Texture2d.entry_in(2, wgpu::ShaderStages::FRAGMENT),
                 ],
             });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -334,14 +313,7 @@ impl GpuShadowMapper {
         receivers: &Receivers,
         req: &LightSpaceRequest,
     ) -> Result<GpuLightSpace> {
-        let light = &scene.light;
-        let (view, fit) = LightView::fit(
-            scene,
-            receivers,
-            light.frame(),
-            light.half_extent(),
-            req.resolution,
-        )?;
+        let (view, fit) = req.fit_view(scene, receivers, &ViewOptions::default())?;
         let mut ls = self.render_layers(ctx, gpu_scene, &view, req)?;
         ls.fit = fit;
         Ok(ls)
@@ -477,18 +449,18 @@ fn create_raster_uniforms(
     view: &LightView,
     bias: DepthBias,
 ) -> (wgpu::Buffer, wgpu::Buffer) {
-    let view_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("raster.view"),
-        contents: bytemuck::bytes_of(&LightViewUniform::from(view)),
-        usage: wgpu::BufferUsages::UNIFORM
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-    });
-    let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("raster.params"),
-        contents: bytemuck::bytes_of(&RasterParams::from(bias)),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
+    let view_uniform = buffer_init(
+        device,
+        "raster.view",
+        bytemuck::bytes_of(&LightViewUniform::from(view)),
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+    );
+    let params = buffer_init(
+        device,
+        "raster.params",
+        bytemuck::bytes_of(&RasterParams::from(bias)),
+        wgpu::BufferUsages::UNIFORM,
+    );
     (view_uniform, params)
 }
 
