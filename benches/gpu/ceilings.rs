@@ -6,7 +6,12 @@ use crate::{
     timing::{time_cpu, Gpu, Stamp, StampAt, Timing},
     BenchResult,
 };
-use shadow_map_core::gpu::{depth_map::texture_desc, raster::VERTEX_BUFFERS, GpuContext};
+use shadow_map_core::gpu::{
+    depth_map::texture_desc,
+    kernel::{buffer_init, shader_module},
+    raster::VERTEX_BUFFERS,
+    GpuContext,
+};
 use std::hint::black_box;
 use wgpu::util::DeviceExt;
 
@@ -57,13 +62,7 @@ struct InsertParams {
 }
 
 pub fn ceilings_module(ctx: &GpuContext) -> BenchResult<wgpu::ShaderModule> {
-    Ok(ctx.scoped("bench.ceilings", || {
-        ctx.device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("bench.ceilings"),
-                source: wgpu::ShaderSource::Wgsl(CEILINGS_WGSL.into()),
-            })
-    })?)
+    Ok(shader_module(ctx, "bench.ceilings", &[CEILINGS_WGSL])?)
 }
 
 fn compute_pipeline(
@@ -90,12 +89,12 @@ fn compute_pipeline(
 
 /// A uniform buffer holding `value`.
 fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
+    buffer_init(
+        &ctx.device,
+        label,
+        bytemuck::bytes_of(value),
+        wgpu::BufferUsages::UNIFORM,
+    )
 }
 
 /// A bind group for group 0 of `pipeline` (its layout derived from the shader), from
@@ -317,13 +316,12 @@ pub fn ceiling_triangles(g: &Gpu, cfg: &Config, module: &wgpu::ShaderModule) -> 
                 multiview_mask: None,
                 cache: None,
             });
-        let vertices = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("bench.triangles.vertices"),
-                contents: bytemuck::cast_slice(&verts),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
+        let vertices = buffer_init(
+            &ctx.device,
+            "bench.triangles.vertices",
+            bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::VERTEX,
+        );
         let depth = ctx
             .device
             .create_texture(&texture_desc(
