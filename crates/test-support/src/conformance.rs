@@ -85,6 +85,25 @@ pub trait TwinPair {
     /// explainer (usually through [`random_twins`]); failures persist beside `source_file`.
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str);
 
+    /// Check: [`same_name_description_and_parameters`] on new twins.
+    fn same_name_description_and_parameters(&self, ctx: &Arc<GpuContext>) {
+        let (cpu, mut gpu) = (self.cpu(), self.gpu(ctx));
+        same_name_description_and_parameters(&self.label(), &*cpu, &mut *gpu);
+    }
+
+    /// Check: [`inactive_receivers_are_nan`] on the fixed case.
+    fn inactive_receivers_are_nan_on_gpu(&self, ctx: &Arc<GpuContext>) {
+        let case = self.fixed_case();
+        inactive_receivers_are_nan(&self.label(), &mut *self.gpu(ctx), &case);
+    }
+
+    /// Check: [`zero_receivers_work_alike`] on the fixed case.
+    fn zero_receivers_work_like_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
+        let case = self.fixed_case();
+        let (mut cpu, mut gpu) = (self.cpu(), self.gpu(ctx));
+        zero_receivers_work_alike(&self.label(), &mut *cpu, &mut *gpu, &case);
+    }
+
     /// Check: [`chunked_dispatch_equals_one_dispatch`] on the fixed case.
     fn chunked_dispatch_equals_one_dispatch(&self, ctx: &Arc<GpuContext>) {
         let label = self.label();
@@ -131,6 +150,15 @@ pub trait TwinPair {
 /// ```
 #[macro_export]
 macro_rules! twin_suite {
+    (@check $pair:expr, $check:ident) => {
+        #[test]
+        fn $check() {
+            let Some(ctx) = ctx(stringify!($check)) else {
+                return;
+            };
+            $crate::conformance::TwinPair::$check(&$pair, &ctx);
+        }
+    };
     ($($algo:ident $([$($check:ident),* $(,)?])? => $pair:expr),+ $(,)?) => {
         /// The CPU-vs-GPU conformance suite, one module per algorithm.
         mod twin {
@@ -153,56 +181,10 @@ macro_rules! twin_suite {
                         $crate::conformance::TwinPair::random_scenes(&$pair, &ctx, file!());
                     }
 
-                    #[test]
-                    fn same_name_description_and_parameters() {
-                        let Some(ctx) = ctx("same_name_description_and_parameters") else {
-                            return;
-                        };
-                        let pair = $pair;
-                        let label = $crate::conformance::TwinPair::label(&pair);
-                        let cpu = $crate::conformance::TwinPair::cpu(&pair);
-                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
-                        $crate::conformance::same_name_description_and_parameters(
-                            &label, &*cpu, &mut *gpu,
-                        );
-                    }
-
-                    #[test]
-                    fn inactive_receivers_are_nan_on_gpu() {
-                        let Some(ctx) = ctx("inactive_receivers_are_nan_on_gpu") else {
-                            return;
-                        };
-                        let pair = $pair;
-                        let label = $crate::conformance::TwinPair::label(&pair);
-                        let case = $crate::conformance::TwinPair::fixed_case(&pair);
-                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
-                        $crate::conformance::inactive_receivers_are_nan(&label, &mut *gpu, &case);
-                    }
-
-                    #[test]
-                    fn zero_receivers_work_like_the_cpu_twin() {
-                        let Some(ctx) = ctx("zero_receivers_work_like_the_cpu_twin") else {
-                            return;
-                        };
-                        let pair = $pair;
-                        let label = $crate::conformance::TwinPair::label(&pair);
-                        let case = $crate::conformance::TwinPair::fixed_case(&pair);
-                        let mut cpu = $crate::conformance::TwinPair::cpu(&pair);
-                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
-                        $crate::conformance::zero_receivers_work_alike(
-                            &label, &mut *cpu, &mut *gpu, &case,
-                        );
-                    }
-
-                    $($(
-                        #[test]
-                        fn $check() {
-                            let Some(ctx) = ctx(stringify!($check)) else {
-                                return;
-                            };
-                            $crate::conformance::TwinPair::$check(&$pair, &ctx);
-                        }
-                    )*)?
+                    $crate::twin_suite!(@check $pair, same_name_description_and_parameters);
+                    $crate::twin_suite!(@check $pair, inactive_receivers_are_nan_on_gpu);
+                    $crate::twin_suite!(@check $pair, zero_receivers_work_like_the_cpu_twin);
+                    $($($crate::twin_suite!(@check $pair, $check);)*)?
                 }
             )+
         }
