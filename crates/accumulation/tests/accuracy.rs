@@ -7,7 +7,9 @@ use reference::ReferenceEstimator;
 use shadow_map_core::{
     light::default_tangent, run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
 };
-use test_support::fixtures::{check_contract, cuboid, fixture, points, quad, rmse, with_params};
+use test_support::fixtures::{
+    check_contract, cuboid, fixture, note_as, points, quad, rmse, with_params,
+};
 
 fn camera() -> shadow_map_core::Camera {
     test_support::fixtures::camera(8, 8)
@@ -34,7 +36,10 @@ fn acc(kv: &[(&str, &str)]) -> CpuAccumulation {
 }
 
 /// Every (variant, kernel, coverage) the estimator offers, as parameter sets.
-fn modes() -> Vec<Vec<(&'static str, &'static str)>> {
+/// One estimator configuration: `(key, value)` parameters.
+type Mode = Vec<(&'static str, &'static str)>;
+
+fn modes() -> Vec<Mode> {
     let mut out = Vec::new();
     for kernel in ["fixed", "adaptive"] {
         out.push(vec![("variant", "additive"), ("kernel", kernel)]);
@@ -46,6 +51,21 @@ fn modes() -> Vec<Vec<(&'static str, &'static str)>> {
         out.push(vec![("variant", "exact"), ("kernel", kernel)]);
     }
     out
+}
+
+/// Every mode of [`modes`] at `resolution` on `scene`: the mode and its V at `r`, which keeps
+/// the estimator contract.
+fn every_mode(scene: &Scene, r: &Receivers, resolution: &'static str) -> Vec<(Mode, Vec<f32>)> {
+    modes()
+        .into_iter()
+        .map(|mode| {
+            let mut kv = mode.clone();
+            kv.push(("resolution", resolution));
+            let (v, _) = run(&mut acc(&kv), scene, r).unwrap();
+            check_contract(&v, r);
+            (mode, v)
+        })
+        .collect()
 }
 
 fn reference(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f32> {
@@ -97,11 +117,7 @@ fn light_radius_to_zero_converges_to_the_hard_shadow_map() {
         let mut hard = HardShadow::new().unwrap();
         hard.set_param("resolution", "256").unwrap();
         let (vh, _) = run(&mut hard, &s, &r).unwrap();
-        for mode in modes() {
-            let mut kv = mode.clone();
-            kv.push(("resolution", "256"));
-            let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-            check_contract(&v, &r);
+        for (mode, v) in every_mode(&s, &r, "256") {
             if mode.contains(&("coverage", "centre")) {
                 // The paper's centre test does not converge: a backprojected lexel is far larger
                 // than the footprint, counted in full (clamped to 1) or not at all.
@@ -146,11 +162,7 @@ fn receiver_behind_a_touching_occluder() {
         .collect();
     let r = points(pos, Vec3::Y);
     let vr = reference(&s, &r, 1024);
-    for mode in modes() {
-        let mut kv = mode.clone();
-        kv.push(("resolution", "512"));
-        let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-        check_contract(&v, &r);
+    for (mode, v) in every_mode(&s, &r, "512") {
         // The first receivers touch the wall: the reference is well below 1 there.
         assert!(vr[0] < 0.6, "reference at the wall {}", vr[0]);
         let mae: f32 = v.iter().zip(&vr).map(|(a, b)| (a - b).abs()).sum::<f32>() / v.len() as f32;
@@ -196,12 +208,7 @@ fn caster_nearer_than_the_papers_plane() {
         (e, report)
     };
     let (lexels, report) = err(&[("kernel", "lexels"), ("k", "5"), ("resolution", "512")]);
-    let paper_n: f32 = report
-        .notes
-        .iter()
-        .find(|n| n.0 == "paper_n")
-        .map(|n| n.1.parse().unwrap())
-        .unwrap();
+    let paper_n: f32 = note_as(&report, "paper_n");
     // The plate is at c_z = 0.2 from the light: nearer than the paper's plane.
     assert!(paper_n > 0.2, "paper_n {paper_n}");
     for kernel in ["fixed", "adaptive"] {
@@ -242,11 +249,7 @@ fn grazing_receivers() {
         .collect();
     let r = points(pos, Vec3::Y);
     let vr = reference(&s, &r, 1024);
-    for mode in modes() {
-        let mut kv = mode.clone();
-        kv.push(("resolution", "512"));
-        let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-        check_contract(&v, &r);
+    for (mode, v) in every_mode(&s, &r, "512") {
         for k in 0..v.len() {
             assert!(
                 (v[k] - vr[k]).abs() < 0.05,

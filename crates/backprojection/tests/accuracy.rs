@@ -4,7 +4,8 @@ use baselines::HardShadow;
 use glam::Vec3;
 use shadow_map_core::{run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
 use test_support::fixtures::{
-    assert_valid, errors, line_receivers, oracle, quad, rect_light, with_params, Occ, SQUARE,
+    assert_valid, errors, line_receivers, note_as, oracle, quad, rect_light, with_params, Occ,
+    SQUARE,
 };
 
 fn camera() -> shadow_map_core::Camera {
@@ -38,14 +39,7 @@ fn flat_occluder_errors(occ: Occ, label: &str) -> Vec<(f64, f64, f64)> {
     for res in [128u32, 256, 512] {
         let mut e = bp(&[("resolution", &res.to_string()), ("max_nspp", "4096")]);
         let (v, report) = run(&mut e, &s, &r).unwrap();
-        let step: f64 = report
-            .notes
-            .iter()
-            .find(|n| n.0 == "max_step")
-            .unwrap()
-            .1
-            .parse()
-            .unwrap();
+        let step: f64 = note_as(&report, "max_step");
         let view = e.light_space().unwrap().view;
         let k = view.delta() / view.n;
         let (zo, zp) = (3.0 - occ.4, 3.0f32);
@@ -217,33 +211,27 @@ fn midpoints_remove_acne() {
     assert!(fb < 0.99, "bias=0: {fb}");
 }
 
+/// Each self-shadow mode at resolution 256 (and `extra`) on `s`: V valid at `r` (see
+/// [`assert_valid`]).
+fn valid_in_every_self_shadow_mode(s: &Scene, r: &Receivers, extra: &[(&str, &str)], what: &str) {
+    for ss in ["midpoint", "bias"] {
+        let mut kv = vec![("resolution", "256"), ("self_shadow", ss)];
+        kv.extend_from_slice(extra);
+        let v = run(&mut bp(&kv), s, r).unwrap().0;
+        assert_valid(&v, what);
+    }
+}
+
 /// Degenerate geometry: no NaN or inf, V in [0, 1].
 #[test]
 fn hard_cases_stay_finite() {
     let r = line_receivers();
     // Occluder 1e-5 above the receiver plane.
     let s = scene_with(rect_light(1.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 1e-5)]);
-    for ss in ["midpoint", "bias"] {
-        let v = run(
-            &mut bp(&[("resolution", "256"), ("self_shadow", ss)]),
-            &s,
-            &r,
-        )
-        .unwrap()
-        .0;
-        assert_valid(&v, "touching the receiver");
-    }
+    valid_in_every_self_shadow_mode(&s, &r, &[], "touching the receiver");
     // Occluder almost touching the light: its depth is 1.0001 n, just below the light.
     let s = scene_with(rect_light(1.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 3.0 - 1e-4)]);
-    for ss in ["midpoint", "bias"] {
-        let mut e = bp(&[
-            ("resolution", "256"),
-            ("self_shadow", ss),
-            ("gap_filling", "true"),
-        ]);
-        let v = run(&mut e, &s, &r).unwrap().0;
-        assert_valid(&v, "touching the light");
-    }
+    valid_in_every_self_shadow_mode(&s, &r, &[("gap_filling", "true")], "touching the light");
     // Receivers behind the light and on its plane.
     let s = scene_with(rect_light(1.0, 3.0), &[SQUARE]);
     let mut pts = r.position.clone();
@@ -268,15 +256,7 @@ fn hard_cases_stay_finite() {
         ],
     )
     .unwrap();
-    for ss in ["midpoint", "bias"] {
-        let mut e = bp(&[
-            ("resolution", "256"),
-            ("self_shadow", ss),
-            ("gap_filling", "true"),
-        ]);
-        let v = run(&mut e, &s, &r).unwrap().0;
-        assert_valid(&v, "depth range 1e5");
-    }
+    valid_in_every_self_shadow_mode(&s, &r, &[("gap_filling", "true")], "depth range 1e5");
     // Inactive receivers are NaN.
     let mut ri = line_receivers();
     ri.active[3] = false;

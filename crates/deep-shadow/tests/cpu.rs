@@ -215,14 +215,7 @@ fn a_texel_with_ten_thousand_fragments() {
             ]);
             let (v, rep) = run(&mut e, &scene, &rec).unwrap();
             check_contract(&v, &rec);
-            let max_list: u32 = rep
-                .notes
-                .iter()
-                .find(|n| n.0 == "max_list")
-                .unwrap()
-                .1
-                .parse()
-                .unwrap();
+            let max_list: u32 = note_as(&rep, "max_list");
             assert_eq!(max_list, n as u32 + 1);
             for x in &v[..9] {
                 assert!(
@@ -259,15 +252,8 @@ fn linked_and_naive_traversal_agree_exactly() {
                         vb[k]
                     );
                 }
-                let steps = |r: &shadow_map_core::Report| -> f64 {
-                    r.notes
-                        .iter()
-                        .find(|n| n.0 == "elements_per_lookup")
-                        .unwrap()
-                        .1
-                        .parse()
-                        .unwrap()
-                };
+                let steps =
+                    |r: &shadow_map_core::Report| -> f64 { note_as(r, "elements_per_lookup") };
                 if kv.iter().any(|p| p.1 == "7") {
                     assert!(
                         steps(&ra) < steps(&rb),
@@ -338,24 +324,10 @@ fn a_tiny_capacity_grows_and_rebuilds_or_fails_with_a_typed_error() {
     )
     .unwrap();
     assert_eq!(v0, v1);
-    let passes = |r: &shadow_map_core::Report| {
-        r.notes
-            .iter()
-            .find(|n| n.0 == "build_passes")
-            .unwrap()
-            .1
-            .clone()
-    };
+    let passes = |r: &shadow_map_core::Report| note(r, "build_passes").unwrap();
     assert_eq!(passes(&r0), "1");
     assert_eq!(passes(&r1), "2");
-    let frags: u64 = r1
-        .notes
-        .iter()
-        .find(|n| n.0 == "fragments")
-        .unwrap()
-        .1
-        .parse()
-        .unwrap();
+    let frags: u64 = note_as(&r1, "fragments");
     let mut e = est(&[
         ("resolution", "128"),
         ("capacity", "16"),
@@ -463,21 +435,9 @@ fn truncation_error_is_bounded_by_epsilon_on_hair() {
         b.extend([("resolution", "256"), ("epsilon", "0")]);
         let (va, ra) = run(&mut est(&a), &scene, &rec).unwrap();
         let (vb, _) = run(&mut est(&b), &scene, &rec).unwrap();
-        let worst = va
-            .iter()
-            .zip(&vb)
-            .filter(|p| p.0.is_finite())
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0f32, f32::max);
+        let worst = max_abs_diff(&va, &vb);
         assert!(worst <= 1.0e-3 + 1e-6, "{mode:?}: {worst}");
-        let truncated: u64 = ra
-            .notes
-            .iter()
-            .find(|n| n.0 == "truncated")
-            .unwrap()
-            .1
-            .parse()
-            .unwrap();
+        let truncated: u64 = note_as(&ra, "truncated");
         assert!(truncated > 0);
     }
 }

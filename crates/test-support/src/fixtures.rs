@@ -188,6 +188,29 @@ pub fn rmse(a: &[f32], b: &[f32], active: &[bool]) -> f64 {
     (s / n.max(1) as f64).sqrt()
 }
 
+/// The value of a report's note `key` parsed as a `T`; panics, naming the note, when the report
+/// has none or it does not parse.
+pub fn note_as<T: std::str::FromStr>(r: &Report, key: &str) -> T
+where
+    T::Err: std::fmt::Debug,
+{
+    match note(r, key) {
+        Some(v) => v
+            .parse()
+            .unwrap_or_else(|e| panic!("note {key} = {v:?}: {e:?}")),
+        None => panic!("no note {key} in {:?}", r.notes),
+    }
+}
+
+/// The largest `|a[k] - b[k]|` over the receivers where `a` is finite (0 when none is).
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .filter(|p| p.0.is_finite())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max)
+}
+
 /// The estimator contract on an output: every active V finite in [0, 1], every inactive one NaN.
 pub fn check_contract(v: &[f32], r: &Receivers) {
     for (k, x) in v.iter().enumerate() {
