@@ -4,8 +4,7 @@
 //! the same f32 order, so results are bit-identical for identical layers.
 use super::{
     depth_map::GpuDepthMap,
-    kernel::buffer_init,
-    kernel::{Binding, Kernel},
+    kernel::{buffer_init, Binding, Kernel},
     GpuContext,
 };
 use crate::Result;

@@ -8,8 +8,7 @@
 //! ```
 use super::{
     depth_map::{upload_len_error, GpuDepthMap},
-    kernel::buffer_init,
-    kernel::{Binding, Kernel},
+    kernel::{buffer_init, Binding, Kernel},
     GpuContext,
 };
 use crate::{
