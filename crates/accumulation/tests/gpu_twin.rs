@@ -163,7 +163,7 @@ fn sampling_tie(
         .collect();
     cpu_on(ls, scene, &points(pos, rec.normal[k]), s, s.bias)
         .iter()
-        .any(|v| (v - c).abs() > TWIN.abs || (v - g).abs() <= TWIN.abs)
+        .any(|&v| TWIN.nudge_explains(v, c, g))
 }
 
 fn check_case(case: &Case, gpu: &mut GpuAccumulation) -> Result<Option<CaseStats>, String> {
@@ -203,9 +203,7 @@ fn check_case(case: &Case, gpu: &mut GpuAccumulation) -> Result<Option<CaseStats
             .iter()
             .map(|&k| {
                 let (c, g) = (v_cpu[k], v_gpu[k]);
-                let depth = nudged
-                    .iter()
-                    .any(|v| (v[k] - c).abs() > TWIN.abs || (v[k] - g).abs() <= TWIN.abs);
+                let depth = nudged.iter().any(|v| TWIN.nudge_explains(v[k], c, g));
                 let sampling = !depth && sampling_tie(ls, &scene, &rec, s, k, c, g);
                 Verdict::of(depth, sampling)
             })

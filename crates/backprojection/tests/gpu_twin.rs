@@ -128,9 +128,7 @@ fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseSta
             .iter()
             .map(|&k| {
                 let (c, g) = (v_cpu[k], v_gpu[k]);
-                let tie = nudged
-                    .iter()
-                    .any(|v| (v[k] - c).abs() > TWIN.abs || (v[k] - g).abs() <= TWIN.abs);
+                let tie = nudged.iter().any(|v| TWIN.nudge_explains(v[k], c, g));
                 Verdict::of(tie, false)
             })
             .collect())

@@ -125,6 +125,13 @@ impl Tolerance {
         (f, cmp.max_dv)
     }
 
+    /// Whether an alternative CPU value `alt` of a receiver (the CPU twin rerun with its depth
+    /// test or samples nudged) shows a tie between the CPU's `cpu` and the GPU's `gpu`: the
+    /// nudge moves the CPU's V beyond [`Tolerance::abs`], or reproduces the GPU's within it.
+    pub fn nudge_explains(&self, alt: f32, cpu: f32, gpu: f32) -> bool {
+        (alt - cpu).abs() > self.abs || (alt - gpu).abs() <= self.abs
+    }
+
     /// The rule of a random case: every receiver beyond [`Tolerance::abs`] must be a tie, and
     /// at most [`Tolerance::allowed_beyond`] of them. `explain` is called (once, only when some
     /// receiver is beyond) with those receivers, worst first, and gives a [`Verdict`] for each.
