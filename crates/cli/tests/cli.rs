@@ -121,6 +121,14 @@ fn algos_lists_every_estimator_with_parameters() {
     );
 }
 
+/// The error line of `render <scene> --algo pcss <extra...> --out <out>`.
+fn render_pcss_err(scene: &str, extra: &[&str], out: &str) -> String {
+    let mut args = vec!["render", scene, "--algo", "pcss"];
+    args.extend_from_slice(extra);
+    args.extend(["--out", out]);
+    run_err(&args)
+}
+
 #[test]
 fn bad_input_is_one_line_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
@@ -128,50 +136,18 @@ fn bad_input_is_one_line_and_writes_nothing() {
     let o = out.to_str().unwrap();
     let scene = fixture("parallel-squares/parallel-squares.toml");
     let s = scene.to_str().unwrap();
-    let e = run_err(&[
-        "render",
-        "/no/such/scene.toml",
-        "--algo",
-        "pcss",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err("/no/such/scene.toml", &[], o);
     assert!(e.contains("/no/such/scene.toml"), "{e}");
-    let e = run_err(&[
-        "render",
-        s,
-        "--algo",
-        "pcss",
-        "--param",
-        "resolution=0",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err(s, &["--param", "resolution=0"], o);
     assert!(
         e.contains("resolution") && e.contains("out of range"),
         "{e}"
     );
-    let e = run_err(&[
-        "render",
-        s,
-        "--algo",
-        "pcss",
-        "--param",
-        "resolution",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err(s, &["--param", "resolution"], o);
     assert!(e.contains("KEY=VALUE"), "{e}");
     let e = run_err(&["render", s, "--algo", "nope", "--out", o]);
     assert!(e.contains("nope"), "{e}");
-    let e = run_err(&[
-        "render",
-        s,
-        "--algo",
-        "pcss",
-        "--out",
-        "/no/such/dir/out.exr",
-    ]);
+    let e = render_pcss_err(s, &[], "/no/such/dir/out.exr");
     assert!(e.contains("/no/such/dir/out.exr"), "{e}");
     let bad = dir.path().join("bad.toml");
     std::fs::write(
@@ -181,14 +157,7 @@ fn bad_input_is_one_line_and_writes_nothing() {
             .replace("fov_y_deg", "fov"),
     )
     .unwrap();
-    let e = run_err(&[
-        "render",
-        bad.to_str().unwrap(),
-        "--algo",
-        "pcss",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err(bad.to_str().unwrap(), &[], o);
     assert!(e.contains("bad.toml"), "{e}");
     let e = run_err(&["score", "/no/such/a.exr", "/no/such/b.exr"]);
     assert!(e.contains("/no/such/a.exr"), "{e}");

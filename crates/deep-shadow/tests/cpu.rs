@@ -372,16 +372,7 @@ fn an_opaque_scene_builds_no_lists() {
 
 #[test]
 fn every_mode_keeps_the_contract_on_the_fixtures() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|d| {
-            let d = d.ok()?.path();
-            let name = d.file_name()?.to_str()?.to_string();
-            d.join(format!("{name}.toml")).exists().then_some(name)
-        })
-        .collect();
-    names.sort();
+    let names = fixture_names();
     assert!(names.iter().any(|n| n == "hair"), "{names:?}");
     for name in &names {
         let (scene, rec) = fixture(name, 32, 24);
@@ -398,23 +389,18 @@ fn every_mode_keeps_the_contract_on_the_fixtures() {
 #[test]
 fn parameters_are_checked() {
     let mut e = CpuDeepShadow::new().unwrap();
-    assert!(matches!(
-        e.set_param("kernel", "4"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(
-        e.set_param("kernel", "9"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(
-        e.set_param("filter", "box"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(
-        e.set_param("sublights", "5"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(e.set_param("nope", "1"), Err(Error::Param { .. })));
+    for (k, v) in [
+        ("kernel", "4"),
+        ("kernel", "9"),
+        ("filter", "box"),
+        ("sublights", "5"),
+        ("nope", "1"),
+    ] {
+        assert!(
+            matches!(e.set_param(k, v), Err(Error::Param { .. })),
+            "{k}={v}"
+        );
+    }
     e.set_param("kernel", "7").unwrap();
     assert_eq!(e.params().int("kernel"), 7);
     assert_eq!(e.settings().kernel, 7);

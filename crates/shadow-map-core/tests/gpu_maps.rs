@@ -808,10 +808,7 @@ fn forced_chunking_is_bit_identical() -> TestResult {
     };
     let g = upload_depth_map(&ctx, &map)?;
     let builder = mapper.mssm_builder().clone().with_max_binding_bytes(64);
-    match builder.build_mssm(&ctx, &g, 3) {
-        Err(Error::Limit { .. }) => {}
-        other => panic!("expected Error::Limit, got {other:?}"),
-    }
+    assert_limit(builder.build_mssm(&ctx, &g, 3));
     Ok(())
 }
 
@@ -833,10 +830,7 @@ fn texture_larger_than_the_device_limit_is_a_limit_error() -> TestResult {
         }
         other => panic!("expected Error::Limit, got {other:?}"),
     }
-    match GpuDepthMap::new(&ctx, max + 1, "too large") {
-        Err(Error::Limit { .. }) => {}
-        other => panic!("expected Error::Limit, got {other:?}"),
-    }
+    assert_limit(GpuDepthMap::new(&ctx, max + 1, "too large"));
     Ok(())
 }
 
@@ -974,4 +968,12 @@ fn render_fits_like_the_cpu_and_to_cpu_reads_every_part() -> TestResult {
         cpu.pyramid.as_ref().map(MinMaxPyramid::levels)
     );
     Ok(())
+}
+
+/// Fails unless `r` is an [`Error::Limit`].
+fn assert_limit<T: std::fmt::Debug>(r: Result<T, Error>) {
+    match r {
+        Err(Error::Limit { .. }) => {}
+        other => panic!("expected Error::Limit, got {other:?}"),
+    }
 }

@@ -162,13 +162,7 @@ fn slope_scaled_bias() {
     let view = unit_view(8);
     let p = PreparedScene::new(&flat, &view, Cull::None);
     let d0 = p.rasterize(DepthBias::default(), None);
-    let d1 = p.rasterize(
-        DepthBias {
-            constant: 0.25,
-            slope: 10.0,
-        },
-        None,
-    );
+    let d1 = p.rasterize(bias(0.25, 10.0), None);
     // Fronto-parallel: zero slope, only the constant.
     for (a, b) in d0.depth.iter().zip(&d1.depth) {
         assert!((b - a - 0.25).abs() < 1e-6);
@@ -182,13 +176,7 @@ fn slope_scaled_bias() {
     let tilted = scene(vec![vec![tri]]);
     let p = PreparedScene::new(&tilted, &view, Cull::None);
     let a = p.rasterize(DepthBias::default(), None);
-    let b = p.rasterize(
-        DepthBias {
-            constant: 0.0,
-            slope: 1.0,
-        },
-        None,
-    );
+    let b = p.rasterize(bias(0.0, 1.0), None);
     let k = 0;
     assert!(
         b.depth[k] > a.depth[k] + 0.1,
@@ -323,4 +311,9 @@ proptest! {
         }
         prop_assert!(view.n > 0.0 && view.far >= h - 1e-3);
     }
+}
+
+/// A depth bias of `constant` plus `slope` times the depth slope.
+fn bias(constant: f32, slope: f32) -> DepthBias {
+    DepthBias { constant, slope }
 }

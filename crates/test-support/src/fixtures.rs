@@ -112,6 +112,22 @@ pub fn fixture_path(name: &str) -> String {
     )
 }
 
+/// The names of every scene fixture (each directory `fixtures/<name>` holding `<name>.toml`),
+/// sorted.
+pub fn fixture_names() -> Vec<String> {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{dir}: {e}"))
+        .filter_map(|d| {
+            let d = d.ok()?.path();
+            let name = d.file_name()?.to_str()?.to_string();
+            d.join(format!("{name}.toml")).exists().then_some(name)
+        })
+        .collect();
+    names.sort();
+    names
+}
+
 /// The scene fixture `name` with its camera set to `w x h` pixels, and the camera's receivers.
 pub fn fixture(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
     let mut scene = match Scene::load(fixture_path(name)) {

@@ -4,7 +4,7 @@
 use glam::Vec3;
 use shadow_map_core::{Camera, Light, Receivers, Scene};
 pub use test_support::fixtures::{
-    check_contract, fixture, max_abs_diff, note, note_as, quad, rmse,
+    check_contract, fixture, fixture_names, max_abs_diff, note, note_as, quad, rmse,
 };
 
 /// The fixed scenes' camera, 8 x 8 pixels.
