@@ -8,7 +8,7 @@ use shadow_map_core::{
     light::default_tangent, run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
 };
 use test_support::fixtures::{
-    check_contract, cuboid, fixture, note_as, points, quad, rmse, with_params,
+    check_contract, cuboid, fixture, fixture_names, note_as, points, quad, rmse, with_params,
 };
 
 fn camera() -> shadow_map_core::Camera {
@@ -333,16 +333,9 @@ fn rmse_against_the_reference_on_fixtures() {
 /// No NaN or inf on any fixture, both variants, and inactive receivers NaN.
 #[test]
 fn every_fixture_gives_v_in_range() {
-    for name in [
-        "parallel-squares",
-        "overlapping",
-        "thin-sticks",
-        "strands",
-        "sphere-light",
-        "bunny",
-        "stacked",
-        "hair",
-    ] {
+    let names = fixture_names();
+    assert_eq!(names.len(), 8, "{names:?}");
+    for name in &names {
         let (s, r) = fixture(name, 24, 18);
         for variant in ["additive", "exact"] {
             let mut e = acc(&[("resolution", "128"), ("variant", variant), ("layers", "2")]);

@@ -101,8 +101,7 @@ fn run_cpu(
 }
 
 fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseStats>, String> {
-    let scene = case.scene.scene();
-    let rec = case.scene.receivers(&scene.light);
+    let (scene, rec) = case.scene.scene_and_receivers();
     let s = &case.settings;
     let (v_cpu, cpu) = run_cpu(&scene, &rec, s, s.bias);
     let ls = cpu.light_space().ok_or("no light space")?;
@@ -114,8 +113,7 @@ fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseSta
     let st = TWIN.judge("backprojection", &cmp, &rec, &v_cpu, &v_gpu, |beyond| {
         // Depth ties: in bias mode, move z - eps by TIE_NUDGE_REL z (through `bias`, in texel
         // footprints) both ways; a tie changes the CPU's V or reproduces the GPU's.
-        let view = ls.view;
-        let nudge = TIE_NUDGE_REL * view.n * view.r as f32 / view.w;
+        let nudge = test_support::tolerance::bias_nudge(&ls.view, TIE_NUDGE_REL);
         let nudged: Vec<Vec<f32>> = if s.midpoint {
             Vec::new()
         } else {
@@ -168,12 +166,15 @@ fn fixed_case() -> Case {
 struct Backprojection;
 
 impl TwinPair for Backprojection {
-    test_support::twin_constructors!(CpuBackprojection, GpuBackprojection, chunk = 13);
-
-    fn fixed_case(&self) -> FixedCase {
-        let case = fixed_case();
-        FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
-    }
+    test_support::twin_constructors!(
+        CpuBackprojection,
+        GpuBackprojection,
+        chunk = 13,
+        fixed = {
+            let case = fixed_case();
+            FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
+        }
+    );
 
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let mut twin = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
@@ -191,8 +192,7 @@ impl TwinPair for Backprojection {
     /// receiver, NaN at inactive ones, and some umbra or penumbra.
     fn cli_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
         let case = fixed_case();
-        let scene = case.scene.scene();
-        let rec = case.scene.receivers(&scene.light);
+        let (scene, rec) = case.scene.scene_and_receivers();
         let (v_cpu, _) = run_cpu(&scene, &rec, &case.settings, 1.0);
         let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
         assert_eq!(g.backend(), Backend::Gpu);

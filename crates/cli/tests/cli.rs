@@ -39,19 +39,19 @@ fn render_stats_and_score() {
     let pcss = dir.path().join("pcss.exr");
     let refr = dir.path().join("ref.exr");
     let png = dir.path().join("pcss.png");
-    let stats = run_ok(&[
-        "render",
-        scene.to_str().unwrap(),
-        "--algo",
+    let sc = scene.to_str().unwrap();
+    let stats = run_ok(&render(
+        sc,
         "pcss",
-        "--param",
-        "resolution=256",
-        "--out",
-        pcss.to_str().unwrap(),
-        "--png",
-        png.to_str().unwrap(),
-        "--stats",
-    ]);
+        &["resolution=256"],
+        &[
+            "--out",
+            pcss.to_str().unwrap(),
+            "--png",
+            png.to_str().unwrap(),
+            "--stats",
+        ],
+    ));
     let j: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
     assert_eq!(j["algo"], "pcss");
     assert_eq!(j["backend"], "cpu");
@@ -59,16 +59,12 @@ fn render_stats_and_score() {
     assert!(j["stages_ms"]["build"].as_f64().unwrap() >= 0.0);
     assert!(j["stages_ms"]["estimate"].as_f64().unwrap() >= 0.0);
     assert!(png.exists());
-    run_ok(&[
-        "render",
-        scene.to_str().unwrap(),
-        "--algo",
+    run_ok(&render(
+        sc,
         "reference",
-        "--param",
-        "spp=64",
-        "--out",
-        refr.to_str().unwrap(),
-    ]);
+        &["spp=64"],
+        &["--out", refr.to_str().unwrap()],
+    ));
     let s: serde_json::Value = serde_json::from_str(
         run_ok(&["score", pcss.to_str().unwrap(), refr.to_str().unwrap()]).trim(),
     )
@@ -121,12 +117,21 @@ fn algos_lists_every_estimator_with_parameters() {
     );
 }
 
+/// The arguments `render <scene> --algo <algo>`, `--param <p>` for each of `params`, `rest...`.
+fn render<'a>(scene: &'a str, algo: &'a str, params: &[&'a str], rest: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["render", scene, "--algo", algo];
+    for p in params {
+        args.extend(["--param", p]);
+    }
+    args.extend_from_slice(rest);
+    args
+}
+
 /// The error line of `render <scene> --algo pcss <extra...> --out <out>`.
 fn render_pcss_err(scene: &str, extra: &[&str], out: &str) -> String {
-    let mut args = vec!["render", scene, "--algo", "pcss"];
-    args.extend_from_slice(extra);
-    args.extend(["--out", out]);
-    run_err(&args)
+    let mut rest = extra.to_vec();
+    rest.extend(["--out", out]);
+    run_err(&render(scene, "pcss", &[], &rest))
 }
 
 #[test]
@@ -176,23 +181,21 @@ fn camera_path_writes_numbered_frames_and_flicker() {
     let out = dir.path().join("pan.exr");
     let mut flicker = Vec::new();
     for fit in ["receivers", "stable"] {
-        let stdout = run_ok(&[
-            "render",
+        let fit_kv = format!("fit={fit}");
+        let stdout = run_ok(&render(
             scene.to_str().unwrap(),
-            "--algo",
             "pcf",
-            "--param",
-            "resolution=128",
-            "--param",
-            &format!("fit={fit}"),
-            "--frames",
-            "3",
-            "--pan",
-            "0.1,0,-0.05",
-            "--out",
-            out.to_str().unwrap(),
-            "--stats",
-        ]);
+            &["resolution=128", &fit_kv],
+            &[
+                "--frames",
+                "3",
+                "--pan",
+                "0.1,0,-0.05",
+                "--out",
+                out.to_str().unwrap(),
+                "--stats",
+            ],
+        ));
         let lines: Vec<serde_json::Value> = stdout
             .lines()
             .map(|l| serde_json::from_str(l).unwrap())

@@ -239,11 +239,7 @@ fn strands_case() -> FixedCase {
 struct DeepShadow;
 
 impl TwinPair for DeepShadow {
-    test_support::twin_constructors!(CpuDeepShadow, GpuDeepShadow);
-
-    fn fixed_case(&self) -> FixedCase {
-        strands_case()
-    }
+    test_support::twin_constructors!(CpuDeepShadow, GpuDeepShadow, fixed = strands_case());
 
     /// The lists, links and transmittance of the GPU twin's map against the CPU twin's.
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {

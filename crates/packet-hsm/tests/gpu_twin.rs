@@ -84,11 +84,7 @@ fn fixed_case() -> FixedCase {
 struct PacketHsm;
 
 impl TwinPair for PacketHsm {
-    test_support::twin_constructors!(CpuPacketHsm, GpuPacketHsm);
-
-    fn fixed_case(&self) -> FixedCase {
-        fixed_case()
-    }
+    test_support::twin_constructors!(CpuPacketHsm, GpuPacketHsm, fixed = fixed_case());
 
     /// Random scenes, packet sizes, hierarchy, coherence, sub-lights, self-shadow and light
     /// views, through the CLI path on both twins: V and the packet counters.

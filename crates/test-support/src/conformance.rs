@@ -43,8 +43,7 @@ pub struct FixedCase {
 impl FixedCase {
     /// The scene and receivers of `spec`, and `params`.
     pub fn new(spec: &SceneSpec, params: Params) -> FixedCase {
-        let scene = spec.scene();
-        let receivers = spec.receivers(&scene.light);
+        let (scene, receivers) = spec.scene_and_receivers();
         FixedCase {
             scene,
             receivers,
@@ -193,18 +192,18 @@ macro_rules! twin_suite {
 
 /// The constructors of a [`TwinPair`] inside its `impl` block: [`TwinPair::cpu`] is
 /// `<$cpu>::new()`, [`TwinPair::gpu`] is `<$gpu>::new(ctx)` (default parameters, a failure to
-/// build panics), and with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
-/// `set_max_chunk(N)`.
+/// build panics), with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
+/// `set_max_chunk(N)`, and with `fixed = EXPR` also [`TwinPair::fixed_case`]: `EXPR`.
 ///
 /// ```ignore
 /// impl TwinPair for Accumulation {
 ///     test_support::twin_constructors!(CpuAccumulation, GpuAccumulation, chunk = 13);
-///     // fixed_case, random_scenes, ...
+///     // random_scenes, ...
 /// }
 /// ```
 #[macro_export]
 macro_rules! twin_constructors {
-    ($cpu:ty, $gpu:ty $(, chunk = $chunk:expr)? $(,)?) => {
+    ($cpu:ty, $gpu:ty $(, chunk = $chunk:expr)? $(, fixed = $fixed:expr)? $(,)?) => {
         fn cpu(&self) -> $crate::conformance::BoxedEstimator {
             ::std::boxed::Box::new(<$cpu>::new().expect("cpu twin"))
         }
@@ -224,6 +223,12 @@ macro_rules! twin_constructors {
                 let mut g = <$gpu>::new(ctx.clone()).expect("gpu twin");
                 g.set_max_chunk($chunk);
                 ::std::option::Option::Some(::std::boxed::Box::new(g))
+            }
+        )?
+
+        $(
+            fn fixed_case(&self) -> $crate::conformance::FixedCase {
+                $fixed
             }
         )?
     };

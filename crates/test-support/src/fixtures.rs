@@ -130,12 +130,28 @@ pub fn fixture_names() -> Vec<String> {
 
 /// The scene fixture `name` with its camera set to `w x h` pixels, and the camera's receivers.
 pub fn fixture(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
-    let mut scene = match Scene::load(fixture_path(name)) {
-        Ok(s) => s,
-        Err(e) => panic!("fixture {name}: {e}"),
-    };
+    let mut scene = fixture_scene(name);
     scene.camera.width = w;
     scene.camera.height = h;
+    with_camera_receivers(scene)
+}
+
+/// The scene fixture `name` as its file describes it (image size included), and the camera's
+/// receivers.
+pub fn authored_fixture(name: &str) -> (Scene, Receivers) {
+    with_camera_receivers(fixture_scene(name))
+}
+
+/// The scene fixture `name`, loaded; panics, naming it, when it does not load.
+fn fixture_scene(name: &str) -> Scene {
+    match Scene::load(fixture_path(name)) {
+        Ok(s) => s,
+        Err(e) => panic!("fixture {name}: {e}"),
+    }
+}
+
+/// `scene` and its camera's receivers.
+fn with_camera_receivers(scene: Scene) -> (Scene, Receivers) {
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     (scene, rec)
 }

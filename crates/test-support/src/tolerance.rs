@@ -8,7 +8,7 @@
 //! few ulps of receiver position move to the neighbouring texel; the method says which
 //! ([`Verdict`]).
 
-use shadow_map_core::Receivers;
+use shadow_map_core::{LightView, Receivers};
 use std::fmt;
 
 /// Per-receiver tolerance on V, the fraction of receivers that must meet it, and an optional
@@ -202,6 +202,12 @@ impl Tolerance {
         }
         Ok(st)
     }
+}
+
+/// The change of the receiver bias (in texel footprints) that moves a depth test's `z - eps` by
+/// `rel z` in `view`: the nudge of the CPU reruns that expose depth ties.
+pub fn bias_nudge(view: &LightView, rel: f32) -> f32 {
+    rel * view.n * view.r as f32 / view.w
 }
 
 /// One output compared with its twin's ([`Tolerance::compare`]).
