@@ -170,6 +170,32 @@ pub struct MinMaxRequest {
     pub pyramid: bool,
 }
 
+impl MinMaxRequest {
+    /// The anchored MSSM alone, up to `levels`.
+    pub fn mssm(levels: u32) -> Self {
+        MinMaxRequest {
+            mssm_levels: Some(levels),
+            ..Default::default()
+        }
+    }
+
+    /// The dual-grid MSSM alone, up to `levels`.
+    pub fn dual_mssm(levels: u32) -> Self {
+        MinMaxRequest {
+            dual_mssm_levels: Some(levels),
+            ..Default::default()
+        }
+    }
+
+    /// The min/max pyramid alone.
+    pub fn pyramid() -> Self {
+        MinMaxRequest {
+            pyramid: true,
+            ..Default::default()
+        }
+    }
+}
+
 /// The structures built by [`GpuMssmBuilder::encode`].
 #[derive(Debug, Clone, Default)]
 pub struct GpuMinMaxSet {
@@ -688,10 +714,7 @@ impl GpuMssmBuilder {
         depth: &GpuDepthMap,
         max_level: u32,
     ) -> Result<GpuMssm> {
-        let req = MinMaxRequest {
-            mssm_levels: Some(max_level),
-            ..Default::default()
-        };
+        let req = MinMaxRequest::mssm(max_level);
         self.build(ctx, depth, req)?.mssm.ok_or_else(missing)
     }
 
@@ -702,20 +725,15 @@ impl GpuMssmBuilder {
         depth: &GpuDepthMap,
         max_level: u32,
     ) -> Result<GpuDualMssm> {
-        let req = MinMaxRequest {
-            dual_mssm_levels: Some(max_level),
-            ..Default::default()
-        };
+        let req = MinMaxRequest::dual_mssm(max_level);
         self.build(ctx, depth, req)?.dual_mssm.ok_or_else(missing)
     }
 
     /// Builds the min/max pyramid (see [`crate::mssm::MinMaxPyramid::build`]).
     pub fn build_pyramid(&self, ctx: &GpuContext, depth: &GpuDepthMap) -> Result<GpuMinMaxPyramid> {
-        let req = MinMaxRequest {
-            pyramid: true,
-            ..Default::default()
-        };
-        self.build(ctx, depth, req)?.pyramid.ok_or_else(missing)
+        self.build(ctx, depth, MinMaxRequest::pyramid())?
+            .pyramid
+            .ok_or_else(missing)
     }
 }
 
