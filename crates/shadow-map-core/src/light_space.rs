@@ -32,6 +32,19 @@ pub struct LightSpaceRequest {
 }
 
 impl LightSpaceRequest {
+    /// A single plain shadow map of resolution `r`.
+    pub fn single(r: u32) -> Self {
+        LightSpaceRequest {
+            resolution: r,
+            layers: 1,
+            midpoints: None,
+            mssm_levels: None,
+            dual_mssm_levels: None,
+            pyramid: false,
+            raster: RasterOptions::default(),
+        }
+    }
+
     /// The view at the light centre, axes along the light frame, fitted to `receivers` at this
     /// request's resolution ([`LightView::fit_with`]): what [`LightSpace::build_with`] and the
     /// GPU mapper render in.
@@ -50,19 +63,6 @@ impl LightSpaceRequest {
             self.resolution,
             opts,
         )
-    }
-
-    /// A single plain shadow map of resolution `r`.
-    pub fn single(r: u32) -> Self {
-        LightSpaceRequest {
-            resolution: r,
-            layers: 1,
-            midpoints: None,
-            mssm_levels: None,
-            dual_mssm_levels: None,
-            pyramid: false,
-            raster: RasterOptions::default(),
-        }
     }
 }
 
