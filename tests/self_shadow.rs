@@ -193,7 +193,9 @@ fn no_estimator_darkens_a_truly_lit_receiver() {
                 if dark > worst.0 {
                     worst = (dark, tag.clone());
                 }
-                if !(dark <= TOL) {
+                if v.iter().any(|x| !x.is_finite()) {
+                    failures.push(format!("{tag}: non-finite V"));
+                } else if dark > TOL {
                     failures.push(format!("{tag}: a truly lit receiver darkened by {dark:.3}"));
                 }
             }

@@ -94,6 +94,14 @@ fn std_cam() -> Camera {
     camera(Vec3::new(0.0, 3.0, 4.0), Vec3::ZERO)
 }
 
+/// The unit rect light 3 above the ground, a square of side 0.5 centred at `centre` between
+/// them, seen from the standard camera.
+fn floating_square(name: &'static str, centre: Vec3) -> Case {
+    let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
+    let occ = quad(centre, 0.5, Mat3::IDENTITY);
+    from_camera(name, scene(l, std_cam(), vec![ground(), occ]))
+}
+
 fn catalogue() -> Vec<Case> {
     let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
     let occ = quad(Vec3::new(0.0, 1.0, 0.0), 0.5, Mat3::IDENTITY);
@@ -320,12 +328,7 @@ fn every_estimator_survives_every_hard_case() {
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} failures:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert_no_failures(&failures);
 }
 
 /// Receivers behind the light get 0 from every estimator (contract: one-sided lights).
@@ -409,7 +412,7 @@ fn shrinking_light_converges_to_the_hard_shadow() {
             failures.push(format!("{} {backend}: {errs:?}", e.name()));
         }
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_failures(&failures);
 }
 
 /// `depth=unorm16` through the whole catalogue, on every estimator that offers it (both
@@ -465,12 +468,7 @@ fn unorm16_depth_survives_every_hard_case() {
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} failures:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert_no_failures(&failures);
 }
 
 /// The resolution limit: on a floating square over the ground under a rect light (std camera),
@@ -480,12 +478,7 @@ fn unorm16_depth_survives_every_hard_case() {
 /// printed with `-- --nocapture`).
 #[test]
 fn growing_resolution_shrinks_the_error() {
-    let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
-    let occ = quad(Vec3::new(0.3, 1.0, 0.1), 0.5, Mat3::IDENTITY);
-    let case = from_camera(
-        "resolution sequence",
-        scene(l, std_cam(), vec![ground(), occ]),
-    );
+    let case = floating_square("resolution sequence", Vec3::new(0.3, 1.0, 0.1));
     let mut reference = estimator("reference", Backend::Cpu).unwrap();
     reference.set_param("spp", "256").unwrap();
     let (vref, _) = run(reference.as_mut(), &case.scene, &case.receivers).unwrap();
@@ -518,7 +511,7 @@ fn growing_resolution_shrinks_the_error() {
             failures.push(format!("{} {backend}: {errs:?}", e.name()));
         }
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_failures(&failures);
 }
 
 /// The other end of the resolution range: the largest map the parameter allows (16384, also the
@@ -529,12 +522,7 @@ fn growing_resolution_shrinks_the_error() {
 /// refused with `Error::Limit`, never truncated: asserted as the outcome there.
 #[test]
 fn resolution_at_the_maximum_works_and_beyond_is_refused() {
-    let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
-    let occ = quad(Vec3::new(0.0, 1.0, 0.0), 0.5, Mat3::IDENTITY);
-    let case = from_camera(
-        "maximum resolution",
-        scene(l, std_cam(), vec![ground(), occ]),
-    );
+    let case = floating_square("maximum resolution", Vec3::new(0.0, 1.0, 0.0));
     let max = shadow_map_core::light_view::MAX_RESOLUTION;
     let mut failures = Vec::new();
     for (mut e, backend) in estimators() {
@@ -595,5 +583,15 @@ fn resolution_at_the_maximum_works_and_beyond_is_refused() {
         e.set_param("resolution", "64").unwrap();
         run(e.as_mut(), &case.scene, &case.receivers).unwrap();
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert_no_failures(&failures);
+}
+
+/// Fails listing every collected failure, one a line, when there is any.
+fn assert_no_failures(failures: &[String]) {
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }

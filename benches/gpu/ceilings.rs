@@ -6,7 +6,12 @@ use crate::{
     timing::{time_cpu, Gpu, Stamp, StampAt, Timing},
     BenchResult,
 };
-use shadow_map_core::gpu::GpuContext;
+use shadow_map_core::gpu::{
+    depth_map::texture_desc,
+    kernel::{buffer_init, shader_module},
+    raster::VERTEX_BUFFERS,
+    GpuContext,
+};
 use std::hint::black_box;
 use wgpu::util::DeviceExt;
 
@@ -57,13 +62,7 @@ struct InsertParams {
 }
 
 pub fn ceilings_module(ctx: &GpuContext) -> BenchResult<wgpu::ShaderModule> {
-    Ok(ctx.scoped("bench.ceilings", || {
-        ctx.device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("bench.ceilings"),
-                source: wgpu::ShaderSource::Wgsl(CEILINGS_WGSL.into()),
-            })
-    })?)
+    Ok(shader_module(ctx, "bench.ceilings", &[CEILINGS_WGSL])?)
 }
 
 fn compute_pipeline(
@@ -90,12 +89,12 @@ fn compute_pipeline(
 
 /// A uniform buffer holding `value`.
 fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
+    buffer_init(
+        &ctx.device,
+        label,
+        bytemuck::bytes_of(value),
+        wgpu::BufferUsages::UNIFORM,
+    )
 }
 
 /// A bind group for group 0 of `pipeline` (its layout derived from the shader), from
@@ -139,29 +138,6 @@ fn compute_pass(
     pass.dispatch_workgroups(x, y, 1);
 }
 
-/// One `r x r` 2D texture, one mip, one sample.
-fn square_texture(
-    label: &str,
-    r: u32,
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::TextureDescriptor<'_> {
-    wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: r,
-            height: r,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    }
-}
-
 /// The random `r x r` map of the tap ceilings (depths in [0, 1)).
 pub fn random_map(r: u32) -> Vec<f32> {
     (0..r * r).map(|k| unit(1, k)).collect()
@@ -187,9 +163,11 @@ pub fn ceiling_taps(
     let (group, out) = ctx.scoped("taps_kernel", || {
         let texture = ctx.device.create_texture_with_data(
             &ctx.queue,
-            &square_texture(
+            &texture_desc(
                 "bench.taps.map",
                 r,
+                r,
+                1,
                 wgpu::TextureFormat::R32Float,
                 wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             ),
@@ -319,15 +297,7 @@ pub fn ceiling_triangles(g: &Gpu, cfg: &Config, module: &wgpu::ShaderModule) -> 
                     module,
                     entry_point: Some("tri_vs"),
                     compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: 16,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &[wgpu::VertexAttribute {
-                            format: wgpu::VertexFormat::Float32x4,
-                            offset: 0,
-                            shader_location: 0,
-                        }],
-                    })],
+                    buffers: VERTEX_BUFFERS,
                 },
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
@@ -346,18 +316,19 @@ pub fn ceiling_triangles(g: &Gpu, cfg: &Config, module: &wgpu::ShaderModule) -> 
                 multiview_mask: None,
                 cache: None,
             });
-        let vertices = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("bench.triangles.vertices"),
-                contents: bytemuck::cast_slice(&verts),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
+        let vertices = buffer_init(
+            &ctx.device,
+            "bench.triangles.vertices",
+            bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::VERTEX,
+        );
         let depth = ctx
             .device
-            .create_texture(&square_texture(
+            .create_texture(&texture_desc(
                 "bench.triangles.depth",
                 r,
+                r,
+                1,
                 wgpu::TextureFormat::Depth32Float,
                 wgpu::TextureUsages::RENDER_ATTACHMENT,
             ))

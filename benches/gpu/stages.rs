@@ -97,28 +97,19 @@ fn mssm_stages(r: u32, plane: u64) -> [(&'static str, MinMaxRequest, f64, u64); 
     [
         (
             "mssm/gpu/build-6",
-            MinMaxRequest {
-                mssm_levels: Some(MSSM_LEVELS),
-                ..Default::default()
-            },
+            MinMaxRequest::mssm(MSSM_LEVELS),
             mssm_reads(r, MSSM_LEVELS),
             (1 + 2 * levels as u64) * plane,
         ),
         (
             "dual-mssm/gpu/build-6",
-            MinMaxRequest {
-                dual_mssm_levels: Some(MSSM_LEVELS),
-                ..Default::default()
-            },
+            MinMaxRequest::dual_mssm(MSSM_LEVELS),
             dual_mssm_reads(r, MSSM_LEVELS),
             (3 + 2 * levels as u64) * plane,
         ),
         (
             "pyramid/gpu/build",
-            MinMaxRequest {
-                pyramid: true,
-                ..Default::default()
-            },
+            MinMaxRequest::pyramid(),
             pyramid_reads(r),
             4 * plane,
         ),

@@ -5,8 +5,9 @@
 //! `accumulation/<backend>/<stage>/<variant>-<kernel>`. Run: `cargo bench -p accumulation`.
 use accumulation::CpuAccumulation;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use shadow_map_core::{Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::SoftShadowEstimator;
 use std::hint::black_box;
+use test_support::fixtures::authored_fixture;
 
 const MODES: [(&str, &str); 4] = [
     ("additive", "fixed"),
@@ -16,12 +17,7 @@ const MODES: [(&str, &str); 4] = [
 ];
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/sphere-light/sphere-light.toml"
-    );
-    let scene = Scene::load(path).expect("fixture loads");
-    let receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let (scene, receivers) = authored_fixture("sphere-light");
     let mut g = c.benchmark_group("accumulation");
     g.sample_size(10);
     g.throughput(Throughput::Elements(receivers.active_count() as u64));

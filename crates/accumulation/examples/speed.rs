@@ -15,6 +15,7 @@ use shadow_map_core::{
     gpu::GpuContext, run, LightShape, Receivers, Scene, SceneBvh, SoftShadowEstimator,
 };
 use std::time::Instant;
+use test_support::fixtures::note;
 
 fn main() {
     let mut size = (320u32, 240u32);
@@ -80,11 +81,8 @@ fn main() {
             cpu.set_param(k, v).unwrap();
         }
         let (_, report) = run(&mut cpu, &scene, &rec).expect("cpu run");
-        let taps: f64 = report
-            .notes
-            .iter()
-            .find(|n| n.0 == "taps_per_receiver")
-            .and_then(|n| n.1.parse().ok())
+        let taps: f64 = note(&report, "taps_per_receiver")
+            .and_then(|n| n.parse().ok())
             .unwrap_or(0.0);
         let cpu_ms = if cpu_time {
             format!("{:.1}", report.total_ms("estimate"))

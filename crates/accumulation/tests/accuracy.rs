@@ -7,7 +7,9 @@ use reference::ReferenceEstimator;
 use shadow_map_core::{
     light::default_tangent, run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator,
 };
-use test_support::fixtures::{check_contract, cuboid, fixture, points, quad, rmse, with_params};
+use test_support::fixtures::{
+    check_contract, cuboid, fixture, fixture_names, note_as, points, quad, rmse, with_params,
+};
 
 fn camera() -> shadow_map_core::Camera {
     test_support::fixtures::camera(8, 8)
@@ -34,7 +36,10 @@ fn acc(kv: &[(&str, &str)]) -> CpuAccumulation {
 }
 
 /// Every (variant, kernel, coverage) the estimator offers, as parameter sets.
-fn modes() -> Vec<Vec<(&'static str, &'static str)>> {
+/// One estimator configuration: `(key, value)` parameters.
+type Mode = Vec<(&'static str, &'static str)>;
+
+fn modes() -> Vec<Mode> {
     let mut out = Vec::new();
     for kernel in ["fixed", "adaptive"] {
         out.push(vec![("variant", "additive"), ("kernel", kernel)]);
@@ -46,6 +51,21 @@ fn modes() -> Vec<Vec<(&'static str, &'static str)>> {
         out.push(vec![("variant", "exact"), ("kernel", kernel)]);
     }
     out
+}
+
+/// Every mode of [`modes`] at `resolution` on `scene`: the mode and its V at `r`, which keeps
+/// the estimator contract.
+fn every_mode(scene: &Scene, r: &Receivers, resolution: &'static str) -> Vec<(Mode, Vec<f32>)> {
+    modes()
+        .into_iter()
+        .map(|mode| {
+            let mut kv = mode.clone();
+            kv.push(("resolution", resolution));
+            let (v, _) = run(&mut acc(&kv), scene, r).unwrap();
+            check_contract(&v, r);
+            (mode, v)
+        })
+        .collect()
 }
 
 fn reference(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f32> {
@@ -97,11 +117,7 @@ fn light_radius_to_zero_converges_to_the_hard_shadow_map() {
         let mut hard = HardShadow::new().unwrap();
         hard.set_param("resolution", "256").unwrap();
         let (vh, _) = run(&mut hard, &s, &r).unwrap();
-        for mode in modes() {
-            let mut kv = mode.clone();
-            kv.push(("resolution", "256"));
-            let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-            check_contract(&v, &r);
+        for (mode, v) in every_mode(&s, &r, "256") {
             if mode.contains(&("coverage", "centre")) {
                 // The paper's centre test does not converge: a backprojected lexel is far larger
                 // than the footprint, counted in full (clamped to 1) or not at all.
@@ -146,11 +162,7 @@ fn receiver_behind_a_touching_occluder() {
         .collect();
     let r = points(pos, Vec3::Y);
     let vr = reference(&s, &r, 1024);
-    for mode in modes() {
-        let mut kv = mode.clone();
-        kv.push(("resolution", "512"));
-        let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-        check_contract(&v, &r);
+    for (mode, v) in every_mode(&s, &r, "512") {
         // The first receivers touch the wall: the reference is well below 1 there.
         assert!(vr[0] < 0.6, "reference at the wall {}", vr[0]);
         let mae: f32 = v.iter().zip(&vr).map(|(a, b)| (a - b).abs()).sum::<f32>() / v.len() as f32;
@@ -196,12 +208,7 @@ fn caster_nearer_than_the_papers_plane() {
         (e, report)
     };
     let (lexels, report) = err(&[("kernel", "lexels"), ("k", "5"), ("resolution", "512")]);
-    let paper_n: f32 = report
-        .notes
-        .iter()
-        .find(|n| n.0 == "paper_n")
-        .map(|n| n.1.parse().unwrap())
-        .unwrap();
+    let paper_n: f32 = note_as(&report, "paper_n");
     // The plate is at c_z = 0.2 from the light: nearer than the paper's plane.
     assert!(paper_n > 0.2, "paper_n {paper_n}");
     for kernel in ["fixed", "adaptive"] {
@@ -242,11 +249,7 @@ fn grazing_receivers() {
         .collect();
     let r = points(pos, Vec3::Y);
     let vr = reference(&s, &r, 1024);
-    for mode in modes() {
-        let mut kv = mode.clone();
-        kv.push(("resolution", "512"));
-        let (v, _) = run(&mut acc(&kv), &s, &r).unwrap();
-        check_contract(&v, &r);
+    for (mode, v) in every_mode(&s, &r, "512") {
         for k in 0..v.len() {
             assert!(
                 (v[k] - vr[k]).abs() < 0.05,
@@ -330,16 +333,9 @@ fn rmse_against_the_reference_on_fixtures() {
 /// No NaN or inf on any fixture, both variants, and inactive receivers NaN.
 #[test]
 fn every_fixture_gives_v_in_range() {
-    for name in [
-        "parallel-squares",
-        "overlapping",
-        "thin-sticks",
-        "strands",
-        "sphere-light",
-        "bunny",
-        "stacked",
-        "hair",
-    ] {
+    let names = fixture_names();
+    assert!(names.len() >= 12, "{names:?}");
+    for name in &names {
         let (s, r) = fixture(name, 24, 18);
         for variant in ["additive", "exact"] {
             let mut e = acc(&[("resolution", "128"), ("variant", variant), ("layers", "2")]);
@@ -395,44 +391,13 @@ fn sphere_models_off_axis() {
     }
 }
 
-/// An unoccluded plane tilted `deg` degrees towards grazing under a rect light 3 above: its
-/// receivers, and the part of the light in front of each (its facing fraction).
-fn tilted_plane(deg: f32) -> (Scene, Receivers, Vec<f32>) {
-    let th = deg.to_radians();
-    let n = Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = Vec3::new(th.cos(), -th.sin(), 0.0);
-    let c = |a: f32, b: f32| a * t + b * Vec3::Z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let l = test_support::fixtures::rect_light(1.0, 3.0);
-    let s = Scene::from_meshes("tilted", camera(), l, vec![(tris, 1.0)]).unwrap();
-    let mut pos = Vec::new();
-    for a in 0..30 {
-        for b in 0..30 {
-            pos.push(c(
-                -0.9 + a as f32 * 0.06 + 0.0137,
-                -0.9 + b as f32 * 0.06 + 0.0071,
-            ));
-        }
-    }
-    let facing = pos
-        .iter()
-        .map(|p| s.light.front_fraction_world(*p, n))
-        .collect();
-    (s, points(pos, n), facing)
-}
-
 /// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal
 /// is never shadowed by its own samples at the defaults (and in every mode): every receiver keeps
 /// V >= facing - 0.02. Under `receiver_plane=false` the kernel's texels of the receiver's own
 /// surface beyond the slope bias's cap (tan 85 > 10) lie nearer the light and shadow it.
 #[test]
 fn grazing_plane_is_not_self_shadowed() {
-    let (s, r, facing) = tilted_plane(85.0);
+    let (s, r, facing) = test_support::fixtures::tilted_plane(85.0, 1.0, (30, -0.9, 0.06));
     let worst = |kv: &[(&str, &str)]| {
         let (v, _) = run(&mut acc(kv), &s, &r).unwrap();
         check_contract(&v, &r);

@@ -163,12 +163,11 @@ fn sampling_tie(
         .collect();
     cpu_on(ls, scene, &points(pos, rec.normal[k]), s, s.bias)
         .iter()
-        .any(|v| (v - c).abs() > TWIN.abs || (v - g).abs() <= TWIN.abs)
+        .any(|&v| TWIN.nudge_explains(v, c, g))
 }
 
 fn check_case(case: &Case, gpu: &mut GpuAccumulation) -> Result<Option<CaseStats>, String> {
-    let scene = case.scene.scene();
-    let rec = case.scene.receivers(&scene.light);
+    let (scene, rec) = case.scene.scene_and_receivers();
     let s = &case.settings;
     let mut cpu = CpuAccumulation::new().expect("cpu twin");
     configure(&mut cpu, &settings_kv(s, s.bias));
@@ -193,8 +192,7 @@ fn check_case(case: &Case, gpu: &mut GpuAccumulation) -> Result<Option<CaseStats
         .map_err(|e| format!("gpu: {e}"))?;
     let cmp = TWIN.compare("accumulation", &rec.active, &v_cpu, &v_gpu)?;
     let st = TWIN.judge("accumulation", &cmp, &rec, &v_cpu, &v_gpu, |beyond| {
-        let view = ls.view;
-        let nudge = TIE_NUDGE_REL * view.n * view.r as f32 / view.w;
+        let nudge = test_support::tolerance::bias_nudge(&ls.view, TIE_NUDGE_REL);
         let nudged: Vec<Vec<f32>> = [s.bias + nudge, (s.bias - nudge).max(0.0)]
             .iter()
             .map(|&b| cpu_on(ls, &scene, &rec, s, b))
@@ -203,9 +201,7 @@ fn check_case(case: &Case, gpu: &mut GpuAccumulation) -> Result<Option<CaseStats
             .iter()
             .map(|&k| {
                 let (c, g) = (v_cpu[k], v_gpu[k]);
-                let depth = nudged
-                    .iter()
-                    .any(|v| (v[k] - c).abs() > TWIN.abs || (v[k] - g).abs() <= TWIN.abs);
+                let depth = nudged.iter().any(|v| TWIN.nudge_explains(v[k], c, g));
                 let sampling = !depth && sampling_tie(ls, &scene, &rec, s, k, c, g);
                 Verdict::of(depth, sampling)
             })
@@ -254,24 +250,15 @@ fn fixed_case() -> Case {
 struct Accumulation;
 
 impl TwinPair for Accumulation {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuAccumulation::new().expect("cpu twin"))
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuAccumulation::new(ctx.clone()).expect("gpu twin"))
-    }
-
-    fn gpu_chunked(&self, ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
-        let mut g = GpuAccumulation::new(ctx.clone()).expect("gpu twin");
-        g.set_max_chunk(13);
-        Some(Box::new(g))
-    }
-
-    fn fixed_case(&self) -> FixedCase {
-        let case = fixed_case();
-        FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
-    }
+    test_support::twin_constructors!(
+        CpuAccumulation,
+        GpuAccumulation,
+        chunk = 13,
+        fixed = {
+            let case = fixed_case();
+            FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
+        }
+    );
 
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let mut twin = GpuAccumulation::new(ctx.clone()).expect("gpu twin");
@@ -294,8 +281,7 @@ impl TwinPair for Accumulation {
         assert_eq!(g.backend(), Backend::Gpu);
         assert_eq!(g.name(), "accumulation");
         assert_eq!(g.params(), CpuAccumulation::new().unwrap().params());
-        let scene = case.scene.scene();
-        let rec = case.scene.receivers(&scene.light);
+        let (scene, rec) = case.scene.scene_and_receivers();
         let mut penumbra = 0;
         for variant in ["additive", "exact"] {
             for kernel in ["fixed", "adaptive", "lexels"] {
@@ -387,8 +373,7 @@ fn every_fit_and_nearfar_match_on_both_twins() {
         return;
     };
     let mut case = fixed_case();
-    let scene = case.scene.scene();
-    let rec = case.scene.receivers(&scene.light);
+    let (scene, rec) = case.scene.scene_and_receivers();
     let mut g = GpuAccumulation::new(ctx).expect("gpu twin");
     let keys: Vec<&str> = g.params().specs().iter().map(|s| s.key).collect();
     assert!(

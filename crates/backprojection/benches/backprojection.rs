@@ -4,16 +4,12 @@
 //! `backprojection/<backend>/<stage>/layers-<k>`. Run: `cargo bench -p backprojection`.
 use backprojection::CpuBackprojection;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use shadow_map_core::{Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::SoftShadowEstimator;
 use std::hint::black_box;
+use test_support::fixtures::authored_fixture;
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/bunny/bunny.toml"
-    );
-    let scene = Scene::load(path).expect("fixture loads");
-    let receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let (scene, receivers) = authored_fixture("bunny");
     let mut g = c.benchmark_group("backprojection");
     g.sample_size(10);
     g.throughput(Throughput::Elements(receivers.active_count() as u64));

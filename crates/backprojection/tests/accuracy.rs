@@ -4,7 +4,8 @@ use baselines::HardShadow;
 use glam::Vec3;
 use shadow_map_core::{run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
 use test_support::fixtures::{
-    assert_valid, errors, line_receivers, oracle, quad, rect_light, with_params, Occ, SQUARE,
+    assert_valid, errors, line_receivers, note_as, oracle, quad, rect_light, with_params, Occ,
+    SQUARE,
 };
 
 fn camera() -> shadow_map_core::Camera {
@@ -38,14 +39,7 @@ fn flat_occluder_errors(occ: Occ, label: &str) -> Vec<(f64, f64, f64)> {
     for res in [128u32, 256, 512] {
         let mut e = bp(&[("resolution", &res.to_string()), ("max_nspp", "4096")]);
         let (v, report) = run(&mut e, &s, &r).unwrap();
-        let step: f64 = report
-            .notes
-            .iter()
-            .find(|n| n.0 == "max_step")
-            .unwrap()
-            .1
-            .parse()
-            .unwrap();
+        let step: f64 = note_as(&report, "max_step");
         let view = e.light_space().unwrap().view;
         let k = view.delta() / view.n;
         let (zo, zp) = (3.0 - occ.4, 3.0f32);
@@ -181,40 +175,6 @@ fn overlapping_occluders_layers() {
     );
 }
 
-/// An unoccluded plane tilted `deg` degrees towards grazing: every receiver sees the part of the
-/// light in front of it (its facing fraction).
-fn tilted_plane(deg: f32) -> (Scene, Receivers, Vec<f32>) {
-    let th = deg.to_radians();
-    let n = Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = Vec3::new(th.cos(), -th.sin(), 0.0);
-    let z = Vec3::Z;
-    let c = |a: f32, b: f32| a * t + b * z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    // Wound so that the normal is n.
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let s =
-        Scene::from_meshes("tilted", camera(), rect_light(1.0, 3.0), vec![(tris, 1.0)]).unwrap();
-    let mut pos = Vec::new();
-    for a in 0..40 {
-        for b in 0..40 {
-            pos.push(c(
-                -1.0 + a as f32 * 0.05 + 0.0137,
-                -1.0 + b as f32 * 0.05 + 0.0071,
-            ));
-        }
-    }
-    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
-    let facing = pos
-        .iter()
-        .map(|p| s.light.front_fraction_world(*p, n))
-        .collect();
-    (s, r, facing)
-}
-
 fn clean_fraction(v: &[f32], facing: &[f32]) -> f64 {
     v.iter()
         .zip(facing)
@@ -227,7 +187,7 @@ fn clean_fraction(v: &[f32], facing: &[f32]) -> f64 {
 /// test (`receiver_plane=false`), none under receiver-plane rejection.
 #[test]
 fn midpoints_remove_acne() {
-    let (s, r, facing) = tilted_plane(70.0);
+    let (s, r, facing) = test_support::fixtures::tilted_plane(70.0, 1.0, (40, -1.0, 0.05));
     let mut mid = bp(&[("resolution", "256"), ("receiver_plane", "false")]);
     let fm = clean_fraction(&run(&mut mid, &s, &r).unwrap().0, &facing);
     let raw_params = |plane: &'static str| {
@@ -253,7 +213,7 @@ fn midpoints_remove_acne() {
 /// texels of the receiver's own surface lie nearer the light than the receiver and shadow it.
 #[test]
 fn grazing_plane_is_not_self_shadowed() {
-    let (s, r, facing) = tilted_plane(85.0);
+    let (s, r, facing) = test_support::fixtures::tilted_plane(85.0, 1.0, (40, -1.0, 0.05));
     let worst = |kv: &[(&str, &str)]| {
         let v = run(&mut bp(kv), &s, &r).unwrap().0;
         assert_valid(&v, "grazing plane");
@@ -274,33 +234,27 @@ fn grazing_plane_is_not_self_shadowed() {
     assert!(on_bias <= 0.02, "receiver plane, bias mode: {on_bias}");
 }
 
+/// Each self-shadow mode at resolution 256 (and `extra`) on `s`: V valid at `r` (see
+/// [`assert_valid`]).
+fn valid_in_every_self_shadow_mode(s: &Scene, r: &Receivers, extra: &[(&str, &str)], what: &str) {
+    for ss in ["midpoint", "bias"] {
+        let mut kv = vec![("resolution", "256"), ("self_shadow", ss)];
+        kv.extend_from_slice(extra);
+        let v = run(&mut bp(&kv), s, r).unwrap().0;
+        assert_valid(&v, what);
+    }
+}
+
 /// Degenerate geometry: no NaN or inf, V in [0, 1].
 #[test]
 fn hard_cases_stay_finite() {
     let r = line_receivers();
     // Occluder 1e-5 above the receiver plane.
     let s = scene_with(rect_light(1.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 1e-5)]);
-    for ss in ["midpoint", "bias"] {
-        let v = run(
-            &mut bp(&[("resolution", "256"), ("self_shadow", ss)]),
-            &s,
-            &r,
-        )
-        .unwrap()
-        .0;
-        assert_valid(&v, "touching the receiver");
-    }
+    valid_in_every_self_shadow_mode(&s, &r, &[], "touching the receiver");
     // Occluder almost touching the light: its depth is 1.0001 n, just below the light.
     let s = scene_with(rect_light(1.0, 3.0), &[(-0.5, -0.5, 0.5, 0.5, 3.0 - 1e-4)]);
-    for ss in ["midpoint", "bias"] {
-        let mut e = bp(&[
-            ("resolution", "256"),
-            ("self_shadow", ss),
-            ("gap_filling", "true"),
-        ]);
-        let v = run(&mut e, &s, &r).unwrap().0;
-        assert_valid(&v, "touching the light");
-    }
+    valid_in_every_self_shadow_mode(&s, &r, &[("gap_filling", "true")], "touching the light");
     // Receivers behind the light and on its plane.
     let s = scene_with(rect_light(1.0, 3.0), &[SQUARE]);
     let mut pts = r.position.clone();
@@ -325,15 +279,7 @@ fn hard_cases_stay_finite() {
         ],
     )
     .unwrap();
-    for ss in ["midpoint", "bias"] {
-        let mut e = bp(&[
-            ("resolution", "256"),
-            ("self_shadow", ss),
-            ("gap_filling", "true"),
-        ]);
-        let v = run(&mut e, &s, &r).unwrap().0;
-        assert_valid(&v, "depth range 1e5");
-    }
+    valid_in_every_self_shadow_mode(&s, &r, &[("gap_filling", "true")], "depth range 1e5");
     // Inactive receivers are NaN.
     let mut ri = line_receivers();
     ri.active[3] = false;

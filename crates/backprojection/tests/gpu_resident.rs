@@ -25,14 +25,16 @@ use backprojection::GpuBackprojection;
 use glam::Vec3;
 use reference::ReferenceEstimator;
 use shadow_map_core::{
-    gpu::{context_for_tests, receivers::GpuReceivers, shared::pack_receivers, GpuContext},
+    gpu::{
+        context_for_tests, kernel::buffer_init, receivers::GpuReceivers, shared::pack_receivers,
+        GpuContext,
+    },
     light_view::receiver_bounds,
     run,
     scene::Aabb,
     Error, Receivers, Scene, SceneBvh, SoftShadowEstimator,
 };
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// Largest RMSE between the bounds-fitted resident path and the ordinary path.
 const MAX_RMSE: f64 = 0.06;
@@ -60,13 +62,12 @@ fn fixture(name: &str) -> Scene {
 /// The user's receiver buffer: a plain buffer, filled as their G-buffer pass would.
 fn user_receivers(ctx: &GpuContext, rec: &Receivers) -> GpuReceivers {
     let packed = pack_receivers(rec);
-    let buffer = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("user receivers"),
-            contents: bytemuck::cast_slice(&packed),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+    let buffer = buffer_init(
+        &ctx.device,
+        "user receivers",
+        bytemuck::cast_slice(&packed),
+        wgpu::BufferUsages::STORAGE,
+    );
     GpuReceivers::from_buffer(buffer, rec.len() as u32).expect("user receivers")
 }
 

@@ -125,8 +125,7 @@ fn run_cpu(
 }
 
 fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseStats>, String> {
-    let scene = case.scene.scene();
-    let rec = case.scene.receivers(&scene.light);
+    let (scene, rec) = case.scene.scene_and_receivers();
     let s = &case.settings;
     let (v_cpu, cpu) = run_cpu(&scene, &rec, s, s.bias);
     let ls = cpu.light_space().ok_or("no light space")?;
@@ -140,8 +139,7 @@ fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseSta
         // footprints) both ways; with the receiver plane (either mode), `bias` is the plane's
         // tolerance and moves the plane by TIE_NUDGE_REL z the same way. A tie changes the
         // CPU's V or reproduces the GPU's.
-        let view = ls.view;
-        let nudge = TIE_NUDGE_REL * view.n * view.r as f32 / view.w;
+        let nudge = test_support::tolerance::bias_nudge(&ls.view, TIE_NUDGE_REL);
         let nudged: Vec<Vec<f32>> = if s.midpoint && !s.receiver_plane {
             Vec::new()
         } else {
@@ -154,9 +152,7 @@ fn check_case(case: &Case, gpu: &mut GpuBackprojection) -> Result<Option<CaseSta
             .iter()
             .map(|&k| {
                 let (c, g) = (v_cpu[k], v_gpu[k]);
-                let tie = nudged
-                    .iter()
-                    .any(|v| (v[k] - c).abs() > TWIN.abs || (v[k] - g).abs() <= TWIN.abs);
+                let tie = nudged.iter().any(|v| TWIN.nudge_explains(v[k], c, g));
                 Verdict::of(tie, false)
             })
             .collect())
@@ -198,24 +194,15 @@ fn fixed_case() -> Case {
 struct Backprojection;
 
 impl TwinPair for Backprojection {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuBackprojection::new().expect("cpu twin"))
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuBackprojection::new(ctx.clone()).expect("gpu twin"))
-    }
-
-    fn gpu_chunked(&self, ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
-        let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
-        g.set_max_chunk(13);
-        Some(Box::new(g))
-    }
-
-    fn fixed_case(&self) -> FixedCase {
-        let case = fixed_case();
-        FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
-    }
+    test_support::twin_constructors!(
+        CpuBackprojection,
+        GpuBackprojection,
+        chunk = 13,
+        fixed = {
+            let case = fixed_case();
+            FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
+        }
+    );
 
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let mut twin = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
@@ -233,8 +220,7 @@ impl TwinPair for Backprojection {
     /// receiver, NaN at inactive ones, and some umbra or penumbra.
     fn cli_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
         let case = fixed_case();
-        let scene = case.scene.scene();
-        let rec = case.scene.receivers(&scene.light);
+        let (scene, rec) = case.scene.scene_and_receivers();
         let (v_cpu, _) = run_cpu(&scene, &rec, &case.settings, 1.0);
         let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
         assert_eq!(g.backend(), Backend::Gpu);
@@ -281,41 +267,11 @@ fn gpu_grazing_plane_is_not_self_shadowed() {
     let Some(ctx) = test_support::gpu("gpu_grazing_plane_is_not_self_shadowed") else {
         return;
     };
-    let th = 85f32.to_radians();
-    let n = glam::Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = glam::Vec3::new(th.cos(), -th.sin(), 0.0);
-    let c = |a: f32, b: f32| a * t + b * glam::Vec3::Z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let s = Scene::from_meshes(
-        "tilted",
-        test_support::fixtures::camera(8, 8),
-        test_support::fixtures::rect_light(1.0, 3.0),
-        vec![(tris, 1.0)],
-    )
-    .unwrap();
-    let pos: Vec<glam::Vec3> = (0..30 * 30)
-        .map(|k| {
-            c(
-                -1.0 + (k % 30) as f32 * 0.066 + 0.0137,
-                -1.0 + (k / 30) as f32 * 0.066 + 0.0071,
-            )
-        })
-        .collect();
-    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
+    let (s, r, facing) = test_support::fixtures::tilted_plane(85.0, 1.0, (30, -1.0, 0.066));
     let mut g = GpuBackprojection::new(ctx).unwrap();
     for ss in ["midpoint", "bias"] {
         g.set_param("self_shadow", ss).unwrap();
-        let v = run(&mut g, &s, &r).unwrap().0;
-        let worst = pos
-            .iter()
-            .zip(&v)
-            .map(|(p, x)| s.light.front_fraction_world(*p, n) - x)
-            .fold(f32::NEG_INFINITY, f32::max);
+        let worst = test_support::fixtures::most_below(&run(&mut g, &s, &r).unwrap().0, &facing);
         eprintln!("gpu 85 deg plane, self_shadow={ss}: most below facing {worst:.4}");
         assert!(worst <= 0.02, "self_shadow={ss}: V below facing by {worst}");
     }

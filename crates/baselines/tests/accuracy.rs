@@ -2,7 +2,7 @@
 use baselines::{HardShadow, MultiSample, PcfShadow, PcssShadow};
 use glam::Vec3;
 use shadow_map_core::{run, Receivers, Scene, SoftShadowEstimator};
-use test_support::fixtures::{errors, line_receivers, rect_light, scene_with, SQUARE};
+use test_support::fixtures::{configure, errors, line_receivers, rect_light, scene_with, SQUARE};
 
 /// Rect light `l x l` at height 3 pointing down, over a square occluder at 1.5 (its +x edge
 /// deliberately off the texel grid) and a ground.
@@ -19,20 +19,23 @@ fn estimate(est: &mut dyn SoftShadowEstimator, scene: &Scene, r: &Receivers) -> 
     run(est, scene, r).unwrap().0
 }
 
+/// `errors` (RMS, max) of `est` with the parameters `kv` against the closed form, on the
+/// parallel squares under the unit light at the line receivers.
+fn closed_form_errors(mut est: impl SoftShadowEstimator, kv: &[(&str, String)]) -> (f64, f64) {
+    configure(&mut est, kv);
+    let s = parallel_squares(1.0);
+    let r = line_receivers();
+    errors(&estimate(&mut est, &s, &r), &oracle(&s, &r))
+}
+
 /// PCSS is exact for one planar blocker parallel to the light (docs/methods.md §5), up to the
 /// rasterisation of the occluder's edge, which the map places within half a texel.
 #[test]
 fn pcss_matches_the_parallel_plane_closed_form() {
-    let s = parallel_squares(1.0);
-    let r = line_receivers();
-    let o = oracle(&s, &r);
     let mut prev = f64::INFINITY;
     for res in [128, 512, 2048] {
-        let mut pcss = PcssShadow::new().unwrap();
-        pcss.set_param("resolution", &res.to_string()).unwrap();
-        pcss.set_param("max_taps", "1024").unwrap();
-        let v = estimate(&mut pcss, &s, &r);
-        let (rms, max) = errors(&v, &o);
+        let kv = [("resolution", res.to_string()), ("max_taps", "1024".into())];
+        let (rms, max) = closed_form_errors(PcssShadow::new().unwrap(), &kv);
         eprintln!("pcss r={res}: rms {rms:.5} max {max:.5}");
         // The penumbra on the ground is 1 world unit wide and V changes by 1 per world unit across
         // it; the occluder's rasterised edge is off by at most half a texel, a world distance of
@@ -80,15 +83,10 @@ fn tiny_light_converges_to_the_hard_shadow() {
 /// strata (docs/methods.md §6).
 #[test]
 fn multi_sample_converges_with_more_sub_lights() {
-    let s = parallel_squares(1.0);
-    let r = line_receivers();
-    let o = oracle(&s, &r);
     let mut last = f64::INFINITY;
     for sub in [2, 4, 8] {
-        let mut ms = MultiSample::new().unwrap();
-        ms.set_param("sublights", &sub.to_string()).unwrap();
-        ms.set_param("resolution", "512").unwrap();
-        let (rms, _) = errors(&estimate(&mut ms, &s, &r), &o);
+        let kv = [("sublights", sub.to_string()), ("resolution", "512".into())];
+        let (rms, _) = closed_form_errors(MultiSample::new().unwrap(), &kv);
         eprintln!("multi-sample S={sub}: rms {rms:.5}");
         assert!(rms < last, "S={sub}: {rms} not below {last}");
         last = rms;

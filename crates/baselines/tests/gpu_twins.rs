@@ -262,7 +262,7 @@ fn run_cpu(
     let nudge = maps
         .iter()
         .filter_map(|m| m.as_ref().ok())
-        .map(|ls| TIE_NUDGE_REL * ls.view.n * ls.view.r as f32 / ls.view.w)
+        .map(|ls| test_support::tolerance::bias_nudge(&ls.view, TIE_NUDGE_REL))
         .fold(0.0f32, f32::max);
     Ok(CpuRun {
         v,
@@ -350,8 +350,7 @@ fn sampling_tie(
 }
 
 fn check_case(w: Which, case: &Case, twin: &mut GpuTwin) -> Result<Option<CaseStats>, String> {
-    let scene = case.scene.scene();
-    let rec = case.scene.receivers(&scene.light);
+    let (scene, rec) = case.scene.scene_and_receivers();
     let s = &case.settings;
     let what = format!("{w:?}");
     let cpu = run_cpu(w, &scene, &rec, s, s.bias).map_err(|e| format!("{w:?} cpu: {e}"))?;
@@ -544,8 +543,7 @@ fn zero_receivers_through_estimate_with() {
         return;
     };
     let case = small_case();
-    let scene = case.scene.scene();
-    let rec = case.scene.receivers(&scene.light);
+    let (scene, rec) = case.scene.scene_and_receivers();
     let none = Receivers::default();
     for w in ALL {
         let cpu = run_cpu(w, &scene, &rec, &case.settings, case.settings.bias).unwrap();

@@ -39,19 +39,19 @@ fn render_stats_and_score() {
     let pcss = dir.path().join("pcss.exr");
     let refr = dir.path().join("ref.exr");
     let png = dir.path().join("pcss.png");
-    let stats = run_ok(&[
-        "render",
-        scene.to_str().unwrap(),
-        "--algo",
+    let sc = scene.to_str().unwrap();
+    let stats = run_ok(&render(
+        sc,
         "pcss",
-        "--param",
-        "resolution=256",
-        "--out",
-        pcss.to_str().unwrap(),
-        "--png",
-        png.to_str().unwrap(),
-        "--stats",
-    ]);
+        &["resolution=256"],
+        &[
+            "--out",
+            pcss.to_str().unwrap(),
+            "--png",
+            png.to_str().unwrap(),
+            "--stats",
+        ],
+    ));
     let j: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
     assert_eq!(j["algo"], "pcss");
     assert_eq!(j["backend"], "cpu");
@@ -59,16 +59,12 @@ fn render_stats_and_score() {
     assert!(j["stages_ms"]["build"].as_f64().unwrap() >= 0.0);
     assert!(j["stages_ms"]["estimate"].as_f64().unwrap() >= 0.0);
     assert!(png.exists());
-    run_ok(&[
-        "render",
-        scene.to_str().unwrap(),
-        "--algo",
+    run_ok(&render(
+        sc,
         "reference",
-        "--param",
-        "spp=64",
-        "--out",
-        refr.to_str().unwrap(),
-    ]);
+        &["spp=64"],
+        &["--out", refr.to_str().unwrap()],
+    ));
     let s: serde_json::Value = serde_json::from_str(
         run_ok(&["score", pcss.to_str().unwrap(), refr.to_str().unwrap()]).trim(),
     )
@@ -121,6 +117,23 @@ fn algos_lists_every_estimator_with_parameters() {
     );
 }
 
+/// The arguments `render <scene> --algo <algo>`, `--param <p>` for each of `params`, `rest...`.
+fn render<'a>(scene: &'a str, algo: &'a str, params: &[&'a str], rest: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["render", scene, "--algo", algo];
+    for p in params {
+        args.extend(["--param", p]);
+    }
+    args.extend_from_slice(rest);
+    args
+}
+
+/// The error line of `render <scene> --algo pcss <extra...> --out <out>`.
+fn render_pcss_err(scene: &str, extra: &[&str], out: &str) -> String {
+    let mut rest = extra.to_vec();
+    rest.extend(["--out", out]);
+    run_err(&render(scene, "pcss", &[], &rest))
+}
+
 #[test]
 fn bad_input_is_one_line_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
@@ -128,50 +141,18 @@ fn bad_input_is_one_line_and_writes_nothing() {
     let o = out.to_str().unwrap();
     let scene = fixture("parallel-squares/parallel-squares.toml");
     let s = scene.to_str().unwrap();
-    let e = run_err(&[
-        "render",
-        "/no/such/scene.toml",
-        "--algo",
-        "pcss",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err("/no/such/scene.toml", &[], o);
     assert!(e.contains("/no/such/scene.toml"), "{e}");
-    let e = run_err(&[
-        "render",
-        s,
-        "--algo",
-        "pcss",
-        "--param",
-        "resolution=0",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err(s, &["--param", "resolution=0"], o);
     assert!(
         e.contains("resolution") && e.contains("out of range"),
         "{e}"
     );
-    let e = run_err(&[
-        "render",
-        s,
-        "--algo",
-        "pcss",
-        "--param",
-        "resolution",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err(s, &["--param", "resolution"], o);
     assert!(e.contains("KEY=VALUE"), "{e}");
     let e = run_err(&["render", s, "--algo", "nope", "--out", o]);
     assert!(e.contains("nope"), "{e}");
-    let e = run_err(&[
-        "render",
-        s,
-        "--algo",
-        "pcss",
-        "--out",
-        "/no/such/dir/out.exr",
-    ]);
+    let e = render_pcss_err(s, &[], "/no/such/dir/out.exr");
     assert!(e.contains("/no/such/dir/out.exr"), "{e}");
     let bad = dir.path().join("bad.toml");
     std::fs::write(
@@ -181,14 +162,7 @@ fn bad_input_is_one_line_and_writes_nothing() {
             .replace("fov_y_deg", "fov"),
     )
     .unwrap();
-    let e = run_err(&[
-        "render",
-        bad.to_str().unwrap(),
-        "--algo",
-        "pcss",
-        "--out",
-        o,
-    ]);
+    let e = render_pcss_err(bad.to_str().unwrap(), &[], o);
     assert!(e.contains("bad.toml"), "{e}");
     let e = run_err(&["score", "/no/such/a.exr", "/no/such/b.exr"]);
     assert!(e.contains("/no/such/a.exr"), "{e}");
@@ -207,23 +181,21 @@ fn camera_path_writes_numbered_frames_and_flicker() {
     let out = dir.path().join("pan.exr");
     let mut flicker = Vec::new();
     for fit in ["receivers", "stable"] {
-        let stdout = run_ok(&[
-            "render",
+        let fit_kv = format!("fit={fit}");
+        let stdout = run_ok(&render(
             scene.to_str().unwrap(),
-            "--algo",
             "pcf",
-            "--param",
-            "resolution=128",
-            "--param",
-            &format!("fit={fit}"),
-            "--frames",
-            "3",
-            "--pan",
-            "0.1,0,-0.05",
-            "--out",
-            out.to_str().unwrap(),
-            "--stats",
-        ]);
+            &["resolution=128", &fit_kv],
+            &[
+                "--frames",
+                "3",
+                "--pan",
+                "0.1,0,-0.05",
+                "--out",
+                out.to_str().unwrap(),
+                "--stats",
+            ],
+        ));
         let lines: Vec<serde_json::Value> = stdout
             .lines()
             .map(|l| serde_json::from_str(l).unwrap())

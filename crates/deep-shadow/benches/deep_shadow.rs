@@ -11,18 +11,14 @@ use deep_shadow::{
     CpuDeepShadow,
 };
 use glam::Vec2;
-use shadow_map_core::{Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::{Receivers, Scene, SoftShadowEstimator};
 use std::hint::black_box;
+use test_support::fixtures::fixture;
 
 const R: u32 = 512;
 
 fn setup() -> (Scene, Receivers) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/hair/hair.toml");
-    let mut scene = Scene::load(path).expect("fixture");
-    scene.camera.width = 320;
-    scene.camera.height = 240;
-    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
-    (scene, rec)
+    fixture("hair", 320, 240)
 }
 
 fn bench(c: &mut Criterion) {

@@ -10,8 +10,9 @@
 //! `DS_SPEED_W`/`DS_SPEED_H` (receivers for the speed table, default 1280x720),
 //! `DS_SPEED_RES` (comma-separated resolutions, default 256,512,1024).
 use deep_shadow::CpuDeepShadow;
-use shadow_map_core::{run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::{run, Receivers, Scene, SoftShadowEstimator};
 use std::time::Instant;
+use test_support::fixtures::{configure, fixture, max_abs_diff, rmse};
 
 fn env(k: &str, d: u32) -> u32 {
     std::env::var(k)
@@ -20,43 +21,10 @@ fn env(k: &str, d: u32) -> u32 {
         .unwrap_or(d)
 }
 
-fn fixture(name: &str) -> String {
-    format!(
-        "{}/../../fixtures/{name}/{name}.toml",
-        env!("CARGO_MANIFEST_DIR")
-    )
-}
-
-fn load(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
-    let mut scene = Scene::load(fixture(name)).expect("fixture");
-    scene.camera.width = w;
-    scene.camera.height = h;
-    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
-    (scene, rec)
-}
-
-fn rmse(a: &[f32], b: &[f32], active: &[bool]) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for k in 0..a.len() {
-        if active[k] {
-            let d = a[k] as f64 - b[k] as f64;
-            s += d * d;
-            n += 1;
-        }
-    }
-    (s / n.max(1) as f64).sqrt()
-}
-
-fn with(est: &mut dyn SoftShadowEstimator, kv: &[(&str, &str)]) {
-    for (k, v) in kv {
-        est.set_param(k, v).expect("param");
-    }
-}
-
 /// The ray-traced reference's V with parameters `kv`.
 fn reference_v(scene: &Scene, rec: &Receivers, kv: &[(&str, &str)]) -> Vec<f32> {
     let mut reference = reference::ReferenceEstimator::new().unwrap();
-    with(&mut reference, kv);
+    configure(&mut reference, kv);
     run(&mut reference, scene, rec).unwrap().0
 }
 
@@ -64,7 +32,7 @@ fn reference_v(scene: &Scene, rec: &Receivers, kv: &[(&str, &str)]) -> Vec<f32> 
 fn cpu_ds(kvs: &[&[(&str, &str)]]) -> CpuDeepShadow {
     let mut e = CpuDeepShadow::new().unwrap();
     for kv in kvs {
-        with(&mut e, kv);
+        configure(&mut e, kv);
     }
     e
 }
@@ -122,7 +90,7 @@ fn accuracy() {
     println!("| fixture | estimator | RMSE | build ms | estimate ms |");
     println!("|---|---|---|---|---|");
     for name in ["strands", "hair"] {
-        let (scene, rec) = load(name, w, h);
+        let (scene, rec) = fixture(name, w, h);
         let vref = reference_v(&scene, &rec, &[("spp", &spp)]);
         // The reference's own noise: a second, independent run.
         let vref2 = reference_v(&scene, &rec, &[("spp", &spp), ("seed", "12345")]);
@@ -142,7 +110,7 @@ fn accuracy() {
         }
         for s in ["2", "4"] {
             let mut ms = baselines::MultiSample::new().unwrap();
-            with(&mut ms, &[("resolution", &res), ("sublights", s)]);
+            configure(&mut ms, &[("resolution", res.as_str()), ("sublights", s)]);
             let (v, rep) = run(&mut ms, &scene, &rec).unwrap();
             println!(
                 "| {name} | multi-sample S={s} (opaque) | {:.4} | {:.1} | {:.1} |",
@@ -238,7 +206,7 @@ impl SpeedRun<'_> {
     fn time(&self, kvs: &[&[(&str, &str)]]) -> (f64, f64, shadow_map_core::Report) {
         let mut e = (self.mk)();
         for kv in kvs {
-            with(e.as_mut(), kv);
+            configure(e.as_mut(), kv);
         }
         time(e.as_mut(), &self.scene, &self.rec, 3)
     }
@@ -251,7 +219,7 @@ fn speed(use_gpu: bool, table: bool) {
         .split(',')
         .map(|s| s.trim().to_string())
         .collect();
-    let (scene, rec) = load("hair", w, h);
+    let (scene, rec) = fixture("hair", w, h);
     let backend = if use_gpu { "gpu" } else { "cpu" };
     let mk = || -> Box<dyn SoftShadowEstimator> {
         if use_gpu {
@@ -384,7 +352,7 @@ fn extra() {
     println!("| fixture | what | value |");
     println!("|---|---|---|");
     for name in ["strands", "hair"] {
-        let (scene, rec) = load(name, w, h);
+        let (scene, rec) = fixture(name, w, h);
         let vref = reference_v(&scene, &rec, &[("spp", &spp)]);
         for filter in [
             &[("filter", "none")][..],
@@ -394,12 +362,7 @@ fn extra() {
             let (va, ra) = run(&mut a, &scene, &rec).unwrap();
             let mut b = cpu_ds(&[&[("resolution", &res), ("epsilon", "0")], filter]);
             let (vb, _) = run(&mut b, &scene, &rec).unwrap();
-            let worst = va
-                .iter()
-                .zip(&vb)
-                .filter(|p| p.0.is_finite())
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0f32, f32::max);
+            let worst = max_abs_diff(&va, &vb);
             println!(
                 "| {name} | {filter:?}: truncation eps=1e-3 vs none: max abs dV, RMS dV, fragments truncated of all | {worst:.2e}, {:.2e}, {} of {} |",
                 rmse(&va, &vb, &rec.active),

@@ -3,9 +3,9 @@
 //! near-plane clipping), but it keeps *every* fragment with its opacity instead of the nearest
 //! depth. The GPU twin rasterises the same [`PreparedTri`]s with the same edge tests
 //! (`deep_shadow.wgsl`, `raster`), in f32 where this file uses f64.
-use glam::{DVec2, DVec3, Vec3};
+use glam::{DVec2, Vec3};
 use rayon::prelude::*;
-use shadow_map_core::{LightView, Scene};
+use shadow_map_core::{raster::TexelProjection, LightView, Scene};
 
 /// A triangle after clipping to z >= n and projection to continuous texel coordinates, with the
 /// opacity of its mesh. Triangles of fully transparent meshes (opacity 0) are dropped: they
@@ -32,12 +32,10 @@ pub struct Fragment {
 }
 
 /// Transforms, clips (z >= n) and projects every triangle of the scene for `view` (no culling:
-/// hair is two-sided). Same arithmetic as the core's `PreparedScene::new`.
+/// hair is two-sided). Same arithmetic as the core's `PreparedScene::new`: both clip and
+/// project with [`TexelProjection::clip_project`].
 pub fn prepare(scene: &Scene, view: &LightView) -> Vec<PreparedTri> {
-    let n = view.n as f64;
-    let delta = view.delta() as f64;
-    let x0 = DVec2::new(view.window_min.x as f64, view.window_min.y as f64);
-    let r = view.r as f64;
+    let proj = TexelProjection::new(view);
     let mut out = Vec::with_capacity(scene.triangles.len());
     for (t, tri) in scene.triangles.iter().enumerate() {
         let alpha = scene.triangle_opacity(t);
@@ -46,39 +44,7 @@ pub fn prepare(scene: &Scene, view: &LightView) -> Vec<PreparedTri> {
         }
         let l: [Vec3; 3] = tri.map(|v| view.frame.to_light(v));
         let l = l.map(|v| v.as_dvec3());
-        let mut poly = [DVec3::ZERO; 4];
-        let mut m = 0;
-        for k in 0..3 {
-            let a = l[k];
-            let b = l[(k + 1) % 3];
-            let (ina, inb) = (a.z >= n, b.z >= n);
-            if ina {
-                poly[m] = a;
-                m += 1;
-            }
-            if ina != inb {
-                let s = (n - a.z) / (b.z - a.z);
-                let mut p = a + (b - a) * s;
-                p.z = n;
-                poly[m] = p;
-                m += 1;
-            }
-        }
-        if m < 3 {
-            continue;
-        }
-        let proj = |p: DVec3| ((DVec2::new(p.x, p.y) * (n / p.z) - x0) / delta, 1.0 / p.z);
-        let pts: Vec<(DVec2, f64)> = poly[..m].iter().map(|&p| proj(p)).collect();
-        for k in 1..m - 1 {
-            let mut tri = [pts[0], pts[k], pts[k + 1]];
-            let lo = tri[0].0.min(tri[1].0).min(tri[2].0);
-            let hi = tri[0].0.max(tri[1].0).max(tri[2].0);
-            if hi.x < 0.0 || hi.y < 0.0 || lo.x > r || lo.y > r {
-                continue;
-            }
-            if !lo.is_finite() || !hi.is_finite() {
-                continue;
-            }
+        for mut tri in proj.clip_project(l) {
             let area = (tri[1].0 - tri[0].0).perp_dot(tri[2].0 - tri[0].0);
             if area == 0.0 || !area.is_finite() {
                 continue;

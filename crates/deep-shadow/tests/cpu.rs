@@ -223,14 +223,7 @@ fn a_texel_with_ten_thousand_fragments() {
             ]);
             let (v, rep) = run(&mut e, &scene, &rec).unwrap();
             check_contract(&v, &rec);
-            let max_list: u32 = rep
-                .notes
-                .iter()
-                .find(|n| n.0 == "max_list")
-                .unwrap()
-                .1
-                .parse()
-                .unwrap();
+            let max_list: u32 = note_as(&rep, "max_list");
             assert_eq!(max_list, n as u32 + 1);
             for x in &v[..9] {
                 assert!(
@@ -267,15 +260,8 @@ fn linked_and_naive_traversal_agree_exactly() {
                         vb[k]
                     );
                 }
-                let steps = |r: &shadow_map_core::Report| -> f64 {
-                    r.notes
-                        .iter()
-                        .find(|n| n.0 == "elements_per_lookup")
-                        .unwrap()
-                        .1
-                        .parse()
-                        .unwrap()
-                };
+                let steps =
+                    |r: &shadow_map_core::Report| -> f64 { note_as(r, "elements_per_lookup") };
                 if kv.iter().any(|p| p.1 == "7") {
                     assert!(
                         steps(&ra) < steps(&rb),
@@ -346,24 +332,10 @@ fn a_tiny_capacity_grows_and_rebuilds_or_fails_with_a_typed_error() {
     )
     .unwrap();
     assert_eq!(v0, v1);
-    let passes = |r: &shadow_map_core::Report| {
-        r.notes
-            .iter()
-            .find(|n| n.0 == "build_passes")
-            .unwrap()
-            .1
-            .clone()
-    };
+    let passes = |r: &shadow_map_core::Report| note(r, "build_passes").unwrap();
     assert_eq!(passes(&r0), "1");
     assert_eq!(passes(&r1), "2");
-    let frags: u64 = r1
-        .notes
-        .iter()
-        .find(|n| n.0 == "fragments")
-        .unwrap()
-        .1
-        .parse()
-        .unwrap();
+    let frags: u64 = note_as(&r1, "fragments");
     let mut e = est(&[
         ("resolution", "128"),
         ("capacity", "16"),
@@ -408,16 +380,7 @@ fn an_opaque_scene_builds_no_lists() {
 
 #[test]
 fn every_mode_keeps_the_contract_on_the_fixtures() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|d| {
-            let d = d.ok()?.path();
-            let name = d.file_name()?.to_str()?.to_string();
-            d.join(format!("{name}.toml")).exists().then_some(name)
-        })
-        .collect();
-    names.sort();
+    let names = fixture_names();
     assert!(names.iter().any(|n| n == "hair"), "{names:?}");
     for name in &names {
         let (scene, rec) = fixture(name, 32, 24);
@@ -434,23 +397,18 @@ fn every_mode_keeps_the_contract_on_the_fixtures() {
 #[test]
 fn parameters_are_checked() {
     let mut e = CpuDeepShadow::new().unwrap();
-    assert!(matches!(
-        e.set_param("kernel", "4"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(
-        e.set_param("kernel", "9"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(
-        e.set_param("filter", "box"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(
-        e.set_param("sublights", "5"),
-        Err(Error::Param { .. })
-    ));
-    assert!(matches!(e.set_param("nope", "1"), Err(Error::Param { .. })));
+    for (k, v) in [
+        ("kernel", "4"),
+        ("kernel", "9"),
+        ("filter", "box"),
+        ("sublights", "5"),
+        ("nope", "1"),
+    ] {
+        assert!(
+            matches!(e.set_param(k, v), Err(Error::Param { .. })),
+            "{k}={v}"
+        );
+    }
     e.set_param("kernel", "7").unwrap();
     assert_eq!(e.params().int("kernel"), 7);
     assert_eq!(e.settings().kernel, 7);
@@ -471,21 +429,9 @@ fn truncation_error_is_bounded_by_epsilon_on_hair() {
         b.extend([("resolution", "256"), ("epsilon", "0")]);
         let (va, ra) = run(&mut est(&a), &scene, &rec).unwrap();
         let (vb, _) = run(&mut est(&b), &scene, &rec).unwrap();
-        let worst = va
-            .iter()
-            .zip(&vb)
-            .filter(|p| p.0.is_finite())
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0f32, f32::max);
+        let worst = max_abs_diff(&va, &vb);
         assert!(worst <= 1.0e-3 + 1e-6, "{mode:?}: {worst}");
-        let truncated: u64 = ra
-            .notes
-            .iter()
-            .find(|n| n.0 == "truncated")
-            .unwrap()
-            .1
-            .parse()
-            .unwrap();
+        let truncated: u64 = note_as(&ra, "truncated");
         assert!(truncated > 0);
     }
 }
@@ -655,37 +601,6 @@ fn stable_fit_keeps_v_with_filter_kernels_when_the_camera_pans() {
     }
 }
 
-/// An unoccluded plane of opacity `alpha`, tilted `deg` degrees towards grazing under the rect
-/// light: its receivers and the part of the light in front of each (its facing fraction).
-fn tilted_plane(deg: f32, alpha: f32) -> (Scene, Receivers, Vec<f32>) {
-    let th = deg.to_radians();
-    let n = Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = Vec3::new(th.cos(), -th.sin(), 0.0);
-    let c = |a: f32, b: f32| a * t + b * Vec3::Z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let s = Scene::from_meshes("tilted", camera(), rect_light(1.0), vec![(tris, alpha)]).unwrap();
-    let mut pos = Vec::new();
-    for a in 0..30 {
-        for b in 0..30 {
-            pos.push(c(
-                -0.9 + a as f32 * 0.06 + 0.0137,
-                -0.9 + b as f32 * 0.06 + 0.0071,
-            ));
-        }
-    }
-    let facing = pos
-        .iter()
-        .map(|p| s.light.front_fraction_world(*p, n))
-        .collect();
-    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
-    (s, r, facing)
-}
-
 /// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal
 /// (opaque: the shadow-map path; alpha 0.5: the lists) is never shadowed by its own fragments,
 /// at the defaults and with every filter: V >= facing - 0.02 everywhere (one sub-light, the
@@ -694,7 +609,7 @@ fn tilted_plane(deg: f32, alpha: f32) -> (Scene, Receivers, Vec<f32>) {
 #[test]
 fn grazing_plane_is_not_self_shadowed() {
     for alpha in [1.0f32, 0.5] {
-        let (s, r, facing) = tilted_plane(85.0, alpha);
+        let (s, r, facing) = test_support::fixtures::tilted_plane(85.0, alpha, (30, -0.9, 0.06));
         let worst = |kv: &[(&str, &str)]| {
             let v = v_of(&mut est(kv), &s, &r);
             v.iter()

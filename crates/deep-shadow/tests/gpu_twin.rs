@@ -240,17 +240,7 @@ fn strands_case() -> FixedCase {
 struct DeepShadow;
 
 impl TwinPair for DeepShadow {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuDeepShadow::new().unwrap())
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuDeepShadow::new(ctx.clone()).unwrap())
-    }
-
-    fn fixed_case(&self) -> FixedCase {
-        strands_case()
-    }
+    test_support::twin_constructors!(CpuDeepShadow, GpuDeepShadow, fixed = strands_case());
 
     /// The lists, links and transmittance of the GPU twin's map against the CPU twin's.
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {

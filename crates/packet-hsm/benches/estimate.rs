@@ -3,17 +3,11 @@
 //! `cargo bench -p packet-hsm --bench estimate`
 use criterion::{criterion_group, criterion_main, Criterion};
 use packet_hsm::CpuPacketHsm;
-use shadow_map_core::{Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::SoftShadowEstimator;
+use test_support::fixtures::fixture;
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/bunny/bunny.toml"
-    );
-    let mut scene = Scene::load(path).expect("fixture");
-    scene.camera.width = 160;
-    scene.camera.height = 120;
-    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let (mut scene, rec) = fixture("bunny", 160, 120);
     let base = scene.light;
     let mut g = c.benchmark_group("packet-hsm estimate");
     g.sample_size(10);

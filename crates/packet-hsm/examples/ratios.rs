@@ -31,29 +31,15 @@ use packet_hsm::contour::{extract, CellRect, Planes, Traversal};
 use packet_hsm::cpu::{prepare, Config, Prep, SubView};
 use packet_hsm::CpuPacketHsm;
 use reference::ReferenceEstimator;
-use shadow_map_core::{mssm::MinMax, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::{mssm::MinMax, Receivers, Scene, SoftShadowEstimator};
 use std::time::Instant;
+use test_support::fixtures::{fixture, note};
 
 fn env(k: &str, d: &str) -> String {
     std::env::var(k).unwrap_or_else(|_| d.to_string())
 }
 fn envu(k: &str, d: u32) -> u32 {
     env(k, &d.to_string()).parse().unwrap_or(d)
-}
-
-fn fixture_path(name: &str) -> String {
-    format!(
-        "{}/../../fixtures/{name}/{name}.toml",
-        env!("CARGO_MANIFEST_DIR")
-    )
-}
-
-fn load(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
-    let mut scene = Scene::load(fixture_path(name)).expect("fixture");
-    scene.camera.width = w;
-    scene.camera.height = h;
-    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
-    (scene, rec)
 }
 
 /// The settings of the speed, tune and gpu sections (see the module docs).
@@ -78,14 +64,6 @@ fn settings() -> Settings {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
-}
-
-fn note(rep: &shadow_map_core::Report, key: &str) -> String {
-    rep.notes
-        .iter()
-        .find(|n| n.0 == key)
-        .map(|n| n.1.clone())
-        .unwrap_or_default()
 }
 
 /// Median estimate and frame times over `runs` (after one warm-up), V and the last report.
@@ -186,7 +164,7 @@ fn speed() {
         res,
         runs,
     } = settings();
-    let (mut scene, rec) = load(&name, w, h);
+    let (mut scene, rec) = fixture(&name, w, h);
     let base_light = scene.light;
     println!("\n## speed: {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}), one shadow map (S = 1), 3x3 packets");
     println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV | penumbra px | visited/px GBP07 | visited/px both | coherent packets |");
@@ -204,14 +182,14 @@ fn speed() {
             .iter()
             .map(|o| max_diff(&o.2, &out[0].2))
             .fold(0.0, f32::max);
-        let coh = note(&out[3].3, "packets_coherent");
-        let pk = note(&out[3].3, "packets");
+        let coh = note(&out[3].3, "packets_coherent").unwrap_or_default();
+        let pk = note(&out[3].3, "packets").unwrap_or_default();
         println!(
             "| {scale} | {} | {dv:.1e} | {} | {} | {} | {coh}/{pk} |",
             variant_columns([out[0].0, out[1].0, out[2].0, out[3].0]),
-            note(&out[0].3, "penumbra_evaluations"),
-            note(&out[0].3, "visited_per_penumbra_pixel"),
-            note(&out[3].3, "visited_per_penumbra_pixel"),
+            note(&out[0].3, "penumbra_evaluations").unwrap_or_default(),
+            note(&out[0].3, "visited_per_penumbra_pixel").unwrap_or_default(),
+            note(&out[3].3, "visited_per_penumbra_pixel").unwrap_or_default(),
         );
     }
     println!("Yang 2009 Fig. 13 (GTX 280, 1280x1024, 3x3 packets): hierarchy 1.5-4x on top of packets; packets + hierarchy up to an order of magnitude for large lights, 20x in Fig. 1-c.");
@@ -287,7 +265,7 @@ fn visits() {
     let name = env("HSM_SCENE", "bunny");
     let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
     let res: u32 = envu("HSM_RES", 512);
-    let (mut scene, rec) = load(&name, w, h);
+    let (mut scene, rec) = fixture(&name, w, h);
     let base_light = scene.light;
     println!(
         "\n## visited nodes per penumbra pixel: {name}, {w}x{h}, r = {res}, per pixel (no packets)"
@@ -363,7 +341,7 @@ fn sweep() {
     println!("| image | hierarchy | {} |", sizes.join(" | "));
     println!("|---|---|{}", "---|".repeat(sizes.len()));
     for (w, h) in [(160u32, 120u32), (320, 240)] {
-        let (scene, rec) = load(&name, w, h);
+        let (scene, rec) = fixture(&name, w, h);
         for hier in ["false", "true"] {
             let mut row = format!("| {w}x{h} | {hier} |");
             let mut best = (f64::INFINITY, "");
@@ -389,7 +367,7 @@ fn tune() {
         res,
         runs,
     } = settings();
-    let (mut scene, rec) = load(&name, w, h);
+    let (mut scene, rec) = fixture(&name, w, h);
     scene.light = scene.light.scaled(2.0);
     let grid = ["0", "1", "2", "4", "8", "16"];
     println!("\n## Q_e, Q_v tuning (eq. 6, Q_n = 1): {name} under a 2x light, {w}x{h}, r = {res}, 3x3 packets, hierarchy on; estimate ms (median of {runs})");
@@ -480,7 +458,7 @@ fn accuracy() {
     ];
     let mut fig11 = Vec::new();
     for name in &names {
-        let (scene, rec) = load(name, w, h);
+        let (scene, rec) = fixture(name, w, h);
         let mut reference = ReferenceEstimator::new().expect("reference");
         reference.set_param("spp", &spp).expect("spp");
         let t = Instant::now();
@@ -537,7 +515,7 @@ fn gpu() {
         res,
         runs,
     } = settings();
-    let (mut scene, rec) = load(&name, w, h);
+    let (mut scene, rec) = fixture(&name, w, h);
     let base_light = scene.light;
     println!("\n## gpu twin ({}): {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}; maps built on the CPU and uploaded, not counted), S = 1, 3x3 packets", ctx.describe());
     println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV vs CPU | receivers redone on the CPU (loop limit), per variant |");
@@ -558,7 +536,7 @@ fn gpu() {
         let dv = out.iter().map(|o| max_diff(&o.2, &vc)).fold(0.0, f32::max);
         let fb: Vec<String> = out
             .iter()
-            .map(|o| note(&o.3, "loop_limit_cpu_fallbacks"))
+            .map(|o| note(&o.3, "loop_limit_cpu_fallbacks").unwrap_or_default())
             .collect();
         println!(
             "| {scale} | {} | {dv:.1e} | {} |",

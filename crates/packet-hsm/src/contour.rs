@@ -206,52 +206,52 @@ pub fn caster_bounds(p: &ReceiverPlane, uv: Vec2) -> (f32, f32) {
 /// none at or above the second for any. Both bounds are monotone in the plane's affine slope
 /// (a sign change of `g` inside the rectangle shows at a corner), so the extremes are at the
 /// rectangle's corners.
-pub fn plane_threshold_range(members: &[OccluderTest], [i0, j0, i1, j1]: [i32; 4]) -> (f32, f32) {
+pub fn plane_threshold_range(members: &[OccluderTest], rect: [i32; 4]) -> (f32, f32) {
+    match corner_bounds(members, rect) {
+        None => (f32::NEG_INFINITY, f32::INFINITY),
+        Some(b) => {
+            let (lo, hi) = b.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (l, h)| {
+                (lo.min(l), hi.max(h))
+            });
+            (lo - lo.abs() * PRUNE_MARGIN, hi + hi.abs() * PRUNE_MARGIN)
+        }
+    }
+}
+
+/// [`caster_bounds`] at the four corner sample centres of `[i0, i1] x [j0, j1]` for every plane
+/// of `members`; `None` when a member has no plane (the classic test: no depth bound applies).
+fn corner_bounds(
+    members: &[OccluderTest],
+    [i0, j0, i1, j1]: [i32; 4],
+) -> Option<impl Iterator<Item = (f32, f32)> + '_> {
     let (u0, u1) = (i0 as f32 + 0.5, i1 as f32 + 0.5);
     let (v0, v1) = (j0 as f32 + 0.5, j1 as f32 + 0.5);
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for m in members {
-        let Some(p) = &m.plane else {
-            return (f32::NEG_INFINITY, f32::INFINITY);
-        };
-        for uv in [
+    let planes: Option<Vec<&ReceiverPlane>> = members.iter().map(|m| m.plane.as_ref()).collect();
+    Some(planes?.into_iter().flat_map(move |p| {
+        [
             Vec2::new(u0, v0),
             Vec2::new(u1, v0),
             Vec2::new(u0, v1),
             Vec2::new(u1, v1),
-        ] {
-            let (l, h) = caster_bounds(p, uv);
-            lo = lo.min(l);
-            hi = hi.max(h);
-        }
-    }
-    (lo - lo.abs() * PRUNE_MARGIN, hi + hi.abs() * PRUNE_MARGIN)
+        ]
+        .map(|uv| caster_bounds(p, uv))
+    }))
 }
 
 /// `(max lower, min upper)` of [`caster_bounds`] over the same corners as
 /// [`plane_threshold_range`], widened the other way (max raised, min lowered): every node inside
 /// the rectangle has its own `plane_threshold_range` lower bound at most the first and upper
 /// bound at least the second.
-pub fn plane_inner_range(members: &[OccluderTest], [i0, j0, i1, j1]: [i32; 4]) -> (f32, f32) {
-    let (u0, u1) = (i0 as f32 + 0.5, i1 as f32 + 0.5);
-    let (v0, v1) = (j0 as f32 + 0.5, j1 as f32 + 0.5);
-    let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
-    for m in members {
-        let Some(p) = &m.plane else {
-            return (f32::INFINITY, f32::NEG_INFINITY);
-        };
-        for uv in [
-            Vec2::new(u0, v0),
-            Vec2::new(u1, v0),
-            Vec2::new(u0, v1),
-            Vec2::new(u1, v1),
-        ] {
-            let (l, h) = caster_bounds(p, uv);
-            lo = lo.max(l);
-            hi = hi.min(h);
+pub fn plane_inner_range(members: &[OccluderTest], rect: [i32; 4]) -> (f32, f32) {
+    match corner_bounds(members, rect) {
+        None => (f32::INFINITY, f32::NEG_INFINITY),
+        Some(b) => {
+            let (lo, hi) = b.fold((f32::NEG_INFINITY, f32::INFINITY), |(lo, hi), (l, h)| {
+                (lo.max(l), hi.min(h))
+            });
+            (lo + lo.abs() * PRUNE_MARGIN, hi - hi.abs() * PRUNE_MARGIN)
         }
     }
-    (lo + lo.abs() * PRUNE_MARGIN, hi - hi.abs() * PRUNE_MARGIN)
 }
 
 /// Occluder flags and true depths of the corners of cell (i, j) for one receiver's test.

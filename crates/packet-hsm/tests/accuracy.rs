@@ -82,7 +82,7 @@ fn tiny_light_converges_to_hard_shadows() {
     let mut hard = HardShadow::new().unwrap();
     hard.set_param("resolution", "512").unwrap();
     let vh = run(&mut hard, &s, &r).unwrap().0;
-    let v = run(&mut hsm(&[("resolution", "512")]), &s, &r).unwrap().0;
+    let v = hsm_v(&[("resolution", "512")], &s, &r);
     let foot = texel_on_light(&s, &r, 512, 3.0 - 1e-3, 3.0) * 1e-3; // ~ one texel on the ground
     let mut compared = 0;
     for k in 0..r.len() {
@@ -106,13 +106,7 @@ fn occluder_touching_the_receiver() {
         let s = scene_with(rect_light(1.0, 3.0), &[occ], 8, 8);
         let o = oracle(&s, &[occ], &r);
         for ss in ["midpoint", "bias"] {
-            let v = run(
-                &mut hsm(&[("resolution", "256"), ("self_shadow", ss)]),
-                &s,
-                &r,
-            )
-            .unwrap()
-            .0;
+            let v = hsm_v(&[("resolution", "256"), ("self_shadow", ss)], &s, &r);
             assert_valid(&v, "touching");
             if gap < 1e-3 {
                 continue;
@@ -156,7 +150,7 @@ fn contour_through_the_receiver() {
         }
     }
     let rr = Receivers::from_points(pts.clone(), vec![Vec3::Y; pts.len()]).unwrap();
-    let v = run(&mut hsm(&[("resolution", "128")]), &s, &rr).unwrap().0;
+    let v = hsm_v(&[("resolution", "128")], &s, &rr);
     assert_valid(&v, "on the contour");
     for c in v.chunks(3) {
         // The exact hit is between (or within 1e-3 of) its two neighbours 1e-3 texel away.
@@ -178,14 +172,12 @@ fn border_and_huge_kernels() {
         8,
     );
     for h in ["true", "false"] {
-        let v = run(&mut hsm(&[("resolution", "128"), ("hierarchy", h)]), &s, &r)
-            .unwrap()
-            .0;
+        let v = hsm_v(&[("resolution", "128"), ("hierarchy", h)], &s, &r);
         assert_valid(&v, "huge kernels");
     }
     // Border: the line's ends are the extreme receivers, so they sit at the map's border.
     let s = scene_with(rect_light(1.0, 3.0), &[SQUARE], 8, 8);
-    let v = run(&mut hsm(&[("resolution", "64")]), &s, &r).unwrap().0;
+    let v = hsm_v(&[("resolution", "64")], &s, &r);
     assert_valid(&v, "border");
     let o = oracle(&s, &[SQUARE], &r);
     assert!((v[0] as f64 - o[0]).abs() < 0.05 && (v[240] as f64 - o[240]).abs() < 0.05);
@@ -194,13 +186,7 @@ fn border_and_huge_kernels() {
     pts.extend([Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.2, 3.0, 0.1)]);
     let mut rr = Receivers::from_points(pts.clone(), vec![Vec3::Y; pts.len()]).unwrap();
     rr.active[3] = false;
-    let v = run(
-        &mut hsm(&[("resolution", "64"), ("sublights", "2")]),
-        &s,
-        &rr,
-    )
-    .unwrap()
-    .0;
+    let v = hsm_v(&[("resolution", "64"), ("sublights", "2")], &s, &rr);
     assert!(v[3].is_nan());
     assert_eq!(v[v.len() - 2], 0.0);
     assert_eq!(v[v.len() - 1], 0.0);
@@ -216,13 +202,7 @@ fn sublights_reduce_the_single_view_error() {
     let o = oracle(&s, &occ, &r);
     let mut rm = Vec::new();
     for sl in ["1", "2", "4"] {
-        let v = run(
-            &mut hsm(&[("resolution", "256"), ("sublights", sl)]),
-            &s,
-            &r,
-        )
-        .unwrap()
-        .0;
+        let v = hsm_v(&[("resolution", "256"), ("sublights", sl)], &s, &r);
         let (rms, max) = errors(&v, &o);
         eprintln!("stacked squares S={sl}: rmse {rms:.5} max {max:.5}");
         rm.push(rms);
@@ -265,50 +245,13 @@ fn bad_input() {
     assert!(e.estimate(&s, &line_receivers(), &mut v).is_err());
 }
 
-/// An unoccluded plane through the origin tilted `deg` degrees from facing the light: the
-/// scene, receivers on it and their facing fractions.
-fn tilted_plane(deg: f32) -> (Scene, Receivers, Vec<f32>) {
-    let th = deg.to_radians();
-    let n = Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = Vec3::new(th.cos(), -th.sin(), 0.0);
-    let c = |a: f32, b: f32| a * t + b * Vec3::Z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let s = Scene::from_meshes(
-        "tilted",
-        camera(8, 8),
-        rect_light(1.0, 3.0),
-        vec![(tris, 1.0)],
-    )
-    .unwrap();
-    let mut pos = Vec::new();
-    for a in 0..40 {
-        for b in 0..40 {
-            pos.push(c(
-                -1.0 + a as f32 * 0.05 + 0.0137,
-                -1.0 + b as f32 * 0.05 + 0.0071,
-            ));
-        }
-    }
-    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
-    let facing = pos
-        .iter()
-        .map(|p| s.light.front_fraction_world(*p, n))
-        .collect();
-    (s, r, facing)
-}
-
 /// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal,
 /// at the defaults, is never shadowed by its own samples: every receiver keeps V >= facing - 0.02,
 /// with midpoints and with the bias. Without the plane test (`receiver_plane=false`) the
 /// kernel's texels of the receiver's own surface nearer the light shadow it.
 #[test]
 fn grazing_plane_is_not_self_shadowed() {
-    let (s, r, facing) = tilted_plane(85.0);
+    let (s, r, facing) = test_support::fixtures::tilted_plane(85.0, 1.0, (40, -1.0, 0.05));
     let worst = |kv: &[(&str, &str)]| {
         let v = run(&mut hsm(kv), &s, &r).unwrap().0;
         assert_valid(&v, "grazing plane");

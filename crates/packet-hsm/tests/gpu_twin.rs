@@ -84,17 +84,7 @@ fn fixed_case() -> FixedCase {
 struct PacketHsm;
 
 impl TwinPair for PacketHsm {
-    fn cpu(&self) -> Box<dyn SoftShadowEstimator> {
-        Box::new(CpuPacketHsm::new().unwrap())
-    }
-
-    fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator> {
-        Box::new(GpuPacketHsm::new(ctx.clone()).unwrap())
-    }
-
-    fn fixed_case(&self) -> FixedCase {
-        fixed_case()
-    }
+    test_support::twin_constructors!(CpuPacketHsm, GpuPacketHsm, fixed = fixed_case());
 
     /// Random scenes, packet sizes, hierarchy, coherence, sub-lights, self-shadow and light
     /// views, through the CLI path on both twins: V and the packet counters.
@@ -311,41 +301,11 @@ fn gpu_grazing_plane_is_not_self_shadowed() {
     let Some(ctx) = test_support::gpu("gpu_grazing_plane_is_not_self_shadowed") else {
         return;
     };
-    let th = 85f32.to_radians();
-    let n = glam::Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = glam::Vec3::new(th.cos(), -th.sin(), 0.0);
-    let c = |a: f32, b: f32| a * t + b * glam::Vec3::Z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let s = Scene::from_meshes(
-        "tilted",
-        test_support::fixtures::camera(8, 8),
-        test_support::fixtures::rect_light(1.0, 3.0),
-        vec![(tris, 1.0)],
-    )
-    .unwrap();
-    let pos: Vec<glam::Vec3> = (0..30 * 30)
-        .map(|k| {
-            c(
-                -1.0 + (k % 30) as f32 * 0.066 + 0.0137,
-                -1.0 + (k / 30) as f32 * 0.066 + 0.0071,
-            )
-        })
-        .collect();
-    let r = Receivers::from_points(pos.clone(), vec![n; pos.len()]).unwrap();
+    let (s, r, facing) = test_support::fixtures::tilted_plane(85.0, 1.0, (30, -1.0, 0.066));
     let mut g = GpuPacketHsm::new(ctx).unwrap();
     for ss in ["midpoint", "bias"] {
         g.set_param("self_shadow", ss).unwrap();
-        let v = run(&mut g, &s, &r).unwrap().0;
-        let worst = pos
-            .iter()
-            .zip(&v)
-            .map(|(p, x)| s.light.front_fraction_world(*p, n) - x)
-            .fold(f32::NEG_INFINITY, f32::max);
+        let worst = test_support::fixtures::most_below(&run(&mut g, &s, &r).unwrap().0, &facing);
         eprintln!("gpu 85 deg plane, self_shadow={ss}: most below facing {worst:.4}");
         assert!(worst <= 0.02, "self_shadow={ss}: V below facing by {worst}");
     }

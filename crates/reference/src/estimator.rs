@@ -2,7 +2,7 @@
 use crate::trace::{visibility, TraceOptions};
 use shadow_map_core::{
     estimator::{Report, SoftShadowEstimator},
-    Error, ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
+    ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
 };
 
 shadow_map_core::typed_params! {
@@ -107,13 +107,7 @@ impl SoftShadowEstimator for ReferenceEstimator {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "{} output slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
+        receivers.check_output(v)?;
         if self.bvh.is_none() {
             // `estimate` without `build`: build now (timed as a stage of its own).
             let bvh = self.report.time("build", || SceneBvh::new(scene));

@@ -170,6 +170,24 @@ pub fn disk_occluder_visibility(
     occ_z: f32,
     p: Vec3,
 ) -> f64 {
+    parallel_occluder_visibility(light_radius, occ_z, p, |r_l, s, pxy| {
+        let c = pxy + (occ_center_xy.as_dvec2() - pxy) * s;
+        let r = s * occ_radius.abs() as f64;
+        lens_area(r_l, r, c.length())
+    })
+}
+
+/// What [`disk_occluder_visibility`] and [`polygon_occluder_disk_visibility`] share: with
+/// `R_L = |light_radius|`, 0 for `z_p <= 0`, 1 for a zero-radius light or an occluder not
+/// strictly between light and receiver, else `1 - blocked(R_L, s, p_xy) / (pi R_L^2)` clamped
+/// to `[0, 1]`, where `blocked` is the area of the light the occluder's projection from `p`
+/// (scale `s = z_p / (z_p - z_o)` about `p_xy`) covers.
+fn parallel_occluder_visibility(
+    light_radius: f32,
+    occ_z: f32,
+    p: Vec3,
+    blocked: impl FnOnce(f64, f64, DVec2) -> f64,
+) -> f64 {
     let r_l = light_radius.abs() as f64;
     let (pz, zo) = (p.z as f64, occ_z as f64);
     if pz <= 0.0 {
@@ -180,9 +198,7 @@ pub fn disk_occluder_visibility(
     }
     let s = projection_scale(pz, zo);
     let pxy = DVec2::new(p.x as f64, p.y as f64);
-    let c = pxy + (occ_center_xy.as_dvec2() - pxy) * s;
-    let r = s * occ_radius.abs() as f64;
-    (1.0 - lens_area(r_l, r, c.length()) / (PI * r_l * r_l)).clamp(0.0, 1.0)
+    (1.0 - blocked(r_l, s, pxy) / (PI * r_l * r_l)).clamp(0.0, 1.0)
 }
 
 /// Area of `polygon ∩ disk`, the disk of radius `radius` centred at the origin, for a simple
@@ -249,21 +265,13 @@ pub fn polygon_occluder_disk_visibility(
     occ_z: f32,
     p: Vec3,
 ) -> f64 {
-    let r_l = light_radius.abs() as f64;
-    let (pz, zo) = (p.z as f64, occ_z as f64);
-    if pz <= 0.0 {
-        return 0.0;
-    }
-    if r_l == 0.0 || zo <= 0.0 || zo >= pz {
-        return 1.0;
-    }
-    let s = projection_scale(pz, zo);
-    let pxy = DVec2::new(p.x as f64, p.y as f64);
-    let proj: Vec<DVec2> = polygon
-        .iter()
-        .map(|v| pxy + (v.as_dvec2() - pxy) * s)
-        .collect();
-    (1.0 - polygon_disk_area(&proj, r_l) / (PI * r_l * r_l)).clamp(0.0, 1.0)
+    parallel_occluder_visibility(light_radius, occ_z, p, |r_l, s, pxy| {
+        let proj: Vec<DVec2> = polygon
+            .iter()
+            .map(|v| pxy + (v.as_dvec2() - pxy) * s)
+            .collect();
+        polygon_disk_area(&proj, r_l)
+    })
 }
 
 /// Visibility of a sphere light (contract convention: the disk of radius `R = light_radius` through

@@ -44,6 +44,26 @@ impl LightSpaceRequest {
             raster: RasterOptions::default(),
         }
     }
+
+    /// The view at the light centre, axes along the light frame, fitted to `receivers` at this
+    /// request's resolution ([`LightView::fit_with`]): what [`LightSpace::build_with`] and the
+    /// GPU mapper render in.
+    pub fn fit_view(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        opts: &ViewOptions,
+    ) -> Result<(LightView, FitReport)> {
+        let light = &scene.light;
+        LightView::fit_with(
+            scene,
+            receivers,
+            light.frame(),
+            light.half_extent(),
+            self.resolution,
+            opts,
+        )
+    }
 }
 
 /// Light-space data for one view.
@@ -79,15 +99,7 @@ impl LightSpace {
         req: &LightSpaceRequest,
         opts: &ViewOptions,
     ) -> Result<Self> {
-        let light = &scene.light;
-        let (view, fit) = LightView::fit_with(
-            scene,
-            receivers,
-            light.frame(),
-            light.half_extent(),
-            req.resolution,
-            opts,
-        )?;
+        let (view, fit) = req.fit_view(scene, receivers, opts)?;
         Ok(Self::build_in_view(scene, view, fit, req))
     }
 

@@ -18,7 +18,7 @@
 //! **Culling.** Facing is taken from the triangle's winding (its geometric normal), as on a GPU:
 //! a triangle is front-facing when its normal points towards the centre of projection.
 use crate::{light_view::LightView, scene::Scene};
-use glam::{DVec2, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 
 /// Which faces, as seen from the light, are skipped.
@@ -109,6 +109,75 @@ struct Prepared {
     inv_z: [f64; 3],
 }
 
+/// The projection of one view from light space to continuous texel coordinates, in f64: what
+/// [`PreparedScene::new`] (and the deep shadow map's rasteriser) applies to every triangle.
+#[derive(Debug, Clone, Copy)]
+pub struct TexelProjection {
+    n: f64,
+    delta: f64,
+    x0: DVec2,
+    r: f64,
+}
+
+impl TexelProjection {
+    /// The projection of `view`: the plane z = n, the texel pitch, the window corner and the
+    /// resolution, widened to f64.
+    pub fn new(view: &LightView) -> Self {
+        TexelProjection {
+            n: view.n as f64,
+            delta: view.delta() as f64,
+            x0: DVec2::new(view.window_min.x as f64, view.window_min.y as f64),
+            r: view.r as f64,
+        }
+    }
+
+    /// The light-space triangle `l` clipped against z >= n (Sutherland-Hodgman on one plane),
+    /// fanned into triangles and projected: each vertex as `(uv, 1/z)`, `uv` in texels. Only
+    /// triangles whose bounds are finite and not wholly outside the map `[0, r]^2` come out.
+    pub fn clip_project(&self, l: [DVec3; 3]) -> impl Iterator<Item = [(DVec2, f64); 3]> {
+        let n = self.n;
+        let mut poly = [DVec3::ZERO; 4];
+        let mut m = 0;
+        for k in 0..3 {
+            let a = l[k];
+            let b = l[(k + 1) % 3];
+            let (ina, inb) = (a.z >= n, b.z >= n);
+            if ina {
+                poly[m] = a;
+                m += 1;
+            }
+            if ina != inb {
+                let s = (n - a.z) / (b.z - a.z);
+                let mut p = a + (b - a) * s;
+                p.z = n;
+                poly[m] = p;
+                m += 1;
+            }
+        }
+        let pts = poly.map(|p| {
+            (
+                (DVec2::new(p.x, p.y) * (n / p.z) - self.x0) / self.delta,
+                1.0 / p.z,
+            )
+        });
+        let r = self.r;
+        // Fewer than three vertices (m < 3) leave no triangle.
+        (1..m.max(2) - 1)
+            .map(move |k| [pts[0], pts[k], pts[k + 1]])
+            .filter(move |tri| {
+                // Quick reject outside the map.
+                let lo = tri[0].0.min(tri[1].0).min(tri[2].0);
+                let hi = tri[0].0.max(tri[1].0).max(tri[2].0);
+                !(hi.x < 0.0
+                    || hi.y < 0.0
+                    || lo.x > r
+                    || lo.y > r
+                    || !lo.is_finite()
+                    || !hi.is_finite())
+            })
+    }
+}
+
 /// Light-space triangles of a scene for one view, clipped and projected once and reused by every
 /// peeling pass.
 pub struct PreparedScene {
@@ -120,10 +189,7 @@ impl PreparedScene {
     /// Transforms, culls, clips (z >= n) and projects the scene's triangles.
     pub fn new(scene: &Scene, view: &LightView, cull: Cull) -> Self {
         let mut tris = Vec::with_capacity(scene.triangles.len());
-        let n = view.n as f64;
-        let delta = view.delta() as f64;
-        let x0 = DVec2::new(view.window_min.x as f64, view.window_min.y as f64);
-        let r = view.r as f64;
+        let proj = TexelProjection::new(view);
         for t in &scene.triangles {
             let l: [Vec3; 3] = t.map(|v| view.frame.to_light(v));
             let l = l.map(|v| v.as_dvec3());
@@ -134,47 +200,7 @@ impl PreparedScene {
                 Cull::Front if facing_light => continue,
                 _ => {}
             }
-            // Clip the polygon against z >= n (Sutherland-Hodgman on one plane).
-            let mut poly: [glam::DVec3; 4] = [glam::DVec3::ZERO; 4];
-            let mut m = 0;
-            for k in 0..3 {
-                let a = l[k];
-                let b = l[(k + 1) % 3];
-                let (ina, inb) = (a.z >= n, b.z >= n);
-                if ina {
-                    poly[m] = a;
-                    m += 1;
-                }
-                if ina != inb {
-                    let s = (n - a.z) / (b.z - a.z);
-                    let mut p = a + (b - a) * s;
-                    p.z = n;
-                    poly[m] = p;
-                    m += 1;
-                }
-            }
-            if m < 3 {
-                continue;
-            }
-            let proj = |p: glam::DVec3| -> (DVec2, f64) {
-                let uv = (DVec2::new(p.x, p.y) * (n / p.z) - x0) / delta;
-                (uv, 1.0 / p.z)
-            };
-            let pts: Vec<(DVec2, f64)> = poly[..m].iter().map(|&p| proj(p)).collect();
-            for k in 1..m - 1 {
-                let tri = [pts[0], pts[k], pts[k + 1]];
-                // Quick reject outside the map.
-                let lo = tri[0].0.min(tri[1].0).min(tri[2].0);
-                let hi = tri[0].0.max(tri[1].0).max(tri[2].0);
-                if hi.x < 0.0
-                    || hi.y < 0.0
-                    || lo.x > r
-                    || lo.y > r
-                    || !lo.is_finite()
-                    || !hi.is_finite()
-                {
-                    continue;
-                }
+            for tri in proj.clip_project(l) {
                 tris.push(Prepared {
                     uv: tri.map(|p| p.0),
                     inv_z: tri.map(|p| p.1),

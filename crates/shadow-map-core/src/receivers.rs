@@ -136,4 +136,15 @@ impl Receivers {
     pub fn active_count(&self) -> usize {
         self.active.iter().filter(|&&a| a).count()
     }
+    /// Fails with [`Error::Receivers`] unless `v` has one output slot per receiver.
+    pub fn check_output(&self, v: &[f32]) -> Result<()> {
+        if v.len() != self.len() {
+            return Err(Error::Receivers(format!(
+                "output has {} slots for {} receivers",
+                v.len(),
+                self.len()
+            )));
+        }
+        Ok(())
+    }
 }

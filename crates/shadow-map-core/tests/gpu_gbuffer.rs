@@ -71,12 +71,13 @@ fn fixtures() -> Vec<PathBuf> {
     out
 }
 
-/// The fixture scene file `fixtures/<name>/<name>.toml`.
-fn fixture(name: &str) -> PathBuf {
-    fixtures()
+/// The fixture scene `fixtures/<name>/<name>.toml`, loaded.
+fn fixture(name: &str) -> Result<Scene, Error> {
+    let path = fixtures()
         .into_iter()
         .find(|p| p.ends_with(format!("{name}/{name}.toml")))
-        .unwrap_or_else(|| panic!("{name} fixture"))
+        .unwrap_or_else(|| panic!("{name} fixture"));
+    Scene::load(&path)
 }
 
 /// The CPU triangle index per pixel (`None` for background), rays exactly as `from_camera`.
@@ -337,8 +338,7 @@ fn chunked_resolve_is_identical() -> TestResult {
     let Some((ctx, _)) = gpu("chunked_resolve_is_identical")? else {
         return Ok(());
     };
-    let path = fixture("bunny");
-    let mut scene = Scene::load(&path)?;
+    let mut scene = fixture("bunny")?;
     scene.camera.width = 97;
     scene.camera.height = 41;
     let gscene = GpuScene::upload(&ctx, &scene)?;
@@ -375,8 +375,7 @@ fn oversized_images_and_degenerate_cameras_are_refused() -> TestResult {
     let Some((ctx, gb)) = gpu("oversized_images_and_degenerate_cameras_are_refused")? else {
         return Ok(());
     };
-    let path = fixture("parallel-squares");
-    let scene = Scene::load(&path)?;
+    let scene = fixture("parallel-squares")?;
     let gscene = GpuScene::upload(&ctx, &scene)?;
     let side = ctx.limits().max_texture_dimension_2d;
     let mut cam = scene.camera;

@@ -121,6 +121,25 @@ fn same_bits(a: &[f32], b: &[f32]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
+/// The GPU's `(min, max)` level planes against the CPU's `cpu(l)`, bit for bit; `what` names
+/// the structure in the failure.
+fn same_level_bits<'a>(
+    what: &str,
+    gpu: &[(Vec<f32>, Vec<f32>)],
+    cpu: impl Fn(u32) -> (&'a [f32], &'a [f32]),
+) -> Result<(), TestCaseError> {
+    for (l, (mn, mx)) in gpu.iter().enumerate() {
+        let (cmn, cmx) = cpu(l as u32);
+        prop_assert!(
+            same_bits(mn, cmn) && same_bits(mx, cmx),
+            "{} level {}",
+            what,
+            l
+        );
+    }
+    Ok(())
+}
+
 fn close(a: f32, b: f32) -> bool {
     (a.is_infinite() && b.is_infinite() && a.signum() == b.signum())
         || (a.is_finite() && b.is_finite() && (a - b).abs() <= DEPTH_REL_TOL * a.abs().max(b.abs()))
@@ -596,30 +615,19 @@ fn gpu_layers_and_midpoints_match_cpu_on_random_scenes() -> TestResult {
         if let (Some(g), Some(levels)) = (&gls.mssm, req.mssm_levels) {
             let c = Mssm::build(&l0.depth, l0.size, levels);
             prop_assert_eq!(g.levels(), c.levels());
-            for (l, (mn, mx)) in g.read_levels(&ctx).map_err(fail)?.iter().enumerate() {
-                let (cmn, cmx) = c.level(l as u32);
-                prop_assert!(same_bits(mn, cmn) && same_bits(mx, cmx), "mssm level {}", l);
-            }
+            same_level_bits("mssm", &g.read_levels(&ctx).map_err(fail)?, |l| c.level(l))?;
         }
         if let (Some(g), Some(levels)) = (&gls.dual_mssm, req.dual_mssm_levels) {
             let c = DualMssm::build(&l0.depth, l0.size, levels);
             prop_assert_eq!(g.levels(), c.levels());
-            for (l, (mn, mx)) in g.read_levels(&ctx).map_err(fail)?.iter().enumerate() {
-                let (cmn, cmx) = c.level(l as u32);
-                prop_assert!(same_bits(mn, cmn) && same_bits(mx, cmx), "dual level {}", l);
-            }
+            same_level_bits("dual", &g.read_levels(&ctx).map_err(fail)?, |l| c.level(l))?;
         }
         if let Some(g) = &gls.pyramid {
             let c = MinMaxPyramid::build(&l0.depth, l0.size);
             prop_assert_eq!(g.levels(), c.levels());
-            for (l, (mn, mx)) in g.read_levels(&ctx).map_err(fail)?.iter().enumerate() {
-                let (cmn, cmx) = c.level(l as u32);
-                prop_assert!(
-                    same_bits(mn, cmn) && same_bits(mx, cmx),
-                    "pyramid level {}",
-                    l
-                );
-            }
+            same_level_bits("pyramid", &g.read_levels(&ctx).map_err(fail)?, |l| {
+                c.level(l)
+            })?;
         }
 
         let straddles = counts.mismatched;
@@ -808,10 +816,7 @@ fn forced_chunking_is_bit_identical() -> TestResult {
     };
     let g = upload_depth_map(&ctx, &map)?;
     let builder = mapper.mssm_builder().clone().with_max_binding_bytes(64);
-    match builder.build_mssm(&ctx, &g, 3) {
-        Err(Error::Limit { .. }) => {}
-        other => panic!("expected Error::Limit, got {other:?}"),
-    }
+    assert_limit(builder.build_mssm(&ctx, &g, 3));
     Ok(())
 }
 
@@ -833,10 +838,7 @@ fn texture_larger_than_the_device_limit_is_a_limit_error() -> TestResult {
         }
         other => panic!("expected Error::Limit, got {other:?}"),
     }
-    match GpuDepthMap::new(&ctx, max + 1, "too large") {
-        Err(Error::Limit { .. }) => {}
-        other => panic!("expected Error::Limit, got {other:?}"),
-    }
+    assert_limit(GpuDepthMap::new(&ctx, max + 1, "too large"));
     Ok(())
 }
 
@@ -974,4 +976,12 @@ fn render_fits_like_the_cpu_and_to_cpu_reads_every_part() -> TestResult {
         cpu.pyramid.as_ref().map(MinMaxPyramid::levels)
     );
     Ok(())
+}
+
+/// Fails unless `r` is an [`Error::Limit`].
+fn assert_limit<T: std::fmt::Debug>(r: Result<T, Error>) {
+    match r {
+        Err(Error::Limit { .. }) => {}
+        other => panic!("expected Error::Limit, got {other:?}"),
+    }
 }

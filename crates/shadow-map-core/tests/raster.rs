@@ -24,6 +24,11 @@ fn camera() -> Camera {
     }
 }
 
+/// A scene of the one triangle `(a, b, c)`.
+fn triangle_scene(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Scene {
+    scene(vec![vec![[a, b, c].map(Vec3::from)]])
+}
+
 fn scene(meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
     Scene::from_meshes(
         "test",
@@ -57,11 +62,7 @@ fn covered(s: &Scene, view: &LightView) -> Vec<bool> {
 #[test]
 fn off_centre_triangle_orientation() {
     // A small triangle at x in [5, 7], y in [1, 2]: texels with u along +x, v along +y.
-    let s = scene(vec![vec![[
-        Vec3::new(5.0, 1.0, 1.0),
-        Vec3::new(7.0, 1.0, 1.0),
-        Vec3::new(5.0, 2.0, 1.0),
-    ]]]);
+    let s = triangle_scene([5.0, 1.0, 1.0], [7.0, 1.0, 1.0], [5.0, 2.0, 1.0]);
     let cov = covered(&s, &unit_view(8));
     let set: Vec<(usize, usize)> = (0..64)
         .filter(|k| cov[*k])
@@ -142,11 +143,7 @@ fn depth_is_linear_light_space_z_perspective_correct() {
 #[test]
 fn near_plane_clipping_keeps_the_far_part() {
     // A triangle crossing z = n = 1: only the part at z >= 1 is recorded, never a depth below n.
-    let s = scene(vec![vec![[
-        Vec3::new(0.0, 0.0, 0.5),
-        Vec3::new(8.0, 0.0, 3.0),
-        Vec3::new(0.0, 8.0, 3.0),
-    ]]]);
+    let s = triangle_scene([0.0, 0.0, 0.5], [8.0, 0.0, 3.0], [0.0, 8.0, 3.0]);
     let d = PreparedScene::new(&s, &unit_view(8), Cull::None).rasterize(DepthBias::default(), None);
     assert!(d
         .depth
@@ -162,13 +159,7 @@ fn slope_scaled_bias() {
     let view = unit_view(8);
     let p = PreparedScene::new(&flat, &view, Cull::None);
     let d0 = p.rasterize(DepthBias::default(), None);
-    let d1 = p.rasterize(
-        DepthBias {
-            constant: 0.25,
-            slope: 10.0,
-        },
-        None,
-    );
+    let d1 = p.rasterize(bias(0.25, 10.0), None);
     // Fronto-parallel: zero slope, only the constant.
     for (a, b) in d0.depth.iter().zip(&d1.depth) {
         assert!((b - a - 0.25).abs() < 1e-6);
@@ -182,13 +173,7 @@ fn slope_scaled_bias() {
     let tilted = scene(vec![vec![tri]]);
     let p = PreparedScene::new(&tilted, &view, Cull::None);
     let a = p.rasterize(DepthBias::default(), None);
-    let b = p.rasterize(
-        DepthBias {
-            constant: 0.0,
-            slope: 1.0,
-        },
-        None,
-    );
+    let b = p.rasterize(bias(0.0, 1.0), None);
     let k = 0;
     assert!(
         b.depth[k] > a.depth[k] + 0.1,
@@ -323,4 +308,9 @@ proptest! {
         }
         prop_assert!(view.n > 0.0 && view.far >= h - 1e-3);
     }
+}
+
+/// A depth bias of `constant` plus `slope` times the depth slope.
+fn bias(constant: f32, slope: f32) -> DepthBias {
+    DepthBias { constant, slope }
 }

@@ -17,10 +17,14 @@ use proptest::{
     strategy::Strategy,
     test_runner::{Config, TestCaseError, TestRunner},
 };
-use shadow_map_core::{
-    gpu::GpuContext, run, Backend, Receivers, Report, Scene, SoftShadowEstimator,
-};
+use shadow_map_core::{run, Backend, Receivers, Report, Scene, SoftShadowEstimator};
 use std::{cell::RefCell, fmt::Debug, sync::Arc};
+
+/// The GPU context the twins run on (re-exported for [`twin_constructors!`]).
+pub use shadow_map_core::gpu::GpuContext;
+
+/// A boxed estimator, as [`TwinPair`] hands out its twins.
+pub type BoxedEstimator = Box<dyn SoftShadowEstimator>;
 
 /// Parameters for both twins: `(key, value)`.
 pub type Params = Vec<(&'static str, String)>;
@@ -39,8 +43,7 @@ pub struct FixedCase {
 impl FixedCase {
     /// The scene and receivers of `spec`, and `params`.
     pub fn new(spec: &SceneSpec, params: Params) -> FixedCase {
-        let scene = spec.scene();
-        let receivers = spec.receivers(&scene.light);
+        let (scene, receivers) = spec.scene_and_receivers();
         FixedCase {
             scene,
             receivers,
@@ -80,6 +83,25 @@ pub trait TwinPair {
     /// CPU vs GPU on random scenes, each method with its own scenes, settings and tie
     /// explainer (usually through [`random_twins`]); failures persist beside `source_file`.
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str);
+
+    /// Check: [`same_name_description_and_parameters`] on new twins.
+    fn same_name_description_and_parameters(&self, ctx: &Arc<GpuContext>) {
+        let (cpu, mut gpu) = (self.cpu(), self.gpu(ctx));
+        same_name_description_and_parameters(&self.label(), &*cpu, &mut *gpu);
+    }
+
+    /// Check: [`inactive_receivers_are_nan`] on the fixed case.
+    fn inactive_receivers_are_nan_on_gpu(&self, ctx: &Arc<GpuContext>) {
+        let case = self.fixed_case();
+        inactive_receivers_are_nan(&self.label(), &mut *self.gpu(ctx), &case);
+    }
+
+    /// Check: [`zero_receivers_work_alike`] on the fixed case.
+    fn zero_receivers_work_like_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
+        let case = self.fixed_case();
+        let (mut cpu, mut gpu) = (self.cpu(), self.gpu(ctx));
+        zero_receivers_work_alike(&self.label(), &mut *cpu, &mut *gpu, &case);
+    }
 
     /// Check: [`chunked_dispatch_equals_one_dispatch`] on the fixed case.
     fn chunked_dispatch_equals_one_dispatch(&self, ctx: &Arc<GpuContext>) {
@@ -127,6 +149,15 @@ pub trait TwinPair {
 /// ```
 #[macro_export]
 macro_rules! twin_suite {
+    (@check $pair:expr, $check:ident) => {
+        #[test]
+        fn $check() {
+            let Some(ctx) = ctx(stringify!($check)) else {
+                return;
+            };
+            $crate::conformance::TwinPair::$check(&$pair, &ctx);
+        }
+    };
     ($($algo:ident $([$($check:ident),* $(,)?])? => $pair:expr),+ $(,)?) => {
         /// The CPU-vs-GPU conformance suite, one module per algorithm.
         mod twin {
@@ -149,59 +180,57 @@ macro_rules! twin_suite {
                         $crate::conformance::TwinPair::random_scenes(&$pair, &ctx, file!());
                     }
 
-                    #[test]
-                    fn same_name_description_and_parameters() {
-                        let Some(ctx) = ctx("same_name_description_and_parameters") else {
-                            return;
-                        };
-                        let pair = $pair;
-                        let label = $crate::conformance::TwinPair::label(&pair);
-                        let cpu = $crate::conformance::TwinPair::cpu(&pair);
-                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
-                        $crate::conformance::same_name_description_and_parameters(
-                            &label, &*cpu, &mut *gpu,
-                        );
-                    }
-
-                    #[test]
-                    fn inactive_receivers_are_nan_on_gpu() {
-                        let Some(ctx) = ctx("inactive_receivers_are_nan_on_gpu") else {
-                            return;
-                        };
-                        let pair = $pair;
-                        let label = $crate::conformance::TwinPair::label(&pair);
-                        let case = $crate::conformance::TwinPair::fixed_case(&pair);
-                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
-                        $crate::conformance::inactive_receivers_are_nan(&label, &mut *gpu, &case);
-                    }
-
-                    #[test]
-                    fn zero_receivers_work_like_the_cpu_twin() {
-                        let Some(ctx) = ctx("zero_receivers_work_like_the_cpu_twin") else {
-                            return;
-                        };
-                        let pair = $pair;
-                        let label = $crate::conformance::TwinPair::label(&pair);
-                        let case = $crate::conformance::TwinPair::fixed_case(&pair);
-                        let mut cpu = $crate::conformance::TwinPair::cpu(&pair);
-                        let mut gpu = $crate::conformance::TwinPair::gpu(&pair, &ctx);
-                        $crate::conformance::zero_receivers_work_alike(
-                            &label, &mut *cpu, &mut *gpu, &case,
-                        );
-                    }
-
-                    $($(
-                        #[test]
-                        fn $check() {
-                            let Some(ctx) = ctx(stringify!($check)) else {
-                                return;
-                            };
-                            $crate::conformance::TwinPair::$check(&$pair, &ctx);
-                        }
-                    )*)?
+                    $crate::twin_suite!(@check $pair, same_name_description_and_parameters);
+                    $crate::twin_suite!(@check $pair, inactive_receivers_are_nan_on_gpu);
+                    $crate::twin_suite!(@check $pair, zero_receivers_work_like_the_cpu_twin);
+                    $($($crate::twin_suite!(@check $pair, $check);)*)?
                 }
             )+
         }
+    };
+}
+
+/// The constructors of a [`TwinPair`] inside its `impl` block: [`TwinPair::cpu`] is
+/// `<$cpu>::new()`, [`TwinPair::gpu`] is `<$gpu>::new(ctx)` (default parameters, a failure to
+/// build panics), with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
+/// `set_max_chunk(N)`, and with `fixed = EXPR` also [`TwinPair::fixed_case`]: `EXPR`.
+///
+/// ```ignore
+/// impl TwinPair for Accumulation {
+///     test_support::twin_constructors!(CpuAccumulation, GpuAccumulation, chunk = 13);
+///     // random_scenes, ...
+/// }
+/// ```
+#[macro_export]
+macro_rules! twin_constructors {
+    ($cpu:ty, $gpu:ty $(, chunk = $chunk:expr)? $(, fixed = $fixed:expr)? $(,)?) => {
+        fn cpu(&self) -> $crate::conformance::BoxedEstimator {
+            ::std::boxed::Box::new(<$cpu>::new().expect("cpu twin"))
+        }
+
+        fn gpu(
+            &self,
+            ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
+        ) -> $crate::conformance::BoxedEstimator {
+            ::std::boxed::Box::new(<$gpu>::new(ctx.clone()).expect("gpu twin"))
+        }
+
+        $(
+            fn gpu_chunked(
+                &self,
+                ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
+            ) -> ::std::option::Option<$crate::conformance::BoxedEstimator> {
+                let mut g = <$gpu>::new(ctx.clone()).expect("gpu twin");
+                g.set_max_chunk($chunk);
+                ::std::option::Option::Some(::std::boxed::Box::new(g))
+            }
+        )?
+
+        $(
+            fn fixed_case(&self) -> $crate::conformance::FixedCase {
+                $fixed
+            }
+        )?
     };
 }
 

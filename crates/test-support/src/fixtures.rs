@@ -112,14 +112,46 @@ pub fn fixture_path(name: &str) -> String {
     )
 }
 
+/// The names of every scene fixture (each directory `fixtures/<name>` holding `<name>.toml`),
+/// sorted.
+pub fn fixture_names() -> Vec<String> {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{dir}: {e}"))
+        .filter_map(|d| {
+            let d = d.ok()?.path();
+            let name = d.file_name()?.to_str()?.to_string();
+            d.join(format!("{name}.toml")).exists().then_some(name)
+        })
+        .collect();
+    names.sort();
+    names
+}
+
 /// The scene fixture `name` with its camera set to `w x h` pixels, and the camera's receivers.
 pub fn fixture(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
-    let mut scene = match Scene::load(fixture_path(name)) {
-        Ok(s) => s,
-        Err(e) => panic!("fixture {name}: {e}"),
-    };
+    let mut scene = fixture_scene(name);
     scene.camera.width = w;
     scene.camera.height = h;
+    with_camera_receivers(scene)
+}
+
+/// The scene fixture `name` as its file describes it (image size included), and the camera's
+/// receivers.
+pub fn authored_fixture(name: &str) -> (Scene, Receivers) {
+    with_camera_receivers(fixture_scene(name))
+}
+
+/// The scene fixture `name`, loaded; panics, naming it, when it does not load.
+fn fixture_scene(name: &str) -> Scene {
+    match Scene::load(fixture_path(name)) {
+        Ok(s) => s,
+        Err(e) => panic!("fixture {name}: {e}"),
+    }
+}
+
+/// `scene` and its camera's receivers.
+fn with_camera_receivers(scene: Scene) -> (Scene, Receivers) {
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     (scene, rec)
 }
@@ -188,6 +220,29 @@ pub fn rmse(a: &[f32], b: &[f32], active: &[bool]) -> f64 {
     (s / n.max(1) as f64).sqrt()
 }
 
+/// The value of a report's note `key` parsed as a `T`; panics, naming the note, when the report
+/// has none or it does not parse.
+pub fn note_as<T: std::str::FromStr>(r: &Report, key: &str) -> T
+where
+    T::Err: std::fmt::Debug,
+{
+    match note(r, key) {
+        Some(v) => v
+            .parse()
+            .unwrap_or_else(|e| panic!("note {key} = {v:?}: {e:?}")),
+        None => panic!("no note {key} in {:?}", r.notes),
+    }
+}
+
+/// The largest `|a[k] - b[k]|` over the receivers where `a` is finite (0 when none is).
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .filter(|p| p.0.is_finite())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max)
+}
+
 /// The estimator contract on an output: every active V finite in [0, 1], every inactive one NaN.
 pub fn check_contract(v: &[f32], r: &Receivers) {
     for (k, x) in v.iter().enumerate() {
@@ -235,4 +290,54 @@ pub fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
         .iter()
         .map(|p| rect_occluder_visibility(scene.light.half_extent(), &occs, f.to_light(*p)))
         .collect()
+}
+
+/// An unoccluded one-sided plane through the origin, its normal `deg` degrees from the vertical
+/// (towards +x), of opacity `opacity`, under [`rect_light`]`(1, 3)`, with `n x n` receivers on
+/// it at in-plane coordinates `start + step k` (plus a small jitter off the texel grid): the
+/// scene, the receivers and each receiver's facing fraction (its exact V). The self-shadowing
+/// case of issue 16: at grazing angles a kernel's far texels of the receiver's own surface lie
+/// nearer the light than the receiver.
+pub fn tilted_plane(
+    deg: f32,
+    opacity: f32,
+    (n, start, step): (usize, f32, f32),
+) -> (Scene, Receivers, Vec<f32>) {
+    let th = deg.to_radians();
+    let normal = Vec3::new(th.sin(), th.cos(), 0.0);
+    let t = Vec3::new(th.cos(), -th.sin(), 0.0);
+    let c = |a: f32, b: f32| a * t + b * Vec3::Z;
+    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
+    // Wound so that the geometric normal is `normal`.
+    let tris = if (p1 - p0).cross(p2 - p0).dot(normal) > 0.0 {
+        vec![[p0, p1, p2], [p0, p2, p3]]
+    } else {
+        vec![[p0, p2, p1], [p0, p3, p2]]
+    };
+    let light = rect_light(1.0, 3.0);
+    let s = Scene::from_meshes("tilted", camera(8, 8), light, vec![(tris, opacity)])
+        .expect("tilted plane scene");
+    let mut pos = Vec::with_capacity(n * n);
+    for a in 0..n {
+        for b in 0..n {
+            pos.push(c(
+                start + a as f32 * step + 0.0137,
+                start + b as f32 * step + 0.0071,
+            ));
+        }
+    }
+    let facing = pos
+        .iter()
+        .map(|p| light.front_fraction_world(*p, normal))
+        .collect();
+    let r = Receivers::from_points(pos, vec![normal; n * n]).expect("tilted plane receivers");
+    (s, r, facing)
+}
+
+/// The most `v` falls below `facing` over the receivers (negative when it never does).
+pub fn most_below(v: &[f32], facing: &[f32]) -> f32 {
+    v.iter()
+        .zip(facing)
+        .map(|(x, f)| f - x)
+        .fold(f32::NEG_INFINITY, f32::max)
 }

@@ -179,6 +179,13 @@ impl SceneSpec {
         }
     }
 
+    /// The scene and its receivers ([`SceneSpec::scene`], [`SceneSpec::receivers`]).
+    pub fn scene_and_receivers(&self) -> (Scene, Receivers) {
+        let scene = self.scene();
+        let receivers = self.receivers(&scene.light);
+        (scene, receivers)
+    }
+
     /// The receivers, in the order ground, tops, grazing, outside (`light` is the scene's).
     pub fn receivers(&self, light: &Light) -> Receivers {
         let mut pos = Vec::new();

@@ -8,7 +8,7 @@
 //! few ulps of receiver position move to the neighbouring texel; the method says which
 //! ([`Verdict`]).
 
-use shadow_map_core::Receivers;
+use shadow_map_core::{LightView, Receivers};
 use std::fmt;
 
 /// Per-receiver tolerance on V, the fraction of receivers that must meet it, and an optional
@@ -125,6 +125,13 @@ impl Tolerance {
         (f, cmp.max_dv)
     }
 
+    /// Whether an alternative CPU value `alt` of a receiver (the CPU twin rerun with its depth
+    /// test or samples nudged) shows a tie between the CPU's `cpu` and the GPU's `gpu`: the
+    /// nudge moves the CPU's V beyond [`Tolerance::abs`], or reproduces the GPU's within it.
+    pub fn nudge_explains(&self, alt: f32, cpu: f32, gpu: f32) -> bool {
+        (alt - cpu).abs() > self.abs || (alt - gpu).abs() <= self.abs
+    }
+
     /// The rule of a random case: every receiver beyond [`Tolerance::abs`] must be a tie, and
     /// at most [`Tolerance::allowed_beyond`] of them. `explain` is called (once, only when some
     /// receiver is beyond) with those receivers, worst first, and gives a [`Verdict`] for each.
@@ -195,6 +202,12 @@ impl Tolerance {
         }
         Ok(st)
     }
+}
+
+/// The change of the receiver bias (in texel footprints) that moves a depth test's `z - eps` by
+/// `rel z` in `view`: the nudge of the CPU reruns that expose depth ties.
+pub fn bias_nudge(view: &LightView, rel: f32) -> f32 {
+    rel * view.n * view.r as f32 / view.w
 }
 
 /// One output compared with its twin's ([`Tolerance::compare`]).

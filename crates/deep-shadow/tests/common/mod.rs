@@ -3,7 +3,9 @@
 #![allow(dead_code, unused_imports)]
 use glam::Vec3;
 use shadow_map_core::{Camera, Light, Receivers, Scene};
-pub use test_support::fixtures::{check_contract, fixture, quad, rmse};
+pub use test_support::fixtures::{
+    check_contract, fixture, fixture_names, max_abs_diff, note, note_as, quad, rmse,
+};
 
 /// The fixed scenes' camera, 8 x 8 pixels.
 pub fn camera() -> Camera {

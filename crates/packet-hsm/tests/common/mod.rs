@@ -2,6 +2,7 @@
 //! rect light, and the CPU estimator configured.
 #![allow(dead_code, unused_imports)]
 use packet_hsm::CpuPacketHsm;
+use shadow_map_core::{run, Receivers, Scene};
 pub use test_support::fixtures::{
     assert_valid, camera, errors, line_receivers, oracle, quad, rect_light, scene_with, Occ, SQUARE,
 };
@@ -9,4 +10,9 @@ pub use test_support::fixtures::{
 /// The CPU estimator with the parameters `kv`.
 pub fn hsm(kv: &[(&str, &str)]) -> CpuPacketHsm {
     test_support::fixtures::with_params(CpuPacketHsm::new().unwrap(), kv)
+}
+
+/// V of [`hsm`] with `kv` on `s` at `r`.
+pub fn hsm_v(kv: &[(&str, &str)], s: &Scene, r: &Receivers) -> Vec<f32> {
+    run(&mut hsm(kv), s, r).unwrap().0
 }

@@ -36,16 +36,14 @@ impl GpuDepthMap {
     /// [`Error::Limit`] when `size` is 0 or beyond the device's `max_texture_dimension_2d`.
     pub fn new(ctx: &GpuContext, size: u32, label: &str) -> Result<Self> {
         check_size(ctx, size)?;
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: extent(size),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_MAP_FORMAT,
-            usage: DEPTH_MAP_USAGE,
-            view_formats: &[],
-        });
+        let texture = ctx.device.create_texture(&texture_desc(
+            label,
+            size,
+            size,
+            1,
+            DEPTH_MAP_FORMAT,
+            DEPTH_MAP_USAGE,
+        ));
         let view = texture.create_view(&wgpu::TextureViewDescriptor {
             label: Some(label),
             ..Default::default()
@@ -60,6 +58,32 @@ impl GpuDepthMap {
     /// Bytes of texture storage (`size^2 * 4`), as [`DepthMap::bytes`] counts them.
     pub fn bytes(&self) -> usize {
         self.size as usize * self.size as usize * 4
+    }
+}
+
+/// The descriptor of a 2D texture of `width x height` texels and `layers` array layers, with
+/// one mip level, one sample and no extra view formats: every texture the GPU twins create.
+pub fn texture_desc(
+    label: &str,
+    width: u32,
+    height: u32,
+    layers: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureDescriptor<'_> {
+    wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
     }
 }
 
@@ -85,20 +109,26 @@ pub(crate) fn check_size(ctx: &GpuContext, size: u32) -> Result<()> {
     Ok(())
 }
 
+/// The [`Error::Gpu`] of the upload `stage` given `len` `what` (depths, codes) for a square map
+/// of side `size`.
+pub(crate) fn upload_len_error(stage: &str, what: &str, len: usize, size: u32) -> Error {
+    Error::Gpu {
+        stage: stage.into(),
+        reason: format!("{len} {what} for a {size}x{size} map"),
+    }
+}
+
 /// Uploads a CPU depth map (bit for bit). Fails with [`Error::Limit`] when its side is 0 or
 /// beyond `max_texture_dimension_2d`, and with [`Error::Gpu`] when `depth.len() != size^2`.
 pub fn upload_depth_map(ctx: &GpuContext, map: &DepthMap) -> Result<GpuDepthMap> {
     let n = map.size as usize * map.size as usize;
     if map.depth.len() != n {
-        return Err(Error::Gpu {
-            stage: "depth-map upload".into(),
-            reason: format!(
-                "{} depths for a {}x{} map",
-                map.depth.len(),
-                map.size,
-                map.size
-            ),
-        });
+        return Err(upload_len_error(
+            "depth-map upload",
+            "depths",
+            map.depth.len(),
+            map.size,
+        ));
     }
     ctx.scoped("depth-map upload", || -> Result<GpuDepthMap> {
         let gpu = GpuDepthMap::new(ctx, map.size, "depth-map upload")?;

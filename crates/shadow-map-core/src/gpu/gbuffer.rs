@@ -47,7 +47,9 @@
 //! `min_storage_buffer_offset_alignment`, so images larger than one storage binding are chunked,
 //! not refused.
 use super::{
-    raster::{GpuScene, DEPTH_TEST_FORMAT},
+    depth_map::texture_desc,
+    kernel::{buffer_init, wgsl_module, Binding},
+    raster::{begin_depth_tested_pass, nearest_surface_test, GpuScene, DEPTH_TEST_FORMAT},
     receivers::{GpuReceivers, RECEIVER_BYTES},
     shared::ReceiverGpu,
     GpuContext,
@@ -60,7 +62,6 @@ use crate::{
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use std::num::NonZeroU64;
-use wgpu::util::DeviceExt;
 
 /// WGSL source of the G-buffer: `shared.wgsl` followed by `gbuffer.wgsl`.
 pub const GBUFFER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("gbuffer.wgsl"));
@@ -256,34 +257,6 @@ pub struct GpuGBuffer {
     max_binding_bytes: Option<u64>,
 }
 
-/// A storage-buffer layout entry of the resolve pass.
-fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A uniform-buffer layout entry.
-fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 /// A sampled-texture layout entry of the resolve pass.
 fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -312,13 +285,10 @@ impl GpuGBuffer {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         ctx.scoped("gbuffer", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("gbuffer"),
-                source: wgpu::ShaderSource::Wgsl(GBUFFER_WGSL.into()),
-            });
+            let module = wgsl_module(device, "gbuffer", GBUFFER_WGSL);
             let raster_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("gbuffer.raster"),
-                entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
+                entries: &[Binding::Uniform.entry_in(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
             });
             let raster_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("gbuffer.raster"),
@@ -350,13 +320,7 @@ impl GpuGBuffer {
                     cull_mode: None,
                     ..Default::default()
                 },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_TEST_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
+                depth_stencil: Some(nearest_surface_test()),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
@@ -382,13 +346,13 @@ impl GpuGBuffer {
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("gbuffer.resolve"),
                     entries: &[
-                        uniform_entry(0, wgpu::ShaderStages::COMPUTE),
-                        uniform_entry(1, wgpu::ShaderStages::COMPUTE),
+                        Binding::Uniform.entry(0),
+                        Binding::Uniform.entry(1),
                         texture_entry(2, wgpu::TextureSampleType::Float { filterable: false }),
                         texture_entry(3, wgpu::TextureSampleType::Uint),
-                        storage_entry(4),
-                        storage_entry(5),
-                        storage_entry(6),
+                        Binding::StorageRw.entry(4),
+                        Binding::StorageRw.entry(5),
+                        Binding::StorageRw.entry(6),
                     ],
                 });
             let resolve_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -470,11 +434,12 @@ impl GpuGBuffer {
         let max_groups = limits.max_compute_workgroups_per_dimension.max(1) as u64;
         ctx.scoped("gbuffer", || {
             let device = &ctx.device;
-            let cam = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("gbuffer.camera"),
-                contents: bytemuck::bytes_of(&uniform),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+            let cam = buffer_init(
+                device,
+                "gbuffer.camera",
+                bytemuck::bytes_of(&uniform),
+                wgpu::BufferUsages::UNIFORM,
+            );
             let res = RenderResources::new(device, w, h, pixels);
 
             let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -517,50 +482,24 @@ impl GpuGBuffer {
                 resource: cam.as_entire_binding(),
             }],
         });
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("gbuffer.raster"),
-            color_attachments: &[
-                Some(wgpu::RenderPassColorAttachment {
-                    view: normal_t,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.0,
-                            g: 0.0,
-                            b: 1.0,
-                            a: f64::INFINITY,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
-                Some(wgpu::RenderPassColorAttachment {
-                    view: triangle,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: NO_TRIANGLE as f64,
-                            g: 0.0,
-                            b: 0.0,
-                            a: 0.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
-            ],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: depth_test,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(0.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let background = wgpu::Color {
+            r: 0.0,
+            g: 0.0,
+            b: 1.0,
+            a: f64::INFINITY,
+        };
+        let no_triangle = wgpu::Color {
+            r: NO_TRIANGLE as f64,
+            g: 0.0,
+            b: 0.0,
+            a: 0.0,
+        };
+        let mut pass = begin_depth_tested_pass(
+            enc,
+            "gbuffer.raster",
+            &[(normal_t, background), (triangle, no_triangle)],
+            depth_test,
+        );
         if scene.triangles > 0 {
             pass.set_pipeline(&self.raster);
             pass.set_bind_group(0, &group, &[]);
@@ -585,16 +524,17 @@ impl GpuGBuffer {
             .iter()
             .map(|c| {
                 let count = c.end - c.start;
-                let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("gbuffer.resolve"),
-                    contents: bytemuck::bytes_of(&ResolveParams {
+                let params = buffer_init(
+                    device,
+                    "gbuffer.resolve",
+                    bytemuck::bytes_of(&ResolveParams {
                         width: w,
                         first: c.start,
                         count,
                         background_z: f32::INFINITY,
                     }),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
+                    wgpu::BufferUsages::UNIFORM,
+                );
                 let first = c.start as u64;
                 let n = count as u64;
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -701,20 +641,7 @@ impl RenderResources {
     fn new(device: &wgpu::Device, w: u32, h: u32, pixels: u64) -> Self {
         let target = |label, format, usage| {
             device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d {
-                        width: w,
-                        height: h,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
+                .create_texture(&texture_desc(label, w, h, 1, format, usage))
                 .create_view(&Default::default())
         };
         let sampled = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;

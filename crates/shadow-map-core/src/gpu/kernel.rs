@@ -12,7 +12,7 @@
 //!     &[Binding::Uniform, Binding::Storage, Binding::StorageRw], &[("WG", 64.0)])?;
 //! # let _ = k; Ok(()) }
 //! ```
-use super::{shared::pack_receivers, shared::ReceiverGpu, GpuContext};
+use super::{depth_map::texture_desc, shared::pack_receivers, shared::ReceiverGpu, GpuContext};
 use crate::{Receivers, Result};
 use wgpu::util::DeviceExt;
 
@@ -38,6 +38,15 @@ pub enum Binding {
 impl Binding {
     /// The layout entry of this binding at `binding` (compute stage only).
     pub fn entry(self, binding: u32) -> wgpu::BindGroupLayoutEntry {
+        self.entry_in(binding, wgpu::ShaderStages::COMPUTE)
+    }
+
+    /// The layout entry of this binding at `binding`, visible to `visibility`.
+    pub fn entry_in(
+        self,
+        binding: u32,
+        visibility: wgpu::ShaderStages,
+    ) -> wgpu::BindGroupLayoutEntry {
         let buffer = |ty| wgpu::BindingType::Buffer {
             ty,
             has_dynamic_offset: false,
@@ -67,7 +76,7 @@ impl Binding {
         };
         wgpu::BindGroupLayoutEntry {
             binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
+            visibility,
             ty,
             count: None,
         }
@@ -82,12 +91,14 @@ pub fn shader_source(parts: &[&str]) -> String {
 /// Creates a shader module from its parts inside an error scope named after `label`.
 pub fn shader_module(ctx: &GpuContext, label: &str, parts: &[&str]) -> Result<wgpu::ShaderModule> {
     let src = shader_source(parts);
-    ctx.scoped(label, || {
-        ctx.device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
+    ctx.scoped(label, || wgsl_module(&ctx.device, label, &src))
+}
+
+/// Creates the shader module `label` from WGSL source (in the caller's error scope).
+pub fn wgsl_module(device: &wgpu::Device, label: &str, src: &str) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
     })
 }
 
@@ -201,14 +212,28 @@ pub fn bind_group(
     })
 }
 
+/// A buffer of `usage` holding `contents` (the bytes of a Pod value or slice).
+pub fn buffer_init(
+    device: &wgpu::Device,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage,
+    })
+}
+
 /// A uniform buffer holding `value`.
 pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
+    buffer_init(
+        &ctx.device,
+        label,
+        bytemuck::bytes_of(value),
+        wgpu::BufferUsages::UNIFORM,
+    )
 }
 
 /// Most receivers one dispatch of `workgroup_size`-wide workgroups may cover on this device:
@@ -264,13 +289,12 @@ pub fn upload_receivers(
         .enumerate()
         .map(|(c, part)| {
             let len = part.len();
-            let receivers = ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(&format!("{label} receivers")),
-                    contents: bytemuck::cast_slice(part),
-                    usage: wgpu::BufferUsages::STORAGE,
-                });
+            let receivers = buffer_init(
+                &ctx.device,
+                &format!("{label} receivers"),
+                bytemuck::cast_slice(part),
+                wgpu::BufferUsages::STORAGE,
+            );
             let storage = |what: &str| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(&format!("{label} {what}")),
@@ -333,22 +357,16 @@ pub fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Resu
         });
     }
     ctx.scoped(label, || {
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: count,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING
+        let texture = ctx.device.create_texture(&texture_desc(
+            label,
+            size,
+            size,
+            count,
+            wgpu::TextureFormat::R32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_DST
                 | wgpu::TextureUsages::STORAGE_BINDING,
-            view_formats: &[],
-        });
+        ));
         let view = texture.create_view(&wgpu::TextureViewDescriptor {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()

@@ -4,12 +4,11 @@
 //! the same f32 order, so results are bit-identical for identical layers.
 use super::{
     depth_map::GpuDepthMap,
-    kernel::{Binding, Kernel},
+    kernel::{buffer_init, Binding, Kernel},
     GpuContext,
 };
 use crate::Result;
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 /// WGSL source of the midpoint stage (it uses no shared struct, so nothing is prepended).
 pub const MIDPOINT_WGSL: &str = include_str!("midpoint.wgsl");
@@ -70,18 +69,17 @@ impl GpuMidpoints {
     ) {
         let Some(first) = layers.first() else { return };
         let size = first.size;
-        let params = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("midpoint"),
-                contents: bytemuck::bytes_of(&MidpointParams {
-                    size,
-                    max_bias,
-                    _pad0: 0,
-                    _pad1: 0,
-                }),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params = buffer_init(
+            &ctx.device,
+            "midpoint",
+            bytemuck::bytes_of(&MidpointParams {
+                size,
+                max_bias,
+                _pad0: 0,
+                _pad1: 0,
+            }),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let groups: Vec<wgpu::BindGroup> = out
             .iter()
             .zip(layers.windows(2))

@@ -19,7 +19,11 @@
 //! [`Mssm`]: crate::mssm::Mssm
 //! [`DualMssm`]: crate::mssm::DualMssm
 //! [`MinMaxPyramid`]: crate::mssm::MinMaxPyramid
-use super::{depth_map::GpuDepthMap, GpuContext};
+use super::{
+    depth_map::GpuDepthMap,
+    kernel::{wgsl_module, Binding},
+    GpuContext,
+};
 use crate::{Error, Result};
 use bytemuck::{Pod, Zeroable};
 use std::num::NonZeroU64;
@@ -164,6 +168,32 @@ pub struct MinMaxRequest {
     pub dual_mssm_levels: Option<u32>,
     /// The min/max pyramid.
     pub pyramid: bool,
+}
+
+impl MinMaxRequest {
+    /// The anchored MSSM alone, up to `levels`.
+    pub fn mssm(levels: u32) -> Self {
+        MinMaxRequest {
+            mssm_levels: Some(levels),
+            ..Default::default()
+        }
+    }
+
+    /// The dual-grid MSSM alone, up to `levels`.
+    pub fn dual_mssm(levels: u32) -> Self {
+        MinMaxRequest {
+            dual_mssm_levels: Some(levels),
+            ..Default::default()
+        }
+    }
+
+    /// The min/max pyramid alone.
+    pub fn pyramid() -> Self {
+        MinMaxRequest {
+            pyramid: true,
+            ..Default::default()
+        }
+    }
 }
 
 /// The structures built by [`GpuMssmBuilder::encode`].
@@ -508,10 +538,7 @@ impl GpuMssmBuilder {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         ctx.scoped("mssm", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("mssm"),
-                source: wgpu::ShaderSource::Wgsl(MSSM_WGSL.into()),
-            });
+            let module = wgsl_module(device, "mssm", MSSM_WGSL);
             let uniform = wgpu::BindGroupLayoutEntry {
                 binding: 0,
                 visibility: wgpu::ShaderStages::COMPUTE,
@@ -522,26 +549,11 @@ impl GpuMssmBuilder {
                 },
                 count: None,
             };
-            let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
+            let storage = |binding, read_only| match read_only {
+                true => Binding::Storage.entry(binding),
+                false => Binding::StorageRw.entry(binding),
             };
-            let texture = wgpu::BindGroupLayoutEntry {
-                binding: 1,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            };
+            let texture = Binding::Texture2d.entry(1);
             let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some(label),
@@ -702,10 +714,7 @@ impl GpuMssmBuilder {
         depth: &GpuDepthMap,
         max_level: u32,
     ) -> Result<GpuMssm> {
-        let req = MinMaxRequest {
-            mssm_levels: Some(max_level),
-            ..Default::default()
-        };
+        let req = MinMaxRequest::mssm(max_level);
         self.build(ctx, depth, req)?.mssm.ok_or_else(missing)
     }
 
@@ -716,20 +725,15 @@ impl GpuMssmBuilder {
         depth: &GpuDepthMap,
         max_level: u32,
     ) -> Result<GpuDualMssm> {
-        let req = MinMaxRequest {
-            dual_mssm_levels: Some(max_level),
-            ..Default::default()
-        };
+        let req = MinMaxRequest::dual_mssm(max_level);
         self.build(ctx, depth, req)?.dual_mssm.ok_or_else(missing)
     }
 
     /// Builds the min/max pyramid (see [`crate::mssm::MinMaxPyramid::build`]).
     pub fn build_pyramid(&self, ctx: &GpuContext, depth: &GpuDepthMap) -> Result<GpuMinMaxPyramid> {
-        let req = MinMaxRequest {
-            pyramid: true,
-            ..Default::default()
-        };
-        self.build(ctx, depth, req)?.pyramid.ok_or_else(missing)
+        self.build(ctx, depth, MinMaxRequest::pyramid())?
+            .pyramid
+            .ok_or_else(missing)
     }
 }
 

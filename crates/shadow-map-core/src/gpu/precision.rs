@@ -7,8 +7,8 @@
 //! depth = select(n + f32(q) * s, +inf, q == 0xffffu);
 //! ```
 use super::{
-    depth_map::GpuDepthMap,
-    kernel::{Binding, Kernel},
+    depth_map::{upload_len_error, GpuDepthMap},
+    kernel::{buffer_init, Binding, Kernel},
     GpuContext,
 };
 use crate::{
@@ -16,7 +16,6 @@ use crate::{
     Error, Result,
 };
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 /// WGSL source of the encoder.
 pub const PRECISION_WGSL: &str = include_str!("precision.wgsl");
@@ -60,15 +59,12 @@ impl GpuUnorm16Map {
     pub fn upload(ctx: &GpuContext, map: &Unorm16Map) -> Result<Self> {
         let texels = map.size as usize * map.size as usize;
         if map.codes.len() != texels || texels == 0 {
-            return Err(Error::Gpu {
-                stage: "unorm16 upload".into(),
-                reason: format!(
-                    "{} codes for a {}x{} map",
-                    map.codes.len(),
-                    map.size,
-                    map.size
-                ),
-            });
+            return Err(upload_len_error(
+                "unorm16 upload",
+                "codes",
+                map.codes.len(),
+                map.size,
+            ));
         }
         check_buffer(ctx, map.size)?;
         let mut packed = vec![0u32; words(map.size) as usize];
@@ -82,13 +78,12 @@ impl GpuUnorm16Map {
             size: map.size,
             near: map.near,
             step: map.step,
-            buffer: ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("unorm16 depth map"),
-                    contents: bytemuck::cast_slice(&packed),
-                    usage: USAGE,
-                }),
+            buffer: buffer_init(
+                &ctx.device,
+                "unorm16 depth map",
+                bytemuck::cast_slice(&packed),
+                USAGE,
+            ),
         })
     }
 
@@ -170,16 +165,17 @@ impl GpuUnorm16Encoder {
                 usage: USAGE,
                 mapped_at_creation: false,
             });
-            let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("unorm16 encode"),
-                contents: bytemuck::bytes_of(&EncodeParams {
+            let params = buffer_init(
+                device,
+                "unorm16 encode",
+                bytemuck::bytes_of(&EncodeParams {
                     size: map.size,
                     near: n,
                     inv_step: 1.0 / step,
                     _pad0: 0,
                 }),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+                wgpu::BufferUsages::UNIFORM,
+            );
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("unorm16 encode"),
                 layout: &self.layout,

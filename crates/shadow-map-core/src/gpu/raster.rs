@@ -34,7 +34,8 @@
 //! `!(z > prev * (1 + PEEL_EPS_REL))`, `PEEL_EPS_REL` passed as a WGSL override constant from
 //! [`crate::raster::PEEL_EPS_REL`].
 use super::{
-    depth_map::{check_size, extent, GpuDepthMap, DEPTH_MAP_FORMAT},
+    depth_map::{check_size, texture_desc, GpuDepthMap, DEPTH_MAP_FORMAT},
+    kernel::{buffer_init, wgsl_module, Binding},
     light_space::GpuLightSpace,
     midpoint::GpuMidpoints,
     mssm::{GpuMssmBuilder, MinMaxRequest},
@@ -42,7 +43,7 @@ use super::{
     GpuContext,
 };
 use crate::{
-    light_view::{FitReport, LightView},
+    light_view::{FitReport, LightView, ViewOptions},
     raster::{Cull, DepthBias, PEEL_EPS_REL},
     receivers::Receivers,
     scene::Scene,
@@ -51,13 +52,25 @@ use crate::{
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
 use std::sync::Mutex;
-use wgpu::util::DeviceExt;
 
 /// WGSL source of the rasteriser: `shared.wgsl` followed by `raster.wgsl`.
 pub const RASTER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("raster.wgsl"));
 
 /// Format of the depth attachment used for the nearest-surface test.
 pub const DEPTH_TEST_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The vertex buffers of every raster pipeline: one, a `vec4<f32>` position per vertex at
+/// location 0 (the vertices of [`GpuScene`]).
+pub const VERTEX_BUFFERS: &[Option<wgpu::VertexBufferLayout<'static>>] =
+    &[Some(wgpu::VertexBufferLayout {
+        array_stride: 16,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &[wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32x4,
+            offset: 0,
+            shader_location: 0,
+        }],
+    })];
 
 /// Uniform of the raster passes; mirrors `RasterParams` in `raster.wgsl`.
 #[repr(C)]
@@ -117,15 +130,14 @@ impl GpuScene {
             verts.push([0.0; 4]);
         }
         ctx.scoped("raster.scene", || GpuScene {
-            vertices: ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("raster.scene"),
-                    contents: bytemuck::cast_slice(&verts),
-                    usage: wgpu::BufferUsages::VERTEX
-                        | wgpu::BufferUsages::STORAGE
-                        | wgpu::BufferUsages::COPY_DST,
-                }),
+            vertices: buffer_init(
+                &ctx.device,
+                "raster.scene",
+                bytemuck::cast_slice(&verts),
+                wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST,
+            ),
             triangles: n as u32,
         })
     }
@@ -174,35 +186,15 @@ impl GpuShadowMapper {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let (module, layout, pipeline_layout, no_prev) = ctx.scoped("raster", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("raster"),
-                source: wgpu::ShaderSource::Wgsl(RASTER_WGSL.into()),
-            });
-            let uniform = |binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
+            let module = wgsl_module(device, "raster", RASTER_WGSL);
+            let uniform =
+                |binding| Binding::Uniform.entry_in(binding, wgpu::ShaderStages::VERTEX_FRAGMENT);
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("raster"),
                 entries: &[
                     uniform(0),
                     uniform(1),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 2,
-                        visibility: wgpu::ShaderStages::FRAGMENT,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
+                    Binding::Texture2d.entry_in(2, wgpu::ShaderStages::FRAGMENT),
                 ],
             });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -211,16 +203,14 @@ impl GpuShadowMapper {
                 immediate_size: 0,
             });
             let no_prev = device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some("raster.no_prev"),
-                    size: extent(1),
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: DEPTH_MAP_FORMAT,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                })
+                .create_texture(&texture_desc(
+                    "raster.no_prev",
+                    1,
+                    1,
+                    1,
+                    DEPTH_MAP_FORMAT,
+                    wgpu::TextureUsages::TEXTURE_BINDING,
+                ))
                 .create_view(&Default::default());
             (module, layout, pipeline_layout, no_prev)
         })?;
@@ -274,15 +264,7 @@ impl GpuShadowMapper {
                             constants: &constants,
                             ..Default::default()
                         },
-                        buffers: &[Some(wgpu::VertexBufferLayout {
-                            array_stride: 16,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &[wgpu::VertexAttribute {
-                                format: wgpu::VertexFormat::Float32x4,
-                                offset: 0,
-                                shader_location: 0,
-                            }],
-                        })],
+                        buffers: VERTEX_BUFFERS,
                     },
                     primitive: wgpu::PrimitiveState {
                         topology: wgpu::PrimitiveTopology::TriangleList,
@@ -294,13 +276,7 @@ impl GpuShadowMapper {
                         },
                         ..Default::default()
                     },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH_TEST_FORMAT,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Greater),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
+                    depth_stencil: Some(nearest_surface_test()),
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &self.module,
@@ -337,14 +313,7 @@ impl GpuShadowMapper {
         receivers: &Receivers,
         req: &LightSpaceRequest,
     ) -> Result<GpuLightSpace> {
-        let light = &scene.light;
-        let (view, fit) = LightView::fit(
-            scene,
-            receivers,
-            light.frame(),
-            light.half_extent(),
-            req.resolution,
-        )?;
+        let (view, fit) = req.fit_view(scene, receivers, &ViewOptions::default())?;
         let mut ls = self.render_layers(ctx, gpu_scene, &view, req)?;
         ls.fit = fit;
         Ok(ls)
@@ -480,34 +449,32 @@ fn create_raster_uniforms(
     view: &LightView,
     bias: DepthBias,
 ) -> (wgpu::Buffer, wgpu::Buffer) {
-    let view_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("raster.view"),
-        contents: bytemuck::bytes_of(&LightViewUniform::from(view)),
-        usage: wgpu::BufferUsages::UNIFORM
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-    });
-    let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("raster.params"),
-        contents: bytemuck::bytes_of(&RasterParams::from(bias)),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
+    let view_uniform = buffer_init(
+        device,
+        "raster.view",
+        bytemuck::bytes_of(&LightViewUniform::from(view)),
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+    );
+    let params = buffer_init(
+        device,
+        "raster.params",
+        bytemuck::bytes_of(&RasterParams::from(bias)),
+        wgpu::BufferUsages::UNIFORM,
+    );
     (view_uniform, params)
 }
 
 /// Creates the `r` x `r` depth attachment of the nearest-surface test (`raster.depth_test`).
 fn create_depth_test(device: &wgpu::Device, r: u32) -> wgpu::TextureView {
     device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some("raster.depth_test"),
-            size: extent(r),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_TEST_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        })
+        .create_texture(&texture_desc(
+            "raster.depth_test",
+            r,
+            r,
+            1,
+            DEPTH_TEST_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        ))
         .create_view(&Default::default())
 }
 
@@ -518,23 +485,58 @@ fn begin_layer_pass<'e>(
     target: &wgpu::TextureView,
     depth_test: &wgpu::TextureView,
 ) -> wgpu::RenderPass<'e> {
-    let label = format!("raster.layer{m}");
+    let inf = wgpu::Color {
+        r: f64::INFINITY,
+        g: 0.0,
+        b: 0.0,
+        a: 0.0,
+    };
+    begin_depth_tested_pass(
+        enc,
+        &format!("raster.layer{m}"),
+        &[(target, inf)],
+        depth_test,
+    )
+}
+
+/// The nearest-surface test of the raster pipelines: reversed z on a [`DEPTH_TEST_FORMAT`]
+/// attachment (cleared to 0), the greater depth wins and is written.
+pub(crate) fn nearest_surface_test() -> wgpu::DepthStencilState {
+    wgpu::DepthStencilState {
+        format: DEPTH_TEST_FORMAT,
+        depth_write_enabled: Some(true),
+        depth_compare: Some(wgpu::CompareFunction::Greater),
+        stencil: Default::default(),
+        bias: Default::default(),
+    }
+}
+
+/// Begins the render pass `label` into `targets`, each cleared to its colour and stored, with
+/// the nearest-surface test `depth_test` (a [`DEPTH_TEST_FORMAT`] attachment cleared to 0 and
+/// discarded after the pass).
+pub(crate) fn begin_depth_tested_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    targets: &[(&wgpu::TextureView, wgpu::Color)],
+    depth_test: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    let color_attachments: Vec<_> = targets
+        .iter()
+        .map(|&(view, clear)| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect();
     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some(&label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: target,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color {
-                    r: f64::INFINITY,
-                    g: 0.0,
-                    b: 0.0,
-                    a: 0.0,
-                }),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
+        label: Some(label),
+        color_attachments: &color_attachments,
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: depth_test,
             depth_ops: Some(wgpu::Operations {

@@ -1,12 +1,12 @@
 //! Receivers on the GPU: a storage buffer of [`ReceiverGpu`] (32 bytes each), uploaded from
 //! [`Receivers`] or wrapped around a user's buffer (e.g. built from their own G-buffer).
 use super::{
+    kernel::buffer_init,
     shared::{pack_receivers, ReceiverGpu},
     GpuContext,
 };
 use crate::{receivers::Receivers, Error, Result};
 use std::num::NonZeroU64;
-use wgpu::util::DeviceExt;
 
 /// Bytes of one receiver on the GPU.
 pub const RECEIVER_BYTES: u64 = std::mem::size_of::<ReceiverGpu>() as u64;
@@ -40,15 +40,14 @@ impl GpuReceivers {
             packed.push(bytemuck::Zeroable::zeroed());
         }
         ctx.scoped("receivers", || GpuReceivers {
-            buffer: ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("receivers"),
-                    contents: bytemuck::cast_slice(&packed),
-                    usage: wgpu::BufferUsages::STORAGE
-                        | wgpu::BufferUsages::COPY_SRC
-                        | wgpu::BufferUsages::COPY_DST,
-                }),
+            buffer: buffer_init(
+                &ctx.device,
+                "receivers",
+                bytemuck::cast_slice(&packed),
+                wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+            ),
             count: n as u32,
         })
     }

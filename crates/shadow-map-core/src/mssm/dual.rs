@@ -1,8 +1,5 @@
 //! [`DualMssm`]: the MSSM on the dual grid of depth samples (Yang et al. 2009, §4.2).
-use super::{
-    anchored_step, clamp_rect, fetch_level, floor_log2, level_planes, push_anchored,
-    sanitized_level0, window_start_count, window_starts, MinMax, Planes,
-};
+use super::{anchored_step, Anchored, MinMax, Planes};
 
 /// Dual-grid anchored MSSM (Yang et al. 2009, *Packet-based Hierarchical
 /// Soft Shadow Mapping*, §4.2).
@@ -33,69 +30,29 @@ use super::{
 /// Storage: separate `min` and `max` planes (`Vec<f32>`, `size x size`,
 /// row-major) for every level: `2 * levels * size^2 * 4` bytes.
 #[derive(Clone, Debug)]
-pub struct DualMssm {
-    size: usize,
-    levels: Vec<Planes>,
-}
+pub struct DualMssm(Anchored);
 
 impl DualMssm {
     /// Builds levels `0..=max_level`, with `max_level` clamped to
     /// `floor(log2(size))`, rows in parallel (rayon). See the
     /// [module docs](super) for degenerate inputs.
     pub fn build(depth: &[f32], size: u32, max_level: u32) -> DualMssm {
-        let (s, d) = sanitized_level0(depth, size);
-        if s == 0 {
-            return DualMssm {
-                size: 0,
-                levels: Vec::new(),
-            };
-        }
-        let top = max_level.min(floor_log2(s));
-        let mut levels = Vec::with_capacity(top as usize + 1);
-        // Y_0 is one anchored step with h = 1 applied to the samples.
-        let (min, max) = anchored_step(&d, &d, s, 1);
-        drop(d);
-        levels.push(Planes {
-            min,
-            max: Some(max),
-        });
-        push_anchored(&mut levels, s, top);
-        DualMssm { size: s, levels }
+        DualMssm(Anchored::build(depth, size, max_level, |d, s| {
+            // Y_0 is one anchored step with h = 1 applied to the samples.
+            let (min, max) = anchored_step(&d, &d, s, 1);
+            Planes {
+                min,
+                max: Some(max),
+            }
+        }))
     }
 
-    /// Number of levels built (`min(max_level, floor(log2(size))) + 1`, or 0
-    /// for `size == 0`).
-    pub fn levels(&self) -> u32 {
-        self.levels.len() as u32
-    }
-
-    /// Side length of the sample grid (0 if the map could not be built).
-    pub fn size(&self) -> u32 {
-        self.size as u32
-    }
-
-    /// The `(min, max)` planes of level `l` (`size x size` anchors,
-    /// row-major). Empty slices if `l` is out of range.
-    pub fn level(&self, l: u32) -> (&[f32], &[f32]) {
-        level_planes(&self.levels, l)
-    }
-
-    /// `Y_l(x, y)`: min/max over samples `[x, x+2^l] x [y, y+2^l]`
-    /// (inclusive, clamped to the map). [`MinMax::EMPTY`] if `l`, `x` or `y`
-    /// is out of range.
-    pub fn fetch(&self, l: u32, x: u32, y: u32) -> MinMax {
-        fetch_level(&self.levels, self.size, l, x, y)
-    }
-
-    /// Clamped cell rectangle and its level / window size.
-    fn plan(&self, cx0: i32, cy0: i32, cx1: i32, cy1: i32) -> Option<([usize; 4], usize, usize)> {
-        let r = clamp_rect(self.size, cx0, cy0, cx1, cy1)?;
-        if self.levels.is_empty() {
-            return None;
-        }
-        let m = (r[2] - r[0]).min(r[3] - r[1]);
-        let l = floor_log2(m).min(self.levels() - 1) as usize;
-        Some((r, l, 1usize << l))
+    anchored_accessors! {
+        grid: "sample grid",
+        level: "The `(min, max)` planes of level `l` (`size x size` anchors, row-major). Empty \
+            slices if `l` is out of range.",
+        fetch: "`Y_l(x, y)`: min/max over samples `[x, x+2^l] x [y, y+2^l]` (inclusive, clamped to \
+            the map). [`MinMax::EMPTY`] if `l`, `x` or `y` is out of range.",
     }
 
     /// Exact min/max over all samples touched by the dual cells anchored in
@@ -108,35 +65,12 @@ impl DualMssm {
     /// `l = min(floor(log2(min(W, H))), levels - 1)` with anchors
     /// `cx0, cx0 + 2^l, ..., cx1 - 2^l` (likewise `y`).
     pub fn query_cells(&self, cx0: i32, cy0: i32, cx1: i32, cy1: i32) -> MinMax {
-        let Some((r, l, h)) = self.plan(cx0, cy0, cx1, cy1) else {
-            return MinMax::EMPTY;
-        };
-        let Some(p) = self.levels.get(l) else {
-            return MinMax::EMPTY;
-        };
-        let xs = window_starts(r[0], r[2], h);
-        let mut acc = MinMax::EMPTY;
-        for y in window_starts(r[1], r[3], h) {
-            let row = y * self.size;
-            for x in xs.clone() {
-                acc = acc.union(p.get(row + x));
-            }
-        }
-        acc
+        self.0.query(cx0, cy0, cx1, cy1)
     }
 
     /// Number of level fetches [`DualMssm::query_cells`] performs (0 if the
     /// cell rectangle is empty after clamping; saturates at `u32::MAX`).
     pub fn fetch_count(&self, cx0: i32, cy0: i32, cx1: i32, cy1: i32) -> u32 {
-        let Some((r, _, h)) = self.plan(cx0, cy0, cx1, cy1) else {
-            return 0;
-        };
-        let n = window_start_count(r[0], r[2], h).saturating_mul(window_start_count(r[1], r[3], h));
-        u32::try_from(n).unwrap_or(u32::MAX)
-    }
-
-    /// Heap bytes used by the level planes.
-    pub fn bytes(&self) -> usize {
-        self.levels.iter().map(Planes::bytes).sum()
+        self.0.fetch_count(cx0, cy0, cx1, cy1)
     }
 }

@@ -255,37 +255,6 @@ fn window_start_count(lo: usize, hi: usize, h: usize) -> u64 {
     ((last - lo).div_ceil(h) + 1) as u64
 }
 
-/// Appends levels `1..=top` of an anchored structure to `levels` (level 0 already there): each
-/// level one anchored step of the previous with the window doubling, `h = 2^(l-1)`.
-fn push_anchored(levels: &mut Vec<Planes>, s: usize, top: u32) {
-    for l in 0..top {
-        let h = 1usize << l;
-        let Some(prev) = levels.last() else { break };
-        let (min, max) = anchored_step(prev.min(), prev.max(), s, h);
-        levels.push(Planes {
-            min,
-            max: Some(max),
-        });
-    }
-}
-
-/// Level `l` of `levels` as `(min, max)` planes; empty slices when out of range.
-fn level_planes(levels: &[Planes], l: u32) -> (&[f32], &[f32]) {
-    match levels.get(l as usize) {
-        Some(p) => (p.min(), p.max()),
-        None => (&[], &[]),
-    }
-}
-
-/// Anchor `(x, y)` of level `l` of `size x size` planes; [`MinMax::EMPTY`] when out of range.
-fn fetch_level(levels: &[Planes], size: usize, l: u32, x: u32, y: u32) -> MinMax {
-    let (x, y) = (x as usize, y as usize);
-    match levels.get(l as usize) {
-        Some(p) if x < size && y < size => p.get(y * size + x),
-        _ => MinMax::EMPTY,
-    }
-}
-
 /// Brute-force min/max over the half-open texel rectangle
 /// `[x0, x1) x [y0, y1)` of `depth` (`size x size`, row-major), clamped to
 /// the map. Returns [`MinMax::EMPTY`] if the rectangle is empty after
@@ -389,6 +358,38 @@ impl Planes {
     }
 }
 
+/// The accessors [`Mssm`] and [`DualMssm`] share, on their [`Anchored`] levels (field `0`):
+/// `grid` names what `size` counts the side of, `level` and `fetch` document those two.
+macro_rules! anchored_accessors {
+    (grid: $grid:literal, level: $level:literal, fetch: $fetch:literal $(,)?) => {
+        /// Number of levels built (`min(max_level, floor(log2(size))) + 1`, or 0
+        /// for `size == 0`).
+        pub fn levels(&self) -> u32 {
+            self.0.levels()
+        }
+
+        #[doc = concat!("Side length of the ", $grid, " (0 if the map could not be built).")]
+        pub fn size(&self) -> u32 {
+            self.0.size()
+        }
+
+        #[doc = $level]
+        pub fn level(&self, l: u32) -> (&[f32], &[f32]) {
+            self.0.level(l)
+        }
+
+        #[doc = $fetch]
+        pub fn fetch(&self, l: u32, x: u32, y: u32) -> MinMax {
+            self.0.fetch(l, x, y)
+        }
+
+        /// Heap bytes used by the level planes.
+        pub fn bytes(&self) -> usize {
+            self.0.bytes()
+        }
+    };
+}
+
 /// Anchored multi-scale shadow map (MSSM) with min *and* max per texel.
 ///
 /// Introduced by Schwarz & Stamminger (2007, *Bitmask Soft Shadows*) as a
@@ -419,10 +420,7 @@ impl Planes {
 /// row-major) per level, except level 0, where both equal the depth map and
 /// are stored once. Memory: `(2 * levels - 1) * size^2 * 4` bytes.
 #[derive(Clone, Debug)]
-pub struct Mssm {
-    size: usize,
-    levels: Vec<Planes>,
-}
+pub struct Mssm(Anchored);
 
 impl Mssm {
     /// Builds levels `0..=max_level`, with `max_level` clamped to
@@ -430,50 +428,18 @@ impl Mssm {
     /// (rayon). See the [module docs](self) for length mismatches, `NaN`s
     /// and `size == 0` (no levels).
     pub fn build(depth: &[f32], size: u32, max_level: u32) -> Mssm {
-        let (s, d) = sanitized_level0(depth, size);
-        if s == 0 {
-            return Mssm {
-                size: 0,
-                levels: Vec::new(),
-            };
-        }
-        let top = max_level.min(floor_log2(s));
-        let mut levels = Vec::with_capacity(top as usize + 1);
-        levels.push(Planes { min: d, max: None });
-        push_anchored(&mut levels, s, top);
-        Mssm { size: s, levels }
+        Mssm(Anchored::build(depth, size, max_level, |d, _| Planes {
+            min: d,
+            max: None,
+        }))
     }
 
-    /// Number of levels built (`min(max_level, floor(log2(size))) + 1`, or 0
-    /// for `size == 0`).
-    pub fn levels(&self) -> u32 {
-        self.levels.len() as u32
-    }
-
-    /// Side length of the map (0 if the map could not be built).
-    pub fn size(&self) -> u32 {
-        self.size as u32
-    }
-
-    /// The `(min, max)` planes of level `l`, each `size x size` row-major
-    /// (for level 0 both slices are the depth map). Empty slices if `l` is
-    /// out of range.
-    pub fn level(&self, l: u32) -> (&[f32], &[f32]) {
-        level_planes(&self.levels, l)
-    }
-
-    /// `M_l(x, y)`: min/max over `[x, x+2^l) x [y, y+2^l)` clamped to the
-    /// map. [`MinMax::EMPTY`] if `l`, `x` or `y` is out of range.
-    pub fn fetch(&self, l: u32, x: u32, y: u32) -> MinMax {
-        fetch_level(&self.levels, self.size, l, x, y)
-    }
-
-    /// Level used for a clamped rectangle, and its window size `h = 2^l`.
-    #[inline]
-    fn query_level(&self, r: &[usize; 4]) -> (usize, usize) {
-        let m = (r[2] - r[0]).min(r[3] - r[1]);
-        let l = floor_log2(m).min(self.levels().saturating_sub(1)) as usize;
-        (l, 1usize << l)
+    anchored_accessors! {
+        grid: "map",
+        level: "The `(min, max)` planes of level `l`, each `size x size` row-major (for level 0 both \
+            slices are the depth map). Empty slices if `l` is out of range.",
+        fetch: "`M_l(x, y)`: min/max over `[x, x+2^l) x [y, y+2^l)` clamped to the map. \
+            [`MinMax::EMPTY`] if `l`, `x` or `y` is out of range.",
     }
 
     /// Exact min/max over the half-open rectangle `[x0, x1) x [y0, y1)`,
@@ -484,48 +450,22 @@ impl Mssm {
     /// `y0, y0 + h, ..., y1 - h` (the last window of each axis always starts
     /// at `x1 - h`, so the tiling is exact). See [`Mssm::fetch_count`].
     pub fn query(&self, x0: i32, y0: i32, x1: i32, y1: i32) -> MinMax {
-        let Some(r) = clamp_rect(self.size, x0, y0, x1, y1) else {
-            return MinMax::EMPTY;
-        };
-        let (l, h) = self.query_level(&r);
-        let Some(p) = self.levels.get(l) else {
-            return MinMax::EMPTY;
-        };
-        let xs = window_starts(r[0], r[2], h);
-        let mut acc = MinMax::EMPTY;
-        for y in window_starts(r[1], r[3], h) {
-            let row = y * self.size;
-            for x in xs.clone() {
-                acc = acc.union(p.get(row + x));
-            }
-        }
-        acc
+        self.0.query(x0, y0, x1, y1)
     }
 
     /// Number of level fetches [`Mssm::query`] performs for this rectangle
     /// (0 if it is empty after clamping; saturates at `u32::MAX`).
     pub fn fetch_count(&self, x0: i32, y0: i32, x1: i32, y1: i32) -> u32 {
-        let Some(r) = clamp_rect(self.size, x0, y0, x1, y1) else {
-            return 0;
-        };
-        if self.levels.is_empty() {
-            return 0;
-        }
-        let (_, h) = self.query_level(&r);
-        let n = window_start_count(r[0], r[2], h).saturating_mul(window_start_count(r[1], r[3], h));
-        u32::try_from(n).unwrap_or(u32::MAX)
-    }
-
-    /// Heap bytes used by the level planes.
-    pub fn bytes(&self) -> usize {
-        self.levels.iter().map(Planes::bytes).sum()
+        self.0.fetch_count(x0, y0, x1, y1)
     }
 }
 
+mod anchored;
 mod dual;
 mod pyramid;
 #[cfg(test)]
 mod tests;
 
+use anchored::Anchored;
 pub use dual::DualMssm;
 pub use pyramid::MinMaxPyramid;
