@@ -8,7 +8,12 @@
 //! the post, the receivers whose ray-traced reference is 1 and whose grid neighbours within two
 //! cells are all 1 too (so penumbra edges, where the light is partly hidden, do not count).
 //!
-//! `cargo test --test self_shadow -- --nocapture` prints the worst darkening per estimator.
+//! Where the truth has no shadow on the plane (no post), each estimator's RMSE against the exact
+//! V (the facing fraction) may exceed the hard shadow map's on the same case, resolution and
+//! backend by at most 0.005 (issue 16's bar for soft estimators).
+//!
+//! `cargo test --test self_shadow -- --nocapture` prints the worst darkening and the worst RMSE
+//! excess over the hard map per estimator.
 mod support;
 use glam::Vec3;
 use shadow_map_core::{run, Light, LightShape, Receivers, Scene};
@@ -21,6 +26,8 @@ const N: usize = 24;
 const D: f32 = 4.0;
 /// Most darkening allowed on a truly lit receiver.
 const TOL: f32 = 0.02;
+/// Most a soft estimator's RMSE may exceed the hard map's where the truth is unshadowed.
+const RMSE_EXCESS: f64 = 0.005;
 
 struct Case {
     name: String,
@@ -28,6 +35,8 @@ struct Case {
     rec: Receivers,
     /// Per receiver: whether it counts, and its facing fraction (the exact V when unoccluded).
     lit: Vec<Option<f32>>,
+    /// Whether the post stands on the plane (else the truth is the facing fraction everywhere).
+    occluded: bool,
 }
 
 /// A light `deg` degrees off the plane's normal (+y), seen from the plane's centre, with its
@@ -112,6 +121,7 @@ fn case(deg: f32, closed: bool, post: bool) -> Case {
         scene,
         rec,
         lit,
+        occluded: post,
     }
 }
 
@@ -164,8 +174,12 @@ fn no_estimator_darkens_a_truly_lit_receiver() {
     }
     let mut failures = Vec::new();
     let mut limits = Vec::new();
+    // RMSE against the facing fraction of the hard map per (case, resolution, backend), filled
+    // first (hard is the first estimator of the registry after the reference).
+    let mut hard_rmse = std::collections::HashMap::new();
     for (mut e, backend) in estimators() {
         let mut worst = (0.0f32, String::new());
+        let mut excess = f64::NEG_INFINITY;
         for (c, resolutions) in &cases {
             for r in *resolutions {
                 if e.params().get("resolution").is_some() {
@@ -193,6 +207,26 @@ fn no_estimator_darkens_a_truly_lit_receiver() {
                 if dark > worst.0 {
                     worst = (dark, tag.clone());
                 }
+                if !c.occluded {
+                    let rmse = (v
+                        .iter()
+                        .zip(&c.lit)
+                        .filter_map(|(&vk, l)| l.map(|f| f64::from(f - vk).powi(2)))
+                        .sum::<f64>()
+                        / c.lit.len() as f64)
+                        .sqrt();
+                    let key = (c.name.clone(), *r, backend);
+                    if e.name() == "hard" {
+                        hard_rmse.insert(key, rmse);
+                    } else if let Some(h) = hard_rmse.get(&key) {
+                        excess = excess.max(rmse - h);
+                        if rmse > h + RMSE_EXCESS {
+                            failures.push(format!("{tag}: RMSE {rmse:.4} vs hard {h:.4}"));
+                        }
+                    } else {
+                        failures.push(format!("{tag}: no hard-map row to compare with"));
+                    }
+                }
                 if v.iter().any(|x| !x.is_finite()) {
                     failures.push(format!("{tag}: non-finite V"));
                 } else if dark > TOL {
@@ -201,7 +235,7 @@ fn no_estimator_darkens_a_truly_lit_receiver() {
             }
         }
         println!(
-            "{} {backend}: worst darkening {:.4} ({})",
+            "{} {backend}: worst darkening {:.4} ({}); worst unshadowed RMSE over hard {excess:.4}",
             e.name(),
             worst.0,
             worst.1
