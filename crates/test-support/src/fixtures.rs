@@ -341,3 +341,30 @@ pub fn most_below(v: &[f32], facing: &[f32]) -> f32 {
         .map(|(x, f)| f - x)
         .fold(f32::NEG_INFINITY, f32::max)
 }
+
+/// Issue 16's check for an estimator with `self_shadow` modes (midpoint, bias): on the
+/// [`tilted_plane`] lit at 85 degrees, at the defaults (receiver-plane rejection on), V stays
+/// within 0.02 of the facing fraction in both modes. `make` builds the estimator with the given
+/// parameters; the classic test's shortfall (`receiver_plane=false`) is printed beside it.
+pub fn assert_grazing_plane_lit<E: SoftShadowEstimator>(
+    mut make: impl FnMut(&[(&str, &str)]) -> E,
+) {
+    let (s, r, facing) = tilted_plane(85.0, 1.0, (40, -1.0, 0.05));
+    let mut worst = |kv: &[(&str, &str)]| {
+        let v = shadow_map_core::run(&mut make(kv), &s, &r)
+            .expect("grazing plane")
+            .0;
+        assert_valid(&v, "grazing plane");
+        most_below(&v, &facing)
+    };
+    let on = worst(&[]);
+    let on_bias = worst(&[("self_shadow", "bias")]);
+    let off = worst(&[("receiver_plane", "false")]);
+    let off_bias = worst(&[("self_shadow", "bias"), ("receiver_plane", "false")]);
+    eprintln!(
+        "85 deg plane, most below facing: plane {on:.4} (bias mode {on_bias:.4}), \
+         classic {off:.4} (bias mode {off_bias:.4})"
+    );
+    assert!(on <= 0.02, "receiver plane: V below facing by {on}");
+    assert!(on_bias <= 0.02, "receiver plane, bias mode: {on_bias}");
+}
