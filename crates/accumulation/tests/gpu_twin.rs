@@ -489,25 +489,7 @@ fn grazing_receivers_match_on_both_twins() {
         }
     }
     let r1 = points(pos, Vec3::Y);
-    let th = 85f32.to_radians();
-    let n = Vec3::new(th.sin(), th.cos(), 0.0);
-    let t = Vec3::new(th.cos(), -th.sin(), 0.0);
-    let c = |a: f32, b: f32| a * t + b * Vec3::Z;
-    let (p0, p1, p2, p3) = (c(-2.0, -4.0), c(-2.0, 4.0), c(2.0, 4.0), c(2.0, -4.0));
-    let tris = if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
-        vec![[p0, p1, p2], [p0, p2, p3]]
-    } else {
-        vec![[p0, p2, p1], [p0, p3, p2]]
-    };
-    let l2 = test_support::fixtures::rect_light(1.0, 3.0);
-    let s2 = Scene::from_meshes("tilted", cam, l2, vec![(tris, 1.0)]).unwrap();
-    let mut pos = Vec::new();
-    for a in 0..10 {
-        for b in 0..10 {
-            pos.push(c(-0.9 + a as f32 * 0.18 + 0.0137, -0.9 + b as f32 * 0.18));
-        }
-    }
-    let r2 = points(pos, n);
+    let (s2, r2, _) = test_support::fixtures::tilted_plane(85.0, 1.0, (10, -0.9, 0.18));
     let mut g = GpuAccumulation::new(ctx).expect("gpu twin");
     for (name, scene, rec) in [("grazing", &s1, &r1), ("tilted", &s2, &r2)] {
         for variant in ["additive", "exact"] {

@@ -315,25 +315,10 @@ fn find_caster(start: u32, q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> vec2
     return vec2<u32>(NIL, steps);
 }
 
-// The last element with depth < d, searched from `start` along next or prev; and the steps.
+// The last element with depth < d, searched from `start` along next or prev; and the steps:
+// find_caster with the plain depth test (dsm::find is dsm::find_by of `z < d` the same way).
 fn find(start: u32, d: f32) -> vec2<u32> {
-    var s = start;
-    var steps = 1u;
-    if (nodes[s].depth < d) {
-        loop {
-            let nx = nodes[s].next;
-            if (nx != NIL && nodes[nx].depth < d) { s = nx; steps++; } else { break; }
-        }
-        return vec2<u32>(s, steps);
-    }
-    loop {
-        let pv = nodes[s].prev;
-        if (pv == NIL) { return vec2<u32>(NIL, steps); }
-        s = pv;
-        steps++;
-        if (nodes[s].depth < d) { return vec2<u32>(s, steps); }
-    }
-    return vec2<u32>(NIL, steps);
+    return find_caster(start, vec4<f32>(0.0, 0.0, d, 0.0), vec4<f32>(1.0, 0.0, 0.0, d), 0, 0);
 }
 
 // EDSM (docs/methods.md §7): prod (1 - alpha_j (1 - exp(-c' (d - z_j)))), exponents <= 0 only.
