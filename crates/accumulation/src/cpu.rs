@@ -8,14 +8,10 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{
-        FitMode, FitReport, LightView, NearFar, ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION,
-        SLOPE_BIAS,
-    },
-    params::FromParam,
+    light_view::{FitMode, FitReport, LightView, ViewOptions, BIAS, RESOLUTION, SLOPE_BIAS},
     receiver_plane::RECEIVER_PLANE,
-    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, ReceiverPlane,
-    Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers,
+    Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -37,6 +33,8 @@ pub enum Variant {
     /// Occlusion bits on the light, counted once (eq. 1, the "obit" algorithm).
     Exact,
 }
+
+shadow_map_core::param_words!(Variant { Additive = "additive", Exact = "exact" });
 
 /// How the kernel is chosen. Every mode takes at most K x K taps; a tap reads the depth at the
 /// centre texel of a `step x step` block and its elementary caster is the whole block (a lexel of
@@ -60,6 +58,8 @@ pub enum KernelMode {
     Lexels,
 }
 
+shadow_map_core::param_words!(KernelMode { Fixed = "fixed", Adaptive = "adaptive", Lexels = "lexels" });
+
 /// How an additive caster counts (`coverage`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Coverage {
@@ -69,46 +69,7 @@ pub enum Coverage {
     Centre,
 }
 
-impl FromParam for Variant {
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("additive") => Some(Variant::Additive),
-            ParamValue::Choice("exact") => Some(Variant::Exact),
-            _ => None,
-        }
-    }
-}
-
-impl FromParam for KernelMode {
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("fixed") => Some(KernelMode::Fixed),
-            ParamValue::Choice("adaptive") => Some(KernelMode::Adaptive),
-            ParamValue::Choice("lexels") => Some(KernelMode::Lexels),
-            _ => None,
-        }
-    }
-}
-
-impl FromParam for Coverage {
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("overlap") => Some(Coverage::Overlap),
-            ParamValue::Choice("centre") => Some(Coverage::Centre),
-            _ => None,
-        }
-    }
-}
-
-impl FromParam for SphereModel {
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("contract") => Some(SphereModel::Contract),
-            ParamValue::Choice("paper") => Some(SphereModel::Paper),
-            _ => None,
-        }
-    }
-}
+shadow_map_core::param_words!(Coverage { Overlap = "overlap", Centre = "centre" });
 
 shadow_map_core::typed_params! {
     /// The parameters, typed; read by both twins.
@@ -125,21 +86,21 @@ shadow_map_core::typed_params! {
         /// Additive or exact.
         variant: Variant = ParamSpec {
             key: "variant",
-            kind: ParamKind::Choice(&["additive", "exact"]),
+            kind: ParamKind::Choice(Variant::WORDS),
             default: "additive",
             help: "additive: shadowing factors summed and clamped (paper eq. 2); exact: occlusion bits on the light, a union (eq. 1)",
         },
         /// Fixed, adaptive or lexels.
         kernel: KernelMode = ParamSpec {
             key: "kernel",
-            kind: ParamKind::Choice(&["fixed", "adaptive", "lexels"]),
+            kind: ParamKind::Choice(KernelMode::WORDS),
             default: "adaptive",
             help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: multi-resolution rings (single lexels near the receiver, cells doubling outwards, ~K per side per level) over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
         },
         /// Additive: overlap area or the paper's centre test ([`Settings::overlap`]).
         coverage: Coverage = ParamSpec {
             key: "coverage",
-            kind: ParamKind::Choice(&["overlap", "centre"]),
+            kind: ParamKind::Choice(Coverage::WORDS),
             default: "overlap",
             help: "variant=additive: a caster counts with its overlap area with the footprint, or in full when its centre is inside (the paper's test)",
         },
@@ -163,7 +124,7 @@ shadow_map_core::typed_params! {
         /// Sphere model.
         sphere: SphereModel = ParamSpec {
             key: "sphere",
-            kind: ParamKind::Choice(&["contract", "paper"]),
+            kind: ParamKind::Choice(SphereModel::WORDS),
             default: "contract",
             help: "sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the paper's disk perpendicular to the light normal",
         },
@@ -176,10 +137,9 @@ shadow_map_core::typed_params! {
         },
         /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
         receiver_plane: bool = RECEIVER_PLANE,
-        /// Light-view window choice.
-        fit: FitMode = FIT,
-        /// Near/far choice.
-        nearfar: NearFar = NEARFAR,
+        ;
+        /// Light-view window and near/far choice.
+        view: ViewOptions,
     }
 }
 
@@ -210,13 +170,6 @@ impl Settings {
             self.layers
         } else {
             1
-        }
-    }
-    /// Light-view window and near/far choice (`fit`, `nearfar`).
-    pub fn view(&self) -> ViewOptions {
-        ViewOptions {
-            fit: self.fit,
-            nearfar: self.nearfar,
         }
     }
 }
@@ -258,7 +211,7 @@ pub fn plan(
         }
         half *= f.min(4.0);
     }
-    let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view())?;
+    let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
         let wmax =
@@ -509,7 +462,7 @@ impl Accumulator<'_> {
                 bound: rect,
                 centre: [(uv.x + 0.5).floor() as i32, (uv.y + 0.5).floor() as i32],
                 m: ring_width(self.s.k),
-                phase: ring_phase(view, self.s.fit),
+                phase: ring_phase(view, self.s.view.fit),
             });
         }
         Some(Kernel::Uniform {
@@ -714,13 +667,7 @@ impl CpuAccumulation {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<u64> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
+        receivers.check_output(v)?;
         let s = self.settings();
         let acc = Accumulator { ls, s };
         let light = &scene.light;
@@ -813,10 +760,7 @@ impl SoftShadowEstimator for CpuAccumulation {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        let ls = self
-            .ls
-            .take()
-            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let ls = shadow_map_core::estimator::built(self.ls.take())?;
         let t = std::time::Instant::now();
         let out = self.estimate_with(&ls, scene, receivers, v);
         self.report

@@ -27,6 +27,7 @@ use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
         kernel::{max_chunk, upload_planes, Binding, Kernel},
+        receivers::RECEIVERS_WGSL,
         redo_cut_receivers,
         shared::{pack_receivers, LightViewUniform},
         GpuContext,
@@ -41,7 +42,7 @@ use wgpu::util::DeviceExt;
 pub const ACCUMULATION_WGSL: &str = include_str!("accumulation.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 2] = [ESTIMATE_HEAD_WGSL, ACCUMULATION_WGSL];
+pub const SHADER_PARTS: [&str; 3] = [ESTIMATE_HEAD_WGSL, RECEIVERS_WGSL, ACCUMULATION_WGSL];
 
 /// Hull-point slots at the head of the tables buffer (WGSL `HULL_SLOTS`).
 pub const HULL_SLOTS: usize = DISK_BOUNDARY_POINTS as usize;
@@ -117,7 +118,7 @@ pub fn uniform_and_tables(
     for k in 0..bits * bits {
         tables.push(patch.bit_local(k % bits, k / bits, bits).to_array());
     }
-    let phase = ring_phase(&ls.view, s.fit);
+    let phase = ring_phase(&ls.view, s.view.fit);
     let u = AccUniform {
         inv_area: 1.0 / patch.area(),
         n_hull: patch.hull_points(),
@@ -364,13 +365,7 @@ impl GpuAccumulation {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
+        receivers.check_output(v)?;
         self.report = Report::default();
         if receivers.is_empty() {
             return Ok(());
@@ -433,11 +428,7 @@ impl SoftShadowEstimator for GpuAccumulation {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         let build = self.report.clone();
-        let ls = self
-            .cpu
-            .light_space()
-            .cloned()
-            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let ls = shadow_map_core::estimator::built(self.cpu.light_space().cloned())?;
         let out = self.estimate_with(&ls, scene, receivers, v);
         let mut stages = build.stages;
         stages.append(&mut self.report.stages);
@@ -452,13 +443,11 @@ impl SoftShadowEstimator for GpuAccumulation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use shadow_map_core::gpu::kernel::{shader_source, validate_wgsl};
+    use shadow_map_core::gpu::kernel::{assert_shaders_valid, shader_source};
 
     #[test]
     fn shader_validates_with_naga() {
-        if let Err(e) = validate_wgsl("accumulation", &shader_source(&SHADER_PARTS)) {
-            panic!("{e}");
-        }
+        assert_shaders_valid([("accumulation", shader_source(&SHADER_PARTS))]);
     }
 
     #[test]

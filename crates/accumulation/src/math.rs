@@ -72,6 +72,8 @@ pub enum SphereModel {
     Paper,
 }
 
+shadow_map_core::param_words!(SphereModel { Contract = "contract", Paper = "paper" });
+
 /// The emitting shape in its own plane through the light centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PatchShape {

@@ -4,10 +4,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitMode, FitReport, LightView, NearFar, ViewOptions, FIT, NEARFAR, RESOLUTION},
-    params::{FromParam, ParamValue},
-    peeling::{SelfShadow, MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
-    receiver_plane::RECEIVER_PLANE,
+    light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
+    peeling::SelfShadowSettings,
     Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers,
     Report, Result, Scene, SoftShadowEstimator,
 };
@@ -16,7 +14,7 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 /// `layer_rule`: which of a texel's occluding layers is backprojected (Bavoil 2008 §4.2).
 pub const LAYER_RULE: ParamSpec = ParamSpec {
     key: "layer_rule",
-    kind: ParamKind::Choice(&["first_nonzero", "deepest"]),
+    kind: ParamKind::Choice(LayerRule::WORDS),
     default: "deepest",
     help: "which occluding layer of a texel is backprojected: deepest = the deepest occluding layer, even when its micropatch misses the light; first_nonzero = from the deepest, the first whose micropatch covers part of the light (Bavoil §4.2's rule; never too bright on stacked occluders, but more overlapping micropatches: larger RMSE on most fixtures)",
 };
@@ -42,32 +40,7 @@ pub enum LayerRule {
     Deepest,
 }
 
-impl LayerRule {
-    /// The [`LAYER_RULE`] word.
-    pub fn word(self) -> &'static str {
-        match self {
-            LayerRule::FirstNonzero => "first_nonzero",
-            LayerRule::Deepest => "deepest",
-        }
-    }
-}
-
-impl std::fmt::Display for LayerRule {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.word())
-    }
-}
-
-impl FromParam for LayerRule {
-    /// The [`LAYER_RULE`] words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("first_nonzero") => Some(LayerRule::FirstNonzero),
-            ParamValue::Choice("deepest") => Some(LayerRule::Deepest),
-            _ => None,
-        }
-    }
-}
+shadow_map_core::param_words!(LayerRule { FirstNonzero = "first_nonzero", Deepest = "deepest" });
 
 shadow_map_core::typed_params! {
     /// Settings of [`CpuBackprojection`] (and its GPU twin), one field a parameter.
@@ -83,17 +56,6 @@ shadow_map_core::typed_params! {
         },
         /// Which occluding layer of a texel is backprojected.
         layer_rule: LayerRule = LAYER_RULE,
-        /// Midpoint layers or a receiver bias.
-        self_shadow: SelfShadow = SELF_SHADOW,
-        /// Midpoint clamp, in texel footprints at the far plane.
-        max_bias: f32 = MAX_BIAS,
-        /// Constant receiver bias b0 (`self_shadow=bias`); with `receiver_plane=true`, the
-        /// receiver plane's tolerance in texel footprints (both modes).
-        bias: f32 = SELF_SHADOW_BIAS,
-        /// Slope-scaled receiver bias b1 (`self_shadow=bias`).
-        slope_bias: f32 = SELF_SHADOW_SLOPE_BIAS,
-        /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
-        receiver_plane: bool = RECEIVER_PLANE,
         /// Extend occluding micropatches to their +u and +v neighbours.
         gap_filling: bool = ParamSpec {
             key: "gap_filling",
@@ -108,24 +70,11 @@ shadow_map_core::typed_params! {
             default: "121",
             help: "most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp)) (Bavoil §5)",
         },
-        /// Light-view window choice.
-        fit: FitMode = FIT,
-        /// Near/far choice.
-        nearfar: NearFar = NEARFAR,
-    }
-}
-
-impl Settings {
-    /// Whether receivers are classified by midpoint layers (`self_shadow=midpoint`).
-    pub fn midpoint(&self) -> bool {
-        self.self_shadow == SelfShadow::Midpoint
-    }
-    /// The light-view options (`fit`, `nearfar`).
-    pub fn view(&self) -> ViewOptions {
-        ViewOptions {
-            fit: self.fit,
-            nearfar: self.nearfar,
-        }
+        ;
+        /// Midpoints or a receiver bias, and receiver-plane rejection.
+        shadow: SelfShadowSettings,
+        /// Light-view window and near/far choice.
+        view: ViewOptions,
     }
 }
 
@@ -411,7 +360,7 @@ pub fn plan(
         ));
     }
     let r = settings.resolution;
-    let opts = settings.view();
+    let opts = settings.view;
     let (view, fit) = LightView::fit_with(
         scene,
         receivers,
@@ -423,12 +372,10 @@ pub fn plan(
     let l = 2.0 * light.half_extent().max_element();
     let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
     let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
-    let footprint = view.w * view.far / (view.n * view.r as f32);
-    let mb = (settings.max_bias * footprint).min(f32::MAX);
     let req = LightSpaceRequest {
         resolution: r,
         layers: settings.layers,
-        midpoints: settings.midpoint().then_some(mb),
+        midpoints: settings.shadow.midpoint_clamp(&view),
         mssm_levels: Some(levels),
         dual_mssm_levels: None,
         pyramid: false,
@@ -456,29 +403,20 @@ impl SoftShadowEstimator for CpuBackprojection {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
-        let ls = self
-            .ls
-            .as_ref()
-            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        receivers.check_output(v)?;
+        let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
         let light = &scene.light;
         let h = light.half_extent();
         let setup = Setup {
             ls,
             half: [h.x, h.y],
             area: 4.0 * h.x as f64 * h.y as f64,
-            midpoint: self.settings.midpoint(),
+            midpoint: self.settings.shadow.midpoint(),
             gap_filling: self.settings.gap_filling,
             max_nspp: self.settings.max_nspp,
-            b0: self.settings.bias,
-            b1: self.settings.slope_bias,
-            receiver_plane: self.settings.receiver_plane,
+            b0: self.settings.shadow.bias,
+            b1: self.settings.shadow.slope_bias,
+            receiver_plane: self.settings.shadow.receiver_plane,
             first_nonzero: self.settings.layer_rule == LayerRule::FirstNonzero,
             max_step: AtomicU32::new(1),
         };
@@ -524,10 +462,11 @@ impl SoftShadowEstimator for CpuBackprojection {
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         self.report.note("resolution", view.r);
         self.report.note("layers", ls.layers.len());
-        self.report.note("self_shadow", self.settings.self_shadow);
+        self.report
+            .note("self_shadow", self.settings.shadow.self_shadow);
         self.report.note("layer_rule", self.settings.layer_rule);
         self.report
-            .note("receiver_plane", self.settings.receiver_plane);
+            .note("receiver_plane", self.settings.shadow.receiver_plane);
         self.report
             .note("max_step", setup.max_step.load(Ordering::Relaxed));
         self.report.note("near", view.n);

@@ -33,6 +33,7 @@ use shadow_map_core::{
         kernel::{max_chunk, plane_array, upload_planes, Binding, Kernel, PlaneArray},
         light_space::GpuLightSpace,
         raster::{GpuScene, GpuShadowMapper},
+        receivers::RECEIVERS_WGSL,
         receivers::{GpuReceivers, RECEIVER_BYTES},
         shared::{pack_receivers, LightViewUniform},
         GpuContext,
@@ -66,7 +67,7 @@ pub struct PlaneCopy {
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 2] = [ESTIMATE_HEAD_WGSL, BACKPROJECTION_WGSL];
+pub const SHADER_PARTS: [&str; 3] = [ESTIMATE_HEAD_WGSL, RECEIVERS_WGSL, BACKPROJECTION_WGSL];
 
 /// The settings the kernel reads besides the light view and the light (mirrored in
 /// `backprojection.wgsl`).
@@ -369,7 +370,7 @@ impl GpuBackprojection {
         check_inputs(light, receivers, v)?;
         self.report = Report::default();
         let t = Instant::now();
-        let midpoint = self.cpu.settings().midpoint();
+        let midpoint = self.cpu.settings().shadow.midpoint();
         let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
         self.report
             .stages
@@ -403,14 +404,14 @@ impl GpuBackprojection {
     /// The kernel's uniforms for `maps` and the current parameters.
     fn uniforms(&self, maps: &DeviceMaps, light: &Light) -> (EstimateUniform, BpUniform) {
         let s = self.cpu.settings();
-        let midpoint = s.midpoint();
+        let midpoint = s.shadow.midpoint();
         let h = light.half_extent();
         let max_nspp = s.max_nspp;
         let bpu = BpUniform {
             half: [h.x, h.y],
             area: (4.0 * h.x as f64 * h.y as f64) as f32,
-            b0: s.bias,
-            b1: s.slope_bias,
+            b0: s.shadow.bias,
+            b1: s.shadow.slope_bias,
             midpoint: u32::from(midpoint),
             gap_filling: u32::from(s.gap_filling),
             max_nspp,
@@ -428,14 +429,14 @@ impl GpuBackprojection {
             _pad1: 0,
         };
         let mut eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
-        eu.receiver_plane = u32::from(s.receiver_plane);
+        eu.receiver_plane = u32::from(s.shadow.receiver_plane);
         (eu, bpu)
     }
 
     /// The report notes both estimate paths share.
     fn note_estimate(&mut self, maps: &DeviceMaps) {
         let view = maps.view;
-        let self_shadow = self.cpu.settings().self_shadow;
+        let self_shadow = self.cpu.settings().shadow.self_shadow;
         self.report.light_space_bytes = maps.bytes();
         self.report.note("resolution", view.r);
         self.report.note("layers", maps.layers);
@@ -443,7 +444,7 @@ impl GpuBackprojection {
         self.report
             .note("layer_rule", self.cpu.settings().layer_rule);
         self.report
-            .note("receiver_plane", self.cpu.settings().receiver_plane);
+            .note("receiver_plane", self.cpu.settings().shadow.receiver_plane);
         self.report.note("near", view.n);
         self.report.note("far", view.far);
     }
@@ -758,13 +759,7 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
 }
 
 fn check_inputs(light: &Light, receivers: &Receivers, v: &[f32]) -> Result<()> {
-    if v.len() != receivers.len() {
-        return Err(Error::Receivers(format!(
-            "output has {} slots for {} receivers",
-            v.len(),
-            receivers.len()
-        )));
-    }
+    receivers.check_output(v)?;
     check_light(light)
 }
 
@@ -793,7 +788,7 @@ impl SoftShadowEstimator for GpuBackprojection {
                 .cpu
                 .light_space()
                 .ok_or_else(|| Error::param("build", "CPU light space missing"))?;
-            let midpoint = self.cpu.settings().midpoint();
+            let midpoint = self.cpu.settings().shadow.midpoint();
             let t = Instant::now();
             let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
             self.ctx.wait()?;
@@ -816,10 +811,7 @@ impl SoftShadowEstimator for GpuBackprojection {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        let maps = self
-            .maps
-            .take()
-            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        let maps = shadow_map_core::estimator::built(self.maps.take())?;
         let out = self.estimate_maps(&maps, &scene.light, receivers, v);
         self.maps = Some(maps);
         out
@@ -832,18 +824,14 @@ impl SoftShadowEstimator for GpuBackprojection {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use shadow_map_core::gpu::kernel::{shader_source, validate_wgsl};
+    use shadow_map_core::gpu::kernel::{assert_shaders_valid, shader_source};
 
     #[test]
     fn shader_validates_with_naga() {
-        for (name, src) in [
+        assert_shaders_valid([
             ("backprojection", shader_source(&SHADER_PARTS)),
             ("plane_to_layer", PLANE_TO_LAYER_WGSL.to_string()),
-        ] {
-            if let Err(e) = validate_wgsl(name, &src) {
-                panic!("{e}");
-            }
-        }
+        ]);
     }
 
     #[test]

@@ -3,12 +3,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
-    light_space::LightSpaceRequest,
-    light_view::{FitMode, NearFar, ViewOptions, FIT, NEARFAR},
-    precision::DEPTH,
-    receiver_plane::RECEIVER_PLANE,
-    Cull, DepthBias, DepthPrecision, Error, ParamKind, ParamSpec, Params, RasterOptions, Receivers,
-    Result,
+    light_space::LightSpaceRequest, light_view::ViewOptions, precision::DEPTH,
+    receiver_plane::RECEIVER_PLANE, Cull, DepthBias, DepthPrecision, ParamKind, ParamSpec, Params,
+    RasterOptions, Receivers, Result,
 };
 
 pub use shadow_map_core::light_view::{BIAS, RESOLUTION, SLOPE_BIAS};
@@ -16,7 +13,7 @@ pub use shadow_map_core::light_view::{BIAS, RESOLUTION, SLOPE_BIAS};
 /// `cull`: face culling while rasterising the shadow map.
 pub const CULL: ParamSpec = ParamSpec {
     key: "cull",
-    kind: ParamKind::Choice(&["none", "back", "front"]),
+    kind: ParamKind::Choice(Cull::WORDS),
     default: "none",
     help: "face culling in the shadow-map pass (winding-based, as seen from the light)",
 };
@@ -35,12 +32,11 @@ shadow_map_core::typed_params! {
         receiver_plane: bool = RECEIVER_PLANE,
         /// Face culling in the shadow-map pass.
         cull: Cull = CULL,
-        /// Light-view window choice.
-        fit: FitMode = FIT,
-        /// Near/far choice.
-        nearfar: NearFar = NEARFAR,
         /// Stored shadow-map depth precision.
         depth: DepthPrecision = DEPTH,
+        ;
+        /// Light-view window and near/far choice.
+        view: ViewOptions,
     }
 }
 
@@ -60,13 +56,6 @@ impl MapSettings {
             cull: self.cull,
         }
     }
-    /// The light-view options (`fit`, `nearfar`).
-    pub fn view(&self) -> ViewOptions {
-        ViewOptions {
-            fit: self.fit,
-            nearfar: self.nearfar,
-        }
-    }
     /// `(bias, slope_bias)`: the receiver bias terms (b0, b1).
     pub fn biases(&self) -> (f32, f32) {
         (self.bias, self.slope_bias)
@@ -81,18 +70,6 @@ impl MapSettings {
 /// [`MapSettings::request`] of a baseline's parameters (`p` must hold the [`MapSettings`] table).
 pub fn map_request(p: &Params) -> Result<LightSpaceRequest> {
     Ok(MapSettings::from_params(p)?.request())
-}
-
-/// Checks the output slice length.
-pub fn check_len(receivers: &Receivers, v: &[f32]) -> Result<()> {
-    if v.len() != receivers.len() {
-        return Err(Error::Receivers(format!(
-            "output has {} slots for {} receivers",
-            v.len(),
-            receivers.len()
-        )));
-    }
-    Ok(())
 }
 
 /// Runs `f(position, normal)` for every active receiver in parallel, writes NaN for inactive ones,

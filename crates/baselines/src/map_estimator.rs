@@ -3,9 +3,8 @@
 use crate::common::{self, MapSettings};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::LightSpace, light_view::LightView, DepthLookup, DepthPrecision, Error, Light,
-    ParamSpec, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
-    Unorm16Map,
+    light_space::LightSpace, light_view::LightView, DepthLookup, DepthPrecision, Light, ParamSpec,
+    Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -103,7 +102,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
         let settings = MapSettings::from_params(&self.params)?;
         let req = settings.request();
         let (ls, q16) = self.report.time("build", || -> Result<_> {
-            let opts = settings.view();
+            let opts = settings.view;
             let mut ls = LightSpace::build_with(scene, receivers, &req, &opts)?;
             let q16 = encode_layer0(&mut ls, settings.depth);
             Ok((ls, q16))
@@ -114,11 +113,8 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        common::check_len(receivers, v)?;
-        let ls = self
-            .ls
-            .as_ref()
-            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        receivers.check_output(v)?;
+        let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
         let filter = F::from_params(&self.params)?;
         let test = MapSettings::from_params(&self.params)?.caster_test();
         let light = &scene.light;

@@ -1,7 +1,7 @@
 //! Multi-sample shadows (Heckbert & Herf 1997; docs/methods.md §6): the average of S x S hard
 //! shadow maps rendered from jittered stratified points on the light, the papers' brute-force
 //! reference. Only one map is alive at a time.
-use crate::common::{self, MapSettings};
+use crate::common::MapSettings;
 use crate::map_estimator::encode_layer0;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -115,13 +115,13 @@ impl SoftShadowEstimator for MultiSample {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        common::check_len(receivers, v)?;
+        receivers.check_output(v)?;
         let settings = MapSettings::from_params(&self.params)?;
         let MultiSampleParams { sublights: s, seed } =
             MultiSampleParams::from_params(&self.params)?;
         let (on, biases) = settings.caster_test();
         let req = settings.request();
-        let opts = settings.view();
+        let opts = settings.view;
         let precision = settings.depth;
         let light = scene.light;
         let points = light.stratified_points(s, |k| jitter(seed, k));

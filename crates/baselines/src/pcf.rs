@@ -6,8 +6,9 @@ use shadow_map_core::light_view::LightView;
 use shadow_map_core::{DepthLookup, Light, ParamKind, ParamSpec, Params, Result};
 
 shadow_map_core::typed_params! {
-    /// PCF's own parameter (after the shared [`MapSettings`]).
-    pub struct PcfParams {
+    /// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`; PCF's own
+    /// parameter (after the shared [`MapSettings`]).
+    pub struct Pcf {
         /// Filter size N.
         kernel: i32 = ParamSpec {
             key: "kernel",
@@ -18,18 +19,13 @@ shadow_map_core::typed_params! {
     }
 }
 
-/// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`.
-pub struct Pcf {
-    half: i32,
-}
-
 /// The PCF estimator.
 pub type PcfShadow = MapEstimator<Pcf>;
 
 impl Pcf {
     /// `(N - 1) / 2` after rounding even N up: the block is `2 half + 1` texels per side.
     pub fn half(&self) -> i32 {
-        self.half
+        self.kernel / 2
     }
 }
 
@@ -38,11 +34,9 @@ impl Filter for Pcf {
     const DESCRIPTION: &'static str =
         "percentage-closer filtering over an N x N texel block (Reeves et al. 1987)";
     const SPECS: &'static [ParamSpec] =
-        shadow_map_core::concat_specs!(MapSettings::SPECS, PcfParams::SPECS);
+        shadow_map_core::concat_specs!(MapSettings::SPECS, Pcf::SPECS);
     fn from_params(p: &Params) -> Result<Self> {
-        Ok(Pcf {
-            half: PcfParams::from_params(p)?.kernel / 2,
-        })
+        Pcf::from_params(p)
     }
     fn visibility<M: DepthLookup>(
         &self,
@@ -53,12 +47,13 @@ impl Filter for Pcf {
     ) -> f32 {
         let (i0, j0) = (r.uv.x.floor() as i32, r.uv.y.floor() as i32);
         let mut sum = 0.0;
-        for dj in -self.half..=self.half {
-            for di in -self.half..=self.half {
+        let half = self.half();
+        for dj in -half..=half {
+            for di in -half..=half {
                 sum += lit(map, i0 + di, j0 + dj, r);
             }
         }
-        let side = (2 * self.half + 1) as f32;
+        let side = (2 * half + 1) as f32;
         sum / (side * side)
     }
 }

@@ -8,8 +8,8 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},
-    DepthMap, Error, LightShape, LightView, Params, ReceiverPlane, Receivers, Report, Result,
-    Scene, SoftShadowEstimator,
+    DepthMap, LightShape, LightView, Params, ReceiverPlane, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::time::Instant;
 
@@ -285,18 +285,6 @@ impl CpuDeepShadow {
     }
 }
 
-/// Checks the output slice length.
-pub fn check_len(receivers: &Receivers, v: &[f32]) -> Result<()> {
-    if v.len() != receivers.len() {
-        return Err(Error::Receivers(format!(
-            "output has {} slots for {} receivers",
-            v.len(),
-            receivers.len()
-        )));
-    }
-    Ok(())
-}
-
 /// Writes `V = acc / views` (NaN for inactive receivers, 0 behind a one-sided light), clamped to
 /// [0, 1]; returns how many were not finite (written as 0; a non-zero count is a bug, reported).
 pub fn finish(
@@ -414,7 +402,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        check_len(receivers, v)?;
+        receivers.check_output(v)?;
         self.report = Report::default();
         let s = self.settings();
         let opaque = scene.is_opaque();
@@ -433,7 +421,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
                 *y,
                 s.resolution,
                 kernel_margin(&s),
-                &s.view(),
+                &s.view,
             )?;
             t_fit += t_f.elapsed().as_secs_f64() * 1e3;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);

@@ -22,6 +22,8 @@ pub enum Filter {
     Edsm,
 }
 
+shadow_map_core::param_words!(Filter { None = "none", Pcf = "pcf", Edsm = "edsm", First = "first" });
+
 /// How each tap's list is searched (both give identical results; only the cost differs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Traversal {
@@ -31,6 +33,8 @@ pub enum Traversal {
     /// Every tap's list walked from its head.
     Naive,
 }
+
+shadow_map_core::param_words!(Traversal { Linked = "linked", Naive = "naive" });
 
 /// Settings of one lookup.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -19,8 +19,8 @@
 //! `atomicMin` of the depth bits into the head buffer: an ordinary shadow map, no lists) and
 //! `lookup_opaque`.
 use crate::cpu::{
-    check_len, finish, kernel_margin, lookup_settings, query, sublight_points, sublight_view_with,
-    Query, Tally,
+    finish, kernel_margin, lookup_settings, query, sublight_points, sublight_view_with, Query,
+    Tally,
 };
 use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
 use crate::params::{self, Settings, SPECS};
@@ -652,7 +652,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        check_len(receivers, v)?;
+        receivers.check_output(v)?;
         self.report = Report::default();
         let s = self.settings();
         let opaque = scene.is_opaque();
@@ -668,7 +668,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
                 *y,
                 s.resolution,
                 kernel_margin(&s),
-                &s.view(),
+                &s.view,
             )?;
             tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
             tally.window_scale = tally.window_scale.max(fit.window_scale);
@@ -723,11 +723,7 @@ mod tests {
 
     #[test]
     fn shader_validates_with_naga() {
-        for (name, src) in SHADERS {
-            if let Err(e) = shadow_map_core::gpu::kernel::validate_wgsl(name, src) {
-                panic!("{e}");
-            }
-        }
+        shadow_map_core::gpu::kernel::assert_shaders_valid(SHADERS.iter().copied());
     }
 
     /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.

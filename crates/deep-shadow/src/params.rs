@@ -1,40 +1,15 @@
 //! The parameter table both twins share, and the settings read from it.
 use crate::dsm::{Filter, Traversal};
 use shadow_map_core::{
-    light_view::{FitMode, NearFar, ViewOptions, BIAS, FIT, NEARFAR, RESOLUTION, SLOPE_BIAS},
-    params::FromParam,
+    light_view::{ViewOptions, BIAS, RESOLUTION, SLOPE_BIAS},
     receiver_plane::RECEIVER_PLANE,
-    Error, ParamKind, ParamSpec, ParamValue, Params, Result,
+    Error, ParamKind, ParamSpec, Params, Result,
 };
 
 /// Registry name (`--algo deep-shadow`), shared by both twins.
 pub const NAME: &str = "deep-shadow";
 /// One-line description, shared by both twins.
 pub const DESCRIPTION: &str = "deep shadow maps: per-texel linked lists of semi-transparent fragments, sorted and truncated, PCF/EDSM with neighbour links (Fürst et al.); S x S sub-lights for soft transmittance";
-
-impl FromParam for Filter {
-    /// The `filter` words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("none") => Some(Filter::None),
-            ParamValue::Choice("pcf") => Some(Filter::Pcf),
-            ParamValue::Choice("edsm") => Some(Filter::Edsm),
-            ParamValue::Choice("first") => Some(Filter::First),
-            _ => None,
-        }
-    }
-}
-
-impl FromParam for Traversal {
-    /// The `traversal` words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("linked") => Some(Traversal::Linked),
-            ParamValue::Choice("naive") => Some(Traversal::Naive),
-            _ => None,
-        }
-    }
-}
 
 shadow_map_core::typed_params! {
     /// The settings of one frame, one field a parameter ([`SPECS`]).
@@ -44,7 +19,7 @@ shadow_map_core::typed_params! {
         /// Filter.
         filter: Filter = ParamSpec {
             key: "filter",
-            kind: ParamKind::Choice(&["none", "pcf", "edsm", "first"]),
+            kind: ParamKind::Choice(Filter::WORDS),
             default: "none",
             help: "none: T(d) of one texel; pcf: mean T over N x N; edsm: exponential DSM over N x N; first: binary SM from the first fragment only (Table 1.1 'SM')",
         },
@@ -72,7 +47,7 @@ shadow_map_core::typed_params! {
         /// Traversal.
         traversal: Traversal = ParamSpec {
             key: "traversal",
-            kind: ParamKind::Choice(&["linked", "naive"]),
+            kind: ParamKind::Choice(Traversal::WORDS),
             default: "linked",
             help: "linked: neighbour links guide each tap's search (§1.3.5); naive: every tap walks its list from the head",
         },
@@ -106,25 +81,14 @@ shadow_map_core::typed_params! {
             default: "67108864",
             help: "most list elements the buffer may grow to (beyond: an error naming the need)",
         },
-        /// Light-view window choice of every sub-light's view.
-        fit: FitMode = FIT,
-        /// Near/far choice of every sub-light's view.
-        nearfar: NearFar = NEARFAR,
+        ;
+        /// Light-view window and near/far choice of every sub-light's view.
+        view: ViewOptions,
     }
 }
 
 /// The parameters, shared by both twins.
 pub const SPECS: &[ParamSpec] = Settings::SPECS;
-
-impl Settings {
-    /// Light-view window and near/far choice of every sub-light's view (`fit`, `nearfar`).
-    pub fn view(&self) -> ViewOptions {
-        ViewOptions {
-            fit: self.fit,
-            nearfar: self.nearfar,
-        }
-    }
-}
 
 /// Sets one parameter, with the checks the table cannot express (odd kernel); the settings of
 /// the new parameters.

@@ -9,11 +9,10 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light::front_fraction,
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitMode, LightView, NearFar, ViewOptions, FIT, NEARFAR, RESOLUTION},
+    light_view::{LightView, ViewOptions, RESOLUTION},
     mssm::Mssm,
     params::FromParam,
-    peeling::{SelfShadow, MAX_BIAS, SELF_SHADOW, SELF_SHADOW_BIAS, SELF_SHADOW_SLOPE_BIAS},
-    receiver_plane::RECEIVER_PLANE,
+    peeling::SelfShadowSettings,
     Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, ReceiverPlane,
     Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
@@ -216,41 +215,115 @@ shadow_map_core::typed_params! {
             default: "4.0",
             help: "Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one pixel",
         },
-        /// Midpoint classification or a receiver bias ([`Config::midpoint`]).
-        self_shadow: SelfShadow = SELF_SHADOW,
-        /// Midpoint clamp in footprints at the far plane.
-        max_bias: f32 = MAX_BIAS,
-        /// Constant receiver bias b0 (`self_shadow=bias`); with `receiver_plane=true`, the
-        /// receiver plane's tolerance in texel footprints (both modes).
-        bias: f32 = SELF_SHADOW_BIAS,
-        /// Slope-scaled receiver bias b1 (`self_shadow=bias`, `receiver_plane=false`).
-        slope_bias: f32 = SELF_SHADOW_SLOPE_BIAS,
-        /// Receiver-plane rejection ([`shadow_map_core::receiver_plane`]).
-        receiver_plane: bool = RECEIVER_PLANE,
-        /// Light-view window choice of every sub-light's map.
-        fit: FitMode = FIT,
-        /// Near/far choice of every sub-light's map.
-        nearfar: NearFar = NEARFAR,
+        ;
+        /// Midpoint classification or a receiver bias, and receiver-plane rejection.
+        shadow: SelfShadowSettings,
+        /// Light-view window and near/far choice of every sub-light's map.
+        view: ViewOptions,
     }
 }
 
 impl Config {
-    /// Midpoint classification (`self_shadow=midpoint`; else bias).
-    pub fn midpoint(&self) -> bool {
-        self.self_shadow == SelfShadow::Midpoint
-    }
-    /// Light-view window and near/far choice of every sub-light's map (`fit`, `nearfar`).
-    pub fn view(&self) -> ViewOptions {
-        ViewOptions {
-            fit: self.fit,
-            nearfar: self.nearfar,
-        }
-    }
     fn traversal(&self) -> Traversal {
         if self.hierarchy {
             Traversal::Hierarchical
         } else {
             Traversal::Flat
+        }
+    }
+}
+
+/// The sub-light loop both twins run (Yang §5): the S x S sub-lights' [`SubView`]s built one at a
+/// time, V summed over them with weight 1 / S^2, and what the report says about the fits.
+pub struct SubLights {
+    /// V summed so far, per receiver.
+    pub acc: Vec<f32>,
+    /// Weight of one sub-light, `1 / S^2`.
+    pub weight: f32,
+    /// Build time over the sub-lights (ms).
+    pub t_build: f64,
+    /// Estimate time over the sub-lights (ms), added by the twin.
+    pub t_est: f64,
+    peak: usize,
+    // Largest window side over the tightest one, smallest near and largest far plane, and the
+    // largest out-of-frustum count, over the sub-lights' fits.
+    window_scale: f32,
+    near: f32,
+    far: f32,
+    out_of_frustum: usize,
+}
+
+impl SubLights {
+    /// For `receivers` receivers.
+    pub fn new(cfg: &Config, receivers: usize) -> Self {
+        SubLights {
+            acc: vec![0.0; receivers],
+            weight: 1.0 / (cfg.sublights * cfg.sublights) as f32,
+            t_build: 0.0,
+            t_est: 0.0,
+            peak: 0,
+            window_scale: 0.0,
+            near: f32::INFINITY,
+            far: 0.0,
+            out_of_frustum: 0,
+        }
+    }
+    /// Builds sub-light (a, b)'s view and maps, timed, its fit folded into the tally.
+    pub fn build(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        cfg: &Config,
+        (a, b): (u32, u32),
+    ) -> Result<SubView> {
+        let t = std::time::Instant::now();
+        let s = cfg.sublights;
+        let half = scene.light.half_extent() / s as f32;
+        let c = sublight_centre(scene.light.half_extent(), s, a, b);
+        let sv = SubView::build(scene, receivers, cfg.resolution, c, half, cfg)?;
+        self.t_build += t.elapsed().as_secs_f64() * 1e3;
+        self.peak = self.peak.max(sv.bytes());
+        self.out_of_frustum = self.out_of_frustum.max(sv.ls.fit.out_of_frustum);
+        self.window_scale = self.window_scale.max(sv.ls.fit.window_scale);
+        self.near = self.near.min(sv.ls.view.n);
+        self.far = self.far.max(sv.ls.view.far);
+        Ok(sv)
+    }
+    /// Writes V (NaN for inactive receivers, the sum clamped to [0, 1], a non-finite sum as 0)
+    /// and the notes both twins give; `outside`: receivers the estimate found outside a view.
+    pub fn finish(
+        self,
+        cfg: &Config,
+        receivers: &Receivers,
+        v: &mut [f32],
+        outside: usize,
+        rep: &mut Report,
+    ) {
+        let mut nonfinite = 0usize;
+        for (k, out) in v.iter_mut().enumerate() {
+            *out = if !receivers.active[k] {
+                f32::NAN
+            } else if self.acc[k].is_finite() {
+                self.acc[k].clamp(0.0, 1.0)
+            } else {
+                nonfinite += 1;
+                0.0
+            };
+        }
+        rep.stages.push(("build".into(), self.t_build));
+        rep.stages.push(("estimate".into(), self.t_est));
+        rep.light_space_bytes = self.peak;
+        rep.note("resolution", cfg.resolution);
+        rep.note("sublights", cfg.sublights * cfg.sublights);
+        rep.note("packet", cfg.packet);
+        rep.note("hierarchy", cfg.hierarchy);
+        rep.note("coherence", cfg.coherence);
+        rep.note("out_of_frustum", outside + self.out_of_frustum);
+        rep.note("near", self.near);
+        rep.note("far", self.far);
+        rep.note("window_scale", self.window_scale);
+        if nonfinite > 0 {
+            rep.note("nonfinite_replaced", nonfinite);
         }
     }
 }
@@ -277,7 +350,7 @@ pub struct SubView {
 
 impl SubView {
     /// Builds the data of the sub-light centred at `centre` (light-plane coordinates) with half
-    /// extents `half`, its view fitted with the `fit` and `nearfar` choices of `cfg.view()`
+    /// extents `half`, its view fitted with the `fit` and `nearfar` choices of `cfg.view`
     /// ([`LightView::fit_with`]).
     pub fn build(
         scene: &Scene,
@@ -289,16 +362,14 @@ impl SubView {
     ) -> Result<SubView> {
         let mut frame = scene.light.frame();
         frame.origin = frame.to_world(centre.extend(0.0));
-        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view())?;
+        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)?;
         let l = 2.0 * half.max_element();
         let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
         let levels = (wmax.log2().ceil() as u32).clamp(1, 16);
-        let footprint = view.w * view.far / (view.n * view.r as f32);
-        let mb = (cfg.max_bias * footprint).min(f32::MAX);
         let req = LightSpaceRequest {
             resolution: r,
             layers: 1,
-            midpoints: cfg.midpoint().then_some(mb),
+            midpoints: cfg.shadow.midpoint_clamp(&view),
             mssm_levels: None,
             dual_mssm_levels: None,
             pyramid: false,
@@ -307,7 +378,7 @@ impl SubView {
         let ls = LightSpace::build_in_view(scene, view, fit, &req);
         let l0 = &ls.layers[0];
         let mssm = Mssm::build(&l0.depth, l0.size, levels);
-        let class = if cfg.midpoint() {
+        let class = if cfg.shadow.midpoint() {
             ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
         } else {
             &l0.depth
@@ -324,7 +395,7 @@ impl SubView {
     /// The sample grid (true and classification depths).
     pub fn grid(&self, cfg: &Config) -> SampleGrid<'_> {
         let l0 = &self.ls.layers[0];
-        let class = if cfg.midpoint() {
+        let class = if cfg.shadow.midpoint() {
             self.ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
         } else {
             &l0.depth
@@ -403,14 +474,15 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
     if !view.contains(uv) {
         return ReceiverSetup::Outside(facing);
     }
-    let t = if cfg.midpoint() || cfg.receiver_plane {
+    let t = if cfg.shadow.midpoint() || cfg.shadow.receiver_plane {
         p.z
     } else {
-        p.z - view.receiver_bias(p, n, cfg.bias, cfg.slope_bias)
+        p.z - view.receiver_bias(p, n, cfg.shadow.bias, cfg.shadow.slope_bias)
     };
     let plane = cfg
+        .shadow
         .receiver_plane
-        .then(|| ReceiverPlane::plane(view, p, n, cfg.bias, 0.0));
+        .then(|| ReceiverPlane::plane(view, p, n, cfg.shadow.bias, 0.0));
     ReceiverSetup::Map {
         uv,
         zp: p.z,
@@ -745,7 +817,7 @@ pub fn estimate_sublight(
                     } else {
                         edges.clear();
                         members.clear();
-                        if cfg.receiver_plane {
+                        if cfg.shadow.receiver_plane {
                             members.extend(pens.iter().map(|(_, rec, _, _)| rec.test()));
                         }
                         let planes = Planes {
@@ -863,66 +935,26 @@ impl SoftShadowEstimator for CpuPacketHsm {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
+        receivers.check_output(v)?;
         Self::check_light(scene)?;
         let cfg = Config::from_params(&self.params)?;
-        let r = cfg.resolution;
         let s = cfg.sublights;
-        let half = scene.light.half_extent() / s as f32;
-        let weight = 1.0 / (s * s) as f32;
-        let mut acc = vec![0.0f32; receivers.len()];
+        let mut subs = SubLights::new(&cfg, receivers.len());
         let mut diag = vec![PixelDiag::default(); receivers.len()];
         let counters = Counters::default();
-        let (mut t_build, mut t_est) = (0.0, 0.0);
-        let mut peak = 0usize;
-        // Largest window side over the tightest one, smallest near and largest far plane, over
-        // the sub-lights' fits.
-        let mut window_scale = 0.0f32;
-        let (mut near, mut far) = (f32::INFINITY, 0.0f32);
-        let mut out_of_frustum = 0usize;
         for b in 0..s {
             for a in 0..s {
+                let sv = subs.build(scene, receivers, &cfg, (a, b))?;
                 let t = std::time::Instant::now();
-                let c = sublight_centre(scene.light.half_extent(), s, a, b);
-                let sv = SubView::build(scene, receivers, r, c, half, &cfg)?;
-                t_build += t.elapsed().as_secs_f64() * 1e3;
-                peak = peak.max(sv.bytes());
-                out_of_frustum = out_of_frustum.max(sv.ls.fit.out_of_frustum);
-                window_scale = window_scale.max(sv.ls.fit.window_scale);
-                near = near.min(sv.ls.view.n);
-                far = far.max(sv.ls.view.far);
-                let t = std::time::Instant::now();
-                estimate_sublight(&sv, &cfg, receivers, weight, &mut acc, &mut diag, &counters);
-                t_est += t.elapsed().as_secs_f64() * 1e3;
+                let w = subs.weight;
+                estimate_sublight(&sv, &cfg, receivers, w, &mut subs.acc, &mut diag, &counters);
+                subs.t_est += t.elapsed().as_secs_f64() * 1e3;
             }
-        }
-        let mut nonfinite = 0usize;
-        for (k, out) in v.iter_mut().enumerate() {
-            *out = if !receivers.active[k] {
-                f32::NAN
-            } else if acc[k].is_finite() {
-                acc[k].clamp(0.0, 1.0)
-            } else {
-                nonfinite += 1;
-                0.0
-            };
         }
         self.diagnostics = diag;
         let rep = &mut self.report;
-        rep.stages.push(("build".into(), t_build));
-        rep.stages.push(("estimate".into(), t_est));
-        rep.light_space_bytes = peak;
-        rep.note("resolution", r);
-        rep.note("sublights", s * s);
-        rep.note("packet", cfg.packet);
-        rep.note("hierarchy", cfg.hierarchy);
-        rep.note("coherence", cfg.coherence);
+        let outside = counters.outside.load(Ordering::Relaxed) as usize;
+        subs.finish(&cfg, receivers, v, outside, rep);
         let pen = counters.penumbra.load(Ordering::Relaxed);
         let vis = counters.visited.load(Ordering::Relaxed);
         rep.note("penumbra_evaluations", pen);
@@ -944,16 +976,6 @@ impl SoftShadowEstimator for CpuPacketHsm {
             "packets_diverged",
             counters.diverged.load(Ordering::Relaxed),
         );
-        rep.note(
-            "out_of_frustum",
-            counters.outside.load(Ordering::Relaxed) as usize + out_of_frustum,
-        );
-        rep.note("near", near);
-        rep.note("far", far);
-        rep.note("window_scale", window_scale);
-        if nonfinite > 0 {
-            rep.note("nonfinite_replaced", nonfinite);
-        }
         Ok(())
     }
     fn report(&self) -> Report {

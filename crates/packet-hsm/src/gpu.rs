@@ -24,7 +24,7 @@
 //! [`RecIn`]; the shader's caster test is the same product and comparison in f32 (a fused
 //! multiply-add can flip a tie).
 use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
-use crate::cpu::{sublight_centre, Config, CpuPacketHsm, SubView};
+use crate::cpu::{Config, CpuPacketHsm, SubLights, SubView};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
@@ -458,7 +458,7 @@ fn hsm_uniform(
         qv: cfg.qv as f32,
         far: view.far,
         probe: 2,
-        receiver_plane: cfg.receiver_plane as u32,
+        receiver_plane: cfg.shadow.receiver_plane as u32,
         class_is_depth: sv.grid(cfg).class_is_depth() as u32,
         _pad0: 0,
         _pad1: 0,
@@ -472,13 +472,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
         self.cpu.build(scene, receivers)
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        if v.len() != receivers.len() {
-            return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
-                receivers.len()
-            )));
-        }
+        receivers.check_output(v)?;
         if !matches!(scene.light.shape, LightShape::Rect { .. }) {
             return Err(Error::param(
                 "light",
@@ -486,34 +480,15 @@ impl SoftShadowEstimator for GpuPacketHsm {
             ));
         }
         let cfg = Config::from_params(self.cpu.params())?;
-        let r = cfg.resolution;
         let s = cfg.sublights;
-        let half = scene.light.half_extent() / s as f32;
-        let weight = 1.0 / (s * s) as f32;
-        let mut acc = vec![0.0f32; receivers.len()];
-        let (mut t_build, mut t_est) = (0.0, 0.0);
-        let mut peak = 0usize;
-        // Largest window side over the tightest one, smallest near and largest far plane, over
-        // the sub-lights' fits.
-        let mut window_scale = 0.0f32;
-        let (mut near, mut far) = (f32::INFINITY, 0.0f32);
+        let mut subs = SubLights::new(&cfg, receivers.len());
         let mut visited = 0f64;
         let mut outside = 0usize;
-        // The fits' own out-of-frustum counts (max over the sub-lights), as the CPU twin adds.
-        let mut fit_outside = 0usize;
         let mut counts = [0u64; 5];
         let mut fallbacks = 0usize;
         for b in 0..s {
             for a in 0..s {
-                let t = std::time::Instant::now();
-                let c = sublight_centre(scene.light.half_extent(), s, a, b);
-                let sv = SubView::build(scene, receivers, r, c, half, &cfg)?;
-                t_build += t.elapsed().as_secs_f64() * 1e3;
-                peak = peak.max(sv.bytes());
-                window_scale = window_scale.max(sv.ls.fit.window_scale);
-                fit_outside = fit_outside.max(sv.ls.fit.out_of_frustum);
-                near = near.min(sv.ls.view.n);
-                far = far.max(sv.ls.view.far);
+                let sv = subs.build(scene, receivers, &cfg, (a, b))?;
                 let t = std::time::Instant::now();
                 let setups: Vec<ReceiverSetup> = prepare_setup(&sv, &cfg, receivers);
                 let recs: Vec<RecIn> = setups
@@ -572,31 +547,13 @@ impl SoftShadowEstimator for GpuPacketHsm {
                             }
                         }
                     };
-                    acc[k] += weight * x;
+                    subs.acc[k] += subs.weight * x;
                 }
-                t_est += t.elapsed().as_secs_f64() * 1e3;
+                subs.t_est += t.elapsed().as_secs_f64() * 1e3;
             }
         }
-        let mut nonfinite = 0usize;
-        for (k, out) in v.iter_mut().enumerate() {
-            *out = if !receivers.active[k] {
-                f32::NAN
-            } else if acc[k].is_finite() {
-                acc[k].clamp(0.0, 1.0)
-            } else {
-                nonfinite += 1;
-                0.0
-            };
-        }
         let rep = &mut self.report;
-        rep.stages.push(("build".into(), t_build));
-        rep.stages.push(("estimate".into(), t_est));
-        rep.light_space_bytes = peak;
-        rep.note("resolution", r);
-        rep.note("sublights", s * s);
-        rep.note("hierarchy", cfg.hierarchy);
-        rep.note("packet", cfg.packet);
-        rep.note("coherence", cfg.coherence);
+        subs.finish(&cfg, receivers, v, outside, rep);
         rep.note("packets", counts[0]);
         rep.note("packets_coherent", counts[1]);
         rep.note("packets_rejected", counts[2]);
@@ -604,13 +561,6 @@ impl SoftShadowEstimator for GpuPacketHsm {
         rep.note("packets_loop_limit", counts[4]);
         rep.note("loop_limit_cpu_fallbacks", fallbacks);
         rep.note("visited_nodes", visited as u64);
-        rep.note("out_of_frustum", outside + fit_outside);
-        rep.note("near", near);
-        rep.note("far", far);
-        rep.note("window_scale", window_scale);
-        if nonfinite > 0 {
-            rep.note("nonfinite_replaced", nonfinite);
-        }
         Ok(())
     }
     fn report(&self) -> Report {
@@ -684,8 +634,6 @@ mod tests {
     /// The kernel parses and validates with naga (no device needed).
     #[test]
     fn wgsl_validates_with_naga() {
-        if let Err(e) = shadow_map_core::gpu::kernel::validate_wgsl("packet_hsm", PACKET_HSM_WGSL) {
-            panic!("{e}");
-        }
+        shadow_map_core::gpu::kernel::assert_shaders_valid([("packet_hsm", PACKET_HSM_WGSL)]);
     }
 }

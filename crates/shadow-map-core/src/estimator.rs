@@ -104,6 +104,18 @@ pub trait SoftShadowEstimator: Send {
     fn report(&self) -> Report;
 }
 
+/// What an estimator's `build` left (`slot`, its light-space data), or the one-line error of an
+/// `estimate` called before any `build`.
+///
+/// ```
+/// let none: Option<u32> = None;
+/// assert_eq!(shadow_map_core::estimator::built(Some(3)).unwrap(), 3);
+/// assert!(shadow_map_core::estimator::built(none).unwrap_err().to_string().contains("before build"));
+/// ```
+pub fn built<T>(slot: Option<T>) -> Result<T> {
+    slot.ok_or_else(|| crate::Error::param("build", "estimate called before build"))
+}
+
 /// Builds and estimates in one call, returning V and the report.
 pub fn run(
     est: &mut dyn SoftShadowEstimator,

@@ -3,7 +3,7 @@
 //! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
 use crate::{
     light::LightFrame,
-    params::{FromParam, ParamKind, ParamSpec, ParamValue},
+    params::{ParamKind, ParamSpec},
     receivers::Receivers,
     scene::Scene,
     Error, Result,
@@ -73,6 +73,8 @@ pub enum FitMode {
     Stable,
 }
 
+crate::param_words!(FitMode { Receivers = "receivers", Scene = "scene", Stable = "stable" });
+
 /// How the near and far planes are chosen (`--param nearfar=...`; common techniques,
 /// "Calculating the near plane and far plane").
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -90,13 +92,18 @@ pub enum NearFar {
     Clipped,
 }
 
-/// Light-view options shared by every estimator: [`FitMode`] and [`NearFar`].
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct ViewOptions {
-    /// Window choice.
-    pub fit: FitMode,
-    /// Near/far choice.
-    pub nearfar: NearFar,
+crate::param_words!(NearFar { Clipped = "clipped", Aabb = "aabb", Frustum = "frustum" });
+
+crate::typed_params! {
+    /// Light-view options shared by every estimator with a map ([`FitMode`], [`NearFar`]): the
+    /// `view` group of each estimator's parameters, declared once here.
+    #[derive(Default, Eq)]
+    pub struct ViewOptions {
+        /// Window choice.
+        fit: FitMode = FIT,
+        /// Near/far choice.
+        nearfar: NearFar = NEARFAR,
+    }
 }
 
 /// `resolution`: shadow-map side in texels (every estimator with a map).
@@ -134,7 +141,7 @@ pub const SLOPE_BIAS: ParamSpec = ParamSpec {
 /// `fit`: the window choice ([`FitMode`]).
 pub const FIT: ParamSpec = ParamSpec {
     key: "fit",
-    kind: ParamKind::Choice(&["receivers", "scene", "stable"]),
+    kind: ParamKind::Choice(FitMode::WORDS),
     default: "receivers",
     help: "light-view window: tightest over the receivers, the whole scene, or stable (power-of-two size, texel-snapped: no shimmer when the camera moves)",
 };
@@ -142,34 +149,10 @@ pub const FIT: ParamSpec = ParamSpec {
 /// `nearfar`: the near/far choice ([`NearFar`]).
 pub const NEARFAR: ParamSpec = ParamSpec {
     key: "nearfar",
-    kind: ParamKind::Choice(&["clipped", "aabb", "frustum"]),
+    kind: ParamKind::Choice(NearFar::WORDS),
     default: "clipped",
     help: "near/far planes: light frustum clipped to the scene, scene AABB, or the view frustum (receivers; clips casters nearer than them)",
 };
-
-impl FromParam for FitMode {
-    /// The [`FIT`] words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("receivers") => Some(FitMode::Receivers),
-            ParamValue::Choice("scene") => Some(FitMode::Scene),
-            ParamValue::Choice("stable") => Some(FitMode::Stable),
-            _ => None,
-        }
-    }
-}
-
-impl FromParam for NearFar {
-    /// The [`NEARFAR`] words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("clipped") => Some(NearFar::Clipped),
-            ParamValue::Choice("aabb") => Some(NearFar::Aabb),
-            ParamValue::Choice("frustum") => Some(NearFar::Frustum),
-            _ => None,
-        }
-    }
-}
 
 impl LightView {
     /// Receiver-side depth bias in world units (docs/methods.md §2, "Self-shadowing"):
@@ -907,7 +890,7 @@ mod bounds_tests {
 #[cfg(test)]
 mod param_tests {
     use super::*;
-    use crate::{precision::DEPTH, Cull, DepthPrecision};
+    use crate::{precision::DEPTH, Cull, DepthPrecision, FromParam, ParamValue};
 
     /// Every word of a choice converts, nothing else does.
     fn words_convert<T: FromParam>(spec: &ParamSpec) {
@@ -932,7 +915,7 @@ mod param_tests {
         words_convert::<DepthPrecision>(&DEPTH);
         let cull = ParamSpec {
             key: "cull",
-            kind: ParamKind::Choice(&["none", "back", "front"]),
+            kind: ParamKind::Choice(Cull::WORDS),
             default: "none",
             help: "",
         };

@@ -207,6 +207,51 @@ pub trait FromParam: Sized {
     fn from_param(v: ParamValue) -> Option<Self>;
 }
 
+/// The words of a [`ParamKind::Choice`] parameter bound to the variants of a fieldless enum, once:
+/// `WORDS` (the choice list, in the order given, for the [`ParamSpec`]), `word()`, `Display`
+/// (the word) and [`FromParam`] (the word back to the variant; `None` for any other value).
+///
+/// ```
+/// use shadow_map_core::{FromParam, ParamKind, ParamValue};
+/// #[derive(Debug, Clone, Copy, PartialEq)]
+/// enum Mode { Fast, Exact }
+/// shadow_map_core::param_words!(Mode { Exact = "exact", Fast = "fast" });
+/// assert_eq!(Mode::WORDS, ["exact", "fast"]);
+/// assert_eq!((Mode::Fast.word(), Mode::Exact.to_string()), ("fast", "exact".to_string()));
+/// assert_eq!(Mode::from_param(ParamValue::Choice("fast")), Some(Mode::Fast));
+/// assert_eq!(Mode::from_param(ParamValue::Choice("slow")), None);
+/// let _ = ParamKind::Choice(Mode::WORDS);
+/// ```
+#[macro_export]
+macro_rules! param_words {
+    ($t:ident { $($variant:ident = $word:literal),+ $(,)? }) => {
+        impl $t {
+            /// The parameter's words, one a variant (the [`ParamKind::Choice`]($crate::ParamKind::Choice) list).
+            pub const WORDS: &'static [&'static str] = &[$($word),+];
+            /// This variant's word.
+            pub fn word(self) -> &'static str {
+                match self {
+                    $($t::$variant => $word,)+
+                }
+            }
+        }
+        impl ::std::fmt::Display for $t {
+            fn fmt(&self, f: &mut ::std::fmt::Formatter<'_>) -> ::std::fmt::Result {
+                f.write_str(self.word())
+            }
+        }
+        impl $crate::FromParam for $t {
+            /// The variant of a word of [`Self::WORDS`]; `None` for any other value.
+            fn from_param(v: $crate::ParamValue) -> Option<Self> {
+                match v {
+                    $($crate::ParamValue::Choice($word) => Some($t::$variant),)+
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
 macro_rules! from_int {
     ($($t:ty),*) => {$(
         impl FromParam for $t {
@@ -285,15 +330,23 @@ pub const fn same_key(a: &str, b: &str) -> bool {
     true
 }
 
-/// `a` followed by `b`, as an array of `N = a.len() + b.len()` specs, in a `const` context (see
-/// [`concat_specs!`](crate::concat_specs), which supplies `N`).
-pub const fn concat_spec_arrays<const N: usize>(
-    a: &[ParamSpec],
-    b: &[ParamSpec],
-) -> [ParamSpec; N] {
+/// The total length of `parts`, in a `const` context (the `N` of [`concat_spec_parts`]).
+pub const fn spec_parts_len(parts: &[&[ParamSpec]]) -> usize {
+    let mut n = 0;
+    let mut k = 0;
+    while k < parts.len() {
+        n += parts[k].len();
+        k += 1;
+    }
+    n
+}
+
+/// `parts` one after another, as an array of `N = spec_parts_len(parts)` specs, in a `const`
+/// context (see [`concat_specs!`](crate::concat_specs), which supplies `N`).
+pub const fn concat_spec_parts<const N: usize>(parts: &[&[ParamSpec]]) -> [ParamSpec; N] {
     assert!(
-        a.len() + b.len() == N,
-        "concat_spec_arrays: N is not the sum of the lengths"
+        spec_parts_len(parts) == N,
+        "concat_spec_parts: N is not the sum of the lengths"
     );
     const BLANK: ParamSpec = ParamSpec {
         key: "",
@@ -302,20 +355,20 @@ pub const fn concat_spec_arrays<const N: usize>(
         help: "",
     };
     let mut out = [BLANK; N];
-    let mut i = 0;
-    while i < a.len() {
-        out[i] = a[i];
-        i += 1;
-    }
-    let mut j = 0;
-    while j < b.len() {
-        out[i + j] = b[j];
-        j += 1;
+    let (mut i, mut k) = (0, 0);
+    while k < parts.len() {
+        let mut j = 0;
+        while j < parts[k].len() {
+            out[i] = parts[k][j];
+            i += 1;
+            j += 1;
+        }
+        k += 1;
     }
     out
 }
 
-/// The parameter table `$a` followed by `$b` (both `&[ParamSpec]` constants), as a
+/// The parameter tables `$a`, `$b`, ... (each a `&[ParamSpec]` constant) one after another, as a
 /// `&'static [ParamSpec]` constant: a table shared by several estimators (one
 /// [`typed_params!`](crate::typed_params) struct's `SPECS`) followed by one estimator's own (a
 /// second struct's), each read by its own `from_params` from the same [`Params`].
@@ -345,8 +398,8 @@ pub const fn concat_spec_arrays<const N: usize>(
 /// ```
 #[macro_export]
 macro_rules! concat_specs {
-    ($a:expr, $b:expr $(,)?) => {
-        &$crate::params::concat_spec_arrays::<{ $a.len() + $b.len() }>($a, $b)
+    ($($a:expr),+ $(,)?) => {
+        &$crate::params::concat_spec_parts::<{ $crate::params::spec_parts_len(&[$($a),+]) }>(&[$($a),+])
     };
 }
 
@@ -384,33 +437,41 @@ macro_rules! typed_params {
         $(#[$meta:meta])*
         $vis:vis struct $name:ident {
             $( $(#[$fmeta:meta])* $field:ident : $ty:ty = $spec:expr ),* $(,)?
+            $( ; $( $(#[$gmeta:meta])* $group:ident : $gty:ty ),+ $(,)? )?
         }
     ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, Copy, PartialEq)]
         $vis struct $name {
             $( $(#[$fmeta])* pub $field: $ty, )*
+            $($( $(#[$gmeta])* pub $group: $gty, )+)?
         }
 
         impl $name {
-            /// The parameter table, in declaration order.
-            pub const SPECS: &'static [$crate::ParamSpec] = &[$($spec),*];
+            /// This struct's own parameters, in declaration order (its groups' follow in
+            /// [`Self::SPECS`]).
+            pub const OWN_SPECS: &'static [$crate::ParamSpec] = &[$($spec),*];
 
-            /// Every field read from `p` (a [`Params`]($crate::Params) of [`Self::SPECS`]).
+            /// The parameter table: the own parameters, then each group's table in order.
+            pub const SPECS: &'static [$crate::ParamSpec] =
+                $crate::concat_specs!($name::OWN_SPECS $($(, <$gty>::SPECS)+)?);
+
+            /// Every field read from `p` (a [`Params`]($crate::Params) holding [`Self::SPECS`]).
             pub fn from_params(p: &$crate::Params) -> $crate::Result<Self> {
-                let specs = Self::SPECS;
+                let specs = Self::OWN_SPECS;
                 let mut k = 0usize;
                 $(
                     let $field: $ty = p.typed(&specs[k])?;
                     k += 1;
                 )*
                 let _ = k;
-                Ok(Self { $($field),* })
+                $($( let $group = <$gty>::from_params(p)?; )+)?
+                Ok(Self { $($field,)* $($($group,)+)? })
             }
         }
 
         const _: () = {
-            let specs = $name::SPECS;
+            let specs = $name::OWN_SPECS;
             let mut k = 0usize;
             $(
                 assert!(

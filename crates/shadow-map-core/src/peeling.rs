@@ -2,9 +2,9 @@
 //! first, layer m+1 the nearest surface strictly behind layer m, `z > z_m (1 + PEEL_EPS_REL)`
 //! (see [`crate::raster::PEEL_EPS_REL`]). One rasterisation pass per layer, as on a GPU.
 use crate::{
-    light_view::{BIAS, SLOPE_BIAS},
-    params::{FromParam, ParamValue},
+    light_view::{LightView, BIAS, SLOPE_BIAS},
     raster::{DepthBias, DepthMap, PreparedScene},
+    receiver_plane::RECEIVER_PLANE,
     ParamKind, ParamSpec,
 };
 
@@ -12,7 +12,7 @@ use crate::{
 /// occluder (Bavoil §4.2): by the midpoint layers (parameter-free) or by a receiver bias.
 pub const SELF_SHADOW: ParamSpec = ParamSpec {
     key: "self_shadow",
-    kind: ParamKind::Choice(&["midpoint", "bias"]),
+    kind: ParamKind::Choice(SelfShadow::WORDS),
     default: "midpoint",
     help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
 };
@@ -26,32 +26,7 @@ pub enum SelfShadow {
     Bias,
 }
 
-impl SelfShadow {
-    /// The [`SELF_SHADOW`] word.
-    pub fn word(self) -> &'static str {
-        match self {
-            SelfShadow::Midpoint => "midpoint",
-            SelfShadow::Bias => "bias",
-        }
-    }
-}
-
-impl std::fmt::Display for SelfShadow {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.word())
-    }
-}
-
-impl FromParam for SelfShadow {
-    /// The [`SELF_SHADOW`] words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("midpoint") => Some(SelfShadow::Midpoint),
-            ParamValue::Choice("bias") => Some(SelfShadow::Bias),
-            _ => None,
-        }
-    }
-}
+crate::param_words!(SelfShadow { Midpoint = "midpoint", Bias = "bias" });
 
 /// `max_bias`: the clamp of [`midpoint`], in texel footprints at the far plane.
 pub const MAX_BIAS: ParamSpec = ParamSpec {
@@ -70,6 +45,41 @@ pub const SELF_SHADOW_SLOPE_BIAS: ParamSpec = ParamSpec {
     help: "self_shadow=bias: slope-scaled bias, texel footprints times min(tan(theta), 10)",
     ..SLOPE_BIAS
 };
+
+crate::typed_params! {
+    /// How an estimator with midpoint layers tells a receiver's own surface from a caster
+    /// (backprojection, packet-hsm): midpoints or a receiver bias ([`SELF_SHADOW`]), the midpoint
+    /// clamp, the bias pair and receiver-plane rejection ([`crate::receiver_plane`]); the
+    /// `shadow` group of their parameters, declared once here.
+    pub struct SelfShadowSettings {
+        /// Midpoint classification or a receiver bias.
+        self_shadow: SelfShadow = SELF_SHADOW,
+        /// Midpoint clamp, in texel footprints at the far plane.
+        max_bias: f32 = MAX_BIAS,
+        /// Constant receiver bias b0 (`self_shadow=bias`); with `receiver_plane=true`, the
+        /// receiver plane's tolerance in texel footprints (both modes).
+        bias: f32 = SELF_SHADOW_BIAS,
+        /// Slope-scaled receiver bias b1 (`self_shadow=bias`, `receiver_plane=false`).
+        slope_bias: f32 = SELF_SHADOW_SLOPE_BIAS,
+        /// Receiver-plane rejection ([`crate::receiver_plane`]).
+        receiver_plane: bool = RECEIVER_PLANE,
+    }
+}
+
+impl SelfShadowSettings {
+    /// Whether receivers are classified by midpoint layers (`self_shadow=midpoint`; else bias).
+    pub fn midpoint(&self) -> bool {
+        self.self_shadow == SelfShadow::Midpoint
+    }
+    /// The midpoint clamp in light-space depth for `view` (`max_bias` texel footprints at the far
+    /// plane, `w far / (n r)` each), or `None` under `self_shadow=bias`: the `midpoints` of a
+    /// [`LightSpaceRequest`](crate::light_space::LightSpaceRequest).
+    pub fn midpoint_clamp(&self, view: &LightView) -> Option<f32> {
+        let footprint = view.w * view.far / (view.n * view.r as f32);
+        self.midpoint()
+            .then_some((self.max_bias * footprint).min(f32::MAX))
+    }
+}
 
 /// Peels `k` layers (k >= 1). Layer 0 is the ordinary shadow map. Texels with fewer than m+1
 /// surfaces hold +inf in layer m.

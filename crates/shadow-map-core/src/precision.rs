@@ -18,7 +18,7 @@
 //! `unorm16`: the quantisation never adds acne, at the price of up to `s / 2` more
 //! peter-panning (measured in `scripts/depth-table.sh`).
 use crate::{
-    params::{FromParam, ParamKind, ParamSpec, ParamValue},
+    params::{ParamKind, ParamSpec},
     raster::DepthMap,
 };
 
@@ -37,24 +37,15 @@ pub enum DepthPrecision {
     Unorm16,
 }
 
+crate::param_words!(DepthPrecision { F32 = "f32", Unorm16 = "unorm16" });
+
 /// `depth`: the stored precision ([`DepthPrecision`]).
 pub const DEPTH: ParamSpec = ParamSpec {
     key: "depth",
-    kind: ParamKind::Choice(&["f32", "unorm16"]),
+    kind: ParamKind::Choice(DepthPrecision::WORDS),
     default: "f32",
     help: "stored shadow-map depth: 32-bit float, or 16-bit codes over [near, far] (half the memory; bias grows by half a code step)",
 };
-
-impl FromParam for DepthPrecision {
-    /// The [`DEPTH`] words; `None` for any other value.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice("f32") => Some(DepthPrecision::F32),
-            ParamValue::Choice("unorm16") => Some(DepthPrecision::Unorm16),
-            _ => None,
-        }
-    }
-}
 
 impl DepthPrecision {
     /// Bytes per stored texel.

@@ -33,17 +33,7 @@ pub enum Cull {
     Front,
 }
 
-impl crate::params::FromParam for Cull {
-    /// The words of a `cull` choice (`none`, `back`, `front`); `None` for any other value.
-    fn from_param(v: crate::params::ParamValue) -> Option<Self> {
-        match v {
-            crate::params::ParamValue::Choice("none") => Some(Cull::None),
-            crate::params::ParamValue::Choice("back") => Some(Cull::Back),
-            crate::params::ParamValue::Choice("front") => Some(Cull::Front),
-            _ => None,
-        }
-    }
-}
+crate::param_words!(Cull { None = "none", Back = "back", Front = "front" });
 
 /// Depth bias added to stored depths.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -408,7 +408,7 @@ fn gbuffer_structs_match_wgsl() {
         "gbuffer",
         "GBufferCamera",
         GBufferCamera,
-        [eye, t, forward, aspect, right, near, true_up, width, height, _pad0, _pad1, _pad2,]
+        [frame, t, aspect, near, width, height, _pad0, _pad1, _pad2]
     );
     check_layout!(
         "gbuffer",

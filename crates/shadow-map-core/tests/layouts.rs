@@ -2,11 +2,15 @@
 //! alignment, member offsets and member sizes on both sides, WGSL's taken from naga's layouter
 //! (after wgsl_to_wgpu). No GPU needed.
 #![cfg(feature = "gpu")]
-use shadow_map_core::gpu::{
-    midpoint::MidpointParams,
-    mssm::MinMaxParams,
-    raster::RasterParams,
-    shared::{LightViewUniform, ReceiverGpu},
+use glam::Vec3;
+use shadow_map_core::{
+    gpu::{
+        midpoint::MidpointParams,
+        mssm::MinMaxParams,
+        raster::RasterParams,
+        shared::{FrameGpu, LightViewUniform, ReceiverGpu},
+    },
+    LightFrame,
 };
 
 mod common;
@@ -14,10 +18,36 @@ use common::check_layout;
 
 #[test]
 fn light_view_uniform_matches_wgsl() {
-    check_layout!("shared", "LightViewUniform", LightViewUniform, [
-        "origin" => origin, "n" => n, "ex" => ex, "w" => w, "ey" => ey, "far" => far,
-        "ez" => ez, "r" => r, "window_min" => window_min, "delta" => delta, "_pad0" => _pad0,
-    ]);
+    check_layout!(
+        "shared",
+        "LightViewUniform",
+        LightViewUniform,
+        [frame, n, w, far, r, window_min, delta, _pad0,]
+    );
+}
+
+#[test]
+fn frame_gpu_matches_wgsl() {
+    // The WGSL `Frame` has no padding members: WGSL pads each vec3 to 16 bytes implicitly, where
+    // the Rust `FrameGpu` spells it out (`_pad0`..`_pad3`, covered by the span check).
+    check_layout!("shared", "Frame", FrameGpu, [origin, ex, ey, ez]);
+}
+
+#[test]
+fn frame_gpu_holds_the_frame() {
+    let f = LightFrame {
+        origin: Vec3::new(1.0, 2.0, 3.0),
+        ex: Vec3::X,
+        ey: Vec3::Y,
+        ez: Vec3::Z,
+    };
+    let g = FrameGpu::from(&f);
+    assert_eq!(g, FrameGpu::new(f.origin, f.ex, f.ey, f.ez));
+    let words: &[f32] = bytemuck::cast_slice(std::slice::from_ref(&g));
+    assert_eq!(
+        words,
+        &[1.0, 2.0, 3.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+    );
 }
 
 #[test]

@@ -2,8 +2,8 @@
 // light centre is behind the receiver's tangent plane (or the receiver behind a one-sided light).
 
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
-    let behind = est.light_one_sided != 0u && dot3(p - est.light_center, est.light_ez) <= 0.0;
-    if behind || dot3(n, est.light_center - p) <= 0.0 {
+    let behind = est.light_one_sided != 0u && dot3(p - est.light_frame.origin, est.light_frame.ez) <= 0.0;
+    if behind || dot3(n, est.light_frame.origin - p) <= 0.0 {
         return 0.0;
     }
     return 1.0;

@@ -5,12 +5,13 @@ use super::{
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
 };
 use crate::{
-    common::{self, MapSettings},
+    common::MapSettings,
     map_estimator::{filter_all, Filter},
 };
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        receivers::RECEIVERS_WGSL,
         redo_cut_receivers,
         shared::LightViewUniform,
         GpuContext, GpuScene,
@@ -36,9 +37,10 @@ pub trait GpuFilter: Filter {
 }
 
 /// The WGSL parts of the kernel of filter `F` reading a map of precision `depth`, in order.
-pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 4] {
+pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 5] {
     [
         ESTIMATE_HEAD_WGSL,
+        RECEIVERS_WGSL,
         kernel::depth_wgsl(depth),
         MAP_ESTIMATOR_WGSL,
         F::WGSL,
@@ -169,7 +171,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         v: &mut [f32],
         upload: impl FnOnce(&Self) -> Result<GpuMaps>,
     ) -> Result<()> {
-        common::check_len(receivers, v)?;
+        receivers.check_output(v)?;
         self.report = Report::default();
         let t = Instant::now();
         let maps = upload(self)?;
@@ -368,7 +370,7 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
         self.report = Report::default();
         self.maps = None;
         let settings = MapSettings::from_params(&self.params)?;
-        let (req, opts, depth) = (settings.request(), settings.view(), settings.depth);
+        let (req, opts, depth) = (settings.request(), settings.view, settings.depth);
         let ctx = self.ctx.clone();
         let builder = &self.builder;
         let maps = self.report.time("build", || {
@@ -389,11 +391,8 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        common::check_len(receivers, v)?;
-        let maps = self
-            .maps
-            .take()
-            .ok_or_else(|| Error::param("build", "estimate called before build"))?;
+        receivers.check_output(v)?;
+        let maps = shadow_map_core::estimator::built(self.maps.take())?;
         let out = self.run(&maps, &scene.light, receivers, v);
         self.maps = Some(maps);
         out

@@ -120,25 +120,15 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
 @compute @workgroup_size(WG)
 fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
-    if k >= arrayLength(&receivers) {
+    if !active_receiver(k) {
         return;
     }
-    let rec = receivers[k];
-    if rec.is_active == 0u {
-        v_out[k] = NAN_BITS;
-        return;
-    }
-    let x = estimate_receiver(rec.position, rec.normal);
+    let x = estimate_receiver(receivers[k].position, receivers[k].normal);
     // Out of the device's loop budget (shared.wgsl): flagged, redone on the CPU.
     if loop_limit_hit(est.probe) {
         v_out[k] = CUT_BITS;
         atomicAdd(&counters[2], 1u);
         return;
     }
-    if is_finite(x) {
-        v_out[k] = bitcast<u32>(clamp(x, 0.0, 1.0));
-    } else {
-        v_out[k] = 0u;
-        atomicAdd(&counters[1], 1u);
-    }
+    store_v(k, x);
 }

@@ -62,10 +62,10 @@ mod tests {
 
     #[test]
     fn every_shader_validates_with_naga() {
-        for (name, parts) in SHADERS {
-            if let Err(e) = kernel::validate_wgsl(name, &kernel::shader_source(parts)) {
-                panic!("{e}");
-            }
-        }
+        shadow_map_core::gpu::kernel::assert_shaders_valid(
+            SHADERS
+                .iter()
+                .map(|(name, parts)| (*name, kernel::shader_source(parts))),
+        );
     }
 }

@@ -7,7 +7,7 @@ use super::{
     maps::{GpuMaps, MapBuilder, MapDepth, MapOrigin},
 };
 use crate::{
-    common::{self, MapSettings},
+    common::MapSettings,
     multi_sample::{jitter, note_run, MultiSampleParams, DESCRIPTION, NAME, SPECS},
 };
 use bytemuck::Zeroable;
@@ -170,7 +170,7 @@ impl GpuMultiSample {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        common::check_len(receivers, v)?;
+        receivers.check_output(v)?;
         self.report = Report::default();
         let kernels = self.kernels(self.map.depth)?;
         let ctx = &*self.ctx;
@@ -313,7 +313,7 @@ impl SoftShadowEstimator for GpuMultiSample {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         let req = self.request();
         let points = self.sub_light_points(&scene.light);
-        let (opts, depth) = (self.map.view(), self.map.depth);
+        let (opts, depth) = (self.map.view, self.map.depth);
         let ctx = self.ctx.clone();
         let gpu_scene = GpuScene::upload(&ctx, scene)?;
         let builder = self.builder.clone();

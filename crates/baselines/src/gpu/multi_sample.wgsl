@@ -36,7 +36,7 @@ fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let pw = rec.position;
     let nw = rec.normal;
-    if dot3(nw, view.origin - pw) <= 0.0 {
+    if dot3(nw, view.frame.origin - pw) <= 0.0 {
         return; // the sample is behind the receiver's tangent plane
     }
     let p = view_to_light(view, pw);
@@ -71,7 +71,7 @@ fn finalize(@builtin(global_invocation_id) gid: vec3<u32>) {
         v_out[k] = NAN_BITS;
         return;
     }
-    let pl = frame_to_light(est.light_center, est.light_ex, est.light_ey, est.light_ez, rec.position);
+    let pl = frame_to_light(est.light_frame, rec.position);
     if est.light_one_sided != 0u && pl.z <= 0.0 {
         v_out[k] = 0u;
         return;

@@ -12,6 +12,6 @@ pub type GpuPcssShadow = GpuMapEstimator<Pcss>;
 impl GpuFilter for Pcss {
     const WGSL: &'static str = PCSS_WGSL;
     fn set_uniform(&self, u: &mut EstimateUniform) {
-        u.max_taps = self.max_taps();
+        u.max_taps = self.max_taps;
     }
 }

@@ -7,6 +7,7 @@
 //!
 //! [`LightViewUniform`]: super::shared::LightViewUniform
 //! [`ReceiverGpu`]: super::shared::ReceiverGpu
+use super::shared::FrameGpu;
 use crate::{Light, LightShape};
 use bytemuck::{Pod, Zeroable};
 
@@ -46,25 +47,20 @@ pub const OVERRIDES: &[(&str, f64)] = &[
 
 /// The light and the estimator's settings as the estimate kernels see them.
 ///
-/// The light frame is `Light::frame()` as the CPU computes it (`ey = ez x ex` in glam), so the
-/// shaders never rebuild it.
+/// The light frame is `Light::frame()` as the CPU computes it (origin the light centre C,
+/// `ey = ez x ex` in glam), so the shaders never rebuild it.
 #[repr(C, align(16))]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct EstimateUniform {
-    /// The light centre C (world).
-    pub light_center: [f32; 3],
+    /// `Light::frame()`: origin the light centre C (world), `ex` the tangent, `ey = ez x ex`,
+    /// `ez` the light normal.
+    pub light_frame: FrameGpu,
     /// [`LIGHT_RECT`], [`LIGHT_DISK`] or [`LIGHT_SPHERE`].
     pub light_shape: u32,
-    /// Light frame `e_x` (the tangent).
-    pub light_ex: [f32; 3],
     /// Rect: width `size[0]`; disk and sphere: the radius.
     pub light_size_x: f32,
-    /// Light frame `e_y = e_z x e_x`.
-    pub light_ey: [f32; 3],
     /// Rect: height `size[1]`; disk and sphere: the radius.
     pub light_size_y: f32,
-    /// Light frame `e_z` (the light normal).
-    pub light_ez: [f32; 3],
     /// 1 for one-sided emitters (rect, disk), 0 for a sphere.
     pub light_one_sided: u32,
     /// `Light::half_extent()`: `(l_x / 2, l_y / 2)`.
@@ -95,20 +91,16 @@ pub struct EstimateUniform {
 impl EstimateUniform {
     /// The light and the receiver-bias settings; filter fields zero.
     pub fn new(light: &Light, bias: f32, slope_bias: f32) -> Self {
-        let f = light.frame();
         let (shape, sx, sy) = match light.shape {
             LightShape::Rect { size } => (LIGHT_RECT, size[0], size[1]),
             LightShape::Disk { radius } => (LIGHT_DISK, radius, radius),
             LightShape::Sphere { radius } => (LIGHT_SPHERE, radius, radius),
         };
         EstimateUniform {
-            light_center: light.center.to_array(),
+            light_frame: FrameGpu::from(&light.frame()),
             light_shape: shape,
-            light_ex: f.ex.to_array(),
             light_size_x: sx,
-            light_ey: f.ey.to_array(),
             light_size_y: sy,
-            light_ez: f.ez.to_array(),
             light_one_sided: u32::from(light.one_sided()),
             light_half_extent: light.half_extent().to_array(),
             bias,
@@ -133,13 +125,10 @@ mod tests {
         crate::assert_wgsl_layout!(
             [super::super::shared::SHARED_WGSL, ESTIMATE_WGSL].concat(),
             EstimateUniform {
-                light_center,
+                light_frame,
                 light_shape,
-                light_ex,
                 light_size_x,
-                light_ey,
                 light_size_y,
-                light_ez,
                 light_one_sided,
                 light_half_extent,
                 bias,

@@ -9,13 +9,10 @@ override PLANE_ROUNDING: f32;
 override PLANE_SNAP: f32;
 
 struct EstimateUniform {
-    light_center: vec3<f32>,
+    light_frame: Frame,
     light_shape: u32,
-    light_ex: vec3<f32>,
     light_size_x: f32,
-    light_ey: vec3<f32>,
     light_size_y: f32,
-    light_ez: vec3<f32>,
     light_one_sided: u32,
     light_half_extent: vec2<f32>,
     bias: f32,

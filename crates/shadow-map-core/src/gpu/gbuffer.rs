@@ -51,7 +51,7 @@ use super::{
     kernel::{buffer_init, wgsl_module, Binding},
     raster::{begin_depth_tested_pass, nearest_surface_test, GpuScene, DEPTH_TEST_FORMAT},
     receivers::{GpuReceivers, RECEIVER_BYTES},
-    shared::ReceiverGpu,
+    shared::{FrameGpu, ReceiverGpu},
     GpuContext,
 };
 use crate::{
@@ -82,23 +82,21 @@ pub const NORMAL_T_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Floa
 pub const TRIANGLE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
 /// The camera as the G-buffer shaders see it; mirrors `GBufferCamera` in `gbuffer.wgsl`.
+///
+/// The camera's basis is a [`FrameGpu`] mapped as: `origin` = eye, `ex` = right,
+/// `ey` = true up, `ez` = forward, so view coordinates are
+/// `((p - origin)·ex, (p - origin)·ey, (p - origin)·ez)`.
 #[repr(C, align(16))]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct GBufferCamera {
-    /// Eye position.
-    pub eye: [f32; 3],
+    /// The eye and the basis: `origin` = eye, `ex` = right, `ey` = true up, `ez` = forward.
+    pub frame: FrameGpu,
     /// `tan(fov_y / 2)`, computed as [`Camera::ray_dir`] computes it.
     pub t: f32,
-    /// The basis's forward axis.
-    pub forward: [f32; 3],
     /// `width / height`, computed as [`Camera::ray_dir`] computes it.
     pub aspect: f32,
-    /// The basis's right axis.
-    pub right: [f32; 3],
     /// Near clip distance along `forward` ([`NEAR_REL`] times `|target - eye|`).
     pub near: f32,
-    /// The basis's true up axis.
-    pub true_up: [f32; 3],
     /// Image width in pixels.
     pub width: f32,
     /// Image height in pixels.
@@ -137,13 +135,10 @@ impl GBufferCamera {
             )));
         }
         Ok(GBufferCamera {
-            eye: camera.eye.to_array(),
+            frame: FrameGpu::new(camera.eye, b.right, b.true_up, b.forward),
             t,
-            forward: b.forward.to_array(),
             aspect,
-            right: b.right.to_array(),
             near,
-            true_up: b.true_up.to_array(),
             width: camera.width as f32,
             height: camera.height as f32,
             _pad0: 0.0,

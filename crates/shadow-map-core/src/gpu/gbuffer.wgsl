@@ -1,5 +1,5 @@
 // The camera G-buffer (GPU twin of receivers.rs `Receivers::from_camera`).
-// Prepended by shared.wgsl (ReceiverGpu). Loaded by gpu/gbuffer.rs.
+// Prepended by shared.wgsl (Frame, ReceiverGpu). Loaded by gpu/gbuffer.rs.
 //
 // Pass 1 (render, vs_main + fs_main): every triangle is one instance of three vertices, its three
 // corners instance attributes (GpuScene's vertex buffer read with a 48-byte instance stride), so
@@ -11,15 +11,13 @@
 // Pass 2 (compute, resolve): one thread per pixel writes ReceiverGpu, view depth Z and the
 // triangle index into storage buffers in image layout (j * width + i), a chunk of pixels at a time.
 
-// Mirrors gpu::gbuffer::GBufferCamera (checked by tests/gpu_gbuffer.rs).
+// Mirrors gpu::gbuffer::GBufferCamera (checked by tests/gpu_gbuffer.rs). The eye and the basis
+// are one Frame (shared.wgsl): origin = eye, ex = right, ey = true_up, ez = forward.
 struct GBufferCamera {
-    eye: vec3<f32>,
+    frame: Frame,
     t: f32,
-    forward: vec3<f32>,
     aspect: f32,
-    right: vec3<f32>,
     near: f32,
-    true_up: vec3<f32>,
     width: f32,
     height: f32,
     _pad0: f32,
@@ -55,8 +53,8 @@ const RESOLVE_WG: u32 = 64u;
 fn ray_dir(px: f32, py: f32) -> vec3<f32> {
     let ndc_x = px / cam.width * 2.0 - 1.0;
     let ndc_y = 1.0 - py / cam.height * 2.0;
-    return normalize(cam.forward + ndc_x * cam.t * cam.aspect * cam.right
-        + ndc_y * cam.t * cam.true_up);
+    return normalize(cam.frame.ez + ndc_x * cam.t * cam.aspect * cam.frame.ex
+        + ndc_y * cam.t * cam.frame.ey);
 }
 
 struct VsOut {
@@ -68,7 +66,8 @@ struct VsOut {
     @location(2) @interpolate(flat) tri: u32,
 }
 
-// View coordinates x = (p - eye).right, y = (p - eye).true_up, z = (p - eye).forward;
+// View coordinates x = (p - eye).right, y = (p - eye).true_up, z = (p - eye).forward (cam.frame's
+// origin, ex, ey, ez);
 //   clip = (x / (t aspect), y / t, NEAR, z)
 // so NDC (x / (z t aspect), y / (z t)) is the contract's (ndc_x, ndc_y) of the ray through p, wgpu's
 // framebuffer row 0 is NDC y = +1 (row 0 at the top, as the contract's j), the depth is NEAR / z
@@ -87,10 +86,10 @@ fn vs_main(
     } else if vi == 2u {
         p = c.xyz;
     }
-    let d = p - cam.eye;
-    let x = dot(d, cam.right);
-    let y = dot(d, cam.true_up);
-    let z = dot(d, cam.forward);
+    let d = p - cam.frame.origin;
+    let x = dot(d, cam.frame.ex);
+    let y = dot(d, cam.frame.ey);
+    let z = dot(d, cam.frame.ez);
     var out: VsOut;
     out.clip = vec4<f32>(x / (cam.t * cam.aspect), y / cam.t, cam.near, z);
     out.face = cross(b.xyz - a.xyz, c.xyz - a.xyz);
@@ -109,8 +108,8 @@ struct FsOut {
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
     let d = ray_dir(in.clip.x, in.clip.y);
-    let t = dot(in.v0 - cam.eye, in.face) / dot(d, in.face);
-    let z = t * dot(d, cam.forward);
+    let t = dot(in.v0 - cam.frame.origin, in.face) / dot(d, in.face);
+    let z = t * dot(d, cam.frame.ez);
     // Edge-on triangles (the ray parallel to the plane) and hits behind the eye are misses.
     if !(t > 0.0) || t > F32_MAX || !(z > 0.0) {
         discard;
@@ -156,11 +155,11 @@ fn resolve_main(
     let nt = textureLoad(normal_t, vec2<u32>(i, j), 0);
     // The same ray as the fragment that won the depth test (identical arithmetic).
     let d = ray_dir(f32(i) + 0.5, f32(j) + 0.5);
-    r.position = cam.eye + d * nt.w;
+    r.position = cam.frame.origin + d * nt.w;
     r.is_active = 1u;
     r.normal = nt.xyz;
     r._pad0 = 0.0;
     receivers[local] = r;
-    view_depth[local] = nt.w * dot(d, cam.forward);
+    view_depth[local] = nt.w * dot(d, cam.frame.ez);
     triangles[local] = tri;
 }

@@ -437,6 +437,17 @@ pub fn validate_wgsl(name: &str, src: &str) -> std::result::Result<naga::Module,
     Ok(module)
 }
 
+/// Panics naming every shader of `shaders` (`(name, complete source)`) that naga does not parse
+/// and validate ([`validate_wgsl`]): the unit test each crate runs over its shaders, so a WGSL
+/// error fails CPU-only CI.
+pub fn assert_shaders_valid<'a, S: AsRef<str>>(shaders: impl IntoIterator<Item = (&'a str, S)>) {
+    let errors: Vec<String> = shaders
+        .into_iter()
+        .filter_map(|(name, src)| validate_wgsl(name, src.as_ref()).err())
+        .collect();
+    assert!(errors.is_empty(), "{}", errors.join("\n"));
+}
+
 /// Checks a `#[repr(C)]` Rust mirror of a WGSL struct: `fields` are the Rust side's `(name,
 /// byte offset)` in declaration order (padding arrays spelled out as the WGSL names them) and
 /// `size` its `size_of`; the WGSL struct `name` in `src` must have the same member names at the

@@ -61,24 +61,24 @@ fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
     return v * rcp;
 }
 
-// shadow_map_core::light::LightFrame::to_light for the frame (origin, ex, ey, ez).
-fn frame_to_light(origin: vec3<f32>, ex: vec3<f32>, ey: vec3<f32>, ez: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
-    let d = p - origin;
-    return vec3<f32>(dot3(d, ex), dot3(d, ey), dot3(d, ez));
+// shadow_map_core::light::LightFrame::to_light for the frame f.
+fn frame_to_light(f: Frame, p: vec3<f32>) -> vec3<f32> {
+    let d = p - f.origin;
+    return vec3<f32>(dot3(d, f.ex), dot3(d, f.ey), dot3(d, f.ez));
 }
 
 // shadow_map_core::light::LightFrame::dir_to_light.
-fn frame_dir_to_light(ex: vec3<f32>, ey: vec3<f32>, ez: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot3(d, ex), dot3(d, ey), dot3(d, ez));
+fn frame_dir_to_light(f: Frame, d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot3(d, f.ex), dot3(d, f.ey), dot3(d, f.ez));
 }
 
 // The light view's LightFrame::to_light (shared.wgsl's to_light with glam's dot order).
 fn view_to_light(v: LightViewUniform, p: vec3<f32>) -> vec3<f32> {
-    return frame_to_light(v.origin, v.ex, v.ey, v.ez, p);
+    return frame_to_light(v.frame, p);
 }
 
 fn view_dir_to_light(v: LightViewUniform, d: vec3<f32>) -> vec3<f32> {
-    return frame_dir_to_light(v.ex, v.ey, v.ez, d);
+    return frame_dir_to_light(v.frame, d);
 }
 
 // shadow_map_core::light_view::LightView::contains.
@@ -210,13 +210,13 @@ fn front_fraction(shape: u32, size: vec2<f32>, p: vec3<f32>, n: vec3<f32>) -> f3
 fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let size = vec2<f32>(u.light_size_x, u.light_size_y);
     if u.light_shape != LIGHT_SPHERE {
-        let pl = frame_to_light(u.light_center, u.light_ex, u.light_ey, u.light_ez, p);
+        let pl = frame_to_light(u.light_frame, p);
         if pl.z <= 0.0 {
             return 0.0;
         }
-        return front_fraction(u.light_shape, size, pl, frame_dir_to_light(u.light_ex, u.light_ey, u.light_ez, n));
+        return front_fraction(u.light_shape, size, pl, frame_dir_to_light(u.light_frame, n));
     }
-    let d = u.light_center - p;
+    let d = u.light_frame.origin - p;
     let md = -d;
     let rcp = valid_rcp(md);
     if rcp == 0.0 {
@@ -224,13 +224,8 @@ fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
     }
     let dz = md * rcp;
     let ex = default_tangent(dz);
-    let ey = cross3(dz, ex);
-    return front_fraction(
-        u.light_shape,
-        size,
-        frame_to_light(u.light_center, ex, ey, dz, p),
-        frame_dir_to_light(ex, ey, dz, n),
-    );
+    let f = Frame(u.light_frame.origin, ex, cross3(dz, ex), dz);
+    return front_fraction(u.light_shape, size, frame_to_light(f, p), frame_dir_to_light(f, n));
 }
 
 // shadow_map_core::mssm::kernel_width: the blocker-search kernel width in texels (Guennebaud's

@@ -8,6 +8,23 @@ use super::{
 use crate::{receivers::Receivers, Error, Result};
 use std::num::NonZeroU64;
 
+/// The head and tail of a per-receiver estimate entry point, `active_receiver(k)` (inactive
+/// receivers get V = NaN) and `store_v(k, x)` (V clamped to [0, 1], non-finite results written as
+/// 0 and counted), for kernels that declare `receivers`, `v_out` and `counters` (see the file).
+pub const RECEIVERS_WGSL: &str = include_str!("receivers.wgsl");
+
+/// [`RECEIVERS_WGSL`] after the estimate head and the bindings it expects, as [`super::SHADERS`]
+/// validates it.
+pub const RECEIVERS_CHECK_WGSL: &str = concat!(
+    include_str!("shared.wgsl"),
+    include_str!("estimate.wgsl"),
+    include_str!("math.wgsl"),
+    "@group(0) @binding(0) var<storage, read> receivers: array<ReceiverGpu>;\n",
+    "@group(0) @binding(1) var<storage, read_write> v_out: array<u32>;\n",
+    "@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>, 2>;\n",
+    include_str!("receivers.wgsl")
+);
+
 /// Bytes of one receiver on the GPU.
 pub const RECEIVER_BYTES: u64 = std::mem::size_of::<ReceiverGpu>() as u64;
 

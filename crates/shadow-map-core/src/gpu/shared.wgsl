@@ -1,21 +1,28 @@
 // Mirrors crates/shadow-map-core/src/gpu/shared.rs field for field (checked by tests/layouts.rs).
 
-struct LightViewUniform {
+// gpu::shared::FrameGpu (named Frame here): an origin and three unit axes (world). The Rust twin spells out the
+// padding after each vec3 (_pad0.._pad3) that WGSL adds implicitly. Held by LightViewUniform
+// (frame), EstimateUniform (light_frame) and GBufferCamera (frame).
+struct Frame {
     origin: vec3<f32>,
-    n: f32,
     ex: vec3<f32>,
-    w: f32,
     ey: vec3<f32>,
-    far: f32,
     ez: vec3<f32>,
+}
+
+struct LightViewUniform {
+    frame: Frame,
+    n: f32,
+    w: f32,
+    far: f32,
     r: u32,
     window_min: vec2<f32>,
     delta: f32,
     _pad0: f32,
 }
 
-// `active` is a reserved word in WGSL: the Rust field `active` is `is_active` here (the only name
-// that differs; tests/layouts.rs maps it).
+// `active` is a reserved word in WGSL: the Rust field `active` is `is_active` here (the only member
+// name that differs; tests/layouts.rs maps it).
 struct ReceiverGpu {
     position: vec3<f32>,
     is_active: u32,
@@ -25,12 +32,12 @@ struct ReceiverGpu {
 
 // shadow_map_core::light::LightFrame::to_light
 fn to_light(v: LightViewUniform, p: vec3<f32>) -> vec3<f32> {
-    let d = p - v.origin;
-    return vec3<f32>(dot(d, v.ex), dot(d, v.ey), dot(d, v.ez));
+    let d = p - v.frame.origin;
+    return vec3<f32>(dot(d, v.frame.ex), dot(d, v.frame.ey), dot(d, v.frame.ez));
 }
 
 fn dir_to_light(v: LightViewUniform, d: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot(d, v.ex), dot(d, v.ey), dot(d, v.ez));
+    return vec3<f32>(dot(d, v.frame.ex), dot(d, v.frame.ey), dot(d, v.frame.ez));
 }
 
 // shadow_map_core::light_view::LightView::project: continuous texel coordinates.
