@@ -431,6 +431,30 @@ macro_rules! concat_specs {
 /// assert_eq!((d.resolution, d.kernel), (1024, 5));
 /// assert!(p.set("kernle", "5").is_err());
 /// ```
+///
+/// Groups declared once elsewhere (another `typed_params!` struct, e.g. the shared
+/// [`ViewOptions`](crate::light_view::ViewOptions)) follow the own fields after a `;`: each is a
+/// field of that type, and its table follows the own parameters in `SPECS`.
+///
+/// ```
+/// use shadow_map_core::{light_view::{ViewOptions, RESOLUTION}, Params};
+/// shadow_map_core::typed_params! {
+///     /// Settings with a group.
+///     pub struct WithView {
+///         /// Shadow-map side.
+///         resolution: u32 = RESOLUTION,
+///         ;
+///         /// Window and near/far choice.
+///         view: ViewOptions,
+///     }
+/// }
+/// let keys: Vec<_> = WithView::SPECS.iter().map(|s| s.key).collect();
+/// assert_eq!(keys, ["resolution", "fit", "nearfar"]);
+/// let mut p = Params::new(WithView::SPECS).unwrap();
+/// p.set("fit", "stable").unwrap();
+/// let w = WithView::from_params(&p).unwrap();
+/// assert_eq!(w.view.fit.word(), "stable");
+/// ```
 #[macro_export]
 macro_rules! typed_params {
     (
