@@ -330,17 +330,32 @@ fn rmse_against_the_reference_on_fixtures() {
     }
 }
 
-/// No NaN or inf on any fixture, both variants, and inactive receivers NaN.
+/// Fixtures with lit receivers beyond 87 degrees off the light normal, which accumulation's one
+/// view cannot hold (issue 17: several views); each must still be refused with the one-line
+/// error, so this list stays true.
+const REFUSED: &[&str] = &["backlit-pair", "backlit-stone"];
+
+/// No NaN or inf on any fixture, both variants, and inactive receivers NaN; the fixtures of
+/// [`REFUSED`] are a clear error instead.
 #[test]
 fn every_fixture_gives_v_in_range() {
     let names = fixture_names();
-    assert!(names.len() >= 12, "{names:?}");
+    assert!(names.len() >= 16, "{names:?}");
     for name in &names {
         let (s, r) = fixture(name, 24, 18);
         for variant in ["additive", "exact"] {
             let mut e = acc(&[("resolution", "128"), ("variant", variant), ("layers", "2")]);
-            let (v, _) = run(&mut e, &s, &r).unwrap();
-            check_contract(&v, &r);
+            match run(&mut e, &s, &r) {
+                Ok((v, _)) => {
+                    assert!(!REFUSED.contains(&name.as_str()), "{name} is no longer refused");
+                    check_contract(&v, &r);
+                }
+                Err(err) => assert!(
+                    REFUSED.contains(&name.as_str())
+                        && err.to_string().contains("outside the one shadow-map frustum"),
+                    "{name} {variant}: {err}"
+                ),
+            }
         }
     }
 }
