@@ -80,12 +80,25 @@ pub fn method(name: &str) -> Result<&'static Method> {
 
 /// A fresh estimator by registry name and backend, with default parameters. The GPU backend uses
 /// the process-wide [`core::gpu::GpuContext::shared`] device (Vulkan only).
+///
+/// Every estimator with a shadow map (a `resolution` parameter) comes wrapped in
+/// [`core::cascades::Cascaded`], which adds the `cascades`, `cascade_lambda` and `cascade_blend`
+/// parameters (one view set per camera-depth slice; one slice unless the receivers span a depth
+/// ratio above 4).
 pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstimator>> {
     let m = method(name)?;
-    match backend {
-        Backend::Cpu => (m.cpu)(),
-        Backend::Gpu => gpu_estimator(m),
+    with_cascades(match backend {
+        Backend::Cpu => (m.cpu)()?,
+        Backend::Gpu => gpu_estimator(m)?,
+    })
+}
+
+/// `e` wrapped in [`core::cascades::Cascaded`] when it has a shadow map, else `e`.
+fn with_cascades(e: Box<dyn SoftShadowEstimator>) -> Result<Box<dyn SoftShadowEstimator>> {
+    if e.params().get(core::light_view::RESOLUTION.key).is_none() {
+        return Ok(e);
     }
+    Ok(Box::new(core::cascades::Cascaded::new(e)?))
 }
 
 #[cfg(feature = "gpu")]
@@ -125,7 +138,7 @@ pub fn backends(name: &str) -> &'static [&'static str] {
 
 /// Every registered CPU estimator with default parameters.
 pub fn registry() -> Result<Vec<Box<dyn SoftShadowEstimator>>> {
-    METHODS.iter().map(|m| (m.cpu)()).collect()
+    METHODS.iter().map(|m| with_cascades((m.cpu)()?)).collect()
 }
 
 #[cfg(test)]

@@ -347,12 +347,17 @@ fn every_fixture_gives_v_in_range() {
             let mut e = acc(&[("resolution", "128"), ("variant", variant), ("layers", "2")]);
             match run(&mut e, &s, &r) {
                 Ok((v, _)) => {
-                    assert!(!REFUSED.contains(&name.as_str()), "{name} is no longer refused");
+                    assert!(
+                        !REFUSED.contains(&name.as_str()),
+                        "{name} is no longer refused"
+                    );
                     check_contract(&v, &r);
                 }
                 Err(err) => assert!(
                     REFUSED.contains(&name.as_str())
-                        && err.to_string().contains("outside the one shadow-map frustum"),
+                        && err
+                            .to_string()
+                            .contains("outside the one shadow-map frustum"),
                     "{name} {variant}: {err}"
                 ),
             }

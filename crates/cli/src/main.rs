@@ -302,8 +302,16 @@ fn render_frame(
     let t = Instant::now();
     let receivers = camera_receivers(scene, backend).map_err(|e| e.to_string())?;
     stages.push(("gbuffer".into(), ms(t)));
-    let (v, report) = shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
+    let (v, mut report) =
+        shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
     stages.extend(report.stages.iter().cloned());
+    if stats {
+        let density = shadow_map_core::cascades::texel_density_of(scene, &receivers, est.params());
+        if let Some((m, p95)) = density.and_then(|d| shadow_map_core::cascades::median_p95(&d)) {
+            report.note("texel_density_median", format!("{m:.3}"));
+            report.note("texel_density_p95", format!("{p95:.3}"));
+        }
+    }
     let t = Instant::now();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let img = report::visibility_image(scene, &receivers, v.clone())?;

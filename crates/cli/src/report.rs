@@ -79,6 +79,9 @@ pub struct Row {
     pub nonfinite: usize,
     /// Light-space bytes at the peak.
     pub light_space_bytes: usize,
+    /// Median and 95th percentile of the texel density (camera pixels per texel side,
+    /// docs/methods.md §1) of the light-centre views the estimator fits; NaN without a map.
+    pub texel_density: (f64, f64),
 }
 
 /// One flicker measurement.
@@ -353,6 +356,7 @@ fn run_one(
         frac_gt_0_1: f64::NAN,
         nonfinite: 0,
         light_space_bytes: 0,
+        texel_density: (f64::NAN, f64::NAN),
     };
     let t = Instant::now();
     let mut v = vec![f32::NAN; rec.len()];
@@ -369,6 +373,10 @@ fn run_one(
     row.estimate_ms = rep.total_ms("estimate") + rep.total_ms("readback");
     row.frame_ms = frame_ms;
     row.light_space_bytes = rep.light_space_bytes;
+    let density = shadow_map_core::cascades::texel_density_of(scene, rec, e.params());
+    if let Some((m, p95)) = density.and_then(|d| shadow_map_core::cascades::median_p95(&d)) {
+        row.texel_density = (m as f64, p95 as f64);
+    }
     let img = visibility_image(scene, rec, v)?;
     let s = score::score(&img, refimg).map_err(|e| e.to_string())?;
     row.rmse = s.rmse;
@@ -601,12 +609,12 @@ fn write_file(p: PathBuf, s: String) -> Result<(), String> {
 
 /// `results.csv`: one line per run.
 fn results_csv(rows: &[Row]) -> String {
-    let mut csv = String::from("fixture,algo,backend,setting,params,status,build_ms,estimate_ms,frame_ms,rmse,mae,p99,frac_gt_0_1,nonfinite,light_space_bytes\n");
+    let mut csv = String::from("fixture,algo,backend,setting,params,status,build_ms,estimate_ms,frame_ms,rmse,mae,p99,frac_gt_0_1,nonfinite,light_space_bytes,texel_density_median,texel_density_p95\n");
     for r in rows {
         let params: Vec<String> = r.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             csv_field(&r.fixture),
             csv_field(&r.algo),
             r.backend,
@@ -621,7 +629,9 @@ fn results_csv(rows: &[Row]) -> String {
             num(r.p99),
             num(r.frac_gt_0_1),
             r.nonfinite,
-            r.light_space_bytes
+            r.light_space_bytes,
+            num(r.texel_density.0),
+            num(r.texel_density.1)
         );
     }
     csv
@@ -654,6 +664,8 @@ fn results_json(
                 "frame_ms": jnum(r.frame_ms), "rmse": jnum(r.rmse), "mae": jnum(r.mae),
                 "p99": jnum(r.p99), "frac_gt_0_1": jnum(r.frac_gt_0_1),
                 "nonfinite": r.nonfinite, "light_space_bytes": r.light_space_bytes,
+                "texel_density_median": jnum(r.texel_density.0),
+                "texel_density_p95": jnum(r.texel_density.1),
             })
         })
         .collect();

@@ -5,6 +5,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod cascades;
 pub mod error;
 pub mod estimator;
 pub mod light;

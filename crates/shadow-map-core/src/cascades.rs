@@ -1,0 +1,591 @@
+//! Cascades along the camera's depth (common techniques, "cascaded shadow maps"; the practical
+//! split scheme of Zhang et al. 2006) and the texel-density figure (docs/methods.md §1,
+//! "Cascades and texel density").
+//!
+//! One light view from the light centre, fitted to every receiver, spends its texels evenly over
+//! the receivers' directions; a camera close to a long ground needs many texels near it and few
+//! far away. [`Cascaded`] runs any estimator once per slice of the receivers' camera depth, each
+//! run fitting its own view(s) to that slice only (the estimator's own fit, near/far and texel
+//! snapping apply per slice), so every estimator, on either backend, gets cascades without
+//! knowing of them. Receivers in a blend band at each split are estimated by both neighbouring
+//! cascades and V is blended linearly across the band, so it is continuous there; the report
+//! gives the largest and mean difference between the two cascades over the band (the jump the
+//! blend hides). Penumbra sizes are world-space quantities in every soft estimator here, so they
+//! do not change at a split; only what the resolution resolves does. One cascade's maps are alive
+//! at a time.
+use crate::{
+    camera::Camera,
+    estimator::{Backend, Report, SoftShadowEstimator},
+    light_view::{LightView, ViewOptions, RESOLUTION},
+    params::{ParamKind, ParamSpec, Params},
+    receivers::Receivers,
+    scene::Scene,
+    Result,
+};
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+use std::time::Instant;
+
+/// `cascades`: how many camera-depth slices ([`Cascaded`]).
+pub const CASCADES: ParamSpec = ParamSpec {
+    key: "cascades",
+    kind: ParamKind::Int {
+        min: 0,
+        max: MAX_CASCADES as i64,
+    },
+    default: "0",
+    help: "camera-depth cascades, one light view (set) fitted to each slice of the receivers: 0 = auto (one view unless the receivers' far/near camera-depth ratio exceeds 8 and one view's texel density p95 exceeds 2 pixels per texel; then ceil(log4 ratio), 2 to 4)",
+};
+/// `cascade_lambda`: the practical split scheme's weight ([`practical_splits`]).
+pub const CASCADE_LAMBDA: ParamSpec = ParamSpec {
+    key: "cascade_lambda",
+    kind: ParamKind::Float { min: 0.0, max: 1.0 },
+    default: "0.75",
+    help: "split scheme: lambda times the logarithmic split plus (1 - lambda) times the uniform one (Zhang et al. 2006)",
+};
+/// `cascade_blend`: the blend band's half width ([`cascade_weights`]).
+pub const CASCADE_BLEND: ParamSpec = ParamSpec {
+    key: "cascade_blend",
+    kind: ParamKind::Float { min: 0.0, max: 0.5 },
+    default: "0.1",
+    help: "blend band at each split, half width as a fraction of the nearer slice's depth range; V blends linearly across it",
+};
+
+/// Most cascades.
+pub const MAX_CASCADES: u32 = 8;
+/// Most cascades `cascades=0` (auto) picks.
+pub const MAX_AUTO_CASCADES: u32 = 4;
+
+crate::typed_params! {
+    /// The cascade settings [`Cascaded`] adds to an estimator's parameters.
+    pub struct CascadeSettings {
+        /// Number of slices (0: [`auto_count`]).
+        cascades: u32 = CASCADES,
+        /// Split scheme weight.
+        cascade_lambda: f32 = CASCADE_LAMBDA,
+        /// Blend band half width, relative.
+        cascade_blend: f32 = CASCADE_BLEND,
+    }
+}
+
+/// Camera-depth ratio at or below which `cascades=0` keeps one view.
+pub const AUTO_MIN_RATIO: f32 = 8.0;
+/// 95th percentile of the one-view texel density (camera pixels per texel side) at or below
+/// which `cascades=0` keeps one view.
+pub const AUTO_MAX_DENSITY: f32 = 2.0;
+
+/// The number of cascades `cascades=0` picks for receivers between camera depths `near` and
+/// `far` whose one view has a texel-density 95th percentile `p95` (computed only when needed):
+/// one view while the depth ratio is at most [`AUTO_MIN_RATIO`] or the one view already gives
+/// a texel per [`AUTO_MAX_DENSITY`] pixels or less (measured, issue 17: on `overlapping` and
+/// `stacked`, depth ratio 5.3 and p95 1.3 and 0.9, two cascades cost 1.5 to 2.8x the time for no
+/// gain); else `clamp(ceil(log4(far / near)), 2, 4)`, a depth ratio of about 4 per view.
+pub fn auto_count(near: f32, far: f32, p95: impl FnOnce() -> Option<f32>) -> u32 {
+    if !(near > 0.0 && far / near > AUTO_MIN_RATIO) {
+        return 1;
+    }
+    if !p95().is_some_and(|d| d > AUTO_MAX_DENSITY) {
+        return 1;
+    }
+    let k = ((far / near).ln() / 4f32.ln()).ceil();
+    (k as u32).clamp(2, MAX_AUTO_CASCADES)
+}
+
+/// The practical split scheme (Zhang et al. 2006): `k + 1` depths from `near` to `far`,
+/// `s_i = lambda near (far / near)^(i / k) + (1 - lambda) (near + (far - near) i / k)`; the
+/// first is `near` and the last `far` exactly.
+pub fn practical_splits(near: f32, far: f32, k: u32, lambda: f32) -> Vec<f32> {
+    let k = k.max(1);
+    let (n, f) = (near as f64, far as f64);
+    let mut s: Vec<f32> = (0..=k)
+        .map(|i| {
+            let t = i as f64 / k as f64;
+            let log = if n > 0.0 {
+                n * (f / n).powf(t)
+            } else {
+                n + (f - n) * t
+            };
+            let uni = n + (f - n) * t;
+            (lambda as f64 * log + (1.0 - lambda as f64) * uni) as f32
+        })
+        .collect();
+    s[0] = near;
+    s[k as usize] = far;
+    s
+}
+
+/// Half width of the blend band at each inner split `s_i` (index 1..k-1 of `splits`):
+/// `blend (s_i - s_{i-1})`, at most half of either neighbouring slice. Index 0 and k are 0.
+pub fn blend_half_widths(splits: &[f32], blend: f32) -> Vec<f32> {
+    let k = splits.len().saturating_sub(1);
+    (0..=k)
+        .map(|i| {
+            if i == 0 || i == k {
+                return 0.0;
+            }
+            let below = splits[i] - splits[i - 1];
+            let above = splits[i + 1] - splits[i];
+            (blend * below).min(0.5 * below).min(0.5 * above).max(0.0)
+        })
+        .collect()
+}
+
+/// The cascades a receiver at camera depth `d` belongs to, with their weights (summing to 1):
+/// one cascade away from the splits, two in a blend band, where the nearer cascade's weight
+/// falls linearly from 1 to 0 across `[s_i - h_i, s_i + h_i]`.
+pub fn cascade_weights(d: f32, splits: &[f32], half: &[f32]) -> [(usize, f32); 2] {
+    let k = splits.len() - 1;
+    let mut c = 0;
+    while c + 1 < k && d >= splits[c + 1] {
+        c += 1;
+    }
+    // Blend with the cascade below near its lower split, or with the one above near its upper.
+    if c > 0 && d < splits[c] + half[c] && half[c] > 0.0 {
+        let w_below = ((splits[c] + half[c] - d) / (2.0 * half[c])).clamp(0.0, 1.0);
+        return [(c - 1, w_below), (c, 1.0 - w_below)];
+    }
+    if c + 1 < k && d > splits[c + 1] - half[c + 1] && half[c + 1] > 0.0 {
+        let w_here = ((splits[c + 1] + half[c + 1] - d) / (2.0 * half[c + 1])).clamp(0.0, 1.0);
+        return [(c, w_here), (c + 1, 1.0 - w_here)];
+    }
+    [(c, 1.0), (c, 0.0)]
+}
+
+/// Camera depth of every receiver (`view_depth` when the receivers carry it, else the distance
+/// along `camera`'s view axis); `None` for inactive receivers.
+pub fn camera_depths(camera: &Camera, receivers: &Receivers) -> Vec<Option<f32>> {
+    let fwd = camera.basis().forward;
+    (0..receivers.len())
+        .map(|k| {
+            if !receivers.active[k] {
+                return None;
+            }
+            let d = match &receivers.view_depth {
+                Some(vd) if vd[k].is_finite() => vd[k],
+                _ => (receivers.position[k] - camera.eye).dot(fwd),
+            };
+            Some(d)
+        })
+        .collect()
+}
+
+/// Texel density of `view` at each receiver, in camera pixels: the linear size of the patch of
+/// the receiver's surface one shadow-map texel covers, over that of the patch one camera pixel
+/// covers (the square root of the area ratio; 1: a texel per pixel, 10: ten pixels per texel
+/// side). A tan-space area `a` seen at angle `alpha` off an axis covers `a z^2 cos(alpha) /
+/// cos(beta)` of a surface at axial depth z whose normal makes `beta` with the ray; the texel's is
+/// `a = (w / (n r))^2`, the pixel's `a = (2 tan(fov_y / 2) / height)^2`. NaN for inactive
+/// receivers and receivers outside the view.
+pub fn texel_density(view: &LightView, camera: &Camera, receivers: &Receivers) -> Vec<f32> {
+    let basis = camera.basis();
+    let t_pix = 2.0 * (camera.fov_y_deg.to_radians() * 0.5).tan() / camera.height.max(1) as f32;
+    let t_tex = view.delta() / view.n;
+    (0..receivers.len())
+        .map(|k| {
+            if !receivers.active[k] {
+                return f32::NAN;
+            }
+            let (p, nrm) = (receivers.position[k], receivers.normal[k]);
+            let q = view.frame.to_light(p);
+            if !(q.z > 0.0) || !view.contains(view.project(q)) {
+                return f32::NAN;
+            }
+            let area = |t: f32, axial: f32, dist: f32, ray: glam::Vec3| {
+                let cos_a = (axial / dist).max(1e-6);
+                let cos_b = nrm.dot(ray).abs().max(1e-3);
+                t * t * axial * axial * cos_a / cos_b
+            };
+            let lr = (p - view.frame.origin).normalize_or_zero();
+            let texel = area(t_tex, q.z, q.length(), lr);
+            let cr = p - camera.eye;
+            let pixel = area(
+                t_pix,
+                cr.dot(basis.forward),
+                cr.length(),
+                cr.normalize_or_zero(),
+            );
+            (texel / pixel).sqrt()
+        })
+        .collect()
+}
+
+/// Median and 95th percentile of the finite values of `d` (None when there are none).
+pub fn median_p95(d: &[f32]) -> Option<(f32, f32)> {
+    let mut v: Vec<f32> = d.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f32::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    Some((at(0.5), at(0.95)))
+}
+
+/// The parameter table of `inner` followed by [`CascadeSettings::SPECS`], made once per table.
+fn combined_specs(inner: &'static [ParamSpec]) -> &'static [ParamSpec] {
+    static TABLES: OnceLock<Mutex<HashMap<usize, &'static [ParamSpec]>>> = OnceLock::new();
+    let tables = TABLES.get_or_init(|| Mutex::new(HashMap::new()));
+    let mut t = tables.lock().unwrap_or_else(|e| e.into_inner());
+    t.entry(inner.as_ptr() as usize).or_insert_with(|| {
+        let mut v = inner.to_vec();
+        v.extend_from_slice(CascadeSettings::SPECS);
+        Box::leak(v.into_boxed_slice())
+    })
+}
+
+/// The split depths (k + 1 of them) `settings` gives receivers at camera depths `depths`: one
+/// slice (the nearest and farthest depth) unless `cascades` or [`auto_count`] (with the one-view
+/// density `p95`) asks for more.
+pub fn plan_splits(
+    settings: &CascadeSettings,
+    depths: &[Option<f32>],
+    p95: impl FnOnce() -> Option<f32>,
+) -> Vec<f32> {
+    let (mut near, mut far) = (f32::INFINITY, 0.0f32);
+    for d in depths.iter().flatten() {
+        near = near.min(*d);
+        far = far.max(*d);
+    }
+    let near = near.max(1e-6 * far);
+    let k = match settings.cascades {
+        0 => auto_count(near, far, p95),
+        k => k,
+    };
+    if !(far > near) || k <= 1 {
+        return vec![near, far];
+    }
+    practical_splits(near, far, k, settings.cascade_lambda)
+}
+
+/// The split depths and, per receiver, the cascades it belongs to with their weights
+/// ([`cascade_weights`]; `None` for inactive receivers) under `settings`, for an estimator whose
+/// own parameters are `inner` (its one-view texel density decides `cascades=0`).
+pub type Plan = (Vec<f32>, Vec<Option<[(usize, f32); 2]>>);
+
+/// The [`Plan`] for `receivers` of `scene`.
+pub fn plan(
+    settings: &CascadeSettings,
+    scene: &Scene,
+    receivers: &Receivers,
+    inner: &Params,
+) -> Plan {
+    let depths = camera_depths(&scene.camera, receivers);
+    let p95 = || {
+        let d = view_density(scene, receivers, inner)?;
+        median_p95(&d).map(|m| m.1)
+    };
+    let splits = plan_splits(settings, &depths, p95);
+    let half = blend_half_widths(&splits, settings.cascade_blend);
+    let weights = depths
+        .iter()
+        .map(|d| d.map(|d| cascade_weights(d, &splits, &half)))
+        .collect();
+    (splits, weights)
+}
+
+/// `receivers` with only those of cascade `c` active.
+fn cascade_receivers(
+    receivers: &Receivers,
+    weights: &[Option<[(usize, f32); 2]>],
+    c: usize,
+) -> Receivers {
+    let mut sub = receivers.clone();
+    for (i, w) in weights.iter().enumerate() {
+        sub.active[i] = w.is_some_and(|w| w.iter().any(|(cc, x)| *cc == c && *x > 0.0));
+    }
+    sub
+}
+
+/// The texel density ([`texel_density`]) at each receiver of the light-centre view(s) an
+/// estimator with parameters `params` fits: its `resolution`, `fit` and `nearfar`, per cascade
+/// when `params` holds [`CascadeSettings`] (the receivers of a blend band take the farther
+/// cascade's). Estimators over sub-lights fit slightly smaller views of the same kind. `None`
+/// for an estimator without a map.
+pub fn texel_density_of(scene: &Scene, receivers: &Receivers, params: &Params) -> Option<Vec<f32>> {
+    let Ok(settings) = CascadeSettings::from_params(params) else {
+        return view_density(scene, receivers, params);
+    };
+    let (splits, weights) = plan(&settings, scene, receivers, params);
+    let mut out = vec![f32::NAN; receivers.len()];
+    for c in 0..splits.len() - 1 {
+        let sub = cascade_receivers(receivers, &weights, c);
+        for (i, x) in view_density(scene, &sub, params)?.into_iter().enumerate() {
+            if sub.active[i] && x.is_finite() {
+                out[i] = x;
+            }
+        }
+    }
+    Some(out)
+}
+
+/// The texel density of the one light-centre view an estimator with parameters `params` fits
+/// for `receivers` (`None` without a map or when the fit fails).
+fn view_density(scene: &Scene, receivers: &Receivers, params: &Params) -> Option<Vec<f32>> {
+    let r: u32 = params.typed(&RESOLUTION).ok()?;
+    let opts = ViewOptions::from_params(params).ok()?;
+    let light = &scene.light;
+    let (view, _) = LightView::fit_with(
+        scene,
+        receivers,
+        light.frame(),
+        light.half_extent(),
+        r,
+        &opts,
+    )
+    .ok()?;
+    Some(texel_density(&view, &scene.camera, receivers))
+}
+
+/// Any estimator run once per camera-depth cascade (see the module documentation); with one
+/// cascade it is the estimator itself (and a `cascades` note).
+pub struct Cascaded {
+    inner: Box<dyn SoftShadowEstimator>,
+    params: Params,
+    settings: CascadeSettings,
+    /// The plan of the last build (one slice: the inner estimator was built on every receiver).
+    plan: Option<Plan>,
+    report: Report,
+}
+
+impl Cascaded {
+    /// `inner` with the cascade parameters appended to its table, at their defaults.
+    pub fn new(inner: Box<dyn SoftShadowEstimator>) -> Result<Self> {
+        let mut params = Params::new(combined_specs(inner.params().specs()))?;
+        for s in inner.params().specs() {
+            if let Some(v) = inner.params().get(s.key) {
+                params.set(s.key, &v.to_string())?;
+            }
+        }
+        Ok(Cascaded {
+            settings: CascadeSettings::from_params(&params)?,
+            inner,
+            params,
+            plan: None,
+            report: Report::default(),
+        })
+    }
+}
+
+impl SoftShadowEstimator for Cascaded {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn description(&self) -> &'static str {
+        self.inner.description()
+    }
+    fn backend(&self) -> Backend {
+        self.inner.backend()
+    }
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
+        if CascadeSettings::SPECS.iter().any(|s| s.key == key) {
+            let mut p = self.params.clone();
+            p.set(key, value)?;
+            self.settings = CascadeSettings::from_params(&p)?;
+            self.params = p;
+            return Ok(());
+        }
+        self.inner.set_param(key, value)?;
+        self.params.set(key, value)
+    }
+    fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        self.report = Report::default();
+        let plan = plan(&self.settings, scene, receivers, self.inner.params());
+        let one = plan.0.len() == 2;
+        self.plan = Some(plan);
+        if one {
+            return self.inner.build(scene, receivers);
+        }
+        Ok(()) // each cascade is built inside `estimate`, one at a time
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        receivers.check_output(v)?;
+        let (splits, weights) = crate::estimator::built(self.plan.clone())?;
+        if weights.len() != receivers.len() {
+            return Err(crate::Error::Receivers(format!(
+                "estimate has {} receivers, the build had {}",
+                receivers.len(),
+                weights.len()
+            )));
+        }
+        if splits.len() == 2 {
+            self.inner.estimate(scene, receivers, v)?;
+            self.report = self.inner.report();
+            self.report.note("cascades", 1);
+            return Ok(());
+        }
+        let k = splits.len() - 1;
+        let mut acc = vec![0.0f32; receivers.len()];
+        // V of the previous cascade, for the jump over each band.
+        let mut prev: Vec<f32> = Vec::new();
+        let (mut jump_max, mut jump_sum, mut jump_n) = (0.0f32, 0.0f64, 0usize);
+        let mut report = Report::default();
+        let mut ms = Vec::with_capacity(k);
+        for c in 0..k {
+            let sub = cascade_receivers(receivers, &weights, c);
+            let t = Instant::now();
+            let mut vc = vec![f32::NAN; receivers.len()];
+            if sub.active.iter().any(|a| *a) {
+                self.inner.build(scene, &sub)?;
+                self.inner.estimate(scene, &sub, &mut vc)?;
+            }
+            ms.push(t.elapsed().as_secs_f64() * 1e3);
+            let r = self.inner.report();
+            for (name, t) in r.stages {
+                match report.stages.iter_mut().find(|s| s.0 == name) {
+                    Some(s) => s.1 += t,
+                    None => report.stages.push((name, t)),
+                }
+            }
+            report.light_space_bytes = report.light_space_bytes.max(r.light_space_bytes);
+            if c == 0 {
+                report.notes = r.notes;
+            }
+            for (i, w) in weights.iter().enumerate() {
+                let Some(w) = w else { continue };
+                for (cc, x) in w {
+                    if *cc == c && *x > 0.0 {
+                        acc[i] += x * vc[i];
+                        if c > 0 && w[0].0 == c - 1 && w[0].1 > 0.0 && prev[i].is_finite() {
+                            let j = (prev[i] - vc[i]).abs();
+                            jump_max = jump_max.max(j);
+                            jump_sum += j as f64;
+                            jump_n += 1;
+                        }
+                    }
+                }
+            }
+            prev = vc;
+        }
+        for (i, out) in v.iter_mut().enumerate() {
+            *out = if receivers.active[i] {
+                acc[i].clamp(0.0, 1.0)
+            } else {
+                f32::NAN
+            };
+        }
+        report.note("cascades", k);
+        let list = |x: &[f32]| {
+            x.iter()
+                .map(|s| format!("{s:.3}"))
+                .collect::<Vec<_>>()
+                .join(",")
+        };
+        report.note("cascade_splits", list(&splits));
+        let ms32: Vec<f32> = ms.iter().map(|x| *x as f32).collect();
+        report.note("cascade_ms", list(&ms32));
+        report.note("cascade_jump_max", format!("{jump_max:.4}"));
+        report.note(
+            "cascade_jump_mean",
+            format!("{:.4}", jump_sum / jump_n.max(1) as f64),
+        );
+        report.note("cascade_band_receivers", jump_n);
+        self.report = report;
+        Ok(())
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_run_from_near_to_far_and_mix_log_and_uniform() {
+        let s = practical_splits(1.0, 16.0, 4, 1.0);
+        for (a, b) in s.iter().zip([1.0, 2.0, 4.0, 8.0, 16.0]) {
+            assert!((a - b).abs() < 1e-5, "{s:?}");
+        }
+        let u = practical_splits(1.0, 17.0, 4, 0.0);
+        for (a, b) in u.iter().zip([1.0, 5.0, 9.0, 13.0, 17.0]) {
+            assert!((a - b).abs() < 1e-5, "{u:?}");
+        }
+        let m = practical_splits(1.0, 16.0, 4, 0.5);
+        assert!((m[1] - 0.5 * (2.0 + 4.75)).abs() < 1e-5, "{m:?}");
+    }
+
+    #[test]
+    fn auto_count_follows_the_depth_ratio() {
+        let dense = || Some(6.0);
+        assert_eq!(auto_count(1.0, 8.0, dense), 1);
+        assert_eq!(auto_count(1.0, 8.1, dense), 2);
+        assert_eq!(auto_count(1.0, 60.0, dense), 3);
+        assert_eq!(auto_count(0.7, 190.0, dense), 4);
+        assert_eq!(auto_count(0.0, 1.0, dense), 1);
+        assert_eq!(auto_count(1.0, 60.0, || Some(1.9)), 1);
+        assert_eq!(auto_count(1.0, 60.0, || None), 1);
+    }
+
+    #[test]
+    fn weights_sum_to_one_and_are_continuous() {
+        let s = practical_splits(1.0, 64.0, 3, 0.75);
+        let h = blend_half_widths(&s, 0.1);
+        let mut last: Option<f32> = None;
+        let mut d = 1.0f32;
+        while d <= 64.0 {
+            let w = cascade_weights(d, &s, &h);
+            assert!((w[0].1 + w[1].1 - 1.0).abs() < 1e-6, "{d}: {w:?}");
+            // The weight of cascade 0 as a function of d moves by at most the band's slope.
+            let w0: f32 = w.iter().filter(|x| x.0 == 0).map(|x| x.1).sum();
+            if let Some(l) = last {
+                assert!((w0 - l).abs() <= 0.01 / (2.0 * h[1]) + 1e-4, "{d}");
+            }
+            last = Some(w0);
+            d += 0.01;
+        }
+        assert_eq!(cascade_weights(1.0, &s, &h), [(0, 1.0), (0, 0.0)]);
+        assert_eq!(cascade_weights(64.0, &s, &h)[0], (2, 1.0));
+    }
+
+    /// Light and camera both straight above a ground point, looking down: one texel covers
+    /// `(w / (n r)) H` on the ground, one pixel `2 tan(fov / 2) / height * Hc`.
+    #[test]
+    fn texel_density_has_its_closed_form_on_axis() {
+        use crate::light::LightFrame;
+        use glam::{Vec2, Vec3};
+        let (h, hc) = (10.0f32, 4.0f32);
+        let frame = LightFrame {
+            origin: Vec3::new(0.0, h, 0.0),
+            ex: Vec3::X,
+            ey: Vec3::Z,
+            ez: -Vec3::Y,
+        };
+        let view = LightView {
+            frame,
+            n: 1.0,
+            far: 20.0,
+            window_min: Vec2::splat(-0.5),
+            w: 1.0,
+            r: 100,
+        };
+        let camera = Camera {
+            eye: Vec3::new(0.0, hc, 0.0),
+            target: Vec3::ZERO,
+            up: Vec3::Z,
+            fov_y_deg: 60.0,
+            width: 80,
+            height: 60,
+        };
+        let rec =
+            Receivers::from_points(vec![Vec3::ZERO, Vec3::new(0.0, 0.0, 9.0)], vec![Vec3::Y; 2])
+                .unwrap();
+        let d = texel_density(&view, &camera, &rec);
+        let want = (0.01 * h) / (2.0 * 30f32.to_radians().tan() / 60.0 * hc);
+        assert!((d[0] - want).abs() < 1e-4 * want, "{} vs {want}", d[0]);
+        assert!(d[1].is_nan(), "outside the window: {}", d[1]);
+    }
+
+    #[test]
+    fn median_and_p95_ignore_nan() {
+        let d: Vec<f32> = (1..=100).map(|x| x as f32).chain([f32::NAN]).collect();
+        let (m, p) = median_p95(&d).unwrap();
+        assert!(
+            (50.0..=51.0).contains(&m) && (95.0..=96.0).contains(&p),
+            "{m} {p}"
+        );
+        assert!(median_p95(&[f32::NAN]).is_none());
+    }
+}

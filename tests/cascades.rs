@@ -1,0 +1,151 @@
+//! Cascades along the camera's depth (issue 17; docs/methods.md §1 "Cascades and texel density").
+//!
+//! On `long-ground` (a 200 m ground seen from 0.7 m up, a depth ratio of about 60), three
+//! cascades at r = 512 must at least halve the RMSE of one view for every soft estimator with a
+//! light-centre or sub-light map, on every backend, and must raise the texel density (fewer
+//! pixels per texel); V must stay continuous across each split (mean difference between the two
+//! cascades over the blend bands at most 0.01). With one cascade the wrapper is the estimator
+//! itself, bit for bit.
+//!
+//! `cargo test --test cascades -- --nocapture` prints the figures.
+mod support;
+use shadow_map_core::{run, Receivers, Scene, SoftShadowEstimator};
+use softshadow::{backends, estimator, Backend};
+use test_support::fixtures::fixture;
+
+/// Image size (a quarter of the fixture's 160 x 120 per side would lose the far posts).
+const W: u32 = 80;
+const H: u32 = 60;
+
+fn rmse(v: &[f32], reference: &[f32], rec: &Receivers) -> f64 {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for k in 0..v.len() {
+        if rec.active[k] {
+            s += ((v[k] - reference[k]) as f64).powi(2);
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64).sqrt()
+}
+
+fn note(e: &dyn SoftShadowEstimator, key: &str) -> Option<String> {
+    e.report()
+        .notes
+        .iter()
+        .find(|n| n.0 == key)
+        .map(|n| n.1.clone())
+}
+
+fn reference(scene: &Scene, rec: &Receivers) -> Vec<f32> {
+    let mut e = estimator("reference", Backend::Cpu).unwrap();
+    e.set_param("spp", "256").unwrap();
+    run(e.as_mut(), scene, rec).unwrap().0
+}
+
+fn run_with(
+    algo: &str,
+    backend: Backend,
+    kv: &[(&str, &str)],
+    scene: &Scene,
+    rec: &Receivers,
+) -> (Vec<f32>, Box<dyn SoftShadowEstimator>) {
+    let mut e = estimator(algo, backend).unwrap();
+    for (k, v) in kv {
+        e.set_param(k, v).unwrap();
+    }
+    let (v, _) = run(e.as_mut(), scene, rec).unwrap();
+    (v, e)
+}
+
+#[test]
+fn cascades_halve_the_error_on_a_long_ground() {
+    let (scene, rec) = fixture("long-ground", W, H);
+    let truth = reference(&scene, &rec);
+    let mut failures = Vec::new();
+    for algo in [
+        "pcss",
+        "multi-sample",
+        "backprojection",
+        "accumulation",
+        "packet-hsm",
+    ] {
+        for &b in backends(algo) {
+            let Some(backend) = support::runnable(b, "cascades_halve_the_error_on_a_long_ground")
+            else {
+                continue;
+            };
+            let one = [("resolution", "512"), ("cascades", "1")];
+            let three = [("resolution", "512"), ("cascades", "3")];
+            let (v1, _) = run_with(algo, backend, &one, &scene, &rec);
+            let (v3, e3) = run_with(algo, backend, &three, &scene, &rec);
+            let (r1, r3) = (rmse(&v1, &truth, &rec), rmse(&v3, &truth, &rec));
+            let jump: f64 = note(e3.as_ref(), "cascade_jump_mean")
+                .unwrap()
+                .parse()
+                .unwrap();
+            let d1 = shadow_map_core::cascades::texel_density_of(&scene, &rec, &{
+                let (_, e) = run_with(algo, backend, &one, &scene, &rec);
+                e.params().clone()
+            });
+            let d3 = shadow_map_core::cascades::texel_density_of(&scene, &rec, e3.params());
+            let med =
+                |d: Option<Vec<f32>>| shadow_map_core::cascades::median_p95(&d.unwrap()).unwrap();
+            let (m1, m3) = (med(d1), med(d3));
+            println!(
+                "{algo} {b}: RMSE {r1:.4} -> {r3:.4}, texel density median/p95 {:.2}/{:.2} -> {:.2}/{:.2}, band jump mean {jump:.4}",
+                m1.0, m1.1, m3.0, m3.1
+            );
+            if !(r3 <= 0.5 * r1) {
+                failures.push(format!("{algo} {b}: RMSE {r1:.4} -> {r3:.4}, not halved"));
+            }
+            if !(m3.0 < m1.0 && m3.1 < m1.1) {
+                failures.push(format!("{algo} {b}: texel density {m1:?} -> {m3:?}"));
+            }
+            if !(jump <= 0.01) {
+                failures.push(format!("{algo} {b}: band jump mean {jump}"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn one_cascade_is_the_estimator_itself() {
+    let (scene, rec) = fixture("bunny", 48, 36);
+    for algo in ["hard", "pcss", "backprojection", "deep-shadow"] {
+        let (v, e) = run_with(algo, Backend::Cpu, &[("resolution", "256")], &scene, &rec);
+        assert_eq!(note(e.as_ref(), "cascades").as_deref(), Some("1"), "{algo}");
+        let mut inner = match algo {
+            "hard" => {
+                Box::new(baselines::HardShadow::new().unwrap()) as Box<dyn SoftShadowEstimator>
+            }
+            "pcss" => Box::new(baselines::PcssShadow::new().unwrap()),
+            "backprojection" => Box::new(backprojection::CpuBackprojection::new().unwrap()),
+            _ => Box::new(deep_shadow::CpuDeepShadow::new().unwrap()),
+        };
+        inner.set_param("resolution", "256").unwrap();
+        let (w, _) = run(inner.as_mut(), &scene, &rec).unwrap();
+        let same = v.iter().zip(&w).all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "{algo}: the one-cascade wrapper changed V");
+    }
+}
+
+#[test]
+fn cascade_parameters_are_checked() {
+    let mut e = estimator("pcss", Backend::Cpu).unwrap();
+    for (k, v) in [
+        ("cascades", "9"),
+        ("cascade_lambda", "1.5"),
+        ("cascade_blend", "0.6"),
+    ] {
+        assert!(e.set_param(k, v).is_err(), "{k}={v}");
+    }
+    e.set_param("cascades", "2").unwrap();
+    e.set_param("max_taps", "8").unwrap();
+    assert_eq!(e.params().int("cascades"), 2);
+    assert_eq!(e.params().int("max_taps"), 8);
+    assert!(e.set_param("max_tapz", "8").is_err());
+    // The reference has no map and no cascades.
+    let r = estimator("reference", Backend::Cpu).unwrap();
+    assert!(r.params().get("cascades").is_none());
+}
