@@ -8,6 +8,8 @@
 //! itself, bit for bit.
 //!
 //! `cargo test --test cascades -- --nocapture` prints the figures.
+// `!(a <= b)` is deliberate: it is true for NaN, which must fail.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 mod support;
 use shadow_map_core::{run, Receivers, Scene, SoftShadowEstimator};
 use softshadow::{backends, estimator, Backend};

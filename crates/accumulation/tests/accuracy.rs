@@ -446,34 +446,9 @@ fn grazing_plane_is_not_self_shadowed() {
 #[test]
 fn grazing_receiver_under_an_occluder_loses_the_front_light() {
     let radius = 0.5f32;
-    let normal = -Vec3::X;
-    let l = Light {
-        shape: LightShape::Disk { radius },
-        center: Vec3::new(3.0, 0.0, 0.0),
-        normal,
-        tangent: default_tangent(normal),
-    };
-    // A thin wall at x = 1.5 from height 0.1 to 2, wide in z.
-    let wall = cuboid(Vec3::new(1.49, 0.1, -3.0), Vec3::new(1.51, 2.0, 3.0));
-    let ground = quad(-2.0, -2.0, 1.0, 2.0, 0.0);
-    let s = Scene::from_meshes(
-        "grazing-occluded",
-        camera(),
-        l,
-        vec![(ground, 1.0), (wall, 1.0)],
-    )
-    .unwrap();
-    let mut pos = Vec::new();
-    for a in 0..5 {
-        for b in 0..5 {
-            pos.push(Vec3::new(
-                -0.8 + 0.15 * a as f32,
-                0.0,
-                -0.4 + 0.2 * b as f32,
-            ));
-        }
-    }
-    let r = points(pos.clone(), Vec3::Y);
+    let s = test_support::fixtures::grazing_wall(8, 8);
+    let r = test_support::fixtures::ground_grid(5, 5, (-0.8, 0.15), (-0.4, 0.2));
+    let pos = r.position.clone();
     let seg = |t: f64| {
         let t = t.clamp(-1.0, 1.0);
         (t.acos() - t * (1.0 - t * t).sqrt()) / std::f64::consts::PI

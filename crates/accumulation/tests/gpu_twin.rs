@@ -462,33 +462,11 @@ fn every_fit_and_nearfar_match_on_both_twins() {
 /// `receiver_plane=false`. The twins agree within 2e-3 on all but 2% of the receivers.
 #[test]
 fn grazing_receivers_match_on_both_twins() {
-    use shadow_map_core::{light::default_tangent, Light, LightShape};
     let Some(ctx) = test_support::gpu("grazing_receivers_match_on_both_twins") else {
         return;
     };
-    let normal = -Vec3::X;
-    let disk = Light {
-        shape: LightShape::Disk { radius: 0.5 },
-        center: Vec3::new(3.0, 0.0, 0.0),
-        normal,
-        tangent: default_tangent(normal),
-    };
-    let wall =
-        test_support::fixtures::cuboid(Vec3::new(1.49, 0.1, -3.0), Vec3::new(1.51, 2.0, 3.0));
-    let ground = test_support::fixtures::quad(-2.0, -2.0, 1.0, 2.0, 0.0);
-    let cam = test_support::fixtures::camera(8, 8);
-    let s1 = Scene::from_meshes("grazing", cam, disk, vec![(ground, 1.0), (wall, 1.0)]).unwrap();
-    let mut pos = Vec::new();
-    for a in 0..12 {
-        for b in 0..6 {
-            pos.push(Vec3::new(
-                -0.9 + 0.08 * a as f32,
-                0.0,
-                -0.5 + 0.2 * b as f32,
-            ));
-        }
-    }
-    let r1 = points(pos, Vec3::Y);
+    let s1 = test_support::fixtures::grazing_wall(8, 8);
+    let r1 = test_support::fixtures::ground_grid(12, 6, (-0.9, 0.08), (-0.5, 0.2));
     let (s2, r2, _) = test_support::fixtures::tilted_plane(85.0, 1.0, (10, -0.9, 0.18));
     let mut g = GpuAccumulation::new(ctx).expect("gpu twin");
     for (name, scene, rec) in [("grazing", &s1, &r1), ("tilted", &s2, &r2)] {

@@ -226,16 +226,24 @@ fn corner_bounds(
 ) -> Option<impl Iterator<Item = (f32, f32)> + '_> {
     let (u0, u1) = (i0 as f32 + 0.5, i1 as f32 + 0.5);
     let (v0, v1) = (j0 as f32 + 0.5, j1 as f32 + 0.5);
-    let planes: Option<Vec<&ReceiverPlane>> = members.iter().map(|m| m.plane.as_ref()).collect();
-    Some(planes?.into_iter().flat_map(move |p| {
-        [
-            Vec2::new(u0, v0),
-            Vec2::new(u1, v0),
-            Vec2::new(u0, v1),
-            Vec2::new(u1, v1),
-        ]
-        .map(|uv| caster_bounds(p, uv))
-    }))
+    if members.iter().any(|m| m.plane.is_none()) {
+        return None;
+    }
+    // No allocation: this runs once per hierarchy node.
+    Some(
+        members
+            .iter()
+            .filter_map(|m| m.plane.as_ref())
+            .flat_map(move |p| {
+                [
+                    Vec2::new(u0, v0),
+                    Vec2::new(u1, v0),
+                    Vec2::new(u0, v1),
+                    Vec2::new(u1, v1),
+                ]
+                .map(|uv| caster_bounds(p, uv))
+            }),
+    )
 }
 
 /// `(max lower, min upper)` of [`caster_bounds`] over the same corners as

@@ -29,10 +29,7 @@ use std::time::Instant;
 /// `cascades`: how many camera-depth slices ([`Cascaded`]).
 pub const CASCADES: ParamSpec = ParamSpec {
     key: "cascades",
-    kind: ParamKind::Int {
-        min: 0,
-        max: MAX_CASCADES as i64,
-    },
+    kind: ParamKind::Int { min: 0, max: 8 },
     default: "0",
     help: "camera-depth cascades, one light view (set) fitted to each slice of the receivers: 0 = auto (one view unless the receivers' far/near camera-depth ratio exceeds 8 and one view's texel density p95 exceeds 2 pixels per texel; then ceil(log4 ratio), 2 to 4)",
 };
@@ -51,8 +48,10 @@ pub const CASCADE_BLEND: ParamSpec = ParamSpec {
     help: "blend band at each split, half width as a fraction of the nearer slice's depth range; V blends linearly across it",
 };
 
-/// Most cascades.
+/// Most cascades (the [`CASCADES`] range).
 pub const MAX_CASCADES: u32 = 8;
+const _: () =
+    assert!(matches!(CASCADES.kind, ParamKind::Int { max, .. } if max == MAX_CASCADES as i64));
 /// Most cascades `cascades=0` (auto) picks.
 pub const MAX_AUTO_CASCADES: u32 = 4;
 
@@ -378,6 +377,9 @@ impl SoftShadowEstimator for Cascaded {
     fn params(&self) -> &Params {
         &self.params
     }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         if CascadeSettings::SPECS.iter().any(|s| s.key == key) {
             let mut p = self.params.clone();
@@ -483,9 +485,6 @@ impl SoftShadowEstimator for Cascaded {
         report.note("cascade_band_receivers", jump_n);
         self.report = report;
         Ok(())
-    }
-    fn report(&self) -> Report {
-        self.report.clone()
     }
 }
 

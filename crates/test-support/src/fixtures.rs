@@ -112,6 +112,40 @@ pub fn fixture_path(name: &str) -> String {
     )
 }
 
+/// Accumulation's occluded grazing case (its `tests/accuracy.rs` derives the closed form): a
+/// disk light of radius 0.5 at (3, 0, 0) facing -x, lying in the ground's plane y = 0, a ground
+/// quad over x in [-2, 1], and a thin wall at x = 1.5 from height 0.1 to 2, wide in z; the camera
+/// `camera(w, h)`.
+pub fn grazing_wall(w: u32, h: u32) -> Scene {
+    let normal = -Vec3::X;
+    let light = shadow_map_core::Light {
+        shape: shadow_map_core::LightShape::Disk { radius: 0.5 },
+        center: Vec3::new(3.0, 0.0, 0.0),
+        normal,
+        tangent: shadow_map_core::light::default_tangent(normal),
+    };
+    let wall = cuboid(Vec3::new(1.49, 0.1, -3.0), Vec3::new(1.51, 2.0, 3.0));
+    let ground = quad(-2.0, -2.0, 1.0, 2.0, 0.0);
+    Scene::from_meshes(
+        "grazing-wall",
+        camera(w, h),
+        light,
+        vec![(ground, 1.0), (wall, 1.0)],
+    )
+    .expect("the grazing-wall scene is valid")
+}
+
+/// Ground receivers (normal +y) on the `na x nb` grid `x = x0 + dx a`, `z = z0 + dz b`.
+pub fn ground_grid(na: u32, nb: u32, (x0, dx): (f32, f32), (z0, dz): (f32, f32)) -> Receivers {
+    let mut pos = Vec::new();
+    for a in 0..na {
+        for b in 0..nb {
+            pos.push(Vec3::new(x0 + dx * a as f32, 0.0, z0 + dz * b as f32));
+        }
+    }
+    points(pos, Vec3::Y)
+}
+
 /// Fixtures with lit receivers beyond 87 degrees off the light normal, which accumulation's one
 /// view cannot hold: it refuses them with a one-line error (issue 17: several views). Tests
 /// check that each is still refused, so this list stays true.
