@@ -344,6 +344,23 @@ pub struct Tally {
 }
 
 impl Tally {
+    /// The view of sub-light point `y` as both twins fit it ([`sublight_view_with`] with the
+    /// filter margin and `s.view`), its fit folded into the tally (out-of-frustum count, window
+    /// scale, near and far planes).
+    pub fn fit_view(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        y: Vec2,
+        s: &Settings,
+    ) -> Result<(LightView, FitReport)> {
+        let (view, fit) =
+            sublight_view_with(scene, receivers, y, s.resolution, kernel_margin(s), &s.view)?;
+        self.out_of_frustum = self.out_of_frustum.max(fit.out_of_frustum);
+        self.window_scale = self.window_scale.max(fit.window_scale);
+        self.add_planes(&view);
+        Ok((view, fit))
+    }
     /// Takes a view's near and far planes into [`Tally::planes`].
     pub fn add_planes(&mut self, view: &LightView) {
         let (n, f) = self.planes.unwrap_or((view.n, view.far));
@@ -415,18 +432,8 @@ impl SoftShadowEstimator for CpuDeepShadow {
         for y in &points {
             let t = Instant::now();
             let t_f = Instant::now();
-            let (view, fit) = sublight_view_with(
-                scene,
-                receivers,
-                *y,
-                s.resolution,
-                kernel_margin(&s),
-                &s.view,
-            )?;
+            let (view, fit) = tally.fit_view(scene, receivers, *y, &s)?;
             t_fit += t_f.elapsed().as_secs_f64() * 1e3;
-            tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
-            tally.window_scale = tally.window_scale.max(fit.window_scale);
-            tally.add_planes(&view);
             let map = if opaque {
                 let ls = LightSpace::build_in_view(
                     scene,

@@ -18,10 +18,7 @@
 //! ([`crate::cpu::query`]) and uploaded. A fully opaque scene takes `raster_opaque` (an
 //! `atomicMin` of the depth bits into the head buffer: an ordinary shadow map, no lists) and
 //! `lookup_opaque`.
-use crate::cpu::{
-    finish, kernel_margin, lookup_settings, query, sublight_points, sublight_view_with, Query,
-    Tally,
-};
+use crate::cpu::{finish, lookup_settings, query, sublight_points, Query, Tally};
 use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
 use crate::params::{self, Settings, SPECS};
 use crate::raster::prepare;
@@ -662,17 +659,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
         let mut tally = Tally::default();
         for y in &points {
             let t = Instant::now();
-            let (view, fit) = sublight_view_with(
-                scene,
-                receivers,
-                *y,
-                s.resolution,
-                kernel_margin(&s),
-                &s.view,
-            )?;
-            tally.out_of_frustum = tally.out_of_frustum.max(fit.out_of_frustum);
-            tally.window_scale = tally.window_scale.max(fit.window_scale);
-            tally.add_planes(&view);
+            let (view, _) = tally.fit_view(scene, receivers, *y, &s)?;
             let map = self.build_map(scene, &view, &s)?;
             tally.fragments += map.stats.fragments;
             tally.kept += map.stats.fragments;
