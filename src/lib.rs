@@ -83,8 +83,9 @@ pub fn method(name: &str) -> Result<&'static Method> {
 ///
 /// Every estimator with a shadow map (a `resolution` parameter) comes wrapped in
 /// [`core::cascades::Cascaded`], which adds the `cascades`, `cascade_lambda` and `cascade_blend`
-/// parameters (one view set per camera-depth slice; one slice unless the receivers span a depth
-/// ratio above 4).
+/// parameters (one view set per camera-depth slice; at the default `cascades=0`, one slice unless
+/// the receivers span a camera-depth ratio above 8 and one view's texel density p95 exceeds 2
+/// pixels per texel).
 pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstimator>> {
     let m = method(name)?;
     with_cascades(match backend {

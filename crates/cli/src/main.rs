@@ -306,8 +306,10 @@ fn render_frame(
         shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
     stages.extend(report.stages.iter().cloned());
     if stats {
-        let density = shadow_map_core::cascades::texel_density_of(scene, &receivers, est.params());
-        if let Some((m, p95)) = density.and_then(|d| shadow_map_core::cascades::median_p95(&d)) {
+        let params = est.params();
+        if let Some((m, p95)) =
+            shadow_map_core::cascades::texel_density_summary(scene, &receivers, params)
+        {
             report.note("texel_density_median", format!("{m:.3}"));
             report.note("texel_density_p95", format!("{p95:.3}"));
         }

@@ -373,8 +373,8 @@ fn run_one(
     row.estimate_ms = rep.total_ms("estimate") + rep.total_ms("readback");
     row.frame_ms = frame_ms;
     row.light_space_bytes = rep.light_space_bytes;
-    let density = shadow_map_core::cascades::texel_density_of(scene, rec, e.params());
-    if let Some((m, p95)) = density.and_then(|d| shadow_map_core::cascades::median_p95(&d)) {
+    if let Some((m, p95)) = shadow_map_core::cascades::texel_density_summary(scene, rec, e.params())
+    {
         row.texel_density = (m as f64, p95 as f64);
     }
     let img = visibility_image(scene, rec, v)?;

@@ -911,7 +911,8 @@ pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
 }
 
 impl CpuPacketHsm {
-    fn check_light(scene: &Scene) -> Result<()> {
+    /// Rect lights only: any other shape is an [`Error::Param`] with key `light` (both twins).
+    pub(crate) fn check_light(scene: &Scene) -> Result<()> {
         match scene.light.shape {
             LightShape::Rect { .. } => Ok(()),
             _ => Err(Error::param(

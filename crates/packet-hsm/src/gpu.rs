@@ -31,8 +31,7 @@ use shadow_map_core::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
         GpuContext,
     },
-    Error, ImageLayout, LightShape, ReceiverPlane, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    Error, ImageLayout, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
@@ -473,12 +472,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        if !matches!(scene.light.shape, LightShape::Rect { .. }) {
-            return Err(Error::param(
-                "light",
-                "packet-hsm supports rect lights only",
-            ));
-        }
+        CpuPacketHsm::check_light(scene)?;
         let cfg = Config::from_params(self.cpu.params())?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());

@@ -316,6 +316,16 @@ pub fn texel_density_of(scene: &Scene, receivers: &Receivers, params: &Params) -
     Some(out)
 }
 
+/// Median and 95th percentile of [`texel_density_of`]: the figure `--stats` and the report give
+/// (`None` for an estimator without a map, or with no receiver inside its views).
+pub fn texel_density_summary(
+    scene: &Scene,
+    receivers: &Receivers,
+    params: &Params,
+) -> Option<(f32, f32)> {
+    median_p95(&texel_density_of(scene, receivers, params)?)
+}
+
 /// The texel density of the one light-centre view an estimator with parameters `params` fits
 /// for `receivers` (`None` without a map or when the fit fails).
 fn view_density(scene: &Scene, receivers: &Receivers, params: &Params) -> Option<Vec<f32>> {
@@ -403,7 +413,7 @@ impl SoftShadowEstimator for Cascaded {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        let (splits, weights) = crate::estimator::built(self.plan.clone())?;
+        let (splits, weights) = crate::estimator::built(self.plan.as_ref())?;
         if weights.len() != receivers.len() {
             return Err(crate::Error::Receivers(format!(
                 "estimate has {} receivers, the build had {}",
@@ -425,7 +435,7 @@ impl SoftShadowEstimator for Cascaded {
         let mut report = Report::default();
         let mut ms = Vec::with_capacity(k);
         for c in 0..k {
-            let sub = cascade_receivers(receivers, &weights, c);
+            let sub = cascade_receivers(receivers, weights, c);
             let t = Instant::now();
             let mut vc = vec![f32::NAN; receivers.len()];
             if sub.active.iter().any(|a| *a) {
@@ -474,7 +484,7 @@ impl SoftShadowEstimator for Cascaded {
                 .collect::<Vec<_>>()
                 .join(",")
         };
-        report.note("cascade_splits", list(&splits));
+        report.note("cascade_splits", list(splits));
         let ms32: Vec<f32> = ms.iter().map(|x| *x as f32).collect();
         report.note("cascade_ms", list(&ms32));
         report.note("cascade_jump_max", format!("{jump_max:.4}"));
