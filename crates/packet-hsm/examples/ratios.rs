@@ -278,10 +278,9 @@ fn visits() {
         let sv = SubView::build(
             &scene,
             &rec,
-            res,
-            glam::Vec2::ZERO,
-            scene.light.half_extent(),
+            (res, glam::Vec2::ZERO, scene.light.half_extent()),
             &cfg,
+            true,
         )
         .expect("view");
         let grid = sv.grid(&cfg);
@@ -308,6 +307,7 @@ fn visits() {
                         members: if r.plane.is_some() { &one } else { &[] },
                         class_is_depth: grid.class_is_depth(),
                         depth: Some(&sv.mssm),
+                        fit: sv.fit.as_ref(),
                     },
                     Traversal::Hierarchical,
                     &mut n,

@@ -30,6 +30,7 @@
 //!
 //! All light-plane geometry is in f64, so the only difference between evaluation orders
 //! (per pixel, per packet, flat or hierarchical) is the order of an f64 sum.
+use crate::fit::DualFit;
 use glam::{DVec2, Vec2};
 use shadow_map_core::{
     mssm::{DualMssm, Mssm},
@@ -425,7 +426,54 @@ pub fn clip_to_rect(a: DVec2, b: DVec2, h: DVec2) -> Option<(DVec2, DVec2)> {
 /// from direction `a` to direction `b` the short way (docs/methods.md §3): the shoelace area of
 /// `0, a_R, (corners strictly inside the sweep, in sweep order), b_R`, where `a_R` is `a`
 /// projected radially onto the border. Positive for a counter-clockwise sweep.
+///
+/// Sweeps narrower than a half turn (every edge but one through the centre) take no
+/// trigonometry: with `s` the sweep's sign, a corner `c` is strictly inside when
+/// `s a x c > 0` and `s c x b > 0`, and `c1` precedes `c2` when `s c1 x c2 > 0`. A half turn
+/// (`a x b = 0`, `a . b < 0`, where the short way is decided by the sign of zero) takes
+/// [`sector_rect_by_angle`].
 pub fn sector_rect(a: DVec2, b: DVec2, h: DVec2) -> f64 {
+    let cr = a.perp_dot(b);
+    if a == DVec2::ZERO || b == DVec2::ZERO || (cr == 0.0 && a.dot(b) >= 0.0) {
+        return 0.0;
+    }
+    if cr == 0.0 {
+        return sector_rect_by_angle(a, b, h);
+    }
+    let sg = cr.signum();
+    let to_border = |p: DVec2| p / (p.x.abs() / h.x).max(p.y.abs() / h.y);
+    let mut corners = [DVec2::ZERO; 4];
+    let mut n = 0;
+    for c in [
+        DVec2::new(h.x, h.y),
+        DVec2::new(-h.x, h.y),
+        DVec2::new(-h.x, -h.y),
+        DVec2::new(h.x, -h.y),
+    ] {
+        if sg * a.perp_dot(c) > 0.0 && sg * c.perp_dot(b) > 0.0 {
+            // Insertion in sweep order.
+            let mut k = n;
+            while k > 0 && sg * c.perp_dot(corners[k - 1]) > 0.0 {
+                corners[k] = corners[k - 1];
+                k -= 1;
+            }
+            corners[k] = c;
+            n += 1;
+        }
+    }
+    let mut prev = to_border(a);
+    let mut twice = 0.0;
+    for c in &corners[..n] {
+        twice += prev.perp_dot(*c);
+        prev = *c;
+    }
+    twice += prev.perp_dot(to_border(b));
+    0.5 * twice
+}
+
+/// [`sector_rect`] by angles (`atan2`), for any sweep including the half turn; the reference
+/// the fast path is tested against.
+pub fn sector_rect_by_angle(a: DVec2, b: DVec2, h: DVec2) -> f64 {
     let dth = a.perp_dot(b).atan2(a.dot(b));
     if dth == 0.0 || a == DVec2::ZERO || b == DVec2::ZERO {
         return 0.0;
@@ -655,8 +703,7 @@ pub fn extract(
                     }
                 } else {
                     // The node's samples, unpadded: [x - 1, x - 1 + 2^l] x [y - 1, y - 1 + 2^l].
-                    let s = [x - 1, y - 1, x - 1 + (1 << l), y - 1 + (1 << l)];
-                    if planes.prunable(mm.min, mm.max, [t_min, t_max], s, kb, kb_inner) {
+                    if planes.prunable(mm.min, mm.max, [t_min, t_max], (l, x, y), kb, kb_inner) {
                         continue;
                     }
                 }
@@ -695,6 +742,10 @@ pub struct Planes<'a> {
     /// The anchored MSSM of the true depths (the sub-view's), for the "none occludes" pruning
     /// when the classification depths are midpoints; `None`: no such pruning.
     pub depth: Option<&'a Mssm>,
+    /// The affine bounds of the reciprocal true depths ([`DualFit`]): nodes on the members' own
+    /// plane are proved free, and (built with minima) a lower bound on a node's true depths is
+    /// one fetch instead of a [`depth`](Self::depth) query. `None`: neither.
+    pub fit: Option<&'a DualFit>,
 }
 
 impl Planes<'_> {
@@ -731,10 +782,10 @@ impl Planes<'_> {
             _ => Status::Null,
         }
     }
-    /// True when a node whose classification depths span `[min, max]` over the samples `s`
-    /// (inclusive texel rectangle) holds no contour for any member: no sample occludes any
-    /// member, or every sample occludes every member. Conservative (never prunes a node the
-    /// per-cell tests would find a contour in).
+    /// True when node `(l, x, y)` (padded anchor: samples `[x - 1, x - 1 + 2^l]` unpadded, likewise
+    /// y), whose classification depths span `[min, max]`, holds no contour for any member: no
+    /// sample occludes any member, or every sample occludes every member. Conservative (never
+    /// prunes a node the per-cell tests would find a contour in).
     /// `kb`: the members' [`plane_threshold_range`] over the whole kernel (tried first, it
     /// bounds the node's).
     fn prunable(
@@ -742,7 +793,7 @@ impl Planes<'_> {
         min: f32,
         max: f32,
         [t_min, t_max]: [f32; 2],
-        s: [i32; 4],
+        (l, x, y): (u32, i32, i32),
         kb: (f32, f32),
         kb_inner: (f32, f32),
     ) -> bool {
@@ -755,6 +806,41 @@ impl Planes<'_> {
         if all_class && max < kb.0 {
             return true;
         }
+        if l == 0 {
+            // A single cell: its evaluation costs what the bounds below would, with the same
+            // answer (no contour in a prunable node).
+            return false;
+        }
+        let s = [x - 1, y - 1, x - 1 + (1 << l), y - 1 + (1 << l)];
+        let fit = || self.fit.is_some_and(|f| f.free_for(self.members, l, x, y));
+        match self.depth_bounds(min, max, all_class, s, (l, x, y), kb, kb_inner) {
+            Bounds::Settled => true,
+            Bounds::Unsettled => fit(),
+            // The own-plane proof first: it settles what the per-node range cannot.
+            Bounds::NodeRange { tm, occ_possible } => {
+                fit() || {
+                    let (lo, hi) = plane_threshold_range(self.members, s);
+                    (occ_possible && max < lo) || tm >= hi
+                }
+            }
+        }
+    }
+
+    /// [`prunable`](Self::prunable)'s depth-bound part: the node settled by its smallest true
+    /// and largest classification depth against the kernel's plane thresholds, or the node's own
+    /// thresholds still to compute.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn depth_bounds(
+        &self,
+        min: f32,
+        max: f32,
+        all_class: bool,
+        s: [i32; 4],
+        (l, x, y): (u32, i32, i32),
+        kb: (f32, f32),
+        kb_inner: (f32, f32),
+    ) -> Bounds {
         // The node's smallest lower bound is at most the kernel's largest (`kb_inner.0`), its
         // largest upper bound at least the kernel's smallest (`kb_inner.1`): nodes that cannot
         // pass their own tests are settled without computing them. The smallest true depth is
@@ -762,23 +848,38 @@ impl Planes<'_> {
         let occ_possible = all_class && max < kb_inner.0;
         let free_possible = min >= kb_inner.1;
         if !occ_possible && !free_possible {
-            return false;
+            return Bounds::Unsettled;
         }
         // No plane test passes: the node's smallest true depth reaches every upper bound.
-        let tm = if free_possible {
-            true_min(self.class_is_depth, self.depth, min, s)
-        } else {
+        let tm = if !free_possible {
             f32::NEG_INFINITY
+        } else if self.class_is_depth {
+            min
+        } else {
+            match self.fit.and_then(|f| f.min_bound(l, x, y)) {
+                Some(m) => m,
+                None => true_min(false, self.depth, min, s),
+            }
         };
         if tm >= kb.1 {
-            return true;
+            return Bounds::Settled;
         }
         if !occ_possible && !(tm >= kb_inner.1) {
-            return false;
+            return Bounds::Unsettled;
         }
-        let (lo, hi) = plane_threshold_range(self.members, s);
-        (occ_possible && max < lo) || tm >= hi
+        Bounds::NodeRange { tm, occ_possible }
     }
+}
+
+/// What the kernel-wide depth bounds say about a node ([`Planes::prunable`]).
+enum Bounds {
+    /// No contour: pruned.
+    Settled,
+    /// The node's own plane thresholds cannot settle it either.
+    Unsettled,
+    /// Settled when the node's own [`plane_threshold_range`] `(lo, hi)` has
+    /// `occ_possible && max < lo` or `tm >= hi` (`tm` a lower bound on its true depths).
+    NodeRange { tm: f32, occ_possible: bool },
 }
 
 /// The smallest true depth over the samples `s` (inclusive texel rectangle): `class_min` (the
@@ -802,6 +903,7 @@ pub fn pixel_visibility(
     grid: &SampleGrid,
     dm: &PaddedDualMssm,
     depth: Option<&Mssm>,
+    fit: Option<&DualFit>,
     cr: &CellRect,
     rec: &Receiver,
     k: f64,
@@ -815,6 +917,7 @@ pub fn pixel_visibility(
         members: if rec.plane.is_some() { &test } else { &[] },
         class_is_depth: grid.class_is_depth(),
         depth,
+        fit,
     };
     extract(
         grid,
@@ -864,6 +967,33 @@ mod tests {
         assert!((s2 + sector_rect(pts[0], pts[1], h)).abs() < 1e-12);
     }
 
+    /// The trigonometry-free sector equals the angle-based one on random sweeps, including
+    /// corners on the sweep's rays and sweeps near a half turn.
+    #[test]
+    fn sector_fast_path_matches_angles() {
+        let mut seed = 99u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for k in 0..20000 {
+            let h = DVec2::new(0.1 + rnd().abs(), 0.1 + rnd().abs());
+            let a = DVec2::new(rnd(), rnd()) * 3.0;
+            let b = match k % 4 {
+                0 => DVec2::new(h.x, -h.y) * (1.0 + rnd().abs()), // on a corner's ray
+                1 => -a + DVec2::new(rnd(), rnd()) * 1e-9,        // nearly a half turn
+                _ => DVec2::new(rnd(), rnd()) * 3.0,
+            };
+            let (f, r) = (sector_rect(a, b, h), sector_rect_by_angle(a, b, h));
+            assert!(
+                (f - r).abs() <= 1e-12 * (1.0 + h.x * h.y),
+                "{a} {b} {h}: {f} vs {r}"
+            );
+        }
+    }
+
     #[test]
     fn cell_edges_orientation() {
         // Only c0 occludes: the edge cuts corner c0 with c0 on the left.
@@ -898,11 +1028,12 @@ mod tests {
         let h = DVec2::new(0.5, 0.5);
         for t in [Traversal::Flat, Traversal::Hierarchical] {
             // Kernel inside the map: no edges, centre occluded.
-            let (v, _) = pixel_visibility(&g, &dm, None, &[4, 4, 12, 12], &rec, 0.01, h, t);
+            let (v, _) = pixel_visibility(&g, &dm, None, None, &[4, 4, 12, 12], &rec, 0.01, h, t);
             assert_eq!(v, 0.0);
             // Threshold below every sample: lit.
             let rec2 = Receiver::new(&g, DVec2::new(8.3, 8.1), 2.0, 0.5);
-            let (v, _) = pixel_visibility(&g, &dm, None, &[-1, -1, 16, 16], &rec2, 0.01, h, t);
+            let (v, _) =
+                pixel_visibility(&g, &dm, None, None, &[-1, -1, 16, 16], &rec2, 0.01, h, t);
             assert_eq!(v, 1.0);
         }
     }
@@ -932,12 +1063,23 @@ mod tests {
             let rec = Receiver::new(&g, uv, 3.0, 1.5);
             let cr = [-1, 2, 20, 24];
             let h = DVec2::new(0.4, 0.6);
-            let (vf, nf) = pixel_visibility(&g, &dm, None, &cr, &rec, 0.02, h, Traversal::Flat);
-            let (vh, _) =
-                pixel_visibility(&g, &dm, None, &cr, &rec, 0.02, h, Traversal::Hierarchical);
+            let (vf, nf) =
+                pixel_visibility(&g, &dm, None, None, &cr, &rec, 0.02, h, Traversal::Flat);
+            let (vh, _) = pixel_visibility(
+                &g,
+                &dm,
+                None,
+                None,
+                &cr,
+                &rec,
+                0.02,
+                h,
+                Traversal::Hierarchical,
+            );
             let (vc, _) = pixel_visibility(
                 &g,
                 &capped,
+                None,
                 None,
                 &cr,
                 &rec,

@@ -4,6 +4,7 @@ use crate::contour::{
     edge_area, extract, pixel_visibility, plane_threshold_range, true_min, visibility_from_area,
     CellRect, Edge, OccluderTest, PaddedDualMssm, Planes, Receiver, SampleGrid, Traversal,
 };
+use crate::fit::DualFit;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
@@ -244,6 +245,9 @@ pub struct SubLights {
     pub t_build: f64,
     /// Estimate time over the sub-lights (ms), added by the twin.
     pub t_est: f64,
+    /// Build each sub-view's own-plane bounds ([`SubView::fit`]; on by default). The GPU twin
+    /// turns it off: its traversal does not read them, and its CPU fallback does without.
+    pub own_plane: bool,
     peak: usize,
     // Largest window side over the tightest one, smallest near and largest far plane, and the
     // largest out-of-frustum count, over the sub-lights' fits.
@@ -261,6 +265,7 @@ impl SubLights {
             weight: 1.0 / (cfg.sublights * cfg.sublights) as f32,
             t_build: 0.0,
             t_est: 0.0,
+            own_plane: true,
             peak: 0,
             window_scale: 0.0,
             near: f32::INFINITY,
@@ -280,7 +285,13 @@ impl SubLights {
         let s = cfg.sublights;
         let half = scene.light.half_extent() / s as f32;
         let c = sublight_centre(scene.light.half_extent(), s, a, b);
-        let sv = SubView::build(scene, receivers, cfg.resolution, c, half, cfg)?;
+        let sv = SubView::build(
+            scene,
+            receivers,
+            (cfg.resolution, c, half),
+            cfg,
+            self.own_plane,
+        )?;
         self.t_build += t.elapsed().as_secs_f64() * 1e3;
         self.peak = self.peak.max(sv.bytes());
         self.out_of_frustum = self.out_of_frustum.max(sv.ls.fit.out_of_frustum);
@@ -344,21 +355,25 @@ pub struct SubView {
     pub mssm: Mssm,
     /// Padded dual-grid MSSM of the classification depths (classification, pruning).
     pub dual: PaddedDualMssm,
+    /// Affine bounds of the reciprocal true depths over the same nodes (own-plane pruning,
+    /// [`DualFit`]; with midpoints also each node's smallest true depth); `None` without
+    /// receiver-plane rejection, where it would prove nothing the classic test needs.
+    pub fit: Option<DualFit>,
     /// Sub-light half extents.
     pub half: Vec2,
 }
 
 impl SubView {
     /// Builds the data of the sub-light centred at `centre` (light-plane coordinates) with half
-    /// extents `half`, its view fitted with the `fit` and `nearfar` choices of `cfg.view`
-    /// ([`LightView::fit_with`]).
+    /// extents `half` on an `r x r` map, its view fitted with the `fit` and `nearfar` choices of
+    /// `cfg.view` ([`LightView::fit_with`]); `own_plane`: also the own-plane bounds (with
+    /// receiver-plane rejection).
     pub fn build(
         scene: &Scene,
         receivers: &Receivers,
-        r: u32,
-        centre: Vec2,
-        half: Vec2,
+        (r, centre, half): (u32, Vec2, Vec2),
         cfg: &Config,
+        own_plane: bool,
     ) -> Result<SubView> {
         let mut frame = scene.light.frame();
         frame.origin = frame.to_world(centre.extend(0.0));
@@ -385,10 +400,19 @@ impl SubView {
         };
         let max_cells = (wmax.ceil() as u32).saturating_add(3).min(r + 2);
         let dual = PaddedDualMssm::build(class, l0.size, max_cells);
+        let fit = (own_plane && cfg.shadow.receiver_plane).then(|| {
+            DualFit::build(
+                &l0.depth,
+                l0.size,
+                dual.mssm.levels() + 1,
+                cfg.shadow.midpoint(),
+            )
+        });
         Ok(SubView {
             ls,
             mssm,
             dual,
+            fit,
             half,
         })
     }
@@ -408,7 +432,10 @@ impl SubView {
     }
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        self.ls.bytes() + self.mssm.bytes() + self.dual.bytes()
+        self.ls.bytes()
+            + self.mssm.bytes()
+            + self.dual.bytes()
+            + self.fit.as_ref().map_or(0, DualFit::bytes)
     }
 }
 
@@ -714,6 +741,7 @@ fn pixel_wise(
         grid,
         &sv.dual,
         Some(&sv.mssm),
+        sv.fit.as_ref(),
         cr,
         rec,
         k,
@@ -824,6 +852,7 @@ pub fn estimate_sublight(
                             members: &members,
                             class_is_depth: grid.class_is_depth(),
                             depth: Some(&sv.mssm),
+                            fit: sv.fit.as_ref(),
                         };
                         let mut visited = 0u64;
                         let ok = extract(

@@ -476,6 +476,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let cfg = Config::from_params(self.cpu.params())?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());
+        subs.own_plane = false;
         let mut visited = 0f64;
         let mut outside = 0usize;
         let mut counts = [0u64; 5];

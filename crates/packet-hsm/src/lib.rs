@@ -5,6 +5,7 @@
 
 pub mod contour;
 pub mod cpu;
+pub mod fit;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 

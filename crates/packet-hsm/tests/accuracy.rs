@@ -15,10 +15,9 @@ fn texel_on_light(scene: &Scene, r: &Receivers, res: u32, zo: f32, zp: f32) -> f
     let sv = SubView::build(
         scene,
         r,
-        res,
-        glam::Vec2::ZERO,
-        scene.light.half_extent(),
+        (res, glam::Vec2::ZERO, scene.light.half_extent()),
         &cfg,
+        true,
     )
     .unwrap();
     let v = sv.ls.view;
@@ -133,7 +132,14 @@ fn contour_through_the_receiver() {
     let s = scene_with(rect_light(0.5, 3.0), &[SQUARE], 8, 8);
     let r0 = line_receivers();
     let cfg = Config::from_params(hsm(&[]).params()).unwrap();
-    let sv = SubView::build(&s, &r0, 128, glam::Vec2::ZERO, s.light.half_extent(), &cfg).unwrap();
+    let sv = SubView::build(
+        &s,
+        &r0,
+        (128, glam::Vec2::ZERO, s.light.half_extent()),
+        &cfg,
+        true,
+    )
+    .unwrap();
     let view = sv.ls.view;
     // Receivers on the ground whose projections are u = integer (a contour vertex column) and
     // u = i + 1/2 (a sample centre), next to the occluder's edge x = 0.5123 (u of that edge).

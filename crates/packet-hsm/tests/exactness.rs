@@ -53,10 +53,9 @@ fn check_all_combinations(scene: &Scene, res: u32, self_shadow: &str) -> f32 {
     let sv = SubView::build(
         scene,
         &rec,
-        res,
-        glam::Vec2::ZERO,
-        scene.light.half_extent(),
+        (res, glam::Vec2::ZERO, scene.light.half_extent()),
         &cfg0,
+        true,
     )
     .unwrap();
     let reference: Vec<f32> = (0..rec.len())
@@ -207,4 +206,70 @@ fn point_receivers_go_pixel_wise() {
         .diagnostics()
         .iter()
         .all(|d| d.class != packet_hsm::cpu::CLASS_PACKET));
+}
+
+/// Own-plane pruning (`packet_hsm::fit`, docs/methods.md §4) on a ground lit 5 degrees above its
+/// plane with thin posts (the grazing-posts kind): with the bounds, the hierarchy gives the V of
+/// the flat scan and of the hierarchy without them, and visits well under half their nodes.
+#[test]
+fn own_plane_pruning_is_exact_and_prunes_a_grazing_ground() {
+    let t = 5.0f32.to_radians();
+    let normal = Vec3::new(0.0, -t.sin(), t.cos());
+    let light = shadow_map_core::Light {
+        shape: shadow_map_core::LightShape::Rect { size: [1.0, 1.0] },
+        center: -normal * 8.0,
+        normal,
+        tangent: Vec3::X,
+    };
+    let mut meshes = vec![(quad(-3.0, -3.0, 3.0, 3.0, 0.0), 1.0)];
+    for (x, z) in [(-1.5f32, -1.0f32), (0.4, -0.3), (1.2, 0.9)] {
+        meshes.push((
+            test_support::fixtures::cuboid(
+                Vec3::new(x - 0.03, 0.0, z - 0.03),
+                Vec3::new(x + 0.03, 0.8, z + 0.03),
+            ),
+            1.0,
+        ));
+    }
+    let scene = Scene::from_meshes("grazing", camera(48, 36), light, meshes).unwrap();
+    let bvh = SceneBvh::new(&scene);
+    let rec = Receivers::from_camera(&scene, &bvh);
+    let run_with = |hierarchy: bool, own_plane: bool| {
+        let e = hsm(&[("hierarchy", &hierarchy.to_string())]);
+        let cfg = Config::from_params(e.params()).unwrap();
+        let sv = SubView::build(
+            &scene,
+            &rec,
+            (512, glam::Vec2::ZERO, scene.light.half_extent()),
+            &cfg,
+            own_plane,
+        )
+        .unwrap();
+        assert_eq!(sv.fit.is_some(), own_plane);
+        let mut acc = vec![0.0f32; rec.len()];
+        let mut diag = vec![PixelDiag::default(); rec.len()];
+        let counters = Counters::default();
+        estimate_sublight(&sv, &cfg, &rec, 1.0, &mut acc, &mut diag, &counters);
+        let visited = counters.visited.load(std::sync::atomic::Ordering::Relaxed);
+        (acc, visited)
+    };
+    let (flat, _) = run_with(false, false);
+    let (without, n_without) = run_with(true, false);
+    let (with, n_with) = run_with(true, true);
+    for k in 0..rec.len() {
+        if rec.active[k] {
+            assert!(
+                (with[k] - flat[k]).abs() <= TOL,
+                "receiver {k}: {} vs flat {}",
+                with[k],
+                flat[k]
+            );
+            assert!((with[k] - without[k]).abs() <= TOL, "receiver {k}");
+        }
+    }
+    eprintln!("own-plane pruning: {n_without} -> {n_with} nodes");
+    assert!(
+        2 * n_with < n_without,
+        "own-plane pruning visited {n_with} nodes, {n_without} without"
+    );
 }
