@@ -280,7 +280,7 @@ fn visits() {
             &rec,
             (res, glam::Vec2::ZERO, scene.light.half_extent()),
             &cfg,
-            true,
+            packet_hsm::cpu::OwnPlane::Auto,
         )
         .expect("view");
         let grid = sv.grid(&cfg);

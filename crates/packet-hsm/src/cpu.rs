@@ -245,9 +245,10 @@ pub struct SubLights {
     pub t_build: f64,
     /// Estimate time over the sub-lights (ms), added by the twin.
     pub t_est: f64,
-    /// Build each sub-view's own-plane bounds ([`SubView::fit`]; on by default). The GPU twin
-    /// turns it off: its traversal does not read them, and its CPU fallback does without.
-    pub own_plane: bool,
+    /// Whether each sub-view builds its own-plane bounds ([`SubView::fit`]; `Auto` by default).
+    /// The GPU twin turns them off: its traversal does not read them, and its CPU fallback does
+    /// without.
+    pub own_plane: OwnPlane,
     peak: usize,
     // Largest window side over the tightest one, smallest near and largest far plane, and the
     // largest out-of-frustum count, over the sub-lights' fits.
@@ -265,7 +266,7 @@ impl SubLights {
             weight: 1.0 / (cfg.sublights * cfg.sublights) as f32,
             t_build: 0.0,
             t_est: 0.0,
-            own_plane: true,
+            own_plane: OwnPlane::Auto,
             peak: 0,
             window_scale: 0.0,
             near: f32::INFINITY,
@@ -346,6 +347,25 @@ pub fn sublight_centre(half: Vec2, s: u32, a: u32, b: u32) -> Vec2 {
     Vec2::new(f(a, half.x), f(b, half.y))
 }
 
+/// Kernel cells per padded map sample ([`SubView::kernel_cells_estimate`] over `(r + 2)^2`)
+/// above which the own-plane bounds are built: below, the extraction walks fewer cells than the
+/// map has samples, and the bounds (about 90 single-thread instructions per sample to build)
+/// would cost more than they save. Measured on the fixtures: 0.0004 to 0.64 on long-ground,
+/// long-yard, backlit-stone and hover-sphere; 1.2 on hover-boxes; 5.6 to 6.2 on the grazing
+/// fixtures; 24 to 4334 on the rest.
+pub const OWN_PLANE_WORTH: f64 = 1.0;
+
+/// Whether a [`SubView`] builds its own-plane bounds (with receiver-plane rejection only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OwnPlane {
+    /// Never.
+    Off,
+    /// When the kernels are large enough for them to pay ([`OWN_PLANE_WORTH`]).
+    Auto,
+    /// Always (tests).
+    Always,
+}
+
 /// One sub-light's light-space data: the map, its MSSM, the padded dual-grid MSSM of the
 /// classification depths. Only one is alive at a time.
 pub struct SubView {
@@ -355,9 +375,10 @@ pub struct SubView {
     pub mssm: Mssm,
     /// Padded dual-grid MSSM of the classification depths (classification, pruning).
     pub dual: PaddedDualMssm,
-    /// Affine bounds of the reciprocal true depths over the same nodes (own-plane pruning,
-    /// [`DualFit`]; with midpoints also each node's smallest true depth); `None` without
-    /// receiver-plane rejection, where it would prove nothing the classic test needs.
+    /// Affine bounds of the reciprocal true depths over blocks of the map (own-plane pruning,
+    /// [`DualFit`]; with midpoints also each block's smallest true depth); `None` without
+    /// receiver-plane rejection (where they would prove nothing the classic test needs), when not
+    /// asked for, or when the kernels are too small for them to pay ([`OWN_PLANE_WORTH`]).
     pub fit: Option<DualFit>,
     /// Sub-light half extents.
     pub half: Vec2,
@@ -366,14 +387,14 @@ pub struct SubView {
 impl SubView {
     /// Builds the data of the sub-light centred at `centre` (light-plane coordinates) with half
     /// extents `half` on an `r x r` map, its view fitted with the `fit` and `nearfar` choices of
-    /// `cfg.view` ([`LightView::fit_with`]); `own_plane`: also the own-plane bounds (with
-    /// receiver-plane rejection).
+    /// `cfg.view` ([`LightView::fit_with`]); `own_plane`: whether to build the own-plane bounds
+    /// too.
     pub fn build(
         scene: &Scene,
         receivers: &Receivers,
         (r, centre, half): (u32, Vec2, Vec2),
         cfg: &Config,
-        own_plane: bool,
+        own_plane: OwnPlane,
     ) -> Result<SubView> {
         let mut frame = scene.light.frame();
         frame.origin = frame.to_world(centre.extend(0.0));
@@ -400,21 +421,63 @@ impl SubView {
         };
         let max_cells = (wmax.ceil() as u32).saturating_add(3).min(r + 2);
         let dual = PaddedDualMssm::build(class, l0.size, max_cells);
-        let fit = (own_plane && cfg.shadow.receiver_plane).then(|| {
-            DualFit::build(
-                &l0.depth,
-                l0.size,
-                dual.mssm.levels() + 1,
-                cfg.shadow.midpoint(),
-            )
-        });
-        Ok(SubView {
+        let mut sv = SubView {
             ls,
             mssm,
             dual,
-            fit,
+            fit: None,
             half,
-        })
+        };
+        let build = cfg.shadow.receiver_plane
+            && match own_plane {
+                OwnPlane::Off => false,
+                OwnPlane::Always => true,
+                OwnPlane::Auto => {
+                    let walk = sv.kernel_cells_estimate(cfg, receivers);
+                    walk > OWN_PLANE_WORTH * (r as f64 + 2.0).powi(2)
+                }
+            };
+        if build {
+            let l0 = &sv.ls.layers[0];
+            sv.fit = Some(DualFit::build(
+                &l0.depth,
+                l0.size,
+                sv.dual.mssm.levels() + 1,
+                cfg.shadow.midpoint(),
+            ));
+        }
+        Ok(sv)
+    }
+    /// The dual cells of the penumbra receivers' kernels summed, from every 8th receiver
+    /// (times 8): the most cells the extraction could walk. Decides whether the own-plane bounds
+    /// are worth building ([`OWN_PLANE_WORTH`]).
+    fn kernel_cells_estimate(&self, cfg: &Config, receivers: &Receivers) -> f64 {
+        const STEP: usize = 8;
+        let grid = self.grid(cfg);
+        let cells: u64 = (0..receivers.len().div_ceil(STEP))
+            .into_par_iter()
+            .map(|i| {
+                let k = i * STEP;
+                if !receivers.active[k] {
+                    return 0;
+                }
+                let mut out = false;
+                match prepare(
+                    self,
+                    &grid,
+                    cfg,
+                    receivers.position[k],
+                    receivers.normal[k],
+                    &mut out,
+                ) {
+                    Prep::Penumbra { cr, .. } => {
+                        ((cr[2] - cr[0]).max(0) as u64) * ((cr[3] - cr[1]).max(0) as u64)
+                    }
+                    Prep::Done(_) => 0,
+                }
+            })
+            .sum();
+        cells as f64 * STEP as f64
     }
     /// The sample grid (true and classification depths).
     pub fn grid(&self, cfg: &Config) -> SampleGrid<'_> {

@@ -24,7 +24,7 @@
 //! [`RecIn`]; the shader's caster test is the same product and comparison in f32 (a fused
 //! multiply-add can flip a tie).
 use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
-use crate::cpu::{Config, CpuPacketHsm, SubLights, SubView};
+use crate::cpu::{Config, CpuPacketHsm, OwnPlane, SubLights, SubView};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
@@ -476,7 +476,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let cfg = Config::from_params(self.cpu.params())?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());
-        subs.own_plane = false;
+        subs.own_plane = OwnPlane::Off;
         let mut visited = 0f64;
         let mut outside = 0usize;
         let mut counts = [0u64; 5];

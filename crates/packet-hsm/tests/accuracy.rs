@@ -17,7 +17,7 @@ fn texel_on_light(scene: &Scene, r: &Receivers, res: u32, zo: f32, zp: f32) -> f
         r,
         (res, glam::Vec2::ZERO, scene.light.half_extent()),
         &cfg,
-        true,
+        packet_hsm::cpu::OwnPlane::Auto,
     )
     .unwrap();
     let v = sv.ls.view;
@@ -137,7 +137,7 @@ fn contour_through_the_receiver() {
         &r0,
         (128, glam::Vec2::ZERO, s.light.half_extent()),
         &cfg,
-        true,
+        packet_hsm::cpu::OwnPlane::Auto,
     )
     .unwrap();
     let view = sv.ls.view;

@@ -55,7 +55,7 @@ fn check_all_combinations(scene: &Scene, res: u32, self_shadow: &str) -> f32 {
         &rec,
         (res, glam::Vec2::ZERO, scene.light.half_extent()),
         &cfg0,
-        true,
+        packet_hsm::cpu::OwnPlane::Always,
     )
     .unwrap();
     let reference: Vec<f32> = (0..rec.len())
@@ -242,7 +242,11 @@ fn own_plane_pruning_is_exact_and_prunes_a_grazing_ground() {
             &rec,
             (512, glam::Vec2::ZERO, scene.light.half_extent()),
             &cfg,
-            own_plane,
+            if own_plane {
+                packet_hsm::cpu::OwnPlane::Always
+            } else {
+                packet_hsm::cpu::OwnPlane::Off
+            },
         )
         .unwrap();
         assert_eq!(sv.fit.is_some(), own_plane);
