@@ -85,7 +85,9 @@ pub fn method(name: &str) -> Result<&'static Method> {
 /// [`core::cascades::Cascaded`], which adds the `cascades`, `cascade_lambda` and `cascade_blend`
 /// parameters (one view set per camera-depth slice; at the default `cascades=0`, one slice unless
 /// the receivers span a camera-depth ratio above 8 and one view's texel density p95 exceeds 2
-/// pixels per texel).
+/// pixels per texel) and `tiles`, `tile_span` (views by direction from the light centre per
+/// slice, [`core::cascades::direction_tiles`]; at the default `tiles=0`, one view unless the
+/// receivers span more than `tile_span` in tan space and one view's texel density p95 exceeds 2).
 pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstimator>> {
     let m = method(name)?;
     with_cascades(match backend {

@@ -48,6 +48,23 @@ pub const CASCADE_BLEND: ParamSpec = ParamSpec {
     help: "blend band at each split, half width as a fraction of the nearer slice's depth range; V blends linearly across it",
 };
 
+/// `tiles`: how many light views by direction per cascade ([`direction_tiles`]).
+pub const TILES: ParamSpec = ParamSpec {
+    key: "tiles",
+    kind: ParamKind::Int { min: 0, max: 16 },
+    default: "0",
+    help: "light views by direction from the light centre per cascade, each fitted to the receivers of one tile of directions: 0 = auto (one view unless the receivers' directions span more than tile_span in tan space and one view's texel density p95 exceeds 2 pixels per texel; then up to 8 tiles of at most tile_span), 1 = one view, k = k tiles. Each tile costs a full view build",
+};
+/// `tile_span`: the largest extent in tan space one tile keeps under `tiles=0`.
+pub const TILE_SPAN: ParamSpec = ParamSpec {
+    key: "tile_span",
+    kind: ParamKind::Float { min: 0.25, max: 40.0 },
+    default: "2",
+    help: "tiles=0: a tile of directions is split while its receivers span more than this in tan space (x/z or y/z in the light frame; 2 is +-45 degrees about its centre direction)",
+};
+/// Most tiles `tiles=0` (auto) picks.
+pub const MAX_AUTO_TILES: usize = 8;
+
 /// Most cascades (the [`CASCADES`] range).
 pub const MAX_CASCADES: u32 = 8;
 const _: () =
@@ -64,6 +81,10 @@ crate::typed_params! {
         cascade_lambda: f32 = CASCADE_LAMBDA,
         /// Blend band half width, relative.
         cascade_blend: f32 = CASCADE_BLEND,
+        /// Views by direction per cascade (0: auto, [`direction_tiles`]).
+        tiles: u32 = TILES,
+        /// Largest tan-space extent of one tile under `tiles=0`.
+        tile_span: f32 = TILE_SPAN,
     }
 }
 
@@ -255,12 +276,156 @@ pub fn plan_splits(
     practical_splits(near, far, k, settings.cascade_lambda)
 }
 
-/// The split depths and, per receiver, the cascades it belongs to with their weights
-/// ([`cascade_weights`]; `None` for inactive receivers) under `settings`, for an estimator whose
-/// own parameters are `inner` (its one-view texel density decides `cascades=0`).
-pub type Plan = (Vec<f32>, Vec<Option<[(usize, f32); 2]>>);
+/// What [`Cascaded`] runs: the split depths, per receiver the cascades it belongs to with their
+/// weights ([`cascade_weights`]; `None` for inactive receivers), and per cascade its tiles of
+/// directions ([`direction_tiles`]).
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// `k + 1` split depths.
+    pub splits: Vec<f32>,
+    /// Per receiver, its (cascade, weight) pairs.
+    pub weights: Vec<Option<[(usize, f32); 2]>>,
+    /// Per cascade, its tiles.
+    pub tiles: Vec<Tiles>,
+}
 
-/// The [`Plan`] for `receivers` of `scene`.
+impl Plan {
+    /// One cascade of one tile: the inner estimator runs on every receiver, untouched.
+    pub fn is_one_view(&self) -> bool {
+        self.splits.len() == 2 && self.tiles.first().is_none_or(|t| t.count == 1)
+    }
+    /// Number of cascades.
+    pub fn cascades(&self) -> usize {
+        self.splits.len() - 1
+    }
+    /// The receivers of cascade `c`, tile `t` (the others inactive).
+    pub fn receivers(&self, receivers: &Receivers, c: usize, t: usize) -> Receivers {
+        let mut sub = cascade_receivers(receivers, &self.weights, c);
+        if let Some(tiles) = self.tiles.get(c) {
+            for (i, a) in sub.active.iter_mut().enumerate() {
+                *a &= tiles.of.get(i).is_some_and(|&x| x as usize == t);
+            }
+        }
+        sub
+    }
+}
+
+/// The tiles of directions of one cascade: `count` of them, `of[i]` the tile of receiver `i`
+/// (receivers behind the light plane, and inactive ones, in tile 0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tiles {
+    /// Number of tiles (at least 1).
+    pub count: usize,
+    /// Tile of each receiver.
+    pub of: Vec<u32>,
+}
+
+/// Splits the active `receivers` by their direction from the light centre (several views where
+/// one cannot serve, issue 17). In the light frame a receiver at `p` (in front, `p_z > 0`) has
+/// the tan-space position `t = p_xy / p_z`; a tile is a box of `t`, and each tile's view is the
+/// estimator's own light-centre view fitted to that tile's receivers only, so every formula that
+/// assumes the map plane parallel to the light plane holds, while texels go where the tile's
+/// receivers are. The split is a k-d tree on `t`: the tile with the widest extent is cut at the
+/// median of its receivers along its longer side. Receivers beyond
+/// [`MAX_TAN`](crate::light_view::MAX_TAN), outside every view, stay in tile 0 and count in no
+/// extent.
+///
+/// `tiles = k >= 1`: k tiles (fewer when the receivers run out). `tiles = 0`: one tile unless
+/// the receivers span more than `tile_span` and one view's texel-density p95 (`p95`, computed
+/// only then) exceeds [`AUTO_MAX_DENSITY`]; then tiles are split while one spans more than
+/// `tile_span`, up to [`MAX_AUTO_TILES`].
+pub fn direction_tiles(
+    settings: &CascadeSettings,
+    scene: &Scene,
+    receivers: &Receivers,
+    p95: impl FnOnce() -> Option<f32>,
+) -> Tiles {
+    let frame = scene.light.frame();
+    let mut pts: Vec<(usize, [f32; 2])> = Vec::new();
+    for i in 0..receivers.len() {
+        if !receivers.active[i] {
+            continue;
+        }
+        let p = frame.to_light(receivers.position[i]);
+        let t = [p.x / p.z, p.y / p.z];
+        // Receivers outside every view (beyond MAX_TAN) would only stretch the extents.
+        if p.z > 0.0 && t.iter().all(|x| x.abs() <= crate::light_view::MAX_TAN) {
+            pts.push((i, t));
+        }
+    }
+    let one = Tiles {
+        count: 1,
+        of: vec![0; receivers.len()],
+    };
+    let extent = |t: &[(usize, [f32; 2])]| -> (f32, usize, f32) {
+        // (largest side, its axis, its middle)
+        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for (_, q) in t {
+            for a in 0..2 {
+                lo[a] = lo[a].min(q[a]);
+                hi[a] = hi[a].max(q[a]);
+            }
+        }
+        let a = if hi[1] - lo[1] > hi[0] - lo[0] { 1 } else { 0 };
+        (hi[a] - lo[a], a, 0.5 * (lo[a] + hi[a]))
+    };
+    let (want, span) = match settings.tiles {
+        0 => {
+            if pts.len() < 2 || !(extent(&pts).0 > settings.tile_span) {
+                return one;
+            }
+            if !p95().is_some_and(|d| d > AUTO_MAX_DENSITY) {
+                return one;
+            }
+            (MAX_AUTO_TILES, settings.tile_span)
+        }
+        k => (k as usize, 0.0),
+    };
+    let mut tiles: Vec<Vec<(usize, [f32; 2])>> = vec![pts];
+    while tiles.len() < want {
+        let Some((w, (e, a, mid))) = tiles
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.len() >= 2)
+            .map(|(w, t)| (w, extent(t)))
+            .max_by(|x, y| x.1 .0.total_cmp(&y.1 .0))
+        else {
+            break;
+        };
+        if !(e > span) {
+            break;
+        }
+        let mut t = tiles.swap_remove(w);
+        // At the median along the longer side (balanced tiles); the middle of the extent when
+        // the median sits at an end (many receivers at one direction).
+        t.sort_by(|x, y| x.1[a].total_cmp(&y.1[a]));
+        let m = t.len() / 2;
+        let cut = if t[m].1[a] > t[0].1[a] {
+            t[m].1[a]
+        } else {
+            mid
+        };
+        let (lo, hi): (Vec<_>, Vec<_>) = t.into_iter().partition(|(_, q)| q[a] < cut);
+        if lo.is_empty() || hi.is_empty() {
+            break; // every receiver at one direction
+        }
+        tiles.push(lo);
+        tiles.push(hi);
+    }
+    let mut of = vec![0u32; receivers.len()];
+    for (k, t) in tiles.iter().enumerate() {
+        for (i, _) in t {
+            of[*i] = k as u32;
+        }
+    }
+    Tiles {
+        count: tiles.len(),
+        of,
+    }
+}
+
+/// The [`Plan`] for `receivers` of `scene`, for an estimator whose own parameters are `inner`
+/// (its one-view texel density decides `cascades=0` and `tiles=0`).
 pub fn plan(
     settings: &CascadeSettings,
     scene: &Scene,
@@ -268,17 +433,27 @@ pub fn plan(
     inner: &Params,
 ) -> Plan {
     let depths = camera_depths(&scene.camera, receivers);
-    let p95 = || {
-        let d = view_density(scene, receivers, inner)?;
+    let p95 = |r: &Receivers| {
+        let d = view_density(scene, r, inner)?;
         median_p95(&d).map(|m| m.1)
     };
-    let splits = plan_splits(settings, &depths, p95);
+    let splits = plan_splits(settings, &depths, || p95(receivers));
     let half = blend_half_widths(&splits, settings.cascade_blend);
-    let weights = depths
+    let weights: Vec<_> = depths
         .iter()
         .map(|d| d.map(|d| cascade_weights(d, &splits, &half)))
         .collect();
-    (splits, weights)
+    let tiles = (0..splits.len() - 1)
+        .map(|c| {
+            let sub = cascade_receivers(receivers, &weights, c);
+            direction_tiles(settings, scene, &sub, || p95(&sub))
+        })
+        .collect();
+    Plan {
+        splits,
+        weights,
+        tiles,
+    }
 }
 
 /// `receivers` with only those of cascade `c` active.
@@ -303,13 +478,15 @@ pub fn texel_density_of(scene: &Scene, receivers: &Receivers, params: &Params) -
     let Ok(settings) = CascadeSettings::from_params(params) else {
         return view_density(scene, receivers, params);
     };
-    let (splits, weights) = plan(&settings, scene, receivers, params);
+    let plan = plan(&settings, scene, receivers, params);
     let mut out = vec![f32::NAN; receivers.len()];
-    for c in 0..splits.len() - 1 {
-        let sub = cascade_receivers(receivers, &weights, c);
-        for (i, x) in view_density(scene, &sub, params)?.into_iter().enumerate() {
-            if sub.active[i] && x.is_finite() {
-                out[i] = x;
+    for c in 0..plan.cascades() {
+        for t in 0..plan.tiles[c].count {
+            let sub = plan.receivers(receivers, c, t);
+            for (i, x) in view_density(scene, &sub, params)?.into_iter().enumerate() {
+                if sub.active[i] && x.is_finite() {
+                    out[i] = x;
+                }
             }
         }
     }
@@ -404,7 +581,7 @@ impl SoftShadowEstimator for Cascaded {
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let plan = plan(&self.settings, scene, receivers, self.inner.params());
-        let one = plan.0.len() == 2;
+        let one = plan.is_one_view();
         self.plan = Some(plan);
         if one {
             return self.inner.build(scene, receivers);
@@ -413,7 +590,8 @@ impl SoftShadowEstimator for Cascaded {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        let (splits, weights) = crate::estimator::built(self.plan.as_ref())?;
+        let plan = crate::estimator::built(self.plan.as_ref())?;
+        let (splits, weights) = (&plan.splits, &plan.weights);
         if weights.len() != receivers.len() {
             return Err(crate::Error::Receivers(format!(
                 "estimate has {} receivers, the build had {}",
@@ -421,39 +599,54 @@ impl SoftShadowEstimator for Cascaded {
                 weights.len()
             )));
         }
-        if splits.len() == 2 {
+        if plan.is_one_view() {
             self.inner.estimate(scene, receivers, v)?;
             self.report = self.inner.report();
             self.report.note("cascades", 1);
             return Ok(());
         }
-        let k = splits.len() - 1;
+        let k = plan.cascades();
         let mut acc = vec![0.0f32; receivers.len()];
         // V of the previous cascade, for the jump over each band.
         let mut prev: Vec<f32> = Vec::new();
         let (mut jump_max, mut jump_sum, mut jump_n) = (0.0f32, 0.0f64, 0usize);
         let mut report = Report::default();
         let mut ms = Vec::with_capacity(k);
+        let mut out_of_frustum = 0usize;
         for c in 0..k {
-            let sub = cascade_receivers(receivers, weights, c);
             let t = Instant::now();
             let mut vc = vec![f32::NAN; receivers.len()];
-            if sub.active.iter().any(|a| *a) {
-                self.inner.build(scene, &sub)?;
-                self.inner.estimate(scene, &sub, &mut vc)?;
-            }
-            ms.push(t.elapsed().as_secs_f64() * 1e3);
-            let r = self.inner.report();
-            for (name, t) in r.stages {
-                match report.stages.iter_mut().find(|s| s.0 == name) {
-                    Some(s) => s.1 += t,
-                    None => report.stages.push((name, t)),
+            for tile in 0..plan.tiles[c].count {
+                let sub = plan.receivers(receivers, c, tile);
+                let mut vt = vec![f32::NAN; receivers.len()];
+                if sub.active.iter().any(|a| *a) {
+                    self.inner.build(scene, &sub)?;
+                    self.inner.estimate(scene, &sub, &mut vt)?;
+                }
+                for (i, x) in vt.into_iter().enumerate() {
+                    if sub.active[i] {
+                        vc[i] = x;
+                    }
+                }
+                let r = self.inner.report();
+                for (name, t) in r.stages {
+                    match report.stages.iter_mut().find(|s| s.0 == name) {
+                        Some(s) => s.1 += t,
+                        None => report.stages.push((name, t)),
+                    }
+                }
+                report.light_space_bytes = report.light_space_bytes.max(r.light_space_bytes);
+                out_of_frustum += r
+                    .notes
+                    .iter()
+                    .find(|(n, _)| n == "out_of_frustum")
+                    .and_then(|(_, x)| x.parse::<usize>().ok())
+                    .unwrap_or(0);
+                if c == 0 && tile == 0 {
+                    report.notes = r.notes;
                 }
             }
-            report.light_space_bytes = report.light_space_bytes.max(r.light_space_bytes);
-            if c == 0 {
-                report.notes = r.notes;
-            }
+            ms.push(t.elapsed().as_secs_f64() * 1e3);
             for (i, w) in weights.iter().enumerate() {
                 let Some(w) = w else { continue };
                 for (cc, x) in w {
@@ -478,6 +671,11 @@ impl SoftShadowEstimator for Cascaded {
             };
         }
         report.note("cascades", k);
+        if let Some(n) = report.notes.iter_mut().find(|(n, _)| n == "out_of_frustum") {
+            n.1 = out_of_frustum.to_string();
+        }
+        let tiles: Vec<String> = plan.tiles.iter().map(|t| t.count.to_string()).collect();
+        report.note("light_tiles", tiles.join(","));
         let list = |x: &[f32]| {
             x.iter()
                 .map(|s| format!("{s:.3}"))
@@ -500,6 +698,83 @@ impl SoftShadowEstimator for Cascaded {
 
 #[cfg(test)]
 mod tests {
+    /// Direction tiles: receivers spread over tan-space [-8, 8] x [-1, 1] under a light looking
+    /// down. `tiles=0` splits only when asked by the density, into tiles of at most `tile_span`
+    /// (or 8 of them), `tiles=k` gives k, receivers behind the light go to tile 0, and every tile
+    /// holds receivers.
+    #[test]
+    fn direction_tiles_split_wide_receiver_sets() {
+        use crate::light::{Light, LightShape};
+        use glam::Vec3;
+        let light = Light {
+            shape: LightShape::Rect { size: [1.0, 1.0] },
+            center: Vec3::new(0.0, 10.0, 0.0),
+            normal: -Vec3::Y,
+            tangent: Vec3::X,
+        };
+        let mut pos = Vec::new();
+        for a in 0..=64 {
+            for b in 0..=8 {
+                // Light space: x = world x, y = world z (or its negative), z = 10 - world y.
+                pos.push(Vec3::new(
+                    -8.0 + a as f32 * 0.25,
+                    9.0,
+                    -1.0 + b as f32 * 0.25,
+                ));
+            }
+        }
+        pos.push(Vec3::new(0.0, 11.0, 0.0)); // behind the light
+        let n = pos.len();
+        let rec = Receivers::from_points(pos, vec![Vec3::Y; n]).unwrap();
+        let mut scene = crate::scene::Scene::from_meshes(
+            "tiles",
+            Camera {
+                eye: Vec3::new(0.0, 5.0, 5.0),
+                target: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 45.0,
+                width: 8,
+                height: 8,
+            },
+            light,
+            vec![(vec![[Vec3::ZERO, Vec3::X, Vec3::Z]], 1.0)],
+        )
+        .unwrap();
+        scene.light = light;
+        let settings = |tiles: u32| CascadeSettings {
+            cascades: 0,
+            cascade_lambda: 0.75,
+            cascade_blend: 0.1,
+            tiles,
+            tile_span: 2.0,
+        };
+        let dense = || Some(5.0);
+        assert_eq!(
+            direction_tiles(&settings(0), &scene, &rec, || Some(1.5)).count,
+            1
+        );
+        assert_eq!(direction_tiles(&settings(1), &scene, &rec, dense).count, 1);
+        let t = direction_tiles(&settings(0), &scene, &rec, dense);
+        assert_eq!(t.count, 8, "16 wide over a span of 2: the cap");
+        let t4 = direction_tiles(&settings(4), &scene, &rec, dense);
+        assert_eq!(t4.count, 4);
+        for t in [&t, &t4] {
+            let mut seen = vec![0usize; t.count];
+            for &k in &t.of {
+                seen[k as usize] += 1;
+            }
+            assert!(seen.iter().all(|&s| s > 0), "an empty tile: {seen:?}");
+            assert_eq!(t.of[n - 1], 0, "behind the light: tile 0");
+        }
+        // A narrow set keeps one tile.
+        let narrow =
+            Receivers::from_points(vec![Vec3::new(0.5, 0.0, 0.5); 3], vec![Vec3::Y; 3]).unwrap();
+        assert_eq!(
+            direction_tiles(&settings(0), &scene, &narrow, dense).count,
+            1
+        );
+    }
+
     use super::*;
 
     #[test]

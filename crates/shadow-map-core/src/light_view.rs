@@ -8,7 +8,7 @@ use crate::{
     scene::Scene,
     Error, Result,
 };
-use glam::{DVec2, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 
 /// Largest shadow-map resolution the CPU core accepts (texels per side).
 pub const MAX_RESOLUTION: u32 = 16384;
@@ -341,34 +341,118 @@ fn axis_view(frame: LightFrame, scale: f32, r: u32) -> LightView {
     }
 }
 
-/// Nearest and farthest geometry (light-space triangles `tris`, clipped at `n_floor`)
-/// overlapping a tan-space window.
-fn geometry_range(tris: &[[Vec3; 3]], n_floor: f32, lo: DVec2, hi: DVec2) -> (f32, f32) {
-    let (lo, hi) = (lo.as_vec2(), hi.as_vec2());
-    let mut zmin = f32::INFINITY;
-    let mut zmax = 0.0f32;
+/// A half-space `a x + b y + c z + d >= 0` of light space.
+type Plane = [f64; 4];
+
+/// The bounding frustum of every receiver's occluder pyramid (the convex hull of the light and
+/// the receiver): at depth z the pyramid of a receiver at tan-space `t`, depth `z_p`, covers
+/// `(1 - z/z_p) [-h, h] + (z/z_p) p_xy`, whose lower end `-h + z (t + h/z_p)` is at least
+/// `-h + z min(t + h/z_p)` over receivers and whose upper end is at most `h + z max(t - h/z_p)`.
+/// Geometry outside these four planes lies between no receiver and no point of the light, so it
+/// cannot shadow anything and does not decide the near plane.
+fn occluder_hull(rec: &[(DVec2, f64)], half: DVec2) -> [Plane; 4] {
+    let (mut a_lo, mut a_hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for &(t, z) in rec {
+        a_lo = a_lo.min(t + half / z);
+        a_hi = a_hi.max(t - half / z);
+    }
+    [
+        [1.0, 0.0, -a_lo.x, half.x],
+        [-1.0, 0.0, a_hi.x, half.x],
+        [0.0, 1.0, -a_lo.y, half.y],
+        [0.0, -1.0, a_hi.y, half.y],
+    ]
+}
+
+/// Nearest and farthest geometry (light-space triangles `tris`) inside the frustum of a tan-space
+/// window beyond `n_floor`, each triangle clipped to it ([`clipped_depth_range`]), so a large
+/// triangle that reaches near the light outside the window (a ground running past the light's
+/// plane) does not pull the near plane down (the common-techniques paper's intersection of the
+/// scene with the light frustum). The nearest is taken inside `hull` too (the receivers'
+/// [`occluder_hull`]): geometry that can shadow no receiver does not decide it.
+fn geometry_range(
+    tris: &[[Vec3; 3]],
+    n_floor: f32,
+    (lo, hi): (DVec2, DVec2),
+    hull: Option<&[Plane; 4]>,
+) -> (f32, f32) {
+    let window: [Plane; 5] = [
+        [1.0, 0.0, -lo.x, 0.0],
+        [-1.0, 0.0, hi.x, 0.0],
+        [0.0, 1.0, -lo.y, 0.0],
+        [0.0, -1.0, hi.y, 0.0],
+        [0.0, 0.0, 1.0, -(n_floor as f64)],
+    ];
+    let mut both: Vec<Plane> = window.to_vec();
+    both.extend(hull.into_iter().flatten());
+    let (mut zmin, mut zmax) = (f32::INFINITY, 0.0f32);
     for t in tris {
-        let zlo = t.iter().map(|v| v.z).fold(f32::INFINITY, f32::min);
-        let zhi = t.iter().map(|v| v.z).fold(f32::NEG_INFINITY, f32::max);
-        if zhi <= n_floor {
+        let Some((_, b)) = clipped_depth_range(t, &window) else {
             continue;
+        };
+        zmax = zmax.max(b);
+        if let Some((a, _)) = clipped_depth_range(t, &both) {
+            zmin = zmin.min(a.max(n_floor));
         }
-        if zlo > n_floor {
-            let mut tlo = Vec2::splat(f32::INFINITY);
-            let mut thi = Vec2::splat(f32::NEG_INFINITY);
-            for v in t {
-                let tv = Vec2::new(v.x, v.y) / v.z;
-                tlo = tlo.min(tv);
-                thi = thi.max(tv);
-            }
-            if tlo.x > hi.x || tlo.y > hi.y || thi.x < lo.x || thi.y < lo.y {
-                continue;
-            }
-        }
-        zmin = zmin.min(zlo.max(n_floor));
-        zmax = zmax.max(zhi);
     }
     (zmin, zmax)
+}
+
+/// The depth range of triangle `t` (light space) clipped to the half-spaces `planes`
+/// (Sutherland-Hodgman, in f64), or `None` when nothing of it is inside. The near end is lowered
+/// by `2^-20` of itself and the far end raised as much, so rounding never clips recorded
+/// geometry.
+fn clipped_depth_range(t: &[Vec3; 3], planes: &[Plane]) -> Option<(f32, f32)> {
+    const MAX: usize = 3 + 9;
+    let v = t.map(|v| v.as_dvec3());
+    let side = |pl: &Plane, p: DVec3| pl[0] * p.x + pl[1] * p.y + pl[2] * p.z + pl[3];
+    // Most triangles lie wholly inside or wholly outside one plane: no clipping.
+    let mut all_in = true;
+    for pl in planes {
+        let s = v.map(|p| side(pl, p));
+        if s.iter().all(|&x| x < 0.0) {
+            return None;
+        }
+        all_in &= s.iter().all(|&x| x >= 0.0);
+    }
+    if all_in {
+        let zmin = v.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+        let zmax = v.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+        let slack = 1.0 / 1_048_576.0;
+        return Some(((zmin * (1.0 - slack)) as f32, (zmax * (1.0 + slack)) as f32));
+    }
+    let mut poly = [DVec3::ZERO; MAX];
+    let mut n = 3;
+    poly[..3].copy_from_slice(&v);
+    let mut next = [DVec3::ZERO; MAX];
+    for pl in planes {
+        let side = |p: DVec3| side(pl, p);
+        let mut m = 0;
+        for k in 0..n {
+            let (a, b) = (poly[k], poly[(k + 1) % n]);
+            let (da, db) = (side(a), side(b));
+            if da >= 0.0 && m < MAX {
+                next[m] = a;
+                m += 1;
+            }
+            if (da >= 0.0) != (db >= 0.0) && m < MAX {
+                next[m] = a + (b - a) * (da / (da - db));
+                m += 1;
+            }
+        }
+        if m == 0 {
+            return None;
+        }
+        poly = next;
+        n = m;
+    }
+    let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in &poly[..n] {
+        zmin = zmin.min(p.z);
+        zmax = zmax.max(p.z);
+    }
+    let slack = 1.0 / 1_048_576.0;
+    Some(((zmin * (1.0 - slack)) as f32, (zmax * (1.0 + slack)) as f32))
 }
 
 /// Tan-space bounds of every scene vertex in front of the light (beyond `n_floor`), clamped to
@@ -428,6 +512,8 @@ struct FitGeometry {
     scene_window: (DVec2, DVec2),
     /// The window choice.
     fit_mode: FitMode,
+    /// The receivers' [`occluder_hull`].
+    hull: [Plane; 4],
 }
 
 impl FitGeometry {
@@ -452,7 +538,10 @@ impl FitGeometry {
             .collect();
         let half = light_half.as_dvec2();
         let all = (DVec2::splat(-MAX_TAN as f64), DVec2::splat(MAX_TAN as f64));
-        let (n_scene, far_scene) = geometry_range(&tris, n_floor, all.0, all.1);
+        let hull = occluder_hull(&rec, half);
+        // `fit=stable` keeps its near plane independent of the receivers (the camera).
+        let n_hull = (fit_mode != FitMode::Stable).then_some(&hull);
+        let (n_scene, far_scene) = geometry_range(&tris, n_floor, all, n_hull);
         let n0 = n_scene.min(zr_min * 0.999).max(n_floor);
         let scene_window = scene_tan_bounds(&tris, n_floor, all);
         FitGeometry {
@@ -466,6 +555,7 @@ impl FitGeometry {
             far_scene,
             scene_window,
             fit_mode,
+            hull,
         }
     }
 
@@ -485,7 +575,7 @@ impl FitGeometry {
 
     /// Nearest and farthest geometry overlapping a tan-space window.
     fn geometry_range(&self, lo: DVec2, hi: DVec2) -> (f32, f32) {
-        geometry_range(&self.tris, self.n_floor, lo, hi)
+        geometry_range(&self.tris, self.n_floor, (lo, hi), Some(&self.hull))
     }
 
     /// The square window (texels are square) fitted at a given n, in x/z space.
@@ -933,5 +1023,96 @@ mod param_tests {
             NearFar::from_param(ParamValue::Choice("clipped")),
             Some(NearFar::default())
         );
+    }
+}
+
+#[cfg(test)]
+mod near_tests {
+    use super::*;
+
+    /// Clipping a triangle to a tan-space window: a ground triangle that reaches the light's
+    /// plane far outside the window gives the depth where it enters the window, not its nearest
+    /// vertex; one wholly outside gives nothing; one wholly inside gives its vertices' range.
+    #[test]
+    fn clipped_depth_range_is_the_depth_inside_the_window() {
+        let window = |lo: f64, hi: f64| -> [Plane; 4] {
+            [
+                [1.0, 0.0, -lo, 0.0],
+                [-1.0, 0.0, hi, 0.0],
+                [0.0, 1.0, -lo, 0.0],
+                [0.0, -1.0, hi, 0.0],
+            ]
+        };
+        // A plane x = 1 (light space) from z = 0.01 to z = 10: inside |x/z| <= 0.5 only for
+        // z >= 2.
+        let t = [
+            Vec3::new(1.0, -0.1, 0.01),
+            Vec3::new(1.0, 0.1, 0.01),
+            Vec3::new(1.0, 0.0, 10.0),
+        ];
+        let (a, b) = clipped_depth_range(&t, &window(-0.5, 0.5)).unwrap();
+        assert!((a - 2.0).abs() < 1e-3, "near {a}");
+        assert!((b - 10.0).abs() < 1e-3, "far {b}");
+        assert!(clipped_depth_range(&t, &window(-0.05, 0.05)).is_none());
+        let inside = [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.1, 0.0, 2.0),
+            Vec3::new(0.0, 0.1, 3.0),
+        ];
+        let (a, b) = clipped_depth_range(&inside, &window(-1.0, 1.0)).unwrap();
+        assert!(
+            (0.9999..=1.0).contains(&a) && (3.0..3.0001).contains(&b),
+            "{a} {b}"
+        );
+    }
+
+    /// The occluder hull holds every segment from the light to a receiver (sampled), and a point
+    /// beside the light, off every such segment, lies outside it.
+    #[test]
+    fn occluder_hull_holds_every_light_to_receiver_segment() {
+        let half = DVec2::new(0.5, 0.3);
+        let rec: Vec<(DVec2, f64)> = [(0.2, -0.1, 2.0), (-1.5, 0.4, 5.0), (3.0, 2.0, 0.7)]
+            .iter()
+            .map(|&(x, y, z)| (DVec2::new(x, y) / z, z))
+            .collect();
+        let hull = occluder_hull(&rec, half);
+        let inside = |p: DVec3| {
+            hull.iter()
+                .all(|pl| pl[0] * p.x + pl[1] * p.y + pl[2] * p.z + pl[3] >= -1e-9)
+        };
+        for &(t, z) in &rec {
+            let p = (t * z).extend(z);
+            for cx in [-1.0, 0.0, 1.0] {
+                for cy in [-1.0, 0.0, 1.0] {
+                    let c = DVec3::new(cx * half.x, cy * half.y, 0.0);
+                    for k in 0..=10 {
+                        let s = k as f64 / 10.0;
+                        assert!(inside(c + (p - c) * s), "segment point {s} to {p}");
+                    }
+                }
+            }
+        }
+        // Beside the light at a small depth: between no receiver and the light.
+        assert!(!inside(DVec3::new(3.0, 0.0, 0.01)));
+    }
+
+    /// A ground running past the light's plane (the backlit-stone kind) no longer pulls the near
+    /// plane down to where it crosses: the near plane is the nearest geometry that can shadow a
+    /// receiver.
+    #[test]
+    fn a_ground_past_the_light_plane_does_not_set_the_near_plane() {
+        let path = format!(
+            "{}/../../fixtures/backlit-stone/backlit-stone.toml",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let scene = Scene::load(&path).unwrap();
+        let bvh = crate::bvh::SceneBvh::new(&scene);
+        let rec = Receivers::from_camera(&scene, &bvh);
+        let light = &scene.light;
+        let (view, _) =
+            LightView::fit(&scene, &rec, light.frame(), light.half_extent(), 256).unwrap();
+        // The ground crosses the light's plane: its nearest vertex in front of the light is a
+        // few 1e-4 deep; the nearest geometry that matters is far deeper.
+        assert!(view.n > 0.01, "near {}", view.n);
     }
 }

@@ -32,7 +32,9 @@
 //! - `b0 t(z_p)`: the user's `bias` (texel footprints, default 0), for meshes whose facets bend
 //!   towards the light within a kernel (concave tessellation) when that must not count;
 //! - 16-bit maps: the decoded depth is `z + half step` (the nearest code can be half a step
-//!   nearer than the surface).
+//!   nearer than the surface), and `z_p` is lowered by half a step for the same reason, so the
+//!   receiver's own surface just behind it never reads as in front (`tests/stability.rs`,
+//!   grazing receivers under `depth=unorm16`).
 //!
 //! **Bound.** A receiver on a planar surface is never shadowed by that surface's own samples, for
 //! any kernel size, any resolution and any angle of incidence below 90 degrees; a true caster is
@@ -72,7 +74,9 @@ pub struct ReceiverPlane {
     pub gv: f32,
     /// `c - tau_p` (plane) or `z_p - eps` (classic).
     pub c: f32,
-    /// `z_p`: deeper samples are never casters.
+    /// `z_p - hs`: samples whose stored depth reaches it are never casters (a 16-bit code can
+    /// read up to half a step nearer than the surface, so a surface just behind the receiver
+    /// must not read as in front of it).
     pub zp: f32,
     /// Half a code step under `depth=unorm16`, else 0.
     pub hs: f32,
@@ -94,7 +98,7 @@ impl ReceiverPlane {
             gu: -n.x * s,
             gv: -n.y * s,
             c: -n.dot(p) - tau,
-            zp: p.z,
+            zp: p.z - hs,
             hs,
         }
     }
@@ -106,7 +110,7 @@ impl ReceiverPlane {
             gu: 0.0,
             gv: 0.0,
             c: p.z - view.receiver_bias(p, n, b0, b1),
-            zp: p.z,
+            zp: p.z - hs,
             hs,
         }
     }

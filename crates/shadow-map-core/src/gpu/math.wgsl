@@ -291,7 +291,7 @@ fn view_max_dir_len(v: LightViewUniform) -> f32 {
 
 // shadow_map_core::receiver_plane::ReceiverPlane (docs/methods.md §2, "Receiver plane"): a sample
 // at depth z on the ray through texel coordinates uv is a caster when
-// z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c. PLANE_ROUNDING and PLANE_SNAP are overrides set
+// z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c, zp = z_p - hs. PLANE_ROUNDING and PLANE_SNAP are overrides set
 // from receiver_plane::{ROUNDING, SNAP}.
 struct ReceiverPlane {
     g0: f32,
@@ -305,14 +305,14 @@ struct ReceiverPlane {
 // ReceiverPlane::new: the plane test when `on`, else the classic z < z_p - receiver_bias.
 fn plane_new(on: bool, v: LightViewUniform, p: vec3<f32>, n: vec3<f32>, b0: f32, b1: f32, hs: f32) -> ReceiverPlane {
     if !on {
-        return ReceiverPlane(1.0, 0.0, 0.0, p.z - receiver_bias(v, p, n, b0, b1), p.z, hs);
+        return ReceiverPlane(1.0, 0.0, 0.0, p.z - receiver_bias(v, p, n, b0, b1), p.z - hs, hs);
     }
     let texel = v.w * p.z / (v.n * f32(v.r));
     let kappa = PLANE_ROUNDING * view_max_dir_len(v);
     let tau = PLANE_ROUNDING * sqrt(dot3(p, p)) + (PLANE_SNAP + b0) * texel;
     let s = v.delta / v.n;
     let o = v.window_min / v.n;
-    return ReceiverPlane(-(n.x * o.x + n.y * o.y + n.z) + kappa, -n.x * s, -n.y * s, -dot3(n, p) - tau, p.z, hs);
+    return ReceiverPlane(-(n.x * o.x + n.y * o.y + n.z) + kappa, -n.x * s, -n.y * s, -dot3(n, p) - tau, p.z - hs, hs);
 }
 
 fn plane_slope_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
