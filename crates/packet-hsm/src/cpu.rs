@@ -451,7 +451,7 @@ impl SubView {
     /// The dual cells of the penumbra receivers' kernels summed, from every 8th receiver
     /// (times 8): the most cells the extraction could walk. Decides whether the own-plane bounds
     /// are worth building ([`OWN_PLANE_WORTH`]).
-    fn kernel_cells_estimate(&self, cfg: &Config, receivers: &Receivers) -> f64 {
+    pub fn kernel_cells_estimate(&self, cfg: &Config, receivers: &Receivers) -> f64 {
         const STEP: usize = 8;
         let grid = self.grid(cfg);
         let cells: u64 = (0..receivers.len().div_ceil(STEP))
