@@ -853,13 +853,12 @@ impl Planes<'_> {
         // No plane test passes: the node's smallest true depth reaches every upper bound.
         let tm = if !free_possible {
             f32::NEG_INFINITY
-        } else if self.class_is_depth {
-            min
         } else {
-            match self.fit.and_then(|f| f.min_bound(l, x, y)) {
-                Some(m) => m,
-                None => true_min(false, self.depth, min, s),
-            }
+            // With midpoints, the fit's block minimum (one fetch) before an MSSM query.
+            self.fit
+                .filter(|_| !self.class_is_depth)
+                .and_then(|f| f.min_bound(l, x, y))
+                .unwrap_or_else(|| true_min(self.class_is_depth, self.depth, min, s))
         };
         if tm >= kb.1 {
             return Bounds::Settled;

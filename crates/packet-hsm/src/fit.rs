@@ -48,7 +48,6 @@ const W_SLACK: f64 = 1.0 / 4_194_304.0;
 struct Level {
     /// `log2` of the anchor stride (indices by shifts: this runs per block).
     shift: u32,
-    stride: usize,
     q: usize,
     dev: Vec<f32>,
     zmin: Option<Vec<f32>>,
@@ -126,7 +125,6 @@ impl DualFit {
         // Level 0 (single cells) is never queried: a cell costs what its proof would.
         let mut out: Vec<Level> = vec![Level {
             shift: 0,
-            stride: 1,
             q: 0,
             dev: Vec::new(),
             zmin: None,
@@ -218,7 +216,6 @@ impl DualFit {
             });
             out.push(Level {
                 shift,
-                stride,
                 q,
                 dev,
                 zmin,
@@ -245,7 +242,7 @@ impl DualFit {
         if k >= lv.q || j >= lv.q {
             return None;
         }
-        Some((lv, j * lv.q + k, (k * lv.stride, j * lv.stride)))
+        Some((lv, j * lv.q + k, (k << lv.shift, j << lv.shift)))
     }
 
     /// A lower bound on the true depths of traversal node `(l, x, y)` (padded anchor, samples
@@ -274,7 +271,7 @@ impl DualFit {
         if !(dev < f64::INFINITY) {
             return false;
         }
-        let (p, n) = (self.p, 2 * lv.stride);
+        let (p, n) = (self.p, 2usize << lv.shift);
         let k = y * p + x;
         let (w0, w1, w3) = (
             self.w[k] as f64,

@@ -383,76 +383,92 @@ fn geometry_range(
         [0.0, -1.0, hi.y, 0.0],
         [0.0, 0.0, 1.0, -(n_floor as f64)],
     ];
-    let mut both: Vec<Plane> = window.to_vec();
-    both.extend(hull.into_iter().flatten());
     let (mut zmin, mut zmax) = (f32::INFINITY, 0.0f32);
     for t in tris {
-        let Some((_, b)) = clipped_depth_range(t, &window) else {
+        // Clipped to the window, then on to the hull: one polygon for both ends.
+        let mut p = Polygon::triangle(t);
+        if !p.clip(&window) {
             continue;
-        };
-        zmax = zmax.max(b);
-        if let Some((a, _)) = clipped_depth_range(t, &both) {
-            zmin = zmin.min(a.max(n_floor));
+        }
+        zmax = zmax.max(p.depth_range().1);
+        if hull.is_none_or(|h| p.clip(h)) {
+            zmin = zmin.min(p.depth_range().0.max(n_floor));
         }
     }
     (zmin, zmax)
 }
 
 /// The depth range of triangle `t` (light space) clipped to the half-spaces `planes`
-/// (Sutherland-Hodgman, in f64), or `None` when nothing of it is inside. The near end is lowered
-/// by `2^-20` of itself and the far end raised as much, so rounding never clips recorded
-/// geometry.
+/// ([`Polygon`]), or `None` when nothing of it is inside.
+#[cfg(test)]
 fn clipped_depth_range(t: &[Vec3; 3], planes: &[Plane]) -> Option<(f32, f32)> {
+    let mut p = Polygon::triangle(t);
+    p.clip(planes).then(|| p.depth_range())
+}
+
+/// A convex polygon of light space clipped plane by plane (Sutherland-Hodgman, in f64): a
+/// triangle and at most one more vertex per plane.
+struct Polygon {
+    v: [DVec3; Polygon::MAX],
+    n: usize,
+}
+
+impl Polygon {
     const MAX: usize = 3 + 9;
-    let v = t.map(|v| v.as_dvec3());
-    let side = |pl: &Plane, p: DVec3| pl[0] * p.x + pl[1] * p.y + pl[2] * p.z + pl[3];
-    // Most triangles lie wholly inside or wholly outside one plane: no clipping.
-    let mut all_in = true;
-    for pl in planes {
-        let s = v.map(|p| side(pl, p));
-        if s.iter().all(|&x| x < 0.0) {
-            return None;
+
+    fn triangle(t: &[Vec3; 3]) -> Self {
+        let mut v = [DVec3::ZERO; Self::MAX];
+        for (k, p) in t.iter().enumerate() {
+            v[k] = p.as_dvec3();
         }
-        all_in &= s.iter().all(|&x| x >= 0.0);
+        Polygon { v, n: 3 }
     }
-    if all_in {
-        let zmin = v.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
-        let zmax = v.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+
+    /// Keeps the part inside every plane of `planes`; false when nothing is left. A plane with
+    /// every vertex inside leaves the polygon as it is (most triangles lie wholly inside or
+    /// wholly outside a plane).
+    fn clip(&mut self, planes: &[Plane]) -> bool {
+        for pl in planes {
+            let side = |p: DVec3| pl[0] * p.x + pl[1] * p.y + pl[2] * p.z + pl[3];
+            let poly = &self.v[..self.n];
+            if poly.iter().all(|&p| side(p) >= 0.0) {
+                continue;
+            }
+            let mut next = [DVec3::ZERO; Self::MAX];
+            let mut m = 0;
+            for k in 0..self.n {
+                let (a, b) = (poly[k], poly[(k + 1) % self.n]);
+                let (da, db) = (side(a), side(b));
+                if da >= 0.0 && m < Self::MAX {
+                    next[m] = a;
+                    m += 1;
+                }
+                if (da >= 0.0) != (db >= 0.0) && m < Self::MAX {
+                    next[m] = a + (b - a) * (da / (da - db));
+                    m += 1;
+                }
+            }
+            if m == 0 {
+                self.n = 0;
+                return false;
+            }
+            self.v = next;
+            self.n = m;
+        }
+        self.n > 0
+    }
+
+    /// The polygon's depth range, the near end lowered by `2^-20` of itself and the far end
+    /// raised as much, so rounding never clips recorded geometry.
+    fn depth_range(&self) -> (f32, f32) {
+        let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for p in &self.v[..self.n] {
+            zmin = zmin.min(p.z);
+            zmax = zmax.max(p.z);
+        }
         let slack = 1.0 / 1_048_576.0;
-        return Some(((zmin * (1.0 - slack)) as f32, (zmax * (1.0 + slack)) as f32));
+        ((zmin * (1.0 - slack)) as f32, (zmax * (1.0 + slack)) as f32)
     }
-    let mut poly = [DVec3::ZERO; MAX];
-    let mut n = 3;
-    poly[..3].copy_from_slice(&v);
-    let mut next = [DVec3::ZERO; MAX];
-    for pl in planes {
-        let side = |p: DVec3| side(pl, p);
-        let mut m = 0;
-        for k in 0..n {
-            let (a, b) = (poly[k], poly[(k + 1) % n]);
-            let (da, db) = (side(a), side(b));
-            if da >= 0.0 && m < MAX {
-                next[m] = a;
-                m += 1;
-            }
-            if (da >= 0.0) != (db >= 0.0) && m < MAX {
-                next[m] = a + (b - a) * (da / (da - db));
-                m += 1;
-            }
-        }
-        if m == 0 {
-            return None;
-        }
-        poly = next;
-        n = m;
-    }
-    let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
-    for p in &poly[..n] {
-        zmin = zmin.min(p.z);
-        zmax = zmax.max(p.z);
-    }
-    let slack = 1.0 / 1_048_576.0;
-    Some(((zmin * (1.0 - slack)) as f32, (zmax * (1.0 + slack)) as f32))
 }
 
 /// Tan-space bounds of every scene vertex in front of the light (beyond `n_floor`), clamped to
