@@ -3,7 +3,6 @@
 //! defaults parse.
 use shadow_map_core::{run, Error, LightShape, Receivers, Scene, SceneBvh};
 use softshadow::{registry, Backend, ALGOS};
-use test_support::fixtures::BEYOND_ONE_VIEW;
 
 #[test]
 fn registry_is_complete_and_defaults_parse() {
@@ -62,16 +61,6 @@ fn every_estimator_keeps_the_contract_on_every_fixture() {
                 Ok((v, _)) => v,
                 // Rect-only estimators may refuse other lights, naming the light, and nothing else.
                 Err(Error::Param { key, .. }) if !rect && key == "light" => continue,
-                // Accumulation refuses receivers beyond its one view, on the listed fixtures only.
-                Err(err)
-                    if e.name() == "accumulation"
-                        && test_support::fixtures::is_one_view_refusal(&err)
-                        && BEYOND_ONE_VIEW
-                            .iter()
-                            .any(|f| path.ends_with(format!("{f}/{f}.toml"))) =>
-                {
-                    continue
-                }
                 Err(err) => panic!("{} on {}: {err}", e.name(), path.display()),
             };
             for (k, x) in v.iter().enumerate() {

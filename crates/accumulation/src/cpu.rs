@@ -178,11 +178,8 @@ impl Settings {
 /// to the receivers with the `fit` and `nearfar` choices of `s.view` ([`LightView::fit_with`]);
 /// peeled layers for the exact variant; the anchored MSSM for the adaptive kernel).
 ///
-/// The window is fitted to the light's bounding half extent; for the contract's sphere, whose
-/// silhouette disk leaves the light plane by up to `z_max = R |r_xy| / |r|`, to the half extent of
-/// its equivalent disk in the light plane (where the lines from r through the disk meet z = 0):
-/// `h = (|r_xy| z_max + R r_z) / (r_z - z_max)`, the largest over the receivers, capped at 4 R
-/// (receivers needing more lose casters beyond the window edge).
+/// The window is fitted to [`shadow_map_core::light_view::fit_half_extent`] (for the paper's
+/// sphere model, to the light's bounding half extent).
 pub fn plan(
     scene: &Scene,
     receivers: &Receivers,
@@ -191,26 +188,10 @@ pub fn plan(
 ) -> Result<(LightView, FitReport, LightSpaceRequest)> {
     let light = &scene.light;
     let frame = light.frame();
-    let mut half = light.half_extent();
-    if let (LightShape::Sphere { .. }, SphereModel::Contract) = (light.shape, s.sphere) {
-        let mut f = 1.0f32;
-        for (k, pw) in receivers.position.iter().enumerate() {
-            if !receivers.active[k] {
-                continue;
-            }
-            let p = frame.to_light(*pw);
-            if p.z <= 0.0 {
-                continue;
-            }
-            let zmax = LightPatch::for_receiver(&light.shape, s.sphere, p).max_z();
-            let radius = half.x;
-            if zmax < p.z && radius > 0.0 {
-                let rxy = Vec2::new(p.x, p.y).length();
-                f = f.max((rxy * zmax + radius * p.z) / (radius * (p.z - zmax)));
-            }
-        }
-        half *= f.min(4.0);
-    }
+    let half = match s.sphere {
+        SphereModel::Contract => shadow_map_core::light_view::fit_half_extent(light, receivers),
+        SphereModel::Paper => light.half_extent(),
+    };
     let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
@@ -659,7 +640,7 @@ impl CpuAccumulation {
     }
 
     /// Estimates V from given light-space data (as `build` makes them). Returns the lexel taps
-    /// made; fails when any lit receiver is outside the frustum ([`outside_error`]).
+    /// made. Lit receivers outside the one frustum are left NaN for [`settle_outside`].
     pub fn estimate_with(
         &self,
         ls: &LightSpace,
@@ -713,10 +694,7 @@ impl CpuAccumulation {
                 }
             })
             .sum();
-        let outside = outside.into_inner();
-        if outside > 0 {
-            return Err(outside_error(outside, light));
-        }
+        let _ = outside.into_inner();
         if nonfinite > 0 {
             return Err(Error::Receivers(format!(
                 "{nonfinite} receivers got a non-finite V (a bug; replaced by 0)"
@@ -726,7 +704,8 @@ impl CpuAccumulation {
     }
 }
 
-/// The error for receivers outside the one light frustum.
+/// The error for lit receivers outside the one light frustum that [`settle_outside`] could not
+/// prove unshadowed.
 pub fn outside_error(count: usize, light: &shadow_map_core::Light) -> Error {
     let what = if matches!(light.shape, LightShape::Sphere { .. }) {
         "sphere light: behind the plane through its centre perpendicular to its normal, or beyond 87 degrees off that normal"
@@ -734,9 +713,49 @@ pub fn outside_error(count: usize, light: &shadow_map_core::Light) -> Error {
         "beyond 87 degrees off the light normal, or no farther from the light plane than the light itself"
     };
     Error::Receivers(format!(
-        "{count} lit receivers lie outside the one shadow-map frustum accumulation uses ({what}); \
-         their V is not defined by one map (cube-map views are not implemented): aim the light's normal at them or use another estimator"
+        "{count} lit receivers lie outside the one shadow-map frustum accumulation uses ({what}) \
+         and scene geometry lies between them and the light, so no map defines their V: aim the light's normal at them or use another estimator"
     ))
+}
+
+/// Settles the lit receivers [`CpuAccumulation::estimate_with`] left NaN (outside the one
+/// frustum: almost in the light's plane, seen from the light) without a map: where no scene
+/// triangle lies in a receiver's light pyramid ([`shadow_map_core::settle`]), nothing can shadow
+/// it and V is its facing fraction exactly. Returns how many were settled; fails with
+/// [`outside_error`] when any could not be (geometry between it and the light). Builds the scene's
+/// BVH only when some receiver needs it.
+pub fn settle_outside(scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<usize> {
+    let open: Vec<usize> = (0..v.len())
+        .filter(|&k| receivers.active[k] && v[k].is_nan())
+        .collect();
+    if open.is_empty() {
+        return Ok(0);
+    }
+    let settler = shadow_map_core::settle::Settler::new(scene);
+    let light = &scene.light;
+    let settled: Vec<Option<f32>> = open
+        .par_iter()
+        .map(|&k| {
+            let (p, n) = (receivers.position[k], receivers.normal[k]);
+            settler
+                .unshadowed(p, n)
+                .then(|| light.front_fraction_world(p, n).clamp(0.0, 1.0))
+        })
+        .collect();
+    let mut unsettled = 0;
+    for (&k, x) in open.iter().zip(&settled) {
+        match x {
+            Some(x) => v[k] = *x,
+            None => {
+                v[k] = 0.0;
+                unsettled += 1;
+            }
+        }
+    }
+    if unsettled > 0 {
+        return Err(outside_error(unsettled, light));
+    }
+    Ok(open.len())
 }
 
 impl SoftShadowEstimator for CpuAccumulation {
@@ -767,6 +786,17 @@ impl SoftShadowEstimator for CpuAccumulation {
             .stages
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         let taps = out.as_ref().copied().unwrap_or(0);
+        let t = std::time::Instant::now();
+        let settled = match &out {
+            Ok(_) => settle_outside(scene, receivers, v),
+            Err(_) => Ok(0),
+        };
+        if let Ok(n @ 1..) = settled {
+            self.report
+                .stages
+                .push(("settle".into(), t.elapsed().as_secs_f64() * 1e3));
+            self.report.note("settled_without_map", n);
+        }
         let settings = self.settings();
         note_settings(
             &mut self.report,
@@ -777,7 +807,7 @@ impl SoftShadowEstimator for CpuAccumulation {
             taps,
         );
         self.ls = Some(ls);
-        out.map(|_| ())
+        out.and(settled).map(|_| ())
     }
     fn report(&self) -> Report {
         self.report.clone()

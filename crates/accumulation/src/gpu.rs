@@ -17,7 +17,7 @@
 //! footprint's edge or a bit on a caster square's edge when it is a tie to within f32 rounding
 //! (the twin test explains every such receiver).
 use crate::cpu::{
-    note_settings, outside_error, ring_phase, CpuAccumulation, KernelMode, Settings, Variant,
+    note_settings, ring_phase, settle_outside, CpuAccumulation, KernelMode, Settings, Variant,
     MAX_BITS,
 };
 use crate::math::{LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
@@ -404,15 +404,20 @@ impl GpuAccumulation {
         }
         let s = self.cpu.settings();
         note_settings(&mut self.report, &s, ls, &scene.light, receivers, 0);
-        let outside = c.first().copied().unwrap_or(0) as usize;
         let nonfinite = c.get(1).copied().unwrap_or(0) as usize;
-        if outside > 0 {
-            return Err(outside_error(outside, &scene.light));
-        }
         if nonfinite > 0 {
             return Err(Error::Receivers(format!(
                 "{nonfinite} receivers got a non-finite V (a bug; replaced by 0)"
             )));
+        }
+        // Lit receivers outside the frustum (counters[0], left NaN): settled as the CPU twin does.
+        if c.first().copied().unwrap_or(0) > 0 {
+            let t = Instant::now();
+            let n = settle_outside(scene, receivers, v)?;
+            self.report
+                .stages
+                .push(("settle".into(), t.elapsed().as_secs_f64() * 1e3));
+            self.report.note("settled_without_map", n);
         }
         Ok(())
     }

@@ -1,4 +1,6 @@
 // Twin of crates/backprojection/src/cpu.rs and math.rs, in f32 and in the CPU's operation order.
+// Rect, disk and sphere lights (est.light_shape): the overlap of B_s with the light is the core's
+// overlap.wgsl on a disk, on the sphere's silhouette disk after the central projection from p.
 // Prepended: the core's SHARED_WGSL, the baselines' shared.wgsl and common.wgsl (receiver bias,
 // light frames, front_fraction_world).
 //
@@ -73,6 +75,163 @@ fn kernel_rect(uv: vec2<f32>, wx: f32, wy: f32) -> vec4<i32> {
     );
 }
 
+// math::HULL_DIRS and HULL_SCALE: the octagon circumscribing a silhouette disk.
+const S45: f32 = 0.70710677;
+const HULL_SCALE: f32 = 1.0823922;
+
+fn hull_dir(k: u32) -> vec2<f32> {
+    switch k {
+        case 0u: { return vec2<f32>(1.0, 0.0); }
+        case 1u: { return vec2<f32>(S45, S45); }
+        case 2u: { return vec2<f32>(0.0, 1.0); }
+        case 3u: { return vec2<f32>(-S45, S45); }
+        case 4u: { return vec2<f32>(-1.0, 0.0); }
+        case 5u: { return vec2<f32>(-S45, -S45); }
+        case 6u: { return vec2<f32>(0.0, -1.0); }
+        default: { return vec2<f32>(S45, -S45); }
+    }
+}
+
+// math::hull_point.
+fn hull_point(e1: vec3<f32>, e2: vec3<f32>, r: f32, k: u32) -> vec3<f32> {
+    let d = hull_dir(k);
+    let rr = r * HULL_SCALE;
+    return e1 * (d.x * rr) + e2 * (d.y * rr);
+}
+
+// math::Silhouette (ok = false for None).
+struct Sil {
+    a: vec3<f32>,
+    e1: vec3<f32>,
+    e2: vec3<f32>,
+    dist: f32,
+    radius: f32,
+    clip: vec4<f32>,
+    ok: bool,
+}
+
+// Silhouette::new.
+fn sil_new(p: vec3<f32>, radius: f32) -> Sil {
+    var s: Sil;
+    s.ok = false;
+    s.dist = sqrt(dot3(p, p));
+    let rcp = valid_rcp(p);
+    if rcp == 0.0 {
+        return s;
+    }
+    s.a = p * rcp;
+    s.e1 = default_tangent(s.a);
+    s.e2 = cross3(s.a, s.e1);
+    s.radius = radius;
+    var clip = vec4<f32>(pos_inf(), pos_inf(), -pos_inf(), -pos_inf());
+    for (var k = 0u; k < 8u; k++) {
+        let x = hull_point(s.e1, s.e2, radius, k);
+        if !(x.z < p.z) {
+            return s;
+        }
+        let y = p + (x - p) * (p.z / (p.z - x.z));
+        clip = vec4<f32>(min(clip.x, y.x), min(clip.y, y.y), max(clip.z, y.x), max(clip.w, y.y));
+    }
+    s.clip = clip;
+    s.ok = is_finite(clip.x) && is_finite(clip.y) && is_finite(clip.z) && is_finite(clip.w);
+    return s;
+}
+
+// Silhouette's carry: a point of z = 0 onto the silhouette plane, in-plane coordinates.
+fn sil_carry(s: Sil, x: f32, y: f32) -> vec2<f32> {
+    let yv = vec3<f32>(x, y, 0.0);
+    let t = s.dist / (s.dist - dot3(s.a, yv));
+    return vec2<f32>(dot3(yv, s.e1), dot3(yv, s.e2)) * t;
+}
+
+// Silhouette::overlap.
+fn sil_overlap(s: Sil, rx0: f32, ry0: f32, rx1: f32, ry1: f32) -> f32 {
+    let x0 = max(rx0, s.clip.x);
+    let y0 = max(ry0, s.clip.y);
+    let x1 = min(rx1, s.clip.z);
+    let y1 = min(ry1, s.clip.w);
+    if !(x1 > x0 && y1 > y0) {
+        return 0.0;
+    }
+    var q: array<vec2<f32>, 4>;
+    q[0] = sil_carry(s, x0, y0);
+    q[1] = sil_carry(s, x1, y0);
+    q[2] = sil_carry(s, x1, y1);
+    q[3] = sil_carry(s, x0, y1);
+    return quad_disk_area(q, s.radius);
+}
+
+// Silhouette::kernel_bounds then cpu.rs bounds_rect (the whole map for None).
+fn sil_kernel(s: Sil, p: vec3<f32>, z_m: f32) -> vec4<i32> {
+    let whole = vec4<i32>(0, 0, i32(view.r), i32(view.r));
+    var b = vec4<f32>(pos_inf(), pos_inf(), -pos_inf(), -pos_inf());
+    let zm = max(z_m, F32_MIN_POSITIVE);
+    for (var k = 0u; k < 8u; k++) {
+        let x = hull_point(s.e1, s.e2, s.radius, k);
+        if !(x.z < zm) || !(zm < p.z) {
+            return whole;
+        }
+        let c = p + (x - p) * ((p.z - zm) / (p.z - x.z));
+        let t = (vec2<f32>(c.x, c.y) * (view.n / zm) - view.window_min) / view.delta;
+        b = vec4<f32>(min(b.x, t.x), min(b.y, t.y), max(b.z, t.x), max(b.w, t.y));
+    }
+    if !(is_finite(b.x) && is_finite(b.y) && is_finite(b.z) && is_finite(b.w)) {
+        return whole;
+    }
+    let r = f32(view.r);
+    return vec4<i32>(
+        i32(clamp(floor(b.x), 0.0, r)),
+        i32(clamp(floor(b.y), 0.0, r)),
+        i32(clamp(ceil(b.z), 0.0, r)),
+        i32(clamp(ceil(b.w), 0.0, r)),
+    );
+}
+
+// math::Emitter::overlap: area(B_s ∩ L) (rect: f64 on the CPU).
+fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
+    if est.light_shape == LIGHT_RECT {
+        let dx = max(min(x1, bp.half.x) - max(x0, -bp.half.x), 0.0);
+        let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
+        return dx * dy;
+    }
+    if est.light_shape == LIGHT_DISK {
+        let r = est.light_size_x;
+        return rect_disk_area(max(x0, -r), max(y0, -r), min(x1, r), min(y1, r), r);
+    }
+    if !s.ok {
+        return 0.0;
+    }
+    return sil_overlap(s, x0, y0, x1, y1);
+}
+
+// math::Emitter::contributes (CONTRIBUTION_REL = 1e-6).
+fn light_contributes(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> bool {
+    if est.light_shape == LIGHT_RECT {
+        return light_overlap(x0, y0, x1, y1, s) > 0.0;
+    }
+    if est.light_shape == LIGHT_DISK {
+        if !(x1 > x0 && y1 > y0) {
+            return false;
+        }
+        let r = est.light_size_x;
+        let cx = clamp(0.0, x0, x1);
+        let cy = clamp(0.0, y0, y1);
+        return cx * cx + cy * cy < r * r;
+    }
+    let a = PI_F32 * est.light_size_x * est.light_size_x;
+    return s.ok && sil_overlap(s, x0, y0, x1, y1) > 1e-6 * a;
+}
+
+// The kernel at occluder depths >= zm: cpu.rs kernel_rect for rect and disk lights, the
+// silhouette's for a sphere.
+fn kernel_at(p: vec3<f32>, uv: vec2<f32>, zm: f32, s: Sil) -> vec4<i32> {
+    if est.light_shape == LIGHT_SPHERE {
+        return sil_kernel(s, p, zm);
+    }
+    let alpha = view.n * f32(view.r) / view.w;
+    return kernel_rect(uv, kernel_width(alpha, 2.0 * bp.half.x, zm, p.z), kernel_width(alpha, 2.0 * bp.half.y, zm, p.z));
+}
+
 // Mssm::query(..).min (math.wgsl).
 fn mssm_min(rect: vec4<i32>) -> f32 {
     return mssm_min_in(mssm, bp.mssm_present, bp.mssm_size, bp.mssm_levels, rect);
@@ -95,6 +254,7 @@ struct Rec {
     eps: f32,
     uv: vec2<f32>,
     plane: ReceiverPlane,
+    sil: Sil,
 }
 
 // cpu.rs: true depth of the occluding layer backprojected at block (a, b)'s centre texel
@@ -139,9 +299,7 @@ fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> f32 {
             let x1 = bound(f32(i1), rc.uv.x, s);
             let y0 = bound(f32(j0), rc.uv.y, s);
             let y1 = bound(f32(j1), rc.uv.y, s);
-            let dx = max(min(x1, bp.half.x) - max(x0, -bp.half.x), 0.0);
-            let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
-            if !(dx * dy > 0.0) {
+            if !light_contributes(x0, y0, x1, y1, rc.sil) {
                 continue;
             }
         }
@@ -163,7 +321,7 @@ fn sum_add(a: Sum, x: f32) -> Sum {
 }
 
 // cpu::Setup::visibility: visibility before the facing factor, in [0, 1].
-fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
+fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     let zp = p.z;
     var eps = 0.0;
     if bp.midpoint == 0u {
@@ -172,12 +330,9 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
     let on = est.receiver_plane != 0u;
     // The plane test when on (plane_new's classic form is unused: the plane-off tests are
     // written out as cpu.rs has them).
-    let rc = Rec(zp, eps, uv, plane_new(on, view, p, n, bp.b0, bp.b1, 0.0));
-    let lx = 2.0 * bp.half.x;
-    let ly = 2.0 * bp.half.y;
-    let alpha = view.n * f32(view.r) / view.w;
+    let rc = Rec(zp, eps, uv, plane_new(on, view, p, n, bp.b0, bp.b1, 0.0), sil);
     var zm = view.n;
-    var rect = kernel_rect(uv, kernel_width(alpha, lx, zm, zp), kernel_width(alpha, ly, zm, zp));
+    var rect = kernel_at(p, uv, zm, sil);
     for (var it = 0; it < 16; it++) {
         let zmin = mssm_min(rect);
         var zbound = zp - eps;
@@ -191,7 +346,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
             break;
         }
         zm = zmin;
-        let next = kernel_rect(uv, kernel_width(alpha, lx, zm, zp), kernel_width(alpha, ly, zm, zp));
+        let next = kernel_at(p, uv, zm, sil);
         let an = (next.z - next.x) * (next.w - next.y);
         let ar = (rect.z - rect.x) * (rect.w - rect.y);
         if an >= ar {
@@ -250,10 +405,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
                     }
                 }
             }
-            // math::light_overlap_area (f64 on the CPU).
-            let dx = max(min(x1, bp.half.x) - max(x0, -bp.half.x), 0.0);
-            let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
-            a_occ = sum_add(a_occ, dx * dy);
+            a_occ = sum_add(a_occ, light_overlap(x0, y0, x1, y1, sil));
         }
     }
     if !(bp.area > 0.0) {
@@ -270,8 +422,19 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>) -> f32 {
 fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     let facing = front_fraction_world(est, pw, nw);
     let p = view_to_light(view, pw);
-    if !(facing > 0.0) || p.z <= 0.0 {
+    // A sphere's silhouette disk seen from p (ok = false: it reaches p's depth).
+    let sphere = est.light_shape == LIGHT_SPHERE;
+    var sil: Sil;
+    sil.ok = false;
+    if sphere && p.z > 0.0 {
+        sil = sil_new(p, est.light_size_x);
+    }
+    if !(facing > 0.0) {
         return 0.0;
+    }
+    if p.z <= 0.0 || (sphere && !sil.ok) {
+        atomicAdd(&counters[0], 1u);
+        return facing;
     }
     if p.z <= view.n {
         return facing;
@@ -282,7 +445,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
         return facing;
     }
     let n = view_dir_to_light(view, nw);
-    return facing * visibility(p, n, uv);
+    return facing * visibility(p, n, uv, sil);
 }
 
 @compute @workgroup_size(WG)

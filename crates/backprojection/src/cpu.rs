@@ -1,13 +1,15 @@
 //! The CPU backprojection estimator (docs/methods.md §2; Bavoil 2008 §4.1, §4.2, §5).
-use crate::math::{backprojected_micropatch, kernel_width, light_overlap_area, micropatch_scale};
+use crate::math::{
+    backprojected_micropatch, kernel_width, micropatch_scale, Emitter, Rect, Silhouette,
+};
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
     peeling::SelfShadowSettings,
-    Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers,
-    Report, Result, Scene, SoftShadowEstimator,
+    ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
@@ -81,7 +83,7 @@ shadow_map_core::typed_params! {
 /// Parameters of [`CpuBackprojection`].
 pub const SPECS: &[ParamSpec] = Settings::SPECS;
 
-/// Soft shadows by micropatch backprojection onto a rectangle light (Guennebaud et al. 2006),
+/// Soft shadows by micropatch backprojection onto an area light (Guennebaud et al. 2006),
 /// with Bavoil's (2008) depth-peeled layers (§4.1: per texel, only the furthest occluding layer
 /// is backprojected, with its true depth), midpoint layers against self-shadowing (§4.2), and the
 /// adaptive uniform step (§5).
@@ -101,7 +103,10 @@ pub const SPECS: &[ParamSpec] = Settings::SPECS;
 ///    layer whose micropatch `B_s` overlaps the light ([`LayerRule`] has the measurements).
 /// 4. Sum `area(B_s ∩ L)` over the kernel's samples, and `V = facing (1 - clamp01(A_occ / A_L))`.
 ///
-/// Rect lights only; disk and sphere lights are a [`Error::Param`] with key `light` from `build`.
+/// Rect, disk and sphere lights (docs/methods.md §2 "Disk and sphere lights"): `area(B_s ∩ L)` is
+/// a rectangle's overlap with the rect or the disk in the light plane, or, for a sphere, the
+/// overlap of `B_s` carried onto the receiver's silhouette disk ([`Silhouette`]), whose hull also
+/// bounds the kernel.
 pub struct CpuBackprojection {
     params: Params,
     /// `params`, typed (re-read on every `set_param`).
@@ -134,6 +139,9 @@ impl CpuBackprojection {
 /// Settings read once per estimate.
 struct Setup<'a> {
     ls: &'a LightSpace,
+    /// The light's shape (rect, disk, sphere).
+    emitter: Emitter,
+    /// Half extents of its bounding rectangle in the light plane (the kernel's light size).
     half: [f32; 2],
     area: f64,
     midpoint: bool,
@@ -157,9 +165,27 @@ fn kernel_rect(view: &LightView, uv: glam::Vec2, wx: f32, wy: f32) -> [i32; 4] {
     [lo(uv.x, wx), lo(uv.y, wy), hi(uv.x, wx), hi(uv.y, wy)]
 }
 
+/// A half-open texel rectangle covering continuous bounds `[u0, v0, u1, v1]`, clamped to the map.
+fn bounds_rect(view: &LightView, b: [f32; 4]) -> [i32; 4] {
+    let r = view.r as f32;
+    [
+        b[0].floor().clamp(0.0, r) as i32,
+        b[1].floor().clamp(0.0, r) as i32,
+        b[2].ceil().clamp(0.0, r) as i32,
+        b[3].ceil().clamp(0.0, r) as i32,
+    ]
+}
+
 impl Setup<'_> {
-    /// Visibility before the facing factor, in [0, 1].
-    fn visibility(&self, p: Vec3, n: Vec3, uv: glam::Vec2) -> f32 {
+    /// `area(B_s ∩ L)` ([`Emitter::overlap`]).
+    #[inline]
+    fn overlap(&self, b: &Rect, sil: Option<&Silhouette>) -> f64 {
+        self.emitter.overlap(b, sil)
+    }
+
+    /// Visibility before the facing factor, in [0, 1]. `sil`: a sphere light's silhouette disk
+    /// seen from p.
+    fn visibility(&self, p: Vec3, n: Vec3, uv: glam::Vec2, sil: Option<&Silhouette>) -> f32 {
         let ls = self.ls;
         let view = &ls.view;
         let zp = p.z;
@@ -175,14 +201,23 @@ impl Setup<'_> {
             .then(|| ReceiverPlane::plane(view, p, n, self.b0, 0.0));
         let (lx, ly) = (2.0 * self.half[0], 2.0 * self.half[1]);
         let alpha = view.alpha();
-        // Kernel at z_m = n, refined by the exact min over it (docs/methods.md §2).
+        // Kernel at z_m = n, refined by the exact min over it (docs/methods.md §2); a sphere's
+        // from its silhouette disk's hull.
+        let kernel = |zm: f32| match sil {
+            Some(s) => s
+                .kernel_bounds(view, p, zm)
+                .map_or([0, 0, view.r as i32, view.r as i32], |b| {
+                    bounds_rect(view, b)
+                }),
+            None => kernel_rect(
+                view,
+                uv,
+                kernel_width(alpha, lx, zm, zp),
+                kernel_width(alpha, ly, zm, zp),
+            ),
+        };
         let mut zm = view.n;
-        let mut rect = kernel_rect(
-            view,
-            uv,
-            kernel_width(alpha, lx, zm, zp),
-            kernel_width(alpha, ly, zm, zp),
-        );
+        let mut rect = kernel(zm);
         for _ in 0..16 {
             let zmin = match &ls.mssm {
                 Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
@@ -206,12 +241,7 @@ impl Setup<'_> {
                 break;
             }
             zm = zmin;
-            let next = kernel_rect(
-                view,
-                uv,
-                kernel_width(alpha, lx, zm, zp),
-                kernel_width(alpha, ly, zm, zp),
-            );
+            let next = kernel(zm);
             let area = |r: &[i32; 4]| (r[2] - r[0]) as i64 * (r[3] - r[1]) as i64;
             if area(&next) >= area(&rect) {
                 break;
@@ -272,7 +302,7 @@ impl Setup<'_> {
                             z,
                             zp,
                         );
-                        if !(light_overlap_area(&own, self.half) > 0.0) {
+                        if !self.emitter.contributes(&own, sil) {
                             continue; // a zero contribution: try the next shallower layer
                         }
                     }
@@ -326,7 +356,7 @@ impl Setup<'_> {
                         }
                     }
                 }
-                a_occ += light_overlap_area(&br, self.half);
+                a_occ += self.overlap(&br, sil);
             }
         }
         if !(self.area > 0.0) {
@@ -353,23 +383,11 @@ pub fn plan(
     receivers: &Receivers,
 ) -> Result<(LightView, FitReport, LightSpaceRequest)> {
     let light = &scene.light;
-    if !matches!(light.shape, LightShape::Rect { .. }) {
-        return Err(Error::param(
-            "light",
-            "backprojection supports rect lights only",
-        ));
-    }
     let r = settings.resolution;
     let opts = settings.view;
-    let (view, fit) = LightView::fit_with(
-        scene,
-        receivers,
-        light.frame(),
-        light.half_extent(),
-        r,
-        &opts,
-    )?;
-    let l = 2.0 * light.half_extent().max_element();
+    let half = shadow_map_core::light_view::fit_half_extent(light, receivers);
+    let (view, fit) = LightView::fit_with(scene, receivers, light.frame(), half, r, &opts)?;
+    let l = 2.0 * half.max_element();
     let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
     let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
     let req = LightSpaceRequest {
@@ -407,10 +425,12 @@ impl SoftShadowEstimator for CpuBackprojection {
         let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
         let light = &scene.light;
         let h = light.half_extent();
+        let emitter = Emitter::of(&light.shape);
         let setup = Setup {
             ls,
+            emitter,
             half: [h.x, h.y],
-            area: 4.0 * h.x as f64 * h.y as f64,
+            area: emitter.area(),
             midpoint: self.settings.shadow.midpoint(),
             gap_filling: self.settings.gap_filling,
             max_nspp: self.settings.max_nspp,
@@ -434,8 +454,18 @@ impl SoftShadowEstimator for CpuBackprojection {
                 let (pw, nw) = (receivers.position[k], receivers.normal[k]);
                 let facing = light.front_fraction_world(pw, nw);
                 let p = view.frame.to_light(pw);
-                let x = if !(facing > 0.0) || p.z <= 0.0 {
+                // A sphere's silhouette disk seen from p (None: it reaches p's depth).
+                let sil = match emitter {
+                    Emitter::Sphere { radius } if p.z > 0.0 => Silhouette::new(p, radius),
+                    _ => None,
+                };
+                let sphere_unserved = matches!(emitter, Emitter::Sphere { .. }) && sil.is_none();
+                let x = if !(facing > 0.0) {
                     0.0
+                } else if p.z <= 0.0 || sphere_unserved {
+                    // Behind a sphere light's frustum, or beside its silhouette.
+                    outside.fetch_add(1, Ordering::Relaxed);
+                    facing
                 } else if p.z <= view.n {
                     facing
                 } else {
@@ -445,7 +475,7 @@ impl SoftShadowEstimator for CpuBackprojection {
                         facing
                     } else {
                         let n = view.frame.dir_to_light(nw);
-                        facing * setup.visibility(p, n, uv)
+                        facing * setup.visibility(p, n, uv, sil.as_ref())
                     }
                 };
                 if x.is_finite() {

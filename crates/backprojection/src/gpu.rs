@@ -41,7 +41,7 @@ use shadow_map_core::{
     light_space::LightSpace,
     light_view::{bounds_receivers, LightView},
     scene::Aabb,
-    Error, Light, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Error, Light, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{num::NonZeroU64, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -76,7 +76,8 @@ pub const SHADER_PARTS: [&str; 3] = [ESTIMATE_HEAD_WGSL, RECEIVERS_WGSL, BACKPRO
 pub struct BpUniform {
     /// `Light::half_extent()`.
     pub half: [f32; 2],
-    /// Light area `4 hx hy` (computed in f64, rounded to f32).
+    /// Light area `A_L` ([`crate::math::Emitter::area`], f64 rounded to f32; a sphere's
+    /// silhouette disk).
     pub area: f32,
     /// Constant receiver bias (texel footprints).
     pub b0: f32,
@@ -367,7 +368,7 @@ impl GpuBackprojection {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        check_inputs(light, receivers, v)?;
+        receivers.check_output(v)?;
         self.report = Report::default();
         let t = Instant::now();
         let midpoint = self.cpu.settings().shadow.midpoint();
@@ -386,7 +387,7 @@ impl GpuBackprojection {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
-        check_inputs(light, receivers, v)?;
+        receivers.check_output(v)?;
         let (eu, bpu) = self.uniforms(maps, light);
         let (outside, nonfinite, est_ms, read_ms) = self.dispatch(maps, &eu, &bpu, receivers, v)?;
         self.report.stages.push(("estimate".into(), est_ms));
@@ -409,7 +410,7 @@ impl GpuBackprojection {
         let max_nspp = s.max_nspp;
         let bpu = BpUniform {
             half: [h.x, h.y],
-            area: (4.0 * h.x as f64 * h.y as f64) as f32,
+            area: crate::math::Emitter::of(&light.shape).area() as f32,
             b0: s.shadow.bias,
             b1: s.shadow.slope_bias,
             midpoint: u32::from(midpoint),
@@ -593,7 +594,6 @@ impl GpuBackprojection {
     /// [`Error::LightView`] for a box crossing the light plane or leaving the frustum (see
     /// [`bounds_receivers`]), and `build`'s errors.
     pub fn build_resident(&mut self, scene: &Scene, bounds: &Aabb) -> Result<()> {
-        check_light(&scene.light)?;
         let corners = bounds_receivers(scene, bounds, scene.light.frame())?;
         self.build(scene, &corners)?;
         self.report
@@ -632,7 +632,6 @@ impl GpuBackprojection {
         v_out: &wgpu::Buffer,
     ) -> Result<()> {
         let light = &scene.light;
-        check_light(light)?;
         let count = receivers.count as u64;
         if !receivers
             .buffer
@@ -756,21 +755,6 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
             contents: bytemuck::cast_slice(&[0u32; 2]),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         })
-}
-
-fn check_inputs(light: &Light, receivers: &Receivers, v: &[f32]) -> Result<()> {
-    receivers.check_output(v)?;
-    check_light(light)
-}
-
-fn check_light(light: &Light) -> Result<()> {
-    if !matches!(light.shape, LightShape::Rect { .. }) {
-        return Err(Error::param(
-            "light",
-            "backprojection supports rect lights only",
-        ));
-    }
-    Ok(())
 }
 
 impl SoftShadowEstimator for GpuBackprojection {

@@ -6,7 +6,7 @@
 //! must be a depth tie (bias mode or receiver plane: nudging the depth threshold or the plane by
 //! [`TIE_NUDGE_REL`] of the depth changes the CPU's V or reproduces the GPU's; midpoint mode
 //! without the plane has no tie to explain). Random
-//! scenes with rect lights only, no grazing or outside receivers. Cases: 12 by default,
+//! scenes with rect, disk and sphere lights, no grazing or outside receivers. Cases: 12 by default,
 //! `SOFTSHADOW_PROPTEST_CASES=N` for more.
 #![cfg(feature = "gpu")]
 
@@ -30,9 +30,9 @@ test_support::twin_suite! {
         => Backprojection,
 }
 
-/// Rect lights, no grazing or outside receivers.
+/// Rect, disk and sphere lights, no grazing or outside receivers.
 const RANGES: SceneRanges = SceneRanges {
-    shapes: Shapes::Rect,
+    shapes: Shapes::OneOf,
     grazing: false,
     outside: false,
     ..SceneRanges::ALL

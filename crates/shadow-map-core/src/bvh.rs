@@ -109,6 +109,26 @@ impl SceneBvh {
             .product()
     }
 
+    /// Whether `test` holds for some triangle whose bounding box meets the box `[lo, hi]`
+    /// (obvhs' box traversal; stops at the first triangle that passes).
+    pub fn any_in_box(&self, lo: Vec3, hi: Vec3, mut test: impl FnMut(&[Vec3; 3]) -> bool) -> bool {
+        let aabb = obvhs::aabb::Aabb::new(Vec3A::from(lo), Vec3A::from(hi));
+        let mut found = false;
+        self.bvh.aabb_traverse(aabb, |bvh, node| {
+            let node = &bvh.nodes[node as usize];
+            let first = node.first_index as usize;
+            for k in first..first + node.prim_count as usize {
+                let t = &self.tris[bvh.primitive_indices[k] as usize];
+                if test(&[t.v0.into(), t.v1.into(), t.v2.into()]) {
+                    found = true;
+                    return false;
+                }
+            }
+            true
+        });
+        found
+    }
+
     /// Geometric unit normal of a triangle (from its winding).
     pub fn normal(&self, triangle: usize) -> Vec3 {
         let t = &self.tris[triangle];

@@ -12,6 +12,7 @@ pub mod light;
 pub mod light_space;
 pub mod light_view;
 pub mod mssm;
+pub mod overlap;
 pub mod params;
 pub mod peeling;
 pub mod precision;
@@ -19,6 +20,7 @@ pub mod raster;
 pub mod receiver_plane;
 pub mod receivers;
 pub mod scene;
+pub mod settle;
 
 pub use bvh::SceneBvh;
 pub use camera::Camera;

@@ -288,6 +288,37 @@ impl LightView {
     }
 }
 
+/// The half extent to fit a light view to (`light_half` of [`LightView::fit_with`]) so that the
+/// window holds every receiver's kernel: the light's bounding half extent for rect and disk
+/// lights. The contract's sphere is a silhouette disk that leaves the light plane by up to
+/// `z_max = R |r_xy| / |r|` (light space); it is fitted to the half extent of its equivalent disk
+/// in the light plane (where the lines from r through the disk meet z = 0),
+/// `h = (|r_xy| z_max + R r_z) / (r_z - z_max)`, the largest over the receivers, capped at 4 R
+/// (receivers needing more lose casters beyond the window edge).
+pub fn fit_half_extent(light: &crate::Light, receivers: &Receivers) -> Vec2 {
+    let half = light.half_extent();
+    let crate::LightShape::Sphere { radius } = light.shape else {
+        return half;
+    };
+    let frame = light.frame();
+    let mut f = 1.0f32;
+    for (k, pw) in receivers.position.iter().enumerate() {
+        if !receivers.active[k] {
+            continue;
+        }
+        let p = frame.to_light(*pw);
+        if p.z <= 0.0 {
+            continue;
+        }
+        let rxy = Vec2::new(p.x, p.y).length();
+        let zmax = radius * rxy / p.length();
+        if zmax < p.z && radius > 0.0 {
+            f = f.max((rxy * zmax + radius * p.z) / (radius * (p.z - zmax)));
+        }
+    }
+    half * f.min(4.0)
+}
+
 /// Fails with [`Error::Limit`] unless the shadow-map resolution is in `1..=MAX_RESOLUTION`.
 fn check_resolution(r: u32) -> Result<()> {
     if r == 0 || r > MAX_RESOLUTION {
@@ -342,7 +373,7 @@ fn axis_view(frame: LightFrame, scale: f32, r: u32) -> LightView {
 }
 
 /// A half-space `a x + b y + c z + d >= 0` of light space.
-type Plane = [f64; 4];
+pub(crate) type Plane = [f64; 4];
 
 /// The bounding frustum of every receiver's occluder pyramid (the convex hull of the light and
 /// the receiver): at depth z the pyramid of a receiver at tan-space `t`, depth `z_p`, covers
@@ -408,15 +439,16 @@ fn clipped_depth_range(t: &[Vec3; 3], planes: &[Plane]) -> Option<(f32, f32)> {
 
 /// A convex polygon of light space clipped plane by plane (Sutherland-Hodgman, in f64): a
 /// triangle and at most one more vertex per plane.
-struct Polygon {
+pub(crate) struct Polygon {
     v: [DVec3; Polygon::MAX],
     n: usize,
 }
 
 impl Polygon {
-    const MAX: usize = 3 + 9;
+    /// A triangle clipped by up to 10 planes (the fit's 9, [`crate::settle`]'s 10).
+    const MAX: usize = 3 + 10;
 
-    fn triangle(t: &[Vec3; 3]) -> Self {
+    pub(crate) fn triangle(t: &[Vec3; 3]) -> Self {
         let mut v = [DVec3::ZERO; Self::MAX];
         for (k, p) in t.iter().enumerate() {
             v[k] = p.as_dvec3();
@@ -427,7 +459,7 @@ impl Polygon {
     /// Keeps the part inside every plane of `planes`; false when nothing is left. A plane with
     /// every vertex inside leaves the polygon as it is (most triangles lie wholly inside or
     /// wholly outside a plane).
-    fn clip(&mut self, planes: &[Plane]) -> bool {
+    pub(crate) fn clip(&mut self, planes: &[Plane]) -> bool {
         for pl in planes {
             let side = |p: DVec3| pl[0] * p.x + pl[1] * p.y + pl[2] * p.z + pl[3];
             let poly = &self.v[..self.n];

@@ -146,17 +146,6 @@ pub fn ground_grid(na: u32, nb: u32, (x0, dx): (f32, f32), (z0, dz): (f32, f32))
     points(pos, Vec3::Y)
 }
 
-/// Fixtures with lit receivers beyond 87 degrees off the light normal, which accumulation's one
-/// view cannot hold: it refuses them with a one-line error (issue 17: several views). Tests
-/// check that each is still refused, so this list stays true.
-pub const BEYOND_ONE_VIEW: &[&str] = &["backlit-pair", "backlit-stone"];
-
-/// Whether `err` is accumulation's one-line refusal of receivers outside its one view.
-pub fn is_one_view_refusal(err: &shadow_map_core::Error) -> bool {
-    err.to_string()
-        .contains("outside the one shadow-map frustum")
-}
-
 /// The names of every scene fixture (each directory `fixtures/<name>` holding `<name>.toml`),
 /// sorted.
 pub fn fixture_names() -> Vec<String> {
@@ -334,6 +323,35 @@ pub fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
     r.position
         .iter()
         .map(|p| rect_occluder_visibility(scene.light.half_extent(), &occs, f.to_light(*p)))
+        .collect()
+}
+
+/// [`oracle`] under a disk light (the scene's, radius from its half extent): exact,
+/// `reference::oracle::polygon_occluder_disk_visibility` of each occluder square (one occluder).
+#[cfg(feature = "oracle")]
+pub fn oracle_disk(scene: &Scene, occ: Occ, r: &Receivers) -> Vec<f64> {
+    use glam::Vec2;
+    let f = scene.light.frame();
+    let corners = [
+        (occ.0, occ.1),
+        (occ.2, occ.1),
+        (occ.2, occ.3),
+        (occ.0, occ.3),
+    ];
+    let poly: Vec<Vec2> = corners
+        .iter()
+        .map(|&(x, z)| {
+            let c = f.to_light(Vec3::new(x, occ.4, z));
+            Vec2::new(c.x, c.y)
+        })
+        .collect();
+    let z = f.to_light(Vec3::new(occ.0, occ.4, occ.1)).z;
+    let radius = scene.light.half_extent().x;
+    r.position
+        .iter()
+        .map(|p| {
+            reference::oracle::polygon_occluder_disk_visibility(radius, &poly, z, f.to_light(*p))
+        })
         .collect()
 }
 

@@ -17,12 +17,15 @@ pub const ESTIMATE_WGSL: &str = include_str!("estimate.wgsl");
 /// WGSL twins of the core's light helpers and of the receiver bias, in the CPU's operation order
 /// (after [`ESTIMATE_WGSL`]).
 pub const MATH_WGSL: &str = include_str!("math.wgsl");
-/// The head of every estimate kernel: the core's shared structs, [`ESTIMATE_WGSL`] and
-/// [`MATH_WGSL`], in that order; a kernel appends its own WGSL.
+/// WGSL twins of [`crate::overlap`] (after [`MATH_WGSL`]).
+pub const OVERLAP_WGSL: &str = include_str!("overlap.wgsl");
+/// The head of every estimate kernel: the core's shared structs, [`ESTIMATE_WGSL`],
+/// [`MATH_WGSL`] and [`OVERLAP_WGSL`], in that order; a kernel appends its own WGSL.
 pub const ESTIMATE_HEAD_WGSL: &str = concat!(
     include_str!("shared.wgsl"),
     include_str!("estimate.wgsl"),
-    include_str!("math.wgsl")
+    include_str!("math.wgsl"),
+    include_str!("overlap.wgsl")
 );
 
 /// `light_shape` of a rect light (WGSL override `LIGHT_RECT`).
@@ -147,7 +150,13 @@ mod tests {
 
     #[test]
     fn head_is_the_parts_in_order() {
-        let parts = [super::super::shared::SHARED_WGSL, ESTIMATE_WGSL, MATH_WGSL].concat();
+        let parts = [
+            super::super::shared::SHARED_WGSL,
+            ESTIMATE_WGSL,
+            MATH_WGSL,
+            OVERLAP_WGSL,
+        ]
+        .concat();
         assert_eq!(parts, ESTIMATE_HEAD_WGSL);
     }
 }
