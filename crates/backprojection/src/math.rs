@@ -98,7 +98,7 @@ pub fn light_overlap_area(rect: &Rect, half: [f32; 2]) -> f64 {
 pub const CONTRIBUTION_REL: f32 = 1e-6;
 
 /// Vertices of the polygon circumscribing a disk whose images bound the kernel of a sphere light
-/// ([`Emitter::kernel_bounds`]).
+/// ([`Silhouette::kernel_bounds`]).
 pub const SILHOUETTE_HULL: u32 = 8;
 
 /// The emitting surface as backprojection measures it (docs/methods.md §2 "Disk and sphere

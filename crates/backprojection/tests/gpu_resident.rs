@@ -18,7 +18,8 @@
 //!   (reference: the ray tracer at 256 spp.) The test allows an RMSE of [`MAX_RMSE`], a
 //!   fraction [`MAX_OVER`] beyond 0.1 and a loss against the reference of [`MAX_LOSS`].
 //! - Bad inputs are typed errors: buffers without `STORAGE`, a too small V buffer, bounds crossing
-//!   the light plane, a call before a build, a non-rect light.
+//!   the light plane, a call before a build.
+//! - Disk and sphere lights take the resident path, bit for bit equal to the ordinary path.
 #![cfg(feature = "gpu")]
 
 use backprojection::GpuBackprojection;
@@ -343,11 +344,30 @@ fn bad_resident_inputs_are_typed_errors() {
     } else {
         x.is_nan()
     }));
+}
 
-    // A non-rect light.
-    let sphere = fixture("sphere-light");
-    match g.build_resident(&sphere, &receiver_bounds(&rec)) {
-        Err(Error::Param { key, .. }) => assert_eq!(key, "light"),
-        other => panic!("sphere light: {other:?}"),
+/// Disk and sphere lights (issue 18) take the resident path too: with the light space of the
+/// ordinary `build`, the resident dispatch gives the ordinary path's V bit for bit (the sphere's
+/// silhouette disk turns per receiver inside the same kernel).
+#[test]
+fn resident_dispatch_serves_disk_and_sphere_lights() {
+    let Some(ctx) = gpu("resident_dispatch_serves_disk_and_sphere_lights") else {
+        return;
+    };
+    for name in ["strands", "sphere-light"] {
+        let scene = fixture(name);
+        let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+        let mut g = GpuBackprojection::new(ctx.clone()).expect("gpu twin");
+        let v_ref = ordinary(&mut g, &scene, &rec);
+        let gr = user_receivers(&ctx, &rec);
+        let v = resident_v(&ctx, &mut g, &scene, &gr);
+        let mut shadowed = 0;
+        for k in 0..rec.len() {
+            assert_eq!(v_ref[k].to_bits(), v[k].to_bits(), "{name} #{k}");
+            shadowed += usize::from(v_ref[k] < 1.0);
+        }
+        assert!(shadowed > 0, "{name}: the fixture casts no shadow");
+        g.build_resident(&scene, &receiver_bounds(&rec))
+            .unwrap_or_else(|e| panic!("{name}: build_resident: {e}"));
     }
 }
