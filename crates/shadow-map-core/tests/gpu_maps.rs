@@ -16,7 +16,8 @@
 //! neighbour in some layer (near-coincident surfaces, e.g. along an intersection line, peeled in
 //! a different order). Every mismatch must straddle, and straddling mismatches must stay below
 //! [`STRADDLE_BOUND`] of the covered texels (plus [`STRADDLE_SLACK`] texels per case, for tiny
-//! maps). Measured fractions are printed.
+//! maps, plus the length of every triangle seen almost edge-on, narrower than a texel, whose
+//! every texel may flip: see `edge_mask`). Measured fractions are printed.
 #![cfg(feature = "gpu")]
 #![allow(clippy::needless_range_loop)] // texel loops read clearer with indices
 
@@ -219,7 +220,7 @@ fn near_plane_clip_and_bias_match_cpu() -> TestResult {
         req.raster.bias = bias;
         let (cpu, gpu) = cpu_and_gpu(&ctx, &mapper, &scene, unit_view(32), &req)?;
         let view = unit_view(32);
-        let edges = edge_mask(&scene, &view);
+        let (edges, _) = edge_mask(&scene, &view);
         let (c, g) = (&cpu.layers[0].depth, &gpu.layers[0].depth);
         let mut off_edge = 0;
         for k in 0..c.len() {
@@ -234,13 +235,18 @@ fn near_plane_clip_and_bias_match_cpu() -> TestResult {
     Ok(())
 }
 
-/// Texels whose centre lies within about one texel of a projected (near-clipped) triangle edge.
-fn edge_mask(scene: &Scene, view: &LightView) -> Vec<bool> {
+/// Texels whose centre lies within about one texel of a projected (near-clipped) triangle edge,
+/// and the sliver allowance: the summed length in texels (plus 2 each) of the projected triangles
+/// narrower than a texel (twice the area over the longest side below 1). Such a triangle, seen
+/// almost edge-on from the light, covers texels only by sub-texel positions, so the GPU's vertex
+/// snapping may flip every texel along it.
+fn edge_mask(scene: &Scene, view: &LightView) -> (Vec<bool>, usize) {
     let r = view.r as i64;
     let n = view.n as f64;
     let delta = view.delta() as f64;
     let x0 = DVec2::new(view.window_min.x as f64, view.window_min.y as f64);
     let mut mask = vec![false; (r * r) as usize];
+    let mut sliver = 0usize;
     let mut mark = |p: DVec2| {
         let (i, j) = (p.x.floor() as i64, p.y.floor() as i64);
         for dj in -1..=1 {
@@ -274,6 +280,16 @@ fn edge_mask(scene: &Scene, view: &LightView) -> Vec<bool> {
             .iter()
             .map(|p| (DVec2::new(p.x, p.y) * (n / p.z) - x0) / delta)
             .collect();
+        if uv.len() >= 3 {
+            let m = uv.len();
+            let twice: f64 = (0..m).map(|k| uv[k].perp_dot(uv[(k + 1) % m])).sum();
+            let longest = (0..m)
+                .map(|k| (uv[(k + 1) % m] - uv[k]).length())
+                .fold(0.0f64, f64::max);
+            if longest > 0.0 && twice.abs() / longest < 1.0 {
+                sliver += longest.min(4.0 * r as f64).ceil() as usize + 2;
+            }
+        }
         for k in 0..uv.len() {
             let (mut p, mut q) = (uv[k], uv[(k + 1) % uv.len()]);
             // Clip the segment to the map plus a margin (Liang-Barsky) before walking it.
@@ -310,7 +326,7 @@ fn edge_mask(scene: &Scene, view: &LightView) -> Vec<bool> {
             }
         }
     }
-    mask
+    (mask, sliver)
 }
 
 /// Per-case comparison counts.
@@ -575,7 +591,7 @@ fn gpu_layers_and_midpoints_match_cpu_on_random_scenes() -> TestResult {
             .map_err(fail)?
             .to_cpu(&ctx)
             .map_err(fail)?;
-        let edges = edge_mask(&scene, &view);
+        let (edges, sliver) = edge_mask(&scene, &view);
 
         // Layers 0..k against the CPU.
         let counts = compare_layers(&cpu.layers, &gpu.layers, &cpu_all.layers, &edges, "layer")?;
@@ -631,7 +647,9 @@ fn gpu_layers_and_midpoints_match_cpu_on_random_scenes() -> TestResult {
         }
 
         let straddles = counts.mismatched;
-        let bound = (STRADDLE_BOUND * counts.covered as f64) as usize + STRADDLE_SLACK;
+        let bound = (STRADDLE_BOUND * counts.covered as f64) as usize
+            + STRADDLE_SLACK
+            + sliver * k as usize;
         prop_assert!(
             straddles <= bound,
             "{} straddling texels of {} covered (bound {}): {:?}",
