@@ -1,7 +1,7 @@
 //! Cascades along the camera's depth (issue 17; docs/methods.md §1 "Cascades and texel density").
 //!
-//! On `long-ground` (a 200 m ground seen from 0.7 m up, a depth ratio of about 60), three
-//! cascades at r = 512 must at least halve the RMSE of one view for every soft estimator with a
+//! On `long-ground` (a 200 m ground seen from 0.7 m up, a depth ratio of about 60), with
+//! caster-aware fitting off, three cascades at r = 512 must at least halve the RMSE of one view for every soft estimator with a
 //! light-centre or sub-light map, on every backend, and must raise the texel density (fewer
 //! pixels per texel); V must stay continuous across each split (mean difference between the two
 //! cascades over the blend bands at most 0.01). With one cascade the wrapper is the estimator
@@ -77,8 +77,18 @@ fn cascades_halve_the_error_on_a_long_ground() {
                 continue;
             };
             // One light view each (no tiles by direction): the cascades alone.
-            let one = [("resolution", "512"), ("cascades", "1"), ("tiles", "1")];
-            let three = [("resolution", "512"), ("cascades", "3"), ("tiles", "1")];
+            let one = [
+                ("resolution", "512"),
+                ("cascades", "1"),
+                ("tiles", "1"),
+                ("casters", "off"),
+            ];
+            let three = [
+                ("resolution", "512"),
+                ("cascades", "3"),
+                ("tiles", "1"),
+                ("casters", "off"),
+            ];
             let (v1, _) = run_with(algo, backend, &one, &scene, &rec);
             let (v3, e3) = run_with(algo, backend, &three, &scene, &rec);
             let (r1, r3) = (rmse(&v1, &truth, &rec), rmse(&v3, &truth, &rec));
@@ -167,8 +177,8 @@ fn tiles_help_the_backlit_scenes() {
             let Some(backend) = support::runnable(b, "tiles_help_the_backlit_scenes") else {
                 continue;
             };
-            let one = [("resolution", "512"), ("tiles", "1")];
-            let four = [("resolution", "512"), ("tiles", "4")];
+            let one = [("resolution", "512"), ("tiles", "1"), ("casters", "off")];
+            let four = [("resolution", "512"), ("tiles", "4"), ("casters", "off")];
             let (v1, _) = run_with("multi-sample", backend, &one, &scene, &rec);
             let (v4, e4) = run_with("multi-sample", backend, &four, &scene, &rec);
             let (r1, r4) = (rmse(&v1, &truth, &rec), rmse(&v4, &truth, &rec));
@@ -262,6 +272,90 @@ fn accumulation_settles_receivers_beyond_its_view() {
                 failures.push(format!(
                     "{name} {b}: an active receiver without a V in [0, 1]"
                 ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Caster-aware fitting (issue 17; docs/methods.md §1 "Caster-aware fitting"): on the long
+/// grounds most receivers see the light past every caster. `casters=on` settles them without a
+/// map, exactly (mean |V - reference| over them at most 0.005, none off by more than 0.05: the
+/// reference's 256 stratified samples of the facing fraction), fits the views to the rest, lowers
+/// the texel density's p95, and does not raise any soft estimator's RMSE by more than 0.002 over
+/// `casters=off` (both with cascades and tiles at auto), on every backend.
+#[test]
+fn caster_aware_fitting_settles_exactly_and_fits_the_rest() {
+    let mut failures = Vec::new();
+    for name in ["long-ground", "long-yard"] {
+        let (scene, rec) = fixture(name, W, H);
+        let truth = reference(&scene, &rec);
+        for algo in ["pcss", "multi-sample", "packet-hsm"] {
+            for &b in backends(algo) {
+                let Some(backend) =
+                    support::runnable(b, "caster_aware_fitting_settles_exactly_and_fits_the_rest")
+                else {
+                    continue;
+                };
+                let off = [("resolution", "512"), ("casters", "off")];
+                let on = [("resolution", "512"), ("casters", "on")];
+                let (v0, e0) = run_with(algo, backend, &off, &scene, &rec);
+                let (v1, e1) = run_with(algo, backend, &on, &scene, &rec);
+                let settled = shadow_map_core::cascades::settle(
+                    &shadow_map_core::cascades::CascadeSettings::from_params(e1.params()).unwrap(),
+                    &scene,
+                    &rec,
+                    e1.params(),
+                );
+                let Some(settled) = settled else {
+                    failures.push(format!("{name} {algo} {b}: nothing settled"));
+                    continue;
+                };
+                let n: usize = note(e1.as_ref(), "settled_without_map")
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(0);
+                let (mut sum, mut worst) = (0.0f64, 0.0f32);
+                for (k, s) in settled.v.iter().enumerate() {
+                    if let Some(s) = s {
+                        if v1[k].to_bits() != s.to_bits() {
+                            failures.push(format!("{name} {algo} {b}: receiver {k} not settled"));
+                            break;
+                        }
+                        let d = (v1[k] - truth[k]).abs();
+                        sum += d as f64;
+                        worst = worst.max(d);
+                    }
+                }
+                let mean = sum / settled.count().max(1) as f64;
+                let (r0, r1) = (rmse(&v0, &truth, &rec), rmse(&v1, &truth, &rec));
+                let p95 = |e: &dyn SoftShadowEstimator| {
+                    let d = shadow_map_core::cascades::texel_density_of(&scene, &rec, e.params());
+                    shadow_map_core::cascades::median_p95(&d.unwrap())
+                        .unwrap()
+                        .1
+                };
+                let (d0, d1) = (p95(e0.as_ref()), p95(e1.as_ref()));
+                println!(
+                    "{name} {algo} {b}: settled {n} of {}, mean |V - ref| there {mean:.4} (max {worst:.4}), RMSE off {r0:.4} on {r1:.4}, density p95 {d0:.2} -> {d1:.2}",
+                    rec.active.iter().filter(|a| **a).count()
+                );
+                if n != settled.count() {
+                    failures.push(format!(
+                        "{name} {algo} {b}: note {n} vs {}",
+                        settled.count()
+                    ));
+                }
+                if !(mean <= 0.005 && worst <= 0.05) {
+                    failures.push(format!(
+                        "{name} {algo} {b}: settled off by {mean} / {worst}"
+                    ));
+                }
+                if !(r1 <= r0 + 0.002) {
+                    failures.push(format!("{name} {algo} {b}: RMSE {r0:.4} -> {r1:.4}"));
+                }
+                if !(d1 < d0) {
+                    failures.push(format!("{name} {algo} {b}: density p95 {d0} -> {d1}"));
+                }
             }
         }
     }

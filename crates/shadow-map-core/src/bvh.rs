@@ -129,6 +129,60 @@ impl SceneBvh {
         found
     }
 
+    /// Whether `test` holds for some triangle whose bounding box meets the box `[lo, hi]` and
+    /// is not wholly outside one of the convex region's `planes` (each `[a, b, c, d]`, inside
+    /// where `a x + b y + c z + d >= 0`). Nodes are culled by the box and by the planes (a node
+    /// is outside a plane when its box corner furthest along the plane's normal is), so a
+    /// narrow region visits few nodes; stops at the first triangle that passes.
+    pub fn any_in_convex(
+        &self,
+        lo: Vec3,
+        hi: Vec3,
+        planes: &[[f64; 4]],
+        mut test: impl FnMut(&[Vec3; 3]) -> bool,
+    ) -> bool {
+        let nodes = &self.bvh.nodes;
+        if nodes.is_empty() {
+            return false;
+        }
+        let visible = |k: u32| -> bool {
+            let a = nodes[k as usize].aabb();
+            let (nlo, nhi) = (Vec3::from(a.min), Vec3::from(a.max));
+            if nlo.cmpgt(hi).any() || nhi.cmplt(lo).any() {
+                return false;
+            }
+            planes.iter().all(|pl| {
+                let x = if pl[0] >= 0.0 { nhi.x } else { nlo.x } as f64;
+                let y = if pl[1] >= 0.0 { nhi.y } else { nlo.y } as f64;
+                let z = if pl[2] >= 0.0 { nhi.z } else { nlo.z } as f64;
+                pl[0] * x + pl[1] * y + pl[2] * z + pl[3] >= 0.0
+            })
+        };
+        let mut stack: Vec<u32> = Vec::with_capacity(64);
+        if visible(0) {
+            stack.push(0);
+        }
+        while let Some(k) = stack.pop() {
+            let node = &nodes[k as usize];
+            if node.is_leaf() {
+                let first = node.first_index as usize;
+                for i in first..first + node.prim_count as usize {
+                    let t = &self.tris[self.bvh.primitive_indices[i] as usize];
+                    if test(&[t.v0.into(), t.v1.into(), t.v2.into()]) {
+                        return true;
+                    }
+                }
+            } else {
+                for c in [node.first_index, node.first_index + 1] {
+                    if visible(c) {
+                        stack.push(c);
+                    }
+                }
+            }
+        }
+        false
+    }
+
     /// Geometric unit normal of a triangle (from its winding).
     pub fn normal(&self, triangle: usize) -> Vec3 {
         let t = &self.tris[triangle];

@@ -65,6 +65,32 @@ pub const TILE_SPAN: ParamSpec = ParamSpec {
 /// Most tiles `tiles=0` (auto) picks.
 pub const MAX_AUTO_TILES: usize = 8;
 
+/// Caster-aware fitting (`--param casters=...`; issue 17, docs/methods.md §1 "Caster-aware
+/// fitting"): which receivers the views are fitted to.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Casters {
+    /// [`Casters::On`] where one view's texel-density p95 exceeds [`AUTO_MAX_DENSITY`] (where the
+    /// window is too wide for its receivers), else [`Casters::Off`] (the default).
+    #[default]
+    Auto,
+    /// Receivers no caster can shadow are settled without a map
+    /// ([`Settler`](crate::settle::Settler): V is their facing fraction, exactly), and the views
+    /// are fitted to the others only, so texels go where shadows can fall.
+    On,
+    /// Every active receiver is served by a view.
+    Off,
+}
+
+crate::param_words!(Casters { Auto = "auto", On = "on", Off = "off" });
+
+/// `casters`: caster-aware fitting ([`Casters`]).
+pub const CASTERS: ParamSpec = ParamSpec {
+    key: "casters",
+    kind: ParamKind::Choice(Casters::WORDS),
+    default: "auto",
+    help: "caster-aware fitting: on = receivers whose light pyramid holds no geometry in front of their tangent plane get their facing fraction (exact, no map) and the views fit only the others; off = every receiver in a view; auto = on where one view's texel density p95 exceeds 2 pixels per texel",
+};
+
 /// Most cascades (the [`CASCADES`] range).
 pub const MAX_CASCADES: u32 = 8;
 const _: () =
@@ -85,6 +111,8 @@ crate::typed_params! {
         tiles: u32 = TILES,
         /// Largest tan-space extent of one tile under `tiles=0`.
         tile_span: f32 = TILE_SPAN,
+        /// Caster-aware fitting.
+        casters: Casters = CASTERS,
     }
 }
 
@@ -425,19 +453,23 @@ pub fn direction_tiles(
 }
 
 /// The [`Plan`] for `receivers` of `scene`, for an estimator whose own parameters are `inner`
-/// (its one-view texel density decides `cascades=0` and `tiles=0`).
+/// (its one-view texel density decides `cascades=0` and `tiles=0`; `cascade_p95`, when given,
+/// stands in for it in the cascade count: [`Settled::one_view_p95`]).
 pub fn plan(
     settings: &CascadeSettings,
     scene: &Scene,
     receivers: &Receivers,
     inner: &Params,
+    cascade_p95: Option<Option<f32>>,
 ) -> Plan {
     let depths = camera_depths(&scene.camera, receivers);
     let p95 = |r: &Receivers| {
         let d = view_density(scene, r, inner)?;
         median_p95(&d).map(|m| m.1)
     };
-    let splits = plan_splits(settings, &depths, || p95(receivers));
+    let splits = plan_splits(settings, &depths, || {
+        cascade_p95.unwrap_or_else(|| p95(receivers))
+    });
     let half = blend_half_widths(&splits, settings.cascade_blend);
     let weights: Vec<_> = depths
         .iter()
@@ -469,16 +501,74 @@ fn cascade_receivers(
     sub
 }
 
+/// What caster-aware fitting ([`settle`]) decided for one frame.
+#[derive(Debug, Clone)]
+pub struct Settled {
+    /// Per receiver, its exact V when settled without a map, else `None`.
+    pub v: Vec<Option<f32>>,
+    /// Texel-density p95 of one view over every receiver, settled or not: the cascade count of
+    /// `cascades=0` follows it ([`plan`]), since the views that serve the rest must resolve the
+    /// shadows near the camera as finely as cascades over every receiver would.
+    pub one_view_p95: Option<f32>,
+}
+
+impl Settled {
+    /// Receivers settled.
+    pub fn count(&self) -> usize {
+        self.v.iter().filter(|x| x.is_some()).count()
+    }
+    /// `receivers` without the settled ones (the receivers the views serve).
+    pub fn unsettled(&self, receivers: &Receivers) -> Receivers {
+        let mut sub = receivers.clone();
+        for (a, x) in sub.active.iter_mut().zip(&self.v) {
+            *a &= x.is_none();
+        }
+        sub
+    }
+}
+
+/// The receivers caster-aware fitting settles without a map under `settings` ([`Casters`]);
+/// `None` when nothing is settled (`casters=off`, or `auto` where one view over every receiver
+/// already has a texel-density p95 of at most [`AUTO_MAX_DENSITY`]). `inner` are the
+/// estimator's own parameters (its view).
+pub fn settle(
+    settings: &CascadeSettings,
+    scene: &Scene,
+    receivers: &Receivers,
+    inner: &Params,
+) -> Option<Settled> {
+    if settings.casters == Casters::Off {
+        return None;
+    }
+    let one_view_p95 = view_density(scene, receivers, inner)
+        .as_deref()
+        .and_then(median_p95)
+        .map(|m| m.1);
+    if settings.casters == Casters::Auto && !one_view_p95.is_some_and(|d| d > AUTO_MAX_DENSITY) {
+        return None;
+    }
+    let v = crate::settle::Settler::new(scene).settle(receivers);
+    v.iter()
+        .any(Option::is_some)
+        .then_some(Settled { v, one_view_p95 })
+}
+
 /// The texel density ([`texel_density`]) at each receiver of the light-centre view(s) an
 /// estimator with parameters `params` fits: its `resolution`, `fit` and `nearfar`, per cascade
 /// when `params` holds [`CascadeSettings`] (the receivers of a blend band take the farther
 /// cascade's). Estimators over sub-lights fit slightly smaller views of the same kind. `None`
-/// for an estimator without a map.
+/// for an estimator without a map. Receivers settled by caster-aware fitting ([`settle`]) are
+/// served by no view and get NaN.
 pub fn texel_density_of(scene: &Scene, receivers: &Receivers, params: &Params) -> Option<Vec<f32>> {
     let Ok(settings) = CascadeSettings::from_params(params) else {
         return view_density(scene, receivers, params);
     };
-    let plan = plan(&settings, scene, receivers, params);
+    let settled = settle(&settings, scene, receivers, params);
+    let (receivers, p95) = match &settled {
+        Some(s) => (&s.unsettled(receivers), Some(s.one_view_p95)),
+        None => (receivers, None),
+    };
+    let plan = plan(&settings, scene, receivers, params, p95);
     let mut out = vec![f32::NAN; receivers.len()];
     for c in 0..plan.cascades() {
         for t in 0..plan.tiles[c].count {
@@ -527,8 +617,13 @@ pub struct Cascaded {
     inner: Box<dyn SoftShadowEstimator>,
     params: Params,
     settings: CascadeSettings,
-    /// The plan of the last build (one slice: the inner estimator was built on every receiver).
+    /// The plan of the last build (one slice: the inner estimator was built on every receiver
+    /// the views serve).
     plan: Option<Plan>,
+    /// What caster-aware fitting settled in the last build ([`settle`]).
+    settled: Option<Settled>,
+    /// Milliseconds the last build spent settling receivers.
+    settle_ms: f64,
     report: Report,
 }
 
@@ -546,6 +641,8 @@ impl Cascaded {
             inner,
             params,
             plan: None,
+            settled: None,
+            settle_ms: 0.0,
             report: Report::default(),
         })
     }
@@ -580,7 +677,76 @@ impl SoftShadowEstimator for Cascaded {
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
-        let plan = plan(&self.settings, scene, receivers, self.inner.params());
+        self.plan = None;
+        let t = Instant::now();
+        self.settled = settle(&self.settings, scene, receivers, self.inner.params());
+        self.settle_ms = t.elapsed().as_secs_f64() * 1e3;
+        let Some(settled) = &self.settled else {
+            return self.build_views(scene, receivers, None);
+        };
+        let sub = settled.unsettled(receivers);
+        if !sub.active.iter().any(|a| *a) {
+            return Ok(()); // every receiver settled: no view to build
+        }
+        let p95 = settled.one_view_p95;
+        self.build_views(scene, &sub, Some(p95))
+    }
+    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        receivers.check_output(v)?;
+        let Some(settled) = self.settled.take() else {
+            return self.estimate_views(scene, receivers, v);
+        };
+        if settled.v.len() != receivers.len() {
+            let n = settled.v.len();
+            self.settled = Some(settled);
+            return Err(crate::Error::Receivers(format!(
+                "estimate has {} receivers, the build had {n}",
+                receivers.len()
+            )));
+        }
+        let sub = settled.unsettled(receivers);
+        let served = sub.active.iter().filter(|a| **a).count();
+        let out = if served > 0 {
+            self.estimate_views(scene, &sub, v)
+        } else {
+            v.fill(f32::NAN);
+            self.report = Report::default();
+            Ok(())
+        };
+        for (x, s) in v.iter_mut().zip(&settled.v) {
+            if let Some(s) = s {
+                *x = *s;
+            }
+        }
+        let n = settled.count();
+        self.settled = Some(settled);
+        out?;
+        self.report
+            .stages
+            .insert(0, ("settle".into(), self.settle_ms));
+        // Receivers the inner estimator settled itself (accumulation's, beyond its view) count too.
+        self.report.add_count("settled_without_map", n);
+        Ok(())
+    }
+}
+
+impl Cascaded {
+    /// Plans the views for the receivers they serve and builds the one view at once (several
+    /// are built inside [`Cascaded::estimate_views`], one at a time).
+    /// `cascade_p95`: [`plan`]'s.
+    fn build_views(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        cascade_p95: Option<Option<f32>>,
+    ) -> Result<()> {
+        let plan = plan(
+            &self.settings,
+            scene,
+            receivers,
+            self.inner.params(),
+            cascade_p95,
+        );
         let one = plan.is_one_view();
         self.plan = Some(plan);
         if one {
@@ -588,8 +754,14 @@ impl SoftShadowEstimator for Cascaded {
         }
         Ok(()) // each cascade is built inside `estimate`, one at a time
     }
-    fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        receivers.check_output(v)?;
+
+    /// V of the receivers the views serve (the others NaN).
+    fn estimate_views(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
         let plan = crate::estimator::built(self.plan.as_ref())?;
         let (splits, weights) = (&plan.splits, &plan.weights);
         if weights.len() != receivers.len() {
@@ -747,6 +919,7 @@ mod tests {
             cascade_blend: 0.1,
             tiles,
             tile_span: 2.0,
+            casters: Casters::Off,
         };
         let dense = || Some(5.0);
         assert_eq!(

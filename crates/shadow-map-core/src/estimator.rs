@@ -45,6 +45,16 @@ impl Report {
     pub fn note(&mut self, key: &str, value: impl ToString) {
         self.notes.push((key.to_string(), value.to_string()));
     }
+    /// Adds `n` to the count noted under `key` (a new note when there is none, or when the
+    /// note there is not a count).
+    pub fn add_count(&mut self, key: &str, n: usize) {
+        match self.notes.iter_mut().find(|(k, _)| k == key) {
+            Some((_, v)) if v.parse::<usize>().is_ok() => {
+                *v = (v.parse::<usize>().unwrap_or(0) + n).to_string();
+            }
+            _ => self.note(key, n),
+        }
+    }
     /// Total milliseconds of the stages whose name starts with `prefix`.
     pub fn total_ms(&self, prefix: &str) -> f64 {
         self.stages

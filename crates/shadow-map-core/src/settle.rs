@@ -8,7 +8,9 @@
 //! ([`crate::Light::front_fraction_world`]). The test is conservative: a triangle that touches the
 //! pyramid counts as a possible caster, and "not settled" only means "not proven unshadowed".
 //!
-//! It serves the receivers no light view can hold (beyond [`crate::light_view::MAX_TAN`] off the
+//! Caster-aware fitting ([`crate::cascades::Casters`]) settles every receiver it can this way
+//! and fits the views to the rest. Accumulation also uses it for the receivers no light view can
+//! hold (beyond [`crate::light_view::MAX_TAN`] off the
 //! light's axis, or nearer the light's plane than a sphere light's silhouette reaches): seen from
 //! the light they lie almost in its plane, so the only geometry that can shadow them lies almost
 //! in that plane too, and a scene rarely has any there.
@@ -16,9 +18,10 @@ use crate::{
     bvh::SceneBvh,
     light::default_tangent,
     light_view::{Plane, Polygon},
-    Light, LightShape, Scene,
+    Light, LightShape, Receivers, Scene,
 };
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// Vertices of the polygon standing in for a disk (circumscribed, so it contains the disk).
 pub const DISK_POLYGON: usize = 8;
@@ -53,7 +56,20 @@ impl Settler {
         }
         !self
             .bvh
-            .any_in_box(lo, hi, |t| Polygon::triangle(t).clip(&planes))
+            .any_in_convex(lo, hi, &planes, |t| Polygon::triangle(t).clip(&planes))
+    }
+
+    /// Per receiver, its visibility when [`Settler::unshadowed`] proves it (the facing fraction,
+    /// exact), else `None` (inactive receivers too). Receivers are tested in parallel.
+    pub fn settle(&self, receivers: &Receivers) -> Vec<Option<f32>> {
+        (0..receivers.len())
+            .into_par_iter()
+            .map(|i| {
+                let (p, n) = (receivers.position[i], receivers.normal[i]);
+                (receivers.active[i] && self.unshadowed(p, n))
+                    .then(|| self.light.front_fraction_world(p, n))
+            })
+            .collect()
     }
 }
 
@@ -227,6 +243,58 @@ mod tests {
                 "{shape:?}"
             );
         }
+    }
+
+    /// The culled traversal finds a caster exactly when testing every triangle does: random
+    /// boxes scattered around a tilted light, receivers on the ground.
+    #[test]
+    fn culled_traversal_matches_testing_every_triangle() {
+        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut tris = ground();
+        for _ in 0..60 {
+            let c = Vec3::new(next() * 20.0 - 10.0, next() * 3.0, next() * 20.0 - 10.0);
+            let h = Vec3::new(0.1 + next() * 0.5, 0.1 + next() * 0.5, 0.1 + next() * 0.5);
+            for (a, b, d) in [(0usize, 1usize, 2usize), (1, 2, 0), (2, 0, 1)] {
+                for s in [-1.0f32, 1.0] {
+                    let mut q = [Vec3::ZERO; 4];
+                    for (k, (u, v)) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let mut o = [0.0f32; 3];
+                        o[a] = s * h[a];
+                        o[b] = u * h[b];
+                        o[d] = v * h[d];
+                        q[k] = c + Vec3::from(o);
+                    }
+                    tris.push([q[0], q[1], q[2]]);
+                    tris.push([q[0], q[2], q[3]]);
+                }
+            }
+        }
+        let light = light(
+            Vec3::new(1.0, 6.0, -2.0),
+            Vec3::new(0.2, -1.0, 0.3).normalize(),
+            LightShape::Rect { size: [2.0, 1.0] },
+        );
+        let s = Settler::new(&scene(light, tris.clone()));
+        let (mut settled, mut total) = (0, 0);
+        for _ in 0..400 {
+            let p = Vec3::new(next() * 30.0 - 15.0, 0.0, next() * 30.0 - 15.0);
+            let planes = pyramid(&light, p, Vec3::Y, s.bvh.scale).unwrap();
+            let brute = tris.iter().any(|t| Polygon::triangle(t).clip(&planes));
+            assert_eq!(s.unshadowed(p, Vec3::Y), !brute, "{p}");
+            total += 1;
+            settled += usize::from(!brute);
+        }
+        // Both outcomes occur.
+        assert!(settled > 20 && settled < total - 20, "{settled} of {total}");
     }
 
     /// Degenerate receivers (in the light's plane, at the centre) are never settled.
