@@ -575,6 +575,7 @@ pub enum ReceiverSetup {
 pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> ReceiverSetup {
     let view = &sv.ls.view;
     let p = view.frame.to_light(pw);
+    let n = view.frame.dir_to_light(nw);
     let (facing, sil) = match sv.emitter {
         Emitter::Sphere(r) => {
             // Two-sided: the contract's silhouette disk in world space; a receiver behind the
@@ -593,13 +594,9 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
             if !(p.z > 0.0) {
                 return ReceiverSetup::Settled(0.0);
             }
-            (
-                front_fraction(&sv.shape, p, view.frame.dir_to_light(nw)),
-                None,
-            )
+            (front_fraction(&sv.shape, p, n), None)
         }
     };
-    let n = view.frame.dir_to_light(nw);
     if !(facing > 0.0) {
         return ReceiverSetup::Settled(0.0);
     }
