@@ -75,7 +75,7 @@ fn kernel_rect(uv: vec2<f32>, wx: f32, wy: f32) -> vec4<i32> {
     );
 }
 
-// math::HULL_DIRS and HULL_SCALE: the octagon circumscribing a silhouette disk.
+// silhouette::HULL_DIRS and HULL_SCALE: the octagon circumscribing a silhouette disk.
 const S45: f32 = 0.70710677;
 const HULL_SCALE: f32 = 1.0823922;
 
@@ -92,14 +92,14 @@ fn hull_dir(k: u32) -> vec2<f32> {
     }
 }
 
-// math::hull_point.
+// silhouette::hull_point.
 fn hull_point(e1: vec3<f32>, e2: vec3<f32>, r: f32, k: u32) -> vec3<f32> {
     let d = hull_dir(k);
     let rr = r * HULL_SCALE;
     return e1 * (d.x * rr) + e2 * (d.y * rr);
 }
 
-// math::Silhouette (ok = false for None).
+// silhouette::Silhouette (ok = false for None).
 struct Sil {
     a: vec3<f32>,
     e1: vec3<f32>,
@@ -137,14 +137,13 @@ fn sil_new(p: vec3<f32>, radius: f32) -> Sil {
     return s;
 }
 
-// Silhouette's carry: a point of z = 0 onto the silhouette plane, in-plane coordinates.
+// Silhouette::carry: a point of z = 0 onto the silhouette plane, in-plane coordinates (the core's
+// silhouette.wgsl).
 fn sil_carry(s: Sil, x: f32, y: f32) -> vec2<f32> {
-    let yv = vec3<f32>(x, y, 0.0);
-    let t = s.dist / (s.dist - dot3(s.a, yv));
-    return vec2<f32>(dot3(yv, s.e1), dot3(yv, s.e2)) * t;
+    return silhouette_carry(s.a, s.e1, s.e2, s.dist, x, y);
 }
 
-// Silhouette::overlap.
+// Silhouette::overlap_rect.
 fn sil_overlap(s: Sil, rx0: f32, ry0: f32, rx1: f32, ry1: f32) -> f32 {
     let x0 = max(rx0, s.clip.x);
     let y0 = max(ry0, s.clip.y);

@@ -26,14 +26,23 @@
 //! - **Radial integration** (Assarsson & Akenine-Möller 2003): each projected edge clipped to the
 //!   light contributes `tri(a', b') - sector(a', b')`; `A_occ = c A_L + sum`, with c the centre
 //!   status of `(u_p, v_p)` taken from the contour ([`centre_status`]);
-//!   `V = 1 - clamp01(A_occ / A_L)` ([`edge_area`], [`visibility_from_area`]).
+//!   `V = 1 - clamp01(A_occ / A_L)` ([`edge_area`], [`visibility_from_area`]). The light is an
+//!   [`Emitter`]: a rectangle, a disk (docs/methods.md §3 "Disk lights": the chord inside the
+//!   circle and the circular sector, [`disk_edge_term`]), or a sphere's silhouette disk seen from
+//!   the receiver, onto which each backprojected edge is carried first (§3 "Sphere lights",
+//!   [`sphere_edge_term`]).
 //!
-//! All light-plane geometry is in f64, so the only difference between evaluation orders
-//! (per pixel, per packet, flat or hierarchical) is the order of an f64 sum.
+//! All light-plane geometry of a rect light is in f64; a disk's per-edge term is the core's f32
+//! [`edge_disk_area`] after an f64 clip to the disk's
+//! bounding square. Each edge's term is a pure function of the edge and the receiver, so the only
+//! difference between evaluation orders (per pixel, per packet, flat or hierarchical) is the order
+//! of an f64 sum.
 use crate::fit::DualFit;
 use glam::{DVec2, Vec2};
 use shadow_map_core::{
     mssm::{DualMssm, Mssm},
+    overlap::{disk_wedge, edge_disk_area},
+    silhouette::Silhouette,
     ReceiverPlane,
 };
 
@@ -329,6 +338,9 @@ pub struct Receiver {
     pub centre: bool,
     /// The receiver plane of its occluder test ([`OccluderTest::plane`]).
     pub plane: Option<ReceiverPlane>,
+    /// A sphere light's silhouette disk seen from this receiver ([`Emitter::Sphere`]); `None`
+    /// for rect and disk lights.
+    pub sil: Option<Silhouette>,
 }
 
 impl Receiver {
@@ -353,6 +365,7 @@ impl Receiver {
                     t,
                     centre: c,
                     plane,
+                    sil: None,
                 };
             }
             q += DVec2::new(1.0 / 4096.0, 1.0 / 8192.0);
@@ -366,6 +379,7 @@ impl Receiver {
             t,
             centre: test.occludes(i, j, zs, c),
             plane,
+            sil: None,
         }
     }
     /// The receiver's occluder test.
@@ -512,23 +526,93 @@ pub fn sector_rect_by_angle(a: DVec2, b: DVec2, h: DVec2) -> f64 {
     0.5 * twice
 }
 
-/// Contribution `tri(a', b') - sector(a', b')` of one contour edge to the occluded area of the
-/// rectangle light with half extents `h`, seen from `rec` (docs/methods.md §3 "Radial
-/// integration"); 0 for edges entirely outside the light.
+/// The light as the radial integration sees it, in light-plane coordinates centred on the
+/// (sub-)light (docs/methods.md §3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Emitter {
+    /// The rectangle `[-h.x, h.x] x [-h.y, h.y]` (half extents h).
+    Rect(DVec2),
+    /// The disk of this radius at the origin (docs/methods.md §3 "Disk lights").
+    Disk(f64),
+    /// A sphere of this radius at the origin: per receiver its silhouette disk
+    /// ([`Receiver::sil`], docs/methods.md §3 "Sphere lights").
+    Sphere(f64),
+}
+
+impl Emitter {
+    /// Area `A_L`: `4 h.x h.y`, or `pi R^2`.
+    #[inline]
+    pub fn area(&self) -> f64 {
+        match *self {
+            Emitter::Rect(h) => 4.0 * h.x * h.y,
+            Emitter::Disk(r) | Emitter::Sphere(r) => std::f64::consts::PI * r * r,
+        }
+    }
+}
+
+/// Contribution `tri(a', b') - sector(a', b')` of the backprojected edge `a -> b` to the occluded
+/// area of a disk light of radius `r` (docs/methods.md §3 "Disk lights"): with `q1 -> q2` the chord
+/// of the segment inside the circle, `cross(q1, q2) / 2 - r^2 atan2(cross(q1, q2), q1 . q2) / 2`;
+/// 0 for a segment missing the disk. The segment is first clipped to the disk's bounding square
+/// in f64 (its chord is unchanged, and the f32 squares below cannot overflow), then the core's
+/// [`edge_disk_area`] minus [`disk_wedge`] (f32; the pieces outside the circle cancel) gives the
+/// term, never NaN for finite inputs.
 #[inline]
-pub fn edge_area(e: &Edge, rec: &Receiver, k: f64, h: DVec2) -> f64 {
-    let a = backproject(e.a, e.za, rec, k);
-    let b = backproject(e.b, e.zb, rec, k);
-    match clip_to_rect(a, b, h) {
-        Some((a, b)) => 0.5 * a.perp_dot(b) - sector_rect(a, b, h),
+pub fn disk_edge_term(a: DVec2, b: DVec2, r: f64) -> f64 {
+    match clip_to_rect(a, b, DVec2::splat(r)) {
+        Some((a, b)) => {
+            let (a, b, r) = (a.as_vec2(), b.as_vec2(), r as f32);
+            (edge_disk_area(a, b, r) - disk_wedge(a, b, r)) as f64
+        }
         None => 0.0,
     }
 }
 
-/// `V = 1 - clamp01(A_occ / A_L)` with `A_occ = c A_L + sum` (docs/methods.md §3).
+/// Contribution `tri(a', b') - sector(a', b')` of the backprojected edge `a -> b` (on z = 0) to
+/// the occluded area of a sphere light's silhouette disk `s` (docs/methods.md §3 "Sphere lights"):
+/// the edge is clipped in f64 to [`Silhouette::clip`] (the rectangle of z = 0 holding the disk's
+/// image from p, so every point carried lies in front of p and pieces outside add nothing),
+/// its ends are carried onto the silhouette plane by the central projection from p
+/// ([`Silhouette::carry`], which maps the segment to a segment and the light's centre to the
+/// disk's centre, orientation kept), and [`disk_edge_term`] measures it on the disk.
 #[inline]
-pub fn visibility_from_area(centre: bool, sum: f64, h: DVec2) -> f32 {
-    let al = 4.0 * h.x * h.y;
+pub fn sphere_edge_term(a: DVec2, b: DVec2, s: &Silhouette) -> f64 {
+    let lo = DVec2::new(s.clip[0] as f64, s.clip[1] as f64);
+    let hi = DVec2::new(s.clip[2] as f64, s.clip[3] as f64);
+    let (c, h) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    match clip_to_rect(a - c, b - c, h) {
+        Some((a, b)) => {
+            let (a, b) = (a + c, b + c);
+            let ca = s.carry(a.x as f32, a.y as f32).as_dvec2();
+            let cb = s.carry(b.x as f32, b.y as f32).as_dvec2();
+            disk_edge_term(ca, cb, s.radius as f64)
+        }
+        None => 0.0,
+    }
+}
+
+/// Contribution `tri(a', b') - sector(a', b')` of one contour edge to the occluded area of the
+/// light `em`, seen from `rec` (docs/methods.md §3 "Radial integration", "Disk lights"); 0 for
+/// edges entirely outside the light.
+#[inline]
+pub fn edge_area(e: &Edge, rec: &Receiver, k: f64, em: &Emitter) -> f64 {
+    let a = backproject(e.a, e.za, rec, k);
+    let b = backproject(e.b, e.zb, rec, k);
+    match *em {
+        Emitter::Rect(h) => match clip_to_rect(a, b, h) {
+            Some((a, b)) => 0.5 * a.perp_dot(b) - sector_rect(a, b, h),
+            None => 0.0,
+        },
+        Emitter::Disk(r) => disk_edge_term(a, b, r),
+        Emitter::Sphere(_) => rec.sil.as_ref().map_or(0.0, |s| sphere_edge_term(a, b, s)),
+    }
+}
+
+/// `V = 1 - clamp01(A_occ / A_L)` with `A_occ = c A_L + sum` (docs/methods.md §3), `A_L` the
+/// area of `em`.
+#[inline]
+pub fn visibility_from_area(centre: bool, sum: f64, em: &Emitter) -> f32 {
+    let al = em.area();
     if !(al > 0.0) {
         return if centre { 0.0 } else { 1.0 };
     }
@@ -895,7 +979,7 @@ pub fn true_min(class_is_depth: bool, depth: Option<&Mssm>, class_min: f32, s: [
     }
 }
 
-/// Per-pixel GBP07 on a kernel `cr`: the visibility (before the receiver-facing factor) of one
+/// Per-pixel GBP07 on a kernel `cr` and the light `em`: the visibility (before the receiver-facing factor) of one
 /// receiver, and the nodes visited.
 #[allow(clippy::too_many_arguments)]
 pub fn pixel_visibility(
@@ -906,7 +990,7 @@ pub fn pixel_visibility(
     cr: &CellRect,
     rec: &Receiver,
     k: f64,
-    h: DVec2,
+    em: &Emitter,
     traversal: Traversal,
 ) -> (f32, u64) {
     let mut sum = 0.0f64;
@@ -927,10 +1011,10 @@ pub fn pixel_visibility(
         traversal,
         &mut visited,
         |_, _, e| {
-            sum += edge_area(e, rec, k, h);
+            sum += edge_area(e, rec, k, em);
         },
     );
-    (visibility_from_area(rec.centre, sum, h), visited)
+    (visibility_from_area(rec.centre, sum, em), visited)
 }
 
 #[cfg(test)]
@@ -1024,7 +1108,7 @@ mod tests {
         let dm = PaddedDualMssm::build(&d, r, r + 2);
         let rec = Receiver::new(&g, DVec2::new(8.3, 8.1), 2.0, 2.0);
         assert!(rec.centre);
-        let h = DVec2::new(0.5, 0.5);
+        let h = &Emitter::Rect(DVec2::new(0.5, 0.5));
         for t in [Traversal::Flat, Traversal::Hierarchical] {
             // Kernel inside the map: no edges, centre occluded.
             let (v, _) = pixel_visibility(&g, &dm, None, None, &[4, 4, 12, 12], &rec, 0.01, h, t);
@@ -1061,34 +1145,35 @@ mod tests {
             let uv = DVec2::new(1.0 + 22.0 * rnd() as f64, 1.0 + 22.0 * rnd() as f64);
             let rec = Receiver::new(&g, uv, 3.0, 1.5);
             let cr = [-1, 2, 20, 24];
-            let h = DVec2::new(0.4, 0.6);
-            let (vf, nf) =
-                pixel_visibility(&g, &dm, None, None, &cr, &rec, 0.02, h, Traversal::Flat);
-            let (vh, _) = pixel_visibility(
-                &g,
-                &dm,
-                None,
-                None,
-                &cr,
-                &rec,
-                0.02,
-                h,
-                Traversal::Hierarchical,
-            );
-            let (vc, _) = pixel_visibility(
-                &g,
-                &capped,
-                None,
-                None,
-                &cr,
-                &rec,
-                0.02,
-                h,
-                Traversal::Hierarchical,
-            );
-            assert!((vf - vh).abs() < 1e-6, "{vf} {vh}");
-            assert!((vf - vc).abs() < 1e-6, "{vf} {vc}");
-            assert_eq!(nf, 21 * 22);
+            for h in [&Emitter::Rect(DVec2::new(0.4, 0.6)), &Emitter::Disk(0.45)] {
+                let (vf, nf) =
+                    pixel_visibility(&g, &dm, None, None, &cr, &rec, 0.02, h, Traversal::Flat);
+                let (vh, _) = pixel_visibility(
+                    &g,
+                    &dm,
+                    None,
+                    None,
+                    &cr,
+                    &rec,
+                    0.02,
+                    h,
+                    Traversal::Hierarchical,
+                );
+                let (vc, _) = pixel_visibility(
+                    &g,
+                    &capped,
+                    None,
+                    None,
+                    &cr,
+                    &rec,
+                    0.02,
+                    h,
+                    Traversal::Hierarchical,
+                );
+                assert!((vf - vh).abs() < 1e-6, "{vf} {vh}");
+                assert!((vf - vc).abs() < 1e-6, "{vf} {vc}");
+                assert_eq!(nf, 21 * 22);
+            }
         }
     }
 }

@@ -2,7 +2,7 @@
 //! backprojection of [`crate::contour`].
 use crate::contour::{
     edge_area, extract, pixel_visibility, plane_threshold_range, true_min, visibility_from_area,
-    CellRect, Edge, OccluderTest, PaddedDualMssm, Planes, Receiver, SampleGrid, Traversal,
+    CellRect, Edge, Emitter, OccluderTest, PaddedDualMssm, Planes, Receiver, SampleGrid, Traversal,
 };
 use crate::fit::DualFit;
 use glam::{Vec2, Vec3};
@@ -14,8 +14,9 @@ use shadow_map_core::{
     mssm::Mssm,
     params::FromParam,
     peeling::SelfShadowSettings,
-    Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions, ReceiverPlane,
-    Receivers, Report, Result, Scene, SoftShadowEstimator,
+    silhouette::Silhouette,
+    Error, Light, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions,
+    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -86,7 +87,11 @@ pub const CLASS_PIXEL: u8 = 2;
 /// hold no edge; the status of a non-null sample is the pixel's own).
 ///
 /// Receivers without an image layout are processed pixel-wise (steps 5 and 8 only).
-/// Rect lights only; disk and sphere lights are a [`Error::Param`] with key `light`.
+/// Rect lights; disk and sphere lights with `sublights=1` (docs/methods.md §3 "Disk lights": the
+/// same contours, each edge's chord inside the disk and its circular sector; "Sphere lights": each
+/// receiver's edges carried onto its own silhouette disk first, packets sharing only the
+/// classification and extraction); other `sublights` are an [`Error::Param`] with key
+/// `sublights`.
 pub struct CpuPacketHsm {
     params: Params,
     report: Report,
@@ -380,8 +385,17 @@ pub struct SubView {
     /// receiver-plane rejection (where they would prove nothing the classic test needs), when not
     /// asked for, or when the kernels are too small for them to pay ([`OWN_PLANE_WORTH`]).
     pub fit: Option<DualFit>,
-    /// Sub-light half extents.
+    /// Sub-light half extents (of the bounding square for disk and sphere lights; a disk's kernel,
+    /// docs/methods.md §3 "Disk lights").
     pub half: Vec2,
+    /// The (sub-)light the radial integration measures: the rect sub-light, the disk, or the
+    /// sphere (its silhouette disk per receiver).
+    pub emitter: Emitter,
+    /// The (sub-)light's shape in its frame, for the facing fraction of rect and disk lights.
+    pub shape: LightShape,
+    /// The scene's light (a sphere's facing fraction is taken in world space,
+    /// [`Light::front_fraction_world`]).
+    pub light: Light,
 }
 
 impl SubView {
@@ -421,12 +435,25 @@ impl SubView {
         };
         let max_cells = (wmax.ceil() as u32).saturating_add(3).min(r + 2);
         let dual = PaddedDualMssm::build(class, l0.size, max_cells);
+        let (emitter, shape) = match scene.light.shape {
+            LightShape::Disk { radius } => (Emitter::Disk(radius as f64), scene.light.shape),
+            LightShape::Sphere { radius } => (Emitter::Sphere(radius as f64), scene.light.shape),
+            _ => (
+                Emitter::Rect(half.as_dvec2()),
+                LightShape::Rect {
+                    size: [2.0 * half.x, 2.0 * half.y],
+                },
+            ),
+        };
         let mut sv = SubView {
             ls,
             mssm,
             dual,
             fit: None,
             half,
+            emitter,
+            shape,
+            light: scene.light,
         };
         let build = cfg.shadow.receiver_plane
             && match own_plane {
@@ -538,6 +565,8 @@ pub enum ReceiverSetup {
         /// The receiver plane (`receiver_plane=true`): a sample occludes only if it also passes
         /// [`ReceiverPlane::caster`] on its true depth (with the bias, instead of the bias test).
         plane: Option<ReceiverPlane>,
+        /// A sphere light's silhouette disk seen from the receiver.
+        sil: Option<Silhouette>,
     },
 }
 
@@ -546,14 +575,28 @@ pub enum ReceiverSetup {
 pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> ReceiverSetup {
     let view = &sv.ls.view;
     let p = view.frame.to_light(pw);
-    if !(p.z > 0.0) {
-        return ReceiverSetup::Settled(0.0);
-    }
     let n = view.frame.dir_to_light(nw);
-    let shape = LightShape::Rect {
-        size: [2.0 * sv.half.x, 2.0 * sv.half.y],
+    let (facing, sil) = match sv.emitter {
+        Emitter::Sphere(r) => {
+            // Two-sided: the contract's silhouette disk in world space; a receiver behind the
+            // map's plane or whose silhouette reaches its depth is outside every view (V = facing,
+            // as backprojection does).
+            let facing = sv.light.front_fraction_world(pw, nw);
+            if !(facing > 0.0) {
+                return ReceiverSetup::Settled(0.0);
+            }
+            match Silhouette::new(p, r as f32).filter(|_| p.z > 0.0) {
+                Some(s) => (facing, Some(s)),
+                None => return ReceiverSetup::Outside(facing),
+            }
+        }
+        _ => {
+            if !(p.z > 0.0) {
+                return ReceiverSetup::Settled(0.0);
+            }
+            (front_fraction(&sv.shape, p, n), None)
+        }
     };
-    let facing = front_fraction(&shape, p, n);
     if !(facing > 0.0) {
         return ReceiverSetup::Settled(0.0);
     }
@@ -579,6 +622,7 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
         t,
         facing,
         plane,
+        sil,
     }
 }
 
@@ -606,7 +650,7 @@ pub fn prepare(
     nw: Vec3,
     outside: &mut bool,
 ) -> Prep {
-    let (uv, zp, t, facing, plane) = match setup_receiver(sv, cfg, pw, nw) {
+    let (uv, zp, t, facing, plane, sil) = match setup_receiver(sv, cfg, pw, nw) {
         ReceiverSetup::Settled(x) => return Prep::Done(x),
         ReceiverSetup::Outside(x) => {
             *outside = true;
@@ -618,9 +662,16 @@ pub fn prepare(
             t,
             facing,
             plane,
-        } => (uv, zp, t, facing, plane),
+            sil,
+        } => (uv, zp, t, facing, plane, sil),
     };
-    let Some(cr) = kernel_cells(&sv.ls.view, &sv.mssm, uv, zp, 2.0 * sv.half) else {
+    let Some(cr) = kernel_cells(
+        &sv.ls.view,
+        &sv.mssm,
+        uv,
+        zp,
+        kernel_light(sv, sil.as_ref()),
+    ) else {
         return Prep::Done(facing);
     };
     let mm = sv.dual.query(&cr);
@@ -639,8 +690,26 @@ pub fn prepare(
     if umbra {
         return Prep::Done(0.0); // fully occluded (umbra)
     }
-    let rec = Receiver::with_test(grid, uv.as_dvec2(), zp as f64, test);
+    let mut rec = Receiver::with_test(grid, uv.as_dvec2(), zp as f64, test);
+    rec.sil = sil;
     Prep::Penumbra { rec, cr, facing }
+}
+
+/// The light size `l` of a receiver's kernel ([`kernel_cells`]): the (sub-)light's bounding
+/// rectangle (a disk's bounding square is conservative, docs/methods.md §3 "Disk lights"), or for
+/// a sphere the smallest rectangle centred on the light's centre holding [`Silhouette::clip`]
+/// (the image on z = 0 of the silhouette disk seen from the receiver: every sample whose
+/// backprojection meets the disk's image lies in that kernel; §3 "Sphere lights").
+pub fn kernel_light(sv: &SubView, sil: Option<&Silhouette>) -> Vec2 {
+    match sil {
+        Some(s) => {
+            2.0 * Vec2::new(
+                s.clip[0].abs().max(s.clip[2].abs()),
+                s.clip[1].abs().max(s.clip[3].abs()),
+            )
+        }
+        None => 2.0 * sv.half,
+    }
 }
 
 /// Step 5's trivial classification of a kernel `cr` whose classification depths span
@@ -808,7 +877,7 @@ fn pixel_wise(
         cr,
         rec,
         k,
-        sv.half.as_dvec2(),
+        &sv.emitter,
         cfg.traversal(),
     );
     (facing * v, n)
@@ -826,7 +895,7 @@ pub fn estimate_sublight(
 ) {
     let grid = sv.grid(cfg);
     let k = (sv.ls.view.delta() / sv.ls.view.n) as f64;
-    let h = sv.half.as_dvec2();
+    let em = &sv.emitter;
     let far = sv.ls.view.far;
     let (pw, ph) = match receivers.layout {
         Some(_) => cfg.packet.size(),
@@ -941,11 +1010,11 @@ pub fn estimate_sublight(
                                 let mut sum = 0.0f64;
                                 for (i, j, e) in &edges {
                                     if *i >= cr[0] && *i < cr[2] && *j >= cr[1] && *j < cr[3] {
-                                        sum += edge_area(e, rec, k, h);
+                                        sum += edge_area(e, rec, k, em);
                                     }
                                 }
                                 acc[*li] +=
-                                    weight * facing * visibility_from_area(rec.centre, sum, h);
+                                    weight * facing * visibility_from_area(rec.centre, sum, em);
                                 diag[*li].class = CLASS_PACKET;
                             }
                             done = true;
@@ -1003,13 +1072,15 @@ pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
 }
 
 impl CpuPacketHsm {
-    /// Rect lights only: any other shape is an [`Error::Param`] with key `light` (both twins).
-    pub(crate) fn check_light(scene: &Scene) -> Result<()> {
+    /// Rect lights with any `sublights`; disk and sphere lights with `sublights=1` only (they
+    /// are not cut into S x S sub-lights: an [`Error::Param`] with key `sublights`; both twins).
+    pub(crate) fn check_light(scene: &Scene, cfg: &Config) -> Result<()> {
         match scene.light.shape {
             LightShape::Rect { .. } => Ok(()),
+            _ if cfg.sublights == 1 => Ok(()),
             _ => Err(Error::param(
-                "light",
-                "packet-hsm supports rect lights only (the radial integration clips to a rectangle; disk and sphere lights are not handled)",
+                "sublights",
+                "packet-hsm cuts only rect lights into S x S sub-lights; disk and sphere lights need sublights=1",
             )),
         }
     }
@@ -1023,14 +1094,12 @@ impl SoftShadowEstimator for CpuPacketHsm {
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
         self.report = Report::default();
-        Self::check_light(scene)?;
-        Config::from_params(&self.params)?;
-        Ok(())
+        Self::check_light(scene, &Config::from_params(&self.params)?)
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        Self::check_light(scene)?;
         let cfg = Config::from_params(&self.params)?;
+        Self::check_light(scene, &cfg)?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());
         let mut diag = vec![PixelDiag::default(); receivers.len()];

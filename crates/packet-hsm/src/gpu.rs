@@ -23,21 +23,40 @@
 //! (`receiver_plane=true`) is built on the CPU by [`crate::cpu::setup_receiver`] and passed in
 //! [`RecIn`]; the shader's caster test is the same product and comparison in f32 (a fused
 //! multiply-add can flip a tie).
+use crate::contour::Emitter;
 use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
 use crate::cpu::{Config, CpuPacketHsm, OwnPlane, SubLights, SubView};
 use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
         GpuContext,
     },
+    silhouette::Silhouette,
     Error, ImageLayout, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
-/// The kernel.
+/// The kernel's own WGSL.
 pub const PACKET_HSM_WGSL: &str = include_str!("packet_hsm.wgsl");
+/// The WGSL parts of the kernel, in order: the core's disk edge term
+/// ([`DISK_EDGE_WGSL`](shadow_map_core::gpu::estimate::DISK_EDGE_WGSL)) and silhouette carry
+/// ([`SILHOUETTE_WGSL`](shadow_map_core::gpu::estimate::SILHOUETTE_WGSL)), then
+/// [`PACKET_HSM_WGSL`].
+pub const SHADER_PARTS: [&str; 3] = [
+    shadow_map_core::gpu::estimate::DISK_EDGE_WGSL,
+    shadow_map_core::gpu::estimate::SILHOUETTE_WGSL,
+    PACKET_HSM_WGSL,
+];
+
+/// [`HsmUniform::shape`] of a rect (sub-)light.
+pub const SHAPE_RECT: u32 = 0;
+/// [`HsmUniform::shape`] of a disk light (radius `hx`).
+pub const SHAPE_DISK: u32 = 1;
+/// [`HsmUniform::shape`] of a sphere light (radius `hx`; [`RecIn`]'s silhouette).
+pub const SHAPE_SPHERE: u32 = 2;
 
 /// Uniform of one dispatch (mirrors `HsmUniform` in `packet_hsm.wgsl`).
 #[repr(C)]
@@ -95,8 +114,9 @@ pub struct HsmUniform {
     pub receiver_plane: u32,
     /// 1: the classification depths are the true depths (`self_shadow=bias`).
     pub class_is_depth: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// The light: [`SHAPE_RECT`], [`SHAPE_DISK`] (radius `hx`, docs/methods.md §3 "Disk
+    /// lights") or [`SHAPE_SPHERE`] (radius `hx`, §3 "Sphere lights").
+    pub shape: u32,
     /// Padding.
     pub _pad1: u32,
 }
@@ -135,6 +155,31 @@ pub struct RecIn {
     pub gv: f32,
     /// [`ReceiverPlane::c`](shadow_map_core::ReceiverPlane::c).
     pub c: f32,
+    /// A sphere light's [`Silhouette`] seen from the receiver (zeros otherwise): `(a, dist)`.
+    pub sil_a: [f32; 4],
+    /// `(e1, radius)`.
+    pub sil_e1: [f32; 4],
+    /// `(e2, 0)`.
+    pub sil_e2: [f32; 4],
+    /// [`Silhouette::clip`].
+    pub sil_clip: [f32; 4],
+}
+
+impl RecIn {
+    /// A receiver the CPU settled (`zp = 0`: not evaluated on the device).
+    const SETTLED: RecIn = RecIn {
+        uv: [0.0; 2],
+        zp: 0.0,
+        t: 0.0,
+        g0: 0.0,
+        gu: 0.0,
+        gv: 0.0,
+        c: 0.0,
+        sil_a: [0.0; 4],
+        sil_e1: [0.0; 4],
+        sil_e2: [0.0; 4],
+        sil_clip: [0.0; 4],
+    };
 }
 
 const LABEL: &str = "packet-hsm estimate";
@@ -169,7 +214,7 @@ pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 impl GpuPacketHsm {
     /// With default parameters, compiling the kernel on `ctx`'s device.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let module = shader_module(&ctx, LABEL, &[PACKET_HSM_WGSL])?;
+        let module = shader_module(&ctx, LABEL, &SHADER_PARTS)?;
         let layout = ctx.scoped(LABEL, || {
             let mut bindings = vec![Binding::Uniform];
             bindings.extend([Binding::Storage; 6]);
@@ -459,7 +504,11 @@ fn hsm_uniform(
         probe: 2,
         receiver_plane: cfg.shadow.receiver_plane as u32,
         class_is_depth: sv.grid(cfg).class_is_depth() as u32,
-        _pad0: 0,
+        shape: match sv.emitter {
+            Emitter::Rect(_) => SHAPE_RECT,
+            Emitter::Disk(_) => SHAPE_DISK,
+            Emitter::Sphere(_) => SHAPE_SPHERE,
+        },
         _pad1: 0,
     }
 }
@@ -472,8 +521,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        CpuPacketHsm::check_light(scene)?;
         let cfg = Config::from_params(self.cpu.params())?;
+        CpuPacketHsm::check_light(scene, &cfg)?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());
         subs.own_plane = OwnPlane::Off;
@@ -489,17 +538,14 @@ impl SoftShadowEstimator for GpuPacketHsm {
                 let recs: Vec<RecIn> = setups
                     .iter()
                     .map(|s| match s {
-                        ReceiverSetup::Settled(_) | ReceiverSetup::Outside(_) => RecIn {
-                            uv: [0.0; 2],
-                            zp: 0.0,
-                            t: 0.0,
-                            g0: 0.0,
-                            gu: 0.0,
-                            gv: 0.0,
-                            c: 0.0,
-                        },
+                        ReceiverSetup::Settled(_) | ReceiverSetup::Outside(_) => RecIn::SETTLED,
                         ReceiverSetup::Map {
-                            uv, zp, t, plane, ..
+                            uv,
+                            zp,
+                            t,
+                            plane,
+                            sil,
+                            ..
                         } => {
                             let pl = plane.unwrap_or(ReceiverPlane {
                                 g0: 0.0,
@@ -509,6 +555,14 @@ impl SoftShadowEstimator for GpuPacketHsm {
                                 zp: *zp,
                                 hs: 0.0,
                             });
+                            let s = sil.unwrap_or(Silhouette {
+                                a: Vec3::ZERO,
+                                e1: Vec3::ZERO,
+                                e2: Vec3::ZERO,
+                                dist: 0.0,
+                                radius: 0.0,
+                                clip: [0.0; 4],
+                            });
                             RecIn {
                                 uv: [uv.x, uv.y],
                                 zp: *zp,
@@ -517,6 +571,10 @@ impl SoftShadowEstimator for GpuPacketHsm {
                                 gu: pl.gu,
                                 gv: pl.gv,
                                 c: pl.c,
+                                sil_a: s.a.extend(s.dist).to_array(),
+                                sil_e1: s.e1.extend(s.radius).to_array(),
+                                sil_e2: s.e2.extend(0.0).to_array(),
+                                sil_clip: s.clip,
                             }
                         }
                     })
@@ -565,13 +623,13 @@ impl SoftShadowEstimator for GpuPacketHsm {
 
 #[cfg(test)]
 mod tests {
-    use super::{HsmUniform, PrepGpu, RecIn, PACKET_HSM_WGSL};
+    use super::{HsmUniform, PrepGpu, RecIn, SHADER_PARTS};
 
     /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.
     #[test]
     fn mirrored_structs_match_the_wgsl() {
         shadow_map_core::assert_wgsl_layout!(
-            PACKET_HSM_WGSL,
+            SHADER_PARTS.concat(),
             HsmUniform {
                 r,
                 padded,
@@ -599,12 +657,12 @@ mod tests {
                 probe,
                 receiver_plane,
                 class_is_depth,
-                _pad0,
+                shape,
                 _pad1,
             }
         );
         shadow_map_core::assert_wgsl_layout!(
-            PACKET_HSM_WGSL,
+            SHADER_PARTS.concat(),
             PrepGpu {
                 cr,
                 q,
@@ -613,7 +671,7 @@ mod tests {
             }
         );
         shadow_map_core::assert_wgsl_layout!(
-            PACKET_HSM_WGSL,
+            SHADER_PARTS.concat(),
             RecIn {
                 uv,
                 zp,
@@ -621,7 +679,11 @@ mod tests {
                 g0,
                 gu,
                 gv,
-                c
+                c,
+                sil_a,
+                sil_e1,
+                sil_e2,
+                sil_clip,
             }
         );
     }
@@ -629,6 +691,6 @@ mod tests {
     /// The kernel parses and validates with naga (no device needed).
     #[test]
     fn wgsl_validates_with_naga() {
-        shadow_map_core::gpu::kernel::assert_shaders_valid([("packet_hsm", PACKET_HSM_WGSL)]);
+        shadow_map_core::gpu::kernel::assert_shaders_valid([("packet_hsm", SHADER_PARTS.concat())]);
     }
 }

@@ -6,6 +6,9 @@
 // contour extraction, per-pixel integration; diverging packets leave their pixels to the next
 // pass), `pixels` (one per receiver: per-pixel GBP07 for every penumbra pixel not done yet).
 //
+// Prepended: the core's disk_edge.wgsl (edge_disk_area, disk_wedge) and silhouette.wgsl
+// (silhouette_carry).
+//
 // Known differences from the CPU: the light-plane geometry (backprojection, clipping, sectors) and
 // the sum over edges are f32 here (f64 on the CPU); the backprojection gap is floored at 1e-7 z_p
 // (1e-12 z_p on the CPU); the nudge of a receiver on a cell boundary is added in f32.
@@ -44,7 +47,8 @@ struct HsmUniform {
     receiver_plane: u32,
     // 1: the classification depths are the true depths (self_shadow=bias).
     class_is_depth: u32,
-    _pad0: u32,
+    // gpu.rs SHAPE_*: 0 rect, 1 disk of radius hx, 2 sphere of radius hx (RecIn's silhouette).
+    shape: u32,
     _pad1: u32,
 }
 
@@ -71,6 +75,12 @@ struct RecIn {
     gu: f32,
     gv: f32,
     c: f32,
+    // A sphere light's silhouette seen from the receiver (shadow_map_core::silhouette::Silhouette,
+    // built on the CPU): (a, |p|), (e1, R), (e2, 0), clip rectangle of z = 0 (x0, y0, x1, y1).
+    sil_a: vec4<f32>,
+    sil_e1: vec4<f32>,
+    sil_e2: vec4<f32>,
+    sil_clip: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> u: HsmUniform;
@@ -206,11 +216,24 @@ fn dual_query(cr: vec4<i32>) -> vec2<f32> {
     return acc;
 }
 
+// cpu.rs kernel_light: the light size of the kernel (a sphere's from its silhouette's clip
+// rectangle).
+fn kernel_light(rec: RecIn) -> vec2<f32> {
+    if u.shape == SHAPE_SPHERE {
+        let c = rec.sil_clip;
+        return 2.0 * vec2<f32>(max(abs(c.x), abs(c.z)), max(abs(c.y), abs(c.w)));
+    }
+    return 2.0 * vec2<f32>(u.hx, u.hy);
+}
+
 // cpu.rs kernel_cells; w < 0 in the result's first component flags "lit" (no kernel).
-fn kernel_cells(uv: vec2<f32>, zp: f32, valid: ptr<function, bool>) -> vec4<i32> {
+fn kernel_cells(rec: RecIn, valid: ptr<function, bool>) -> vec4<i32> {
+    let uv = rec.uv;
+    let zp = rec.zp;
     let r = f32(u.r);
-    let lx = 2.0 * u.hx;
-    let ly = 2.0 * u.hy;
+    let l = kernel_light(rec);
+    let lx = l.x;
+    let ly = l.y;
     var zm = u.n;
     var s = kernel_rect(uv, zp, zm, lx, ly, r);
     for (var it = 0; it < 16; it++) {
@@ -514,21 +537,34 @@ fn sector_rect(a: vec2<f32>, b: vec2<f32>) -> f32 {
     return 0.5 * twice;
 }
 
-// contour::edge_area: tri - sector of the clipped backprojected edge.
-fn edge_area(e: Edge, q: vec2<f32>, zp: f32) -> f32 {
-    let a = backproject(e.a, e.za, q, zp);
-    let b = backproject(e.b, e.zb, q, zp);
+// gpu.rs SHAPE_*.
+const SHAPE_RECT: u32 = 0u;
+const SHAPE_DISK: u32 = 1u;
+const SHAPE_SPHERE: u32 = 2u;
+const PI: f32 = 3.14159265358979;
+
+// contour::clip_to_rect (Liang-Barsky) on [-h, h]: the clipped ends in xy, zw; ok = false when
+// nothing is left.
+struct Clipped {
+    ends: vec4<f32>,
+    ok: bool,
+}
+
+fn clip_rect(a: vec2<f32>, b: vec2<f32>, h: vec2<f32>) -> Clipped {
+    var out: Clipped;
+    out.ok = false;
+    out.ends = vec4<f32>(0.0);
     let d = b - a;
     var t0 = 0.0;
     var t1 = 1.0;
     let ps = array<f32, 4>(-d.x, d.x, -d.y, d.y);
-    let qs = array<f32, 4>(a.x + u.hx, u.hx - a.x, a.y + u.hy, u.hy - a.y);
+    let qs = array<f32, 4>(a.x + h.x, h.x - a.x, a.y + h.y, h.y - a.y);
     for (var i = 0u; i < 4u; i++) {
         let p = ps[i];
         let qq = qs[i];
         if p == 0.0 {
             if qq < 0.0 {
-                return 0.0;
+                return out;
             }
         } else {
             let r = qq / p;
@@ -540,21 +576,70 @@ fn edge_area(e: Edge, q: vec2<f32>, zp: f32) -> f32 {
         }
     }
     if !(t0 <= t1) {
+        return out;
+    }
+    out.ends = vec4<f32>(a + d * t0, a + d * t1);
+    out.ok = true;
+    return out;
+}
+
+// contour::disk_edge_term: clipped to the disk's bounding square, then the core's
+// edge_disk_area - disk_wedge.
+fn disk_edge_term(a: vec2<f32>, b: vec2<f32>, r: f32) -> f32 {
+    let c = clip_rect(a, b, vec2<f32>(r, r));
+    if !c.ok {
         return 0.0;
     }
-    let ca = a + d * t0;
-    let cb = a + d * t1;
-    return 0.5 * cross2(ca, cb) - sector_rect(ca, cb);
+    return edge_disk_area(c.ends.xy, c.ends.zw, r) - disk_wedge(c.ends.xy, c.ends.zw, r);
+}
+
+// contour::sphere_edge_term: clipped to the silhouette's clip rectangle of z = 0, carried onto
+// the receiver's silhouette plane (the core's silhouette_carry), measured on its disk.
+fn sphere_edge_term(a: vec2<f32>, b: vec2<f32>, rec: RecIn) -> f32 {
+    let lo = rec.sil_clip.xy;
+    let hi = rec.sil_clip.zw;
+    let c = 0.5 * (lo + hi);
+    let h = 0.5 * (hi - lo);
+    let cl = clip_rect(a - c, b - c, h);
+    if !cl.ok {
+        return 0.0;
+    }
+    let pa = cl.ends.xy + c;
+    let pb = cl.ends.zw + c;
+    let sa = rec.sil_a.xyz;
+    let e1 = rec.sil_e1.xyz;
+    let e2 = rec.sil_e2.xyz;
+    let ca = silhouette_carry(sa, e1, e2, rec.sil_a.w, pa.x, pa.y);
+    let cb = silhouette_carry(sa, e1, e2, rec.sil_a.w, pb.x, pb.y);
+    return disk_edge_term(ca, cb, rec.sil_e1.w);
+}
+
+// contour::edge_area: tri - sector of the backprojected edge clipped to the light (rect), on a
+// disk (disk_edge_term), or on the receiver's silhouette disk (sphere_edge_term).
+fn edge_area(e: Edge, q: vec2<f32>, rec: RecIn) -> f32 {
+    let a = backproject(e.a, e.za, q, rec.zp);
+    let b = backproject(e.b, e.zb, q, rec.zp);
+    if u.shape == SHAPE_DISK {
+        return disk_edge_term(a, b, u.hx);
+    }
+    if u.shape == SHAPE_SPHERE {
+        return sphere_edge_term(a, b, rec);
+    }
+    let c = clip_rect(a, b, vec2<f32>(u.hx, u.hy));
+    if !c.ok {
+        return 0.0;
+    }
+    return 0.5 * cross2(c.ends.xy, c.ends.zw) - sector_rect(c.ends.xy, c.ends.zw);
 }
 
 fn cell_area(i: i32, j: i32, rec: RecIn, q: vec2<f32>, zp: f32) -> f32 {
     let c = cell_at(i, j, rec);
     var s = 0.0;
     if c.n >= 1u {
-        s += edge_area(c.e0, q, zp);
+        s += edge_area(c.e0, q, rec);
     }
     if c.n == 2u {
-        s += edge_area(c.e1, q, zp);
+        s += edge_area(c.e1, q, rec);
     }
     return s;
 }
@@ -577,7 +662,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var valid = false;
-    let cr = kernel_cells(rec.uv, rec.zp, &valid);
+    let cr = kernel_cells(rec, &valid);
     let mm = dual_query(cr);
     // cpu.rs trivial: fully lit, fully occluded.
     var lit = !(mm.x < rec.t);
@@ -627,8 +712,13 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     v_out[idx] = vec2<f32>(0.0, 0.0);
 }
 
+// contour::visibility_from_area (A_L = 4 hx hy, or pi R^2 for a disk and a sphere's silhouette:
+// hx = R).
 fn finish(sum: f32, centre: u32) -> f32 {
-    let al = 4.0 * u.hx * u.hy;
+    var al = 4.0 * u.hx * u.hy;
+    if u.shape != SHAPE_RECT {
+        al = PI * u.hx * u.hx;
+    }
     var a = sum;
     if centre == 1u {
         a += al;
@@ -948,9 +1038,9 @@ fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
             let p = prep[ids[i]];
             if ci >= p.cr.x && ci < p.cr.z && cj >= p.cr.y && cj < p.cr.w {
                 let r = recs[ids[i]];
-                sums[i] += edge_area(cell.e0, p.q, r.zp);
+                sums[i] += edge_area(cell.e0, p.q, r);
                 if cell.n == 2u {
-                    sums[i] += edge_area(cell.e1, p.q, r.zp);
+                    sums[i] += edge_area(cell.e1, p.q, r);
                 }
             }
         }

@@ -1,11 +1,12 @@
 //! The heart of the crate: packets, the hierarchy and the coherence test change speed, never V.
 //!
-//! For random small scenes (a ground quad, random squares and tilted triangles, a random rect
-//! light), every packet size 1x1..8x8 times hierarchy on/off times coherence on/off gives the V of
+//! For random small scenes (a ground quad, random squares and tilted triangles, a random rect,
+//! disk or sphere light), every packet size 1x1..8x8 times hierarchy on/off times coherence on/off gives the V of
 //! per-pixel GBP07 with a flat scan of every kernel cell ([`reference_pixel`]).
 //!
-//! Tolerance: 1e-5 absolute. Every path integrates exactly the same edges with the same f64
-//! arithmetic per edge; only the order of the f64 sum over edges differs (and the f32 rounding of
+//! Tolerance: 1e-5 absolute. Every path integrates exactly the same edges with the same
+//! arithmetic per edge (f64 on a rect, the core's f32 edge term on a disk and on each receiver's
+//! sphere silhouette); only the order of the f64 sum over edges differs (and the f32 rounding of
 //! the result). Measured maximum differences are printed.
 mod common;
 use common::*;
@@ -23,6 +24,7 @@ fn random_scene(
     height: f32,
     squares: &[(f32, f32, f32, f32)],
     tris: &[[f32; 9]],
+    shape: u8,
 ) -> Scene {
     // A fixed square so every scene has a penumbra for packets to work on.
     let mut meshes = vec![
@@ -42,7 +44,14 @@ fn random_scene(
             1.0,
         ));
     }
-    Scene::from_meshes("random", camera(24, 18), rect_light(light, height), meshes).unwrap()
+    let mut l = rect_light(light, height);
+    let radius = 0.5 * light;
+    match shape {
+        1 => l.shape = shadow_map_core::LightShape::Disk { radius },
+        2 => l.shape = shadow_map_core::LightShape::Sphere { radius },
+        _ => {}
+    }
+    Scene::from_meshes("random", camera(24, 18), l, meshes).unwrap()
 }
 
 fn check_all_combinations(scene: &Scene, res: u32, self_shadow: &str) -> f32 {
@@ -115,6 +124,7 @@ proptest! {
         tris in prop::collection::vec(prop::array::uniform9(-1.5f32..1.5), 0..3),
         res in prop::sample::select(vec![32u32, 64, 96]),
         bias in any::<bool>(),
+        shape in 0u8..3,
     ) {
         let tris: Vec<[f32; 9]> = tris
             .into_iter()
@@ -125,9 +135,9 @@ proptest! {
                 t
             })
             .collect();
-        let s = random_scene(light, height, &squares, &tris);
+        let s = random_scene(light, height, &squares, &tris, shape);
         let worst = check_all_combinations(&s, res, if bias { "bias" } else { "midpoint" });
-        eprintln!("exactness: worst |dV| {worst:e}");
+        eprintln!("exactness (shape {shape}): worst |dV| {worst:e}");
     }
 }
 

@@ -1,7 +1,7 @@
 //! The GPU twin of packet-based HSM against the CPU twin: the conformance suite of
 //! `test-support` (`twin::packet_hsm`), with what is specific to packet HSM here.
 //!
-//! On random scenes, both with the same random packet size,
+//! On random scenes (rect, disk or sphere light), both with the same random packet size,
 //! hierarchy, coherence, sub-lights, self-shadow and light-view (`fit`, `nearfar`) settings (both
 //! build the same light-space data on the CPU). Besides V, the packet counters must agree: the
 //! same packets (same penumbra pixels) and, without the coherence test (f32 on the GPU, f64 on
@@ -33,6 +33,12 @@ test_support::twin_suite! {
 }
 
 fn scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)]) -> Scene {
+    shaped_scene(light, height, squares, 0)
+}
+
+/// [`scene`] under a rect light of side `light` (`shape` 0), or a disk (1) or sphere (2) light of
+/// diameter `light`.
+fn shaped_scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)], shape: u8) -> Scene {
     let mut meshes = vec![
         (quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0),
         (quad(SQUARE.0, SQUARE.1, SQUARE.2, SQUARE.3, SQUARE.4), 1.0),
@@ -49,7 +55,14 @@ fn scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)]) -> Scene {
         ]],
         1.0,
     ));
-    Scene::from_meshes("twin", camera(32, 24), rect_light(light, height), meshes).unwrap()
+    let mut l = rect_light(light, height);
+    let radius = 0.5 * light;
+    match shape {
+        1 => l.shape = shadow_map_core::LightShape::Disk { radius },
+        2 => l.shape = shadow_map_core::LightShape::Sphere { radius },
+        _ => {}
+    }
+    Scene::from_meshes("twin", camera(32, 24), l, meshes).unwrap()
 }
 
 /// A report note's value, "" when absent.
@@ -108,6 +121,7 @@ impl TwinPair for PacketHsm {
                 prop::sample::select(vec!["receivers", "scene", "stable"]),
                 prop::sample::select(vec!["clipped", "aabb", "frustum"]),
             ),
+            0u8..3,
         );
         runner
             .run(
@@ -122,8 +136,11 @@ impl TwinPair for PacketHsm {
                     (sl, coh),
                     packet,
                     (fit, nearfar),
+                    shape,
                 )| {
-                    let s = scene(light, height, &squares);
+                    // Disk and sphere lights are one view (sublights=1).
+                    let sl = if shape != 0 { "1" } else { sl };
+                    let s = shaped_scene(light, height, &squares, shape);
                     let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
                     let res = res.to_string();
                     let hier = hier.to_string();
@@ -198,6 +215,41 @@ impl TwinPair for PacketHsm {
                 .map(|n| n.1.clone())
                 .unwrap();
             eprintln!("large kernels {kv:?}: worst {worst:e}, CPU fallbacks {fb}");
+        }
+    }
+}
+
+/// Disk and sphere lights (docs/methods.md §3 "Disk lights", "Sphere lights") through both twins,
+/// packets and per pixel, hierarchy on and off: within the twin tolerance, and in shadow
+/// somewhere.
+#[test]
+fn gpu_disk_and_sphere_lights_match_the_cpu_twin() {
+    let Some(ctx) = test_support::gpu("gpu_disk_and_sphere_lights_match_the_cpu_twin") else {
+        return;
+    };
+    let mut g = GpuPacketHsm::new(ctx).unwrap();
+    for shape in [1u8, 2] {
+        let s = shaped_scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1)], shape);
+        let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+        for (p, h) in [("3x3", "true"), ("1x1", "false"), ("4x4", "false")] {
+            let kv = [("resolution", "128"), ("packet", p), ("hierarchy", h)];
+            for (k, v) in kv {
+                g.set_param(k, v).unwrap();
+            }
+            let vg = run(&mut g, &s, &rec).unwrap().0;
+            let vc = run(&mut hsm(&kv), &s, &rec).unwrap().0;
+            for (k, x) in vg.iter().enumerate() {
+                assert!(
+                    !rec.active[k] || (0.0..=1.0).contains(x),
+                    "shape {shape} {kv:?}: gpu #{k} {x}"
+                );
+            }
+            assert!(
+                vc.iter().any(|&v| v < 0.5),
+                "shape {shape} {kv:?}: no shadow"
+            );
+            let (f, worst) = compare(&vc, &vg, &rec, &format!("shape {shape} {kv:?}"));
+            eprintln!("gpu shape {shape} {kv:?}: within {f:.4}, worst {worst:e}");
         }
     }
 }

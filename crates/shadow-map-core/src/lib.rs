@@ -21,6 +21,7 @@ pub mod receiver_plane;
 pub mod receivers;
 pub mod scene;
 pub mod settle;
+pub mod silhouette;
 
 pub use bvh::SceneBvh;
 pub use camera::Camera;

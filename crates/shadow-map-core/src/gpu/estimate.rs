@@ -17,14 +17,23 @@ pub const ESTIMATE_WGSL: &str = include_str!("estimate.wgsl");
 /// WGSL twins of the core's light helpers and of the receiver bias, in the CPU's operation order
 /// (after [`ESTIMATE_WGSL`]).
 pub const MATH_WGSL: &str = include_str!("math.wgsl");
-/// WGSL twins of [`crate::overlap`] (after [`MATH_WGSL`]).
+/// WGSL twins of [`crate::overlap::disk_wedge`] and [`crate::overlap::edge_disk_area`],
+/// self-contained (builtins only): kernels without the estimate head prepend it alone.
+pub const DISK_EDGE_WGSL: &str = include_str!("disk_edge.wgsl");
+/// WGSL twin of [`crate::silhouette::Silhouette::carry`], self-contained like
+/// [`DISK_EDGE_WGSL`].
+pub const SILHOUETTE_WGSL: &str = include_str!("silhouette.wgsl");
+/// WGSL twins of the rest of [`crate::overlap`] (after [`MATH_WGSL`] and [`DISK_EDGE_WGSL`]).
 pub const OVERLAP_WGSL: &str = include_str!("overlap.wgsl");
 /// The head of every estimate kernel: the core's shared structs, [`ESTIMATE_WGSL`],
-/// [`MATH_WGSL`] and [`OVERLAP_WGSL`], in that order; a kernel appends its own WGSL.
+/// [`MATH_WGSL`], [`DISK_EDGE_WGSL`], [`SILHOUETTE_WGSL`] and [`OVERLAP_WGSL`], in that order; a
+/// kernel appends its own WGSL.
 pub const ESTIMATE_HEAD_WGSL: &str = concat!(
     include_str!("shared.wgsl"),
     include_str!("estimate.wgsl"),
     include_str!("math.wgsl"),
+    include_str!("disk_edge.wgsl"),
+    include_str!("silhouette.wgsl"),
     include_str!("overlap.wgsl")
 );
 
@@ -154,6 +163,8 @@ mod tests {
             super::super::shared::SHARED_WGSL,
             ESTIMATE_WGSL,
             MATH_WGSL,
+            DISK_EDGE_WGSL,
+            SILHOUETTE_WGSL,
             OVERLAP_WGSL,
         ]
         .concat();

@@ -1,5 +1,6 @@
 // Twins of shadow_map_core::overlap (areas of overlap with a light on its plane), in f32 and in
-// the CPU's operation order. Shared by accumulation and backprojection.
+// the CPU's operation order. Shared by accumulation and backprojection. The per-edge term
+// (edge_disk_area, disk_wedge) is in disk_edge.wgsl, prepended before this file.
 
 // A convex polygon of up to 5 corners (accumulation's MAX_CLIP: a quadrilateral clipped by one
 // half-plane).
@@ -20,10 +21,6 @@ fn poly_area(pq: Poly) -> f32 {
 // glam::Vec2::perp_dot.
 fn perp_dot(p: vec2<f32>, q: vec2<f32>) -> f32 {
     return (p.x * q.y) - (p.y * q.x);
-}
-
-fn seg_outside(p: vec2<f32>, q: vec2<f32>, r: f32) -> f32 {
-    return 0.5 * r * r * atan2(perp_dot(p, q), dot2(p, q));
 }
 
 // overlap::quad_disk_area.
@@ -84,31 +81,7 @@ fn poly_disk_area(pq: Poly, r: f32) -> f32 {
     }
     var area = 0.0;
     for (var k = 0u; k < m; k++) {
-        let p0 = q[k];
-        let p1 = q[(k + 1u) % m];
-        let d = p1 - p0;
-        let a = dot2(d, d);
-        let b = dot2(p0, d);
-        let cc = dot2(p0, p0) - r * r;
-        let disc = b * b - a * cc;
-        if !(disc > 0.0) || !(a > 0.0) {
-            area += seg_outside(p0, p1, r);
-            continue;
-        }
-        let sq = sqrt(disc);
-        let t1 = clamp((-b - sq) / a, 0.0, 1.0);
-        let t2 = clamp((-b + sq) / a, 0.0, 1.0);
-        let q1 = p0 + d * t1;
-        let q2 = p0 + d * t2;
-        if t1 > 0.0 {
-            area += seg_outside(p0, q1, r);
-        }
-        if t2 > t1 {
-            area += 0.5 * perp_dot(q1, q2);
-        }
-        if t2 < 1.0 {
-            area += seg_outside(q2, p1, r);
-        }
+        area += edge_disk_area(q[k], q[(k + 1u) % m], r);
     }
     return min(abs(area), full);
 }
