@@ -112,6 +112,9 @@ impl LightPatch {
         match *shape {
             LightShape::Rect { size } => flat(PatchShape::Rect(Vec2::new(size[0], size[1]) * 0.5)),
             LightShape::Disk { radius } => flat(PatchShape::Disk(radius)),
+            // Refused at build (`LightView::fit`, issue 19); the disk of directions at unit
+            // distance keeps a mismatched `estimate` finite.
+            LightShape::Directional { .. } => flat(PatchShape::Disk(shape.tan_half())),
             LightShape::Sphere { radius } => match sphere {
                 SphereModel::Paper => flat(PatchShape::Disk(radius)),
                 SphereModel::Contract => {

@@ -139,6 +139,11 @@ impl Emitter {
             },
             shadow_map_core::LightShape::Disk { radius } => Emitter::Disk { radius },
             shadow_map_core::LightShape::Sphere { radius } => Emitter::Sphere { radius },
+            // Refused at build (`LightView::fit`, issue 19); the disk of directions at unit
+            // distance keeps a mismatched `estimate` finite.
+            shadow_map_core::LightShape::Directional { .. } => Emitter::Disk {
+                radius: shape.tan_half(),
+            },
         }
     }
 

@@ -7,7 +7,8 @@ pub mod trace;
 
 pub use estimator::ReferenceEstimator;
 pub use oracle::{
-    disk_occluder_visibility, lens_area, polygon_disk_area, polygon_occluder_disk_visibility,
-    rect_occluder_visibility, sphere_occluder_on_axis_visibility, union_area, RectOccluder,
+    disk_occluder_visibility, half_plane_sun_visibility, lens_area, polygon_disk_area,
+    polygon_occluder_disk_visibility, rect_occluder_visibility, sphere_occluder_on_axis_visibility,
+    union_area, RectOccluder,
 };
 pub use trace::{receiver_visibility, visibility, TraceOptions};

@@ -299,6 +299,22 @@ pub fn sphere_occluder_on_axis_visibility(
     Some(1.0 - ((cast / r) * (cast / r)).min(1.0))
 }
 
+/// Visibility of a directional light (the sun; the contract's disk of directions of radius
+/// `tan_half = tan(angle / 2)` at unit distance, area-uniform) from a point on a plane facing it,
+/// under an opaque half plane parallel to that plane at height `h > 0` above it whose edge lies
+/// at signed distance `x` from the point's foot (`x > 0`: the point lies on the open side), the
+/// sun overhead (travelling along the planes' normal). A direction `n + a T + b B` (`T` across the
+/// edge) passes the half plane where `x + a h > 0`, so V is the fraction of the disk with
+/// `a > -x / h`: the circular segment `(acos u - u sqrt(1 - u^2)) / pi`, `u = clamp(-x / (h tan_half))`
+/// (docs/methods.md §10, "The sun over a half plane"). 0.5 at the edge's foot.
+pub fn half_plane_sun_visibility(x: f64, h: f64, tan_half: f64) -> f64 {
+    if !(h > 0.0 && tan_half > 0.0) {
+        return if x > 0.0 { 1.0 } else { 0.0 };
+    }
+    let u = (-x / (h * tan_half)).clamp(-1.0, 1.0);
+    ((u.acos() - u * (1.0 - u * u).sqrt()) / PI).clamp(0.0, 1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

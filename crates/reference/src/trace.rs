@@ -205,7 +205,14 @@ pub fn receiver_visibility(
             let f = light.frame();
             (f.origin, f.ex, f.ey)
         }
+        // The contract's disk of directions: radius tan(angle / 2) at unit distance from p,
+        // perpendicular to the travel direction; each sample is a direction, its ray unbounded.
+        LightShape::Directional { .. } => {
+            let f = light.frame();
+            (p - f.ez, f.ex, f.ey)
+        }
     };
+    let distant = light.is_directional();
     let origin = p + n * (RAY_OFFSET_REL * bvh.scale);
     let sampler = Sampler::new(opts.seed, index, s);
     let points = light.stratified_points(s, |k| sampler.jitter(k));
@@ -215,12 +222,17 @@ pub fn receiver_visibility(
         if n.dot(y - p) <= 0.0 {
             continue;
         }
-        let to = y - origin;
+        let to = if distant { y - p } else { y - origin };
         let dist = to.length();
         if !(dist > 0.0 && dist.is_finite()) {
             continue;
         }
-        sum += bvh.transmittance(origin, to / dist, 0.0, dist * (1.0 - SEGMENT_SHORTEN_REL)) as f64;
+        let t_max = if distant {
+            f32::INFINITY
+        } else {
+            dist * (1.0 - SEGMENT_SHORTEN_REL)
+        };
+        sum += bvh.transmittance(origin, to / dist, 0.0, t_max) as f64;
     }
     let v = sum / (s as f64 * s as f64);
     if v.is_finite() {

@@ -21,6 +21,35 @@ pub enum LightShape {
         /// Radius.
         radius: f32,
     },
+    /// A distant light, the sun (the contract's `shape = "directional"`): every point sees the
+    /// same disk of directions, of angular diameter `angle_deg` around the light's travel
+    /// direction ([`Light::normal`]). V is the visible fraction of that disk's area at unit
+    /// distance from the point (radius [`LightShape::tan_half`], perpendicular to the direction,
+    /// area-uniform). No point is behind it.
+    Directional {
+        /// Angular diameter in degrees, in (0, 90).
+        angle_deg: f32,
+    },
+}
+
+impl LightShape {
+    /// For a directional light, `tan(angle_deg / 2)`: the radius of its disk of directions at
+    /// unit distance; 0 for the other shapes.
+    pub fn tan_half(&self) -> f32 {
+        match *self {
+            LightShape::Directional { angle_deg } => (0.5 * angle_deg).to_radians().tan(),
+            _ => 0.0,
+        }
+    }
+    /// The contract's word for the shape (`rect`, `disk`, `sphere`, `directional`).
+    pub fn word(&self) -> &'static str {
+        match self {
+            LightShape::Rect { .. } => "rect",
+            LightShape::Disk { .. } => "disk",
+            LightShape::Sphere { .. } => "sphere",
+            LightShape::Directional { .. } => "directional",
+        }
+    }
 }
 
 /// A uniform area light.
@@ -106,34 +135,62 @@ impl Light {
             ez,
         }
     }
-    /// Area of the emitting surface (for a sphere: of its silhouette disk, per the contract).
+    /// A directional light travelling along `direction` (normalised) with angular diameter
+    /// `angle_deg` ([`LightShape::Directional`]); its centre is unused (the origin).
+    pub fn directional(direction: Vec3, angle_deg: f32) -> Light {
+        let normal = direction.normalize_or(Vec3::NEG_Y);
+        Light {
+            shape: LightShape::Directional { angle_deg },
+            center: Vec3::ZERO,
+            normal,
+            tangent: default_tangent(normal),
+        }
+    }
+    /// Whether this is a directional light (the sun).
+    pub fn is_directional(&self) -> bool {
+        matches!(self.shape, LightShape::Directional { .. })
+    }
+    /// Area of the emitting surface (for a sphere: of its silhouette disk, per the contract; for
+    /// a directional light: of its disk of directions at unit distance).
     pub fn area(&self) -> f32 {
         match self.shape {
             LightShape::Rect { size } => size[0] * size[1],
             LightShape::Disk { radius } | LightShape::Sphere { radius } => {
                 std::f32::consts::PI * radius * radius
             }
+            LightShape::Directional { .. } => {
+                let t = self.shape.tan_half();
+                std::f32::consts::PI * t * t
+            }
         }
     }
-    /// Half extents of the light's bounding rectangle in the light plane (`l_x/2, l_y/2`).
+    /// Half extents of the light's bounding rectangle in the light plane (`l_x/2, l_y/2`; for a
+    /// directional light, of its disk of directions at unit distance).
     pub fn half_extent(&self) -> Vec2 {
         match self.shape {
             LightShape::Rect { size } => Vec2::new(size[0], size[1]) * 0.5,
             LightShape::Disk { radius } | LightShape::Sphere { radius } => Vec2::splat(radius),
+            LightShape::Directional { .. } => Vec2::splat(self.shape.tan_half()),
         }
     }
-    /// Largest extent of the light (rect: its diagonal; disk, sphere: the diameter).
+    /// Largest extent of the light (rect: its diagonal; disk, sphere: the diameter; directional:
+    /// the diameter of its disk of directions at unit distance).
     pub fn diameter(&self) -> f32 {
         match self.shape {
             LightShape::Rect { size } => Vec2::new(size[0], size[1]).length(),
             LightShape::Disk { radius } | LightShape::Sphere { radius } => 2.0 * radius,
+            LightShape::Directional { .. } => 2.0 * self.shape.tan_half(),
         }
     }
     /// Rect and disk lights emit only into the half-space their normal points to.
     pub fn one_sided(&self) -> bool {
-        !matches!(self.shape, LightShape::Sphere { .. })
+        matches!(
+            self.shape,
+            LightShape::Rect { .. } | LightShape::Disk { .. }
+        )
     }
-    /// The same light scaled down or up by `f` (used by convergence tests: light size to 0).
+    /// The same light scaled down or up by `f` (used by convergence tests: light size to 0; a
+    /// directional light's disk of directions scales its radius `tan(angle / 2)`).
     pub fn scaled(&self, f: f32) -> Light {
         let shape = match self.shape {
             LightShape::Rect { size } => LightShape::Rect {
@@ -141,6 +198,9 @@ impl Light {
             },
             LightShape::Disk { radius } => LightShape::Disk { radius: radius * f },
             LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * f },
+            LightShape::Directional { .. } => LightShape::Directional {
+                angle_deg: 2.0 * (self.shape.tan_half() * f).atan().to_degrees(),
+            },
         };
         Light { shape, ..*self }
     }
@@ -168,6 +228,7 @@ impl Light {
             LightShape::Disk { radius } | LightShape::Sphere { radius } => {
                 concentric_disk(u) * radius
             }
+            LightShape::Directional { .. } => concentric_disk(u) * self.shape.tan_half(),
         }
     }
 }
@@ -240,7 +301,11 @@ pub fn front_fraction(shape: &LightShape, p: Vec3, n: Vec3) -> f32 {
             }
             ((0.5 * area) / total).clamp(0.0, 1.0) as f32
         }
-        LightShape::Disk { radius } | LightShape::Sphere { radius } => {
+        LightShape::Disk { .. } | LightShape::Sphere { .. } | LightShape::Directional { .. } => {
+            let radius = match *shape {
+                LightShape::Disk { radius } | LightShape::Sphere { radius } => radius,
+                _ => shape.tan_half(),
+            };
             if la < 1e-12 || radius <= 0.0 {
                 return if 0.0 > c { 1.0 } else { 0.0 };
             }
@@ -285,6 +350,17 @@ impl Light {
                     ez: dz,
                 };
                 front_fraction(&self.shape, f.to_light(p), f.dir_to_light(n))
+            }
+            LightShape::Directional { .. } => {
+                // The disk of directions at unit distance towards the light: a disk light of
+                // radius tan(angle / 2) one unit from p, facing it.
+                let f = LightFrame {
+                    origin: p - self.normal,
+                    ex: self.tangent,
+                    ey: self.normal.cross(self.tangent),
+                    ez: self.normal,
+                };
+                front_fraction(&self.shape, Vec3::Z, f.dir_to_light(n))
             }
         }
     }

@@ -253,6 +253,7 @@ impl LightView {
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
         check_resolution(r)?;
+        check_area_light(&scene.light)?;
         let mut rep = FitReport::default();
         let scale = scene.bounds().diagonal().max(1e-6);
         let z_eps = 1e-6 * scale;
@@ -320,6 +321,21 @@ pub fn fit_half_extent(light: &crate::Light, receivers: &Receivers) -> Vec2 {
 }
 
 /// Fails with [`Error::Limit`] unless the shadow-map resolution is in `1..=MAX_RESOLUTION`.
+/// Every light view here is a perspective view from the light's centre; a directional light (the
+/// sun) needs an orthographic one, which no estimator has yet (issue 19): a typed error naming
+/// the light, never a view of a centre that does not exist.
+pub fn check_area_light(light: &crate::Light) -> Result<()> {
+    if light.is_directional() {
+        return Err(Error::Param {
+            key: "light".into(),
+            reason: "directional lights (the sun) need orthographic light views, which this \
+                     estimator does not have yet (issue 19); only the reference renders them"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
 fn check_resolution(r: u32) -> Result<()> {
     if r == 0 || r > MAX_RESOLUTION {
         return Err(Error::Limit {

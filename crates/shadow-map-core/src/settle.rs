@@ -30,15 +30,25 @@ pub const DISK_POLYGON: usize = 8;
 pub struct Settler {
     bvh: SceneBvh,
     light: Light,
+    /// Centre of the scene's bounds (a directional light's pyramid must reach past them).
+    centre: Vec3,
 }
 
 impl Settler {
     /// Builds the scene's BVH (once; every test reuses it).
     pub fn new(scene: &Scene) -> Self {
+        let b = scene.bounds();
         Settler {
             bvh: SceneBvh::new(scene),
             light: scene.light,
+            centre: 0.5 * (b.min + b.max),
         }
+    }
+
+    /// How far from p a directional light's pyramid must reach to pass every scene triangle:
+    /// beyond the scene's bounding sphere seen from p.
+    fn reach(&self, p: Vec3) -> f32 {
+        (p - self.centre).length() + self.bvh.scale + 1.0
     }
 
     /// True when no scene triangle meets the light pyramid of the world point `p` (unit normal
@@ -46,11 +56,11 @@ impl Settler {
     /// False when something may shadow p, or when the pyramid is degenerate (p in the light's
     /// plane or at its centre).
     pub fn unshadowed(&self, p: Vec3, n: Vec3) -> bool {
-        let Some(planes) = pyramid(&self.light, p, n, self.bvh.scale) else {
+        let Some(planes) = pyramid(&self.light, p, n, self.bvh.scale, self.reach(p)) else {
             return false;
         };
         let (mut lo, mut hi) = (p, p);
-        for c in light_polygon(&self.light, p).iter() {
+        for c in light_polygon(&self.light, p, self.reach(p)).iter() {
             lo = lo.min(*c);
             hi = hi.max(*c);
         }
@@ -75,8 +85,9 @@ impl Settler {
 
 /// The light as a convex polygon seen from p (world space, counter-clockwise or clockwise):
 /// a rect's 4 corners, or the [`DISK_POLYGON`]-gon circumscribing a disk (the sphere's
-/// silhouette disk, perpendicular to p -> centre).
-pub fn light_polygon(light: &Light, p: Vec3) -> Vec<Vec3> {
+/// silhouette disk, perpendicular to p -> centre; a directional light's disk of directions
+/// carried `reach` from p, beyond which no scene geometry lies: pass the scene's diagonal).
+pub fn light_polygon(light: &Light, p: Vec3, reach: f32) -> Vec<Vec3> {
     let f = light.frame();
     let ngon = |c: Vec3, e1: Vec3, e2: Vec3, r: f32| -> Vec<Vec3> {
         let m = DISK_POLYGON as f32;
@@ -102,6 +113,9 @@ pub fn light_polygon(light: &Light, p: Vec3) -> Vec<Vec3> {
             let e1 = default_tangent(a);
             ngon(light.center, e1, a.cross(e1), radius)
         }
+        LightShape::Directional { .. } => {
+            ngon(p - f.ez * reach, f.ex, f.ey, light.shape.tan_half() * reach)
+        }
     }
 }
 
@@ -109,12 +123,18 @@ pub fn light_polygon(light: &Light, p: Vec3) -> Vec<Vec3> {
 /// `a x + b y + c z + d >= 0` inside: one per polygon edge through p, the light polygon's own
 /// plane (p's side), and the tangent plane moved `1e-5 |p - centre| + 1e-6 scale` towards the
 /// light (the receiver's own surface lies in it). `None` when degenerate.
-fn pyramid(light: &Light, p: Vec3, n: Vec3, scale: f32) -> Option<Vec<Plane>> {
-    let poly: Vec<DVec3> = light_polygon(light, p)
+fn pyramid(light: &Light, p: Vec3, n: Vec3, scale: f32, reach: f32) -> Option<Vec<Plane>> {
+    let poly: Vec<DVec3> = light_polygon(light, p, reach)
         .iter()
         .map(|v| v.as_dvec3())
         .collect();
-    let (pd, c) = (p.as_dvec3(), light.center.as_dvec3());
+    let pd = p.as_dvec3();
+    // The light's centre: for a directional light, the centre of its polygon.
+    let c = if light.is_directional() {
+        (p - light.normal * reach).as_dvec3()
+    } else {
+        light.center.as_dvec3()
+    };
     let dist = (pd - c).length();
     if !(dist > 0.0) {
         return None;
@@ -287,7 +307,7 @@ mod tests {
         let (mut settled, mut total) = (0, 0);
         for _ in 0..400 {
             let p = Vec3::new(next() * 30.0 - 15.0, 0.0, next() * 30.0 - 15.0);
-            let planes = pyramid(&light, p, Vec3::Y, s.bvh.scale).unwrap();
+            let planes = pyramid(&light, p, Vec3::Y, s.bvh.scale, s.reach(p)).unwrap();
             let brute = tris.iter().any(|t| Polygon::triangle(t).clip(&planes));
             assert_eq!(s.unshadowed(p, Vec3::Y), !brute, "{p}");
             total += 1;
@@ -295,6 +315,33 @@ mod tests {
         }
         // Both outcomes occur.
         assert!(settled > 20 && settled < total - 20, "{settled} of {total}");
+    }
+
+    /// Under the sun (a directional light, its pyramid reaching past the scene): a ground point
+    /// is settled in the open, not under a roof on its path to the sun, settled again when the
+    /// roof moves aside; and its V is the facing fraction (1 on flat ground, the sun high).
+    #[test]
+    fn the_sun_settles_open_ground_only() {
+        let sun = Light::directional(Vec3::new(0.3, -1.0, 0.1), 2.0);
+        let p = Vec3::new(0.0, 0.0, 0.0);
+        let open = Settler::new(&scene(sun, ground()));
+        assert!(open.unshadowed(p, Vec3::Y));
+        assert_eq!(sun.front_fraction_world(p, Vec3::Y), 1.0);
+        // A roof 10 up, over the point's path towards the sun (which lies towards -x).
+        let roof = |x: f32| {
+            let (a, b, c, d) = (
+                Vec3::new(x - 2.0, 10.0, -2.0),
+                Vec3::new(x + 2.0, 10.0, -2.0),
+                Vec3::new(x + 2.0, 10.0, 2.0),
+                Vec3::new(x - 2.0, 10.0, 2.0),
+            );
+            let mut t = ground();
+            t.push([a, b, c]);
+            t.push([a, c, d]);
+            t
+        };
+        assert!(!Settler::new(&scene(sun, roof(-3.0))).unshadowed(p, Vec3::Y));
+        assert!(Settler::new(&scene(sun, roof(20.0))).unshadowed(p, Vec3::Y));
     }
 
     /// Degenerate receivers (in the light's plane, at the centre) are never settled.

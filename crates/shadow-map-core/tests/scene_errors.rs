@@ -186,3 +186,88 @@ fn polygons_are_triangulated() {
     );
     assert_eq!(Scene::load(&p).unwrap().triangles.len(), 2);
 }
+
+/// The contract's directional light (the sun): `direction` and `angle_deg` only.
+const SUN: &str = "shape = \"directional\"\ndirection = [0.3, -1.0, 0.2]\nangle_deg = 0.53\n";
+
+fn with_light(light: &str) -> String {
+    let start = GOOD.find("[light]").unwrap() + "[light]\n".len();
+    let end = GOOD.find("[[mesh]]").unwrap();
+    format!("{}{light}\n{}", &GOOD[..start], &GOOD[end..])
+}
+
+#[test]
+fn directional_light_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write_scene(dir.path(), &with_light(SUN), QUAD);
+    let s = Scene::load(&p).unwrap();
+    let l = s.light;
+    assert!(l.is_directional());
+    let d = glam::Vec3::new(0.3, -1.0, 0.2).normalize();
+    assert!((l.normal - d).length() < 1e-6, "{}", l.normal);
+    assert!(l.tangent.dot(l.normal).abs() < 1e-6);
+    let t = l.shape.tan_half();
+    assert!((t - (0.265f32).to_radians().tan()).abs() < 1e-9, "{t}");
+}
+
+#[test]
+fn malformed_directional_lights() {
+    for (light, needles) in [
+        (
+            SUN.replace(
+                "direction = [0.3, -1.0, 0.2]",
+                "direction = [0.0, 0.0, 0.0]",
+            ),
+            &["light.direction", "zero"][..],
+        ),
+        (
+            SUN.replace(
+                "direction = [0.3, -1.0, 0.2]",
+                "direction = [0.3, nan, 0.2]",
+            ),
+            &["light.direction", "finite"],
+        ),
+        (SUN.replace("0.53", "0.0"), &["light.angle_deg", "(0, 90)"]),
+        (SUN.replace("0.53", "90.0"), &["light.angle_deg", "(0, 90)"]),
+        (SUN.replace("0.53", "-3.0"), &["light.angle_deg", "(0, 90)"]),
+        (SUN.replace("0.53", "inf"), &["light.angle_deg"]),
+        (
+            SUN.replace("angle_deg = 0.53\n", ""),
+            &["light.angle_deg", "missing"],
+        ),
+        (
+            SUN.replace("direction = [0.3, -1.0, 0.2]\n", ""),
+            &["light.direction", "missing"],
+        ),
+        (
+            format!("{SUN}center = [0.0, 6.0, 0.0]\n"),
+            &["light.center", "directional"],
+        ),
+        (
+            format!("{SUN}normal = [0.0, -1.0, 0.0]\n"),
+            &["light.normal", "directional"],
+        ),
+        (
+            format!("{SUN}tangent = [1.0, 0.0, 0.0]\n"),
+            &["light.tangent", "directional"],
+        ),
+        (
+            format!("{SUN}size = [1.0, 1.0]\n"),
+            &["light.size", "directional"],
+        ),
+        (
+            format!("{SUN}radius = 1.0\n"),
+            &["light.radius", "directional"],
+        ),
+    ] {
+        expect_err(&with_light(&light), QUAD, needles);
+    }
+    // Sun keys on an area light.
+    let t = GOOD.replace("size = [2.0, 2.0]", "size = [2.0, 2.0]\nangle_deg = 1.0");
+    expect_err(&t, QUAD, &["light.angle_deg", "rect"]);
+    let t = GOOD.replace(
+        "size = [2.0, 2.0]",
+        "size = [2.0, 2.0]\ndirection = [0.0, -1.0, 0.0]",
+    );
+    expect_err(&t, QUAD, &["light.direction", "rect"]);
+}

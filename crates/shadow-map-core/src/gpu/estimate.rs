@@ -107,6 +107,12 @@ impl EstimateUniform {
             LightShape::Rect { size } => (LIGHT_RECT, size[0], size[1]),
             LightShape::Disk { radius } => (LIGHT_DISK, radius, radius),
             LightShape::Sphere { radius } => (LIGHT_SPHERE, radius, radius),
+            // Never reached: every estimator with a map refuses directional lights when it fits
+            // its light view (issue 19); its disk of directions keeps the uniform finite.
+            LightShape::Directional { .. } => {
+                let t = light.shape.tan_half();
+                (LIGHT_DISK, t, t)
+            }
         };
         EstimateUniform {
             light_frame: FrameGpu::from(&light.frame()),

@@ -34,11 +34,13 @@ struct CameraFile {
 #[serde(deny_unknown_fields)]
 struct LightFile {
     shape: String,
-    center: [f32; 3],
-    normal: [f32; 3],
+    center: Option<[f32; 3]>,
+    normal: Option<[f32; 3]>,
     tangent: Option<[f32; 3]>,
     size: Option<[f32; 2]>,
     radius: Option<f32>,
+    direction: Option<[f32; 3]>,
+    angle_deg: Option<f32>,
 }
 
 #[derive(Deserialize)]
@@ -169,15 +171,29 @@ fn parse_camera(cx: &Ctx<'_>, c: &CameraFile) -> Result<Camera> {
 
 /// Validates the `[light]` table into a [`Light`].
 fn parse_light(cx: &Ctx<'_>, l: &LightFile) -> Result<Light> {
-    let center = cx.vec3("light.center", l.center)?;
-    let normal = cx.unit("light.normal", l.normal)?;
+    if l.shape == "directional" {
+        return directional_light(cx, l);
+    }
+    for (k, present) in [
+        ("light.direction", l.direction.is_some()),
+        ("light.angle_deg", l.angle_deg.is_some()),
+    ] {
+        if present {
+            return Err(cx.err(k, format!("not used by {} lights", l.shape)));
+        }
+    }
+    let required = |key: &str, v: Option<[f32; 3]>| {
+        v.ok_or_else(|| cx.err(key, format!("missing (required for {} lights)", l.shape)))
+    };
+    let center = cx.vec3("light.center", required("light.center", l.center)?)?;
+    let normal = cx.unit("light.normal", required("light.normal", l.normal)?)?;
     let (shape, tangent) = match l.shape.as_str() {
         "rect" => rect_light(cx, l, normal)?,
         "disk" | "sphere" => round_light(cx, l, normal)?,
         other => {
             return Err(cx.err(
                 "light.shape",
-                format!("must be \"rect\", \"disk\" or \"sphere\", got {other:?}"),
+                format!("must be \"rect\", \"disk\", \"sphere\" or \"directional\", got {other:?}"),
             ))
         }
     };
@@ -187,6 +203,46 @@ fn parse_light(cx: &Ctx<'_>, l: &LightFile) -> Result<Light> {
         normal,
         tangent,
     })
+}
+
+/// Validates a directional light (the contract: `direction` and `angle_deg` only): the light
+/// travels along the unit `direction` ([`Light::normal`]), its disk of directions has the angular
+/// diameter `angle_deg` in (0, 90); the centre is unused (the origin).
+fn directional_light(cx: &Ctx<'_>, l: &LightFile) -> Result<Light> {
+    for (k, present) in [
+        ("light.center", l.center.is_some()),
+        ("light.normal", l.normal.is_some()),
+        ("light.tangent", l.tangent.is_some()),
+        ("light.size", l.size.is_some()),
+        ("light.radius", l.radius.is_some()),
+    ] {
+        if present {
+            return Err(cx.err(
+                k,
+                "not used by directional lights (use `direction` and `angle_deg`)",
+            ));
+        }
+    }
+    let d = l.direction.ok_or_else(|| {
+        cx.err(
+            "light.direction",
+            "missing (required for directional lights)",
+        )
+    })?;
+    let direction = cx.unit("light.direction", d)?;
+    let a = l.angle_deg.ok_or_else(|| {
+        cx.err(
+            "light.angle_deg",
+            "missing (required for directional lights)",
+        )
+    })?;
+    if !(a.is_finite() && a > 0.0 && a < 90.0) {
+        return Err(cx.err(
+            "light.angle_deg",
+            format!("must be a finite angle in (0, 90) degrees, got {a}"),
+        ));
+    }
+    Ok(Light::directional(direction, a))
 }
 
 /// Checks that the light parameter `v` (at `key`) is a finite number > 0.
