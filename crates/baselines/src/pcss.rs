@@ -54,7 +54,7 @@ impl Filter for Pcss {
         let l = 2.0 * light.half_extent(); // (l_x, l_y)
         let to_texels = view.r as f32 / view.w;
         // 1. Blocker search.
-        let ws = l * ((zr - view.n) / zr) * to_texels;
+        let ws = search_width(l, zr, view.n, to_texels);
         let (mut sum, mut count) = (Kahan::default(), Kahan::default());
         let d = map;
         cells(
@@ -82,13 +82,9 @@ impl Filter for Pcss {
         }
         let z_avg = sum.s / count.s;
         // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
-        let wf: Vec2 = l * ((zr - z_avg) / z_avg) * (view.n / zr) * to_texels;
-        let disk = matches!(
-            light.shape,
-            LightShape::Disk { .. } | LightShape::Sphere { .. }
-        );
+        let wf = filter_width(l, zr, z_avg, view.n, to_texels);
+        let disk = is_disk(light);
         let (mut lit, mut total) = (Kahan::default(), Kahan::default());
-        let rad = 0.5 * wf.x;
         cells(
             r.uv.y - 0.5 * wf.y,
             r.uv.y + 0.5 * wf.y,
@@ -99,15 +95,9 @@ impl Filter for Pcss {
                     r.uv.x + 0.5 * wf.x,
                     self.max_taps,
                     |i, wx| {
-                        // Disk filter with a one-texel soft edge: continuous in the filter
-                        // width, so rounding in z_avg moves V by a rounding error, not a texel.
-                        let mut edge = 1.0f32;
-                        if disk && wf.x > 1.0 {
-                            let c = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - r.uv;
-                            edge = (rad + 0.5 - c.length()).clamp(0.0, 1.0);
-                            if edge <= 0.0 {
-                                return;
-                            }
+                        let edge = disk_edge(disk, wf, i, j, r.uv);
+                        if edge <= 0.0 {
+                            return;
                         }
                         let w = wx * wy * edge;
                         total.add(w);
@@ -125,18 +115,64 @@ impl Filter for Pcss {
     }
 }
 
+/// The blocker-search width on the plane z = n, in texels (docs/methods.md §5 step 1): the cut of
+/// the pyramid from the receiver at depth `zr` to the light of extent `l` (per axis, light-plane
+/// units), `W_search = l (z_r - n) / z_r`, times `to_texels = r / w`.
+#[inline]
+pub fn search_width(l: Vec2, zr: f32, n: f32, to_texels: f32) -> Vec2 {
+    l * ((zr - n) / zr) * to_texels
+}
+
+/// The filter width on the plane z = n, in texels (docs/methods.md §5 steps 3 and 4): penumbra
+/// `w_p = (z_r - z_avg) l / z_avg` at the receiver, `W_filter = w_p n / z_r`, times `to_texels`.
+#[inline]
+pub fn filter_width(l: Vec2, zr: f32, z_avg: f32, n: f32, to_texels: f32) -> Vec2 {
+    l * ((zr - z_avg) / z_avg) * (n / zr) * to_texels
+}
+
+/// True for the lights whose PCSS filter is a disk (disk and sphere lights; a rect's is a box).
+#[inline]
+pub fn is_disk(light: &Light) -> bool {
+    matches!(
+        light.shape,
+        LightShape::Disk { .. } | LightShape::Sphere { .. }
+    )
+}
+
+/// The weight of texel (i, j) in a disk filter of diameter `wf.x` texels centred on `uv`, with a
+/// one-texel soft edge (continuous in the filter width, so rounding in z_avg moves V by a
+/// rounding error, not a texel); 1 for a box filter (`disk` false) or a filter within a texel.
+#[inline]
+pub fn disk_edge(disk: bool, wf: Vec2, i: i32, j: i32, uv: Vec2) -> f32 {
+    if disk && wf.x > 1.0 {
+        let rad = 0.5 * wf.x;
+        let c = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - uv;
+        (rad + 0.5 - c.length()).clamp(0.0, 1.0)
+    } else {
+        1.0
+    }
+}
+
 /// Kahan-compensated f32 sum. PCSS accumulates its weights with it, in the same order as its GPU
 /// twin, so both backends get the same blocker depth and filter width bit for bit (an f64 sum
 /// on one side only moved the filter's cells and flipped sampled texels).
+/// Public so that other PCSS-style filters (deep-shadow's `filter=pcss`) sum the same way; its
+/// WGSL twin is `Sum` / `sum_add` in `gpu/cells.wgsl`.
 #[derive(Debug, Clone, Copy, Default)]
-struct Kahan {
+pub struct Kahan {
     s: f32,
     c: f32,
 }
 
 impl Kahan {
+    /// The sum so far.
     #[inline]
-    fn add(&mut self, x: f32) {
+    pub fn sum(&self) -> f32 {
+        self.s
+    }
+    /// Adds `x`.
+    #[inline]
+    pub fn add(&mut self, x: f32) {
         let y = x - self.c;
         let t = self.s + y;
         self.c = (t - self.s) - y;

@@ -5,18 +5,6 @@
 // Known difference: the CPU accumulates the weighted sums in f64; here they are f32 with Kahan
 // compensation, so z_avg and lit / total agree to about 1e-7 relative, not bit for bit.
 
-// Kahan-compensated f32 sum.
-struct Sum {
-    s: f32,
-    c: f32,
-}
-
-fn sum_add(a: Sum, x: f32) -> Sum {
-    let y = x - a.c;
-    let t = a.s + y;
-    return Sum(t, (t - a.s) - y);
-}
-
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
     return front_fraction_world(est, p, n);
 }
