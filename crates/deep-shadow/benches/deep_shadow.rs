@@ -68,13 +68,14 @@ fn bench(c: &mut Criterion) {
         ("pcf3", "pcf", "3"),
         ("pcf7", "pcf", "7"),
         ("edsm7", "edsm", "7"),
+        ("pcss", "pcss", "3"),
     ] {
         for traversal in ["linked", "naive"] {
             let mut p = CpuDeepShadow::new().unwrap();
             p.set_param("filter", filter).unwrap();
             p.set_param("kernel", kernel).unwrap();
             p.set_param("traversal", traversal).unwrap();
-            let ls = lookup_settings(&view, &p.settings());
+            let ls = lookup_settings(&view, &scene.light, &p.settings());
             g.bench_function(format!("cpu/lookup/{label}/{traversal}"), |b| {
                 b.iter(|| {
                     looks
