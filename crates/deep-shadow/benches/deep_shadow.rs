@@ -57,10 +57,12 @@ fn bench(c: &mut Criterion) {
     dsm.link();
     let looks: Vec<(Vec2, shadow_map_core::ReceiverPlane)> = (0..rec.len())
         .filter(|&k| rec.active[k])
-        .filter_map(|k| match query(&view, rec.position[k], rec.normal[k], &s) {
-            Query::Look { uv, plane } => Some((uv, plane)),
-            Query::Fixed(_) => None,
-        })
+        .filter_map(
+            |k| match query(&view, &scene.light, rec.position[k], rec.normal[k], &s) {
+                Query::Look { uv, plane, .. } => Some((uv, plane)),
+                Query::Fixed(_) => None,
+            },
+        )
         .collect();
     g.throughput(Throughput::Elements(looks.len() as u64));
     for (label, filter, kernel) in [

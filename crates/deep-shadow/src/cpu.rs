@@ -196,7 +196,8 @@ pub fn kernel_margin(s: &Settings) -> u32 {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Query {
     /// A fixed transmittance, no lookup: 0 when the point light is behind the receiver's tangent
-    /// plane or the receiver behind the light point; 1 when the receiver is nearer than n (nothing
+    /// plane (`filter=pcss`: the view's light wholly behind it) or the receiver behind the light
+    /// point; the facing factor (1 but under `pcss`) when the receiver is nearer than n (nothing
     /// recorded is nearer).
     Fixed(f32),
     /// Look up at continuous texel coordinates `uv` with the receiver's caster test.
@@ -206,14 +207,32 @@ pub enum Query {
         /// Which fragments attenuate: receiver-plane rejection, or the classic `z < z_p - eps`
         /// with `receiver_plane=false` ([`ReceiverPlane::new`]).
         plane: ReceiverPlane,
+        /// The factor the filtered transmittance is multiplied by: 1, or under `filter=pcss` the
+        /// fraction of the view's light in front of the receiver's tangent plane
+        /// ([`facing`]).
+        facing: f32,
     },
 }
 
+/// The tangent-plane factor of the receiver at `pw` with normal `nw` in `view`: 1 when the
+/// view's point is in front of the tangent plane, 0 otherwise; under `filter=pcss` the exact
+/// fraction of the view's light ([`view_light`]) in front of it, as PCSS weights its filter
+/// (`Light::front_fraction_world`; docs/methods.md §8 "Percentage-closer soft transmittance").
+pub fn facing(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) -> f32 {
+    if s.filter == Filter::Pcss {
+        view_light(light, view.frame.origin, s.sublights).front_fraction_world(pw, nw)
+    } else if nw.dot(view.frame.origin - pw) > 0.0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
 /// The query of a receiver at world position `pw`, normal `nw`, in `view` (centre of projection
-/// `view.frame.origin`).
-pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
-    let yw = view.frame.origin;
-    if !(nw.dot(yw - pw) > 0.0) {
+/// `view.frame.origin`) of `light`.
+pub fn query(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
+    let facing = facing(view, light, pw, nw, s);
+    if !(facing > 0.0) {
         return Query::Fixed(0.0);
     }
     let p = view.frame.to_light(pw);
@@ -221,12 +240,13 @@ pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
         return Query::Fixed(0.0);
     }
     if p.z <= view.n {
-        return Query::Fixed(1.0);
+        return Query::Fixed(facing);
     }
     let n = view.frame.dir_to_light(nw);
     Query::Look {
         uv: view.project(p),
         plane: ReceiverPlane::new(s.receiver_plane, view, p, n, (s.bias, s.slope_bias), 0.0),
+        facing,
     }
 }
 
@@ -249,10 +269,32 @@ pub fn lookup_settings(view: &LightView, light: &Light, s: &Settings) -> LookupS
     }
 }
 
-/// The extent `l` (per axis, light-plane units) of the part of the light one view stands for
-/// (docs/methods.md §8 "Percentage-closer soft transmittance"): PCSS's `l` (`2 half_extent`:
-/// rect sides, disk and sphere diameters) for S = 1; one stratum, `l / S`, for S x S
-/// sub-lights, so the sub-lights' penumbrae tile the light's instead of each spanning it.
+/// The part of `light` one view stands for (docs/methods.md §8 "Percentage-closer soft
+/// transmittance"): the light itself for S = 1; for S x S sub-lights, the light's shape scaled
+/// by 1/S around the view's point `origin` (one stratum's size, so the sub-lights' penumbrae
+/// tile the light's instead of each spanning it; for disks and spheres a disk of the stratum's
+/// area-equivalent scale, an approximation of the concentric-mapped stratum).
+pub fn view_light(light: &Light, origin: Vec3, sublights: u32) -> Light {
+    if sublights <= 1 {
+        return *light;
+    }
+    let k = 1.0 / sublights as f32;
+    let shape = match light.shape {
+        LightShape::Rect { size } => LightShape::Rect {
+            size: [size[0] * k, size[1] * k],
+        },
+        LightShape::Disk { radius } => LightShape::Disk { radius: radius * k },
+        LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * k },
+    };
+    Light {
+        shape,
+        center: origin,
+        ..*light
+    }
+}
+
+/// The extent `l` (per axis, light-plane units) of [`view_light`] for S = `sublights`: PCSS's
+/// `l` (`2 half_extent`: rect sides, disk and sphere diameters) divided by S.
 pub fn view_light_extent(light: &Light, sublights: u32) -> Vec2 {
     2.0 * light.half_extent() / sublights.max(1) as f32
 }
@@ -517,19 +559,25 @@ impl SoftShadowEstimator for CpuDeepShadow {
                     if !receivers.active[k] {
                         return (0u64, 0u64);
                     }
-                    match query(&view, receivers.position[k], receivers.normal[k], &s) {
+                    match query(
+                        &view,
+                        &scene.light,
+                        receivers.position[k],
+                        receivers.normal[k],
+                        &s,
+                    ) {
                         Query::Fixed(x) => {
                             *a += x;
                             (0, 0)
                         }
-                        Query::Look { uv, plane } => match &map {
+                        Query::Look { uv, plane, facing } => match &map {
                             Source::Opaque(m) => {
-                                *a += transmittance_opaque_plane(m, uv, &plane, &ls);
+                                *a += facing * transmittance_opaque_plane(m, uv, &plane, &ls);
                                 (1, 0)
                             }
                             Source::Deep(dsm) => {
                                 let (tr, st) = dsm.transmittance_plane(uv, &plane, &ls);
-                                *a += tr;
+                                *a += facing * tr;
                                 (1, st as u64)
                             }
                         },

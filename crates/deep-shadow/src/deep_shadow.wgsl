@@ -68,7 +68,7 @@ struct Counters {
 @group(0) @binding(4) var<storage, read_write> nodes: array<Node>;
 @group(0) @binding(5) var<storage, read_write> counters: Counters;
 // Two per query (gpu.rs PackedQuery): (u, v, z_p, fixed), fixed >= 0 the transmittance without a
-// lookup; then the caster test (g0, gu, gv, c) of shadow_map_core::ReceiverPlane (hs = 0).
+// lookup, fixed < 0 a lookup whose result is multiplied by -fixed (the facing factor); then the caster test (g0, gu, gv, c) of shadow_map_core::ReceiverPlane (hs = 0).
 @group(0) @binding(6) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> out_t: array<f32>;
 
@@ -446,7 +446,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     if (P.filter_mode == FILTER_PCSS) {
         let tt = soft_transmittance(q, q1, false);
         atomicAdd(&counters.steps, tt.steps);
-        out_t[q_id] = tt.t;
+        out_t[q_id] = -q.w * tt.t;
         return;
     }
     let r = i32(P.r);
@@ -513,7 +513,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         }
     }
     atomicAdd(&counters.steps, steps);
-    out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
+    out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
 // The opaque path: head[] holds the nearest depth's bits (NIL: empty), no lists.
@@ -526,7 +526,7 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     let q1 = queries[2u * q_id + 1u];
     if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
     if (P.filter_mode == FILTER_PCSS) {
-        out_t[q_id] = soft_transmittance(q, q1, true).t;
+        out_t[q_id] = -q.w * soft_transmittance(q, q1, true).t;
         return;
     }
     let r = i32(P.r);
@@ -556,7 +556,7 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
             sum += lit;
         }
     }
-    out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
+    out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
 // The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one

@@ -623,7 +623,7 @@ impl GpuDeepShadow {
 }
 
 /// A [`Query`] as the WGSL reads it, two `vec4`s: `(u, v, z_p, fixed)` (fixed >= 0: the
-/// transmittance, no lookup) and the caster test's `(g0, gu, gv, c)` ([`shadow_map_core::ReceiverPlane`]; its
+/// transmittance, no lookup; fixed < 0: look up and multiply by `-fixed`, the facing factor) and the caster test's `(g0, gu, gv, c)` ([`shadow_map_core::ReceiverPlane`]; its
 /// `hs` is always 0 here, deep shadow maps store f32 depths).
 pub type PackedQuery = [f32; 8];
 
@@ -631,7 +631,11 @@ pub type PackedQuery = [f32; 8];
 pub fn pack_query(q: Query) -> PackedQuery {
     match q {
         Query::Fixed(x) => [0.0, 0.0, 0.0, x, 0.0, 0.0, 0.0, 0.0],
-        Query::Look { uv, plane: p } => [uv.x, uv.y, p.zp, -1.0, p.g0, p.gu, p.gv, p.c],
+        Query::Look {
+            uv,
+            plane: p,
+            facing,
+        } => [uv.x, uv.y, p.zp, -facing, p.g0, p.gu, p.gv, p.c],
     }
 }
 
@@ -641,6 +645,7 @@ pub fn pack_depth_query(uv: Vec2, d: f32) -> PackedQuery {
     pack_query(Query::Look {
         uv,
         plane: crate::dsm::depth_test(d),
+        facing: 1.0,
     })
 }
 
@@ -679,7 +684,13 @@ impl SoftShadowEstimator for GpuDeepShadow {
             let queries: Vec<PackedQuery> = (0..receivers.len())
                 .map(|k| {
                     if receivers.active[k] {
-                        pack_query(query(&view, receivers.position[k], receivers.normal[k], &s))
+                        pack_query(query(
+                            &view,
+                            &scene.light,
+                            receivers.position[k],
+                            receivers.normal[k],
+                            &s,
+                        ))
                     } else {
                         [0.0; 8]
                     }
