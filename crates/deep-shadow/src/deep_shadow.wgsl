@@ -420,7 +420,7 @@ fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
             total = sum_add(total, w);
             let tt = soft_tap(ci.i, cj.i, q0, q1, opaque);
             steps += tt.steps;
-            lit = sum_add(lit, w * tt.t);
+            if (tt.t != 0.0) { lit = sum_add(lit, w * tt.t); }
         }
     }
     if (!(total.s > 0.0)) { return TapT(1.0, steps); }

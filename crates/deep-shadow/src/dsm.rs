@@ -4,8 +4,7 @@
 //! or exponential filtering, with link-guided or naive traversal (§1.3.4, §1.3.5).
 use crate::raster::Fragment;
 use crate::shared::{Node, NIL};
-use baselines::map_estimator::cells;
-use baselines::pcss::{disk_edge, filter_width, search_width, Kahan};
+pub use baselines::pcss::{soft_transmittance, DepthTaps, SoftLookup, SoftTaps};
 use glam::Vec2;
 use rayon::prelude::*;
 use shadow_map_core::{DepthMap, Error, ReceiverPlane, Result};
@@ -57,104 +56,6 @@ pub struct LookupSettings {
     pub soft: SoftLookup,
 }
 
-/// What [`Filter::Pcss`] needs to size its blocker search and its kernel, per view
-/// (docs/methods.md §5 "PCSS, step by step", §8 "Percentage-closer soft transmittance").
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct SoftLookup {
-    /// The extent `l` (per axis, light-plane units) of the light each view stands for: the whole
-    /// light for one view, one stratum (`l / S`) for S x S sub-lights.
-    pub light: Vec2,
-    /// The view's near plane n, where widths are measured.
-    pub near: f32,
-    /// `r / w`: texels per unit length on the plane z = n.
-    pub to_texels: f32,
-    /// Most cells per side in the search and in the kernel (PCSS's `max_taps`); 0 samples
-    /// nothing (T = 1).
-    pub max_taps: u32,
-    /// A disk kernel (disk and sphere lights) instead of a box (rect lights).
-    pub disk: bool,
-}
-
-/// What [`soft_transmittance`] reads from a map: a deep shadow map's lists, or the opaque path's
-/// nearest-depth map (each texel a one-element list with alpha = 1).
-pub trait SoftTaps {
-    /// Depth of the first (nearest) fragment of texel (i, j); `None` when the texel is empty or
-    /// outside the map.
-    fn first_depth(&self, i: i32, j: i32) -> Option<f32>;
-    /// `T` of tap (i, j) for the receiver's caster test (`tau` of the last caster, 1 when none),
-    /// and the list elements visited.
-    fn tap(&self, i: i32, j: i32, plane: &ReceiverPlane) -> (f32, u32);
-}
-
-/// Percentage-closer soft transmittance (docs/methods.md §8 "Percentage-closer soft
-/// transmittance"), for the receiver at continuous texel coordinates `uv` with caster test
-/// `plane` (depth `z_r = plane.zp`):
-/// 1. blocker search: PCSS's region `W_search = l (z_r - n) / z_r` on the plane z = n
-///    ([`search_width`]), sampled by [`cells`] (whole texels, or `max_taps` equal cells);
-/// 2. `z_avg`, the cell-weighted mean of the first-fragment depth `z_0` of the lists whose
-///    `z_0` is a caster (`plane.caster`); none: T = 1 (no fragment of any list is a caster);
-/// 3. kernel width `W_filter = (z_r - z_avg) l / z_avg * n / z_r` ([`filter_width`]);
-/// 4. the weighted mean of `T(d)` of each tap over that kernel (a box, or a disk with a one-texel
-///    soft edge for disk and sphere lights: [`disk_edge`]), as PCSS means its binary test.
-///
-/// Sums are Kahan-compensated f32 in the GPU twin's order. As `l -> 0` both regions shrink to
-/// the receiver's texel and the result is `filter=none`'s; under one uniform sheet of opacity a
-/// every tap is `1 - a` and so is the mean. Returns `(T, elements visited)`.
-pub fn soft_transmittance<M: SoftTaps>(
-    map: &M,
-    uv: Vec2,
-    plane: &ReceiverPlane,
-    p: &SoftLookup,
-) -> (f32, u32) {
-    let zr = plane.zp;
-    let ws = search_width(p.light, zr, p.near, p.to_texels);
-    let (mut sum, mut count) = (Kahan::default(), Kahan::default());
-    let mut steps = 0u32;
-    cells(uv.y - 0.5 * ws.y, uv.y + 0.5 * ws.y, p.max_taps, |j, wy| {
-        cells(uv.x - 0.5 * ws.x, uv.x + 0.5 * ws.x, p.max_taps, |i, wx| {
-            if let Some(z) = map.first_depth(i, j) {
-                steps += 1;
-                if plane.caster(i, j, z) {
-                    let w = wx * wy;
-                    sum.add(w * z);
-                    count.add(w);
-                }
-            }
-        })
-    });
-    if !(count.sum() > 0.0) {
-        return (1.0, steps);
-    }
-    let z_avg = sum.sum() / count.sum();
-    let wf = filter_width(p.light, zr, z_avg, p.near, p.to_texels);
-    let (mut lit, mut total) = (Kahan::default(), Kahan::default());
-    cells(uv.y - 0.5 * wf.y, uv.y + 0.5 * wf.y, p.max_taps, |j, wy| {
-        cells(uv.x - 0.5 * wf.x, uv.x + 0.5 * wf.x, p.max_taps, |i, wx| {
-            let edge = disk_edge(p.disk, wf, i, j, uv);
-            if edge <= 0.0 {
-                return;
-            }
-            let w = wx * wy * edge;
-            total.add(w);
-            let (t, st) = map.tap(i, j, plane);
-            steps += st;
-            lit.add(w * t);
-        })
-    });
-    if !(total.sum() > 0.0) {
-        return (1.0, steps);
-    }
-    let t = lit.sum() / total.sum();
-    (
-        if t.is_finite() {
-            t.clamp(0.0, 1.0)
-        } else {
-            1.0
-        },
-        steps,
-    )
-}
-
 impl SoftTaps for DeepShadowMap {
     fn first_depth(&self, i: i32, j: i32) -> Option<f32> {
         let r = self.r as i32;
@@ -181,23 +82,6 @@ impl SoftTaps for DeepShadowMap {
                 self.nodes[k as usize].tau
             },
             st,
-        )
-    }
-}
-
-impl SoftTaps for DepthMap {
-    fn first_depth(&self, i: i32, j: i32) -> Option<f32> {
-        let z = self.at(i, j);
-        z.is_finite().then_some(z)
-    }
-    fn tap(&self, i: i32, j: i32, plane: &ReceiverPlane) -> (f32, u32) {
-        (
-            if plane.caster(i, j, self.at(i, j)) {
-                0.0
-            } else {
-                1.0
-            },
-            1,
         )
     }
 }
@@ -396,7 +280,7 @@ impl DeepShadowMap {
         s: &LookupSettings,
     ) -> (f32, u32) {
         if s.filter == Filter::Pcss {
-            return soft_transmittance(self, uv, plane, &s.soft);
+            return soft_transmittance(self, uv, plane.zp, plane, &s.soft);
         }
         let r = self.r as i32;
         let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
@@ -685,7 +569,7 @@ pub fn transmittance_opaque_plane(
     s: &LookupSettings,
 ) -> f32 {
     if s.filter == Filter::Pcss {
-        return soft_transmittance(map, uv, plane, &s.soft).0;
+        return soft_transmittance(&DepthTaps(map), uv, plane.zp, plane, &s.soft).0;
     }
     let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
     let n = match s.filter {
