@@ -24,9 +24,11 @@ const Z0: f32 = -0.9007;
 /// window corner `x0` moves by whole texels, which can flip a depth test or a kernel bound that is
 /// a tie to within one ulp. Measured max |dV| under `fit=stable` (CPU / GPU on lavapipe; see the
 /// printout): 0 / 0 for hard, PCF, multi-sample, accumulation (its adaptive kernel's cells align
-/// to the lattice, not the map: `accumulation::cpu::ring_phase`) and deep-shadow (none and PCF
-/// 5 x 5); 1.2e-7 / 1.7e-6 PCSS; 1.8e-7 / 3.0e-7 backprojection; 1.8e-7 / 4.8e-7 packet-hsm.
-/// Under `fit=receivers` the same points move by 5.6e-3 (packet-hsm) to 1 (hard, deep-shadow).
+/// to the lattice, not the map: `accumulation::cpu::ring_phase`) and deep-shadow's PCF 5 x 5
+/// (and `filter=none`); 1.2e-7 / 1.7e-6 PCSS; 1.2e-7 / 1.3e-5 deep-shadow at its default
+/// (`filter=pcss`, PCSS's sampling); 1.8e-7 / 3.0e-7 backprojection; 1.8e-7 / 4.8e-7 packet-hsm.
+/// Under `fit=receivers` the same points move by 5.6e-3 (packet-hsm) to 1 (hard, deep-shadow
+/// `filter=none`; 3.1e-2 at its default).
 const STABLE_TOL: f32 = 1e-4;
 const STABLE_MIN_WITHIN: f64 = 0.999;
 

@@ -51,6 +51,8 @@ pub fn settings(name: &str, params: &Params, quick: bool) -> Vec<Setting> {
         ],
         ("deep-shadow", true) => vec![one("resolution", "256"), one("sublights", "2")],
         ("deep-shadow", false) => vec![
+            one("filter", "none"),
+            one("max_taps", "16"),
             kv(&[("filter", "pcf"), ("kernel", "5")]),
             kv(&[("filter", "edsm"), ("kernel", "5")]),
             one("sublights", "2"),

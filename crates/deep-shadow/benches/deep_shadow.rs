@@ -57,10 +57,12 @@ fn bench(c: &mut Criterion) {
     dsm.link();
     let looks: Vec<(Vec2, shadow_map_core::ReceiverPlane)> = (0..rec.len())
         .filter(|&k| rec.active[k])
-        .filter_map(|k| match query(&view, rec.position[k], rec.normal[k], &s) {
-            Query::Look { uv, plane } => Some((uv, plane)),
-            Query::Fixed(_) => None,
-        })
+        .filter_map(
+            |k| match query(&view, &scene.light, rec.position[k], rec.normal[k], &s) {
+                Query::Look { uv, plane, .. } => Some((uv, plane)),
+                Query::Fixed(_) => None,
+            },
+        )
         .collect();
     g.throughput(Throughput::Elements(looks.len() as u64));
     for (label, filter, kernel) in [
@@ -68,13 +70,14 @@ fn bench(c: &mut Criterion) {
         ("pcf3", "pcf", "3"),
         ("pcf7", "pcf", "7"),
         ("edsm7", "edsm", "7"),
+        ("pcss", "pcss", "3"),
     ] {
         for traversal in ["linked", "naive"] {
             let mut p = CpuDeepShadow::new().unwrap();
             p.set_param("filter", filter).unwrap();
             p.set_param("kernel", kernel).unwrap();
             p.set_param("traversal", traversal).unwrap();
-            let ls = lookup_settings(&view, &p.settings());
+            let ls = lookup_settings(&view, &scene.light, &p.settings());
             g.bench_function(format!("cpu/lookup/{label}/{traversal}"), |b| {
                 b.iter(|| {
                     looks

@@ -1,15 +1,16 @@
 //! The CPU twin, [`CpuDeepShadow`], and the per-view set-up both twins share: sub-light points,
 //! the fitted view of each, and what each receiver looks up in it.
-use crate::dsm::{transmittance_opaque_plane, DeepShadowMap, Filter, LookupSettings};
+use crate::dsm::{transmittance_opaque_plane, DeepShadowMap, Filter, LookupSettings, SoftLookup};
 use crate::params::{self, Settings, DESCRIPTION, NAME, SPECS};
 use crate::raster::{fragments, prepare};
+use baselines::pcss::is_disk;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},
-    DepthMap, LightShape, LightView, Params, ReceiverPlane, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    DepthMap, Light, LightShape, LightView, Params, ReceiverPlane, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::time::Instant;
 
@@ -56,9 +57,26 @@ pub fn sublight_view_with(
     margin: u32,
     opts: &ViewOptions,
 ) -> Result<(LightView, FitReport)> {
+    sublight_view_reaching(scene, receivers, y, Vec2::ZERO, r, margin, opts)
+}
+
+/// [`sublight_view_with`] for a view that stands for a light of half extent `half` (per axis,
+/// light-plane units) around `y`: [`LightView::fit_with`] grows each receiver's footprint by the
+/// cut of its pyramid to that light (docs/methods.md §1 "Coverage"), so `filter=pcss`'s blocker
+/// search and kernel, which stay inside that cut, stay inside the map. `half = 0`: the point
+/// light at `y`.
+pub fn sublight_view_reaching(
+    scene: &Scene,
+    receivers: &Receivers,
+    y: Vec2,
+    half: Vec2,
+    r: u32,
+    margin: u32,
+    opts: &ViewOptions,
+) -> Result<(LightView, FitReport)> {
     let mut frame = scene.light.frame();
     frame.origin = frame.to_world(y.extend(0.0));
-    let (mut view, mut fit) = LightView::fit_with(scene, receivers, frame, Vec2::ZERO, r, opts)?;
+    let (mut view, mut fit) = LightView::fit_with(scene, receivers, frame, half, r, opts)?;
     if margin == 0 || r <= 2 * margin {
         return Ok((view, fit));
     }
@@ -165,7 +183,8 @@ pub fn stable_margin(view: &LightView, receivers: &Receivers, margin: u32) -> Op
     None
 }
 
-/// Texels of filter margin a view needs: `N / 2` for PCF and EDSM, 0 otherwise.
+/// Texels of filter margin a view needs: `N / 2` for PCF and EDSM, 0 otherwise (`pcss` reads
+/// texels outside the map as empty, as PCSS does).
 pub fn kernel_margin(s: &Settings) -> u32 {
     match s.filter {
         Filter::Pcf | Filter::Edsm => s.kernel / 2,
@@ -177,7 +196,8 @@ pub fn kernel_margin(s: &Settings) -> u32 {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Query {
     /// A fixed transmittance, no lookup: 0 when the point light is behind the receiver's tangent
-    /// plane or the receiver behind the light point; 1 when the receiver is nearer than n (nothing
+    /// plane (`filter=pcss`: the view's light wholly behind it) or the receiver behind the light
+    /// point; the facing factor (1 but under `pcss`) when the receiver is nearer than n (nothing
     /// recorded is nearer).
     Fixed(f32),
     /// Look up at continuous texel coordinates `uv` with the receiver's caster test.
@@ -187,14 +207,32 @@ pub enum Query {
         /// Which fragments attenuate: receiver-plane rejection, or the classic `z < z_p - eps`
         /// with `receiver_plane=false` ([`ReceiverPlane::new`]).
         plane: ReceiverPlane,
+        /// The factor the filtered transmittance is multiplied by: 1, or under `filter=pcss` the
+        /// fraction of the view's light in front of the receiver's tangent plane
+        /// ([`facing`]).
+        facing: f32,
     },
 }
 
+/// The tangent-plane factor of the receiver at `pw` with normal `nw` in `view`: 1 when the
+/// view's point is in front of the tangent plane, 0 otherwise; under `filter=pcss` the exact
+/// fraction of the view's light ([`view_light`]) in front of it, as PCSS weights its filter
+/// (`Light::front_fraction_world`; docs/methods.md §8 "Percentage-closer soft transmittance").
+pub fn facing(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) -> f32 {
+    if s.filter == Filter::Pcss {
+        view_light(light, view.frame.origin, s.sublights).front_fraction_world(pw, nw)
+    } else if nw.dot(view.frame.origin - pw) > 0.0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
 /// The query of a receiver at world position `pw`, normal `nw`, in `view` (centre of projection
-/// `view.frame.origin`).
-pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
-    let yw = view.frame.origin;
-    if !(nw.dot(yw - pw) > 0.0) {
+/// `view.frame.origin`) of `light`.
+pub fn query(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
+    let facing = facing(view, light, pw, nw, s);
+    if !(facing > 0.0) {
         return Query::Fixed(0.0);
     }
     let p = view.frame.to_light(pw);
@@ -202,24 +240,63 @@ pub fn query(view: &LightView, pw: Vec3, nw: Vec3, s: &Settings) -> Query {
         return Query::Fixed(0.0);
     }
     if p.z <= view.n {
-        return Query::Fixed(1.0);
+        return Query::Fixed(facing);
     }
     let n = view.frame.dir_to_light(nw);
     Query::Look {
         uv: view.project(p),
         plane: ReceiverPlane::new(s.receiver_plane, view, p, n, (s.bias, s.slope_bias), 0.0),
+        facing,
     }
 }
 
-/// Lookup settings for a view: `c' = c / (far - n)` turns the notes' c over normalised depth into
-/// world units.
-pub fn lookup_settings(view: &LightView, s: &Settings) -> LookupSettings {
+/// Lookup settings for a view of `light`: `c' = c / (far - n)` turns the notes' c over normalised
+/// depth into world units; `filter=pcss` sizes its regions by the light each view stands for
+/// ([`view_light_extent`]).
+pub fn lookup_settings(view: &LightView, light: &Light, s: &Settings) -> LookupSettings {
     LookupSettings {
         filter: s.filter,
         kernel: s.kernel,
         c_world: s.c / (view.far - view.n).max(f32::MIN_POSITIVE),
         traversal: s.traversal,
+        soft: SoftLookup {
+            light: view_light_extent(light, s.sublights),
+            near: view.n,
+            to_texels: view.r as f32 / view.w,
+            max_taps: s.max_taps,
+            disk: is_disk(light),
+        },
     }
+}
+
+/// The part of `light` one view stands for (docs/methods.md §8 "Percentage-closer soft
+/// transmittance"): the light itself for S = 1; for S x S sub-lights, the light's shape scaled
+/// by 1/S around the view's point `origin` (one stratum's size, so the sub-lights' penumbrae
+/// tile the light's instead of each spanning it; for disks and spheres a disk of the stratum's
+/// area-equivalent scale, an approximation of the concentric-mapped stratum).
+pub fn view_light(light: &Light, origin: Vec3, sublights: u32) -> Light {
+    if sublights <= 1 {
+        return *light;
+    }
+    let k = 1.0 / sublights as f32;
+    let shape = match light.shape {
+        LightShape::Rect { size } => LightShape::Rect {
+            size: [size[0] * k, size[1] * k],
+        },
+        LightShape::Disk { radius } => LightShape::Disk { radius: radius * k },
+        LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * k },
+    };
+    Light {
+        shape,
+        center: origin,
+        ..*light
+    }
+}
+
+/// The extent `l` (per axis, light-plane units) of [`view_light`] for S = `sublights`: PCSS's
+/// `l` (`2 half_extent`: rect sides, disk and sphere diameters) divided by S.
+pub fn view_light_extent(light: &Light, sublights: u32) -> Vec2 {
+    2.0 * light.half_extent() / sublights.max(1) as f32
 }
 
 /// Builds, processes and links the deep shadow map of `scene` in `view` on the CPU (§1.3.1 to
@@ -344,8 +421,8 @@ pub struct Tally {
 }
 
 impl Tally {
-    /// The view of sub-light point `y` as both twins fit it ([`sublight_view_with`] with the
-    /// filter margin and `s.view`), its fit folded into the tally (out-of-frustum count, window
+    /// The view of sub-light point `y` as both twins fit it ([`sublight_view_reaching`] with the
+    /// filter margin, `s.view`, and for `filter=pcss` the half extent of the view's light), its fit folded into the tally (out-of-frustum count, window
     /// scale, near and far planes).
     pub fn fit_view(
         &mut self,
@@ -354,8 +431,20 @@ impl Tally {
         y: Vec2,
         s: &Settings,
     ) -> Result<(LightView, FitReport)> {
-        let (view, fit) =
-            sublight_view_with(scene, receivers, y, s.resolution, kernel_margin(s), &s.view)?;
+        let half = if s.filter == Filter::Pcss {
+            0.5 * view_light_extent(&scene.light, s.sublights)
+        } else {
+            Vec2::ZERO
+        };
+        let (view, fit) = sublight_view_reaching(
+            scene,
+            receivers,
+            y,
+            half,
+            s.resolution,
+            kernel_margin(s),
+            &s.view,
+        )?;
         self.out_of_frustum = self.out_of_frustum.max(fit.out_of_frustum);
         self.window_scale = self.window_scale.max(fit.window_scale);
         self.add_planes(&view);
@@ -462,7 +551,7 @@ impl SoftShadowEstimator for CpuDeepShadow {
             });
             t_build += t.elapsed().as_secs_f64() * 1e3;
             let t = Instant::now();
-            let ls = lookup_settings(&view, &s);
+            let ls = lookup_settings(&view, &scene.light, &s);
             let (lookups, steps) = acc
                 .par_iter_mut()
                 .enumerate()
@@ -470,19 +559,25 @@ impl SoftShadowEstimator for CpuDeepShadow {
                     if !receivers.active[k] {
                         return (0u64, 0u64);
                     }
-                    match query(&view, receivers.position[k], receivers.normal[k], &s) {
+                    match query(
+                        &view,
+                        &scene.light,
+                        receivers.position[k],
+                        receivers.normal[k],
+                        &s,
+                    ) {
                         Query::Fixed(x) => {
                             *a += x;
                             (0, 0)
                         }
-                        Query::Look { uv, plane } => match &map {
+                        Query::Look { uv, plane, facing } => match &map {
                             Source::Opaque(m) => {
-                                *a += transmittance_opaque_plane(m, uv, &plane, &ls);
+                                *a += facing * transmittance_opaque_plane(m, uv, &plane, &ls);
                                 (1, 0)
                             }
                             Source::Deep(dsm) => {
                                 let (tr, st) = dsm.transmittance_plane(uv, &plane, &ls);
-                                *a += tr;
+                                *a += facing * tr;
                                 (1, st as u64)
                             }
                         },

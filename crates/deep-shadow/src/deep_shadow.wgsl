@@ -1,7 +1,9 @@
 // Deep shadow maps on the GPU (Fürst et al.), the twin of dsm.rs and raster.rs, stage for stage:
 // clear, raster (compute rasteriser: §1.3.1 with atomics), process (§1.3.2: sort, tau, prev,
-// truncation), link (§1.3.3), lookup (§1.3.4, §1.3.5). The opaque path (no lists): raster_opaque
-// (atomicMin of the depth bits) and lookup_opaque.
+// truncation), link (§1.3.3), lookup (§1.3.4, §1.3.5; filter=pcss: soft_transmittance). The
+// opaque path (no lists): raster_opaque (atomicMin of the depth bits) and lookup_opaque.
+// `Cells`, `cells_new`, `cell`, `Sum`, `sum_add` come from the baselines' cells.wgsl, the part
+// before this one.
 // Structs mirror shared.rs field for field.
 
 // Set from Rust as pipeline overrides (shared::NIL, gpu::WORKGROUP_SIZE, dsm::EDSM_CUTOFF).
@@ -13,6 +15,7 @@ const FILTER_FIRST: u32 = 0u;
 const FILTER_NONE: u32 = 1u;
 const FILTER_PCF: u32 = 2u;
 const FILTER_EDSM: u32 = 3u;
+const FILTER_PCSS: u32 = 4u;
 
 struct Node {
     depth: f32,
@@ -43,9 +46,13 @@ struct DsUniform {
     kernel: u32,
     traversal: u32,
     c_world: f32,
+    near: f32,
+    to_texels: f32,
+    max_taps: u32,
+    light_x: f32,
+    light_y: f32,
+    disk: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
 struct Counters {
@@ -61,7 +68,7 @@ struct Counters {
 @group(0) @binding(4) var<storage, read_write> nodes: array<Node>;
 @group(0) @binding(5) var<storage, read_write> counters: Counters;
 // Two per query (gpu.rs PackedQuery): (u, v, z_p, fixed), fixed >= 0 the transmittance without a
-// lookup; then the caster test (g0, gu, gv, c) of shadow_map_core::ReceiverPlane (hs = 0).
+// lookup, fixed < 0 a lookup whose result is multiplied by -fixed (the facing factor); then the caster test (g0, gu, gv, c) of shadow_map_core::ReceiverPlane (hs = 0).
 @group(0) @binding(6) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> out_t: array<f32>;
 
@@ -334,6 +341,94 @@ fn soft_tau(k: u32, d: f32) -> f32 {
     return prod;
 }
 
+// The head of texel (i, j); NIL outside the map or when empty (the opaque path: the depth bits).
+fn head_at(i: i32, j: i32) -> u32 {
+    let r = i32(P.r);
+    if (i < 0 || j < 0 || i >= r || j >= r) { return NIL; }
+    return atomicLoad(&head[u32(j * r + i)]);
+}
+
+// A tap's transmittance and the list elements visited.
+struct TapT {
+    t: f32,
+    steps: u32,
+}
+
+// dsm::SoftTaps::tap: tau of the last caster of texel (i, j), 1 when none (the opaque path: 0 or
+// 1 from the nearest depth).
+fn soft_tap(i: i32, j: i32, q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
+    let hd = head_at(i, j);
+    if (hd == NIL) { return TapT(1.0, 0u); }
+    if (opaque) { return TapT(select(1.0, 0.0, q_caster(q0, q1, i, j, bitcast<f32>(hd))), 1u); }
+    let f = find_caster(hd, q0, q1, i, j);
+    if (f.x == NIL) { return TapT(1.0, f.y); }
+    return TapT(nodes[f.x].tau, f.y);
+}
+
+// dsm::soft_transmittance (docs/methods.md §8 "Percentage-closer soft transmittance"), the same
+// steps in the same order: PCSS's blocker search over the first fragments (search_width), z_avg,
+// the kernel width (filter_width), the weighted mean of the taps' T (disk_edge for disk lights).
+fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
+    let uv = q0.xy;
+    let zr = q0.z;
+    let l = vec2<f32>(P.light_x, P.light_y);
+    let ws = l * ((zr - P.near) / zr) * P.to_texels;
+    var steps = 0u;
+    var sum = Sum(0.0, 0.0);
+    var count = Sum(0.0, 0.0);
+    let cy = cells_new(uv.y - 0.5 * ws.y, uv.y + 0.5 * ws.y, P.max_taps);
+    for (var ky = 0u; ky < cy.count; ky++) {
+        let cj = cell(cy, ky);
+        if (!cj.valid) { continue; }
+        let cx = cells_new(uv.x - 0.5 * ws.x, uv.x + 0.5 * ws.x, P.max_taps);
+        for (var kx = 0u; kx < cx.count; kx++) {
+            let ci = cell(cx, kx);
+            if (!ci.valid) { continue; }
+            let hd = head_at(ci.i, cj.i);
+            if (hd == NIL) { continue; }
+            var z = 0.0;
+            if (opaque) { z = bitcast<f32>(hd); } else { z = nodes[hd].depth; }
+            steps++;
+            if (q_caster(q0, q1, ci.i, cj.i, z)) {
+                let w = ci.w * cj.w;
+                sum = sum_add(sum, w * z);
+                count = sum_add(count, w);
+            }
+        }
+    }
+    if (!(count.s > 0.0)) { return TapT(1.0, steps); }
+    let z_avg = sum.s / count.s;
+    let wf = l * ((zr - z_avg) / z_avg) * (P.near / zr) * P.to_texels;
+    var lit = Sum(0.0, 0.0);
+    var total = Sum(0.0, 0.0);
+    let fy = cells_new(uv.y - 0.5 * wf.y, uv.y + 0.5 * wf.y, P.max_taps);
+    for (var ky = 0u; ky < fy.count; ky++) {
+        let cj = cell(fy, ky);
+        if (!cj.valid) { continue; }
+        let fx = cells_new(uv.x - 0.5 * wf.x, uv.x + 0.5 * wf.x, P.max_taps);
+        for (var kx = 0u; kx < fx.count; kx++) {
+            let ci = cell(fx, kx);
+            if (!ci.valid) { continue; }
+            var edge = 1.0;
+            if (P.disk != 0u && wf.x > 1.0) {
+                let rad = 0.5 * wf.x;
+                let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - uv;
+                edge = clamp(rad + 0.5 - sqrt(c.x * c.x + c.y * c.y), 0.0, 1.0);
+            }
+            if (edge <= 0.0) { continue; }
+            let w = ci.w * cj.w * edge;
+            total = sum_add(total, w);
+            let tt = soft_tap(ci.i, cj.i, q0, q1, opaque);
+            steps += tt.steps;
+            if (tt.t != 0.0) { lit = sum_add(lit, w * tt.t); }
+        }
+    }
+    if (!(total.s > 0.0)) { return TapT(1.0, steps); }
+    let t = lit.s / total.s;
+    if (t == t && abs(t) <= 3.40282347e38) { return TapT(clamp(t, 0.0, 1.0), steps); }
+    return TapT(1.0, steps);
+}
+
 fn kernel_side() -> i32 {
     if (P.filter_mode == FILTER_PCF || P.filter_mode == FILTER_EDSM) { return i32(max(P.kernel, 1u)); }
     return 1;
@@ -348,6 +443,12 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     let q = queries[2u * q_id];
     let q1 = queries[2u * q_id + 1u];
     if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
+    if (P.filter_mode == FILTER_PCSS) {
+        let tt = soft_transmittance(q, q1, false);
+        atomicAdd(&counters.steps, tt.steps);
+        out_t[q_id] = -q.w * tt.t;
+        return;
+    }
     let r = i32(P.r);
     let ci = i32(floor(q.x));
     let cj = i32(floor(q.y));
@@ -412,7 +513,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         }
     }
     atomicAdd(&counters.steps, steps);
-    out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
+    out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
 // The opaque path: head[] holds the nearest depth's bits (NIL: empty), no lists.
@@ -424,6 +525,10 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     let q = queries[2u * q_id];
     let q1 = queries[2u * q_id + 1u];
     if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
+    if (P.filter_mode == FILTER_PCSS) {
+        out_t[q_id] = -q.w * soft_transmittance(q, q1, true).t;
+        return;
+    }
     let r = i32(P.r);
     let ci = i32(floor(q.x));
     let cj = i32(floor(q.y));
@@ -451,7 +556,7 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
             sum += lit;
         }
     }
-    out_t[q_id] = clamp(sum / f32(n * n), 0.0, 1.0);
+    out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
 // The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one

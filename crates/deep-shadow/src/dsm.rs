@@ -4,6 +4,7 @@
 //! or exponential filtering, with link-guided or naive traversal (§1.3.4, §1.3.5).
 use crate::raster::Fragment;
 use crate::shared::{Node, NIL};
+pub use baselines::pcss::{soft_transmittance, DepthTaps, SoftLookup, SoftTaps};
 use glam::Vec2;
 use rayon::prelude::*;
 use shadow_map_core::{DepthMap, Error, ReceiverPlane, Result};
@@ -20,9 +21,13 @@ pub enum Filter {
     /// Exponential deep shadow maps (EDSM, §1.3.5, docs/methods.md §7): the mean over N x N
     /// texels of `tau_c(d) = prod_j (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' max(0, t))`.
     Edsm,
+    /// Percentage-closer soft transmittance (docs/methods.md §8 "Percentage-closer soft
+    /// transmittance"): PCSS's blocker search over the first fragment of each list, then the mean
+    /// of `T(d)` over a kernel as wide as the penumbra ([`soft_transmittance`]).
+    Pcss,
 }
 
-shadow_map_core::param_words!(Filter { None = "none", Pcf = "pcf", Edsm = "edsm", First = "first" });
+shadow_map_core::param_words!(Filter { None = "none", Pcf = "pcf", Edsm = "edsm", First = "first", Pcss = "pcss" });
 
 /// How each tap's list is searched (both give identical results; only the cost differs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,6 +52,38 @@ pub struct LookupSettings {
     pub c_world: f32,
     /// Traversal.
     pub traversal: Traversal,
+    /// The light and the view as [`Filter::Pcss`] sizes its regions (read by no other filter).
+    pub soft: SoftLookup,
+}
+
+impl SoftTaps for DeepShadowMap {
+    fn first_depth(&self, i: i32, j: i32) -> Option<f32> {
+        let r = self.r as i32;
+        if i < 0 || j < 0 || i >= r || j >= r {
+            return None;
+        }
+        let hd = self.head[(j * r + i) as usize];
+        (hd != NIL).then(|| self.nodes[hd as usize].depth)
+    }
+    fn tap(&self, i: i32, j: i32, plane: &ReceiverPlane) -> (f32, u32) {
+        let r = self.r as i32;
+        if i < 0 || j < 0 || i >= r || j >= r {
+            return (1.0, 0);
+        }
+        let hd = self.head[(j * r + i) as usize];
+        if hd == NIL {
+            return (1.0, 0);
+        }
+        let (k, st) = find_by(&self.nodes, hd, |z| plane.caster(i, j, z));
+        (
+            if k == NIL {
+                1.0
+            } else {
+                self.nodes[k as usize].tau
+            },
+            st,
+        )
+    }
 }
 
 /// `o_c` is evaluated only for `c' (d - z) < EDSM_CUTOFF`: beyond it `exp(-c' t) < 1.2e-7` and the
@@ -242,6 +279,9 @@ impl DeepShadowMap {
         plane: &ReceiverPlane,
         s: &LookupSettings,
     ) -> (f32, u32) {
+        if s.filter == Filter::Pcss {
+            return soft_transmittance(self, uv, plane.zp, plane, &s.soft);
+        }
         let r = self.r as i32;
         let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
         let n = match s.filter {
@@ -528,6 +568,9 @@ pub fn transmittance_opaque_plane(
     plane: &ReceiverPlane,
     s: &LookupSettings,
 ) -> f32 {
+    if s.filter == Filter::Pcss {
+        return soft_transmittance(&DepthTaps(map), uv, plane.zp, plane, &s.soft).0;
+    }
     let (ci, cj) = (uv.x.floor() as i32, uv.y.floor() as i32);
     let n = match s.filter {
         Filter::First | Filter::None => 1,

@@ -23,6 +23,7 @@ use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
 use crate::params::{self, Settings, SPECS};
 use crate::raster::prepare;
 use crate::shared::{DsUniform, Node, Tri};
+use baselines::gpu::map_estimator::CELLS_WGSL;
 use glam::Vec2;
 use shadow_map_core::{
     gpu::{
@@ -38,7 +39,11 @@ use wgpu::util::DeviceExt;
 pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
 
 /// Every shader of the crate as `(name, source)` (validated with naga by a unit test).
-pub const SHADERS: &[(&str, &str)] = &[("deep_shadow", DEEP_SHADOW_WGSL)];
+pub const SHADERS: &[(&str, &[&str])] = &[("deep_shadow", SHADER_PARTS)];
+
+/// The WGSL parts of the module, in order: the baselines' `cells` and Kahan `Sum` (the PCSS
+/// sampling `filter=pcss` shares), then [`DEEP_SHADOW_WGSL`].
+pub const SHADER_PARTS: &[&str] = &[CELLS_WGSL, DEEP_SHADOW_WGSL];
 
 /// The constants the kernels share with the CPU twin, passed as pipeline overrides (never copied
 /// into the WGSL by hand).
@@ -102,7 +107,7 @@ fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
 impl GpuDeepShadow {
     /// Compiles the pipelines on `ctx`.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        let module = shader_module(&ctx, "deep_shadow.wgsl", &[DEEP_SHADOW_WGSL])?;
+        let module = shader_module(&ctx, "deep_shadow.wgsl", SHADER_PARTS)?;
         let layout = ctx.scoped("deep-shadow pipelines", || {
             bind_group_layout(
                 &ctx,
@@ -271,9 +276,7 @@ impl GpuDeepShadow {
                 kernel: 1,
                 traversal: 0,
                 c_world: 0.0,
-                _pad0: 0,
-                _pad1: 0,
-                _pad2: 0,
+                ..Default::default()
             });
             let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
             self.run_raster(&group, &counters, texels, items.len() as u64, opaque)?;
@@ -499,9 +502,7 @@ impl GpuDeepShadow {
             kernel: 1,
             traversal: 0,
             c_world: 0.0,
-            _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
+            ..Default::default()
         });
         let dummy = self.storage("ceiling unused (read)", &[0u8; 16]);
         let dummy_rw = self.storage("ceiling unused (write)", &[0u8; 16]);
@@ -571,6 +572,7 @@ impl GpuDeepShadow {
                     Filter::None => 1,
                     Filter::Pcf => 2,
                     Filter::Edsm => 3,
+                    Filter::Pcss => 4,
                 },
                 kernel: ls.kernel,
                 traversal: match ls.traversal {
@@ -578,9 +580,13 @@ impl GpuDeepShadow {
                     Traversal::Naive => 1,
                 },
                 c_world: ls.c_world,
+                near: ls.soft.near,
+                to_texels: ls.soft.to_texels,
+                max_taps: ls.soft.max_taps,
+                light_x: ls.soft.light.x,
+                light_y: ls.soft.light.y,
+                disk: ls.soft.disk as u32,
                 _pad0: 0,
-                _pad1: 0,
-                _pad2: 0,
             });
             let q = self.storage("deep-shadow queries", bytemuck::cast_slice(part));
             let o = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -617,7 +623,7 @@ impl GpuDeepShadow {
 }
 
 /// A [`Query`] as the WGSL reads it, two `vec4`s: `(u, v, z_p, fixed)` (fixed >= 0: the
-/// transmittance, no lookup) and the caster test's `(g0, gu, gv, c)` ([`shadow_map_core::ReceiverPlane`]; its
+/// transmittance, no lookup; fixed < 0: look up and multiply by `-fixed`, the facing factor) and the caster test's `(g0, gu, gv, c)` ([`shadow_map_core::ReceiverPlane`]; its
 /// `hs` is always 0 here, deep shadow maps store f32 depths).
 pub type PackedQuery = [f32; 8];
 
@@ -625,7 +631,11 @@ pub type PackedQuery = [f32; 8];
 pub fn pack_query(q: Query) -> PackedQuery {
     match q {
         Query::Fixed(x) => [0.0, 0.0, 0.0, x, 0.0, 0.0, 0.0, 0.0],
-        Query::Look { uv, plane: p } => [uv.x, uv.y, p.zp, -1.0, p.g0, p.gu, p.gv, p.c],
+        Query::Look {
+            uv,
+            plane: p,
+            facing,
+        } => [uv.x, uv.y, p.zp, -facing, p.g0, p.gu, p.gv, p.c],
     }
 }
 
@@ -635,6 +645,7 @@ pub fn pack_depth_query(uv: Vec2, d: f32) -> PackedQuery {
     pack_query(Query::Look {
         uv,
         plane: crate::dsm::depth_test(d),
+        facing: 1.0,
     })
 }
 
@@ -673,13 +684,19 @@ impl SoftShadowEstimator for GpuDeepShadow {
             let queries: Vec<PackedQuery> = (0..receivers.len())
                 .map(|k| {
                     if receivers.active[k] {
-                        pack_query(query(&view, receivers.position[k], receivers.normal[k], &s))
+                        pack_query(query(
+                            &view,
+                            &scene.light,
+                            receivers.position[k],
+                            receivers.normal[k],
+                            &s,
+                        ))
                     } else {
                         [0.0; 8]
                     }
                 })
                 .collect();
-            let ls = lookup_settings(&view, &s);
+            let ls = lookup_settings(&view, &scene.light, &s);
             let (tv, steps) = self.lookup(&map, &ls, &queries)?;
             tally.lookups += queries.iter().filter(|q| q[3] < 0.0).count() as u64;
             tally.steps += steps;
@@ -710,14 +727,19 @@ mod tests {
 
     #[test]
     fn shader_validates_with_naga() {
-        shadow_map_core::gpu::kernel::assert_shaders_valid(SHADERS.iter().copied());
+        shadow_map_core::gpu::kernel::assert_shaders_valid(
+            SHADERS
+                .iter()
+                .map(|(name, parts)| (*name, shadow_map_core::gpu::kernel::shader_source(parts))),
+        );
     }
 
     /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.
     #[test]
     fn shared_structs_match_the_wgsl_layouts() {
+        let src = shadow_map_core::gpu::kernel::shader_source(SHADER_PARTS);
         shadow_map_core::assert_wgsl_layout!(
-            DEEP_SHADOW_WGSL,
+            src,
             Node {
                 depth,
                 alpha,
@@ -730,7 +752,7 @@ mod tests {
             }
         );
         shadow_map_core::assert_wgsl_layout!(
-            DEEP_SHADOW_WGSL,
+            src,
             Tri {
                 u0,
                 v0,
@@ -747,7 +769,7 @@ mod tests {
             }
         );
         shadow_map_core::assert_wgsl_layout!(
-            DEEP_SHADOW_WGSL,
+            src,
             DsUniform {
                 r,
                 capacity,
@@ -758,9 +780,13 @@ mod tests {
                 kernel,
                 traversal,
                 c_world,
+                near,
+                to_texels,
+                max_taps,
+                light_x,
+                light_y,
+                disk,
                 _pad0,
-                _pad1,
-                _pad2,
             }
         );
     }

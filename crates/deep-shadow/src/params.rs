@@ -9,7 +9,7 @@ use shadow_map_core::{
 /// Registry name (`--algo deep-shadow`), shared by both twins.
 pub const NAME: &str = "deep-shadow";
 /// One-line description, shared by both twins.
-pub const DESCRIPTION: &str = "deep shadow maps: per-texel linked lists of semi-transparent fragments, sorted and truncated, PCF/EDSM with neighbour links (Fürst et al.); S x S sub-lights for soft transmittance";
+pub const DESCRIPTION: &str = "deep shadow maps: per-texel linked lists of semi-transparent fragments, sorted and truncated, PCF/EDSM with neighbour links (Fürst et al.); soft by default: percentage-closer soft transmittance (PCSS's blocker search, mean T over the penumbra); S x S sub-lights";
 
 shadow_map_core::typed_params! {
     /// The settings of one frame, one field a parameter ([`SPECS`]).
@@ -20,8 +20,8 @@ shadow_map_core::typed_params! {
         filter: Filter = ParamSpec {
             key: "filter",
             kind: ParamKind::Choice(Filter::WORDS),
-            default: "none",
-            help: "none: T(d) of one texel; pcf: mean T over N x N; edsm: exponential DSM over N x N; first: binary SM from the first fragment only (Table 1.1 'SM')",
+            default: "pcss",
+            help: "none: T(d) of one texel; pcf: mean T over N x N; edsm: exponential DSM over N x N; first: binary SM from the first fragment only (Table 1.1 'SM'); pcss: percentage-closer soft transmittance, PCSS's blocker search over the first fragments, then mean T over the penumbra's width (docs/methods.md §8)",
         },
         /// Kernel side N.
         kernel: u32 = ParamSpec {
@@ -50,6 +50,13 @@ shadow_map_core::typed_params! {
             kind: ParamKind::Choice(Traversal::WORDS),
             default: "linked",
             help: "linked: neighbour links guide each tap's search (§1.3.5); naive: every tap walks its list from the head",
+        },
+        /// Most cells per side in `pcss`'s search and kernel.
+        max_taps: u32 = ParamSpec {
+            key: "max_taps",
+            kind: ParamKind::Int { min: 1, max: 1024 },
+            default: "32",
+            help: "pcss: most samples per side in the blocker search and in the kernel (as PCSS's max_taps); wider regions are sampled by that many equal cells",
         },
         /// Sub-lights per side S.
         sublights: u32 = ParamSpec {

@@ -84,10 +84,10 @@ pub struct Tri {
     pub _pad1: u32,
 }
 
-/// The settings every GPU stage reads (`DsUniform` in `deep_shadow.wgsl`). 48 bytes.
+/// The settings every GPU stage reads (`DsUniform` in `deep_shadow.wgsl`). 64 bytes.
 #[repr(C)]
 #[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DsUniform {
     /// Resolution r.
     pub r: u32,
@@ -99,7 +99,7 @@ pub struct DsUniform {
     pub n_queries: u32,
     /// Truncation epsilon.
     pub epsilon: f32,
-    /// 0 first, 1 none, 2 pcf, 3 edsm.
+    /// 0 first, 1 none, 2 pcf, 3 edsm, 4 pcss.
     pub filter_mode: u32,
     /// Kernel side N.
     pub kernel: u32,
@@ -107,10 +107,18 @@ pub struct DsUniform {
     pub traversal: u32,
     /// EDSM c' in world units.
     pub c_world: f32,
+    /// pcss: the view's near plane n ([`crate::dsm::SoftLookup::near`]).
+    pub near: f32,
+    /// pcss: `r / w` ([`crate::dsm::SoftLookup::to_texels`]).
+    pub to_texels: f32,
+    /// pcss: most cells per side ([`crate::dsm::SoftLookup::max_taps`]).
+    pub max_taps: u32,
+    /// pcss: light extent l along x ([`crate::dsm::SoftLookup::light`]).
+    pub light_x: f32,
+    /// pcss: light extent l along y.
+    pub light_y: f32,
+    /// pcss: 1 for a disk kernel, 0 for a box ([`crate::dsm::SoftLookup::disk`]).
+    pub disk: u32,
     /// Padding.
     pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
-    /// Padding.
-    pub _pad2: u32,
 }

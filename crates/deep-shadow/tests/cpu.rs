@@ -11,7 +11,7 @@ use deep_shadow::{
 use glam::Vec3;
 use shadow_map_core::{
     light_view::{FitMode, NearFar, ViewOptions},
-    run, Error, Receivers, Scene, SoftShadowEstimator,
+    run, Error, LightShape, Receivers, Scene, SoftShadowEstimator,
 };
 
 fn est(kv: &[(&str, &str)]) -> CpuDeepShadow {
@@ -37,6 +37,8 @@ const MODES: &[&[(&str, &str)]] = &[
     &[("filter", "edsm"), ("kernel", "3")],
     &[("filter", "edsm"), ("kernel", "7")],
     &[("filter", "edsm"), ("kernel", "5"), ("c", "1000000")],
+    &[("filter", "pcss")],
+    &[("filter", "pcss"), ("max_taps", "2")],
 ];
 
 #[test]
@@ -216,8 +218,11 @@ fn a_texel_with_ten_thousand_fragments() {
     for eps in [0.0f64, 0.001] {
         for traversal in ["linked", "naive"] {
             let e_s = eps.to_string();
+            // One-texel lookups (filter=none): the stack is 0.04 wide, far narrower than the
+            // penumbra of the default pcss filter under this light.
             let mut e = est(&[
                 ("resolution", "128"),
+                ("filter", "none"),
                 ("epsilon", &e_s),
                 ("traversal", traversal),
             ]);
@@ -437,7 +442,7 @@ fn truncation_error_is_bounded_by_epsilon_on_hair() {
 }
 
 #[test]
-fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baseline() {
+fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baselines() {
     for (name, bound) in [("strands", 0.06), ("hair", 0.09)] {
         let (scene, rec) = fixture(name, 64, 48);
         let mut reference = reference::ReferenceEstimator::new().unwrap();
@@ -453,7 +458,16 @@ fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baseline() {
             &scene,
             &rec,
         );
-        let hard = v_of(&mut est(&[("resolution", "512")]), &scene, &rec);
+        let hard = v_of(
+            &mut est(&[("resolution", "512"), ("filter", "none")]),
+            &scene,
+            &rec,
+        );
+        // The default (filter=pcss) against the pcss baseline, which sees only opaque depths.
+        let default = v_of(&mut est(&[("resolution", "512")]), &scene, &rec);
+        let mut pcss = baselines::PcssShadow::new().unwrap();
+        pcss.set_param("resolution", "512").unwrap();
+        let (vpcss, _) = run(&mut pcss, &scene, &rec).unwrap();
         let mut ms = baselines::MultiSample::new().unwrap();
         ms.set_param("resolution", "512").unwrap();
         ms.set_param("sublights", "3").unwrap();
@@ -463,8 +477,23 @@ fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baseline() {
             rmse(&hard, &vref, &rec.active),
             rmse(&vms, &vref, &rec.active),
         );
-        eprintln!("{name}: soft {e_soft:.4} hard {e_hard:.4} multi-sample {e_ms:.4}");
+        let (e_default, e_pcss) = (
+            rmse(&default, &vref, &rec.active),
+            rmse(&vpcss, &vref, &rec.active),
+        );
+        eprintln!(
+            "{name}: soft {e_soft:.4} hard {e_hard:.4} multi-sample {e_ms:.4} default {e_default:.4} pcss {e_pcss:.4}"
+        );
         assert!(e_soft < bound, "{name}: {e_soft}");
+        assert!(e_default < bound, "{name}: default {e_default}");
+        assert!(
+            e_default < e_hard,
+            "{name}: the default should beat filter=none"
+        );
+        assert!(
+            e_default < e_pcss,
+            "{name}: the default should beat opaque PCSS"
+        );
         assert!(e_soft < e_hard, "{name}: sub-lights should help");
         assert!(e_soft < e_ms, "{name}: transmittance should matter");
     }
@@ -638,4 +667,121 @@ fn grazing_plane_is_not_self_shadowed() {
             );
         }
     }
+}
+
+/// `filter=pcss` under one large uniform sheet of opacity a: every tap of the search and of the
+/// kernel is under the sheet, so `T = 1 - a` exactly, away from the edges (docs/methods.md §8
+/// "Percentage-closer soft transmittance"), for one view and for sub-lights, with a wide light.
+#[test]
+fn pcss_is_exact_under_one_uniform_sheet() {
+    for a in [0.25f32, 0.6, 1.0] {
+        let scene = sheets(&[a], 1.0);
+        let rec = grid(0.3, 0.0, 6);
+        for (s, taps) in [("1", "32"), ("2", "32"), ("1", "3")] {
+            let kv = [
+                ("filter", "pcss"),
+                ("resolution", "256"),
+                ("sublights", s),
+                ("max_taps", taps),
+            ];
+            let v = v_of(&mut est(&kv), &scene, &rec);
+            for x in &v {
+                assert!((x - (1.0 - a)).abs() <= 1e-5, "{kv:?} a {a}: V {x}");
+            }
+        }
+    }
+}
+
+/// The light scaled to `f` times its size (rect sides, disk and sphere radii).
+fn scale_light(scene: &mut Scene, f: f32) {
+    scene.light.shape = match scene.light.shape {
+        LightShape::Rect { size } => LightShape::Rect {
+            size: [size[0] * f, size[1] * f],
+        },
+        LightShape::Disk { radius } => LightShape::Disk { radius: radius * f },
+        LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * f },
+    };
+}
+
+/// As the light shrinks to a point, `filter=pcss` becomes `filter=none` (the hard transmittance
+/// lookup): the search and the kernel shrink to the receiver's texel. Lists (strands: disk light,
+/// hair: rect) and the opaque path (bunny, sphere-light: sphere light); a region straddling a
+/// texel edge may still mix two texels, so a few receivers may differ.
+#[test]
+fn pcss_with_a_vanishing_light_is_the_hard_lookup() {
+    for name in ["strands", "hair", "bunny", "sphere-light"] {
+        let (mut scene, rec) = fixture(name, 40, 30);
+        scale_light(&mut scene, 1e-5);
+        let kv = |f: &'static str| [("filter", f), ("resolution", "256")];
+        let hard = v_of(&mut est(&kv("none")), &scene, &rec);
+        let soft = v_of(&mut est(&kv("pcss")), &scene, &rec);
+        let diff: Vec<f32> = hard
+            .iter()
+            .zip(&soft)
+            .filter(|(h, _)| h.is_finite())
+            .map(|(h, s)| (h - s).abs())
+            .collect();
+        let off = diff.iter().filter(|d| **d > 1e-4).count();
+        let mean = diff.iter().sum::<f32>() / diff.len().max(1) as f32;
+        eprintln!(
+            "{name}: {off} of {} differ, mean |dV| {mean:.2e}",
+            diff.len()
+        );
+        assert!(
+            off * 100 <= diff.len(),
+            "{name}: {off} of {} differ",
+            diff.len()
+        );
+        assert!(mean <= 2e-3, "{name}: mean |dV| {mean}");
+        // And the full-size light does soften: pcss differs from the hard lookup.
+        let (scene, _) = fixture(name, 40, 30);
+        let hard = v_of(&mut est(&kv("none")), &scene, &rec);
+        let soft = v_of(&mut est(&kv("pcss")), &scene, &rec);
+        assert!(max_abs_diff(&hard, &soft) > 0.05, "{name}");
+    }
+}
+
+/// The penumbra behind a straight edge of a semi-transparent half-plane (opacity 0.6, height 1.5)
+/// on the ground under a rect light of side l at height 3: PCSS's width is
+/// `w = l (d_r - d_b) / d_b = l` (docs/notes/background.md, Fernando 2005), and V falls linearly
+/// across it from 1 to 1 - 0.6. Measured as the distance between the 10% and 90% points of that
+/// fall (0.8 w), it grows with l and matches 0.8 l within two receiver spacings.
+#[test]
+fn pcss_penumbra_widens_with_the_light() {
+    let n = 121;
+    let h = 1.5f32;
+    let dx = 2.0 * h / n as f32;
+    let mut pos = Vec::new();
+    for b in 0..5 {
+        for a in 0..n {
+            let x = -h + dx * (a as f32 + 0.5);
+            pos.push(Vec3::new(x, 0.0, -0.1 + 0.05 * b as f32));
+        }
+    }
+    let rec = Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap();
+    let mut widths = Vec::new();
+    for l in [0.25f32, 0.5, 1.0] {
+        let meshes = vec![
+            (quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0),
+            (quad(-4.0, -4.0, 0.0, 4.0, 1.5), 0.6),
+        ];
+        let scene = Scene::from_meshes("edge", camera(), rect_light(l), meshes).unwrap();
+        let v = v_of(
+            &mut est(&[("filter", "pcss"), ("resolution", "1024")]),
+            &scene,
+            &rec,
+        );
+        // Receivers strictly between the 10% and 90% points of the fall from 1 to 0.4, per row.
+        let (lo, hi) = (0.4 + 0.06, 1.0 - 0.06);
+        let inside = v.iter().filter(|x| **x > lo && **x < hi).count();
+        let width = inside as f32 / 5.0 * dx;
+        eprintln!("l {l}: 10-90% width {width:.3} (0.8 l = {:.3})", 0.8 * l);
+        assert!(
+            (width - 0.8 * l).abs() <= 2.0 * dx,
+            "l {l}: width {width} vs {}",
+            0.8 * l
+        );
+        widths.push(width);
+    }
+    assert!(widths.windows(2).all(|w| w[1] > w[0]), "{widths:?}");
 }

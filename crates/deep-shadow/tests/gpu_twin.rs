@@ -13,7 +13,7 @@ mod common;
 use common::*;
 use deep_shadow::{
     cpu::{build_deep_map, sublight_view},
-    dsm::{DeepShadowMap, Filter, LookupSettings, Traversal},
+    dsm::{DeepShadowMap, Filter, LookupSettings, SoftLookup, Traversal},
     gpu::{pack_depth_query, PackedQuery},
     params::Settings,
     shared::NIL,
@@ -262,7 +262,24 @@ impl TwinPair for DeepShadow {
                     .iter()
                     .map(|q| pack_depth_query(Vec2::new(q.0, q.1), q.2))
                     .collect();
-                for filter in [Filter::First, Filter::None, Filter::Pcf, Filter::Edsm] {
+                // filter=pcss: a box light whose regions span whole texels, and a disk light
+                // wide enough to be sampled by max_taps equal cells.
+                let soft = |l: f32, max_taps: u32, disk: bool| SoftLookup {
+                    light: Vec2::splat(l),
+                    near: v.n,
+                    to_texels: v.r as f32 / v.w,
+                    max_taps,
+                    disk,
+                };
+                let filters = [
+                    (Filter::First, SoftLookup::default()),
+                    (Filter::None, SoftLookup::default()),
+                    (Filter::Pcf, SoftLookup::default()),
+                    (Filter::Edsm, SoftLookup::default()),
+                    (Filter::Pcss, soft(0.4, 32, false)),
+                    (Filter::Pcss, soft(1.5, 4, true)),
+                ];
+                for (filter, soft) in filters {
                     for kernel in [3, 7] {
                         for traversal in [Traversal::Linked, Traversal::Naive] {
                             let ls = LookupSettings {
@@ -270,6 +287,7 @@ impl TwinPair for DeepShadow {
                                 kernel,
                                 c_world: 30.0,
                                 traversal,
+                                soft,
                             };
                             let (tg, _) = g.lookup(&gm, &ls, &queries).unwrap();
                             for (q, t) in queries.iter().zip(&tg) {
@@ -302,6 +320,8 @@ impl TwinPair for DeepShadow {
                 &[("filter", "pcf"), ("kernel", "5"), ("sublights", "2")][..],
                 &[("filter", "edsm"), ("kernel", "7")][..],
                 &[("filter", "first")][..],
+                &[("filter", "pcss")][..],
+                &[("filter", "pcss"), ("sublights", "2"), ("max_taps", "4")][..],
             ] {
                 let mut c = CpuDeepShadow::new().unwrap();
                 let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();

@@ -23,8 +23,13 @@ use shadow_map_core::{
 use std::{marker::PhantomData, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
 
-/// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point, `cells`).
+/// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point).
 pub const MAP_ESTIMATOR_WGSL: &str = include_str!("map_estimator.wgsl");
+
+/// WGSL twins of [`crate::map_estimator::cells`] (`Cells`, `cells_new`, `cell`) and of
+/// [`crate::pcss::Kahan`] (`Sum`, `sum_add`): no bindings, so any module may include it (the
+/// map estimator's kernels, deep-shadow's `filter=pcss`).
+pub const CELLS_WGSL: &str = include_str!("cells.wgsl");
 
 /// The GPU side of a [`Filter`]: WGSL defining `fn facing(p_world, n_world) -> f32` and
 /// `fn visibility(r: ReceiverSample) -> f32` exactly as the CPU filter computes them, and the
@@ -37,11 +42,12 @@ pub trait GpuFilter: Filter {
 }
 
 /// The WGSL parts of the kernel of filter `F` reading a map of precision `depth`, in order.
-pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 5] {
+pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str; 6] {
     [
         ESTIMATE_HEAD_WGSL,
         RECEIVERS_WGSL,
         kernel::depth_wgsl(depth),
+        CELLS_WGSL,
         MAP_ESTIMATOR_WGSL,
         F::WGSL,
     ]

@@ -2,20 +2,9 @@
 // W_search = l (z_r - n) / z_r, z_avg, penumbra w_p = (z_r - z_avg) l / z_avg, then PCF over
 // W_filter = w_p n / z_r with overlap weights (a disk of that diameter for disk and sphere lights).
 //
-// Known difference: the CPU accumulates the weighted sums in f64; here they are f32 with Kahan
-// compensation, so z_avg and lit / total agree to about 1e-7 relative, not bit for bit.
-
-// Kahan-compensated f32 sum.
-struct Sum {
-    s: f32,
-    c: f32,
-}
-
-fn sum_add(a: Sum, x: f32) -> Sum {
-    let y = x - a.c;
-    let t = a.s + y;
-    return Sum(t, (t - a.s) - y);
-}
+// The CPU twin is pcss::soft_transmittance over DepthTaps: both sum in f32 with Kahan
+// compensation (cells.wgsl `Sum`) in the same order, adding only lit taps; it clamps the ratio to
+// [0, 1], which here can differ by an ulp where Kahan rounding puts lit above total.
 
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
     return front_fraction_world(est, p, n);
