@@ -278,18 +278,9 @@ pub fn view_light(light: &Light, origin: Vec3, sublights: u32) -> Light {
     if sublights <= 1 {
         return *light;
     }
-    let k = 1.0 / sublights as f32;
-    let shape = match light.shape {
-        LightShape::Rect { size } => LightShape::Rect {
-            size: [size[0] * k, size[1] * k],
-        },
-        LightShape::Disk { radius } => LightShape::Disk { radius: radius * k },
-        LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * k },
-    };
     Light {
-        shape,
         center: origin,
-        ..*light
+        ..light.scaled(1.0 / sublights as f32)
     }
 }
 

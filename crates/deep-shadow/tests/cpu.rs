@@ -11,7 +11,7 @@ use deep_shadow::{
 use glam::Vec3;
 use shadow_map_core::{
     light_view::{FitMode, NearFar, ViewOptions},
-    run, Error, LightShape, Receivers, Scene, SoftShadowEstimator,
+    run, Error, Receivers, Scene, SoftShadowEstimator,
 };
 
 fn est(kv: &[(&str, &str)]) -> CpuDeepShadow {
@@ -694,13 +694,7 @@ fn pcss_is_exact_under_one_uniform_sheet() {
 
 /// The light scaled to `f` times its size (rect sides, disk and sphere radii).
 fn scale_light(scene: &mut Scene, f: f32) {
-    scene.light.shape = match scene.light.shape {
-        LightShape::Rect { size } => LightShape::Rect {
-            size: [size[0] * f, size[1] * f],
-        },
-        LightShape::Disk { radius } => LightShape::Disk { radius: radius * f },
-        LightShape::Sphere { radius } => LightShape::Sphere { radius: radius * f },
-    };
+    scene.light = scene.light.scaled(f);
 }
 
 /// As the light shrinks to a point, `filter=pcss` becomes `filter=none` (the hard transmittance
