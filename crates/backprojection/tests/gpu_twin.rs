@@ -49,6 +49,8 @@ struct Settings {
     max_nspp: u32,
     receiver_plane: bool,
     first_nonzero: bool,
+    /// `occlusion=bitmask` with this grid side; `None`: additive.
+    bits: Option<u32>,
 }
 
 type Case = test_support::scenes::Case<Settings>;
@@ -62,6 +64,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
         arb_bias(),
         prop_oneof![Just(121u32), 1u32..=64, 100u32..=400],
         (any::<bool>(), any::<bool>()),
+        prop_oneof![Just(None), (2u32..=16).prop_map(Some)],
     )
         .prop_map(
             |(
@@ -72,6 +75,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                 (bias, slope_bias),
                 max_nspp,
                 (receiver_plane, first_nonzero),
+                bits,
             )| Settings {
                 resolution,
                 layers,
@@ -82,6 +86,7 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
                 max_nspp,
                 receiver_plane,
                 first_nonzero,
+                bits,
             },
         )
 }
@@ -108,6 +113,16 @@ fn settings_kv(s: &Settings, bias: f32) -> Params {
             }
             .to_string(),
         ),
+        (
+            "occlusion",
+            if s.bits.is_some() {
+                "bitmask"
+            } else {
+                "additive"
+            }
+            .to_string(),
+        ),
+        ("bits", s.bits.unwrap_or(8).to_string()),
     ]
 }
 
@@ -186,6 +201,7 @@ fn fixed_case() -> Case {
             max_nspp: 121,
             receiver_plane: true,
             first_nonzero: true,
+            bits: None,
         },
     }
 }
