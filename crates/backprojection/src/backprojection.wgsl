@@ -238,7 +238,7 @@ fn bit_point(k: u32) -> vec2<f32> {
 
 // cpu.rs occlusion=bitmask: sets the bits B_s contains (BitMask::set_in_rect on the light plane;
 // a sphere: Silhouette::carry_rect then BitMask::set_in_quad on the silhouette disk).
-fn set_bits(m: ptr<function, BitMask>, x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) {
+fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) {
     if est.light_shape == LIGHT_SPHERE {
         if !s.ok {
             return;
@@ -264,6 +264,31 @@ fn set_bits(m: ptr<function, BitMask>, x0: f32, y0: f32, x1: f32, y1: f32, s: Si
     }
     let lo = vec2<f32>(x0, y0);
     let hi = vec2<f32>(x1, y1);
+    if est.light_shape == LIGHT_RECT {
+        // BitMask::set_in_grid: bit k = j side + i at (x of bit i, y of bit j side).
+        var cols = 0u;
+        for (var i = 0u; i < side; i++) {
+            let x = bit_point(i).x;
+            if x >= lo.x && x <= hi.x {
+                cols |= 1u << i;
+            }
+        }
+        if cols == 0u {
+            return;
+        }
+        for (var j = 0u; j < side; j++) {
+            let y = bit_point(j * side).y;
+            if !(y >= lo.y && y <= hi.y) {
+                continue;
+            }
+            var c = cols;
+            while c != 0u {
+                bitmask_set(m, j * side + countTrailingZeros(c));
+                c &= c - 1u;
+            }
+        }
+        return;
+    }
     for (var k = 0u; k < bp.nbits; k++) {
         if !bitmask_is_set(m, k) && bitmask_rect_contains(lo, hi, bit_point(k)) {
             bitmask_set(m, k);
@@ -418,6 +443,11 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     let k = view.delta / view.n;
     var a_occ = Sum(0.0, 0.0);
     var mask = bitmask_new();
+    // The bit grid's side B (nbits = B^2).
+    var side = 0u;
+    while side * side < bp.nbits {
+        side++;
+    }
     for (var b = 0u; b < by; b++) {
         let j0 = rect.y + i32(b * step);
         let j1 = min(j0 + i32(step), rect.w);
@@ -456,7 +486,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
                 }
             }
             if bp.nbits > 0u {
-                set_bits(&mask, x0, y0, x1, y1, sil);
+                set_bits(&mask, side, x0, y0, x1, y1, sil);
                 if mask.n_set == bp.nbits {
                     return 1.0 - f32(mask.n_set) / f32(bp.nbits);
                 }

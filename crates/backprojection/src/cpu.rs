@@ -198,6 +198,11 @@ struct Setup<'a> {
     /// `occlusion=bitmask`: the bit points ([`shadow_map_core::bitmask::bit_points`]) on the
     /// light plane (rect, disk) or in a sphere's silhouette-disk coordinates; empty: additive.
     bit_pts: Vec<glam::Vec2>,
+    /// A rect light's bit columns' x and rows' y ([`BitMask::set_in_grid`]); empty otherwise.
+    ///
+    /// [`BitMask::set_in_grid`]: shadow_map_core::bitmask::BitMask::set_in_grid
+    bit_xs: Vec<f32>,
+    bit_ys: Vec<f32>,
 }
 
 /// The bit points of `occlusion=bitmask` for `emitter` (B = `bits`): a grid on a rect light,
@@ -426,6 +431,12 @@ impl Setup<'_> {
                             }
                         }
                         (Emitter::Sphere { .. }, None) => mask.count(),
+                        (Emitter::Rect { .. }, _) => mask.set_in_grid(
+                            &self.bit_xs,
+                            &self.bit_ys,
+                            glam::Vec2::new(br.x0, br.y0),
+                            glam::Vec2::new(br.x1, br.y1),
+                        ),
                         _ => mask.set_in_rect(
                             &self.bit_pts,
                             glam::Vec2::new(br.x0, br.y0),
@@ -510,7 +521,7 @@ impl SoftShadowEstimator for CpuBackprojection {
         let light = &scene.light;
         let h = light.half_extent();
         let emitter = Emitter::of(&light.shape);
-        let setup = Setup {
+        let mut setup = Setup {
             ls,
             emitter,
             half: [h.x, h.y],
@@ -527,7 +538,15 @@ impl SoftShadowEstimator for CpuBackprojection {
                 Occlusion::Additive => Vec::new(),
                 Occlusion::Bitmask => emitter_bits(&emitter, self.settings.bits),
             },
+            bit_xs: Vec::new(),
+            bit_ys: Vec::new(),
         };
+        if matches!(emitter, Emitter::Rect { .. }) && !setup.bit_pts.is_empty() {
+            // Bit k = j B + i: row 0 holds the columns' x, column 0 the rows' y.
+            let b = self.settings.bits as usize;
+            setup.bit_xs = setup.bit_pts[..b].iter().map(|p| p.x).collect();
+            setup.bit_ys = (0..b).map(|j| setup.bit_pts[j * b].y).collect();
+        }
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let t = std::time::Instant::now();

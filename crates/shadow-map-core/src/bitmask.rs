@@ -112,6 +112,34 @@ impl BitMask {
         }
         self.set
     }
+    /// [`BitMask::set_in_rect`] for points on a grid, bit `k = j B + i` at `(xs[i], ys[j])`
+    /// (`B = xs.len()`; [`rect_bit`]'s points, whose x depends on i only and y on j only): the
+    /// same bits, found from the columns and rows in range (`2B` tests, then one per bit set).
+    #[inline]
+    pub fn set_in_grid(&mut self, xs: &[f32], ys: &[f32], lo: Vec2, hi: Vec2) -> u32 {
+        let b = xs.len();
+        // Columns in range, one bit each (B <= MAX_BITS = 16).
+        let mut cols = 0u32;
+        for (i, &x) in xs.iter().enumerate() {
+            if x >= lo.x && x <= hi.x {
+                cols |= 1 << i;
+            }
+        }
+        if cols == 0 {
+            return self.set;
+        }
+        for (j, &y) in ys.iter().enumerate() {
+            if !(y >= lo.y && y <= hi.y) {
+                continue;
+            }
+            let mut c = cols;
+            while c != 0 {
+                self.set(j * b + c.trailing_zeros() as usize);
+                c &= c - 1;
+            }
+        }
+        self.set
+    }
     /// Sets every bit `k` whose point `pts[k]` lies in the quad `q` ([`quad_contains`]); returns
     /// the count after.
     #[inline]
@@ -150,6 +178,29 @@ mod tests {
         ];
         assert_eq!(m.set_in_quad(&pts, &q, false), 64);
         assert_eq!(m.set_in_quad(&pts, &q, true), 64);
+    }
+
+    #[test]
+    fn grid_test_sets_the_same_bits() {
+        let h = Vec2::new(0.7, 0.3);
+        for b in [2u32, 5, 8, 16] {
+            let pts = bit_points(h, None, b);
+            let xs: Vec<f32> = (0..b).map(|i| rect_bit(h, i, 0, b).x).collect();
+            let ys: Vec<f32> = (0..b).map(|j| rect_bit(h, 0, j, b).y).collect();
+            let mut m1 = BitMask::new();
+            let mut m2 = BitMask::new();
+            for k in 0..200 {
+                let t = k as f32 * 0.37;
+                let lo = Vec2::new((t.sin() - 0.4) * 0.8, (t * 1.3).cos() * 0.4 - 0.1);
+                let hi = lo + Vec2::new(t.cos().abs() * 0.6, (t * 0.7).sin().abs() * 0.4);
+                let hi = if k % 7 == 0 { pts[k % pts.len()] } else { hi };
+                assert_eq!(
+                    m1.set_in_rect(&pts, lo, hi),
+                    m2.set_in_grid(&xs, &ys, lo, hi)
+                );
+                assert_eq!(m1, m2);
+            }
+        }
     }
 
     #[test]
