@@ -4,7 +4,8 @@
 //
 // The patch's hull points and occlusion-bit points come in in-plane coordinates from the CPU
 // (`tables`: LightPatch::hull_local then LightPatch::bit_local), so no trigonometry differs.
-// The occlusion-bit mask lives in registers (array<u32, 8>, 256 bits at most).
+// The occlusion-bit mask lives in registers (the core's bitmask.wgsl BitMask, 256 bits at most),
+// tested with its bitmask_quad_contains.
 
 // Mirrors gpu.rs AccUniform field for field.
 struct AccUniform {
@@ -336,8 +337,7 @@ fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, rp: ReceiverPlane) -> Kernel {
 
 // What the cells accumulate.
 struct State {
-    mask: array<u32, 8>,
-    n_set: u32,
+    mask: BitMask,
     s_add: f32,
 }
 
@@ -387,35 +387,16 @@ fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
             continue;
         }
         let flat = p.a.x == 0.0 && p.a.y == 0.0 && p.a.z == 1.0;
-        let lo = min(q[0], q[2]);
-        let hi = max(q[0], q[2]);
+        // BitMask::set_in_quad (on a local copy: naga's SPIR-V backend rejects a pointer to a
+        // member through a pointer argument).
+        var m = (*st).mask;
         for (var k = 0u; k < acc.nbits; k++) {
-            let w = k / 32u;
-            let m = 1u << (k % 32u);
-            if ((*st).mask[w] & m) != 0u {
-                continue;
-            }
-            let b = tables[HULL_SLOTS + k];
-            // math::quad_contains.
-            var inside = false;
-            if flat {
-                inside = b.x >= lo.x && b.x <= hi.x && b.y >= lo.y && b.y <= hi.y;
-            } else {
-                var pos = true;
-                var neg = true;
-                for (var e4 = 0u; e4 < 4u; e4++) {
-                    let cr = perp_dot(q[(e4 + 1u) % 4u] - q[e4], b - q[e4]);
-                    pos = pos && cr >= 0.0;
-                    neg = neg && cr <= 0.0;
-                }
-                inside = pos || neg;
-            }
-            if inside {
-                (*st).mask[w] |= m;
-                (*st).n_set += 1u;
+            if !bitmask_is_set(&m, k) && bitmask_quad_contains(q, flat, tables[HULL_SLOTS + k]) {
+                bitmask_set(&m, k);
             }
         }
-        if (*st).n_set == acc.nbits {
+        (*st).mask = m;
+        if m.n_set == acc.nbits {
             return true;
         }
     }
@@ -488,17 +469,18 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     if kr.empty {
         return 0.0;
     }
-    var st = State(array<u32, 8>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u), 0u, 0.0);
+    var st = State(bitmask_new(), 0.0);
     // The exact variant: bits behind the tangent plane set from the start, never counted.
     var behind = 0u;
     if acc.variant == VARIANT_EXACT && !f.whole {
+        var m0 = bitmask_new();
         for (var k = 0u; k < acc.nbits; k++) {
             if !front_of(f, tables[HULL_SLOTS + k]) {
-                st.mask[k / 32u] |= 1u << (k % 32u);
-                behind += 1u;
+                bitmask_set(&m0, k);
             }
         }
-        st.n_set = behind;
+        st.mask = m0;
+        behind = m0.n_set;
     }
     if kr.rings {
         rings(&st, p, r, rp, f, kr.rect, kr.centre);
@@ -522,10 +504,10 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
         }
     }
     if acc.variant == VARIANT_EXACT {
-        if st.n_set == acc.nbits {
+        if st.mask.n_set == acc.nbits {
             return 1.0;
         }
-        return f32(st.n_set - behind) / f32(acc.nbits - behind);
+        return f32(st.mask.n_set - behind) / f32(acc.nbits - behind);
     }
     if st.s_add >= f.fraction * (1.0 - 1e-6) {
         return 1.0;

@@ -1,8 +1,7 @@
 //! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
 //! [`crate::math`]).
 use crate::math::{
-    caster, fixed_kernel_start, paper_plane_distance, quad_contains, Footprint, FrontEdge,
-    LightPatch, SphereModel,
+    caster, fixed_kernel_start, paper_plane_distance, Footprint, FrontEdge, LightPatch, SphereModel,
 };
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -15,10 +14,9 @@ use shadow_map_core::{
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
-/// Largest bit-grid side of the exact variant (16 x 16 = 256 bits, 8 u32 words on the GPU).
-pub const MAX_BITS: u32 = 16;
-/// Words of the occlusion-bit mask.
-pub const MASK_WORDS: usize = (MAX_BITS * MAX_BITS / 32) as usize;
+/// Largest bit-grid side of the exact variant (16 x 16 = 256 bits, 8 u32 words on the GPU), and
+/// the words of the occlusion-bit mask: the core's [`shadow_map_core::bitmask`].
+pub use shadow_map_core::bitmask::{MASK_WORDS, MAX_BITS};
 /// Highest MSSM level built for the adaptive kernel (windows up to 32 texels; wider kernels take
 /// more fetches, never a wrong minimum).
 pub const MAX_MSSM_LEVEL: u32 = 5;
@@ -476,7 +474,7 @@ impl Accumulator<'_> {
         // Parallel lights: the backprojected caster is an axis-aligned rectangle.
         let flat = fp.patch.a == Vec3::Z;
         let mut bit_pts: Vec<Vec2> = Vec::new();
-        let mut mask = [0u32; MASK_WORDS];
+        let mut mask = shadow_map_core::bitmask::BitMask::new();
         let mut set = 0usize;
         // Bits behind the tangent plane: set from the start, never counted as occluded.
         let mut behind = 0usize;
@@ -526,20 +524,14 @@ impl Accumulator<'_> {
                     if !front.whole {
                         for (k, b) in bit_pts.iter().enumerate() {
                             if !front.front(*b) {
-                                mask[k / 32] |= 1u32 << (k % 32);
-                                behind += 1;
+                                mask.set(k);
                             }
                         }
+                        behind = mask.count() as usize;
                         set = behind;
                     }
                 }
-                for (k, b) in bit_pts.iter().enumerate() {
-                    let (w, m) = (k / 32, 1u32 << (k % 32));
-                    if mask[w] & m == 0 && quad_contains(&quad, flat, *b) {
-                        mask[w] |= m;
-                        set += 1;
-                    }
-                }
+                set = mask.set_in_quad(&bit_pts, &quad, flat) as usize;
                 if set == nbits {
                     return true;
                 }

@@ -25,7 +25,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
-        estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
         kernel::{max_chunk, upload_planes, Binding, Kernel},
         receivers::RECEIVERS_WGSL,
         redo_cut_receivers,
@@ -42,7 +42,12 @@ use wgpu::util::DeviceExt;
 pub const ACCUMULATION_WGSL: &str = include_str!("accumulation.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 3] = [ESTIMATE_HEAD_WGSL, RECEIVERS_WGSL, ACCUMULATION_WGSL];
+pub const SHADER_PARTS: [&str; 4] = [
+    ESTIMATE_HEAD_WGSL,
+    RECEIVERS_WGSL,
+    BITMASK_WGSL,
+    ACCUMULATION_WGSL,
+];
 
 /// Hull-point slots at the head of the tables buffer (WGSL `HULL_SLOTS`).
 pub const HULL_SLOTS: usize = DISK_BOUNDARY_POINTS as usize;

@@ -154,10 +154,9 @@ impl LightPatch {
     /// the cell centres of a regular grid on a rectangle, the same grid mapped by Shirley &
     /// Chiu's concentric map on a disk (area preserving, so every bit stands for `A_L / b^2`).
     pub fn bit_local(&self, i: u32, j: u32, b: u32) -> Vec2 {
-        let u = Vec2::new((i as f32 + 0.5) / b as f32, (j as f32 + 0.5) / b as f32);
         match self.shape {
-            PatchShape::Disk(r) => shadow_map_core::light::concentric_disk(u) * r,
-            PatchShape::Rect(h) => (u * 2.0 - 1.0) * h,
+            PatchShape::Disk(r) => shadow_map_core::bitmask::disk_bit(r, i, j, b),
+            PatchShape::Rect(h) => shadow_map_core::bitmask::rect_bit(h, i, j, b),
         }
     }
 
@@ -490,25 +489,9 @@ impl FrontEdge {
     }
 }
 
-/// True when `b` lies in the convex quadrilateral `q` (either orientation, boundary included).
-/// For the parallel lights `q` is an axis-aligned rectangle and `flat` takes its bounds.
-#[inline]
-pub fn quad_contains(q: &[Vec2; 4], flat: bool, b: Vec2) -> bool {
-    if flat {
-        let lo = q[0].min(q[2]);
-        let hi = q[0].max(q[2]);
-        return b.x >= lo.x && b.x <= hi.x && b.y >= lo.y && b.y <= hi.y;
-    }
-    let mut pos = true;
-    let mut neg = true;
-    for k in 0..4 {
-        let e = q[(k + 1) % 4] - q[k];
-        let c = e.perp_dot(b - q[k]);
-        pos &= c >= 0.0;
-        neg &= c <= 0.0;
-    }
-    pos || neg
-}
+/// True when `b` lies in the convex quadrilateral `q` (the core's occlusion-bit geometry,
+/// shared with `backprojection`).
+pub use shadow_map_core::bitmask::quad_contains;
 
 /// The elementary caster of a lexel (§1.1, the pseudo-code's `size` and `lr`; docs/methods.md §9
 /// with its corrections): the caster point `c = (l, n) c_z / n` behind plane point `l` seen from

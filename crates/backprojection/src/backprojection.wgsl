@@ -25,7 +25,12 @@ struct BpUniform {
     mssm_levels: u32,
     mssm_size: u32,
     first_nonzero: u32,
-    _pad1: u32,
+    nbits: u32,
+}
+
+// occlusion=bitmask: the bit points, two per vec4 (mirrors gpu.rs BitTable; cpu.rs emitter_bits).
+struct BitTable {
+    pts: array<vec4<f32>, 128>,
 }
 
 @group(0) @binding(0) var<uniform> view: LightViewUniform;
@@ -39,6 +44,7 @@ struct BpUniform {
 @group(0) @binding(6) var<storage, read_write> v_out: array<u32>;
 // [0]: receivers outside the light frustum, [1]: non-finite results.
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 2>;
+@group(0) @binding(8) var<uniform> bits: BitTable;
 
 const FAR_BOUND: f32 = 1e30;
 
@@ -221,6 +227,75 @@ fn light_contributes(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> bool {
     return s.ok && sil_overlap(s, x0, y0, x1, y1) > 1e-6 * a;
 }
 
+// Bit k of the table.
+fn bit_point(k: u32) -> vec2<f32> {
+    let v = bits.pts[k / 2u];
+    if (k % 2u) == 1u {
+        return v.zw;
+    }
+    return v.xy;
+}
+
+// cpu.rs occlusion=bitmask: sets the bits B_s contains (BitMask::set_in_rect on the light plane;
+// a sphere: Silhouette::carry_rect then BitMask::set_in_quad on the silhouette disk).
+fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) {
+    if est.light_shape == LIGHT_SPHERE {
+        if !s.ok {
+            return;
+        }
+        let cx0 = max(x0, s.clip.x);
+        let cy0 = max(y0, s.clip.y);
+        let cx1 = min(x1, s.clip.z);
+        let cy1 = min(y1, s.clip.w);
+        if !(cx1 > cx0 && cy1 > cy0) {
+            return;
+        }
+        var q: array<vec2<f32>, 4>;
+        q[0] = sil_carry(s, cx0, cy0);
+        q[1] = sil_carry(s, cx1, cy0);
+        q[2] = sil_carry(s, cx1, cy1);
+        q[3] = sil_carry(s, cx0, cy1);
+        for (var k = 0u; k < bp.nbits; k++) {
+            if !bitmask_is_set(m, k) && bitmask_quad_contains(q, false, bit_point(k)) {
+                bitmask_set(m, k);
+            }
+        }
+        return;
+    }
+    let lo = vec2<f32>(x0, y0);
+    let hi = vec2<f32>(x1, y1);
+    if est.light_shape == LIGHT_RECT {
+        // BitMask::set_in_grid: bit k = j side + i at (x of bit i, y of bit j side).
+        var cols = 0u;
+        for (var i = 0u; i < side; i++) {
+            let x = bit_point(i).x;
+            if x >= lo.x && x <= hi.x {
+                cols |= 1u << i;
+            }
+        }
+        if cols == 0u {
+            return;
+        }
+        for (var j = 0u; j < side; j++) {
+            let y = bit_point(j * side).y;
+            if !(y >= lo.y && y <= hi.y) {
+                continue;
+            }
+            var c = cols;
+            while c != 0u {
+                bitmask_set(m, j * side + countTrailingZeros(c));
+                c &= c - 1u;
+            }
+        }
+        return;
+    }
+    for (var k = 0u; k < bp.nbits; k++) {
+        if !bitmask_is_set(m, k) && bitmask_rect_contains(lo, hi, bit_point(k)) {
+            bitmask_set(m, k);
+        }
+    }
+}
+
 // The kernel at occluder depths >= zm: cpu.rs kernel_rect for rect and disk lights, the
 // silhouette's for a sphere.
 fn kernel_at(p: vec3<f32>, uv: vec2<f32>, zm: f32, s: Sil) -> vec4<i32> {
@@ -367,6 +442,12 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     let kr = Kernel(rect, step, bx, by);
     let k = view.delta / view.n;
     var a_occ = Sum(0.0, 0.0);
+    var mask = bitmask_new();
+    // The bit grid's side B (nbits = B^2).
+    var side = 0u;
+    while side * side < bp.nbits {
+        side++;
+    }
     for (var b = 0u; b < by; b++) {
         let j0 = rect.y + i32(b * step);
         let j1 = min(j0 + i32(step), rect.w);
@@ -404,8 +485,18 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
                     }
                 }
             }
+            if bp.nbits > 0u {
+                set_bits(&mask, side, x0, y0, x1, y1, sil);
+                if mask.n_set == bp.nbits {
+                    return 1.0 - f32(mask.n_set) / f32(bp.nbits);
+                }
+                continue;
+            }
             a_occ = sum_add(a_occ, light_overlap(x0, y0, x1, y1, sil));
         }
+    }
+    if bp.nbits > 0u {
+        return 1.0 - f32(mask.n_set) / f32(bp.nbits);
     }
     if !(bp.area > 0.0) {
         return select(1.0, 0.0, a_occ.s > 0.0);

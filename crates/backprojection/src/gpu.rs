@@ -25,11 +25,11 @@
 //! area); the driver may fuse a multiply and an add, which can flip a depth comparison that is a
 //! tie to within f32 rounding. The GPU rasteriser's layers match the CPU's up to the ties that
 //! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
-use crate::cpu::{plan, CpuBackprojection, LayerRule};
+use crate::cpu::{emitter_bits, plan, CpuBackprojection, LayerRule, Occlusion};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
-        estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
         kernel::{max_chunk, plane_array, upload_planes, Binding, Kernel, PlaneArray},
         light_space::GpuLightSpace,
         raster::{GpuScene, GpuShadowMapper},
@@ -67,7 +67,25 @@ pub struct PlaneCopy {
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 3] = [ESTIMATE_HEAD_WGSL, RECEIVERS_WGSL, BACKPROJECTION_WGSL];
+pub const SHADER_PARTS: [&str; 4] = [
+    ESTIMATE_HEAD_WGSL,
+    RECEIVERS_WGSL,
+    BITMASK_WGSL,
+    BACKPROJECTION_WGSL,
+];
+
+/// The bit points of `occlusion=bitmask` ([`emitter_bits`]), two per `vec4` (mirrors `BitTable`
+/// in `backprojection.wgsl`); zeros when additive.
+#[repr(C, align(16))]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct BitTable {
+    /// Bit `k` is `pts[k / 2][2 (k % 2)..][..2]`.
+    pub pts: [[f32; 4]; BIT_TABLE_VEC4S],
+}
+
+/// `vec4`s of [`BitTable`]: [`shadow_map_core::bitmask::MAX_BITS`]^2 points, two per `vec4`.
+pub const BIT_TABLE_VEC4S: usize =
+    (shadow_map_core::bitmask::MAX_BITS * shadow_map_core::bitmask::MAX_BITS / 2) as usize;
 
 /// The settings the kernel reads besides the light view and the light (mirrored in
 /// `backprojection.wgsl`).
@@ -103,8 +121,8 @@ pub struct BpUniform {
     pub mssm_size: u32,
     /// 1: `layer_rule=first_nonzero` (Bavoil §4.2); 0: `deepest`.
     pub first_nonzero: u32,
-    /// Padding.
-    pub _pad1: u32,
+    /// `occlusion=bitmask`: bits `B^2` (in [`BitTable`]); 0: additive.
+    pub nbits: u32,
 }
 
 /// Light-space data on the device in the layout the kernel reads: depth layers then midpoint
@@ -194,6 +212,7 @@ impl GpuBackprojection {
                 Binding::Storage,
                 Binding::StorageRw,
                 Binding::StorageRw,
+                Binding::Uniform,
             ],
             OVERRIDES,
         )?;
@@ -388,8 +407,9 @@ impl GpuBackprojection {
         v: &mut [f32],
     ) -> Result<()> {
         receivers.check_output(v)?;
-        let (eu, bpu) = self.uniforms(maps, light);
-        let (outside, nonfinite, est_ms, read_ms) = self.dispatch(maps, &eu, &bpu, receivers, v)?;
+        let (eu, bpu, table) = self.uniforms(maps, light);
+        let (outside, nonfinite, est_ms, read_ms) =
+            self.dispatch(maps, &eu, &bpu, &table, receivers, v)?;
         self.report.stages.push(("estimate".into(), est_ms));
         self.report.stages.push(("readback".into(), read_ms));
         self.note_estimate(maps);
@@ -403,8 +423,18 @@ impl GpuBackprojection {
     }
 
     /// The kernel's uniforms for `maps` and the current parameters.
-    fn uniforms(&self, maps: &DeviceMaps, light: &Light) -> (EstimateUniform, BpUniform) {
+    fn uniforms(&self, maps: &DeviceMaps, light: &Light) -> (EstimateUniform, BpUniform, BitTable) {
         let s = self.cpu.settings();
+        let mut table = BitTable::zeroed();
+        let mut nbits = 0;
+        if s.occlusion == Occlusion::Bitmask {
+            let pts = emitter_bits(&crate::math::Emitter::of(&light.shape), s.bits);
+            nbits = pts.len() as u32;
+            for (k, p) in pts.iter().enumerate() {
+                table.pts[k / 2][2 * (k % 2)] = p.x;
+                table.pts[k / 2][2 * (k % 2) + 1] = p.y;
+            }
+        }
         let midpoint = s.shadow.midpoint();
         let h = light.half_extent();
         let max_nspp = s.max_nspp;
@@ -427,11 +457,11 @@ impl GpuBackprojection {
                 0
             },
             first_nonzero: u32::from(s.layer_rule == LayerRule::FirstNonzero),
-            _pad1: 0,
+            nbits,
         };
         let mut eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
         eu.receiver_plane = u32::from(s.shadow.receiver_plane);
-        (eu, bpu)
+        (eu, bpu, table)
     }
 
     /// The report notes both estimate paths share.
@@ -444,6 +474,10 @@ impl GpuBackprojection {
         self.report.note("self_shadow", self_shadow);
         self.report
             .note("layer_rule", self.cpu.settings().layer_rule);
+        self.report.note("occlusion", self.cpu.settings().occlusion);
+        if self.cpu.settings().occlusion == Occlusion::Bitmask {
+            self.report.note("bits", self.cpu.settings().bits);
+        }
         self.report
             .note("receiver_plane", self.cpu.settings().shadow.receiver_plane);
         self.report.note("near", view.n);
@@ -459,6 +493,7 @@ impl GpuBackprojection {
         maps: &DeviceMaps,
         eu: &EstimateUniform,
         bpu: &BpUniform,
+        table: &BitTable,
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<(usize, usize, f64, f64)> {
@@ -501,7 +536,7 @@ impl GpuBackprojection {
                 len: *len as u32,
             })
             .collect();
-        self.submit_kernel(maps, eu, bpu, &chunks, &counters)?;
+        self.submit_kernel(maps, eu, bpu, table, &chunks, &counters)?;
         ctx.wait()?;
         let est_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
@@ -526,6 +561,7 @@ impl GpuBackprojection {
         maps: &DeviceMaps,
         eu: &EstimateUniform,
         bpu: &BpUniform,
+        table: &BitTable,
         chunks: &[KernelChunk],
         counters: &wgpu::Buffer,
     ) -> Result<()> {
@@ -545,6 +581,7 @@ impl GpuBackprojection {
             );
             let est_buf = uniform("estimate uniform", bytemuck::bytes_of(eu));
             let bp_buf = uniform("backprojection uniform", bytemuck::bytes_of(bpu));
+            let bits_buf = uniform("backprojection bit table", bytemuck::bytes_of(table));
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(LABEL) });
@@ -567,6 +604,7 @@ impl GpuBackprojection {
                             chunk.receivers.clone(),
                             chunk.v.clone(),
                             counters.as_entire_binding(),
+                            bits_buf.as_entire_binding(),
                         ],
                     );
                     pass.set_bind_group(0, &group, &[]);
@@ -685,7 +723,7 @@ impl GpuBackprojection {
         let t = Instant::now();
         self.report.stages.truncate(self.built.0);
         self.report.notes.truncate(self.built.1);
-        let (eu, bpu) = self.uniforms(maps, light);
+        let (eu, bpu, table) = self.uniforms(maps, light);
         let counters = ctx.scoped(LABEL, || counters_buffer(ctx))?;
         if receivers.count > 0 {
             let align = ctx.limits().min_storage_buffer_offset_alignment.max(4);
@@ -714,7 +752,7 @@ impl GpuBackprojection {
                     len,
                 });
             }
-            self.submit_kernel(maps, &eu, &bpu, &chunks, &counters)?;
+            self.submit_kernel(maps, &eu, &bpu, &table, &chunks, &counters)?;
         }
         self.resident_counters = Some(counters);
         self.report
@@ -837,10 +875,11 @@ mod tests {
                 mssm_levels,
                 mssm_size,
                 first_nonzero,
-                _pad1,
+                nbits,
             }
         );
         assert_eq!(std::mem::size_of::<BpUniform>(), 64);
+        assert_eq!(std::mem::size_of::<BitTable>(), 16 * BIT_TABLE_VEC4S);
         shadow_map_core::assert_wgsl_layout!(
             PLANE_TO_LAYER_WGSL,
             PlaneCopy {

@@ -3,6 +3,7 @@
 // `!(a > b)` is deliberate throughout: it is true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod bitmask;
 pub mod bvh;
 pub mod camera;
 pub mod cascades;

@@ -84,22 +84,27 @@ impl Silhouette {
     /// inside the disk (clipped to [`clip`](Self::clip) first; 0 when nothing is left).
     #[inline]
     pub fn overlap_rect(&self, x0: f32, y0: f32, x1: f32, y1: f32) -> f32 {
+        self.carry_rect(x0, y0, x1, y1)
+            .map_or(0.0, |q| crate::overlap::quad_disk_area(q, self.radius))
+    }
+
+    /// The rectangle `[x0, x1] x [y0, y1]` of z = 0, clipped to [`Silhouette::clip`] (which keeps
+    /// the corners finite and loses no point of the disk), carried onto the silhouette plane
+    /// (in-plane coordinates, corners in order); `None` when the clipped rectangle is empty.
+    pub fn carry_rect(&self, x0: f32, y0: f32, x1: f32, y1: f32) -> Option<[glam::Vec2; 4]> {
         let x0 = x0.max(self.clip[0]);
         let y0 = y0.max(self.clip[1]);
         let x1 = x1.min(self.clip[2]);
         let y1 = y1.min(self.clip[3]);
         if !(x1 > x0 && y1 > y0) {
-            return 0.0;
+            return None;
         }
-        crate::overlap::quad_disk_area(
-            [
-                self.carry(x0, y0),
-                self.carry(x1, y0),
-                self.carry(x1, y1),
-                self.carry(x0, y1),
-            ],
-            self.radius,
-        )
+        Some([
+            self.carry(x0, y0),
+            self.carry(x1, y0),
+            self.carry(x1, y1),
+            self.carry(x0, y1),
+        ])
     }
 }
 

@@ -25,6 +25,9 @@ pub const DISK_EDGE_WGSL: &str = include_str!("disk_edge.wgsl");
 pub const SILHOUETTE_WGSL: &str = include_str!("silhouette.wgsl");
 /// WGSL twins of the rest of [`crate::overlap`] (after [`MATH_WGSL`] and [`DISK_EDGE_WGSL`]).
 pub const OVERLAP_WGSL: &str = include_str!("overlap.wgsl");
+/// WGSL twin of [`crate::bitmask`] (containment tests and the mask), self-contained; not in
+/// [`ESTIMATE_HEAD_WGSL`]: kernels with occlusion bits append it.
+pub const BITMASK_WGSL: &str = include_str!("bitmask.wgsl");
 /// The head of every estimate kernel: the core's shared structs, [`ESTIMATE_WGSL`],
 /// [`MATH_WGSL`], [`DISK_EDGE_WGSL`], [`SILHOUETTE_WGSL`] and [`OVERLAP_WGSL`], in that order; a
 /// kernel appends its own WGSL.

@@ -54,6 +54,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("gbuffer", gbuffer::GBUFFER_WGSL),
     ("precision", precision::PRECISION_WGSL),
     ("estimate", estimate::ESTIMATE_HEAD_WGSL),
+    ("bitmask", estimate::BITMASK_WGSL),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
 ];
 
