@@ -498,7 +498,7 @@ pub fn plan(
 }
 
 impl SoftShadowEstimator for CpuBackprojection {
-    shadow_map_core::estimator_identity!("backprojection", "micropatch backprojection onto a rect light with depth-peeled layers and midpoints (Guennebaud 2006, Bavoil 2008)", Cpu, params);
+    shadow_map_core::estimator_identity!("backprojection", "micropatch backprojection onto rect, disk and sphere lights with depth-peeled layers and midpoints, additive or occlusion bits (Guennebaud 2006, Bavoil 2008, Schwarz & Stamminger 2007)", Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)?;
         self.settings = Settings::from_params(&self.params)?;
