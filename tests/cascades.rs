@@ -305,7 +305,7 @@ fn caster_aware_fitting_settles_exactly_and_fits_the_rest() {
                     &shadow_map_core::cascades::CascadeSettings::from_params(e1.params()).unwrap(),
                     &scene,
                     &rec,
-                    e1.params(),
+                    || shadow_map_core::cascades::one_view_p95(&scene, &rec, e1.params()),
                 );
                 let Some(settled) = settled else {
                     failures.push(format!("{name} {algo} {b}: nothing settled"));

@@ -109,26 +109,6 @@ impl SceneBvh {
             .product()
     }
 
-    /// Whether `test` holds for some triangle whose bounding box meets the box `[lo, hi]`
-    /// (obvhs' box traversal; stops at the first triangle that passes).
-    pub fn any_in_box(&self, lo: Vec3, hi: Vec3, mut test: impl FnMut(&[Vec3; 3]) -> bool) -> bool {
-        let aabb = obvhs::aabb::Aabb::new(Vec3A::from(lo), Vec3A::from(hi));
-        let mut found = false;
-        self.bvh.aabb_traverse(aabb, |bvh, node| {
-            let node = &bvh.nodes[node as usize];
-            let first = node.first_index as usize;
-            for k in first..first + node.prim_count as usize {
-                let t = &self.tris[bvh.primitive_indices[k] as usize];
-                if test(&[t.v0.into(), t.v1.into(), t.v2.into()]) {
-                    found = true;
-                    return false;
-                }
-            }
-            true
-        });
-        found
-    }
-
     /// Whether `test` holds for some triangle whose bounding box meets the box `[lo, hi]` and
     /// is not wholly outside one of the convex region's `planes` (each `[a, b, c, d]`, inside
     /// where `a x + b y + c z + d >= 0`). Nodes are culled by the box and by the planes (a node

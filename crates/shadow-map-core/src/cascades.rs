@@ -22,6 +22,7 @@ use crate::{
     scene::Scene,
     Result,
 };
+use std::cell::OnceCell;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
@@ -452,24 +453,20 @@ pub fn direction_tiles(
     }
 }
 
-/// The [`Plan`] for `receivers` of `scene`, for an estimator whose own parameters are `inner`
-/// (its one-view texel density decides `cascades=0` and `tiles=0`; `cascade_p95`, when given,
-/// stands in for it in the cascade count: [`Settled::one_view_p95`]).
+/// The [`Plan`] for `receivers` of `scene`, for an estimator whose own parameters are `inner`:
+/// `cascade_p95` gives the one-view texel-density p95 that decides `cascades=0` (called only
+/// when needed; [`one_view_p95`] over every receiver of the frame, settled or not, since the
+/// views that serve the rest must resolve the shadows near the camera as finely as cascades over
+/// every receiver would), and each cascade's own one-view p95 decides its `tiles=0`.
 pub fn plan(
     settings: &CascadeSettings,
     scene: &Scene,
     receivers: &Receivers,
     inner: &Params,
-    cascade_p95: Option<Option<f32>>,
+    cascade_p95: impl FnOnce() -> Option<f32>,
 ) -> Plan {
     let depths = camera_depths(&scene.camera, receivers);
-    let p95 = |r: &Receivers| {
-        let d = view_density(scene, r, inner)?;
-        median_p95(&d).map(|m| m.1)
-    };
-    let splits = plan_splits(settings, &depths, || {
-        cascade_p95.unwrap_or_else(|| p95(receivers))
-    });
+    let splits = plan_splits(settings, &depths, cascade_p95);
     let half = blend_half_widths(&splits, settings.cascade_blend);
     let weights: Vec<_> = depths
         .iter()
@@ -478,7 +475,7 @@ pub fn plan(
     let tiles = (0..splits.len() - 1)
         .map(|c| {
             let sub = cascade_receivers(receivers, &weights, c);
-            direction_tiles(settings, scene, &sub, || p95(&sub))
+            direction_tiles(settings, scene, &sub, || one_view_p95(scene, &sub, inner))
         })
         .collect();
     Plan {
@@ -501,15 +498,17 @@ fn cascade_receivers(
     sub
 }
 
+/// The 95th percentile of the texel density of the one light-centre view an estimator with
+/// parameters `inner` fits for `receivers` (`None` without a map, or with no receiver inside).
+pub fn one_view_p95(scene: &Scene, receivers: &Receivers, inner: &Params) -> Option<f32> {
+    median_p95(&view_density(scene, receivers, inner)?).map(|m| m.1)
+}
+
 /// What caster-aware fitting ([`settle`]) decided for one frame.
 #[derive(Debug, Clone)]
 pub struct Settled {
     /// Per receiver, its exact V when settled without a map, else `None`.
     pub v: Vec<Option<f32>>,
-    /// Texel-density p95 of one view over every receiver, settled or not: the cascade count of
-    /// `cascades=0` follows it ([`plan`]), since the views that serve the rest must resolve the
-    /// shadows near the camera as finely as cascades over every receiver would.
-    pub one_view_p95: Option<f32>,
 }
 
 impl Settled {
@@ -529,28 +528,21 @@ impl Settled {
 
 /// The receivers caster-aware fitting settles without a map under `settings` ([`Casters`]);
 /// `None` when nothing is settled (`casters=off`, or `auto` where one view over every receiver
-/// already has a texel-density p95 of at most [`AUTO_MAX_DENSITY`]). `inner` are the
-/// estimator's own parameters (its view).
+/// already has a texel-density p95, `p95` (called only under `auto`: [`one_view_p95`]), of at
+/// most [`AUTO_MAX_DENSITY`]).
 pub fn settle(
     settings: &CascadeSettings,
     scene: &Scene,
     receivers: &Receivers,
-    inner: &Params,
+    p95: impl FnOnce() -> Option<f32>,
 ) -> Option<Settled> {
-    if settings.casters == Casters::Off {
-        return None;
-    }
-    let one_view_p95 = view_density(scene, receivers, inner)
-        .as_deref()
-        .and_then(median_p95)
-        .map(|m| m.1);
-    if settings.casters == Casters::Auto && !one_view_p95.is_some_and(|d| d > AUTO_MAX_DENSITY) {
-        return None;
+    match settings.casters {
+        Casters::Off => return None,
+        Casters::Auto if !p95().is_some_and(|d| d > AUTO_MAX_DENSITY) => return None,
+        Casters::Auto | Casters::On => {}
     }
     let v = crate::settle::Settler::new(scene).settle(receivers);
-    v.iter()
-        .any(Option::is_some)
-        .then_some(Settled { v, one_view_p95 })
+    v.iter().any(Option::is_some).then_some(Settled { v })
 }
 
 /// The texel density ([`texel_density`]) at each receiver of the light-centre view(s) an
@@ -563,11 +555,10 @@ pub fn texel_density_of(scene: &Scene, receivers: &Receivers, params: &Params) -
     let Ok(settings) = CascadeSettings::from_params(params) else {
         return view_density(scene, receivers, params);
     };
-    let settled = settle(&settings, scene, receivers, params);
-    let (receivers, p95) = match &settled {
-        Some(s) => (&s.unsettled(receivers), Some(s.one_view_p95)),
-        None => (receivers, None),
-    };
+    let all_p95 = OnceCell::new();
+    let p95 = || *all_p95.get_or_init(|| one_view_p95(scene, receivers, params));
+    let served = settle(&settings, scene, receivers, p95).map(|s| s.unsettled(receivers));
+    let receivers = served.as_ref().unwrap_or(receivers);
     let plan = plan(&settings, scene, receivers, params, p95);
     let mut out = vec![f32::NAN; receivers.len()];
     for c in 0..plan.cascades() {
@@ -678,18 +669,22 @@ impl SoftShadowEstimator for Cascaded {
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.plan = None;
+        // The one view's texel-density p95 over every receiver, computed at most once: it
+        // decides both `casters=auto` and `cascades=0`.
+        let inner = self.inner.params().clone();
+        let all_p95 = OnceCell::new();
+        let p95 = || *all_p95.get_or_init(|| one_view_p95(scene, receivers, &inner));
         let t = Instant::now();
-        self.settled = settle(&self.settings, scene, receivers, self.inner.params());
+        self.settled = settle(&self.settings, scene, receivers, p95);
         self.settle_ms = t.elapsed().as_secs_f64() * 1e3;
         let Some(settled) = &self.settled else {
-            return self.build_views(scene, receivers, None);
+            return self.build_views(scene, receivers, p95);
         };
         let sub = settled.unsettled(receivers);
         if !sub.active.iter().any(|a| *a) {
             return Ok(()); // every receiver settled: no view to build
         }
-        let p95 = settled.one_view_p95;
-        self.build_views(scene, &sub, Some(p95))
+        self.build_views(scene, &sub, p95)
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
@@ -705,8 +700,7 @@ impl SoftShadowEstimator for Cascaded {
             )));
         }
         let sub = settled.unsettled(receivers);
-        let served = sub.active.iter().filter(|a| **a).count();
-        let out = if served > 0 {
+        let out = if sub.active.iter().any(|a| *a) {
             self.estimate_views(scene, &sub, v)
         } else {
             v.fill(f32::NAN);
@@ -732,13 +726,12 @@ impl SoftShadowEstimator for Cascaded {
 
 impl Cascaded {
     /// Plans the views for the receivers they serve and builds the one view at once (several
-    /// are built inside [`Cascaded::estimate_views`], one at a time).
-    /// `cascade_p95`: [`plan`]'s.
+    /// are built inside [`Cascaded::estimate_views`], one at a time). `cascade_p95`: [`plan`]'s.
     fn build_views(
         &mut self,
         scene: &Scene,
         receivers: &Receivers,
-        cascade_p95: Option<Option<f32>>,
+        cascade_p95: impl FnOnce() -> Option<f32>,
     ) -> Result<()> {
         let plan = plan(
             &self.settings,

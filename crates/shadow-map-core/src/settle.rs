@@ -56,11 +56,13 @@ impl Settler {
     /// False when something may shadow p, or when the pyramid is degenerate (p in the light's
     /// plane or at its centre).
     pub fn unshadowed(&self, p: Vec3, n: Vec3) -> bool {
-        let Some(planes) = pyramid(&self.light, p, n, self.bvh.scale, self.reach(p)) else {
+        let reach = self.reach(p);
+        let poly = light_polygon(&self.light, p, reach);
+        let Some(planes) = pyramid(&self.light, &poly, p, n, self.bvh.scale, reach) else {
             return false;
         };
         let (mut lo, mut hi) = (p, p);
-        for c in light_polygon(&self.light, p, self.reach(p)).iter() {
+        for c in &poly {
             lo = lo.min(*c);
             hi = hi.max(*c);
         }
@@ -119,15 +121,20 @@ pub fn light_polygon(light: &Light, p: Vec3, reach: f32) -> Vec<Vec3> {
     }
 }
 
-/// The planes bounding p's light pyramid in front of its tangent plane, each `[a, b, c, d]` with
+/// The planes bounding p's light pyramid over the light polygon `poly` ([`light_polygon`] with
+/// the same `reach`) in front of its tangent plane, each `[a, b, c, d]` with
 /// `a x + b y + c z + d >= 0` inside: one per polygon edge through p, the light polygon's own
 /// plane (p's side), and the tangent plane moved `1e-5 |p - centre| + 1e-6 scale` towards the
 /// light (the receiver's own surface lies in it). `None` when degenerate.
-fn pyramid(light: &Light, p: Vec3, n: Vec3, scale: f32, reach: f32) -> Option<Vec<Plane>> {
-    let poly: Vec<DVec3> = light_polygon(light, p, reach)
-        .iter()
-        .map(|v| v.as_dvec3())
-        .collect();
+fn pyramid(
+    light: &Light,
+    poly: &[Vec3],
+    p: Vec3,
+    n: Vec3,
+    scale: f32,
+    reach: f32,
+) -> Option<Vec<Plane>> {
+    let poly: Vec<DVec3> = poly.iter().map(|v| v.as_dvec3()).collect();
     let pd = p.as_dvec3();
     // The light's centre: for a directional light, the centre of its polygon.
     let c = if light.is_directional() {
@@ -307,7 +314,9 @@ mod tests {
         let (mut settled, mut total) = (0, 0);
         for _ in 0..400 {
             let p = Vec3::new(next() * 30.0 - 15.0, 0.0, next() * 30.0 - 15.0);
-            let planes = pyramid(&light, p, Vec3::Y, s.bvh.scale, s.reach(p)).unwrap();
+            let reach = s.reach(p);
+            let poly = light_polygon(&light, p, reach);
+            let planes = pyramid(&light, &poly, p, Vec3::Y, s.bvh.scale, reach).unwrap();
             let brute = tris.iter().any(|t| Polygon::triangle(t).clip(&planes));
             assert_eq!(s.unshadowed(p, Vec3::Y), !brute, "{p}");
             total += 1;
