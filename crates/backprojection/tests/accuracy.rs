@@ -4,8 +4,8 @@ use baselines::HardShadow;
 use glam::Vec3;
 use shadow_map_core::{run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
 use test_support::fixtures::{
-    assert_valid, errors, line_receivers, note_as, oracle, quad, rect_light, with_params, Occ,
-    SQUARE,
+    assert_valid, errors, line_receivers, note_as, oracle, quad, rect_light, traced, with_params,
+    Occ, SQUARE,
 };
 
 fn camera() -> shadow_map_core::Camera {
@@ -197,14 +197,7 @@ fn bitmask_counts_overlapping_micropatches_once() {
         let s = scene_with(light, &occ);
         let r = line_receivers();
         let o: Vec<f64> = if disk {
-            let mut reference = reference::ReferenceEstimator::new().unwrap();
-            reference.set_param("spp", "1024").unwrap();
-            run(&mut reference, &s, &r)
-                .unwrap()
-                .0
-                .iter()
-                .map(|&x| x as f64)
-                .collect()
+            traced(&s, &r, 1024)
         } else {
             oracle(&s, &occ, &r)
         };
@@ -396,14 +389,7 @@ fn sphere_light_matches_the_reference() {
     light.shape = LightShape::Sphere { radius: 0.4 };
     let s = scene_with(light, &[SQUARE]);
     let r = line_receivers();
-    let mut reference = reference::ReferenceEstimator::new().unwrap();
-    reference.set_param("spp", "4096").unwrap();
-    let truth: Vec<f64> = run(&mut reference, &s, &r)
-        .unwrap()
-        .0
-        .iter()
-        .map(|&x| x as f64)
-        .collect();
+    let truth = traced(&s, &r, 4096);
     let mut e = bp(&[("resolution", "512"), ("max_nspp", "4096")]);
     let v = run(&mut e, &s, &r).unwrap().0;
     assert_valid(&v, "sphere light");

@@ -86,14 +86,7 @@ fn sphere_light_matches_the_reference() {
     light.shape = LightShape::Sphere { radius: 0.4 };
     let s = scene_with(light, &[SQUARE], 8, 8);
     let r = line_receivers();
-    let mut reference = reference::ReferenceEstimator::new().unwrap();
-    reference.set_param("spp", "4096").unwrap();
-    let truth: Vec<f64> = run(&mut reference, &s, &r)
-        .unwrap()
-        .0
-        .iter()
-        .map(|&x| x as f64)
-        .collect();
+    let truth = traced(&s, &r, 4096);
     for p in ["1x1", "3x3"] {
         let v = hsm_v(&[("resolution", "512"), ("packet", p)], &s, &r);
         assert_valid(&v, "sphere light");

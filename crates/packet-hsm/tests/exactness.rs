@@ -44,13 +44,7 @@ fn random_scene(
             1.0,
         ));
     }
-    let mut l = rect_light(light, height);
-    let radius = 0.5 * light;
-    match shape {
-        1 => l.shape = shadow_map_core::LightShape::Disk { radius },
-        2 => l.shape = shadow_map_core::LightShape::Sphere { radius },
-        _ => {}
-    }
+    let l = light_of_shape(shape, light, height);
     Scene::from_meshes("random", camera(24, 18), l, meshes).unwrap()
 }
 

@@ -55,13 +55,7 @@ fn shaped_scene(light: f32, height: f32, squares: &[(f32, f32, f32, f32)], shape
         ]],
         1.0,
     ));
-    let mut l = rect_light(light, height);
-    let radius = 0.5 * light;
-    match shape {
-        1 => l.shape = shadow_map_core::LightShape::Disk { radius },
-        2 => l.shape = shadow_map_core::LightShape::Sphere { radius },
-        _ => {}
-    }
+    let l = light_of_shape(shape, light, height);
     Scene::from_meshes("twin", camera(32, 24), l, meshes).unwrap()
 }
 

@@ -68,6 +68,21 @@ pub fn rect_light(l: f32, height: f32) -> Light {
     }
 }
 
+/// [`rect_light`] with shape index `shape` (0: the `l x l` rect; 1: a disk, 2: a sphere, each of
+/// radius `l / 2`), the random scenes' light choice.
+pub fn light_of_shape(shape: u8, l: f32, height: f32) -> Light {
+    let radius = 0.5 * l;
+    let shape = match shape {
+        1 => LightShape::Disk { radius },
+        2 => LightShape::Sphere { radius },
+        _ => LightShape::Rect { size: [l, l] },
+    };
+    Light {
+        shape,
+        ..rect_light(l, height)
+    }
+}
+
 /// A horizontal square occluder `(x0, z0, x1, z1, height)`.
 pub type Occ = (f32, f32, f32, f32, f32);
 
@@ -299,6 +314,19 @@ pub fn assert_valid(v: &[f32], what: &str) {
             "{what}: V[{k}] = {x}"
         );
     }
+}
+
+/// The ray-traced reference's V of `r` in `scene` at `spp` samples per receiver, as f64.
+#[cfg(feature = "oracle")]
+pub fn traced(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f64> {
+    let mut reference = reference::ReferenceEstimator::new().expect("reference");
+    reference.set_param("spp", &spp.to_string()).expect("spp");
+    shadow_map_core::run(&mut reference, scene, r)
+        .expect("reference")
+        .0
+        .iter()
+        .map(|&x| x as f64)
+        .collect()
 }
 
 /// The closed-form visibility of the rect light of `scene` past the square occluders `occ`

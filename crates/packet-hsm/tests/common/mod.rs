@@ -4,7 +4,8 @@
 use packet_hsm::CpuPacketHsm;
 use shadow_map_core::{run, Receivers, Scene};
 pub use test_support::fixtures::{
-    assert_valid, camera, errors, line_receivers, oracle, quad, rect_light, scene_with, Occ, SQUARE,
+    assert_valid, camera, errors, light_of_shape, line_receivers, oracle, quad, rect_light,
+    scene_with, traced, Occ, SQUARE,
 };
 
 /// The CPU estimator with the parameters `kv`.
