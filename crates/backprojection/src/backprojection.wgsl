@@ -227,6 +227,54 @@ fn light_contributes(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> bool {
     return s.ok && sil_overlap(s, x0, y0, x1, y1) > 1e-6 * a;
 }
 
+// Coordinate of rank r of the rect lattice (bitmask::lattice_ranges): x of x rank
+// X = i side + j (bit k = j side + i), or y of bit k = r.
+fn lattice_at(r: i32, side: u32, along_x: bool) -> f32 {
+    let b = i32(side);
+    if along_x {
+        return bit_point(u32((r % b) * b + r / b)).x;
+    }
+    return bit_point(u32(r)).y;
+}
+
+// Predicate of bitmask::lattice_ranges: c >= bound (lower), or !(c <= bound) (upper).
+fn lattice_pass(c: f32, bound: f32, upper: bool) -> bool {
+    if upper {
+        return !(c <= bound);
+    }
+    return c >= bound;
+}
+
+// bitmask::partition: the first rank whose coordinate passes, walked from the evenly spaced
+// guess.
+fn lattice_partition(n: i32, side: u32, along_x: bool, bound: f32, upper: bool) -> i32 {
+    let c0 = lattice_at(0, side, along_x);
+    let c1 = lattice_at(n - 1, side, along_x);
+    let step = (c1 - c0) / f32(max(n - 1, 1));
+    let guess = ceil((bound - c0) / step);
+    var r = 0;
+    // Finite (not NaN, not +-inf): clamp to [0, n].
+    if guess == guess && abs(guess) <= 3.0e38 {
+        r = i32(clamp(guess, 0.0, f32(n)));
+    }
+    while r > 0 && lattice_pass(lattice_at(r - 1, side, along_x), bound, upper) {
+        r -= 1;
+    }
+    while r < n && !lattice_pass(lattice_at(r, side, along_x), bound, upper) {
+        r += 1;
+    }
+    return r;
+}
+
+// Floor division (i32::div_euclid for b > 0).
+fn div_floor(a: i32, b: i32) -> i32 {
+    let q = a / b;
+    if (a % b) != 0 && a < 0 {
+        return q - 1;
+    }
+    return q;
+}
+
 // Bit k of the table.
 fn bit_point(k: u32) -> vec2<f32> {
     let v = bits.pts[k / 2u];
@@ -265,26 +313,23 @@ fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1:
     let lo = vec2<f32>(x0, y0);
     let hi = vec2<f32>(x1, y1);
     if est.light_shape == LIGHT_RECT {
-        // BitMask::set_in_grid: bit k = j side + i at (x of bit i, y of bit j side).
-        var cols = 0u;
-        for (var i = 0u; i < side; i++) {
-            let x = bit_point(i).x;
-            if x >= lo.x && x <= hi.x {
-                cols |= 1u << i;
-            }
-        }
-        if cols == 0u {
+        // BitMask::set_in_lattice: the x ranks X = i side + j with lo.x <= x <= hi.x and the
+        // bits k with lo.y <= y <= hi.y (bitmask::lattice_ranges), then one run per row.
+        let n = i32(bp.nbits);
+        let xa = lattice_partition(n, side, true, lo.x, false);
+        let xb = lattice_partition(n, side, true, hi.x, true);
+        let ya = lattice_partition(n, side, false, lo.y, false);
+        let yb = lattice_partition(n, side, false, hi.y, true);
+        if xa >= xb || ya >= yb {
             return;
         }
-        for (var j = 0u; j < side; j++) {
-            let y = bit_point(j * side).y;
-            if !(y >= lo.y && y <= hi.y) {
-                continue;
-            }
-            var c = cols;
-            while c != 0u {
-                bitmask_set(m, j * side + countTrailingZeros(c));
-                c &= c - 1u;
+        let b = i32(side);
+        for (var j = ya / b; j <= (yb - 1) / b; j++) {
+            // ceil((xa - j) / b) and floor((xb - 1 - j) / b) for possibly negative numerators.
+            let i0 = max(max(div_floor(xa - j + b - 1, b), ya - j * b), 0);
+            let i1 = min(min(div_floor(xb - 1 - j, b), yb - 1 - j * b), b - 1);
+            if i0 <= i1 {
+                bitmask_set_run(m, u32(j * b + i0), u32(i1 - i0 + 1));
             }
         }
         return;

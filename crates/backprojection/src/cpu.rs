@@ -198,11 +198,10 @@ struct Setup<'a> {
     /// `occlusion=bitmask`: the bit points ([`shadow_map_core::bitmask::bit_points`]) on the
     /// light plane (rect, disk) or in a sphere's silhouette-disk coordinates; empty: additive.
     bit_pts: Vec<glam::Vec2>,
-    /// A rect light's bit columns' x and rows' y ([`BitMask::set_in_grid`]); empty otherwise.
+    /// Bit-grid side B (rect lights test bits by [`BitMask::set_in_lattice`]).
     ///
-    /// [`BitMask::set_in_grid`]: shadow_map_core::bitmask::BitMask::set_in_grid
-    bit_xs: Vec<f32>,
-    bit_ys: Vec<f32>,
+    /// [`BitMask::set_in_lattice`]: shadow_map_core::bitmask::BitMask::set_in_lattice
+    bit_side: u32,
 }
 
 /// The bit points of `occlusion=bitmask` for `emitter` (B = `bits`): a grid on a rect light,
@@ -431,9 +430,9 @@ impl Setup<'_> {
                             }
                         }
                         (Emitter::Sphere { .. }, None) => mask.count(),
-                        (Emitter::Rect { .. }, _) => mask.set_in_grid(
-                            &self.bit_xs,
-                            &self.bit_ys,
+                        (Emitter::Rect { .. }, _) => mask.set_in_lattice(
+                            &self.bit_pts,
+                            self.bit_side,
                             glam::Vec2::new(br.x0, br.y0),
                             glam::Vec2::new(br.x1, br.y1),
                         ),
@@ -521,7 +520,7 @@ impl SoftShadowEstimator for CpuBackprojection {
         let light = &scene.light;
         let h = light.half_extent();
         let emitter = Emitter::of(&light.shape);
-        let mut setup = Setup {
+        let setup = Setup {
             ls,
             emitter,
             half: [h.x, h.y],
@@ -538,15 +537,8 @@ impl SoftShadowEstimator for CpuBackprojection {
                 Occlusion::Additive => Vec::new(),
                 Occlusion::Bitmask => emitter_bits(&emitter, self.settings.bits),
             },
-            bit_xs: Vec::new(),
-            bit_ys: Vec::new(),
+            bit_side: self.settings.bits,
         };
-        if matches!(emitter, Emitter::Rect { .. }) && !setup.bit_pts.is_empty() {
-            // Bit k = j B + i: row 0 holds the columns' x, column 0 the rows' y.
-            let b = self.settings.bits as usize;
-            setup.bit_xs = setup.bit_pts[..b].iter().map(|p| p.x).collect();
-            setup.bit_ys = (0..b).map(|j| setup.bit_pts[j * b].y).collect();
-        }
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let t = std::time::Instant::now();

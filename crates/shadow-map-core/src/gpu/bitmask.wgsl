@@ -35,6 +35,24 @@ fn bitmask_set(m: ptr<function, BitMask>, k: u32) {
     }
 }
 
+// BitMask::set_run: bits k0 .. k0 + n (n <= 32), counting only those newly set.
+fn bitmask_set_run(m: ptr<function, BitMask>, k0: u32, n: u32) {
+    var k = k0;
+    let end = k0 + n;
+    while k < end {
+        let w = k / 32u;
+        let sh = k % 32u;
+        let len = min(end - k, 32u - sh);
+        var bits = 0xffffffffu;
+        if len != 32u {
+            bits = ((1u << len) - 1u) << sh;
+        }
+        (*m).n_set += countOneBits(bits & ~(*m).words[w]);
+        (*m).words[w] |= bits;
+        k += len;
+    }
+}
+
 // bitmask::rect_contains.
 fn bitmask_rect_contains(lo: vec2<f32>, hi: vec2<f32>, b: vec2<f32>) -> bool {
     return b.x >= lo.x && b.x <= hi.x && b.y >= lo.y && b.y <= hi.y;
