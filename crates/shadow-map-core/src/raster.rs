@@ -97,6 +97,8 @@ pub const PEEL_EPS_REL: f32 = 1e-5;
 struct Prepared {
     uv: [DVec2; 3],
     inv_z: [f64; 3],
+    /// Opacity of the triangle's mesh ([`Scene::triangle_opacity`]).
+    alpha: f32,
 }
 
 /// The projection of one view from light space to continuous texel coordinates, in f64: what
@@ -180,7 +182,8 @@ impl PreparedScene {
     pub fn new(scene: &Scene, view: &LightView, cull: Cull) -> Self {
         let mut tris = Vec::with_capacity(scene.triangles.len());
         let proj = TexelProjection::new(view);
-        for t in &scene.triangles {
+        for (ti, t) in scene.triangles.iter().enumerate() {
+            let alpha = scene.triangle_opacity(ti);
             let l: [Vec3; 3] = t.map(|v| view.frame.to_light(v));
             let l = l.map(|v| v.as_dvec3());
             let normal = (l[1] - l[0]).cross(l[2] - l[0]);
@@ -194,6 +197,7 @@ impl PreparedScene {
                 tris.push(Prepared {
                     uv: tri.map(|p| p.0),
                     inv_z: tri.map(|p| p.1),
+                    alpha,
                 });
             }
         }
@@ -212,6 +216,29 @@ impl PreparedScene {
     /// Rasterises the nearest depth per texel. With `behind = Some(prev)`, only fragments strictly
     /// behind `prev` (`z > prev * (1 + PEEL_EPS_REL)`) count: one depth-peeling pass (Bavoil §4.1).
     pub fn rasterize(&self, bias: DepthBias, behind: Option<&DepthMap>) -> DepthMap {
+        self.raster(bias, behind, false).0
+    }
+
+    /// [`PreparedScene::rasterize`], and the opacity of each texel's nearest stored fragment
+    /// (its mesh's `opacity`; 0 where the texel is empty), row-major like the depths. The depths
+    /// are the same, bit for bit; of fragments at exactly the same stored depth the first
+    /// triangle in scene order gives the opacity. What the transmittance of semi-transparent
+    /// occluders needs from one layer.
+    pub fn rasterize_with_opacity(
+        &self,
+        bias: DepthBias,
+        behind: Option<&DepthMap>,
+    ) -> (DepthMap, Vec<f32>) {
+        let (d, a) = self.raster(bias, behind, true);
+        (d, a.unwrap_or_default())
+    }
+
+    fn raster(
+        &self,
+        bias: DepthBias,
+        behind: Option<&DepthMap>,
+        with_alpha: bool,
+    ) -> (DepthMap, Option<Vec<f32>>) {
         let r = self.r as usize;
         let band = 16usize;
         let nb = r.div_ceil(band);
@@ -230,17 +257,29 @@ impl PreparedScene {
             }
         }
         let mut out = DepthMap::empty(self.r);
-        out.depth
-            .par_chunks_mut(band * r)
-            .enumerate()
-            .for_each(|(b, rows)| {
-                let row0 = b * band;
-                let nrows = rows.len() / r;
-                for &k in &bins[b] {
-                    raster_triangle(&self.tris[k as usize], r, row0, nrows, rows, bias, behind);
-                }
-            });
-        out
+        let mut alpha = with_alpha.then(|| vec![0.0f32; r * r]);
+        let raster_band = |b: usize, rows: &mut [f32], mut arows: Option<&mut [f32]>| {
+            let row0 = b * band;
+            let nrows = rows.len() / r;
+            for &k in &bins[b] {
+                let t = &self.tris[k as usize];
+                raster_triangle(t, r, row0, nrows, rows, arows.as_deref_mut(), bias, behind);
+            }
+        };
+        match alpha.as_mut() {
+            Some(a) => out
+                .depth
+                .par_chunks_mut(band * r)
+                .zip(a.par_chunks_mut(band * r))
+                .enumerate()
+                .for_each(|(b, (rows, arows))| raster_band(b, rows, Some(arows))),
+            None => out
+                .depth
+                .par_chunks_mut(band * r)
+                .enumerate()
+                .for_each(|(b, rows)| raster_band(b, rows, None)),
+        }
+        (out, alpha)
     }
 }
 
@@ -263,12 +302,14 @@ fn owns_ties(du: f64, dv: f64) -> bool {
     dv < 0.0 || (dv == 0.0 && du > 0.0)
 }
 
+#[allow(clippy::too_many_arguments)] // one triangle, its band of rows, and the pass options
 fn raster_triangle(
     t: &Prepared,
     r: usize,
     row0: usize,
     nrows: usize,
     rows: &mut [f32],
+    mut alpha_rows: Option<&mut [f32]>,
     bias: DepthBias,
     behind: Option<&DepthMap>,
 ) {
@@ -331,6 +372,9 @@ fn raster_triangle(
             }
             if zs < rows[idx] {
                 rows[idx] = zs;
+                if let Some(ar) = alpha_rows.as_deref_mut() {
+                    ar[idx] = t.alpha;
+                }
             }
         }
     }

@@ -315,3 +315,42 @@ proptest! {
 fn bias(constant: f32, slope: f32) -> DepthBias {
     DepthBias { constant, slope }
 }
+
+#[test]
+fn opacity_is_the_nearest_fragments_meshs() {
+    // A semi-transparent quad (opacity 0.4) at z = 2 over u in [0, 4), v in [0, 8), in front of
+    // an opaque one at z = 4 over u in [0, 6), v in [0, 4); 8 x 8 texels.
+    let s = Scene::from_meshes(
+        "opacity",
+        camera(),
+        unit_light(),
+        vec![
+            (quad(0.0, 0.0, 8.0, 16.0, 2.0), 0.4),
+            (quad(0.0, 0.0, 24.0, 16.0, 4.0), 1.0),
+        ],
+    )
+    .unwrap();
+    let p = PreparedScene::new(&s, &unit_view(8), Cull::None);
+    let plain = p.rasterize(DepthBias::default(), None);
+    let (d, a) = p.rasterize_with_opacity(DepthBias::default(), None);
+    assert_eq!(d, plain, "the depths do not depend on asking for opacity");
+    let (d1, a1) = p.rasterize_with_opacity(DepthBias::default(), Some(&d));
+    for j in 0..8 {
+        for i in 0..8 {
+            let k = j * 8 + i;
+            let want = if i < 4 {
+                0.4
+            } else if i < 6 && j < 4 {
+                1.0
+            } else {
+                0.0
+            };
+            assert_eq!(a[k], want, "layer 0, texel ({i},{j})");
+            assert_eq!(a[k] > 0.0, d.depth[k].is_finite());
+            // Behind the first layer: the opaque quad where it lies under the sheet.
+            let want1 = if i < 4 && j < 4 { 1.0 } else { 0.0 };
+            assert_eq!(a1[k], want1, "layer 1, texel ({i},{j})");
+            assert_eq!(a1[k] > 0.0, d1.depth[k].is_finite());
+        }
+    }
+}
