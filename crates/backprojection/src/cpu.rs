@@ -507,6 +507,8 @@ pub fn plan(
         dual_mssm_levels: None,
         pyramid: false,
         raster: RasterOptions::default(),
+        // Semi-transparent occluders weight their micropatches by opacity.
+        opacity: true,
     };
     Ok((view, fit, req))
 }

@@ -29,6 +29,9 @@ pub struct LightSpaceRequest {
     pub pyramid: bool,
     /// Rasteriser bias and culling.
     pub raster: RasterOptions,
+    /// Also each layer's per-texel opacity ([`LightSpace::opacity`]), when the scene has
+    /// semi-transparent meshes (an opaque scene gets none, whatever this says).
+    pub opacity: bool,
 }
 
 impl LightSpaceRequest {
@@ -42,6 +45,7 @@ impl LightSpaceRequest {
             dual_mssm_levels: None,
             pyramid: false,
             raster: RasterOptions::default(),
+            opacity: false,
         }
     }
 
@@ -76,7 +80,8 @@ pub struct LightSpace {
     /// Peeled layers, nearest first (`layers[0]` is the ordinary shadow map).
     pub layers: Vec<DepthMap>,
     /// Per layer, each texel's opacity (the nearest fragment's mesh `opacity`, 0 where empty);
-    /// empty when every mesh of the scene is opaque.
+    /// empty unless requested ([`LightSpaceRequest::opacity`]) for a scene with semi-transparent
+    /// meshes.
     pub opacity: Vec<Vec<f32>>,
     /// Midpoint layers, when requested.
     pub midpoints: Vec<DepthMap>,
@@ -142,7 +147,7 @@ impl LightSpace {
         let prepared = PreparedScene::new(scene, &view, req.raster.cull);
         let k = req.layers.max(1) + u32::from(req.midpoints.is_some());
         // Semi-transparent meshes: each layer's opacity too (an opaque scene needs none).
-        let (mut layers, mut opacity) = if scene.is_opaque() {
+        let (mut layers, mut opacity) = if !req.opacity || scene.is_opaque() {
             (peel(&prepared, req.raster.bias, k), Vec::new())
         } else {
             peel_with_opacity(&prepared, req.raster.bias, k)
