@@ -205,6 +205,7 @@ pub fn plan(
         dual_mssm_levels: None,
         pyramid: false,
         raster: RasterOptions::default(),
+        opacity: false,
     };
     Ok((view, fit, req))
 }

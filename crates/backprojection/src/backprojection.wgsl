@@ -26,6 +26,10 @@ struct BpUniform {
     mssm_size: u32,
     first_nonzero: u32,
     nbits: u32,
+    opacity: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // occlusion=bitmask: the bit points, two per vec4 (mirrors gpu.rs BitTable; cpu.rs emitter_bits).
@@ -379,7 +383,7 @@ struct Rec {
 // cpu.rs: true depth of the occluding layer backprojected at block (a, b)'s centre texel
 // (layer_rule: the deepest occluding one, or the deepest whose micropatch overlaps the light),
 // or +inf.
-fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> f32 {
+fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> vec2<f32> {
     let zp = rc.zp;
     let j0 = kr.rect.y + i32(b * kr.step);
     let j1 = min(j0 + i32(kr.step), kr.rect.w);
@@ -422,9 +426,26 @@ fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> f32 {
                 continue;
             }
         }
-        return z;
+        return vec2<f32>(z, block_opacity(ic, jc, mm, zp));
     }
-    return pos_inf();
+    return vec2<f32>(pos_inf(), 1.0);
+}
+
+// cpu.rs: the opacity of texel (ic, jc)'s layers 0..=m in front of the receiver, one minus the
+// product of their transmittances (opacity planes follow the midpoints in `maps`); 1 for an
+// opaque scene (bp.opacity = 0).
+fn block_opacity(ic: i32, jc: i32, m: i32, zp: f32) -> f32 {
+    if bp.opacity == 0u {
+        return 1.0;
+    }
+    let base = i32(bp.layers + bp.midpoints);
+    var tr = 1.0;
+    for (var mm = 0; mm <= m; mm++) {
+        if textureLoad(maps, vec2<i32>(ic, jc), mm, 0).x < zp {
+            tr *= 1.0 - textureLoad(maps, vec2<i32>(ic, jc), base + mm, 0).x;
+        }
+    }
+    return 1.0 - tr;
 }
 
 // Kahan-compensated f32 sum.
@@ -497,7 +518,8 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
         let j0 = rect.y + i32(b * step);
         let j1 = min(j0 + i32(step), rect.w);
         for (var a = 0u; a < bx; a++) {
-            let z = block_occluder(kr, a, b, rc);
+            let occ = block_occluder(kr, a, b, rc);
+            let z = occ.x;
             if !is_finite(z) {
                 continue;
             }
@@ -510,7 +532,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
             var y1 = bound(f32(j1), uv.y, s);
             if bp.gap_filling != 0u {
                 if a + 1u < bx {
-                    let zt = block_occluder(kr, a + 1u, b, rc);
+                    let zt = block_occluder(kr, a + 1u, b, rc).x;
                     if is_finite(zt) {
                         let st = micropatch_scale(k, zt, zp);
                         let d = f32(i1) - uv.x;
@@ -520,7 +542,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
                     }
                 }
                 if b + 1u < by {
-                    let zt = block_occluder(kr, a, b + 1u, rc);
+                    let zt = block_occluder(kr, a, b + 1u, rc).x;
                     if is_finite(zt) {
                         let st = micropatch_scale(k, zt, zp);
                         let d = f32(j1) - uv.y;
@@ -537,7 +559,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
                 }
                 continue;
             }
-            a_occ = sum_add(a_occ, light_overlap(x0, y0, x1, y1, sil));
+            a_occ = sum_add(a_occ, occ.y * light_overlap(x0, y0, x1, y1, sil));
         }
     }
     if bp.nbits > 0u {

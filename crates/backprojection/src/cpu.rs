@@ -329,6 +329,8 @@ impl Setup<'_> {
         let first_nonzero = self.first_nonzero && self.area > 0.0;
         // Per block: true depth of the occluding layer backprojected (`layer_rule`), or +inf.
         let mut occ = vec![f32::INFINITY; bx * by];
+        // Per block: the backprojected layer's opacity (semi-transparent scenes only).
+        let mut occ_alpha = vec![1.0f32; if ls.opacity.is_empty() { 0 } else { bx * by }];
         for b in 0..by {
             let j0 = rect[1] + (b as u32 * step) as i32;
             let j1 = (j0 + step as i32).min(rect[3]);
@@ -367,6 +369,18 @@ impl Setup<'_> {
                         }
                     }
                     occ[b * bx + a] = z;
+                    if !ls.opacity.is_empty() {
+                        // The texel's layers in front of the receiver, this one and those
+                        // nearer the light: one minus the product of their transmittances.
+                        let t = jc as usize * view.r as usize + ic as usize;
+                        let mut tr = 1.0f32;
+                        for (mm, al) in ls.opacity.iter().enumerate().take(m + 1) {
+                            if ls.layers[mm].depth[t] < zp {
+                                tr *= 1.0 - al[t];
+                            }
+                        }
+                        occ_alpha[b * bx + a] = 1.0 - tr;
+                    }
                     break;
                 }
             }
@@ -447,7 +461,8 @@ impl Setup<'_> {
                     }
                     continue;
                 }
-                a_occ += self.overlap(&br, sil);
+                let w = occ_alpha.get(b * bx + a).copied().unwrap_or(1.0) as f64;
+                a_occ += w * self.overlap(&br, sil);
             }
         }
         if bitmask {
@@ -492,6 +507,8 @@ pub fn plan(
         dual_mssm_levels: None,
         pyramid: false,
         raster: RasterOptions::default(),
+        // Semi-transparent occluders weight their micropatches by opacity.
+        opacity: true,
     };
     Ok((view, fit, req))
 }

@@ -123,6 +123,15 @@ pub struct BpUniform {
     pub first_nonzero: u32,
     /// `occlusion=bitmask`: bits `B^2` (in [`BitTable`]); 0: additive.
     pub nbits: u32,
+    /// 1: one opacity plane per depth layer follows the midpoints in the layer array
+    /// (semi-transparent scenes); 0: every occluder is opaque.
+    pub opacity: u32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+    /// Padding.
+    pub _pad2: u32,
 }
 
 /// Light-space data on the device in the layout the kernel reads: depth layers then midpoint
@@ -135,6 +144,8 @@ struct DeviceMaps {
     mssm: PlaneArray,
     layers: u32,
     midpoints: u32,
+    /// One opacity plane per depth layer follows the midpoints.
+    opacity: bool,
     mssm_levels: Option<u32>,
 }
 
@@ -151,6 +162,9 @@ impl DeviceMaps {
         let mut planes: Vec<&[f32]> = ls.layers.iter().map(|d| d.depth.as_slice()).collect();
         let midpoints = if midpoint { ls.midpoints.len() } else { 0 };
         planes.extend(ls.midpoints[..midpoints].iter().map(|d| d.depth.as_slice()));
+        // Semi-transparent scenes: the layers' opacity planes.
+        let opacity = !ls.opacity.is_empty();
+        planes.extend(ls.opacity.iter().map(Vec::as_slice));
         if planes.is_empty() {
             planes.push(&dummy);
         }
@@ -171,6 +185,7 @@ impl DeviceMaps {
             mssm,
             layers: ls.layers.len() as u32,
             midpoints: midpoints as u32,
+            opacity,
             mssm_levels: ls.mssm.as_ref().map(|m| m.levels()),
         })
     }
@@ -368,6 +383,7 @@ impl GpuBackprojection {
             mssm,
             layers: gls.layers.len() as u32,
             midpoints: gls.midpoints.len() as u32,
+            opacity: false,
             mssm_levels: gls.mssm.as_ref().map(|m| m.levels()),
         })
     }
@@ -458,6 +474,10 @@ impl GpuBackprojection {
             },
             first_nonzero: u32::from(s.layer_rule == LayerRule::FirstNonzero),
             nbits,
+            opacity: u32::from(maps.opacity),
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         };
         let mut eu = EstimateUniform::new(light, bpu.b0, bpu.b1);
         eu.receiver_plane = u32::from(s.shadow.receiver_plane);
@@ -803,7 +823,10 @@ impl SoftShadowEstimator for GpuBackprojection {
         self.maps = None;
         self.report = Report::default();
         let t = Instant::now();
-        let maps = if self.light_space_on_cpu {
+        // Semi-transparent scenes need each layer's opacity, which the GPU raster does not
+        // write: their light-space data are built on the CPU and uploaded.
+        let on_cpu = self.light_space_on_cpu || !scene.is_opaque();
+        let maps = if on_cpu {
             self.cpu.build(scene, receivers)?;
             self.report = self.cpu.report();
             let ls = self
@@ -814,6 +837,10 @@ impl SoftShadowEstimator for GpuBackprojection {
             let t = Instant::now();
             let maps = DeviceMaps::upload(&self.ctx, ls, midpoint)?;
             self.ctx.wait()?;
+            if !self.light_space_on_cpu {
+                self.report
+                    .note("light_space", "cpu (semi-transparent scene)");
+            }
             self.report
                 .stages
                 .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
@@ -876,9 +903,13 @@ mod tests {
                 mssm_size,
                 first_nonzero,
                 nbits,
+                opacity,
+                _pad0,
+                _pad1,
+                _pad2,
             }
         );
-        assert_eq!(std::mem::size_of::<BpUniform>(), 64);
+        assert_eq!(std::mem::size_of::<BpUniform>(), 80);
         assert_eq!(std::mem::size_of::<BitTable>(), 16 * BIT_TABLE_VEC4S);
         shadow_map_core::assert_wgsl_layout!(
             PLANE_TO_LAYER_WGSL,

@@ -398,6 +398,59 @@ fn sphere_light_matches_the_reference() {
     assert!(rms <= 0.02, "RMSE {rms}");
 }
 
+/// A semi-transparent sheet (opacity 0.4) over the ground: the sheet's micropatches cover the
+/// light with weight 0.4, so V = 1 - 0.4 (1 - V_opaque) receiver by receiver, V_opaque being the
+/// same estimator on the opaque sheet (same maps, same micropatches), and against the closed form
+/// the error shrinks by the same factor. Two stacked sheets of 0.4: where both lie in front of a
+/// receiver's texel, the weight is 1 - 0.6^2 = 0.64 (one minus the product of transmittances).
+#[test]
+fn semi_transparent_sheets_weight_their_micropatches() {
+    let s1 = scene_with(rect_light(1.0, 3.0), &[SQUARE]);
+    let mut s4 = s1.clone();
+    s4.meshes[1].opacity = 0.4;
+    let r = line_receivers();
+    let o = oracle(&s1, &[SQUARE], &r);
+    let kv = [("resolution", "512"), ("max_nspp", "4096")];
+    let v1 = run(&mut bp(&kv), &s1, &r).unwrap().0;
+    let v4 = run(&mut bp(&kv), &s4, &r).unwrap().0;
+    assert_valid(&v4, "semi-transparent sheet");
+    let mut penumbra = 0;
+    for k in 0..r.len() {
+        if !r.active[k] {
+            continue;
+        }
+        let want = 1.0 - 0.4 * (1.0 - v1[k]);
+        assert!(
+            (v4[k] - want).abs() <= 1e-5,
+            "receiver {k}: {} vs {want}",
+            v4[k]
+        );
+        penumbra += usize::from(v1[k] > 0.01 && v1[k] < 0.99);
+    }
+    assert!(penumbra > 0, "no penumbra on the line");
+    let o4: Vec<f64> = o.iter().map(|&v| 1.0 - 0.4 * (1.0 - v)).collect();
+    let (rms, _) = errors(&v4, &o4);
+    assert!(rms <= 0.4 * errors(&v1, &o).0 + 1e-6, "RMSE {rms}");
+    // Two sheets of 0.4, 0.1 apart: fully under both, V = 0.36 (the reference's product).
+    let lower: Occ = (-2.0, -2.0, 2.0, 2.0, 1.4);
+    let upper: Occ = (-2.0, -2.0, 2.0, 2.0, 1.5);
+    let mut s2 = scene_with(rect_light(0.2, 3.0), &[lower, upper]);
+    s2.meshes[1].opacity = 0.4;
+    s2.meshes[2].opacity = 0.4;
+    let v2 = run(&mut bp(&[("resolution", "256")]), &s2, &r).unwrap().0;
+    let under: Vec<f32> = (0..r.len())
+        .filter(|&k| r.active[k] && r.position[k].x.abs() < 0.5 && r.position[k].z.abs() < 0.5)
+        .map(|k| v2[k])
+        .collect();
+    assert!(!under.is_empty());
+    for v in under {
+        assert!(
+            (v - 0.36).abs() <= 1e-4,
+            "under both sheets: V {v}, want 0.36"
+        );
+    }
+}
+
 /// Bad input: out-of-range parameters are errors naming the key.
 #[test]
 fn bad_input() {

@@ -293,6 +293,43 @@ fn gpu_grazing_plane_is_not_self_shadowed() {
     }
 }
 
+/// A semi-transparent scene (the fixed case's occluders at opacity 0.35): the GPU twin's ordinary
+/// build (its light space then comes from the CPU, with the layers' opacity) and estimate within
+/// [`TWIN`] of the CPU twin, additive occlusion, with penumbra and no umbra left.
+#[test]
+fn gpu_weights_semi_transparent_micropatches_as_the_cpu() {
+    let Some(ctx) = test_support::gpu("gpu_weights_semi_transparent_micropatches_as_the_cpu")
+    else {
+        return;
+    };
+    let mut g = GpuBackprojection::new(ctx).unwrap();
+    let mut case = fixed_case();
+    case.settings.bits = None;
+    let (mut scene, rec) = case.scene.scene_and_receivers();
+    for m in scene.meshes.iter_mut().skip(1) {
+        m.opacity = 0.35;
+    }
+    assert!(!scene.is_opaque());
+    let (v_cpu, _) = run_cpu(&scene, &rec, &case.settings, 1.0);
+    configure(&mut g, &settings_kv(&case.settings, 1.0));
+    let (v_gpu, report) = run(&mut g, &scene, &rec).unwrap();
+    assert!(report
+        .notes
+        .iter()
+        .any(|(k, v)| k == "light_space" && v.contains("semi-transparent")));
+    let mut worst = 0.0f32;
+    let mut lowest = 1.0f32;
+    for k in 0..rec.len() {
+        if rec.active[k] {
+            worst = worst.max((v_cpu[k] - v_gpu[k]).abs());
+            lowest = lowest.min(v_cpu[k]);
+        }
+    }
+    eprintln!("semi-transparent: most |dV| {worst}, lowest V {lowest}");
+    assert!(worst <= TWIN.abs, "GPU and CPU differ by {worst}");
+    assert!(lowest > 0.0 && lowest < 1.0, "lowest V {lowest}");
+}
+
 /// `occlusion=bitmask` on the fixed case with a rect, a disk and a sphere light, B = 8 and 16,
 /// with and without gap filling: the GPU twin within [`TWIN`] of the CPU twin on the CPU's light
 /// space (the random scenes draw bitmask in about half of the cases; this covers every shape

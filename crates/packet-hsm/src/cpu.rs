@@ -424,6 +424,7 @@ impl SubView {
             dual_mssm_levels: None,
             pyramid: false,
             raster: RasterOptions::default(),
+            opacity: false,
         };
         let ls = LightSpace::build_in_view(scene, view, fit, &req);
         let l0 = &ls.layers[0];

@@ -4,7 +4,7 @@
 use crate::{
     light_view::{FitReport, LightView, ViewOptions},
     mssm::{DualMssm, MinMaxPyramid, Mssm},
-    peeling::{midpoints, peel},
+    peeling::{midpoints, peel, peel_with_opacity},
     raster::{DepthMap, PreparedScene, RasterOptions},
     receivers::Receivers,
     scene::Scene,
@@ -29,6 +29,9 @@ pub struct LightSpaceRequest {
     pub pyramid: bool,
     /// Rasteriser bias and culling.
     pub raster: RasterOptions,
+    /// Also each layer's per-texel opacity ([`LightSpace::opacity`]), when the scene has
+    /// semi-transparent meshes (an opaque scene gets none, whatever this says).
+    pub opacity: bool,
 }
 
 impl LightSpaceRequest {
@@ -42,6 +45,7 @@ impl LightSpaceRequest {
             dual_mssm_levels: None,
             pyramid: false,
             raster: RasterOptions::default(),
+            opacity: false,
         }
     }
 
@@ -75,6 +79,10 @@ pub struct LightSpace {
     pub fit: FitReport,
     /// Peeled layers, nearest first (`layers[0]` is the ordinary shadow map).
     pub layers: Vec<DepthMap>,
+    /// Per layer, each texel's opacity (the nearest fragment's mesh `opacity`, 0 where empty);
+    /// empty unless requested ([`LightSpaceRequest::opacity`]) for a scene with semi-transparent
+    /// meshes.
+    pub opacity: Vec<Vec<f32>>,
     /// Midpoint layers, when requested.
     pub midpoints: Vec<DepthMap>,
     /// Anchored MSSM of layer 0, when requested.
@@ -138,12 +146,18 @@ impl LightSpace {
     ) -> Self {
         let prepared = PreparedScene::new(scene, &view, req.raster.cull);
         let k = req.layers.max(1) + u32::from(req.midpoints.is_some());
-        let mut layers = peel(&prepared, req.raster.bias, k);
+        // Semi-transparent meshes: each layer's opacity too (an opaque scene needs none).
+        let (mut layers, mut opacity) = if !req.opacity || scene.is_opaque() {
+            (peel(&prepared, req.raster.bias, k), Vec::new())
+        } else {
+            peel_with_opacity(&prepared, req.raster.bias, k)
+        };
         let mids = match req.midpoints {
             Some(max_bias) => midpoints(&layers, max_bias),
             None => Vec::new(),
         };
         layers.truncate(req.layers.max(1) as usize);
+        opacity.truncate(layers.len());
         let l0 = &layers[0];
         let mssm = req.mssm_levels.map(|l| Mssm::build(&l0.depth, l0.size, l));
         let dual_mssm = req
@@ -156,6 +170,7 @@ impl LightSpace {
             view,
             fit,
             layers,
+            opacity,
             midpoints: mids,
             mssm,
             dual_mssm,

@@ -84,21 +84,51 @@ impl SelfShadowSettings {
 /// Peels `k` layers (k >= 1). Layer 0 is the ordinary shadow map. Texels with fewer than m+1
 /// surfaces hold +inf in layer m.
 pub fn peel(prepared: &PreparedScene, bias: DepthBias, k: u32) -> Vec<DepthMap> {
+    peel_layers(prepared, bias, k, false).0
+}
+
+/// [`peel`], and each layer's per-texel opacity ([`PreparedScene::rasterize_with_opacity`]): what
+/// semi-transparent occluders need.
+pub fn peel_with_opacity(
+    prepared: &PreparedScene,
+    bias: DepthBias,
+    k: u32,
+) -> (Vec<DepthMap>, Vec<Vec<f32>>) {
+    peel_layers(prepared, bias, k, true)
+}
+
+fn peel_layers(
+    prepared: &PreparedScene,
+    bias: DepthBias,
+    k: u32,
+    opacity: bool,
+) -> (Vec<DepthMap>, Vec<Vec<f32>>) {
     let mut layers: Vec<DepthMap> = Vec::with_capacity(k as usize);
+    let mut alphas: Vec<Vec<f32>> = Vec::new();
     for m in 0..k {
-        let layer = prepared.rasterize(bias, layers.last());
+        let (layer, alpha) = if opacity {
+            prepared.rasterize_with_opacity(bias, layers.last())
+        } else {
+            (prepared.rasterize(bias, layers.last()), Vec::new())
+        };
         let empty = layer.depth.iter().all(|d| d.is_infinite());
+        let size = layer.size;
         layers.push(layer);
+        if opacity {
+            alphas.push(alpha);
+        }
         if empty {
             // Every further layer is empty too: no need to rasterise them.
-            let size = layers[0].size;
             for _ in m + 1..k {
                 layers.push(DepthMap::empty(size));
+                if opacity {
+                    alphas.push(vec![0.0; size as usize * size as usize]);
+                }
             }
             break;
         }
     }
-    layers
+    (layers, alphas)
 }
 
 /// Midpoint layers (Bavoil §4.2, after Woo 1992): `M_m = min((L_m + L_{m+1}) / 2, L_m + max_bias)`

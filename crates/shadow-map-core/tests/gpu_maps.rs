@@ -545,6 +545,7 @@ fn arb_case() -> impl Strategy<Value = Case> {
                     }),
                     cull: [Cull::None, Cull::Back, Cull::Front][cull as usize],
                 },
+                opacity: false,
             };
             Case {
                 light,
@@ -974,6 +975,7 @@ fn render_fits_like_the_cpu_and_to_cpu_reads_every_part() -> TestResult {
         dual_mssm_levels: Some(2),
         pyramid: true,
         raster: RasterOptions::default(),
+        opacity: false,
     };
     let cpu = LightSpace::build(&scene, &recv, &req)?;
     let gscene = GpuScene::upload(&ctx, &scene)?;

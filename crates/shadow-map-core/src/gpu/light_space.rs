@@ -83,6 +83,8 @@ impl GpuLightSpace {
             view: self.view,
             fit: self.fit,
             layers,
+            // The GPU raster writes depths only (semi-transparent occluders: CPU maps).
+            opacity: Vec::new(),
             midpoints,
             mssm,
             dual_mssm,
