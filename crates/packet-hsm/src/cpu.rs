@@ -186,6 +186,13 @@ shadow_map_core::typed_params! {
             default: "1",
             help: "S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V averaged (Yang §5)",
         },
+        /// Most opacity levels.
+        opacity_levels: u32 = ParamSpec {
+            key: "opacity_levels",
+            kind: ParamKind::Int { min: 1, max: 16 },
+            default: "2",
+            help: "most opacity levels, one pass each, for semi-transparent meshes (docs/methods.md §3 \"Semi-transparent occluders\"): V = sum of level weights times V with only the meshes of at least that opacity as casters; a scene needing more levels (its distinct opacities, plus one without casters when no mesh is opaque) is treated as opaque; 1 = always opaque",
+        },
         /// Td.
         td: f64 = ParamSpec {
             key: "td",
@@ -235,6 +242,57 @@ impl Config {
             Traversal::Hierarchical
         } else {
             Traversal::Flat
+        }
+    }
+}
+
+/// The opacity levels both twins run ([`Scene::opacity_levels`]): each level's scene (its
+/// casters, the meshes of at least its opacity) and weight.
+pub struct OpacityLevels<'a> {
+    levels: Vec<(std::borrow::Cow<'a, Scene>, f32)>,
+    /// Levels the scene needed when more than allowed (treated as opaque).
+    needed: Option<usize>,
+}
+
+impl<'a> OpacityLevels<'a> {
+    /// The levels of `scene`, at most `max` of them: itself with weight 1 when opaque, or when
+    /// it needs more than `max` (then every mesh is treated as opaque: `too_many` says so).
+    pub fn new(scene: &'a Scene, max: u32) -> Self {
+        let all = if scene.is_opaque() {
+            Vec::new()
+        } else {
+            scene.opacity_levels()
+        };
+        let too_many = all.len() > max as usize;
+        let levels = if all.is_empty() || too_many {
+            vec![(std::borrow::Cow::Borrowed(scene), 1.0)]
+        } else {
+            all.into_iter()
+                .map(|l| {
+                    let s = scene.with_opacity_at_least(l.min_opacity);
+                    (std::borrow::Cow::Owned(s), l.weight)
+                })
+                .collect()
+        };
+        OpacityLevels {
+            levels,
+            needed: too_many.then_some(scene.opacity_levels().len()),
+        }
+    }
+    /// Each level's scene and weight.
+    pub fn iter(&self) -> impl Iterator<Item = (&Scene, f32)> + '_ {
+        self.levels.iter().map(|(s, w)| (s.as_ref(), *w))
+    }
+    /// Notes the level count when there is more than one, or that the scene was treated as
+    /// opaque because it needed more.
+    pub fn note(&self, rep: &mut Report) {
+        if let Some(n) = self.needed {
+            rep.note(
+                "opacity",
+                format!("treated as opaque: {n} levels needed, opacity_levels allows fewer"),
+            );
+        } else if self.levels.len() > 1 {
+            rep.note("opacity_levels_run", self.levels.len());
         }
     }
 }
@@ -1105,15 +1163,21 @@ impl SoftShadowEstimator for CpuPacketHsm {
         let mut subs = SubLights::new(&cfg, receivers.len());
         let mut diag = vec![PixelDiag::default(); receivers.len()];
         let counters = Counters::default();
+        // Semi-transparent meshes: one pass per opacity level (docs/methods.md §3
+        // "Semi-transparent occluders"); an opaque scene is one level of weight 1.
+        let levels = OpacityLevels::new(scene, cfg.opacity_levels);
         for b in 0..s {
             for a in 0..s {
-                let sv = subs.build(scene, receivers, &cfg, (a, b))?;
-                let t = std::time::Instant::now();
-                let w = subs.weight;
-                estimate_sublight(&sv, &cfg, receivers, w, &mut subs.acc, &mut diag, &counters);
-                subs.t_est += t.elapsed().as_secs_f64() * 1e3;
+                for (level, lw) in levels.iter() {
+                    let sv = subs.build(level, receivers, &cfg, (a, b))?;
+                    let t = std::time::Instant::now();
+                    let w = subs.weight * lw;
+                    estimate_sublight(&sv, &cfg, receivers, w, &mut subs.acc, &mut diag, &counters);
+                    subs.t_est += t.elapsed().as_secs_f64() * 1e3;
+                }
             }
         }
+        levels.note(&mut self.report);
         self.diagnostics = diag;
         let rep = &mut self.report;
         let outside = counters.outside.load(Ordering::Relaxed) as usize;

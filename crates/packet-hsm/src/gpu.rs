@@ -25,7 +25,7 @@
 //! multiply-add can flip a tie).
 use crate::contour::Emitter;
 use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
-use crate::cpu::{Config, CpuPacketHsm, OwnPlane, SubLights, SubView};
+use crate::cpu::{Config, CpuPacketHsm, OpacityLevels, OwnPlane, SubLights, SubView};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
@@ -530,82 +530,91 @@ impl SoftShadowEstimator for GpuPacketHsm {
         let mut outside = 0usize;
         let mut counts = [0u64; 5];
         let mut fallbacks = 0usize;
+        let levels = OpacityLevels::new(scene, cfg.opacity_levels);
         for b in 0..s {
             for a in 0..s {
-                let sv = subs.build(scene, receivers, &cfg, (a, b))?;
-                let t = std::time::Instant::now();
-                let setups: Vec<ReceiverSetup> = prepare_setup(&sv, &cfg, receivers);
-                let recs: Vec<RecIn> = setups
-                    .iter()
-                    .map(|s| match s {
-                        ReceiverSetup::Settled(_) | ReceiverSetup::Outside(_) => RecIn::SETTLED,
-                        ReceiverSetup::Map {
-                            uv,
-                            zp,
-                            t,
-                            plane,
-                            sil,
-                            ..
-                        } => {
-                            let pl = plane.unwrap_or(ReceiverPlane {
-                                g0: 0.0,
-                                gu: 0.0,
-                                gv: 0.0,
-                                c: 0.0,
-                                zp: *zp,
-                                hs: 0.0,
-                            });
-                            let s = sil.unwrap_or(Silhouette {
-                                a: Vec3::ZERO,
-                                e1: Vec3::ZERO,
-                                e2: Vec3::ZERO,
-                                dist: 0.0,
-                                radius: 0.0,
-                                clip: [0.0; 4],
-                            });
-                            RecIn {
-                                uv: [uv.x, uv.y],
-                                zp: *zp,
-                                t: *t,
-                                g0: pl.g0,
-                                gu: pl.gu,
-                                gv: pl.gv,
-                                c: pl.c,
-                                sil_a: s.a.extend(s.dist).to_array(),
-                                sil_e1: s.e1.extend(s.radius).to_array(),
-                                sil_e2: s.e2.extend(0.0).to_array(),
-                                sil_clip: s.clip,
+                for (level, lw) in levels.iter() {
+                    let sv = subs.build(level, receivers, &cfg, (a, b))?;
+                    let t = std::time::Instant::now();
+                    let setups: Vec<ReceiverSetup> = prepare_setup(&sv, &cfg, receivers);
+                    let recs: Vec<RecIn> = setups
+                        .iter()
+                        .map(|s| match s {
+                            ReceiverSetup::Settled(_) | ReceiverSetup::Outside(_) => RecIn::SETTLED,
+                            ReceiverSetup::Map {
+                                uv,
+                                zp,
+                                t,
+                                plane,
+                                sil,
+                                ..
+                            } => {
+                                let pl = plane.unwrap_or(ReceiverPlane {
+                                    g0: 0.0,
+                                    gu: 0.0,
+                                    gv: 0.0,
+                                    c: 0.0,
+                                    zp: *zp,
+                                    hs: 0.0,
+                                });
+                                let s = sil.unwrap_or(Silhouette {
+                                    a: Vec3::ZERO,
+                                    e1: Vec3::ZERO,
+                                    e2: Vec3::ZERO,
+                                    dist: 0.0,
+                                    radius: 0.0,
+                                    clip: [0.0; 4],
+                                });
+                                RecIn {
+                                    uv: [uv.x, uv.y],
+                                    zp: *zp,
+                                    t: *t,
+                                    g0: pl.g0,
+                                    gu: pl.gu,
+                                    gv: pl.gv,
+                                    c: pl.c,
+                                    sil_a: s.a.extend(s.dist).to_array(),
+                                    sil_e1: s.e1.extend(s.radius).to_array(),
+                                    sil_e2: s.e2.extend(0.0).to_array(),
+                                    sil_clip: s.clip,
+                                }
                             }
-                        }
-                    })
-                    .collect();
-                let (out, c) = self.run_sublight(&sv, &cfg, &recs, receivers.layout)?;
-                for (a, b) in counts.iter_mut().zip(c) {
-                    *a += b as u64;
-                }
-                for (k, su) in setups.iter().enumerate() {
-                    let x = match su {
-                        ReceiverSetup::Settled(x) => *x,
-                        ReceiverSetup::Outside(x) => {
-                            outside += 1;
-                            *x
-                        }
-                        ReceiverSetup::Map { facing, .. } => {
-                            if out[k][1] < 0.0 {
-                                fallbacks += 1;
-                                pixel_value(&sv, &cfg, receivers.position[k], receivers.normal[k])
-                            } else {
-                                visited += out[k][1] as f64;
-                                facing * out[k][0]
+                        })
+                        .collect();
+                    let (out, c) = self.run_sublight(&sv, &cfg, &recs, receivers.layout)?;
+                    for (a, b) in counts.iter_mut().zip(c) {
+                        *a += b as u64;
+                    }
+                    for (k, su) in setups.iter().enumerate() {
+                        let x = match su {
+                            ReceiverSetup::Settled(x) => *x,
+                            ReceiverSetup::Outside(x) => {
+                                outside += 1;
+                                *x
                             }
-                        }
-                    };
-                    subs.acc[k] += subs.weight * x;
+                            ReceiverSetup::Map { facing, .. } => {
+                                if out[k][1] < 0.0 {
+                                    fallbacks += 1;
+                                    pixel_value(
+                                        &sv,
+                                        &cfg,
+                                        receivers.position[k],
+                                        receivers.normal[k],
+                                    )
+                                } else {
+                                    visited += out[k][1] as f64;
+                                    facing * out[k][0]
+                                }
+                            }
+                        };
+                        subs.acc[k] += subs.weight * lw * x;
+                    }
+                    subs.t_est += t.elapsed().as_secs_f64() * 1e3;
                 }
-                subs.t_est += t.elapsed().as_secs_f64() * 1e3;
             }
         }
         let rep = &mut self.report;
+        levels.note(rep);
         subs.finish(&cfg, receivers, v, outside, rep);
         rep.note("packets", counts[0]);
         rep.note("packets_coherent", counts[1]);

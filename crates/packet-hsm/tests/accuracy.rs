@@ -76,6 +76,75 @@ fn disk_light_matches_the_closed_form() {
     assert!(maxes[4] < maxes[0], "{maxes:?}");
 }
 
+/// A semi-transparent square (opacity 0.4) over the opaque ground: two opacity levels, all casters
+/// with weight 0.4 and the ground alone (which shadows none of its own receivers) with 0.6, so
+/// V = 1 - 0.4 (1 - V_opaque) receiver by receiver, packets and per pixel, to 1e-5. With every
+/// mesh at 0.5 (no opaque mesh) the second level has no caster at all and V = 1 - 0.5 (1 -
+/// V_opaque) still. Three distinct opacities exceed the default `opacity_levels=2`: treated as
+/// opaque, and the report says so.
+#[test]
+fn semi_transparent_occluders_by_opacity_levels() {
+    let s1 = scene_with(rect_light(1.0, 3.0), &[SQUARE], 8, 8);
+    let r = line_receivers();
+    for p in ["1x1", "3x3"] {
+        let kv = [("resolution", "256"), ("packet", p)];
+        let v1 = hsm_v(&kv, &s1, &r);
+        let mut s4 = s1.clone();
+        s4.meshes[1].opacity = 0.4;
+        let mut e = hsm(&kv);
+        let (v4, rep) = run(&mut e, &s4, &r).unwrap();
+        assert_eq!(
+            test_support::fixtures::note_as::<u32>(&rep, "opacity_levels_run"),
+            2
+        );
+        let mut all = s1.clone();
+        for m in &mut all.meshes {
+            m.opacity = 0.5;
+        }
+        let v5 = hsm_v(&kv, &all, &r);
+        let mut penumbra = 0;
+        for k in 0..r.len() {
+            if !r.active[k] {
+                continue;
+            }
+            let want4 = 1.0 - 0.4 * (1.0 - v1[k]);
+            let want5 = 1.0 - 0.5 * (1.0 - v1[k]);
+            assert!(
+                (v4[k] - want4).abs() <= 1e-5,
+                "{p} #{k}: {} vs {want4}",
+                v4[k]
+            );
+            assert!(
+                (v5[k] - want5).abs() <= 1e-5,
+                "{p} #{k}: {} vs {want5}",
+                v5[k]
+            );
+            penumbra += usize::from(v1[k] > 0.01 && v1[k] < 0.99);
+        }
+        assert!(penumbra > 0, "{p}: no penumbra");
+    }
+    let mut s3 = scene_with(
+        rect_light(1.0, 3.0),
+        &[SQUARE, (1.0, -0.5, 1.5, 0.5, 1.2)],
+        8,
+        8,
+    );
+    s3.meshes[1].opacity = 0.4;
+    s3.meshes[2].opacity = 0.7;
+    let (v, rep) = run(&mut hsm(&[("resolution", "128")]), &s3, &r).unwrap();
+    assert_valid(&v, "three opacities");
+    let note = test_support::fixtures::note(&rep, "opacity").unwrap_or_default();
+    assert!(note.contains("treated as opaque"), "{note}");
+    let v8 = run(
+        &mut hsm(&[("resolution", "128"), ("opacity_levels", "8")]),
+        &s3,
+        &r,
+    )
+    .unwrap()
+    .0;
+    assert_valid(&v8, "three opacities, three levels");
+}
+
 /// A sphere light (radius 0.4, 3 above the ground) over the square, against the ray-traced
 /// reference at 4096 samples (noise about 0.008 at V = 0.5): each receiver's edges are carried
 /// onto its own silhouette disk (docs/methods.md §3 "Sphere lights"). RMSE <= 0.02, packets and

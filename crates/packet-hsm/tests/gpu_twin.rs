@@ -248,6 +248,29 @@ fn gpu_disk_and_sphere_lights_match_the_cpu_twin() {
     }
 }
 
+/// A semi-transparent occluder (two opacity levels) through both twins: within the twin
+/// tolerance, with the levels run on both.
+#[test]
+fn gpu_opacity_levels_match_the_cpu_twin() {
+    let Some(ctx) = test_support::gpu("gpu_opacity_levels_match_the_cpu_twin") else {
+        return;
+    };
+    let mut g = GpuPacketHsm::new(ctx).unwrap();
+    let mut s = shaped_scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1)], 1);
+    s.meshes[1].opacity = 0.35;
+    let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+    let kv = [("resolution", "128"), ("packet", "3x3")];
+    for (k, v) in kv {
+        g.set_param(k, v).unwrap();
+    }
+    let (vg, rep) = run(&mut g, &s, &rec).unwrap();
+    let vc = run(&mut hsm(&kv), &s, &rec).unwrap().0;
+    assert_eq!(note(&rep, "opacity_levels_run"), "2");
+    assert!(vc.iter().any(|&v| v < 0.9 && v > 0.5), "no partial shadow");
+    let (f, worst) = compare(&vc, &vg, &rec, "opacity levels");
+    eprintln!("gpu opacity levels: within {f:.4}, worst {worst:e}");
+}
+
 /// Hard cases on the GPU: huge kernels, touching occluder, receivers behind the light; finite.
 #[test]
 fn gpu_hard_cases_stay_finite() {

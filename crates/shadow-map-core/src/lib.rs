@@ -36,6 +36,6 @@ pub use precision::{DepthLookup, DepthPrecision, Unorm16Map};
 pub use raster::{Cull, DepthBias, DepthMap, RasterOptions};
 pub use receiver_plane::ReceiverPlane;
 pub use receivers::{ImageLayout, Receivers};
-pub use scene::Scene;
+pub use scene::{OpacityLevel, Scene};
 #[cfg(feature = "gpu")]
 pub mod gpu;

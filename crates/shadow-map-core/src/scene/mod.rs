@@ -171,4 +171,140 @@ impl Scene {
     pub fn is_opaque(&self) -> bool {
         self.meshes.iter().all(|m| m.opacity >= 1.0)
     }
+
+    /// The scene's opacities as levels (docs/methods.md §3 "Semi-transparent occluders"): with
+    /// the distinct mesh opacities `0 < a_1 < ... < a_L`, level k keeps the meshes of opacity
+    /// `>= a_k` as opaque casters and weighs `a_k - a_{k-1}` (`a_0 = 0`); when `a_L < 1` a last
+    /// level with no caster weighs `1 - a_L`. The weights sum to 1, and for one light sample the
+    /// weighted sum of the levels' visibilities is `1 - max` of the opacities its ray crosses:
+    /// exact for one semi-transparent surface per ray (the reference multiplies transmittances
+    /// where several overlap). An opaque scene is one level of weight 1.
+    pub fn opacity_levels(&self) -> Vec<OpacityLevel> {
+        let mut a: Vec<f32> = self
+            .meshes
+            .iter()
+            .filter(|m| !m.triangles.is_empty())
+            .map(|m| m.opacity.min(1.0))
+            .filter(|&o| o > 0.0)
+            .collect();
+        a.sort_by(f32::total_cmp);
+        a.dedup();
+        let mut levels = Vec::with_capacity(a.len() + 1);
+        let mut prev = 0.0f32;
+        for &ak in &a {
+            levels.push(OpacityLevel {
+                min_opacity: ak,
+                weight: ak - prev,
+            });
+            prev = ak;
+        }
+        if prev < 1.0 {
+            levels.push(OpacityLevel {
+                min_opacity: f32::INFINITY,
+                weight: 1.0 - prev,
+            });
+        }
+        levels
+    }
+
+    /// This scene with only the meshes of opacity `>= min_opacity` (mesh indices renumbered,
+    /// each keeping its opacity): the casters of one [`OpacityLevel`].
+    pub fn with_opacity_at_least(&self, min_opacity: f32) -> Scene {
+        let mut out = self.clone_without_geometry();
+        for m in self.meshes.iter().filter(|m| m.opacity >= min_opacity) {
+            let id = out.meshes.len() as u32;
+            let start = out.triangles.len();
+            out.triangles
+                .extend_from_slice(&self.triangles[m.triangles.clone()]);
+            out.triangle_mesh.resize(out.triangles.len(), id);
+            out.meshes.push(MeshInfo {
+                source: m.source.clone(),
+                opacity: m.opacity,
+                triangles: start..out.triangles.len(),
+            });
+        }
+        out
+    }
+
+    fn clone_without_geometry(&self) -> Scene {
+        Scene {
+            path: self.path.clone(),
+            camera: self.camera,
+            light: self.light,
+            triangles: Vec::new(),
+            triangle_mesh: Vec::new(),
+            meshes: Vec::new(),
+            skipped_degenerate: self.skipped_degenerate,
+        }
+    }
+}
+
+/// One level of [`Scene::opacity_levels`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OpacityLevel {
+    /// Meshes of at least this opacity cast shadows at this level (+inf: none).
+    pub min_opacity: f32,
+    /// The level's weight in V.
+    pub weight: f32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{camera::Camera, light::Light};
+
+    fn tri(y: f32) -> Vec<[Vec3; 3]> {
+        vec![[
+            Vec3::new(0.0, y, 0.0),
+            Vec3::new(1.0, y, 0.0),
+            Vec3::new(0.0, y, 1.0),
+        ]]
+    }
+
+    fn scene(opacities: &[f32]) -> Scene {
+        let camera = Camera {
+            eye: Vec3::new(0.0, 5.0, 5.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 40.0,
+            width: 4,
+            height: 4,
+        };
+        let meshes = opacities
+            .iter()
+            .enumerate()
+            .map(|(k, &o)| (tri(k as f32), o))
+            .collect();
+        let light = Light {
+            shape: crate::light::LightShape::Rect { size: [1.0, 1.0] },
+            center: Vec3::new(0.0, 3.0, 0.0),
+            normal: Vec3::NEG_Y,
+            tangent: Vec3::X,
+        };
+        Scene::from_meshes("levels", camera, light, meshes).unwrap()
+    }
+
+    #[test]
+    fn opacity_levels_weigh_to_one() {
+        let levels = |o: &[f32]| -> Vec<(f32, f32)> {
+            scene(o)
+                .opacity_levels()
+                .iter()
+                .map(|l| (l.min_opacity, l.weight))
+                .collect()
+        };
+        assert_eq!(levels(&[1.0, 1.0]), vec![(1.0, 1.0)]);
+        assert_eq!(levels(&[1.0, 0.4]), vec![(0.4, 0.4), (1.0, 0.6)]);
+        // No opaque mesh: a last level without casters; opacity 0 casts nothing.
+        let l = levels(&[0.5, 0.0, 0.25, 0.5]);
+        assert_eq!(l, vec![(0.25, 0.25), (0.5, 0.25), (f32::INFINITY, 0.5)]);
+        let s = scene(&[0.5, 0.0, 0.25, 0.5]);
+        for (a, n) in [(0.25, 3), (0.5, 2), (f32::INFINITY, 0)] {
+            let k = s.with_opacity_at_least(a);
+            assert_eq!(k.meshes.len(), n);
+            assert_eq!(k.triangles.len(), n);
+            assert!(k.meshes.iter().all(|m| m.opacity >= a));
+            assert!((0..k.triangles.len()).all(|t| k.triangle_opacity(t) >= a));
+        }
+    }
 }
