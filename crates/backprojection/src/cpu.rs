@@ -17,8 +17,8 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 pub const LAYER_RULE: ParamSpec = ParamSpec {
     key: "layer_rule",
     kind: ParamKind::Choice(LayerRule::WORDS),
-    default: "deepest",
-    help: "which occluding layer of a texel is backprojected: deepest = the deepest occluding layer, even when its micropatch misses the light; first_nonzero = from the deepest, the first whose micropatch covers part of the light (Bavoil §4.2's rule; never too bright on stacked occluders, but more overlapping micropatches: larger RMSE on most fixtures)",
+    default: "auto",
+    help: "which occluding layer of a texel is backprojected: auto = first_nonzero under bitmask occlusion, deepest under additive; deepest = the deepest occluding layer, even when its micropatch misses the light; first_nonzero = from the deepest, the first whose micropatch covers part of the light (Bavoil §4.2's rule; never too bright on stacked occluders, but more overlapping micropatches: larger RMSE on most fixtures)",
 };
 
 /// Which occluding layer of a texel is backprojected ([`LAYER_RULE`]).
@@ -29,9 +29,10 @@ pub const LAYER_RULE: ParamSpec = ParamSpec {
 /// stacked plates of `tests/accuracy.rs` 0.123 / 0.051, with V at most 0.000 / 0.250 above the
 /// exact visibility. Backprojection sums micropatch areas with no overlap test, so the paper's rule,
 /// which adds the near occluder's micropatch where the far one misses the light, removes the
-/// light leak but overshadows more elsewhere; `deepest` stays the default. With
+/// light leak but overshadows more elsewhere: `deepest` under additive occlusion. With
 /// `occlusion=bitmask` (overlaps counted once) `first_nonzero` wins: 0.0501 on `stacked`, 0.0238
-/// on `bunny` (issue 18; docs/methods.md §2 "Bitmask occlusion").
+/// on `bunny` (issue 18; docs/methods.md §2 "Bitmask occlusion"). The default `auto` picks by
+/// occlusion (docs/methods.md §2 "Defaults").
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum LayerRule {
     /// Bavoil 2008 §4.2: "the samples are processed starting from the deepest shadow map layer
@@ -39,35 +40,117 @@ pub enum LayerRule {
     /// backprojected micropatch overlaps the light (its own micropatch, before gap filling).
     FirstNonzero,
     /// The deepest occluding layer, whatever its contribution (a layer whose micropatch misses
-    /// the light then hides the shallower ones); the default.
-    #[default]
+    /// the light then hides the shallower ones).
     Deepest,
+    /// `FirstNonzero` under bitmask occlusion, `Deepest` under additive (the default;
+    /// [`Settings::resolve`]).
+    #[default]
+    Auto,
 }
 
-shadow_map_core::param_words!(LayerRule { FirstNonzero = "first_nonzero", Deepest = "deepest" });
+shadow_map_core::param_words!(LayerRule {
+    FirstNonzero = "first_nonzero",
+    Deepest = "deepest",
+    Auto = "auto"
+});
+
+/// `gap_filling`: extend occluding micropatches to their neighbours (docs/methods.md §2).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum GapFilling {
+    /// On under bitmask occlusion (where an extended micropatch's overlap is counted once), off
+    /// under additive (where it would be counted twice); the default ([`Settings::resolve`]).
+    #[default]
+    Auto,
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
+shadow_map_core::param_words!(GapFilling { Auto = "auto", On = "true", Off = "false" });
 
 /// `occlusion`: how the micropatches' coverage of the light is combined (docs/methods.md §2
 /// "Bitmask occlusion").
 pub const OCCLUSION: ParamSpec = ParamSpec {
     key: "occlusion",
     kind: ParamKind::Choice(Occlusion::WORDS),
-    default: "additive",
-    help: "additive: the light area each backprojected micropatch covers, summed and clamped (overlaps count twice); bitmask: a bits x bits grid of light samples, each set once by any micropatch covering it (Schwarz & Stamminger 2007)",
+    default: "auto",
+    help: "auto: bitmask on a scene of opaque meshes, additive (opacity-weighted) when a mesh is semi-transparent (bits carry no opacity); additive: the light area each backprojected micropatch covers, summed and clamped (overlaps count twice); bitmask: a bits x bits grid of light samples, each set once by any micropatch covering it (Schwarz & Stamminger 2007)",
 };
 
 /// How the micropatches' coverage of the light is combined ([`OCCLUSION`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Occlusion {
     /// `V = 1 - clamp01(sum area(B_s ∩ L) / A_L)` (Guennebaud 2006, Bavoil 2008): overlapping
-    /// micropatches are counted more than once. The default.
-    #[default]
+    /// micropatches are counted more than once.
     Additive,
     /// Occlusion bits (Schwarz & Stamminger 2007): `B x B` light samples ([`shadow_map_core::bitmask`]),
     /// each set by every micropatch containing it, counted once: `V = 1 - set / B^2`.
     Bitmask,
+    /// `Bitmask` on a scene of opaque meshes, `Additive` when a mesh is semi-transparent (the
+    /// default; [`Settings::resolve`]).
+    #[default]
+    Auto,
 }
 
-shadow_map_core::param_words!(Occlusion { Additive = "additive", Bitmask = "bitmask" });
+shadow_map_core::param_words!(Occlusion {
+    Additive = "additive",
+    Bitmask = "bitmask",
+    Auto = "auto"
+});
+
+/// The report notes of the resolved choices (`occlusion`, `layer_rule`, `gap_filling`, and
+/// `bits` under bitmask), both twins.
+pub fn note_resolved(report: &mut Report, s: &Settings, res: Resolved) {
+    let rule = if res.first_nonzero {
+        LayerRule::FirstNonzero
+    } else {
+        LayerRule::Deepest
+    };
+    report.note("occlusion", res.occlusion);
+    report.note("layer_rule", rule);
+    report.note("gap_filling", res.gap_filling);
+    if res.occlusion == Occlusion::Bitmask {
+        report.note("bits", s.bits);
+    }
+}
+
+/// [`Settings`]' occlusion, layer rule and gap filling with `auto` resolved for one scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Resolved {
+    /// `Additive` or `Bitmask`.
+    pub occlusion: Occlusion,
+    /// `layer_rule=first_nonzero`.
+    pub first_nonzero: bool,
+    /// Gap filling on.
+    pub gap_filling: bool,
+}
+
+impl Settings {
+    /// Resolves the `auto` choices (docs/methods.md §2 "Defaults") for a scene with
+    /// (`semi_transparent`) or without semi-transparent meshes: bitmask occlusion with Bavoil's
+    /// first non-zero layer and gap filling when every mesh is opaque; additive occlusion, weighted
+    /// by opacity, with the deepest layer and no gap filling otherwise.
+    pub fn resolve(&self, semi_transparent: bool) -> Resolved {
+        let occlusion = match self.occlusion {
+            Occlusion::Auto if semi_transparent => Occlusion::Additive,
+            Occlusion::Auto => Occlusion::Bitmask,
+            o => o,
+        };
+        let bitmask = occlusion == Occlusion::Bitmask;
+        Resolved {
+            occlusion,
+            first_nonzero: match self.layer_rule {
+                LayerRule::Auto => bitmask,
+                r => r == LayerRule::FirstNonzero,
+            },
+            gap_filling: match self.gap_filling {
+                GapFilling::Auto => bitmask,
+                g => g == GapFilling::On,
+            },
+        }
+    }
+}
 
 shadow_map_core::typed_params! {
     /// Settings of [`CpuBackprojection`] (and its GPU twin), one field a parameter.
@@ -84,11 +167,11 @@ shadow_map_core::typed_params! {
         /// Which occluding layer of a texel is backprojected.
         layer_rule: LayerRule = LAYER_RULE,
         /// Extend occluding micropatches to their +u and +v neighbours.
-        gap_filling: bool = ParamSpec {
+        gap_filling: GapFilling = ParamSpec {
             key: "gap_filling",
-            kind: ParamKind::Bool,
-            default: "false",
-            help: "extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md §2, reconstructed)",
+            kind: ParamKind::Choice(GapFilling::WORDS),
+            default: "auto",
+            help: "extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md §2, reconstructed): auto = on under bitmask occlusion, off under additive",
         },
         /// Additive areas or occlusion bits.
         occlusion: Occlusion = OCCLUSION,
@@ -135,10 +218,12 @@ pub const SPECS: &[ParamSpec] = Settings::SPECS;
 /// 3. Per sample (block centre of the adaptive step), the layers from the deepest: a layer
 ///    occludes when its midpoint is `< z_p` (bias mode: `z + eps < z_p`) and, with
 ///    `receiver_plane=true`, its true depth passes [`ReceiverPlane::caster`] (in bias mode the
-///    plane test replaces the bias test). `layer_rule=deepest` (the default) takes the first
+///    plane test replaces the bias test). `layer_rule=deepest` takes the first
 ///    occluding layer; `layer_rule=first_nonzero` (Bavoil §4.2's wording) the first occluding
 ///    layer whose micropatch `B_s` overlaps the light ([`LayerRule`] has the measurements).
-/// 4. `occlusion=additive` (the default): sum `area(B_s ∩ L)` over the kernel's samples, and
+///    The defaults (`auto`, [`Settings::resolve`]): bitmask, first non-zero, gap filling on an
+///    opaque scene; additive, deepest, no gap filling when a mesh is semi-transparent.
+/// 4. `occlusion=additive`: sum `area(B_s ∩ L)` (times the opacity weight) over the kernel's samples, and
 ///    `V = facing (1 - clamp01(A_occ / A_L))`. `occlusion=bitmask`: set the bits (light samples,
 ///    [`emitter_bits`]) each `B_s` contains, in the same order, stopping when all are set, and
 ///    `V = facing (1 - set / B^2)` ([`Occlusion`]).
@@ -537,22 +622,23 @@ impl SoftShadowEstimator for CpuBackprojection {
         let light = &scene.light;
         let h = light.half_extent();
         let emitter = Emitter::of(&light.shape);
+        let res = self.settings.resolve(!ls.opacity.is_empty());
         let setup = Setup {
             ls,
             emitter,
             half: [h.x, h.y],
             area: emitter.area(),
             midpoint: self.settings.shadow.midpoint(),
-            gap_filling: self.settings.gap_filling,
+            gap_filling: res.gap_filling,
             max_nspp: self.settings.max_nspp,
             b0: self.settings.shadow.bias,
             b1: self.settings.shadow.slope_bias,
             receiver_plane: self.settings.shadow.receiver_plane,
-            first_nonzero: self.settings.layer_rule == LayerRule::FirstNonzero,
+            first_nonzero: res.first_nonzero,
             max_step: AtomicU32::new(1),
-            bit_pts: match self.settings.occlusion {
-                Occlusion::Additive => Vec::new(),
+            bit_pts: match res.occlusion {
                 Occlusion::Bitmask => emitter_bits(&emitter, self.settings.bits),
+                _ => Vec::new(),
             },
             bit_side: self.settings.bits,
         };
@@ -610,11 +696,7 @@ impl SoftShadowEstimator for CpuBackprojection {
         self.report.note("layers", ls.layers.len());
         self.report
             .note("self_shadow", self.settings.shadow.self_shadow);
-        self.report.note("layer_rule", self.settings.layer_rule);
-        self.report.note("occlusion", self.settings.occlusion);
-        if self.settings.occlusion == Occlusion::Bitmask {
-            self.report.note("bits", self.settings.bits);
-        }
+        note_resolved(&mut self.report, &self.settings, res);
         self.report
             .note("receiver_plane", self.settings.shadow.receiver_plane);
         self.report

@@ -25,7 +25,7 @@
 //! area); the driver may fuse a multiply and an add, which can flip a depth comparison that is a
 //! tie to within f32 rounding. The GPU rasteriser's layers match the CPU's up to the ties that
 //! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
-use crate::cpu::{emitter_bits, plan, CpuBackprojection, LayerRule, Occlusion};
+use crate::cpu::{emitter_bits, plan, CpuBackprojection, Occlusion};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
@@ -441,9 +441,10 @@ impl GpuBackprojection {
     /// The kernel's uniforms for `maps` and the current parameters.
     fn uniforms(&self, maps: &DeviceMaps, light: &Light) -> (EstimateUniform, BpUniform, BitTable) {
         let s = self.cpu.settings();
+        let res = s.resolve(maps.opacity);
         let mut table = BitTable::zeroed();
         let mut nbits = 0;
-        if s.occlusion == Occlusion::Bitmask {
+        if res.occlusion == Occlusion::Bitmask {
             let pts = emitter_bits(&crate::math::Emitter::of(&light.shape), s.bits);
             nbits = pts.len() as u32;
             for (k, p) in pts.iter().enumerate() {
@@ -460,7 +461,7 @@ impl GpuBackprojection {
             b0: s.shadow.bias,
             b1: s.shadow.slope_bias,
             midpoint: u32::from(midpoint),
-            gap_filling: u32::from(s.gap_filling),
+            gap_filling: u32::from(res.gap_filling),
             max_nspp,
             sqrt_nspp: (max_nspp as f32).sqrt(),
             layers: maps.layers,
@@ -472,7 +473,7 @@ impl GpuBackprojection {
             } else {
                 0
             },
-            first_nonzero: u32::from(s.layer_rule == LayerRule::FirstNonzero),
+            first_nonzero: u32::from(res.first_nonzero),
             nbits,
             opacity: u32::from(maps.opacity),
             _pad0: 0,
@@ -492,12 +493,8 @@ impl GpuBackprojection {
         self.report.note("resolution", view.r);
         self.report.note("layers", maps.layers);
         self.report.note("self_shadow", self_shadow);
-        self.report
-            .note("layer_rule", self.cpu.settings().layer_rule);
-        self.report.note("occlusion", self.cpu.settings().occlusion);
-        if self.cpu.settings().occlusion == Occlusion::Bitmask {
-            self.report.note("bits", self.cpu.settings().bits);
-        }
+        let res = self.cpu.settings().resolve(maps.opacity);
+        crate::cpu::note_resolved(&mut self.report, self.cpu.settings(), res);
         self.report
             .note("receiver_plane", self.cpu.settings().shadow.receiver_plane);
         self.report.note("near", view.n);

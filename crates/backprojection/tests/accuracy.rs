@@ -37,7 +37,12 @@ fn flat_occluder_errors(occ: Occ, label: &str) -> Vec<(f64, f64, f64)> {
     let o = oracle(&s, &[occ], &r);
     let mut out = Vec::new();
     for res in [128u32, 256, 512] {
-        let mut e = bp(&[("resolution", &res.to_string()), ("max_nspp", "4096")]);
+        // The bound is additive occlusion's (exact areas; bits add their quantisation).
+        let mut e = bp(&[
+            ("resolution", &res.to_string()),
+            ("max_nspp", "4096"),
+            ("occlusion", "additive"),
+        ]);
         let (v, report) = run(&mut e, &s, &r).unwrap();
         let step: f64 = note_as(&report, "max_step");
         let view = e.light_space().unwrap().view;
@@ -137,6 +142,7 @@ fn overlapping_occluders_layers() {
             ("max_nspp", "4096"),
             ("layer_rule", rule),
             ("receiver_plane", plane),
+            ("occlusion", "additive"),
         ]);
         let v = run(&mut e, &s, &r).unwrap().0;
         let (rms, max) = errors(&v, &o);
@@ -364,7 +370,22 @@ fn disk_light_matches_the_closed_form() {
     let r = line_receivers();
     let o = test_support::fixtures::oracle_disk(&s, SQUARE, &r);
     for res in [256u32, 512] {
-        let mut e = bp(&[("resolution", &res.to_string()), ("max_nspp", "4096")]);
+        // Default occlusion (bitmask on this opaque scene), 4096 samples: RMSE <= 0.02 (issue
+        // 18). At max_nspp=121 the adaptive step's blocks give 0.025 (bitmask) and 0.025
+        // (additive) at r = 256.
+        let kv = [("resolution", res.to_string()), ("max_nspp", "4096".into())];
+        let kv: Vec<(&str, &str)> = kv.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        let v = run(&mut bp(&kv), &s, &r).unwrap().0;
+        assert_valid(&v, "disk light, bitmask");
+        let (rms, max) = errors(&v, &o);
+        eprintln!("disk light r={res} default occlusion: rms {rms:.5} max {max:.5}");
+        assert!(rms <= 0.02, "r={res} default occlusion: RMSE {rms}");
+        // The edge bound is additive occlusion's (exact areas).
+        let mut e = bp(&[
+            ("resolution", &res.to_string()),
+            ("max_nspp", "4096"),
+            ("occlusion", "additive"),
+        ]);
         let (v, report) = run(&mut e, &s, &r).unwrap();
         assert_valid(&v, "disk light");
         let step: f64 = note_as(&report, "max_step");
@@ -410,7 +431,11 @@ fn semi_transparent_sheets_weight_their_micropatches() {
     s4.meshes[1].opacity = 0.4;
     let r = line_receivers();
     let o = oracle(&s1, &[SQUARE], &r);
-    let kv = [("resolution", "512"), ("max_nspp", "4096")];
+    let kv = [
+        ("resolution", "512"),
+        ("max_nspp", "4096"),
+        ("occlusion", "additive"),
+    ];
     let v1 = run(&mut bp(&kv), &s1, &r).unwrap().0;
     let v4 = run(&mut bp(&kv), &s4, &r).unwrap().0;
     assert_valid(&v4, "semi-transparent sheet");

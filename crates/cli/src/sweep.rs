@@ -20,7 +20,8 @@ pub fn settings(name: &str, params: &Params, quick: bool) -> Vec<Setting> {
             s.extend([
                 one("layers", "1"),
                 one("layers", "2"),
-                one("gap_filling", "true"),
+                one("gap_filling", "false"),
+                one("occlusion", "additive"),
                 one("self_shadow", "bias"),
                 one("max_nspp", "25"),
                 one("max_nspp", "49"),
