@@ -454,17 +454,10 @@ impl Setup<'_> {
                         }
                     }
                     occ[b * bx + a] = z;
-                    if !ls.opacity.is_empty() {
-                        // The texel's layers in front of the receiver, this one and those
-                        // nearer the light: one minus the product of their transmittances.
+                    if !occ_alpha.is_empty() {
+                        // This layer and those nearer the light, in front of the receiver.
                         let t = jc as usize * view.r as usize + ic as usize;
-                        let mut tr = 1.0f32;
-                        for (mm, al) in ls.opacity.iter().enumerate().take(m + 1) {
-                            if ls.layers[mm].depth[t] < zp {
-                                tr *= 1.0 - al[t];
-                            }
-                        }
-                        occ_alpha[b * bx + a] = 1.0 - tr;
+                        occ_alpha[b * bx + a] = ls.opacity_in_front(t, m, zp);
                     }
                     break;
                 }

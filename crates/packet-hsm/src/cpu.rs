@@ -263,7 +263,8 @@ impl<'a> OpacityLevels<'a> {
         } else {
             scene.opacity_levels()
         };
-        let too_many = all.len() > max as usize;
+        let needed = all.len();
+        let too_many = needed > max as usize;
         let levels = if all.is_empty() || too_many {
             vec![(std::borrow::Cow::Borrowed(scene), 1.0)]
         } else {
@@ -276,7 +277,7 @@ impl<'a> OpacityLevels<'a> {
         };
         OpacityLevels {
             levels,
-            needed: too_many.then_some(scene.opacity_levels().len()),
+            needed: too_many.then_some(needed),
         }
     }
     /// Each level's scene and weight.

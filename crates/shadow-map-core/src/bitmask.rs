@@ -129,7 +129,7 @@ impl BitMask {
     /// the same bits, found from ranges instead of B^2 point tests. x is increasing in
     /// `X = i B + j` and y in `Y = k = j B + i` (module docs; exactly so in f32, the spacing is
     /// far above an ulp), so the points with `lo.x <= x <= hi.x` are `X in [xa, xb)` and those
-    /// with `lo.y <= y <= hi.y` are `k in [ya, yb)`, each found by a binary search with the
+    /// with `lo.y <= y <= hi.y` are `k in [ya, yb)`, each found ([`lattice_ranges`]) with the
     /// very comparisons of [`rect_contains`]. Row j then holds the columns i with
     /// `i B + j in [xa, xb)` and `j B + i in [ya, yb)`: one interval, set as one run of bits.
     #[inline]

@@ -178,6 +178,22 @@ impl LightSpace {
         }
     }
 
+    /// The opacity of texel `t`'s layers `0..=m` that lie in front of depth `zp`: one minus the
+    /// product of their transmittances (docs/methods.md §2 "Semi-transparent occluders"); 1 when
+    /// no opacity was built (an opaque scene).
+    pub fn opacity_in_front(&self, t: usize, m: usize, zp: f32) -> f32 {
+        if self.opacity.is_empty() {
+            return 1.0;
+        }
+        let mut tr = 1.0f32;
+        for (layer, alpha) in self.layers.iter().zip(&self.opacity).take(m + 1) {
+            if layer.depth[t] < zp {
+                tr *= 1.0 - alpha[t];
+            }
+        }
+        1.0 - tr
+    }
+
     /// Bytes held by the maps (what `report` lists as light-space memory).
     pub fn bytes(&self) -> usize {
         self.layers

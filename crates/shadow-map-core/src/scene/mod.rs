@@ -210,7 +210,15 @@ impl Scene {
     /// This scene with only the meshes of opacity `>= min_opacity` (mesh indices renumbered,
     /// each keeping its opacity): the casters of one [`OpacityLevel`].
     pub fn with_opacity_at_least(&self, min_opacity: f32) -> Scene {
-        let mut out = self.clone_without_geometry();
+        let mut out = Scene {
+            path: self.path.clone(),
+            camera: self.camera,
+            light: self.light,
+            triangles: Vec::new(),
+            triangle_mesh: Vec::new(),
+            meshes: Vec::new(),
+            skipped_degenerate: self.skipped_degenerate,
+        };
         for m in self.meshes.iter().filter(|m| m.opacity >= min_opacity) {
             let id = out.meshes.len() as u32;
             let start = out.triangles.len();
@@ -224,18 +232,6 @@ impl Scene {
             });
         }
         out
-    }
-
-    fn clone_without_geometry(&self) -> Scene {
-        Scene {
-            path: self.path.clone(),
-            camera: self.camera,
-            light: self.light,
-            triangles: Vec::new(),
-            triangle_mesh: Vec::new(),
-            meshes: Vec::new(),
-            skipped_degenerate: self.skipped_degenerate,
-        }
     }
 }
 
