@@ -30,9 +30,10 @@ struct AccUniform {
     phase_y: i32,
     // Always 2: the trip count of the loop-limit probe (`loop_limit_hit`).
     probe: u32,
+    // 1 for the sun (math::SunFrame footprints) and its L (math::sun_lift).
+    sun: u32,
+    lift: f32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
 const KERNEL_FIXED: u32 = 0u;
@@ -61,6 +62,14 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 // device's loop limit (flagged with CUT_BITS, redone on the CPU).
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 3>;
 
+
+// The footprint's frame (math::Footprint): in perspective the view's own (fp_n = view.n); for
+// the sun (acc.sun = 1) math::SunFrame, the receiver at (0, 0, L) (L = acc.lift) and the
+// footprint's plane at L / 2, view point (x, y, z) at (x - fp_o.x, y - fp_o.y, z - fp_dz). Set
+// per receiver by estimate_receiver.
+var<private> fp_n: f32;
+var<private> fp_o: vec2<f32>;
+var<private> fp_dz: f32;
 
 // math::LightPatch.
 struct Patch {
@@ -170,7 +179,7 @@ fn front_clip(f: Front, q: array<vec2<f32>, 4>) -> Poly {
 
 // Footprint::additive_term_front.
 fn additive_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, area: f32, f: Front) -> f32 {
-    let d = vec3<f32>(lr.x - r.x, lr.y - r.y, view.n - r.z);
+    let d = vec3<f32>(lr.x - r.x, lr.y - r.y, fp_n - r.z);
     let da = dot3(d, p.a);
     let u = -dot3(r, p.a) / da;
     if !(u > 0.0) || !is_finite(u) {
@@ -193,7 +202,7 @@ struct Local {
 }
 
 fn to_patch(p: Patch, r: vec3<f32>, pt: vec2<f32>) -> Local {
-    let d = vec3<f32>(pt.x - r.x, pt.y - r.y, view.n - r.z);
+    let d = vec3<f32>(pt.x - r.x, pt.y - r.y, fp_n - r.z);
     let da = dot3(d, p.a);
     let u = -dot3(r, p.a) / da;
     if !(u > 0.0) || !is_finite(u) {
@@ -246,11 +255,21 @@ fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32, f: Fron
 
 // cpu.rs bounds_rect over Footprint::texel_bounds(c).
 fn kernel_bounds(p: Patch, r: vec3<f32>, c_in: f32) -> vec4<i32> {
-    let c = max(c_in, F32_MIN_POSITIVE);
+    // The sun: view depth c is c - fp_dz in the footprint's frame, and a point's view (x, y) is
+    // its frame (x, y) + fp_o.
+    var c_view = c_in;
+    if acc.sun != 0u {
+        c_view = c_in - fp_dz;
+    }
+    let c = max(c_view, F32_MIN_POSITIVE);
     var lo = vec2<f32>(pos_inf());
     var hi = vec2<f32>(-pos_inf());
     for (var k = 0u; k < acc.n_hull; k++) {
-        let y = at_depth(r, embed(p, tables[k]), c) * (view.n / c);
+        let at = at_depth(r, embed(p, tables[k]), c);
+        var y = at * (view.n / c);
+        if acc.sun != 0u {
+            y = at + fp_o;
+        }
         let t = (y - view.window_min) / view.delta;
         lo = min(lo, t);
         hi = max(hi, t);
@@ -359,9 +378,22 @@ fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
         if !(cz > 0.0) || !(cz < r.z) {
             continue;
         }
-        let gap = max(r.z - cz, 1e-7 * r.z);
-        let size = ((r.z - n) / gap) * (cz / n);
-        let lr = r2 * ((n - cz) / gap) + l * size;
+        var size: f32;
+        var lr: vec2<f32>;
+        if acc.sun != 0u {
+            // Footprint::caster for the sun: the lexel (l - o, cz - dz) of the footprint's frame.
+            let c = cz - fp_dz;
+            if !(c > 0.0) || !(c < r.z) {
+                continue;
+            }
+            let gap = max(r.z - c, 1e-7 * r.z);
+            size = (r.z - fp_n) / gap;
+            lr = (l - fp_o) * size;
+        } else {
+            let gap = max(r.z - cz, 1e-7 * r.z);
+            size = ((r.z - n) / gap) * (cz / n);
+            lr = r2 * ((n - cz) / gap) + l * size;
+        }
         if !is_finite(size) || !is_finite(lr.x) || !is_finite(lr.y) {
             continue;
         }
@@ -459,8 +491,14 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
 }
 
 // Accumulator::shadowing: the shadowing factor s in [0, 1].
+// r: the receiver in the footprint's frame (Footprint::r); the caster test takes its view
+// position (Footprint::receiver).
 fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
-    let rp = plane_new(est.receiver_plane != 0u, view, r, nrm, acc.b0, acc.b1, 0.0);
+    var rv = r;
+    if acc.sun != 0u {
+        rv = r + vec3<f32>(fp_o, fp_dz);
+    }
+    let rp = plane_new(est.receiver_plane != 0u, view, rv, nrm, acc.b0, acc.b1, 0.0);
     let f = front_new(p, r, nrm);
     if !(f.fraction > 0.0) {
         return 0.0;
@@ -522,10 +560,19 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     if !(facing > 0.0) {
         return 0.0;
     }
-    let r = view_to_light(view, pw);
+    let rv = view_to_light(view, pw);
+    // Footprint::for_light: the sun's frame puts the receiver at (0, 0, L).
+    var r = rv;
+    fp_n = view.n;
+    if acc.sun != 0u {
+        r = vec3<f32>(0.0, 0.0, acc.lift);
+        fp_n = 0.5 * acc.lift;
+        fp_o = vec2<f32>(rv.x, rv.y);
+        fp_dz = rv.z - acc.lift;
+    }
     let p = patch_for(r);
-    let uv = project(view, r);
-    let covered = r.z > view.n && patch_max_z(p) < r.z * (1.0 - 1e-4);
+    let uv = project(view, rv);
+    let covered = r.z > fp_n && patch_max_z(p) < r.z * (1.0 - 1e-4);
     if !covered || !view_contains(view, uv) {
         atomicAdd(&counters[0], 1u);
         return -1.0;

@@ -1,8 +1,6 @@
 //! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
 //! [`crate::math`]).
-use crate::math::{
-    caster, fixed_kernel_start, paper_plane_distance, Footprint, FrontEdge, LightPatch, SphereModel,
-};
+use crate::math::{fixed_kernel_start, paper_plane_distance, Footprint, FrontEdge, SphereModel};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
@@ -193,8 +191,9 @@ pub fn plan(
     let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
-        let wmax =
-            (view.alpha() * l * (1.0 / view.n - 1.0 / view.far)).clamp(1.0, resolution as f32);
+        let wmax = view
+            .kernel_texels(l, view.n, view.far)
+            .clamp(1.0, resolution as f32);
         (wmax.log2().ceil() as u32).clamp(1, MAX_MSSM_LEVEL)
     });
     let req = LightSpaceRequest {
@@ -457,9 +456,9 @@ impl Accumulator<'_> {
     pub fn shadowing(&self, fp: &Footprint, nrm: Vec3, uv: Vec2, stats: &mut TapStats) -> f32 {
         let ls = self.ls;
         let view = &ls.view;
-        let p = fp.r;
+        let p = fp.receiver();
         let plane = self.s.plane(view, p, nrm);
-        let front = FrontEdge::new(&fp.patch, p, nrm);
+        let front = FrontEdge::new(&fp.patch, fp.r, nrm);
         if !(front.fraction > 0.0) {
             return 0.0;
         }
@@ -499,7 +498,7 @@ impl Accumulator<'_> {
                 if !plane.caster(ic, jc, cz) {
                     break;
                 }
-                let Some((lr, size)) = caster(p, view.n, l, cz) else {
+                let Some((lr, size)) = fp.caster(l, cz) else {
                     continue;
                 };
                 let hx = 0.5 * (i1 - i0) as f32 * delta * size;
@@ -663,11 +662,7 @@ impl CpuAccumulation {
                     return 0;
                 }
                 let p = view.frame.to_light(pw);
-                let fp = Footprint::new(
-                    LightPatch::for_receiver(&light.shape, s.sphere, p),
-                    p,
-                    view.n,
-                );
+                let fp = Footprint::for_light(&light.shape, s.sphere, p, (view.n, view.far));
                 let uv = view.project(p);
                 if !fp.covered() || !view.contains(uv) {
                     outside.fetch_add(1, Ordering::Relaxed);

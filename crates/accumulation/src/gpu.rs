@@ -20,7 +20,7 @@ use crate::cpu::{
     note_settings, ring_phase, settle_outside, CpuAccumulation, KernelMode, Settings, Variant,
     MAX_BITS,
 };
-use crate::math::{LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
+use crate::math::{sun_lift, LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
@@ -100,8 +100,12 @@ pub struct AccUniform {
     /// of the device's loop budget comes back flagged and is redone with the CPU code on the same
     /// light-space data (`loop_limit_cpu_fallbacks` in the report).
     pub probe: u32,
+    /// 1 for the sun: footprints in [`crate::math::SunFrame`]s.
+    pub sun: u32,
+    /// The sun: L ([`crate::math::sun_lift`] of the view's far), else 0.
+    pub lift: f32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: u32,
 }
 
 /// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
@@ -110,7 +114,16 @@ pub fn uniform_and_tables(
     shape: &LightShape,
     ls: &LightSpace,
 ) -> (AccUniform, Vec<[f32; 2]>) {
-    let patch = LightPatch::for_receiver(shape, SphereModel::Paper, Vec3::Z);
+    // One patch for every receiver: the sun's is the disk L above each in its footprint's frame
+    // (Footprint::for_light).
+    let sun = matches!(shape, LightShape::Directional { .. });
+    let lift = if sun { sun_lift(ls.view.far) } else { 0.0 };
+    let at = if sun {
+        Vec3::new(0.0, 0.0, lift)
+    } else {
+        Vec3::Z
+    };
+    let patch = LightPatch::for_receiver(shape, SphereModel::Paper, at);
     let (patch_rect, half) = match patch.shape {
         PatchShape::Rect(h) => (1, [h.x, h.y]),
         PatchShape::Disk(r) => (0, [r, r]),
@@ -151,7 +164,9 @@ pub fn uniform_and_tables(
         mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
         phase_y: phase[1],
         probe: shadow_map_core::gpu::shared::LOOP_PROBE,
-        _pad: [0; 3],
+        sun: u32::from(sun),
+        lift,
+        _pad: 0,
     };
     (u, tables)
 }
@@ -485,8 +500,10 @@ mod tests {
                 mssm_size,
                 phase_y,
                 probe,
+                sun,
+                lift,
             },
-            pad _pad: 3
+            pad _pad: 1
         );
     }
 }

@@ -112,9 +112,9 @@ impl LightPatch {
         match *shape {
             LightShape::Rect { size } => flat(PatchShape::Rect(Vec2::new(size[0], size[1]) * 0.5)),
             LightShape::Disk { radius } => flat(PatchShape::Disk(radius)),
-            // Refused at build (`LightView::fit`, issue 19); the disk of directions at unit
-            // distance keeps a mismatched `estimate` finite.
-            LightShape::Directional { .. } => flat(PatchShape::Disk(shape.tan_half())),
+            // The sun: its disk of directions r_z above the receiver, which is on the axis of
+            // the footprint's own frame (Footprint::for_sun).
+            LightShape::Directional { .. } => flat(PatchShape::Disk(shape.tan_half() * r.z)),
             LightShape::Sphere { radius } => match sphere {
                 SphereModel::Paper => flat(PatchShape::Disk(radius)),
                 SphereModel::Contract => {
@@ -213,9 +213,19 @@ impl LightPatch {
 }
 
 /// One receiver's view of the light through the plane z = n.
+///
+/// **The sun** (an orthographic view, docs/methods.md §14 "Accumulation"): the rays from the
+/// receiver p towards the sun's disk of directions (radius t at unit distance) are the rays from
+/// p towards a disk of radius `t L` at distance L above it, for any L. The footprint works in a
+/// frame of its own ([`SunFrame`]): moved by `(p_x, p_y, p_z - L)`, so the receiver is at
+/// `r = (0, 0, L)` and that disk lies in the plane z = 0 around the axis, with L = 2 far (every
+/// caster, at view depth `n <= c_z < p_z`, then lies in `(0, L)`) and the footprint's own plane
+/// at `L / 2`. Every term below then applies unchanged, with one disk for every receiver (the GPU
+/// twin's uniform patch). What differs is the caster: an orthographic lexel at plane point l and
+/// depth c_z is the world point `(l, c_z)` ([`Footprint::caster`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Footprint {
-    /// The receiver (light space, `r_z > n`).
+    /// The receiver (light space, `r_z > n`); for the sun, in the footprint's frame (`(0, 0, p_z)`).
     pub r: Vec3,
     /// The plane distance n.
     pub n: f32,
@@ -223,9 +233,82 @@ pub struct Footprint {
     pub patch: LightPatch,
     /// `1 / A_L`.
     pub inv_area: f32,
+    /// The sun: the footprint's frame in the view ([`SunFrame`]). `None` for the perspective
+    /// views of area lights.
+    pub sun: Option<SunFrame>,
+}
+
+/// Where a sun footprint's frame lies in its orthographic view: view point `(x, y, z)` is
+/// `(x - o.x, y - o.y, z - dz)` there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SunFrame {
+    /// The receiver's `(x, y)` in the view.
+    pub o: Vec2,
+    /// `p_z - L`.
+    pub dz: f32,
+}
+
+/// The distance L of the sun's virtual disk above each receiver in its footprint's frame
+/// ([`Footprint`]): `2 far` of the view, beyond every caster's distance from any receiver.
+#[inline]
+pub fn sun_lift(far: f32) -> f32 {
+    2.0 * far.max(f32::MIN_POSITIVE)
 }
 
 impl Footprint {
+    /// The footprint of a light of shape `shape` seen from the light-space receiver `p` through
+    /// the plane z = `n` of its view: [`Footprint::new`] of [`LightPatch::for_receiver`], or for
+    /// the sun the receiver-centred frame of the type's documentation.
+    /// `p` and `n` of the view; for the sun `far` sets L ([`sun_lift`]).
+    pub fn for_light(
+        shape: &LightShape,
+        sphere: SphereModel,
+        p: Vec3,
+        (n, far): (f32, f32),
+    ) -> Footprint {
+        if !matches!(shape, LightShape::Directional { .. }) {
+            return Footprint::new(LightPatch::for_receiver(shape, sphere, p), p, n);
+        }
+        let lift = sun_lift(far);
+        let r = Vec3::new(0.0, 0.0, lift);
+        Footprint {
+            sun: Some(SunFrame {
+                o: Vec2::new(p.x, p.y),
+                dz: p.z - lift,
+            }),
+            ..Footprint::new(LightPatch::for_receiver(shape, sphere, r), r, 0.5 * lift)
+        }
+    }
+
+    /// The receiver's light-space position in the view (`r`, moved back for the sun).
+    #[inline]
+    pub fn receiver(&self) -> Vec3 {
+        match self.sun {
+            Some(f) => self.r + f.o.extend(f.dz),
+            None => self.r,
+        }
+    }
+
+    /// The image on the plane of the lexel at plane point `l` and view depth `c_z` ([`caster`]),
+    /// in the footprint's frame: `(l_r, size)`. For the sun the orthographic lexel is the point
+    /// `(l - o, c_z - dz)` of that frame and a lexel of side `delta` is `delta` wide at any depth:
+    /// `l_r = (l - o) size`, `size = (r_z - n) / (r_z - c)`, `c = c_z - dz`, with [`caster`]'s
+    /// guards.
+    #[inline]
+    pub fn caster(&self, l: Vec2, c_z: f32) -> Option<(Vec2, f32)> {
+        let Some(f) = self.sun else {
+            return caster(self.r, self.n, l, c_z);
+        };
+        let (r, c) = (self.r, c_z - f.dz);
+        if !(c > 0.0) || !(c < r.z) {
+            return None;
+        }
+        let gap = (r.z - c).max(1e-7 * r.z);
+        let size = (r.z - self.n) / gap;
+        let lr = (l - f.o) * size;
+        (size.is_finite() && lr.is_finite()).then_some((lr, size))
+    }
+
     /// The footprint of `patch` seen from `r` on the plane z = `n`.
     pub fn new(patch: LightPatch, r: Vec3, n: f32) -> Footprint {
         Footprint {
@@ -233,6 +316,7 @@ impl Footprint {
             n,
             patch,
             inv_area: 1.0 / patch.area(),
+            sun: None,
         }
     }
 
@@ -391,11 +475,21 @@ impl Footprint {
     /// lies between r and the light: the texels whose casters at depth `>= c` can occlude r.
     /// Returns `[u_min, v_min, u_max, v_max]`.
     pub fn texel_bounds(&self, c: f32, window_min: Vec2, delta: f32) -> [f32; 4] {
-        let c = c.max(f32::MIN_POSITIVE);
+        // The sun: view depth c is c - dz in the footprint's frame.
+        let c = match self.sun {
+            Some(f) => c - f.dz,
+            None => c,
+        }
+        .max(f32::MIN_POSITIVE);
         let mut lo = Vec2::splat(f32::INFINITY);
         let mut hi = Vec2::splat(f32::NEG_INFINITY);
         for k in 0..self.patch.hull_points() {
-            let y = self.at_depth(self.patch.hull_point(k), c) * (self.n / c);
+            let at = self.at_depth(self.patch.hull_point(k), c);
+            // Perspective: the point's direction on the plane z = n; the sun: its view (x, y).
+            let y = match self.sun {
+                Some(f) => at + f.o,
+                None => at * (self.n / c),
+            };
             let t = (y - window_min) / delta;
             lo = lo.min(t);
             hi = hi.max(t);

@@ -52,13 +52,26 @@ struct BitTable {
 
 const FAR_BOUND: f32 = 1e30;
 
-// math::micropatch_scale.
+// math::micropatch_k: the texel pitch over n, or the pitch itself in an orthographic view.
+fn micropatch_k() -> f32 {
+    if view.ortho != 0u {
+        return view.delta;
+    }
+    return view.delta / view.n;
+}
+
+// math::micropatch_scale (the orthographic form for the sun: k / (z_p - z_s)).
 fn micropatch_scale(k: f32, z_s: f32, z_p: f32) -> f32 {
     if !(z_s > 0.0) || !(z_s < z_p) || !(k > 0.0) {
         return 0.0;
     }
     let gap = max(max(z_p - z_s, 1e-7 * z_p), F32_MIN_POSITIVE);
-    let s = k * z_s * (z_p / gap);
+    var s: f32;
+    if view.ortho != 0u {
+        s = k / gap;
+    } else {
+        s = k * z_s * (z_p / gap);
+    }
     if is_finite(s) {
         return s;
     }
@@ -196,6 +209,12 @@ fn sil_kernel(s: Sil, p: vec3<f32>, z_m: f32) -> vec4<i32> {
     );
 }
 
+// math::Emitter::of: a disk light and the sun (its disk of directions at unit distance, radius
+// light_size_x = tan(angle / 2)) are both Emitter::Disk.
+fn disk_emitter() -> bool {
+    return est.light_shape == LIGHT_DISK || est.light_shape == LIGHT_DIRECTIONAL;
+}
+
 // math::Emitter::overlap: area(B_s ∩ L) (rect: f64 on the CPU).
 fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
     if est.light_shape == LIGHT_RECT {
@@ -203,7 +222,7 @@ fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
         let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
         return dx * dy;
     }
-    if est.light_shape == LIGHT_DISK {
+    if disk_emitter() {
         let r = est.light_size_x;
         return rect_disk_area(max(x0, -r), max(y0, -r), min(x1, r), min(y1, r), r);
     }
@@ -218,7 +237,7 @@ fn light_contributes(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> bool {
     if est.light_shape == LIGHT_RECT {
         return light_overlap(x0, y0, x1, y1, s) > 0.0;
     }
-    if est.light_shape == LIGHT_DISK {
+    if disk_emitter() {
         if !(x1 > x0 && y1 > y0) {
             return false;
         }
@@ -351,8 +370,7 @@ fn kernel_at(p: vec3<f32>, uv: vec2<f32>, zm: f32, s: Sil) -> vec4<i32> {
     if est.light_shape == LIGHT_SPHERE {
         return sil_kernel(s, p, zm);
     }
-    let alpha = view.n * f32(view.r) / view.w;
-    return kernel_rect(uv, kernel_width(alpha, 2.0 * bp.half.x, zm, p.z), kernel_width(alpha, 2.0 * bp.half.y, zm, p.z));
+    return kernel_rect(uv, view_kernel_texels(view, 2.0 * bp.half.x, zm, p.z), view_kernel_texels(view, 2.0 * bp.half.y, zm, p.z));
 }
 
 // Mssm::query(..).min (math.wgsl).
@@ -393,7 +411,7 @@ fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> vec2<f32> {
     let ic = i0 + (i1 - i0 - 1) / 2;
     let on = est.receiver_plane != 0u;
     let first_nonzero = bp.first_nonzero != 0u && bp.area > 0.0;
-    let k = view.delta / view.n;
+    let k = micropatch_k();
     for (var mm = i32(bp.layers) - 1; mm >= 0; mm--) {
         let z = textureLoad(maps, vec2<i32>(ic, jc), mm, 0).x;
         var occludes = false;
@@ -506,7 +524,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     let bx = (nx + step - 1u) / step;
     let by = (ny + step - 1u) / step;
     let kr = Kernel(rect, step, bx, by);
-    let k = view.delta / view.n;
+    let k = micropatch_k();
     var a_occ = Sum(0.0, 0.0);
     var mask = bitmask_new();
     // The bit grid's side B (nbits = B^2).

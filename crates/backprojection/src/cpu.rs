@@ -1,6 +1,6 @@
 //! The CPU backprojection estimator (docs/methods.md §2; Bavoil 2008 §4.1, §4.2, §5).
 use crate::math::{
-    backprojected_micropatch, kernel_width, micropatch_scale, Emitter, Rect, Silhouette,
+    backprojected_micropatch, micropatch_k, micropatch_scale, Emitter, Rect, Silhouette,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -345,7 +345,6 @@ impl Setup<'_> {
             .receiver_plane
             .then(|| ReceiverPlane::plane(view, p, n, self.b0, 0.0));
         let (lx, ly) = (2.0 * self.half[0], 2.0 * self.half[1]);
-        let alpha = view.alpha();
         // Kernel at z_m = n, refined by the exact min over it (docs/methods.md §2); a sphere's
         // from its silhouette disk's hull.
         let kernel = |zm: f32| match sil {
@@ -357,8 +356,8 @@ impl Setup<'_> {
             None => kernel_rect(
                 view,
                 uv,
-                kernel_width(alpha, lx, zm, zp),
-                kernel_width(alpha, ly, zm, zp),
+                view.kernel_texels(lx, zm, zp),
+                view.kernel_texels(ly, zm, zp),
             ),
         };
         let mut zm = view.n;
@@ -408,7 +407,7 @@ impl Setup<'_> {
         self.max_step.fetch_max(step, Ordering::Relaxed);
         let bx = nx.div_ceil(step) as usize;
         let by = ny.div_ceil(step) as usize;
-        let k = view.delta() / view.n;
+        let k = micropatch_k(view);
         let uvp = [uv.x, uv.y];
         // Bavoil §4.2's rule needs a light of positive area to tell a contribution from none.
         let first_nonzero = self.first_nonzero && self.area > 0.0;
@@ -489,7 +488,7 @@ impl Setup<'_> {
                     if a + 1 < bx {
                         let zt = occ[b * bx + a + 1];
                         if zt.is_finite() {
-                            let st = micropatch_scale(k, zt, zp);
+                            let st = micropatch_scale(k.0, zt, zp, k.1);
                             let d = i1 as f32 - uv.x;
                             if d != 0.0 && st > 0.0 {
                                 let x0t =
@@ -501,7 +500,7 @@ impl Setup<'_> {
                     if b + 1 < by {
                         let zt = occ[(b + 1) * bx + a];
                         if zt.is_finite() {
-                            let st = micropatch_scale(k, zt, zp);
+                            let st = micropatch_scale(k.0, zt, zp, k.1);
                             let d = j1 as f32 - uv.y;
                             if d != 0.0 && st > 0.0 {
                                 let y0t =
@@ -575,7 +574,7 @@ pub fn plan(
     let half = shadow_map_core::light_view::fit_half_extent(light, receivers);
     let (view, fit) = LightView::fit_with(scene, receivers, light.frame(), half, r, &opts)?;
     let l = 2.0 * half.max_element();
-    let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32);
+    let wmax = view.kernel_texels(l, view.n, view.far).clamp(1.0, r as f32);
     let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
     let req = LightSpaceRequest {
         resolution: r,

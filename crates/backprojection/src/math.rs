@@ -16,6 +16,17 @@ pub use shadow_map_core::silhouette::{
     hull_point, Silhouette, HULL_DIRS, HULL_SCALE, SILHOUETTE_HULL,
 };
 
+/// `(k, ortho)` of a view for [`micropatch_scale`] and [`backprojected_micropatch`]: the texel
+/// pitch over n in perspective, the texel pitch itself for an orthographic view (the sun).
+#[inline]
+pub fn micropatch_k(view: &shadow_map_core::LightView) -> (f32, bool) {
+    if view.is_ortho() {
+        (view.delta(), true)
+    } else {
+        (view.delta() / view.n, false)
+    }
+}
+
 /// Scale of a backprojected texel on the light plane (docs/methods.md §2 "Backprojected
 /// micropatch"; Bavoil eq. 1 before his division by l):
 ///
@@ -24,13 +35,22 @@ pub use shadow_map_core::silhouette::{
 /// Guarded: `z_p - z_s` is floored at `1e-7 z_p` (the f32 resolution of depths near `z_p`) so S
 /// stays finite (its limit is +inf); samples at or behind the receiver (`z_s >= z_p`) or at or
 /// behind the light (`z_s <= 0`) return 0 (they block nothing). Never NaN for finite inputs.
+///
+/// The sun (`ortho`, docs/methods.md §14 "Backprojection"): texel offsets are world offsets
+/// (`k = delta`) and the micropatch is carried onto the disk of directions at unit distance, the
+/// direction from p through a point `z_p - z_s` nearer the sun and `x` across being `x / (z_p - z_s)`:
+/// `S = delta / (z_p - z_s)`, with the same guards.
 #[inline]
-pub fn micropatch_scale(k: f32, z_s: f32, z_p: f32) -> f32 {
+pub fn micropatch_scale(k: f32, z_s: f32, z_p: f32, ortho: bool) -> f32 {
     if !(z_s > 0.0) || !(z_s < z_p) || !(k > 0.0) {
         return 0.0;
     }
     let gap = (z_p - z_s).max(1e-7 * z_p).max(f32::MIN_POSITIVE);
-    let s = k * z_s * (z_p / gap);
+    let s = if ortho {
+        k / gap
+    } else {
+        k * z_s * (z_p / gap)
+    };
     if s.is_finite() {
         s
     } else {
@@ -66,11 +86,11 @@ pub struct Rect {
 pub fn backprojected_micropatch(
     span: [f32; 4],
     uv_p: [f32; 2],
-    k: f32,
+    (k, ortho): (f32, bool),
     z_s: f32,
     z_p: f32,
 ) -> Rect {
-    let s = micropatch_scale(k, z_s, z_p);
+    let s = micropatch_scale(k, z_s, z_p, ortho);
     let b = |t: f32, c: f32| {
         let d = t - c;
         if d == 0.0 || s == 0.0 {
@@ -139,8 +159,8 @@ impl Emitter {
             },
             shadow_map_core::LightShape::Disk { radius } => Emitter::Disk { radius },
             shadow_map_core::LightShape::Sphere { radius } => Emitter::Sphere { radius },
-            // Refused at build (`LightView::fit`, issue 19); the disk of directions at unit
-            // distance keeps a mismatched `estimate` finite.
+            // The sun: its disk of directions at unit distance, onto which an orthographic
+            // view's micropatches are carried ([`micropatch_scale`]).
             shadow_map_core::LightShape::Directional { .. } => Emitter::Disk {
                 radius: shape.tan_half(),
             },
@@ -221,7 +241,7 @@ mod tests {
         let b = backprojected_micropatch(
             [i as f32, i as f32 + 1.0, j as f32, j as f32 + 1.0],
             [u_p as f32, v_p as f32],
-            (w / (n * r)) as f32,
+            ((w / (n * r)) as f32, false),
             zs as f32,
             p[2] as f32,
         );
@@ -233,13 +253,21 @@ mod tests {
 
     #[test]
     fn degenerate_depths_stay_finite() {
-        let b = backprojected_micropatch([3.0, 4.0, 3.0, 4.0], [3.5, 3.5], 0.01, 2.0, 2.0);
+        let b = backprojected_micropatch([3.0, 4.0, 3.0, 4.0], [3.5, 3.5], (0.01, false), 2.0, 2.0);
         assert_eq!(light_overlap_area(&b, [0.5, 0.5]), 0.0);
-        let b = backprojected_micropatch([3.0, 4.0, 3.0, 4.0], [3.5, 3.5], 0.01, 1.999_999_9, 2.0);
+        let b = backprojected_micropatch(
+            [3.0, 4.0, 3.0, 4.0],
+            [3.5, 3.5],
+            (0.01, false),
+            1.999_999_9,
+            2.0,
+        );
         assert!(b.x0.is_finite() && b.x1.is_finite());
         assert!((light_overlap_area(&b, [0.5, 0.5]) - 1.0).abs() < 1e-6);
         assert_eq!(kernel_width(100.0, 1.0, 0.0, 1.0), f32::MAX);
         assert_eq!(kernel_width(100.0, 1.0, 2.0, 1.0), 0.0);
-        assert_eq!(micropatch_scale(0.01, 0.0, 1.0), 0.0);
+        assert_eq!(micropatch_scale(0.01, 0.0, 1.0, false), 0.0);
+        assert_eq!(micropatch_scale(0.01, 1.0, 1.0, true), 0.0);
+        assert!(micropatch_scale(0.01, 1.0 - 1e-9, 1.0, true).is_finite());
     }
 }

@@ -6,8 +6,8 @@ use glam::Vec3;
 use shadow_map_core::light_view::LightView;
 use shadow_map_core::{DepthLookup, Light, ParamSpec, Params, Result};
 
-/// The hard test: `V = [z_p - eps <= D(floor u, floor v)]`, and 0 when the light centre is
-/// behind the receiver's tangent plane.
+/// The hard test: `V = [z_p - eps <= D(floor u, floor v)]`, and 0 when the light centre (the
+/// sun's centre direction) is behind the receiver's tangent plane.
 pub struct Hard;
 
 /// The hard shadow-map estimator.
@@ -31,8 +31,14 @@ impl Filter for Hard {
         lit(map, r.uv.x.floor() as i32, r.uv.y.floor() as i32, r)
     }
     fn facing(&self, light: &Light, p: Vec3, n: Vec3) -> f32 {
+        // The sun's centre direction comes from -normal (no point light to face).
+        let towards = if light.is_directional() {
+            -light.normal
+        } else {
+            light.center - p
+        };
         let behind = light.one_sided() && (p - light.center).dot(light.normal) <= 0.0;
-        if behind || n.dot(light.center - p) <= 0.0 {
+        if behind || n.dot(towards) <= 0.0 {
             0.0
         } else {
             1.0

@@ -75,6 +75,10 @@ pub(crate) fn note_run(
 /// Sphere lights: the samples lie on the disk through the centre perpendicular to the light
 /// normal, which equals the contract's silhouette disk only for receivers on the light axis
 /// (an approximation, labelled in `--stats`).
+///
+/// The sun: the strata y_k cover its disk of directions at unit distance and each map is an
+/// orthographic view along `e_z + y_k` (docs/methods.md §14 "Multi-sample"): exact sampling of the contract's
+/// V, as for rect and disk lights.
 pub struct MultiSample {
     params: Params,
     report: Report,
@@ -146,12 +150,16 @@ impl SoftShadowEstimator for MultiSample {
             let t = std::time::Instant::now();
             let yw = frame.to_world(y.extend(0.0));
             let view = &ls.view;
+            // The sun: y is a point of its disk of directions and the view looks along
+            // e_z + y_x e_x + y_y e_y (docs/methods.md §14 "Multi-sample"); the light arrives from -e_z.
+            let toward_sun = view.is_ortho().then_some(-view.frame.ez);
             acc.par_iter_mut().enumerate().for_each(|(k, a)| {
                 if !receivers.active[k] {
                     return;
                 }
                 let (pw, nw) = (receivers.position[k], receivers.normal[k]);
-                if nw.dot(yw - pw) <= 0.0 {
+                let towards = toward_sun.unwrap_or(yw - pw);
+                if nw.dot(towards) <= 0.0 {
                     return; // the sample is behind the receiver's tangent plane
                 }
                 let p = view.frame.to_light(pw);

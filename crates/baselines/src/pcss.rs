@@ -58,6 +58,7 @@ impl Filter for Pcss {
             to_texels: view.r as f32 / view.w,
             max_taps: self.max_taps,
             disk: is_disk(light),
+            ortho: view.is_ortho(),
         };
         soft_transmittance(&DepthTaps(map), r.uv, r.p.z, &r.plane, &soft).0
     }
@@ -66,24 +67,41 @@ impl Filter for Pcss {
 /// The blocker-search width on the plane z = n, in texels (docs/methods.md §5 step 1): the cut of
 /// the pyramid from the receiver at depth `zr` to the light of extent `l` (per axis, light-plane
 /// units), `W_search = l (z_r - n) / z_r`, times `to_texels = r / w`.
+///
+/// The sun (`ortho`, docs/methods.md §14 "PCSS"): `l` is the diameter `2 tan(angle / 2)` of its disk of
+/// directions at unit distance and the map is in world units, so the cut of the receiver's
+/// occluder prism at the near plane is `W_search = l (z_r - n)` world units.
 #[inline]
-pub fn search_width(l: Vec2, zr: f32, n: f32, to_texels: f32) -> Vec2 {
-    l * ((zr - n) / zr) * to_texels
+pub fn search_width(l: Vec2, zr: f32, n: f32, to_texels: f32, ortho: bool) -> Vec2 {
+    if ortho {
+        l * (zr - n) * to_texels
+    } else {
+        l * ((zr - n) / zr) * to_texels
+    }
 }
 
 /// The filter width on the plane z = n, in texels (docs/methods.md §5 steps 3 and 4): penumbra
 /// `w_p = (z_r - z_avg) l / z_avg` at the receiver, `W_filter = w_p n / z_r`, times `to_texels`.
+///
+/// The sun (`ortho`, docs/methods.md §14 "PCSS"): the penumbra of a blocker at depth `z_avg` is
+/// `w_p = (z_r - z_avg) l` world units wide at the receiver, `l = 2 tan(angle / 2)`, and an
+/// orthographic map keeps world widths: `W_filter = w_p`.
 #[inline]
-pub fn filter_width(l: Vec2, zr: f32, z_avg: f32, n: f32, to_texels: f32) -> Vec2 {
-    l * ((zr - z_avg) / z_avg) * (n / zr) * to_texels
+pub fn filter_width(l: Vec2, zr: f32, z_avg: f32, n: f32, to_texels: f32, ortho: bool) -> Vec2 {
+    if ortho {
+        l * (zr - z_avg) * to_texels
+    } else {
+        l * ((zr - z_avg) / z_avg) * (n / zr) * to_texels
+    }
 }
 
-/// True for the lights whose PCSS filter is a disk (disk and sphere lights; a rect's is a box).
+/// True for the lights whose PCSS filter is a disk (disk, sphere and directional lights; a
+/// rect's is a box).
 #[inline]
 pub fn is_disk(light: &Light) -> bool {
     matches!(
         light.shape,
-        LightShape::Disk { .. } | LightShape::Sphere { .. }
+        LightShape::Disk { .. } | LightShape::Sphere { .. } | LightShape::Directional { .. }
     )
 }
 
@@ -144,6 +162,9 @@ pub struct SoftLookup {
     pub max_taps: u32,
     /// A disk kernel (disk and sphere lights) instead of a box (rect lights).
     pub disk: bool,
+    /// An orthographic view (the sun): widths in world units ([`search_width`],
+    /// [`filter_width`]).
+    pub ortho: bool,
 }
 
 /// What [`soft_transmittance`] reads from a map: a shadow map ([`DepthTaps`], each texel a
@@ -181,7 +202,7 @@ pub fn soft_transmittance<M: SoftTaps>(
     plane: &ReceiverPlane,
     p: &SoftLookup,
 ) -> (f32, u32) {
-    let ws = search_width(p.light, zr, p.near, p.to_texels);
+    let ws = search_width(p.light, zr, p.near, p.to_texels, p.ortho);
     let (mut sum, mut count) = (Kahan::default(), Kahan::default());
     let mut steps = 0u32;
     cells(uv.y - 0.5 * ws.y, uv.y + 0.5 * ws.y, p.max_taps, |j, wy| {
@@ -200,7 +221,7 @@ pub fn soft_transmittance<M: SoftTaps>(
         return (1.0, steps);
     }
     let z_avg = sum.sum() / count.sum();
-    let wf = filter_width(p.light, zr, z_avg, p.near, p.to_texels);
+    let wf = filter_width(p.light, zr, z_avg, p.near, p.to_texels, p.ortho);
     let (mut lit, mut total) = (Kahan::default(), Kahan::default());
     cells(uv.y - 0.5 * wf.y, uv.y + 0.5 * wf.y, p.max_taps, |j, wy| {
         cells(uv.x - 0.5 * wf.x, uv.x + 0.5 * wf.x, p.max_taps, |i, wx| {

@@ -74,14 +74,15 @@ pub fn sublight_view_reaching(
     margin: u32,
     opts: &ViewOptions,
 ) -> Result<(LightView, FitReport)> {
-    let mut frame = scene.light.frame();
-    frame.origin = frame.to_world(y.extend(0.0));
+    let frame = shadow_map_core::light_space::point_frame(&scene.light, y)?;
     let (mut view, mut fit) = LightView::fit_with(scene, receivers, frame, half, r, opts)?;
     if margin == 0 || r <= 2 * margin {
         return Ok((view, fit));
     }
     let w0 = view.w;
-    if opts.fit == FitMode::Stable {
+    // The sun's orthographic views are not on stable_margin's x/z lattice: they take the plain
+    // margin (a stable window grown by whole texels would change the texel pitch).
+    if opts.fit == FitMode::Stable && !view.is_ortho() {
         if let Some(v) = stable_margin(&view, receivers, margin) {
             view = v;
         }
@@ -219,9 +220,15 @@ pub enum Query {
 /// fraction of the view's light ([`view_light`]) in front of it, as PCSS weights its filter
 /// (`Light::front_fraction_world`; docs/methods.md §8 "Percentage-closer soft transmittance").
 pub fn facing(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) -> f32 {
+    // The sun: the view looks along its (sub-)direction e_z; light arrives from -e_z.
+    let towards = if view.is_ortho() {
+        -view.frame.ez
+    } else {
+        view.frame.origin - pw
+    };
     if s.filter == Filter::Pcss {
-        view_light(light, view.frame.origin, s.sublights).front_fraction_world(pw, nw)
-    } else if nw.dot(view.frame.origin - pw) > 0.0 {
+        view_light(light, view, s.sublights).front_fraction_world(pw, nw)
+    } else if nw.dot(towards) > 0.0 {
         1.0
     } else {
         0.0
@@ -265,22 +272,33 @@ pub fn lookup_settings(view: &LightView, light: &Light, s: &Settings) -> LookupS
             to_texels: view.r as f32 / view.w,
             max_taps: s.max_taps,
             disk: is_disk(light),
+            ortho: view.is_ortho(),
         },
     }
 }
 
 /// The part of `light` one view stands for (docs/methods.md §8 "Percentage-closer soft
 /// transmittance"): the light itself for S = 1; for S x S sub-lights, the light's shape scaled
-/// by 1/S around the view's point `origin` (one stratum's size, so the sub-lights' penumbrae
+/// by 1/S around the view's centre of projection (one stratum's size, so the sub-lights' penumbrae
 /// tile the light's instead of each spanning it; for disks and spheres a disk of the stratum's
 /// area-equivalent scale, an approximation of the concentric-mapped stratum).
-pub fn view_light(light: &Light, origin: Vec3, sublights: u32) -> Light {
+///
+/// The sun: the stratum of its disk of directions around the view's direction `e_z`.
+pub fn view_light(light: &Light, view: &LightView, sublights: u32) -> Light {
     if sublights <= 1 {
         return *light;
     }
+    let scaled = light.scaled(1.0 / sublights as f32);
+    if light.is_directional() {
+        return Light {
+            normal: view.frame.ez,
+            tangent: view.frame.ex,
+            ..scaled
+        };
+    }
     Light {
-        center: origin,
-        ..light.scaled(1.0 / sublights as f32)
+        center: view.frame.origin,
+        ..scaled
     }
 }
 

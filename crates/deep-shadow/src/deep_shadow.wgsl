@@ -52,7 +52,7 @@ struct DsUniform {
     light_x: f32,
     light_y: f32,
     disk: u32,
-    _pad0: u32,
+    ortho: u32,
 }
 
 struct Counters {
@@ -137,7 +137,11 @@ fn raster_item(k: u32, mode: u32) {
             if (!(in0 && in1 && in2)) { continue; }
             let iz = t.iz0 + gu * (p.x - a.x) + gv * (p.y - a.y);
             if (!(iz > 0.0)) { continue; }
-            let z = 1.0 / iz;
+            // An orthographic view (the sun) interpolates z itself (raster.rs raster_tri).
+            var z = 1.0 / iz;
+            if (P.ortho != 0u) {
+                z = iz;
+            }
             let texel = j * P.r + i;
             if (mode == 1u) {
                 atomicMin(&head[texel], bitcast<u32>(z));
@@ -283,19 +287,30 @@ fn link(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
     link_list(h, upper, true);
 }
 
+// The slope g and height c of the caster test at the centre of texel (i, j): q1 = (g0, gu, gv, c)
+// in perspective; in an orthographic view (the sun, gu = gv = 0) q1 = (g0, cu, cv, c)
+// (gpu.rs pack_query).
+fn q_slope_height(q1: vec4<f32>, i: i32, j: i32) -> vec2<f32> {
+    let lin = q1.y * (f32(i) + 0.5) + q1.z * (f32(j) + 0.5);
+    if (P.ortho != 0u) {
+        return vec2<f32>(q1.x, q1.w + lin);
+    }
+    return vec2<f32>(q1.x + lin, q1.w);
+}
+
 // ReceiverPlane::caster (math.wgsl plane_caster, hs = 0): the fragment at depth z in texel (i, j)
-// attenuates the receiver of query q0 = (u, v, z_p, _), q1 = (g0, gu, gv, c).
+// attenuates the receiver of query q0 = (u, v, z_p, _), q1 (q_slope_height).
 fn q_caster(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32, z: f32) -> bool {
-    let g = q1.x + q1.y * (f32(i) + 0.5) + q1.z * (f32(j) + 0.5);
-    return z == z && abs(z) <= 3.40282347e38 && z < q0.z && z * g < q1.w;
+    let gc = q_slope_height(q1, i, j);
+    return z == z && abs(z) <= 3.40282347e38 && z < q0.z && z * gc.x < gc.y;
 }
 
 // dsm::caster_depth: ReceiverPlane::threshold_at at the centre of texel (i, j): exact where the
 // ray descends towards the tangent plane (g > 0), z_p elsewhere.
 fn q_threshold(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> f32 {
-    let g = q1.x + q1.y * (f32(i) + 0.5) + q1.z * (f32(j) + 0.5);
-    if g > 0.0 {
-        return min(q1.w / g, q0.z);
+    let gc = q_slope_height(q1, i, j);
+    if gc.x > 0.0 {
+        return min(gc.y / gc.x, q0.z);
     }
     return q0.z;
 }
@@ -372,7 +387,10 @@ fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
     let uv = q0.xy;
     let zr = q0.z;
     let l = vec2<f32>(P.light_x, P.light_y);
-    let ws = l * ((zr - P.near) / zr) * P.to_texels;
+    var ws = l * ((zr - P.near) / zr) * P.to_texels;
+    if (P.ortho != 0u) {
+        ws = l * (zr - P.near) * P.to_texels; // baselines::pcss::search_width, the sun
+    }
     var steps = 0u;
     var sum = Sum(0.0, 0.0);
     var count = Sum(0.0, 0.0);
@@ -398,7 +416,10 @@ fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
     }
     if (!(count.s > 0.0)) { return TapT(1.0, steps); }
     let z_avg = sum.s / count.s;
-    let wf = l * ((zr - z_avg) / z_avg) * (P.near / zr) * P.to_texels;
+    var wf = l * ((zr - z_avg) / z_avg) * (P.near / zr) * P.to_texels;
+    if (P.ortho != 0u) {
+        wf = l * (zr - z_avg) * P.to_texels; // baselines::pcss::filter_width, the sun
+    }
     var lit = Sum(0.0, 0.0);
     var total = Sum(0.0, 0.0);
     let fy = cells_new(uv.y - 0.5 * wf.y, uv.y + 0.5 * wf.y, P.max_taps);

@@ -391,6 +391,8 @@ pub fn depth_test(d: f32) -> ReceiverPlane {
         gu: 0.0,
         gv: 0.0,
         c: d,
+        cu: 0.0,
+        cv: 0.0,
         zp: d,
         hs: 0.0,
     }

@@ -276,6 +276,7 @@ impl GpuDeepShadow {
                 kernel: 1,
                 traversal: 0,
                 c_world: 0.0,
+                ortho: u32::from(view.is_ortho()),
                 ..Default::default()
             });
             let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
@@ -586,7 +587,7 @@ impl GpuDeepShadow {
                 light_x: ls.soft.light.x,
                 light_y: ls.soft.light.y,
                 disk: ls.soft.disk as u32,
-                _pad0: 0,
+                ortho: ls.soft.ortho as u32,
             });
             let q = self.storage("deep-shadow queries", bytemuck::cast_slice(part));
             let o = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -624,7 +625,9 @@ impl GpuDeepShadow {
 
 /// A [`Query`] as the WGSL reads it, two `vec4`s: `(u, v, z_p, fixed)` (fixed >= 0: the
 /// transmittance, no lookup; fixed < 0: look up and multiply by `-fixed`, the facing factor) and the caster test's `(g0, gu, gv, c)` ([`shadow_map_core::ReceiverPlane`]; its
-/// `hs` is always 0 here, deep shadow maps store f32 depths).
+/// `hs` is always 0 here, deep shadow maps store f32 depths). An orthographic view's plane (the
+/// sun) has `gu = gv = 0` and varies its height instead: it packs `(g0, cu, cv, c)`, and the
+/// WGSL reads it by the view's `ortho` flag (`q_slope_height`).
 pub type PackedQuery = [f32; 8];
 
 /// Packs a [`Query`] as the WGSL reads it ([`PackedQuery`]).
@@ -635,7 +638,16 @@ pub fn pack_query(q: Query) -> PackedQuery {
             uv,
             plane: p,
             facing,
-        } => [uv.x, uv.y, p.zp, -facing, p.g0, p.gu, p.gv, p.c],
+        } => {
+            // Perspective planes have cu = cv = 0, orthographic ones gu = gv = 0.
+            debug_assert!((p.cu == 0.0 && p.cv == 0.0) || (p.gu == 0.0 && p.gv == 0.0));
+            let (a, b) = if p.cu != 0.0 || p.cv != 0.0 {
+                (p.cu, p.cv)
+            } else {
+                (p.gu, p.gv)
+            };
+            [uv.x, uv.y, p.zp, -facing, p.g0, a, b, p.c]
+        }
     }
 }
 
@@ -786,7 +798,7 @@ mod tests {
                 light_x,
                 light_y,
                 disk,
-                _pad0,
+                ortho,
             }
         );
     }

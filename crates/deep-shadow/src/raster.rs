@@ -14,8 +14,11 @@ use shadow_map_core::{raster::TexelProjection, LightView, Scene};
 pub struct PreparedTri {
     /// Texel coordinates (u, v) of the vertices, ordered so the signed area is positive.
     pub uv: [DVec2; 3],
-    /// 1/z at the vertices.
+    /// The depth term at the vertices, affine in (u, v): 1/z, or z itself in an orthographic
+    /// view (the sun; [`TexelProjection::clip_project`]).
     pub inv_z: [f64; 3],
+    /// The view is orthographic: [`inv_z`](Self::inv_z) holds z.
+    pub ortho: bool,
     /// Opacity alpha of the mesh.
     pub alpha: f32,
 }
@@ -56,6 +59,7 @@ pub fn prepare(scene: &Scene, view: &LightView) -> Vec<PreparedTri> {
                 uv: tri.map(|p| p.0),
                 inv_z: tri.map(|p| p.1),
                 alpha,
+                ortho: proj.is_ortho(),
             });
         }
     }
@@ -119,7 +123,7 @@ pub fn raster_tri(t: &PreparedTri, r: u32, rows: (u32, u32), mut emit: impl FnMu
             if !(iz > 0.0) {
                 continue;
             }
-            let z = (1.0 / iz) as f32;
+            let z = if t.ortho { iz } else { 1.0 / iz } as f32;
             if z.is_finite() {
                 emit(i, j, z);
             }

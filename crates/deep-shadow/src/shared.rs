@@ -119,6 +119,7 @@ pub struct DsUniform {
     pub light_y: f32,
     /// pcss: 1 for a disk kernel, 0 for a box ([`crate::dsm::SoftLookup::disk`]).
     pub disk: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// 1 for an orthographic view (the sun): the raster's depth term is z, not 1/z, and pcss's
+    /// widths are world units ([`crate::dsm::SoftLookup::ortho`]).
+    pub ortho: u32,
 }

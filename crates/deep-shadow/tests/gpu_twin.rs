@@ -116,6 +116,7 @@ fn view(r: u32) -> LightView {
         window_min: Vec2::splat(-1.0),
         w: 2.0,
         r,
+        projection: Default::default(),
     }
 }
 
@@ -270,6 +271,7 @@ impl TwinPair for DeepShadow {
                     to_texels: v.r as f32 / v.w,
                     max_taps,
                     disk,
+                    ortho: false,
                 };
                 let filters = [
                     (Filter::First, SoftLookup::default()),

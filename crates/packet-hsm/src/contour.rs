@@ -200,10 +200,11 @@ pub const PRUNE_MARGIN: f32 = 1.0 / 1_048_576.0;
 #[inline]
 pub fn caster_bounds(p: &ReceiverPlane, uv: Vec2) -> (f32, f32) {
     let g = p.slope_at(uv);
+    let c = p.height_at(uv);
     if g > 0.0 {
-        let t = (p.c / g - p.hs).min(p.zp);
+        let t = (c / g - p.hs).min(p.zp);
         (t, t)
-    } else if p.c > 0.0 {
+    } else if c > 0.0 {
         (p.zp, p.zp)
     } else {
         (f32::NEG_INFINITY, p.zp)
@@ -392,17 +393,59 @@ impl Receiver {
     }
 }
 
+/// How texel offsets scale onto the light when backprojected ([`backproject`]): `k = w / (n r)`
+/// in a perspective view; the texel pitch `delta` in an orthographic one (the sun), whose
+/// "light plane" is its disk of directions at unit distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scale {
+    /// `w / (n r)`, or `delta` when `ortho`.
+    pub k: f64,
+    /// The view is orthographic (the sun).
+    pub ortho: bool,
+}
+
+impl Scale {
+    /// The scale of `view`.
+    pub fn of(view: &shadow_map_core::LightView) -> Scale {
+        if view.is_ortho() {
+            Scale {
+                k: view.delta() as f64,
+                ortho: true,
+            }
+        } else {
+            Scale {
+                k: (view.delta() / view.n) as f64,
+                ortho: false,
+            }
+        }
+    }
+}
+
+impl From<f64> for Scale {
+    /// A perspective view's `k`.
+    fn from(k: f64) -> Scale {
+        Scale { k, ortho: false }
+    }
+}
+
 /// Backprojects a contour vertex at texel coordinates `uv` with depth `zs` from the receiver onto
 /// the light plane (docs/methods.md §3): `x_L = k z_s z_p (u - u_p) / (z_p - z_s)`, `k = w/(n r)`.
 /// Light-plane world coordinates relative to the (sub-)light centre. Finite for finite inputs
 /// with `zs < zp` (the difference is floored at `1e-12 z_p`).
+///
+/// The sun (docs/methods.md §14 "Packet-hsm"): onto its disk of directions at unit distance,
+/// `x_L = delta (u - u_p) / (z_p - z_s)`.
 #[inline]
-pub fn backproject(uv: [f32; 2], zs: f32, rec: &Receiver, k: f64) -> DVec2 {
+pub fn backproject(uv: [f32; 2], zs: f32, rec: &Receiver, k: Scale) -> DVec2 {
     let zs = zs as f64;
     let gap = (rec.zp - zs)
         .max(1e-12 * rec.zp.abs())
         .max(f64::MIN_POSITIVE);
-    let s = k * zs * rec.zp / gap;
+    let s = if k.ortho {
+        k.k / gap
+    } else {
+        k.k * zs * rec.zp / gap
+    };
     DVec2::new(uv[0] as f64 - rec.uv.x, uv[1] as f64 - rec.uv.y) * s
 }
 
@@ -595,7 +638,7 @@ pub fn sphere_edge_term(a: DVec2, b: DVec2, s: &Silhouette) -> f64 {
 /// light `em`, seen from `rec` (docs/methods.md §3 "Radial integration", "Disk lights"); 0 for
 /// edges entirely outside the light.
 #[inline]
-pub fn edge_area(e: &Edge, rec: &Receiver, k: f64, em: &Emitter) -> f64 {
+pub fn edge_area(e: &Edge, rec: &Receiver, k: Scale, em: &Emitter) -> f64 {
     let a = backproject(e.a, e.za, rec, k);
     let b = backproject(e.b, e.zb, rec, k);
     match *em {
@@ -989,10 +1032,11 @@ pub fn pixel_visibility(
     fit: Option<&DualFit>,
     cr: &CellRect,
     rec: &Receiver,
-    k: f64,
+    k: impl Into<Scale>,
     em: &Emitter,
     traversal: Traversal,
 ) -> (f32, u64) {
+    let k = k.into();
     let mut sum = 0.0f64;
     let mut visited = 0u64;
     let test = [rec.test()];

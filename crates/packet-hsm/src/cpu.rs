@@ -1,5 +1,6 @@
 //! The CPU estimator: Yang et al. 2009, Algorithm 1, steps 2-8, over the exact per-pixel contour
 //! backprojection of [`crate::contour`].
+use crate::contour::Scale;
 use crate::contour::{
     edge_area, extract, pixel_visibility, plane_threshold_range, true_min, visibility_from_area,
     CellRect, Edge, Emitter, OccluderTest, PaddedDualMssm, Planes, Receiver, SampleGrid, Traversal,
@@ -469,11 +470,10 @@ impl SubView {
         cfg: &Config,
         own_plane: OwnPlane,
     ) -> Result<SubView> {
-        let mut frame = scene.light.frame();
-        frame.origin = frame.to_world(centre.extend(0.0));
+        let frame = shadow_map_core::light_space::point_frame(&scene.light, centre)?;
         let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)?;
         let l = 2.0 * half.max_element();
-        let wmax = kernel_width(view.alpha(), l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
+        let wmax = view.kernel_texels(l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
         let levels = (wmax.log2().ceil() as u32).clamp(1, 16);
         let req = LightSpaceRequest {
             resolution: r,
@@ -497,6 +497,11 @@ impl SubView {
         let dual = PaddedDualMssm::build(class, l0.size, max_cells);
         let (emitter, shape) = match scene.light.shape {
             LightShape::Disk { radius } => (Emitter::Disk(radius as f64), scene.light.shape),
+            // The sun: its disk of directions at unit distance (docs/methods.md §14).
+            LightShape::Directional { .. } => (
+                Emitter::Disk(scene.light.shape.tan_half() as f64),
+                scene.light.shape,
+            ),
             LightShape::Sphere { radius } => (Emitter::Sphere(radius as f64), scene.light.shape),
             _ => (
                 Emitter::Rect(half.as_dvec2()),
@@ -515,7 +520,10 @@ impl SubView {
             shape,
             light: scene.light,
         };
+        // The own-plane bounds are affine bounds of 1/z, a perspective view's planar depth
+        // term; an orthographic view (the sun) has planes affine in z itself: not built there.
         let build = cfg.shadow.receiver_plane
+            && !sv.ls.view.is_ortho()
             && match own_plane {
                 OwnPlane::Off => false,
                 OwnPlane::Always => true,
@@ -650,6 +658,8 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
                 None => return ReceiverSetup::Outside(facing),
             }
         }
+        // The sun: its disk of directions one unit from p (Light::front_fraction_world).
+        _ if view.is_ortho() => (front_fraction(&sv.shape, Vec3::Z, n), None),
         _ => {
             if !(p.z > 0.0) {
                 return ReceiverSetup::Settled(0.0);
@@ -808,11 +818,10 @@ pub fn trivial(
 /// clamped to anchors `[-1, r)`.
 pub fn kernel_cells(view: &LightView, mssm: &Mssm, uv: Vec2, zp: f32, l: Vec2) -> Option<CellRect> {
     let r = view.r as f32;
-    let alpha = view.alpha();
     let rect = |zm: f32| -> [i32; 4] {
         let (wx, wy) = (
-            kernel_width(alpha, l.x, zm, zp),
-            kernel_width(alpha, l.y, zm, zp),
+            view.kernel_texels(l.x, zm, zp),
+            view.kernel_texels(l.y, zm, zp),
         );
         let lo = |c: f32, w: f32| (c - 0.5 * w).floor().clamp(0.0, r) as i32;
         let hi = |c: f32, w: f32| (c + 0.5 * w).ceil().clamp(0.0, r) as i32;
@@ -928,7 +937,7 @@ fn pixel_wise(
     cr: &CellRect,
     facing: f32,
 ) -> (f32, u64) {
-    let k = (sv.ls.view.delta() / sv.ls.view.n) as f64;
+    let k = Scale::of(&sv.ls.view);
     let (v, n) = pixel_visibility(
         grid,
         &sv.dual,
@@ -954,7 +963,7 @@ pub fn estimate_sublight(
     counters: &Counters,
 ) {
     let grid = sv.grid(cfg);
-    let k = (sv.ls.view.delta() / sv.ls.view.n) as f64;
+    let k = Scale::of(&sv.ls.view);
     let em = &sv.emitter;
     let far = sv.ls.view.far;
     let (pw, ph) = match receivers.layout {

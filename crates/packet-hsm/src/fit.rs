@@ -329,6 +329,7 @@ mod tests {
             w: 2.0,
             window_min: Vec2::splat(-1.0),
             r,
+            projection: Default::default(),
         }
     }
 

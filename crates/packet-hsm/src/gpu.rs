@@ -117,8 +117,10 @@ pub struct HsmUniform {
     /// The light: [`SHAPE_RECT`], [`SHAPE_DISK`] (radius `hx`, docs/methods.md §3 "Disk
     /// lights") or [`SHAPE_SPHERE`] (radius `hx`, §3 "Sphere lights").
     pub shape: u32,
-    /// Padding.
-    pub _pad1: u32,
+    /// 1 for an orthographic view (the sun): `k` is the texel pitch ([`crate::contour::Scale`]),
+    /// kernels are the occluder prism's width, and a receiver's plane holds `(cu, cv)` where a
+    /// perspective one holds `(gu, gv)`.
+    pub ortho: u32,
 }
 
 /// Per-receiver state between the passes (mirrors `PrepGpu`): kernel cells, nudged texel
@@ -484,7 +486,7 @@ fn hsm_uniform(
         dual_levels: d.levels().max(1),
         alpha: view.alpha(),
         n: view.n,
-        k: view.delta() / view.n,
+        k: crate::contour::Scale::of(view).k as f32,
         hierarchy: cfg.hierarchy as u32,
         hx: sv.half.x,
         hy: sv.half.y,
@@ -509,7 +511,7 @@ fn hsm_uniform(
             Emitter::Disk(_) => SHAPE_DISK,
             Emitter::Sphere(_) => SHAPE_SPHERE,
         },
-        _pad1: 0,
+        ortho: u32::from(view.is_ortho()),
     }
 }
 
@@ -554,6 +556,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
                                     gu: 0.0,
                                     gv: 0.0,
                                     c: 0.0,
+                                    cu: 0.0,
+                                    cv: 0.0,
                                     zp: *zp,
                                     hs: 0.0,
                                 });
@@ -570,8 +574,10 @@ impl SoftShadowEstimator for GpuPacketHsm {
                                     zp: *zp,
                                     t: *t,
                                     g0: pl.g0,
-                                    gu: pl.gu,
-                                    gv: pl.gv,
+                                    // Orthographic planes have gu = gv = 0 and vary their
+                                    // height (cu, cv) instead (HsmUniform::ortho).
+                                    gu: if sv.ls.view.is_ortho() { pl.cu } else { pl.gu },
+                                    gv: if sv.ls.view.is_ortho() { pl.cv } else { pl.gv },
                                     c: pl.c,
                                     sil_a: s.a.extend(s.dist).to_array(),
                                     sil_e1: s.e1.extend(s.radius).to_array(),
@@ -667,7 +673,7 @@ mod tests {
                 receiver_plane,
                 class_is_depth,
                 shape,
-                _pad1,
+                ortho,
             }
         );
         shadow_map_core::assert_wgsl_layout!(

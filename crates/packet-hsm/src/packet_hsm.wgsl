@@ -49,7 +49,9 @@ struct HsmUniform {
     class_is_depth: u32,
     // gpu.rs SHAPE_*: 0 rect, 1 disk of radius hx, 2 sphere of radius hx (RecIn's silhouette).
     shape: u32,
-    _pad1: u32,
+    // 1: an orthographic view (the sun): k is the texel pitch, kernels the occluder prism's
+    // width, and RecIn's (gu, gv) hold the plane's (cu, cv).
+    ortho: u32,
 }
 
 // Per-receiver state between the passes (mirrors gpu.rs PrepGpu).
@@ -262,9 +264,24 @@ fn kernel_cells(rec: RecIn, valid: ptr<function, bool>) -> vec4<i32> {
     return vec4<i32>(s.x - 1, s.y - 1, s.z, s.w);
 }
 
+// LightView::kernel_texels: Yang eq. 1, or for the sun l (z_p - z_m) / delta.
+fn kernel_texels(l: f32, zm: f32, zp: f32) -> f32 {
+    if u.ortho == 0u {
+        return kernel_width(u.alpha, l, zm, zp);
+    }
+    if !(zm < zp) {
+        return 0.0;
+    }
+    let w = l * (zp - zm) / u.k;
+    if w <= F32_MAX && w >= -F32_MAX {
+        return max(w, 0.0);
+    }
+    return F32_MAX;
+}
+
 fn kernel_rect(uv: vec2<f32>, zp: f32, zm: f32, lx: f32, ly: f32, r: f32) -> vec4<i32> {
-    let wx = kernel_width(u.alpha, lx, zm, zp);
-    let wy = kernel_width(u.alpha, ly, zm, zp);
+    let wx = kernel_texels(lx, zm, zp);
+    let wy = kernel_texels(ly, zm, zp);
     return vec4<i32>(
         i32(clamp(floor(uv.x - 0.5 * wx), 0.0, r)),
         i32(clamp(floor(uv.y - 0.5 * wy), 0.0, r)),
@@ -295,18 +312,29 @@ fn occludes(rec: RecIn, i: i32, j: i32, s: vec2<f32>) -> bool {
     if u.receiver_plane == 0u {
         return true;
     }
-    let g = rec.g0 + rec.gu * (f32(i) + 0.5) + rec.gv * (f32(j) + 0.5);
-    return finite(s.x) && s.x < rec.zp && s.x * g < rec.c;
+    let gc = plane_gc(rec, vec2<f32>(f32(i) + 0.5, f32(j) + 0.5));
+    return finite(s.x) && s.x < rec.zp && s.x * gc.x < gc.y;
+}
+
+// ReceiverPlane's slope and height at uv: (g0 + gu u + gv v, c) in perspective, (g0, c + cu u +
+// cv v) in an orthographic view (gpu.rs packs cu, cv where gu, gv go).
+fn plane_gc(rec: RecIn, uv: vec2<f32>) -> vec2<f32> {
+    let lin = rec.gu * uv.x + rec.gv * uv.y;
+    if u.ortho != 0u {
+        return vec2<f32>(rec.g0, rec.c + lin);
+    }
+    return vec2<f32>(rec.g0 + lin, rec.c);
 }
 
 // contour::caster_bounds: (lower, upper) depth bounds of rec's caster test on the ray through uv.
 fn caster_bounds(rec: RecIn, uv: vec2<f32>) -> vec2<f32> {
-    let g = rec.g0 + rec.gu * uv.x + rec.gv * uv.y;
+    let gc = plane_gc(rec, uv);
+    let g = gc.x;
     if g > 0.0 {
-        let t = min(rec.c / g, rec.zp);
+        let t = min(gc.y / g, rec.zp);
         return vec2<f32>(t, t);
     }
-    if rec.c > 0.0 {
+    if gc.y > 0.0 {
         return vec2<f32>(rec.zp, rec.zp);
     }
     return vec2<f32>(-pos_inf(), rec.zp);
@@ -481,7 +509,11 @@ fn cross2(a: vec2<f32>, b: vec2<f32>) -> f32 {
 
 fn backproject(p: vec2<f32>, zs: f32, q: vec2<f32>, zp: f32) -> vec2<f32> {
     let gap = max(max(zp - zs, 1e-7 * zp), F32_MIN_POSITIVE);
-    let s = u.k * zs * (zp / gap);
+    // contour::backproject; the sun: onto its disk of directions, k / (z_p - z_s).
+    var s = u.k * zs * (zp / gap);
+    if u.ortho != 0u {
+        s = u.k / gap;
+    }
     return (p - q) * s;
 }
 

@@ -244,8 +244,14 @@ pub fn texel_density(view: &LightView, camera: &Camera, receivers: &Receivers) -
                 let cos_b = nrm.dot(ray).abs().max(1e-3);
                 t * t * axial * axial * cos_a / cos_b
             };
-            let lr = (p - view.frame.origin).normalize_or_zero();
-            let texel = area(t_tex, q.z, q.length(), lr);
+            let texel = if view.is_ortho() {
+                // The sun: a texel is delta^2 across e_z wherever it lies.
+                let cos_b = nrm.dot(view.frame.ez).abs().max(1e-3);
+                view.delta() * view.delta() / cos_b
+            } else {
+                let lr = (p - view.frame.origin).normalize_or_zero();
+                area(t_tex, q.z, q.length(), lr)
+            };
             let cr = p - camera.eye;
             let pixel = area(
                 t_pix,
@@ -376,6 +382,11 @@ pub fn direction_tiles(
             continue;
         }
         let p = frame.to_light(receivers.position[i]);
+        if scene.light.is_directional() {
+            // The sun: one direction; tiles split the receivers by position across it.
+            pts.push((i, [p.x, p.y]));
+            continue;
+        }
         let t = [p.x / p.z, p.y / p.z];
         // Receivers outside every view (beyond MAX_TAN) would only stretch the extents.
         if p.z > 0.0 && t.iter().all(|x| x.abs() <= crate::light_view::MAX_TAN) {
@@ -399,6 +410,8 @@ pub fn direction_tiles(
         (hi[a] - lo[a], a, 0.5 * (lo[a] + hi[a]))
     };
     let (want, span) = match settings.tiles {
+        // The sun's views are orthographic: no direction to tile, and cascades resolve depth.
+        0 if scene.light.is_directional() => return one,
         0 => {
             if pts.len() < 2 || !(extent(&pts).0 > settings.tile_span) {
                 return one;
@@ -1010,6 +1023,7 @@ mod tests {
             window_min: Vec2::splat(-0.5),
             w: 1.0,
             r: 100,
+            projection: Default::default(),
         };
         let camera = Camera {
             eye: Vec3::new(0.0, hc, 0.0),

@@ -2,6 +2,7 @@
 //! the fitted light view, k peeled depth layers, optional midpoint layers, and optional MSSM,
 //! dual-grid MSSM and min/max pyramid over layer 0.
 use crate::{
+    light::LightFrame,
     light_view::{FitReport, LightView, ViewOptions},
     mssm::{DualMssm, MinMaxPyramid, Mssm},
     peeling::{midpoints, peel, peel_with_opacity},
@@ -70,6 +71,29 @@ impl LightSpaceRequest {
     }
 }
 
+/// The frame of a point light at `at` on the light (light-plane x, y; the multi-view methods'
+/// sub-lights): the light's frame moved to that point. For the sun, `at` is a point of its disk
+/// of directions at unit distance and the frame looks along `e_z + at.x e_x + at.y e_y` (an
+/// orthographic view along that one direction, docs/methods.md §14 "Multi-sample"). Shared by the CPU and GPU
+/// twins so both fit the same views.
+pub fn point_frame(light: &crate::Light, at: Vec2) -> Result<LightFrame> {
+    let frame = light.frame();
+    if light.is_directional() {
+        return LightFrame::new(
+            frame.origin,
+            frame.ez + at.x * frame.ex + at.y * frame.ey,
+            frame.ex,
+        )
+        .ok_or_else(|| {
+            crate::Error::LightView(format!("sun direction sample {at} is degenerate"))
+        });
+    }
+    Ok(LightFrame {
+        origin: frame.to_world(at.extend(0.0)),
+        ..frame
+    })
+}
+
 /// Light-space data for one view.
 #[derive(Debug, Clone)]
 pub struct LightSpace {
@@ -130,8 +154,7 @@ impl LightSpace {
         req: &LightSpaceRequest,
         opts: &ViewOptions,
     ) -> Result<Self> {
-        let mut frame = scene.light.frame();
-        frame.origin = frame.to_world(at.extend(0.0));
+        let frame = point_frame(&scene.light, at)?;
         let (view, fit) =
             LightView::fit_with(scene, receivers, frame, Vec2::ZERO, req.resolution, opts)?;
         Ok(Self::build_in_view(scene, view, fit, req))

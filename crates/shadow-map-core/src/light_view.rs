@@ -10,6 +10,8 @@ use crate::{
 };
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
+mod ortho;
+
 /// Largest shadow-map resolution the CPU core accepts (texels per side).
 pub const MAX_RESOLUTION: u32 = 16384;
 
@@ -39,6 +41,26 @@ pub struct LightView {
     pub w: f32,
     /// Resolution r (texels per side).
     pub r: u32,
+    /// Perspective from the frame's origin (area lights) or orthographic along `e_z` (the sun).
+    pub projection: Projection,
+}
+
+/// How a [`LightView`] maps light space to its map (docs/methods.md §1 and §14).
+///
+/// - `Perspective`: through the frame's origin onto the plane z = n,
+///   `(u, v) = ((n x / z, n y / z) - window_min) / delta`: every area light, from its centre or
+///   from a point on it.
+/// - `Orthographic`: along `e_z`, `(u, v) = ((x, y) - window_min) / delta`: the sun, whose rays
+///   are parallel. The window and the near plane are then in world units (the frame's x, y and
+///   z), the origin is a point behind the scene (so every depth is positive), and `n` is only the
+///   near plane: the map plane has no distance to the light.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Projection {
+    /// Perspective from the origin (area lights).
+    #[default]
+    Perspective,
+    /// Orthographic along `e_z` (directional lights).
+    Orthographic,
 }
 
 /// Statistics of a fit, reported by `--stats`.
@@ -163,8 +185,12 @@ impl LightView {
     /// `receiver_bias` in `gpu/math.wgsl`.
     #[inline]
     pub fn receiver_bias(&self, p_light: Vec3, n_light: Vec3, b0: f32, b1: f32) -> f32 {
-        let texel = self.w * p_light.z / (self.n * self.r as f32);
-        let to_light = (-p_light).normalize_or_zero();
+        let texel = self.texel_at(p_light.z);
+        let to_light = if self.is_ortho() {
+            Vec3::NEG_Z
+        } else {
+            (-p_light).normalize_or_zero()
+        };
         let cos = n_light.dot(to_light).abs().max(1e-6);
         let tan = ((1.0 - cos * cos).max(0.0)).sqrt() / cos;
         texel * (b0 + b1 * tan.min(10.0))
@@ -173,6 +199,9 @@ impl LightView {
     /// The longest texel ray direction `|unproject_dir(u)|` over the window (at a corner): the
     /// scale of [`crate::receiver_plane`]'s rounding allowance.
     pub fn max_dir_len(&self) -> f32 {
+        if self.is_ortho() {
+            return 1.0;
+        }
         let a = self
             .window_min
             .abs()
@@ -191,16 +220,74 @@ impl LightView {
     pub fn alpha(&self) -> f32 {
         self.n * self.r as f32 / self.w
     }
+    /// The blocker-search kernel width in texels for a light of extent `l` (per axis) and
+    /// occluders no nearer than `z_m`, over a receiver at depth `z_p` (Guennebaud's search area,
+    /// Yang eq. 1): [`crate::mssm::kernel_width`] with `alpha = n r / w` in perspective; for the
+    /// sun (`l` = the diameter `2 tan(angle / 2)` of its disk of directions) the occluder prism's
+    /// width at `z_m`, `l (z_p - z_m) / delta` (docs/methods.md §14 "Backprojection"). 0 when
+    /// `z_m >= z_p`, `f32::MAX` when not finite.
+    #[inline]
+    pub fn kernel_texels(&self, l: f32, z_m: f32, z_p: f32) -> f32 {
+        if !self.is_ortho() {
+            return crate::mssm::kernel_width(self.alpha(), l, z_m, z_p);
+        }
+        if !(z_m < z_p) {
+            return 0.0;
+        }
+        let w = l * (z_p - z_m) / self.delta();
+        if w.is_finite() {
+            w.max(0.0)
+        } else {
+            f32::MAX
+        }
+    }
+    /// True for an orthographic view (the sun, [`Projection::Orthographic`]).
+    #[inline]
+    pub fn is_ortho(&self) -> bool {
+        self.projection == Projection::Orthographic
+    }
+    /// World size of one texel at light-space depth `z`: `w z / (n r)` in perspective, `w / r`
+    /// orthographic.
+    #[inline]
+    pub fn texel_at(&self, z: f32) -> f32 {
+        if self.is_ortho() {
+            self.delta()
+        } else {
+            self.w * z / (self.n * self.r as f32)
+        }
+    }
+    /// The point of the window plane a light-space point maps to: `n (x, y) / z` in perspective,
+    /// `(x, y)` orthographic.
+    #[inline]
+    pub fn to_plane(&self, p: Vec3) -> Vec2 {
+        if self.is_ortho() {
+            Vec2::new(p.x, p.y)
+        } else {
+            Vec2::new(p.x, p.y) * (self.n / p.z)
+        }
+    }
     /// Continuous texel coordinates (u, v) of a light-space point with z > 0.
     #[inline]
     pub fn project(&self, p: Vec3) -> Vec2 {
-        (Vec2::new(p.x, p.y) * (self.n / p.z) - self.window_min) / self.delta()
+        (self.to_plane(p) - self.window_min) / self.delta()
     }
-    /// Light-space direction through continuous texel coordinates (u, v), scaled so that z = 1.
+    /// Light-space direction through continuous texel coordinates (u, v), scaled so that z = 1
+    /// (perspective views only: an orthographic view's texels share the direction `e_z`, see
+    /// [`texel_point`](Self::texel_point)).
     #[inline]
     pub fn unproject_dir(&self, uv: Vec2) -> Vec3 {
         let xy = (uv * self.delta() + self.window_min) / self.n;
         Vec3::new(xy.x, xy.y, 1.0)
+    }
+    /// The light-space point at depth `z` on the texel ray through (u, v), in either projection.
+    #[inline]
+    pub fn texel_point(&self, uv: Vec2, z: f32) -> Vec3 {
+        let xy = uv * self.delta() + self.window_min;
+        if self.is_ortho() {
+            xy.extend(z)
+        } else {
+            (xy * (z / self.n)).extend(z)
+        }
     }
     /// True when the continuous texel coordinates fall inside the map.
     #[inline]
@@ -252,8 +339,12 @@ impl LightView {
         r: u32,
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
+        if scene.light.is_directional() {
+            // The sun: an orthographic view along the frame's e_z (light_half is the disk of
+            // directions' half extent at unit distance).
+            return ortho::fit(scene, receivers, frame, light_half, r, opts);
+        }
         check_resolution(r)?;
-        check_area_light(&scene.light)?;
         let mut rep = FitReport::default();
         let scale = scene.bounds().diagonal().max(1e-6);
         let z_eps = 1e-6 * scale;
@@ -284,6 +375,7 @@ impl LightView {
             window_min: (lo * nd).as_vec2(),
             w: (side * nd) as f32,
             r,
+            projection: Projection::Perspective,
         };
         Ok((view, rep))
     }
@@ -318,22 +410,6 @@ pub fn fit_half_extent(light: &crate::Light, receivers: &Receivers) -> Vec2 {
         }
     }
     half * f.min(4.0)
-}
-
-/// Fails with [`Error::Limit`] unless the shadow-map resolution is in `1..=MAX_RESOLUTION`.
-/// Every light view here is a perspective view from the light's centre; a directional light (the
-/// sun) needs an orthographic one, which no estimator has yet (issue 19): a typed error naming
-/// the light, never a view of a centre that does not exist.
-pub fn check_area_light(light: &crate::Light) -> Result<()> {
-    if light.is_directional() {
-        return Err(Error::Param {
-            key: "light".into(),
-            reason: "directional lights (the sun) need orthographic light views, which this \
-                     estimator does not have yet (issue 19); only the reference renders them"
-                .into(),
-        });
-    }
-    Ok(())
 }
 
 fn check_resolution(r: u32) -> Result<()> {
@@ -385,6 +461,7 @@ fn axis_view(frame: LightFrame, scale: f32, r: u32) -> LightView {
         window_min: Vec2::splat(-n),
         w: 2.0 * n,
         r,
+        projection: Projection::Perspective,
     }
 }
 
@@ -739,26 +816,10 @@ pub fn receiver_bounds(receivers: &Receivers) -> Aabb {
 /// [`LightView::fit_with`] counts a receiver as behind the light) or beyond the frustum
 /// (`|x/z| > MAX_TAN`), whose receivers no window could cover.
 pub fn bounds_receivers(scene: &Scene, bounds: &Aabb, frame: LightFrame) -> Result<Receivers> {
-    let (min, max) = (bounds.min, bounds.max);
-    if min.cmpgt(max).any() {
-        return Err(Error::Receivers(format!(
-            "receiver bounds are inverted or empty (min {min} > max {max} on some axis; no active \
-             receiver?)"
-        )));
-    }
-    if !(min.is_finite() && max.is_finite()) {
-        return Err(Error::Receivers(format!(
-            "receiver bounds are not finite (min {min}, max {max})"
-        )));
-    }
+    let (min, max) = checked_bounds(bounds)?;
     let z_eps = 1e-6 * scene.bounds().diagonal().max(1e-6);
     let mut corners = Vec::with_capacity(8);
-    for k in 0..8 {
-        let c = Vec3::new(
-            if k & 1 == 0 { min.x } else { max.x },
-            if k & 2 == 0 { min.y } else { max.y },
-            if k & 4 == 0 { min.z } else { max.z },
-        );
+    for c in box_corners(min, max) {
         let q = frame.to_light(c);
         if !q.is_finite() {
             return Err(Error::Receivers(format!(
@@ -787,6 +848,41 @@ pub fn bounds_receivers(scene: &Scene, bounds: &Aabb, frame: LightFrame) -> Resu
     Receivers::from_points(corners, vec![Vec3::Z; 8])
 }
 
+/// `bounds` checked: not inverted or empty, finite.
+fn checked_bounds(bounds: &Aabb) -> Result<(Vec3, Vec3)> {
+    let (min, max) = (bounds.min, bounds.max);
+    if min.cmpgt(max).any() {
+        return Err(Error::Receivers(format!(
+            "receiver bounds are inverted or empty (min {min} > max {max} on some axis; no active \
+             receiver?)"
+        )));
+    }
+    if !(min.is_finite() && max.is_finite()) {
+        return Err(Error::Receivers(format!(
+            "receiver bounds are not finite (min {min}, max {max})"
+        )));
+    }
+    Ok((min, max))
+}
+
+/// The 8 corners of the box `[min, max]`.
+fn box_corners(min: Vec3, max: Vec3) -> impl Iterator<Item = Vec3> {
+    (0..8).map(move |k| {
+        Vec3::new(
+            if k & 1 == 0 { min.x } else { max.x },
+            if k & 2 == 0 { min.y } else { max.y },
+            if k & 4 == 0 { min.z } else { max.z },
+        )
+    })
+}
+
+/// [`bounds_receivers`] under the sun: the corners of a checked box (an orthographic view has
+/// no light plane to cross and no frustum to leave).
+fn sun_bounds_receivers(bounds: &Aabb) -> Result<Receivers> {
+    let (min, max) = checked_bounds(bounds)?;
+    Receivers::from_points(box_corners(min, max).collect(), vec![Vec3::Z; 8])
+}
+
 impl LightView {
     /// [`fit_with`](Self::fit_with) for receivers known only by a world-space box that holds
     /// every one of them (`bounds`, e.g. [`receiver_bounds`] or the bounds of a user's G-buffer):
@@ -808,7 +904,12 @@ impl LightView {
         r: u32,
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
-        let corners = bounds_receivers(scene, bounds, frame)?;
+        let corners = if scene.light.is_directional() {
+            // The sun: no light plane to cross and no frustum to leave (orthographic).
+            sun_bounds_receivers(bounds)?
+        } else {
+            bounds_receivers(scene, bounds, frame)?
+        };
         Self::fit_with(scene, &corners, frame, light_half, r, opts)
     }
 }

@@ -75,7 +75,7 @@ impl SelfShadowSettings {
     /// plane, `w far / (n r)` each), or `None` under `self_shadow=bias`: the `midpoints` of a
     /// [`LightSpaceRequest`](crate::light_space::LightSpaceRequest).
     pub fn midpoint_clamp(&self, view: &LightView) -> Option<f32> {
-        let footprint = view.w * view.far / (view.n * view.r as f32);
+        let footprint = view.texel_at(view.far);
         self.midpoint()
             .then_some((self.max_bias * footprint).min(f32::MAX))
     }

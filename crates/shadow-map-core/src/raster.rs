@@ -109,6 +109,7 @@ pub struct TexelProjection {
     delta: f64,
     x0: DVec2,
     r: f64,
+    ortho: bool,
 }
 
 impl TexelProjection {
@@ -120,7 +121,14 @@ impl TexelProjection {
             delta: view.delta() as f64,
             x0: DVec2::new(view.window_min.x as f64, view.window_min.y as f64),
             r: view.r as f64,
+            ortho: view.is_ortho(),
         }
+    }
+
+    /// True for an orthographic view: [`clip_project`](Self::clip_project)'s depth term is then
+    /// z itself (affine in u, v), not 1/z.
+    pub fn is_ortho(&self) -> bool {
+        self.ortho
     }
 
     /// The light-space triangle `l` clipped against z >= n (Sutherland-Hodgman on one plane),
@@ -146,11 +154,16 @@ impl TexelProjection {
                 m += 1;
             }
         }
+        let ortho = self.ortho;
         let pts = poly.map(|p| {
-            (
-                (DVec2::new(p.x, p.y) * (n / p.z) - self.x0) / self.delta,
-                1.0 / p.z,
-            )
+            if ortho {
+                ((DVec2::new(p.x, p.y) - self.x0) / self.delta, p.z)
+            } else {
+                (
+                    (DVec2::new(p.x, p.y) * (n / p.z) - self.x0) / self.delta,
+                    1.0 / p.z,
+                )
+            }
         });
         let r = self.r;
         // Fewer than three vertices (m < 3) leave no triangle.
@@ -175,6 +188,8 @@ impl TexelProjection {
 pub struct PreparedScene {
     tris: Vec<Prepared>,
     r: u32,
+    /// Orthographic view: the depth term is z, not 1/z.
+    ortho: bool,
 }
 
 impl PreparedScene {
@@ -187,7 +202,12 @@ impl PreparedScene {
             let l: [Vec3; 3] = t.map(|v| view.frame.to_light(v));
             let l = l.map(|v| v.as_dvec3());
             let normal = (l[1] - l[0]).cross(l[2] - l[0]);
-            let facing_light = normal.dot(l[0]) < 0.0;
+            // Towards the centre of projection; orthographic: towards -e_z.
+            let facing_light = if proj.is_ortho() {
+                normal.z < 0.0
+            } else {
+                normal.dot(l[0]) < 0.0
+            };
             match cull {
                 Cull::Back if !facing_light => continue,
                 Cull::Front if facing_light => continue,
@@ -201,7 +221,11 @@ impl PreparedScene {
                 });
             }
         }
-        PreparedScene { tris, r: view.r }
+        PreparedScene {
+            tris,
+            r: view.r,
+            ortho: view.is_ortho(),
+        }
     }
 
     /// Number of prepared (clipped, possibly split) triangles.
@@ -260,10 +284,14 @@ impl PreparedScene {
         let mut alpha = with_alpha.then(|| vec![0.0f32; r * r]);
         let raster_band = |b: usize, rows: &mut [f32], mut arows: Option<&mut [f32]>| {
             let row0 = b * band;
-            let nrows = rows.len() / r;
             for &k in &bins[b] {
                 let t = &self.tris[k as usize];
-                raster_triangle(t, r, row0, nrows, rows, arows.as_deref_mut(), bias, behind);
+                let out = Band {
+                    row0,
+                    rows: &mut *rows,
+                    alpha: arows.as_deref_mut(),
+                };
+                raster_triangle(t, r, out, bias, behind, self.ortho);
             }
         };
         match alpha.as_mut() {
@@ -302,17 +330,30 @@ fn owns_ties(du: f64, dv: f64) -> bool {
     dv < 0.0 || (dv == 0.0 && du > 0.0)
 }
 
-#[allow(clippy::too_many_arguments)] // one triangle, its band of rows, and the pass options
+/// The rows of the map one band of the raster writes: from row `row0`, depths and (optionally)
+/// opacities.
+struct Band<'a> {
+    row0: usize,
+    rows: &'a mut [f32],
+    alpha: Option<&'a mut [f32]>,
+}
+
+/// One triangle into one band. The depth term interpolated over (u, v) is 1/z in perspective,
+/// z in an orthographic view (`ortho`); both are affine in (u, v).
 fn raster_triangle(
     t: &Prepared,
     r: usize,
-    row0: usize,
-    nrows: usize,
-    rows: &mut [f32],
-    mut alpha_rows: Option<&mut [f32]>,
+    band: Band<'_>,
     bias: DepthBias,
     behind: Option<&DepthMap>,
+    ortho: bool,
 ) {
+    let Band {
+        row0,
+        rows,
+        alpha: mut alpha_rows,
+    } = band;
+    let nrows = rows.len() / r;
     let [mut a, mut b, c] = t.uv;
     let [mut za, mut zb, zc] = t.inv_z;
     let mut area = (b - a).perp_dot(c - a);
@@ -356,11 +397,12 @@ fn raster_triangle(
             if !(iz > 0.0) {
                 continue;
             }
-            let z = 1.0 / iz;
+            let z = if ortho { iz } else { 1.0 / iz };
             let mut zs = z as f32;
             if bias.constant != 0.0 || bias.slope != 0.0 {
-                // dz/du = -z^2 d(1/z)/du.
-                let slope = (z * z * gu.abs().max(gv.abs())) as f32;
+                // dz/du = -z^2 d(1/z)/du (orthographic: the plane's own gradient).
+                let g = gu.abs().max(gv.abs());
+                let slope = (if ortho { g } else { z * z * g }) as f32;
                 zs += bias.constant + bias.slope * slope;
             }
             let idx = (j - row0) * r + i;

@@ -61,8 +61,9 @@ pub const ROUNDING: f32 = 1.0 / 65536.0;
 /// Raster snapping allowance in texel footprints (half of Vulkan's 1/256 sub-pixel step).
 pub const SNAP: f32 = 1.0 / 512.0;
 
-/// The caster test of one receiver: `z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c`, u, v the texel
-/// centre's coordinates. `#[repr(C)]`-free on purpose: the GPU twin rebuilds it from the same
+/// The caster test of one receiver: `z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c + cu u + cv v`,
+/// u, v the texel centre's coordinates (`cu = cv = 0` in a perspective view; an orthographic
+/// view's texel rays are parallel, so the plane's height over them varies with u, v instead). `#[repr(C)]`-free on purpose: the GPU twin rebuilds it from the same
 /// inputs in `gpu/math.wgsl` (`plane_new`, `plane_caster`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReceiverPlane {
@@ -72,8 +73,12 @@ pub struct ReceiverPlane {
     pub gu: f32,
     /// `dg/dv`.
     pub gv: f32,
-    /// `c - tau_p` (plane) or `z_p - eps` (classic).
+    /// `c - tau_p` (plane) or `z_p - eps` (classic), at u = v = 0.
     pub c: f32,
+    /// `dc/du` (orthographic views, else 0).
+    pub cu: f32,
+    /// `dc/dv` (orthographic views, else 0).
+    pub cv: f32,
     /// `z_p - hs`: samples whose stored depth reaches it are never casters (a 16-bit code can
     /// read up to half a step nearer than the surface, so a surface just behind the receiver
     /// must not read as in front of it).
@@ -87,7 +92,25 @@ impl ReceiverPlane {
     /// in `view`; `b0` is the user tolerance in texel footprints, `hs` half a code step (16-bit
     /// maps) or 0.
     pub fn plane(view: &LightView, p: Vec3, n: Vec3, b0: f32, hs: f32) -> Self {
-        let texel = view.w * p.z / (view.n * view.r as f32);
+        let texel = view.texel_at(p.z);
+        if view.is_ortho() {
+            // The sample s = (u delta + x0, v delta + y0, z): n.(s - p) > tau  <=>
+            // z (-n_z) < -n.p - tau + n_x (u delta + x0) + n_y (v delta + y0). The window
+            // corner's size joins the position's rounding.
+            let corner = view.window_min.abs().max_element() + view.w;
+            let tau = ROUNDING * (p.length() + corner) + (SNAP + b0) * texel;
+            let d = view.delta();
+            return ReceiverPlane {
+                g0: -n.z + ROUNDING,
+                gu: 0.0,
+                gv: 0.0,
+                c: -n.dot(p) - tau + n.x * view.window_min.x + n.y * view.window_min.y,
+                cu: n.x * d,
+                cv: n.y * d,
+                zp: p.z - hs,
+                hs,
+            };
+        }
         let kappa = ROUNDING * view.max_dir_len();
         let tau = ROUNDING * p.length() + (SNAP + b0) * texel;
         // d(u) = ((u delta + window_min) / n_near, 1), g = -n.d.
@@ -98,6 +121,8 @@ impl ReceiverPlane {
             gu: -n.x * s,
             gv: -n.y * s,
             c: -n.dot(p) - tau,
+            cu: 0.0,
+            cv: 0.0,
             zp: p.z - hs,
             hs,
         }
@@ -110,6 +135,8 @@ impl ReceiverPlane {
             gu: 0.0,
             gv: 0.0,
             c: p.z - view.receiver_bias(p, n, b0, b1),
+            cu: 0.0,
+            cv: 0.0,
             zp: p.z - hs,
             hs,
         }
@@ -135,11 +162,16 @@ impl ReceiverPlane {
     pub fn slope_at(&self, uv: Vec2) -> f32 {
         self.g0 + self.gu * uv.x + self.gv * uv.y
     }
+    /// `c + cu u + cv v` at continuous texel coordinates `uv`.
+    #[inline]
+    pub fn height_at(&self, uv: Vec2) -> f32 {
+        self.c + self.cu * uv.x + self.cv * uv.y
+    }
     /// True when a sample at depth `z` on the ray through continuous texel coordinates `uv`
     /// shadows the receiver.
     #[inline]
     pub fn caster_at(&self, uv: Vec2, z: f32) -> bool {
-        z.is_finite() && z < self.zp && (z + self.hs) * self.slope_at(uv) < self.c
+        z.is_finite() && z < self.zp && (z + self.hs) * self.slope_at(uv) < self.height_at(uv)
     }
     /// True when the sample at depth `z` stored in texel (i, j) shadows the receiver.
     #[inline]
@@ -156,14 +188,14 @@ impl ReceiverPlane {
     pub fn threshold_at(&self, uv: Vec2) -> f32 {
         let g = self.slope_at(uv);
         if g > 0.0 {
-            (self.c / g - self.hs).min(self.zp)
+            (self.height_at(uv) / g - self.hs).min(self.zp)
         } else {
             self.zp
         }
     }
     /// The largest [`threshold_at`](Self::threshold_at) over the texel rectangle
-    /// `[u0, u1] x [v0, v1]` (continuous coordinates): `g` is affine, so the extreme is at a
-    /// corner. A block of samples whose minimum depth reaches this holds no caster.
+    /// `[u0, u1] x [v0, v1]` (continuous coordinates): `g` is affine (and `c + cu u + cv v`
+    /// only varies where `g` is constant), so the extreme is at a corner. A block of samples whose minimum depth reaches this holds no caster.
     pub fn max_threshold(&self, u0: f32, u1: f32, v0: f32, v1: f32) -> f32 {
         [
             Vec2::new(u0, v0),
@@ -190,6 +222,7 @@ mod tests {
             w: 2.0,
             window_min: Vec2::splat(-1.0),
             r,
+            projection: Default::default(),
         }
     }
 

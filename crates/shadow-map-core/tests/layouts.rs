@@ -22,7 +22,7 @@ fn light_view_uniform_matches_wgsl() {
         "shared",
         "LightViewUniform",
         LightViewUniform,
-        [frame, n, w, far, r, window_min, delta, _pad0,]
+        [frame, n, w, far, r, window_min, delta, ortho,]
     );
 }
 

@@ -256,13 +256,12 @@ impl MapBuilder {
         depth: DepthPrecision,
     ) -> Result<GpuMaps> {
         let light = &scene.light;
-        let mut frame = light.frame();
-        let half = match origin {
-            MapOrigin::LightCentre => light.half_extent(),
-            MapOrigin::Point(at) => {
-                frame.origin = frame.to_world(at.extend(0.0));
-                Vec2::ZERO
-            }
+        let (frame, half) = match origin {
+            MapOrigin::LightCentre => (light.frame(), light.half_extent()),
+            MapOrigin::Point(at) => (
+                shadow_map_core::light_space::point_frame(light, at)?,
+                Vec2::ZERO,
+            ),
         };
         let (view, fit) = LightView::fit_with(scene, receivers, frame, half, req.resolution, opts)?;
         let mut one = *req;

@@ -36,7 +36,12 @@ fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let pw = rec.position;
     let nw = rec.normal;
-    if dot3(nw, view.frame.origin - pw) <= 0.0 {
+    // The sun: the sub-light is a direction, the view's e_z (orthographic).
+    var towards = view.frame.origin - pw;
+    if view.ortho != 0u {
+        towards = -view.frame.ez;
+    }
+    if dot3(nw, towards) <= 0.0 {
         return; // the sample is behind the receiver's tangent plane
     }
     let p = view_to_light(view, pw);

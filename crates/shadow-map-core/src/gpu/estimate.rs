@@ -46,6 +46,9 @@ pub const LIGHT_RECT: u32 = 0;
 pub const LIGHT_DISK: u32 = 1;
 /// `light_shape` of a sphere light (WGSL override `LIGHT_SPHERE`).
 pub const LIGHT_SPHERE: u32 = 2;
+/// `light_shape` of a directional light, the sun (WGSL override `LIGHT_DIRECTIONAL`); its sizes
+/// are `tan(angle / 2)`, the radius of its disk of directions at unit distance.
+pub const LIGHT_DIRECTIONAL: u32 = 3;
 
 /// Threads per workgroup of every per-receiver estimate kernel (WGSL override `WG`).
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -56,6 +59,7 @@ pub const OVERRIDES: &[(&str, f64)] = &[
     ("LIGHT_RECT", LIGHT_RECT as f64),
     ("LIGHT_DISK", LIGHT_DISK as f64),
     ("LIGHT_SPHERE", LIGHT_SPHERE as f64),
+    ("LIGHT_DIRECTIONAL", LIGHT_DIRECTIONAL as f64),
     ("PLANE_ROUNDING", crate::receiver_plane::ROUNDING as f64),
     ("PLANE_SNAP", crate::receiver_plane::SNAP as f64),
 ];
@@ -70,7 +74,7 @@ pub struct EstimateUniform {
     /// `Light::frame()`: origin the light centre C (world), `ex` the tangent, `ey = ez x ex`,
     /// `ez` the light normal.
     pub light_frame: FrameGpu,
-    /// [`LIGHT_RECT`], [`LIGHT_DISK`] or [`LIGHT_SPHERE`].
+    /// [`LIGHT_RECT`], [`LIGHT_DISK`], [`LIGHT_SPHERE`] or [`LIGHT_DIRECTIONAL`].
     pub light_shape: u32,
     /// Rect: width `size[0]`; disk and sphere: the radius.
     pub light_size_x: f32,
@@ -110,11 +114,9 @@ impl EstimateUniform {
             LightShape::Rect { size } => (LIGHT_RECT, size[0], size[1]),
             LightShape::Disk { radius } => (LIGHT_DISK, radius, radius),
             LightShape::Sphere { radius } => (LIGHT_SPHERE, radius, radius),
-            // Never reached: every estimator with a map refuses directional lights when it fits
-            // its light view (issue 19); its disk of directions keeps the uniform finite.
             LightShape::Directional { .. } => {
                 let t = light.shape.tan_half();
-                (LIGHT_DISK, t, t)
+                (LIGHT_DIRECTIONAL, t, t)
             }
         };
         EstimateUniform {

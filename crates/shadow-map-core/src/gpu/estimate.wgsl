@@ -5,6 +5,7 @@ override WG: u32;
 override LIGHT_RECT: u32;
 override LIGHT_DISK: u32;
 override LIGHT_SPHERE: u32;
+override LIGHT_DIRECTIONAL: u32;
 override PLANE_ROUNDING: f32;
 override PLANE_SNAP: f32;
 

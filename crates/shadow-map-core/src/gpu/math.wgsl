@@ -89,8 +89,11 @@ fn view_contains(v: LightViewUniform, uv: vec2<f32>) -> bool {
 
 // LightView::receiver_bias: eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10)).
 fn receiver_bias(v: LightViewUniform, p: vec3<f32>, n: vec3<f32>, b0: f32, b1: f32) -> f32 {
-    let texel = v.w * p.z / (v.n * f32(v.r));
-    let to_light = normalize_or_zero(-p);
+    let texel = view_texel_at(v, p.z);
+    var to_light = normalize_or_zero(-p);
+    if v.ortho != 0u {
+        to_light = vec3<f32>(0.0, 0.0, -1.0);
+    }
     let cos_t = max(abs(dot3(n, to_light)), 1e-6);
     let tan_t = sqrt(max(1.0 - cos_t * cos_t, 0.0)) / cos_t;
     return texel * (b0 + b1 * min(tan_t, 10.0));
@@ -209,6 +212,10 @@ fn front_fraction(shape: u32, size: vec2<f32>, p: vec3<f32>, n: vec3<f32>) -> f3
 // over its silhouette disk (frame at the centre whose z axis points from the light towards p).
 fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let size = vec2<f32>(u.light_size_x, u.light_size_y);
+    if u.light_shape == LIGHT_DIRECTIONAL {
+        // Light::front_fraction_world: the disk of directions one unit from p, facing it.
+        return front_fraction(LIGHT_DISK, size, vec3<f32>(0.0, 0.0, 1.0), frame_dir_to_light(u.light_frame, n));
+    }
     if u.light_shape != LIGHT_SPHERE {
         let pl = frame_to_light(u.light_frame, p);
         if pl.z <= 0.0 {
@@ -236,6 +243,22 @@ fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
     }
     let zm = max(z_m, F32_MIN_POSITIVE);
     let w = alpha * l * (1.0 / zm - 1.0 / z_p);
+    if is_finite(w) {
+        return max(w, 0.0);
+    }
+    return F32_MAX;
+}
+
+// shadow_map_core::light_view::LightView::kernel_texels: kernel_width in perspective; for the
+// sun's orthographic view the occluder prism's width l (z_p - z_m) / delta.
+fn view_kernel_texels(v: LightViewUniform, l: f32, z_m: f32, z_p: f32) -> f32 {
+    if v.ortho == 0u {
+        return kernel_width(v.n * f32(v.r) / v.w, l, z_m, z_p);
+    }
+    if !(z_m < z_p) {
+        return 0.0;
+    }
+    let w = l * (z_p - z_m) / v.delta;
     if is_finite(w) {
         return max(w, 0.0);
     }
@@ -283,21 +306,34 @@ fn mssm_min_in(mssm: texture_2d_array<f32>, present: u32, size: u32, levels: u32
     return best;
 }
 
+// shadow_map_core::light_view::LightView::texel_at: w z / (n r), orthographic w / r.
+fn view_texel_at(v: LightViewUniform, z: f32) -> f32 {
+    if v.ortho != 0u {
+        return v.delta;
+    }
+    return v.w * z / (v.n * f32(v.r));
+}
+
 // shadow_map_core::light_view::LightView::max_dir_len.
 fn view_max_dir_len(v: LightViewUniform) -> f32 {
+    if v.ortho != 0u {
+        return 1.0;
+    }
     let a = max(abs(v.window_min), abs(v.window_min + vec2<f32>(v.w))) / v.n;
     return sqrt(dot2(a, a) + 1.0);
 }
 
 // shadow_map_core::receiver_plane::ReceiverPlane (docs/methods.md §2, "Receiver plane"): a sample
 // at depth z on the ray through texel coordinates uv is a caster when
-// z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c, zp = z_p - hs. PLANE_ROUNDING and PLANE_SNAP are overrides set
+// z finite && z < zp && (z + hs) (g0 + gu u + gv v) < c + cu u + cv v, zp = z_p - hs. PLANE_ROUNDING and PLANE_SNAP are overrides set
 // from receiver_plane::{ROUNDING, SNAP}.
 struct ReceiverPlane {
     g0: f32,
     gu: f32,
     gv: f32,
     c: f32,
+    cu: f32,
+    cv: f32,
     zp: f32,
     hs: f32,
 }
@@ -305,22 +341,33 @@ struct ReceiverPlane {
 // ReceiverPlane::new: the plane test when `on`, else the classic z < z_p - receiver_bias.
 fn plane_new(on: bool, v: LightViewUniform, p: vec3<f32>, n: vec3<f32>, b0: f32, b1: f32, hs: f32) -> ReceiverPlane {
     if !on {
-        return ReceiverPlane(1.0, 0.0, 0.0, p.z - receiver_bias(v, p, n, b0, b1), p.z - hs, hs);
+        return ReceiverPlane(1.0, 0.0, 0.0, p.z - receiver_bias(v, p, n, b0, b1), 0.0, 0.0, p.z - hs, hs);
     }
-    let texel = v.w * p.z / (v.n * f32(v.r));
+    let texel = view_texel_at(v, p.z);
+    if v.ortho != 0u {
+        let corner = max(max(abs(v.window_min.x), abs(v.window_min.y)), 0.0) + v.w;
+        let tau_o = PLANE_ROUNDING * (sqrt(dot3(p, p)) + corner) + (PLANE_SNAP + b0) * texel;
+        let c0 = -dot3(n, p) - tau_o + n.x * v.window_min.x + n.y * v.window_min.y;
+        return ReceiverPlane(-n.z + PLANE_ROUNDING, 0.0, 0.0, c0, n.x * v.delta, n.y * v.delta, p.z - hs, hs);
+    }
     let kappa = PLANE_ROUNDING * view_max_dir_len(v);
     let tau = PLANE_ROUNDING * sqrt(dot3(p, p)) + (PLANE_SNAP + b0) * texel;
     let s = v.delta / v.n;
     let o = v.window_min / v.n;
-    return ReceiverPlane(-(n.x * o.x + n.y * o.y + n.z) + kappa, -n.x * s, -n.y * s, -dot3(n, p) - tau, p.z - hs, hs);
+    return ReceiverPlane(-(n.x * o.x + n.y * o.y + n.z) + kappa, -n.x * s, -n.y * s, -dot3(n, p) - tau, 0.0, 0.0, p.z - hs, hs);
 }
 
 fn plane_slope_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
     return rp.g0 + rp.gu * uv.x + rp.gv * uv.y;
 }
 
+// ReceiverPlane::height_at: c + cu u + cv v.
+fn plane_height_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
+    return rp.c + rp.cu * uv.x + rp.cv * uv.y;
+}
+
 fn plane_caster_at(rp: ReceiverPlane, uv: vec2<f32>, z: f32) -> bool {
-    return is_finite(z) && z < rp.zp && (z + rp.hs) * plane_slope_at(rp, uv) < rp.c;
+    return is_finite(z) && z < rp.zp && (z + rp.hs) * plane_slope_at(rp, uv) < plane_height_at(rp, uv);
 }
 
 fn plane_caster(rp: ReceiverPlane, i: i32, j: i32, z: f32) -> bool {
@@ -331,7 +378,7 @@ fn plane_caster(rp: ReceiverPlane, i: i32, j: i32, z: f32) -> bool {
 fn plane_threshold_at(rp: ReceiverPlane, uv: vec2<f32>) -> f32 {
     let g = plane_slope_at(rp, uv);
     if g > 0.0 {
-        return min(rp.c / g - rp.hs, rp.zp);
+        return min(plane_height_at(rp, uv) / g - rp.hs, rp.zp);
     }
     return rp.zp;
 }

@@ -31,10 +31,22 @@ struct VsOut {
 // so that framebuffer column u and row v are texel (i, j) (wgpu's framebuffer row 0 is NDC y = +1),
 // depth = n / z (reversed, infinite far: compare Greater, clear 0), and the clip volume's
 // 0 <= clip.z <= clip.w is exactly the CPU near-plane clip z >= n (no far clip).
+//
+// Orthographic views (the sun, view.ortho = 1): u = (x - x0) / delta, v = (y - y0) / delta,
+// clip = (2 u / r - 1, 1 - 2 v / r, ortho_depth(z), 1), z interpolated linearly (clip.w = 1),
+// as the CPU's orthographic raster interpolates z itself.
 @vertex
 fn vs_main(@location(0) world: vec4<f32>) -> VsOut {
     let l = to_light(view, world.xyz);
     let r = f32(view.r);
+    if view.ortho != 0u {
+        let u = (l.x - view.window_min.x) / view.delta;
+        let v = (l.y - view.window_min.y) / view.delta;
+        var out: VsOut;
+        out.clip = vec4<f32>(2.0 * u / r - 1.0, 1.0 - 2.0 * v / r, ortho_depth(l.z), 1.0);
+        out.z = l.z;
+        return out;
+    }
     let uz = (view.n * l.x - view.window_min.x * l.z) / view.delta;
     let vz = (view.n * l.y - view.window_min.y * l.z) / view.delta;
     var out: VsOut;
@@ -48,11 +60,25 @@ fn vs_main(@location(0) world: vec4<f32>) -> VsOut {
 // d(1/z)/du comes from dpdx of the fragment depth n/z, which is affine in (u, v); the 2x2-quad
 // difference is therefore the CPU's analytic plane gradient up to f32 rounding (an approximation
 // only in that rounding, about 6e-8 * slope * z absolute).
+// Orthographic views: the depth test's value, 1 at the near plane falling linearly with z (0
+// at n + 2 (far - n), beyond all geometry the window holds, so the rasteriser clips only
+// z < n, as the CPU does), and dz/du is z's own screen-space difference.
+fn ortho_depth(z: f32) -> f32 {
+    let s = max(2.0 * (view.far - view.n), 1e-3 * view.n);
+    return 1.0 - (z - view.n) / s;
+}
+
 fn stored_depth(frag: vec4<f32>, z: f32) -> f32 {
-    let g = max(abs(dpdx(frag.z)), abs(dpdy(frag.z))) / view.n;
+    var slope: f32;
+    if view.ortho != 0u {
+        slope = max(abs(dpdx(z)), abs(dpdy(z)));
+    } else {
+        let g = max(abs(dpdx(frag.z)), abs(dpdy(frag.z))) / view.n;
+        slope = z * z * g;
+    }
     var zs = z;
     if params.bias_constant != 0.0 || params.bias_slope != 0.0 {
-        zs = zs + (params.bias_constant + params.bias_slope * (z * z * g));
+        zs = zs + (params.bias_constant + params.bias_slope * slope);
     }
     return zs;
 }
@@ -92,6 +118,10 @@ fn fs_layer_biased(in: VsOut) -> BiasedOut {
     }
     var out: BiasedOut;
     out.depth = zs;
-    out.frag_depth = clamp(view.n / zs, 0.0, 1.0);
+    if view.ortho != 0u {
+        out.frag_depth = clamp(ortho_depth(zs), 0.0, 1.0);
+    } else {
+        out.frag_depth = clamp(view.n / zs, 0.0, 1.0);
+    }
     return out;
 }

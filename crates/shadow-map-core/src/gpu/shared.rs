@@ -87,8 +87,8 @@ pub struct LightViewUniform {
     pub window_min: [f32; 2],
     /// Texel pitch `w / r` (precomputed exactly as the CPU computes it).
     pub delta: f32,
-    /// Padding.
-    pub _pad0: f32,
+    /// 1 for an orthographic view (the sun, [`crate::light_view::Projection`]), else 0.
+    pub ortho: u32,
 }
 
 impl From<&LightView> for LightViewUniform {
@@ -101,7 +101,7 @@ impl From<&LightView> for LightViewUniform {
             r: v.r,
             window_min: v.window_min.to_array(),
             delta: v.delta(),
-            _pad0: 0.0,
+            ortho: u32::from(v.is_ortho()),
         }
     }
 }

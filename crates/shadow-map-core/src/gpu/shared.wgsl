@@ -18,7 +18,7 @@ struct LightViewUniform {
     r: u32,
     window_min: vec2<f32>,
     delta: f32,
-    _pad0: f32,
+    ortho: u32,
 }
 
 // `active` is a reserved word in WGSL: the Rust field `active` is `is_active` here (the only member
@@ -41,7 +41,11 @@ fn dir_to_light(v: LightViewUniform, d: vec3<f32>) -> vec3<f32> {
 }
 
 // shadow_map_core::light_view::LightView::project: continuous texel coordinates.
+// Orthographic views (the sun): (x, y) itself, not n (x, y) / z.
 fn project(v: LightViewUniform, p: vec3<f32>) -> vec2<f32> {
+    if v.ortho != 0u {
+        return (vec2<f32>(p.x, p.y) - v.window_min) / v.delta;
+    }
     return (vec2<f32>(p.x, p.y) * (v.n / p.z) - v.window_min) / v.delta;
 }
 

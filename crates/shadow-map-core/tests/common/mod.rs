@@ -21,6 +21,7 @@ pub fn unit_view(r: u32) -> LightView {
         window_min: Vec2::ZERO,
         w: r as f32,
         r,
+        projection: Default::default(),
     }
 }
 
