@@ -15,8 +15,8 @@ bin=${SOFTSHADOW_BIN:-target/release/softshadow}
 [ -n "${SOFTSHADOW_BIN:-}" ] || cargo build --release -q -p softshadow-cli
 algos=(hard pcf pcss multi-sample backprojection accumulation packet-hsm deep-shadow)
 mkdir -p "$out"
-echo "| fixture | algo | backend | RMSE | lit MAE | lit px | estimate ms |"
-echo "|---|---|---|---|---|---|---|"
+echo "| fixture | algo | backend | RMSE | lit MAE | lit px | build ms | estimate ms | cascades | cascade jump mean / max |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for scene in "${scenes[@]}"; do
   name=$(basename "$scene" .toml)
   ref="$out/$name-reference.exr"
@@ -24,7 +24,7 @@ for scene in "${scenes[@]}"; do
   for algo in "${algos[@]}"; do
     img="$out/$name-$algo-$backend.exr"
     if ! stats=$($bin render "$scene" --algo "$algo" --backend "$backend" --out "$img" --stats 2>&1); then
-      echo "| $name | $algo | $backend | error: $(echo "$stats" | tail -1) | | | |"
+      echo "| $name | $algo | $backend | error: $(echo "$stats" | tail -1) | | | | | | |"
       continue
     fi
     s=$($bin score "$img" "$ref")
@@ -32,18 +32,22 @@ for scene in "${scenes[@]}"; do
 import json, sys
 name, algo, backend, s, stats = sys.argv[1:6]
 j = json.loads(s)
-ms = ""
+ms = bms = casc = jump = ""
 for line in stats.splitlines():
     try:
         st = json.loads(line)
     except ValueError:
         continue
     stages = st.get("stages_ms") or {}
-    if isinstance(stages, dict):
-        ms = "%.1f" % sum(float(v) for k, v in stages.items() if "estimate" in k)
-    elif isinstance(stages, list):
-        ms = "%.1f" % sum(float(v) for k, v in stages if "estimate" in k)
-print("| %s | %s | %s | %.4f | %.4f | %d | %s |" % (name, algo, backend, j["rmse"], j["lit_mae"], j["lit_pixels"], ms))
+    items = stages.items() if isinstance(stages, dict) else stages
+    items = [(k, float(v)) for k, v in items]
+    ms = "%.1f" % sum(v for k, v in items if "estimate" in k)
+    bms = "%.1f" % sum(v for k, v in items if "build" in k or "upload" in k)
+    notes = st.get("notes") or {}
+    casc = notes.get("cascades", "")
+    if "cascade_jump_mean" in notes:
+        jump = "%s / %s" % (notes["cascade_jump_mean"], notes.get("cascade_jump_max", ""))
+print("| %s | %s | %s | %.4f | %.4f | %d | %s | %s | %s | %s |" % (name, algo, backend, j["rmse"], j["lit_mae"], j["lit_pixels"], bms, ms, casc, jump))
 PY
   done
 done

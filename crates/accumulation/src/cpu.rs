@@ -587,7 +587,7 @@ impl Accumulator<'_> {
 /// 3. The kernel ([`Accumulator::kernel`]); per lexel (and per peeled layer for the exact
 ///    variant) whose sample is a caster for p ([`ReceiverPlane`], `receiver_plane`: in front of
 ///    p's tangent plane and nearer the light than p; the classic `c_z < z_p - eps` with
-///    `receiver_plane=false`), the elementary caster ([`caster`]). This is the one caster test:
+///    `receiver_plane=false`), the elementary caster ([`Footprint::caster`]). This is the one caster test:
 ///    the receiver's own surface never shadows it, at any kernel size or angle, and no caster
 ///    behind the tangent plane is taken (it could block only light the receiver does not see).
 /// 4. Occlusion is measured on the part of the light in front of p's tangent plane

@@ -211,7 +211,7 @@ pub const SPECS: &[ParamSpec] = Settings::SPECS;
 /// Per receiver p (light-space depth `z_p`, texel coordinates `(u_p, v_p)`):
 /// 1. facing = the fraction of the light in front of p's tangent plane; behind the light: 0;
 ///    `z_p <= n`: facing (nothing recorded is nearer).
-/// 2. Kernel: [`kernel_width`] at `z_m = n`, then refined with the MSSM minimum over the kernel
+/// 2. Kernel: [`LightView::kernel_texels`](shadow_map_core::LightView::kernel_texels) at `z_m = n`, then refined with the MSSM minimum over the kernel
 ///    (`z_m = min depth`) until it stops shrinking; if that minimum is `>= z_p` (bias mode:
 ///    `>= z_p - eps`; `receiver_plane=true`: `>=` the largest depth a caster of the receiver
 ///    plane can have over the kernel, [`ReceiverPlane::max_threshold`]), V = facing.

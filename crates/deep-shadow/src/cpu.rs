@@ -80,9 +80,7 @@ pub fn sublight_view_reaching(
         return Ok((view, fit));
     }
     let w0 = view.w;
-    // The sun's orthographic views are not on stable_margin's x/z lattice: they take the plain
-    // margin (a stable window grown by whole texels would change the texel pitch).
-    if opts.fit == FitMode::Stable && !view.is_ortho() {
+    if opts.fit == FitMode::Stable {
         if let Some(v) = stable_margin(&view, receivers, margin) {
             view = v;
         }
@@ -110,8 +108,12 @@ const MARGIN_SLACK: f64 = 0.01;
 /// active, nearer the light than n, within [`MAX_TAN`] (those the fit covers). `None` when the
 /// view is not on a power-of-two lattice (a fit with no receiver in front of the light) or
 /// nothing fits within 64 doublings: the caller keeps the view.
+///
+/// An orthographic view (the sun) has its lattice in world units: the same rule with `x, y` for
+/// `x/z, y/z` and 1 for n.
 pub fn stable_margin(view: &LightView, receivers: &Receivers, margin: u32) -> Option<LightView> {
-    let n = view.n as f64;
+    let ortho = view.is_ortho();
+    let n = if ortho { 1.0 } else { view.n as f64 };
     let r = view.r as i64;
     let h = margin as i64;
     // The receivers' bounds in x/z units.
@@ -125,8 +127,13 @@ pub fn stable_margin(view: &LightView, receivers: &Receivers, margin: u32) -> Op
         if !(p.z > view.n) {
             continue;
         }
-        let t = [p.x as f64 / p.z as f64, p.y as f64 / p.z as f64];
-        if !(t[0].abs() <= MAX_TAN as f64 && t[1].abs() <= MAX_TAN as f64) {
+        let t = if ortho {
+            [p.x as f64, p.y as f64]
+        } else {
+            [p.x as f64 / p.z as f64, p.y as f64 / p.z as f64]
+        };
+        let in_frustum = t[0].abs() <= MAX_TAN as f64 && t[1].abs() <= MAX_TAN as f64;
+        if !(ortho || in_frustum) {
             continue;
         }
         for a in 0..2 {

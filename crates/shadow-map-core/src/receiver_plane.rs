@@ -264,6 +264,54 @@ mod tests {
         }
     }
 
+    /// [`a_planar_receiver_never_shadows_itself`] in an orthographic view (the sun), placed as
+    /// the sun's fit places it (every depth in `[R, 3R]`, the window far from the origin across):
+    /// a plane sampled at every texel centre is never its own caster up to 89.9 degrees of tilt,
+    /// its texels' threshold depths lie just in front of it (on it, to 1e-3, up to 60 degrees),
+    /// and a point lifted off it by 1e-3 of the window's size is a caster.
+    #[test]
+    fn a_planar_receiver_never_shadows_itself_under_the_sun() {
+        for r in [256u32, 1024, 4096] {
+            let v = LightView {
+                projection: crate::light_view::Projection::Orthographic,
+                n: 40.0,
+                far: 120.0,
+                window_min: Vec2::new(35.0, -60.0),
+                w: 20.0,
+                ..view(r)
+            };
+            for deg in [0.0f32, 60.0, 75.0, 85.0, 89.0, 89.9] {
+                let t = deg.to_radians();
+                let n = Vec3::new(t.sin(), 0.0, -t.cos());
+                let p = Vec3::new(44.3, -51.7, 80.0);
+                let rp = ReceiverPlane::plane(&v, p, n, 0.0, 0.0);
+                let step = (r / 64).max(1) as usize;
+                for j in (0..r as i32).step_by(step) {
+                    for i in (0..r as i32).step_by(step) {
+                        let uv = Vec2::new(i as f32 + 0.5, j as f32 + 0.5);
+                        let xy = v.texel_point(uv, 0.0);
+                        // The plane's depth over this texel: n.(s - p) = 0.
+                        let z = p.z - (n.x * (xy.x - p.x) + n.y * (xy.y - p.y)) / n.z;
+                        if !(z > v.n && z < v.far) {
+                            continue;
+                        }
+                        assert!(!rp.caster(i, j, z), "r {r} {deg} deg texel ({i},{j}) z {z}");
+                        // The threshold depth never reaches the plane (tau and kappa keep it
+                        // in front), and at moderate tilts it is the plane's depth.
+                        let th = rp.threshold_at(uv);
+                        assert!(th <= z.min(p.z), "{deg} deg: {th} above {z}");
+                        assert!(deg > 60.0 || z.min(p.z) - th <= 1e-3 * z, "{th} vs {z}");
+                        let s = v.texel_point(uv, z) + n * (1e-3 * v.w);
+                        assert!(
+                            s.z >= p.z || rp.caster_at(v.project(s), s.z),
+                            "lifted sample not a caster: r {r} {deg} deg"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn classic_mode_is_the_depth_test() {
         let v = view(512);

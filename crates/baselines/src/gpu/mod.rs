@@ -24,6 +24,7 @@
 //!
 //! Light-space data come from [`MapBuilder`]: the view fitted on the CPU, the map rasterised on the
 //! GPU by the core's `GpuShadowMapper` (tests feed CPU maps through `estimate_with` instead).
+pub mod frame;
 pub mod hard;
 pub mod kernel;
 pub mod map_estimator;
@@ -32,6 +33,7 @@ pub mod multi_sample;
 pub mod pcf;
 pub mod pcss;
 
+pub use frame::{FrameInputs, MapFrame};
 pub use hard::GpuHardShadow;
 pub use map_estimator::{GpuFilter, GpuMapEstimator};
 pub use maps::{DepthTexture, GpuMaps, MapBuilder, MapDepth, MapOrigin};

@@ -41,7 +41,7 @@ pub use kernel::{Binding, Kernel};
 pub use light_space::GpuLightSpace;
 pub use mssm::{GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder};
 pub use precision::{GpuUnorm16Encoder, GpuUnorm16Map};
-pub use raster::{GpuScene, GpuShadowMapper};
+pub use raster::{GpuMapFrame, GpuScene, GpuShadowMapper};
 pub use receivers::GpuReceivers;
 
 /// Every WGSL shader of the crate as `(name, complete source)`, shared structs prepended where a

@@ -44,7 +44,7 @@ use super::{
 };
 use crate::{
     light_view::{FitReport, LightView, ViewOptions},
-    raster::{Cull, DepthBias, PEEL_EPS_REL},
+    raster::{Cull, DepthBias, RasterOptions, PEEL_EPS_REL},
     receivers::Receivers,
     scene::Scene,
     Error, LightSpaceRequest, Result,
@@ -414,6 +414,48 @@ impl GpuShadowMapper {
         })?
     }
 
+    /// The resources of one shadow map rendered every frame into the caller's command encoder
+    /// ([`GpuMapFrame`], the engine path): an `r x r` layer and its depth test, the view and bias
+    /// uniforms, and the first-layer pipeline of `raster`, all allocated here, once.
+    pub fn map_frame(
+        &self,
+        ctx: &GpuContext,
+        r: u32,
+        raster: RasterOptions,
+    ) -> Result<GpuMapFrame> {
+        check_size(ctx, r)?;
+        let bias = raster.bias;
+        let biased = bias.constant != 0.0 || bias.slope != 0.0;
+        let pipeline = self.pipeline(ctx, (cull_key(raster.cull), false, biased))?;
+        ctx.scoped("raster.frame", || -> Result<GpuMapFrame> {
+            let device = &ctx.device;
+            let placeholder = LightView {
+                frame: crate::light::LightFrame {
+                    origin: glam::Vec3::ZERO,
+                    ex: glam::Vec3::X,
+                    ey: glam::Vec3::Y,
+                    ez: glam::Vec3::Z,
+                },
+                n: 1.0,
+                far: 2.0,
+                window_min: glam::Vec2::splat(-1.0),
+                w: 2.0,
+                r,
+                projection: Default::default(),
+            };
+            let (view_uniform, params) = create_raster_uniforms(device, &placeholder, bias);
+            let group = self.layer_bind_group(device, &view_uniform, &params, &self.no_prev);
+            Ok(GpuMapFrame {
+                r,
+                layer: GpuDepthMap::new(ctx, r, "raster.frame.layer0")?,
+                depth_test: create_depth_test(device, r),
+                view_uniform,
+                pipeline,
+                group,
+            })
+        })?
+    }
+
     /// Binds a peeling pass's uniforms and its previous layer `prev` (label `raster`).
     fn layer_bind_group(
         &self,
@@ -440,6 +482,57 @@ impl GpuShadowMapper {
                 },
             ],
         })
+    }
+}
+
+/// One shadow map rendered every frame into the caller's command encoder (the engine path,
+/// [`GpuShadowMapper::map_frame`]): [`encode`](Self::encode) stages the frame's view with
+/// `queue.write_buffer` and records one render pass; nothing is submitted, nothing waits, and no
+/// CPU work grows with the triangles. The staged view takes effect at the caller's next
+/// `queue.submit`, so encode one frame of a given `GpuMapFrame` per submit.
+#[derive(Debug)]
+pub struct GpuMapFrame {
+    /// Side in texels.
+    pub r: u32,
+    /// The map the pass renders (layer 0: nearest linear depth, +inf where empty).
+    pub layer: GpuDepthMap,
+    depth_test: wgpu::TextureView,
+    /// The view uniform the pass reads ([`LightViewUniform`]); estimate kernels may bind it too.
+    pub view_uniform: wgpu::Buffer,
+    pipeline: wgpu::RenderPipeline,
+    group: wgpu::BindGroup,
+}
+
+impl GpuMapFrame {
+    /// Stages `view` (its resolution must be this map's) and records the pass rendering
+    /// `casters` into [`layer`](Self::layer). Errors: [`Error::LightView`] for a view of another
+    /// resolution.
+    pub fn encode(
+        &self,
+        queue: &wgpu::Queue,
+        enc: &mut wgpu::CommandEncoder,
+        casters: &GpuScene,
+        view: &LightView,
+    ) -> Result<()> {
+        if view.r != self.r {
+            return Err(Error::LightView(format!(
+                "the frame's view has resolution {} but the map was prepared at {}",
+                view.r, self.r
+            )));
+        }
+        queue.write_buffer(
+            &self.view_uniform,
+            0,
+            bytemuck::bytes_of(&LightViewUniform::from(view)),
+        );
+        let mut pass = begin_layer_pass(enc, 0, &self.layer.view, &self.depth_test);
+        if casters.triangles > 0 {
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.set_vertex_buffer(0, casters.vertices.slice(..));
+            pass.draw(0..3 * casters.triangles, 0..1);
+        }
+        Ok(())
     }
 }
 

@@ -3,9 +3,9 @@
 //! near/far choices as the perspective fit ([`FitMode`], [`NearFar`]).
 //!
 //! **Frame.** Axes from the light (e_z the travel direction); origin `c - 2 R e_z` with c and R
-//! the centre and half diagonal of the box holding the scene and the receivers, so every depth
-//! lies in `[R, 3 R]`: positive, far from 0, and independent of the camera (what `fit=stable`
-//! needs for a fixed texel lattice).
+//! the centre and half diagonal of the scene's box, so every depth lies in `[R, 3 R]`: positive,
+//! far from 0, and independent of the camera (what `fit=stable` needs for a fixed texel
+//! lattice). Receivers off the scene's surfaces that would lie nearer than R grow the box.
 //!
 //! **Window.** A caster can shadow the receiver p only inside p's occluder prism: the directions
 //! within the sun's disk, `|(x, y) - p_xy| <= (z_p - z) t` per axis at depth z (t = tan(angle/2),
@@ -34,24 +34,40 @@ pub(super) fn fit(
 ) -> Result<(LightView, FitReport)> {
     check_resolution(r)?;
     let mut rep = FitReport::default();
-    let mut bounds = scene.bounds();
-    for (p, &a) in receivers.position.iter().zip(&receivers.active) {
-        if a && p.is_finite() {
-            bounds.grow(*p);
-        }
-    }
-    if !(bounds.min.is_finite() && bounds.max.is_finite()) {
-        bounds = Aabb {
-            min: Vec3::splat(-1.0),
-            max: Vec3::splat(1.0),
+    // The scene's box alone (so the frame stays put while the camera moves), grown by the
+    // receivers only when one would lie less than R in front of the origin (receivers off the
+    // scene's surfaces).
+    let placed = |bounds: Aabb| {
+        let bounds = if bounds.min.is_finite() && bounds.max.is_finite() {
+            bounds
+        } else {
+            Aabb {
+                min: Vec3::splat(-1.0),
+                max: Vec3::splat(1.0),
+            }
         };
-    }
-    let radius = (0.5 * bounds.diagonal()).max(1e-6);
-    let centre = 0.5 * (bounds.min + bounds.max);
-    let frame = LightFrame {
-        origin: centre - frame.ez * (2.0 * radius),
-        ..frame
+        let radius = (0.5 * bounds.diagonal()).max(1e-6);
+        let centre = 0.5 * (bounds.min + bounds.max);
+        let f = LightFrame {
+            origin: centre - frame.ez * (2.0 * radius),
+            ..frame
+        };
+        (f, radius)
     };
+    let active = || {
+        receivers
+            .position
+            .iter()
+            .zip(&receivers.active)
+            .filter(|(p, &a)| a && p.is_finite())
+            .map(|(p, _)| *p)
+    };
+    let (mut frame, mut radius) = placed(scene.bounds());
+    if active().any(|p| frame.to_light(p).z < radius) {
+        let mut bounds = scene.bounds();
+        active().for_each(|p| bounds.grow(p));
+        (frame, radius) = placed(bounds);
+    }
     let z_eps = 1e-6 * radius;
     let h = tan_half.as_dvec2();
     let rec: Vec<(DVec2, f64)> = receivers
