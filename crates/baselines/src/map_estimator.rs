@@ -90,6 +90,22 @@ impl<F: Filter> MapEstimator<F> {
     pub fn unorm16(&self) -> Option<&Unorm16Map> {
         self.q16.as_ref()
     }
+
+    /// [`build`](SoftShadowEstimator::build) in the caller's view (its resolution is the map's)
+    /// instead of one fitted to the receivers: the CPU twin of the frame path's
+    /// [`MapFrame`](crate::gpu::MapFrame), whose view the caller fits.
+    pub fn build_in_view(&mut self, scene: &Scene, view: LightView) -> Result<()> {
+        self.report = Report::default();
+        let settings = MapSettings::from_params(&self.params)?;
+        let mut req = settings.request();
+        req.resolution = view.r;
+        let mut ls = LightSpace::build_in_view(scene, view, Default::default(), &req);
+        let q16 = encode_layer0(&mut ls, settings.depth);
+        self.report.light_space_bytes = ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes);
+        self.ls = Some(ls);
+        self.q16 = q16;
+        Ok(())
+    }
 }
 
 impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {

@@ -119,24 +119,73 @@ impl SoftShadowEstimator for MultiSample {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        receivers.check_output(v)?;
         let settings = MapSettings::from_params(&self.params)?;
         let MultiSampleParams { sublights: s, seed } =
             MultiSampleParams::from_params(&self.params)?;
+        let (req, opts) = (settings.request(), settings.view);
+        let points = scene.light.stratified_points(s, |k| jitter(seed, k));
+        let maps = points
+            .iter()
+            .map(|y| LightSpace::build_point_with(scene, receivers, *y, &req, &opts));
+        self.accumulate(scene, receivers, v, maps)
+    }
+    fn report(&self) -> Report {
+        self.report.clone()
+    }
+}
+
+impl MultiSample {
+    /// [`estimate`](SoftShadowEstimator::estimate) in the caller's sub-light views, one per
+    /// stratum in the order of [`Light::stratified_points`] (`None`: a sub-light no receiver is
+    /// in front of, counted in N): the CPU twin of the frame path's
+    /// [`MultiSampleFrame`](crate::gpu::MultiSampleFrame), whose views the caller fits.
+    pub fn estimate_in_views(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<shadow_map_core::LightView>],
+        v: &mut [f32],
+    ) -> Result<()> {
+        self.report = Report::default();
+        let req = MapSettings::from_params(&self.params)?.request();
+        let maps = views.iter().map(|view| match view {
+            Some(view) => Ok(LightSpace::build_in_view(
+                scene,
+                *view,
+                Default::default(),
+                &req,
+            )),
+            None => Err(Error::LightView(
+                "no receiver in front of this sub-light".into(),
+            )),
+        });
+        self.accumulate(scene, receivers, v, maps)
+    }
+
+    /// V from one light space per sub-light (`Err(Error::LightView)`: a sub-light that lights
+    /// nothing, counted in N).
+    fn accumulate(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        v: &mut [f32],
+        maps: impl ExactSizeIterator<Item = Result<LightSpace>>,
+    ) -> Result<()> {
+        receivers.check_output(v)?;
+        let settings = MapSettings::from_params(&self.params)?;
+        let s = MultiSampleParams::from_params(&self.params)?.sublights;
         let (on, biases) = settings.caster_test();
-        let req = settings.request();
-        let opts = settings.view;
         let precision = settings.depth;
         let light = scene.light;
-        let points = light.stratified_points(s, |k| jitter(seed, k));
+        let n_points = maps.len();
         let frame = light.frame();
         let mut acc = vec![0.0f32; receivers.len()];
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let mut peak = 0usize;
         let mut behind = 0usize;
-        for y in &points {
+        for built in maps {
             let t = std::time::Instant::now();
-            let mut ls = match LightSpace::build_point_with(scene, receivers, *y, &req, &opts) {
+            let mut ls = match built {
                 Ok(ls) => ls,
                 // No receiver in front of this light point: it lights nothing.
                 Err(Error::LightView(_)) => continue,
@@ -148,8 +197,8 @@ impl SoftShadowEstimator for MultiSample {
             peak = peak.max(ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes));
             behind = behind.max(ls.fit.out_of_frustum);
             let t = std::time::Instant::now();
-            let yw = frame.to_world(y.extend(0.0));
             let view = &ls.view;
+            let yw = view.frame.origin;
             // The sun: y is a point of its disk of directions and the view looks along
             // e_z + y_x e_x + y_y e_y (docs/methods.md §14 "Multi-sample"); the light arrives from -e_z.
             let toward_sun = view.is_ortho().then_some(-view.frame.ez);
@@ -188,7 +237,7 @@ impl SoftShadowEstimator for MultiSample {
             });
             t_est += t.elapsed().as_secs_f64() * 1e3;
         }
-        let inv = 1.0 / points.len().max(1) as f32;
+        let inv = 1.0 / n_points.max(1) as f32;
         let one_sided = light.one_sided();
         for (k, out) in v.iter_mut().enumerate() {
             *out = if !receivers.active[k] {
@@ -201,8 +250,5 @@ impl SoftShadowEstimator for MultiSample {
         }
         note_run(&mut self.report, (t_build, t_est), peak, s, behind, &light);
         Ok(())
-    }
-    fn report(&self) -> Report {
-        self.report.clone()
     }
 }

@@ -9,11 +9,12 @@
 #![cfg(feature = "gpu")]
 
 use baselines::{
-    gpu::{FrameInputs, GpuFilter, MapFrame},
+    gpu::{FrameInputs, GpuFilter, MapFrame, MultiSampleFrame, MultiSampleInputs},
     hard::Hard,
     map_estimator::{Filter, MapEstimator},
     pcf::Pcf,
     pcss::Pcss,
+    MultiSample,
 };
 use glam::Vec3;
 use shadow_map_core::{
@@ -111,6 +112,75 @@ fn hard_pcf_and_pcss_frames_match_their_cpu_twins() {
     frames_match_the_cpu_twin::<Hard>(&ctx);
     frames_match_the_cpu_twin::<Pcf>(&ctx);
     frames_match_the_cpu_twin::<Pcss>(&ctx);
+}
+
+/// Multi-sample's S x S sub-light maps rendered in turn into one layer within each frame, three
+/// frames, one readback: bit for bit the GPU twin's V, and the CPU twin's on the same views but
+/// for depth ties (at most 0.1% of the receivers, one sub-light's test each).
+#[test]
+fn multi_sample_frames_match_the_cpu_twin() {
+    let Some(ctx) = context_for_tests("multi_sample_frames_match_the_cpu_twin").unwrap() else {
+        return;
+    };
+    for (name, scene, rec) in scenes() {
+        let params = Params::new(baselines::multi_sample::SPECS).unwrap();
+        let frame = MultiSampleFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
+        let views = frame.fit_views(&scene, &rec).unwrap();
+        assert_eq!(views.len(), 16);
+        let casters = GpuScene::upload(&ctx, &scene).unwrap();
+        let receivers = GpuReceivers::upload(&ctx, &rec).unwrap();
+        let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("caller's V"),
+            size: 4 * rec.len() as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let inputs = MultiSampleInputs {
+            casters: &casters,
+            views: &views,
+            light: &scene.light,
+            receivers: &receivers.buffer,
+            count: receivers.count,
+            v: &v_buf,
+        };
+        for _ in 0..3 {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            frame.encode(&mut enc, &inputs).unwrap();
+            ctx.queue.submit([enc.finish()]);
+        }
+        let bits: Vec<u32> = ctx.read_buffer(&v_buf, 4 * rec.len() as u64).unwrap();
+        let mut cpu = MultiSample::new().unwrap();
+        let (v_cpu, _) = run(&mut cpu, &scene, &rec).unwrap();
+        let mut gpu = baselines::GpuMultiSample::new(ctx.clone()).unwrap();
+        let (v_gpu, _) = run(&mut gpu, &scene, &rec).unwrap();
+        let mut worst = 0.0f32;
+        let (mut differ, mut differ_gpu) = (0, 0);
+        for (k, (&b, &c)) in bits.iter().zip(&v_cpu).enumerate() {
+            let g = f32::from_bits(b);
+            if !rec.active[k] {
+                assert!(
+                    g.is_nan() && c.is_nan(),
+                    "multi-sample {name}: receiver {k}"
+                );
+                continue;
+            }
+            worst = worst.max((g - c).abs());
+            differ += usize::from(g != c);
+            differ_gpu += usize::from(g != v_gpu[k]);
+        }
+        println!("multi-sample {name}: frame API vs CPU twin, max |dV| {worst:.2e}, {differ} differ ({differ_gpu} from the GPU twin)");
+        // Bit for bit the GPU twin's V (the same maps, the same kernels); against the CPU twin
+        // a depth tie may flip one sub-light's test at a receiver (the twins' tolerance).
+        assert_eq!(
+            differ_gpu, 0,
+            "multi-sample {name}: differs from the GPU twin"
+        );
+        let active = rec.active.iter().filter(|a| **a).count();
+        assert!(
+            differ * 1000 <= active && worst <= 1.0 / 16.0 + 1e-6,
+            "multi-sample {name}: {differ} of {active} differ from the CPU twin, max |dV| {worst}"
+        );
+    }
 }
 
 /// Bad frames are refused with a typed error before anything is recorded: a view of another

@@ -1,6 +1,7 @@
-//! The engine path of hard, PCF and PCSS (issue 20, first step): a shadow map and its filter
-//! recorded every frame into the caller's command encoder, from the caller's casters and
-//! receiver buffer, V written into the caller's buffer. Nothing is submitted, nothing waits,
+//! The engine path of hard, PCF, PCSS ([`MapFrame`]) and multi-sample ([`MultiSampleFrame`])
+//! (issue 20, first step): shadow maps and their filter recorded every frame into the caller's
+//! command encoder, from the caller's casters and receiver buffer, V written into the caller's
+//! buffer. Nothing is submitted, nothing waits,
 //! nothing is read back: the loop-budget and frustum counters go to a status buffer the caller
 //! may read when it likes ([`MapFrame::status`]).
 //!
@@ -20,14 +21,19 @@
 use super::{
     kernel,
     map_estimator::{entry, shader_parts, GpuFilter},
+    multi_sample::Kernels as MultiSampleKernels,
 };
-use crate::common::MapSettings;
+use crate::{
+    common::MapSettings,
+    multi_sample::{jitter, MultiSampleParams},
+};
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
         receivers::RECEIVER_BYTES,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
+    light_space::point_frame,
     light_view::{FitReport, LightView},
     DepthPrecision, Error, Light, Params, Receivers, Result, Scene,
 };
@@ -83,7 +89,7 @@ impl<F: GpuFilter> MapFrame<F> {
         uniform.receiver_plane = u32::from(settings.receiver_plane);
         filter.set_uniform(&mut uniform);
         let mapper = GpuShadowMapper::new(&ctx)?;
-        let map = mapper.map_frame(&ctx, settings.resolution, settings.raster())?;
+        let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), 1)?;
         let label = format!("{} frame", F::NAME);
         let module = kernel_module(&ctx, &label, &shader_parts::<F>(DepthPrecision::F32))?;
         let layout = kernel::map_layout(&ctx, &label, DepthPrecision::F32);
@@ -166,7 +172,8 @@ impl<F: GpuFilter> MapFrame<F> {
             }
         }
         let queue = &self.ctx.queue;
-        self.map.encode(queue, enc, inputs.casters, inputs.view)?;
+        self.map
+            .encode(queue, enc, inputs.casters, inputs.view, 0)?;
         let mut u = EstimateUniform::new(inputs.light, 0.0, 0.0);
         u.bias = self.uniform.bias;
         u.slope_bias = self.uniform.slope_bias;
@@ -186,7 +193,7 @@ impl<F: GpuFilter> MapFrame<F> {
                 label: Some("frame estimate"),
                 layout: &self.layout,
                 entries: &[
-                    entry(0, self.map.view_uniform.as_entire_binding()),
+                    entry(0, self.map.view_uniform(0).as_entire_binding()),
                     entry(1, self.est.as_entire_binding()),
                     entry(2, wgpu::BindingResource::TextureView(&self.map.layer.view)),
                     entry(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
@@ -201,6 +208,228 @@ impl<F: GpuFilter> MapFrame<F> {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
+        Ok(())
+    }
+}
+
+/// Checks one frame's receiver count against one dispatch (`65535 x WORKGROUP_SIZE`) and the
+/// caller's buffers against the count ([`Error::Limit`]).
+fn check_buffers(receivers: &wgpu::Buffer, v: &wgpu::Buffer, n: u64) -> Result<()> {
+    let max = 65_535 * WORKGROUP_SIZE as u64;
+    if n > max {
+        return Err(Error::Limit {
+            what: "receivers per frame (one dispatch)",
+            requested: n,
+            max,
+        });
+    }
+    for (what, have, need) in [
+        (
+            "receiver buffer bytes",
+            receivers.size(),
+            n * RECEIVER_BYTES,
+        ),
+        ("V buffer bytes", v.size(), n * 4),
+    ] {
+        if have < need {
+            return Err(Error::Limit {
+                what,
+                requested: need,
+                max: have,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// What one multi-sample frame reads and writes: [`FrameInputs`] with one view per sub-light
+/// ([`MultiSampleFrame::fit_views`]; `None`: a sub-light no receiver is in front of, which
+/// lights nothing but counts in N, as on the CPU).
+#[derive(Debug, Clone, Copy)]
+pub struct MultiSampleInputs<'a> {
+    /// The casters.
+    pub casters: &'a GpuScene,
+    /// One view per sub-light, in [`MultiSampleFrame::fit_views`]' order.
+    pub views: &'a [Option<LightView>],
+    /// The light.
+    pub light: &'a Light,
+    /// The receivers (`ReceiverGpu` array).
+    pub receivers: &'a wgpu::Buffer,
+    /// How many receivers.
+    pub count: u32,
+    /// V per receiver as f32 bits.
+    pub v: &'a wgpu::Buffer,
+}
+
+/// Multi-sample shadows on the engine path: per frame, the S x S sub-light maps rendered in turn
+/// into one layer, each followed by the `accumulate` dispatch that reads it, then `finalize`
+/// into the caller's V (module documentation). The per-receiver counts live in a buffer
+/// allocated at `prepare` for at most `max_receivers`.
+pub struct MultiSampleFrame {
+    ctx: Arc<GpuContext>,
+    settings: MapSettings,
+    own: MultiSampleParams,
+    map: GpuMapFrame,
+    kernels: MultiSampleKernels,
+    est: wgpu::Buffer,
+    acc: wgpu::Buffer,
+    max_receivers: u32,
+}
+
+impl MultiSampleFrame {
+    /// Compiles the pipelines and allocates the map (one view slot per sub-light), the uniform
+    /// and the counts for `max_receivers`, for the parameters `params` (a table of
+    /// multi-sample's specs). Errors as [`MapFrame::prepare`].
+    pub fn prepare(ctx: Arc<GpuContext>, params: &Params, max_receivers: u32) -> Result<Self> {
+        let settings = MapSettings::from_params(params)?;
+        if settings.depth != DepthPrecision::F32 {
+            return Err(Error::param(
+                "depth",
+                "the frame path renders f32 maps only so far (use depth=f32)",
+            ));
+        }
+        let own = MultiSampleParams::from_params(params)?;
+        let mapper = GpuShadowMapper::new(&ctx)?;
+        let views = own.sublights * own.sublights;
+        let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), views)?;
+        let kernels = MultiSampleKernels::new(&ctx, DepthPrecision::F32)?;
+        let est = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("multi-sample frame uniform"),
+            size: std::mem::size_of::<EstimateUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let acc = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("multi-sample frame counts"),
+            size: 4 * max_receivers.max(1) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(MultiSampleFrame {
+            ctx,
+            settings,
+            own,
+            map,
+            kernels,
+            est,
+            acc,
+            max_receivers,
+        })
+    }
+
+    /// The sub-light views the estimator fits for `receivers` (CPU work, as its `estimate`
+    /// does): one per jittered stratum of the light, `None` where no receiver is in front.
+    pub fn fit_views(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+    ) -> Result<Vec<Option<LightView>>> {
+        let MultiSampleParams { sublights, seed } = self.own;
+        let light = &scene.light;
+        light
+            .stratified_points(sublights, |k| jitter(seed, k))
+            .into_iter()
+            .map(|y| {
+                let frame = point_frame(light, y)?;
+                match LightView::fit_with(
+                    scene,
+                    receivers,
+                    frame,
+                    glam::Vec2::ZERO,
+                    self.settings.resolution,
+                    &self.settings.view,
+                ) {
+                    Ok((view, _)) => Ok(Some(view)),
+                    Err(Error::LightView(_)) => Ok(None),
+                    Err(e) => Err(e),
+                }
+            })
+            .collect()
+    }
+
+    /// Records one frame into `enc` (one `encode` per submit; module documentation). Errors,
+    /// before anything is recorded: more views than sub-lights, views of another resolution
+    /// ([`Error::LightView`]), more receivers than `max_receivers` or than the caller's buffers
+    /// hold ([`Error::Limit`]).
+    pub fn encode(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: &MultiSampleInputs<'_>,
+    ) -> Result<()> {
+        let n = inputs.count as u64;
+        check_buffers(inputs.receivers, inputs.v, n)?;
+        if inputs.count > self.max_receivers {
+            return Err(Error::Limit {
+                what: "receivers per multi-sample frame (max_receivers at prepare)",
+                requested: n,
+                max: self.max_receivers as u64,
+            });
+        }
+        if inputs.views.len() > self.map.slots() {
+            return Err(Error::LightView(format!(
+                "{} views for {} sub-lights",
+                inputs.views.len(),
+                self.map.slots()
+            )));
+        }
+        if let Some(v) = inputs.views.iter().flatten().find(|v| v.r != self.map.r) {
+            return Err(Error::LightView(format!(
+                "a sub-light view has resolution {} but the map was prepared at {}",
+                v.r, self.map.r
+            )));
+        }
+        let queue = &self.ctx.queue;
+        let (b0, b1) = self.settings.biases();
+        let mut u = EstimateUniform::new(inputs.light, b0, b1);
+        u.receiver_plane = u32::from(self.settings.receiver_plane);
+        u.inv_samples = 1.0 / inputs.views.len().max(1) as f32;
+        queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&u));
+        enc.clear_buffer(&self.acc, 0, None);
+        if n == 0 {
+            return Ok(());
+        }
+        let k = &self.kernels;
+        let groups = |view: &wgpu::Buffer, map: wgpu::BindingResource<'_>| {
+            self.ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("multi-sample frame"),
+                    layout: &k.layout,
+                    entries: &[
+                        entry(0, view.as_entire_binding()),
+                        entry(1, self.est.as_entire_binding()),
+                        entry(2, map),
+                        entry(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
+                        entry(4, buffer_range(&self.acc, n * 4)),
+                        entry(5, buffer_range(inputs.v, n * 4)),
+                    ],
+                })
+        };
+        let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
+        for (slot, view) in inputs.views.iter().enumerate() {
+            let Some(view) = view else { continue };
+            self.map.encode(queue, enc, inputs.casters, view, slot)?;
+            let group = groups(
+                self.map.view_uniform(slot),
+                wgpu::BindingResource::TextureView(&self.map.layer.view),
+            );
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("multi-sample frame accumulate"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&k.accumulate);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(wg, 1, 1);
+        }
+        // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
+        let group = groups(self.map.view_uniform(0), k.placeholder.binding());
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("multi-sample frame finalize"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&k.finalize);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(wg, 1, 1);
         Ok(())
     }
 }

@@ -34,17 +34,17 @@ pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 3] {
     ]
 }
 
-/// The kernels for one depth precision.
-struct Kernels {
-    layout: wgpu::BindGroupLayout,
-    accumulate: wgpu::ComputePipeline,
-    finalize: wgpu::ComputePipeline,
+/// The kernels for one depth precision (also the frame path's, [`super::frame`]).
+pub(crate) struct Kernels {
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) accumulate: wgpu::ComputePipeline,
+    pub(crate) finalize: wgpu::ComputePipeline,
     /// A 1x1 map bound where a kernel reads none (`finalize`).
-    placeholder: MapDepth,
+    pub(crate) placeholder: MapDepth,
 }
 
 impl Kernels {
-    fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
+    pub(crate) fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
         let label = "multi-sample";
         let module = kernel::shader_module(ctx, label, &shader_parts(depth))?;
         let layout = kernel::map_layout(ctx, label, depth);

@@ -414,14 +414,16 @@ impl GpuShadowMapper {
         })?
     }
 
-    /// The resources of one shadow map rendered every frame into the caller's command encoder
-    /// ([`GpuMapFrame`], the engine path): an `r x r` layer and its depth test, the view and bias
-    /// uniforms, and the first-layer pipeline of `raster`, all allocated here, once.
+    /// The resources of a shadow map rendered every frame into the caller's command encoder
+    /// ([`GpuMapFrame`], the engine path): an `r x r` layer and its depth test, `views` view
+    /// uniforms (one per view a frame renders in turn, at least 1) with the bias uniform, and the
+    /// first-layer pipeline of `raster`, all allocated here, once.
     pub fn map_frame(
         &self,
         ctx: &GpuContext,
         r: u32,
         raster: RasterOptions,
+        views: u32,
     ) -> Result<GpuMapFrame> {
         check_size(ctx, r)?;
         let bias = raster.bias;
@@ -443,15 +445,20 @@ impl GpuShadowMapper {
                 r,
                 projection: Default::default(),
             };
-            let (view_uniform, params) = create_raster_uniforms(device, &placeholder, bias);
-            let group = self.layer_bind_group(device, &view_uniform, &params, &self.no_prev);
+            let slots = (0..views.max(1))
+                .map(|_| {
+                    let (view_uniform, params) = create_raster_uniforms(device, &placeholder, bias);
+                    let group =
+                        self.layer_bind_group(device, &view_uniform, &params, &self.no_prev);
+                    (view_uniform, group)
+                })
+                .collect();
             Ok(GpuMapFrame {
                 r,
                 layer: GpuDepthMap::new(ctx, r, "raster.frame.layer0")?,
                 depth_test: create_depth_test(device, r),
-                view_uniform,
+                slots,
                 pipeline,
-                group,
             })
         })?
     }
@@ -485,11 +492,13 @@ impl GpuShadowMapper {
     }
 }
 
-/// One shadow map rendered every frame into the caller's command encoder (the engine path,
-/// [`GpuShadowMapper::map_frame`]): [`encode`](Self::encode) stages the frame's view with
-/// `queue.write_buffer` and records one render pass; nothing is submitted, nothing waits, and no
-/// CPU work grows with the triangles. The staged view takes effect at the caller's next
-/// `queue.submit`, so encode one frame of a given `GpuMapFrame` per submit.
+/// A shadow map rendered every frame into the caller's command encoder (the engine path,
+/// [`GpuShadowMapper::map_frame`]): [`encode`](Self::encode) stages a view in one of its view
+/// slots with `queue.write_buffer` and records one render pass into the layer; nothing is
+/// submitted, nothing waits, and no CPU work grows with the triangles. Staged views take effect
+/// at the caller's next `queue.submit`, so a frame renders each slot at most once per submit
+/// (multi-view methods render their views in turn into the one layer, each followed by the pass
+/// that reads it).
 #[derive(Debug)]
 pub struct GpuMapFrame {
     /// Side in texels.
@@ -497,23 +506,41 @@ pub struct GpuMapFrame {
     /// The map the pass renders (layer 0: nearest linear depth, +inf where empty).
     pub layer: GpuDepthMap,
     depth_test: wgpu::TextureView,
-    /// The view uniform the pass reads ([`LightViewUniform`]); estimate kernels may bind it too.
-    pub view_uniform: wgpu::Buffer,
+    /// Per view slot: the view uniform ([`LightViewUniform`]) and the raster bind group.
+    slots: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
     pipeline: wgpu::RenderPipeline,
-    group: wgpu::BindGroup,
 }
 
 impl GpuMapFrame {
-    /// Stages `view` (its resolution must be this map's) and records the pass rendering
-    /// `casters` into [`layer`](Self::layer). Errors: [`Error::LightView`] for a view of another
-    /// resolution.
+    /// The view uniform of `slot` ([`LightViewUniform`]), for estimate kernels to bind.
+    /// Panics on a slot beyond those prepared (a caller's bug, never input data).
+    pub fn view_uniform(&self, slot: usize) -> &wgpu::Buffer {
+        &self.slots[slot].0
+    }
+
+    /// Number of view slots.
+    pub fn slots(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// Stages `view` (its resolution must be this map's) in `slot` and records the pass
+    /// rendering `casters` into [`layer`](Self::layer). Errors: [`Error::LightView`] for a view
+    /// of another resolution, [`Error::Limit`] for a slot beyond those prepared.
     pub fn encode(
         &self,
         queue: &wgpu::Queue,
         enc: &mut wgpu::CommandEncoder,
         casters: &GpuScene,
         view: &LightView,
+        slot: usize,
     ) -> Result<()> {
+        let Some((uniform, group)) = self.slots.get(slot) else {
+            return Err(Error::Limit {
+                what: "view slot of a frame's shadow map",
+                requested: slot as u64,
+                max: self.slots.len().saturating_sub(1) as u64,
+            });
+        };
         if view.r != self.r {
             return Err(Error::LightView(format!(
                 "the frame's view has resolution {} but the map was prepared at {}",
@@ -521,14 +548,14 @@ impl GpuMapFrame {
             )));
         }
         queue.write_buffer(
-            &self.view_uniform,
+            uniform,
             0,
             bytemuck::bytes_of(&LightViewUniform::from(view)),
         );
         let mut pass = begin_layer_pass(enc, 0, &self.layer.view, &self.depth_test);
         if casters.triangles > 0 {
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.group, &[]);
+            pass.set_bind_group(0, group, &[]);
             pass.set_vertex_buffer(0, casters.vertices.slice(..));
             pass.draw(0..3 * casters.triangles, 0..1);
         }

@@ -1,0 +1,272 @@
+//! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
+//! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
+//! frame API (hard, PCF, PCSS, multi-sample so far) into its own command encoder from that
+//! G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
+//! frame; then V and the receivers are read once and compared with the CPU twin in the same
+//! light view(s).
+//!
+//! The scene is run twice: as loaded ("small") and with its triangles split into 4^k (at least
+//! 50 times as many, "large"); host ms is the CPU time spent in `encode` per frame. The light
+//! views are fitted once, on the CPU, to every vertex of the scene (a view that holds any
+//! receiver the orbit can see), so no per-frame CPU work grows with the triangles.
+//!
+//! ```text
+//! WGPU_BACKEND=vulkan cargo run --release --example frame_loop -- [--json] [--frames N] [SCENE.toml]
+//! ```
+use glam::Vec3;
+use shadow_map_core::{
+    gpu::{GpuContext, GpuGBuffer, GpuScene},
+    Camera, LightView, Params, Receivers, Result, Scene, SoftShadowEstimator,
+};
+use softshadow::baselines::{
+    gpu::{FrameInputs, GpuFilter, MapFrame, MultiSampleFrame, MultiSampleInputs},
+    hard::Hard,
+    map_estimator::MapEstimator,
+    pcf::Pcf,
+    pcss::Pcss,
+    MultiSample,
+};
+use std::{sync::Arc, time::Instant};
+
+/// One estimator on the frame path, with the CPU twin that checks it.
+trait FramePath {
+    /// Records one frame.
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, f: &Frame<'_>) -> Result<()>;
+    /// The CPU twin's V in the same view(s).
+    fn cpu(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<f32>>;
+}
+
+/// What a frame binds: casters, receivers, V.
+struct Frame<'a> {
+    scene: &'a Scene,
+    casters: &'a GpuScene,
+    receivers: &'a wgpu::Buffer,
+    count: u32,
+    v: &'a wgpu::Buffer,
+}
+
+struct Single<F: GpuFilter> {
+    frame: MapFrame<F>,
+    view: LightView,
+}
+
+impl<F: GpuFilter> FramePath for Single<F> {
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, f: &Frame<'_>) -> Result<()> {
+        self.frame.encode(
+            enc,
+            &FrameInputs {
+                casters: f.casters,
+                view: &self.view,
+                light: &f.scene.light,
+                receivers: f.receivers,
+                count: f.count,
+                v: f.v,
+            },
+        )
+    }
+    fn cpu(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<f32>> {
+        let mut e = MapEstimator::<F>::new()?;
+        e.build_in_view(scene, self.view)?;
+        let mut v = vec![0.0; receivers.len()];
+        e.estimate(scene, receivers, &mut v)?;
+        Ok(v)
+    }
+}
+
+struct Multi {
+    frame: MultiSampleFrame,
+    views: Vec<Option<LightView>>,
+}
+
+impl FramePath for Multi {
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, f: &Frame<'_>) -> Result<()> {
+        self.frame.encode(
+            enc,
+            &MultiSampleInputs {
+                casters: f.casters,
+                views: &self.views,
+                light: &f.scene.light,
+                receivers: f.receivers,
+                count: f.count,
+                v: f.v,
+            },
+        )
+    }
+    fn cpu(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<f32>> {
+        let mut e = MultiSample::new()?;
+        let mut v = vec![0.0; receivers.len()];
+        e.estimate_in_views(scene, receivers, &self.views, &mut v)?;
+        Ok(v)
+    }
+}
+
+/// Every vertex of the scene as a receiver facing its triangle's normal: what the views are
+/// fitted to.
+fn vertex_receivers(scene: &Scene) -> Result<Receivers> {
+    let (mut p, mut n) = (Vec::new(), Vec::new());
+    for t in &scene.triangles {
+        let nrm = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or(Vec3::Y);
+        for v in t {
+            p.push(*v);
+            n.push(nrm);
+        }
+    }
+    Receivers::from_points(p, n)
+}
+
+/// `scene` with every triangle split into `4^levels` by its edge midpoints (one opaque mesh).
+fn tessellated(scene: &Scene, levels: u32) -> Result<Scene> {
+    let mut tris = scene.triangles.clone();
+    for _ in 0..levels {
+        tris = tris
+            .iter()
+            .flat_map(|[a, b, c]| {
+                let (ab, bc, ca) = ((*a + *b) * 0.5, (*b + *c) * 0.5, (*c + *a) * 0.5);
+                [[*a, ab, ca], [ab, *b, bc], [ca, bc, *c], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    Scene::from_meshes("large", scene.camera, scene.light, vec![(tris, 1.0)])
+}
+
+/// Frame `k` of `n`: the camera orbited about the vertical axis through its target, 40 degrees
+/// over the path.
+fn orbit(c: &Camera, k: u32, n: u32) -> Camera {
+    let a = (40.0f32 * k as f32 / n.max(1) as f32).to_radians();
+    let d = c.eye - c.target;
+    let (s, co) = a.sin_cos();
+    let eye = c.target + Vec3::new(co * d.x + s * d.z, d.y, -s * d.x + co * d.z);
+    Camera { eye, ..*c }
+}
+
+/// The frame path of `algo` for `scene`, its views fitted to every vertex.
+fn frame_path(ctx: &Arc<GpuContext>, algo: &str, scene: &Scene) -> Result<Box<dyn FramePath>> {
+    let all = vertex_receivers(scene)?;
+    fn single<F: GpuFilter + 'static>(
+        ctx: &Arc<GpuContext>,
+        s: &Scene,
+        all: &Receivers,
+    ) -> Result<Box<dyn FramePath>> {
+        let frame = MapFrame::<F>::prepare(ctx.clone(), &Params::new(F::SPECS)?)?;
+        let (view, _) = frame.fit_view(s, all)?;
+        Ok(Box::new(Single { frame, view }))
+    }
+    match algo {
+        "hard" => single::<Hard>(ctx, scene, &all),
+        "pcf" => single::<Pcf>(ctx, scene, &all),
+        "pcss" => single::<Pcss>(ctx, scene, &all),
+        _ => {
+            let params = Params::new(softshadow::baselines::multi_sample::SPECS)?;
+            let pixels = scene.camera.width * scene.camera.height;
+            let frame = MultiSampleFrame::prepare(ctx.clone(), &params, pixels)?;
+            let views = frame.fit_views(scene, &all)?;
+            Ok(Box::new(Multi { frame, views }))
+        }
+    }
+}
+
+/// Runs `frames` frames of `path` over `scene`; returns host ms per frame in `encode`, and the
+/// RMSE of the last frame's V against the CPU twin over the active receivers.
+fn run(
+    ctx: &Arc<GpuContext>,
+    path: &dyn FramePath,
+    scene: &Scene,
+    frames: u32,
+) -> Result<(f64, f64)> {
+    let casters = GpuScene::upload(ctx, scene)?;
+    let gbuffer = GpuGBuffer::new(ctx)?;
+    let pixels = (scene.camera.width * scene.camera.height) as u64;
+    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("frame_loop V"),
+        size: 4 * pixels,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let mut host = 0.0;
+    let mut last = None;
+    for k in 0..frames {
+        let camera = orbit(&scene.camera, k, frames);
+        let img = gbuffer.render(ctx, &casters, &camera)?;
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let t = Instant::now();
+        path.encode(
+            &mut enc,
+            &Frame {
+                scene,
+                casters: &casters,
+                receivers: &img.receivers.buffer,
+                count: img.receivers.count,
+                v: &v,
+            },
+        )?;
+        host += t.elapsed().as_secs_f64() * 1e3;
+        ctx.queue.submit([enc.finish()]);
+        last = Some((img, camera));
+    }
+    // The one readback, after the last frame.
+    let Some((img, camera)) = last else {
+        return Ok((0.0, 0.0));
+    };
+    let receivers = img.read_back(ctx)?;
+    let bits: Vec<u32> = ctx.read_buffer(&v, 4 * pixels)?;
+    let mut s = scene.clone();
+    s.camera = camera;
+    let cpu = path.cpu(&s, &receivers)?;
+    let (mut se, mut n) = (0.0f64, 0usize);
+    for (k, c) in cpu.iter().enumerate() {
+        if receivers.active[k] {
+            let d = f32::from_bits(bits[k]) as f64 - *c as f64;
+            se += d * d;
+            n += 1;
+        }
+    }
+    Ok((host / frames.max(1) as f64, (se / n.max(1) as f64).sqrt()))
+}
+
+fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
+    let mut json = false;
+    let mut frames = 60u32;
+    let mut path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny/bunny.toml").to_string();
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--json" => json = true,
+            "--frames" => frames = args.next().ok_or("--frames needs a value")?.parse()?,
+            _ => path = a,
+        }
+    }
+    let ctx = GpuContext::shared()?;
+    let small = Scene::load(&path)?;
+    let levels = (1..8)
+        .find(|l| 4usize.pow(*l) >= 50)
+        .ok_or("no tessellation level")?;
+    let large = tessellated(&small, levels)?;
+    for algo in ["hard", "pcf", "pcss", "multi-sample"] {
+        let (host_small, _) = run(
+            &ctx,
+            frame_path(&ctx, algo, &small)?.as_ref(),
+            &small,
+            frames,
+        )?;
+        let (host_large, rmse) = run(
+            &ctx,
+            frame_path(&ctx, algo, &large)?.as_ref(),
+            &large,
+            frames,
+        )?;
+        if json {
+            println!(
+                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{},\"triangles_large\":{},\"host_ms_per_frame_small\":{host_small:.4},\"host_ms_per_frame_large\":{host_large:.4},\"rmse_vs_cpu\":{rmse:.3e}}}",
+                small.triangles.len(),
+                large.triangles.len()
+            );
+        } else {
+            println!(
+                "{algo:>12}: {frames} frames, host ms/frame in encode {host_small:.3} ({} triangles) / {host_large:.3} ({} triangles), last frame RMSE vs CPU twin {rmse:.2e}",
+                small.triangles.len(),
+                large.triangles.len()
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,32 @@
+#!/usr/bin/env python3
+"""Checks `frame_loop --json` output (stdin): one line per estimator on the frame path, no
+readback during the frames, the last frame's V within 2e-3 RMSE of the CPU twin, and the large
+scene at least 50 times the small one's triangles. Host times are printed, not asserted (timings
+on shared CI machines are noise; the ratio goal lives in the closing notes and the report).
+
+    cargo run --release --example frame_loop -- --json --frames 3 | python3 scripts/check-frame-loop.py
+"""
+import json
+import sys
+
+EXPECTED = {"hard", "pcf", "pcss", "multi-sample"}
+rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
+seen = {r["algo"] for r in rows}
+bad = []
+if not EXPECTED <= seen:
+    bad.append("missing estimators: %s" % sorted(EXPECTED - seen))
+for r in rows:
+    a = r["algo"]
+    if r["readbacks_during_frames"] != 0:
+        bad.append("%s: %d readbacks during frames" % (a, r["readbacks_during_frames"]))
+    if not r["rmse_vs_cpu"] <= 2e-3:
+        bad.append("%s: rmse_vs_cpu %g > 2e-3" % (a, r["rmse_vs_cpu"]))
+    if r["triangles_large"] < 50 * r["triangles_small"]:
+        bad.append("%s: large scene has only %d triangles" % (a, r["triangles_large"]))
+    print("%-13s frames %d, host ms/frame %.4f (%d tris) / %.4f (%d tris), rmse_vs_cpu %.2e" % (
+        a, r["frames"], r["host_ms_per_frame_small"], r["triangles_small"],
+        r["host_ms_per_frame_large"], r["triangles_large"], r["rmse_vs_cpu"]))
+if bad:
+    print("frame_loop check failed:\n  " + "\n  ".join(bad))
+    sys.exit(1)
+print("frame_loop check: %d estimators: ok" % len(rows))
