@@ -216,3 +216,113 @@ fn aabb_near(scene: &Scene, frame: LightFrame) -> f32 {
         })
         .fold(f32::INFINITY, f32::min)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::{
+        camera::Camera,
+        light::Light,
+        light_view::{FitMode, LightView, NearFar, Projection, ViewOptions},
+        receivers::Receivers,
+        scene::Scene,
+    };
+    use glam::{Vec2, Vec3};
+
+    /// A 20 x 20 ground and a 1 x 1 x 1 box standing on it, under a 4-degree sun.
+    fn scene() -> Scene {
+        let quad = |y: f32, h: f32| {
+            vec![
+                [
+                    Vec3::new(-h, y, -h),
+                    Vec3::new(-h, y, h),
+                    Vec3::new(h, y, h),
+                ],
+                [
+                    Vec3::new(-h, y, -h),
+                    Vec3::new(h, y, h),
+                    Vec3::new(h, y, -h),
+                ],
+            ]
+        };
+        let cam = Camera {
+            eye: Vec3::new(0.0, 5.0, 8.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 40.0,
+            width: 8,
+            height: 8,
+        };
+        let light = Light::directional(Vec3::new(0.3, -1.0, 0.2), 4.0);
+        Scene::from_meshes(
+            "sun-box",
+            cam,
+            light,
+            vec![(quad(0.0, 10.0), 1.0), (quad(1.0, 0.5), 1.0)],
+        )
+        .unwrap()
+    }
+
+    /// Ground receivers on a grid of pitch 0.05 from (x0, z0).
+    fn ground(x0: f32, z0: f32) -> Receivers {
+        let mut p = Vec::new();
+        for j in 0..40 {
+            for i in 0..40 {
+                p.push(Vec3::new(x0 + 0.05 * i as f32, 0.0, z0 + 0.05 * j as f32));
+            }
+        }
+        let n = vec![Vec3::Y; p.len()];
+        Receivers::from_points(p, n).unwrap()
+    }
+
+    fn fit(s: &Scene, r: &Receivers, opts: &ViewOptions) -> LightView {
+        let l = &s.light;
+        LightView::fit_with(s, r, l.frame(), l.half_extent(), 512, opts)
+            .unwrap()
+            .0
+    }
+
+    /// The window holds every receiver's occluder prism cut at the near plane, the near plane is
+    /// at or in front of the box (the only caster over the receivers) and of every receiver, and
+    /// depths are positive.
+    #[test]
+    fn the_window_holds_every_occluder_prism() {
+        let s = scene();
+        let rec = ground(-1.0, -1.0);
+        let v = fit(&s, &rec, &ViewOptions::default());
+        assert_eq!(v.projection, Projection::Orthographic);
+        let t = s.light.shape.tan_half();
+        let box_top = v.frame.to_light(Vec3::new(0.0, 1.0, 0.0)).z;
+        assert!(v.n > 0.0 && v.n <= box_top, "n {} box {box_top}", v.n);
+        for p in &rec.position {
+            let q = v.frame.to_light(*p);
+            assert!(q.z > v.n && q.z <= v.far, "{q} n {} far {}", v.n, v.far);
+            let reach = Vec2::splat(t * (q.z - v.n));
+            for c in [q.truncate() - reach, q.truncate() + reach] {
+                let uv = (c - v.window_min) / v.delta();
+                assert!(
+                    uv.min_element() >= -1e-3 && uv.max_element() <= v.r as f32 + 1e-3,
+                    "{uv}"
+                );
+            }
+        }
+    }
+
+    /// `fit=stable`: panning the receivers keeps the texel pitch, the lattice (the window's
+    /// corner a whole number of texels from the last one) and the depths.
+    #[test]
+    fn the_stable_window_keeps_its_lattice_when_the_receivers_pan() {
+        let s = scene();
+        let opts = ViewOptions {
+            fit: FitMode::Stable,
+            nearfar: NearFar::Clipped,
+        };
+        let a = fit(&s, &ground(-1.0, -1.0), &opts);
+        let b = fit(&s, &ground(-0.63, -0.81), &opts);
+        assert_eq!((a.w, a.n, a.far, a.frame), (b.w, b.n, b.far, b.frame));
+        let k = (b.window_min - a.window_min) / a.delta();
+        assert!(
+            (k - k.round()).abs().max_element() < 1e-3,
+            "corner moved by {k} texels"
+        );
+    }
+}
