@@ -1141,7 +1141,7 @@ pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
 }
 
 impl CpuPacketHsm {
-    /// Rect lights with any `sublights`; disk and sphere lights with `sublights=1` only (they
+    /// Rect lights with any `sublights`; disk, sphere and directional lights with `sublights=1` only (they
     /// are not cut into S x S sub-lights: an [`Error::Param`] with key `sublights`; both twins).
     pub(crate) fn check_light(scene: &Scene, cfg: &Config) -> Result<()> {
         match scene.light.shape {
@@ -1149,7 +1149,7 @@ impl CpuPacketHsm {
             _ if cfg.sublights == 1 => Ok(()),
             _ => Err(Error::param(
                 "sublights",
-                "packet-hsm cuts only rect lights into S x S sub-lights; disk and sphere lights need sublights=1",
+                "packet-hsm cuts only rect lights into S x S sub-lights; disk, sphere and directional lights (the sun) need sublights=1",
             )),
         }
     }
