@@ -136,7 +136,7 @@ impl SoftShadowEstimator for MultiSample {
 
 impl MultiSample {
     /// [`estimate`](SoftShadowEstimator::estimate) in the caller's sub-light views, one per
-    /// stratum in the order of [`Light::stratified_points`] (`None`: a sub-light no receiver is
+    /// stratum in the order of [`Light::stratified_points`](shadow_map_core::Light::stratified_points) (`None`: a sub-light no receiver is
     /// in front of, counted in N): the CPU twin of the frame path's
     /// [`MultiSampleFrame`](crate::gpu::MultiSampleFrame), whose views the caller fits.
     pub fn estimate_in_views(
