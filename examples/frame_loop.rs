@@ -1,6 +1,6 @@
 //! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
 //! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
-//! frame API (hard, PCF, PCSS, multi-sample so far) into its own command encoder from that
+//! frame API (hard, PCF, PCSS, multi-sample, backprojection so far: [`ALGOS`]) into its own command encoder from that
 //! G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
 //! frame; then V and the receivers are read once and compared with the CPU twin in the same
 //! light view(s).
@@ -15,90 +15,25 @@
 //! ```
 use glam::Vec3;
 use shadow_map_core::{
-    gpu::{GpuContext, GpuGBuffer, GpuScene},
-    Camera, LightView, Params, Receivers, Result, Scene, SoftShadowEstimator,
+    gpu::{
+        frame::{FrameEstimator, FrameInputs},
+        GpuContext, GpuGBuffer, GpuScene,
+    },
+    Camera, LightView, Params, Receivers, Result, Scene,
 };
-use softshadow::baselines::{
-    gpu::{FrameInputs, GpuFilter, MapFrame, MultiSampleFrame, MultiSampleInputs},
-    hard::Hard,
-    map_estimator::MapEstimator,
-    pcf::Pcf,
-    pcss::Pcss,
-    MultiSample,
+use softshadow::{
+    backprojection::BackprojectionFrame,
+    baselines::{
+        gpu::{GpuFilter, MapFrame, MultiSampleFrame},
+        hard::Hard,
+        pcf::Pcf,
+        pcss::Pcss,
+    },
 };
 use std::{sync::Arc, time::Instant};
 
-/// One estimator on the frame path, with the CPU twin that checks it.
-trait FramePath {
-    /// Records one frame.
-    fn encode(&self, enc: &mut wgpu::CommandEncoder, f: &Frame<'_>) -> Result<()>;
-    /// The CPU twin's V in the same view(s).
-    fn cpu(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<f32>>;
-}
-
-/// What a frame binds: casters, receivers, V.
-struct Frame<'a> {
-    scene: &'a Scene,
-    casters: &'a GpuScene,
-    receivers: &'a wgpu::Buffer,
-    count: u32,
-    v: &'a wgpu::Buffer,
-}
-
-struct Single<F: GpuFilter> {
-    frame: MapFrame<F>,
-    view: LightView,
-}
-
-impl<F: GpuFilter> FramePath for Single<F> {
-    fn encode(&self, enc: &mut wgpu::CommandEncoder, f: &Frame<'_>) -> Result<()> {
-        self.frame.encode(
-            enc,
-            &FrameInputs {
-                casters: f.casters,
-                view: &self.view,
-                light: &f.scene.light,
-                receivers: f.receivers,
-                count: f.count,
-                v: f.v,
-            },
-        )
-    }
-    fn cpu(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<f32>> {
-        let mut e = MapEstimator::<F>::new()?;
-        e.build_in_view(scene, self.view)?;
-        let mut v = vec![0.0; receivers.len()];
-        e.estimate(scene, receivers, &mut v)?;
-        Ok(v)
-    }
-}
-
-struct Multi {
-    frame: MultiSampleFrame,
-    views: Vec<Option<LightView>>,
-}
-
-impl FramePath for Multi {
-    fn encode(&self, enc: &mut wgpu::CommandEncoder, f: &Frame<'_>) -> Result<()> {
-        self.frame.encode(
-            enc,
-            &MultiSampleInputs {
-                casters: f.casters,
-                views: &self.views,
-                light: &f.scene.light,
-                receivers: f.receivers,
-                count: f.count,
-                v: f.v,
-            },
-        )
-    }
-    fn cpu(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<f32>> {
-        let mut e = MultiSample::new()?;
-        let mut v = vec![0.0; receivers.len()];
-        e.estimate_in_views(scene, receivers, &self.views, &mut v)?;
-        Ok(v)
-    }
-}
+/// The estimators with an engine path, in the order they are run.
+const ALGOS: [&str; 5] = ["hard", "pcf", "pcss", "multi-sample", "backprojection"];
 
 /// Every vertex of the scene as a receiver facing its triangle's normal: what the views are
 /// fitted to.
@@ -139,37 +74,41 @@ fn orbit(c: &Camera, k: u32, n: u32) -> Camera {
     Camera { eye, ..*c }
 }
 
-/// The frame path of `algo` for `scene`, its views fitted to every vertex.
-fn frame_path(ctx: &Arc<GpuContext>, algo: &str, scene: &Scene) -> Result<Box<dyn FramePath>> {
-    let all = vertex_receivers(scene)?;
-    fn single<F: GpuFilter + 'static>(
-        ctx: &Arc<GpuContext>,
-        s: &Scene,
-        all: &Receivers,
-    ) -> Result<Box<dyn FramePath>> {
-        let frame = MapFrame::<F>::prepare(ctx.clone(), &Params::new(F::SPECS)?)?;
-        let (view, _) = frame.fit_view(s, all)?;
-        Ok(Box::new(Single { frame, view }))
+/// An estimator's frame path and the views it renders.
+type Path = (Box<dyn FrameEstimator>, Vec<Option<LightView>>);
+
+/// The frame path of `algo` for `scene` at default parameters, and its views fitted to every
+/// vertex.
+fn frame_path(ctx: &Arc<GpuContext>, algo: &str, scene: &Scene) -> Result<Path> {
+    fn map<F: GpuFilter + 'static>(ctx: &Arc<GpuContext>) -> Result<Box<dyn FrameEstimator>> {
+        Ok(Box::new(MapFrame::<F>::prepare(
+            ctx.clone(),
+            &Params::new(F::SPECS)?,
+        )?))
     }
-    match algo {
-        "hard" => single::<Hard>(ctx, scene, &all),
-        "pcf" => single::<Pcf>(ctx, scene, &all),
-        "pcss" => single::<Pcss>(ctx, scene, &all),
+    let path: Box<dyn FrameEstimator> = match algo {
+        "hard" => map::<Hard>(ctx)?,
+        "pcf" => map::<Pcf>(ctx)?,
+        "pcss" => map::<Pcss>(ctx)?,
+        "backprojection" => Box::new(BackprojectionFrame::prepare(
+            ctx.clone(),
+            &Params::new(softshadow::backprojection::cpu::SPECS)?,
+        )?),
         _ => {
             let params = Params::new(softshadow::baselines::multi_sample::SPECS)?;
             let pixels = scene.camera.width * scene.camera.height;
-            let frame = MultiSampleFrame::prepare(ctx.clone(), &params, pixels)?;
-            let views = frame.fit_views(scene, &all)?;
-            Ok(Box::new(Multi { frame, views }))
+            Box::new(MultiSampleFrame::prepare(ctx.clone(), &params, pixels)?)
         }
-    }
+    };
+    let views = path.fit_views(scene, &vertex_receivers(scene)?)?;
+    Ok((path, views))
 }
 
 /// Runs `frames` frames of `path` over `scene`; returns host ms per frame in `encode`, and the
 /// RMSE of the last frame's V against the CPU twin over the active receivers.
 fn run(
     ctx: &Arc<GpuContext>,
-    path: &dyn FramePath,
+    (path, views): Path,
     scene: &Scene,
     frames: u32,
 ) -> Result<(f64, f64)> {
@@ -191,9 +130,10 @@ fn run(
         let t = Instant::now();
         path.encode(
             &mut enc,
-            &Frame {
-                scene,
+            &FrameInputs {
                 casters: &casters,
+                views: &views,
+                light: &scene.light,
                 receivers: &img.receivers.buffer,
                 count: img.receivers.count,
                 v: &v,
@@ -211,7 +151,7 @@ fn run(
     let bits: Vec<u32> = ctx.read_buffer(&v, 4 * pixels)?;
     let mut s = scene.clone();
     s.camera = camera;
-    let cpu = path.cpu(&s, &receivers)?;
+    let cpu = path.cpu_twin(&s, &receivers, &views)?;
     let (mut se, mut n) = (0.0f64, 0usize);
     for (k, c) in cpu.iter().enumerate() {
         if receivers.active[k] {
@@ -241,19 +181,9 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         .find(|l| 4usize.pow(*l) >= 50)
         .ok_or("no tessellation level")?;
     let large = tessellated(&small, levels)?;
-    for algo in ["hard", "pcf", "pcss", "multi-sample"] {
-        let (host_small, _) = run(
-            &ctx,
-            frame_path(&ctx, algo, &small)?.as_ref(),
-            &small,
-            frames,
-        )?;
-        let (host_large, rmse) = run(
-            &ctx,
-            frame_path(&ctx, algo, &large)?.as_ref(),
-            &large,
-            frames,
-        )?;
+    for algo in ALGOS {
+        let (host_small, _) = run(&ctx, frame_path(&ctx, algo, &small)?, &small, frames)?;
+        let (host_large, rmse) = run(&ctx, frame_path(&ctx, algo, &large)?, &large, frames)?;
         if json {
             println!(
                 "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{},\"triangles_large\":{},\"host_ms_per_frame_small\":{host_small:.4},\"host_ms_per_frame_large\":{host_large:.4},\"rmse_vs_cpu\":{rmse:.3e}}}",

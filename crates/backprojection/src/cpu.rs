@@ -259,6 +259,32 @@ impl CpuBackprojection {
     pub fn settings(&self) -> &Settings {
         &self.settings
     }
+    /// Builds the light-space data in a given `view` (the engine path's CPU twin: a view the
+    /// caller fitted, e.g. an engine path's `FrameEstimator::fit_views`), with the request
+    /// [`request`] makes for `receivers`. Errors: `view` of another resolution than the
+    /// parameters' ([`shadow_map_core::Error::LightView`]).
+    pub fn build_in_view(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        view: LightView,
+    ) -> Result<()> {
+        if view.r != self.settings.resolution {
+            return Err(shadow_map_core::Error::LightView(format!(
+                "a view of resolution {} for resolution={}",
+                view.r, self.settings.resolution
+            )));
+        }
+        self.report = Report::default();
+        let half = shadow_map_core::light_view::fit_half_extent(&scene.light, receivers);
+        let req = request(&self.settings, &view, half);
+        let ls = self.report.time("build", || {
+            LightSpace::build_in_view(scene, view, FitReport::default(), &req)
+        });
+        self.report.light_space_bytes = ls.bytes();
+        self.ls = Some(ls);
+        Ok(())
+    }
 }
 
 /// Settings read once per estimate.
@@ -573,21 +599,29 @@ pub fn plan(
     let opts = settings.view;
     let half = shadow_map_core::light_view::fit_half_extent(light, receivers);
     let (view, fit) = LightView::fit_with(scene, receivers, light.frame(), half, r, &opts)?;
+    Ok((view, fit, request(settings, &view, half)))
+}
+
+/// The light-space request of [`plan`] in `view` for a light of half extent `half`
+/// ([`fit_half_extent`](shadow_map_core::light_view::fit_half_extent)). The MSSM's levels only
+/// speed the kernel's minimum query up; its result is the exact minimum over the query's
+/// rectangle whatever their number.
+pub fn request(settings: &Settings, view: &LightView, half: glam::Vec2) -> LightSpaceRequest {
+    let r = settings.resolution;
     let l = 2.0 * half.max_element();
     let wmax = view.kernel_texels(l, view.n, view.far).clamp(1.0, r as f32);
     let levels = (wmax.log2().ceil() as u32).clamp(1, 10);
-    let req = LightSpaceRequest {
+    LightSpaceRequest {
         resolution: r,
         layers: settings.layers,
-        midpoints: settings.shadow.midpoint_clamp(&view),
+        midpoints: settings.shadow.midpoint_clamp(view),
         mssm_levels: Some(levels),
         dual_mssm_levels: None,
         pyramid: false,
         raster: RasterOptions::default(),
         // Semi-transparent occluders weight their micropatches by opacity.
         opacity: true,
-    };
-    Ok((view, fit, req))
+    }
 }
 
 impl SoftShadowEstimator for CpuBackprojection {

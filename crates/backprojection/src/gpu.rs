@@ -29,10 +29,15 @@ use crate::cpu::{emitter_bits, plan, CpuBackprojection, Occlusion};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
+        depth_map::GpuDepthMap,
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        frame::{
+            buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
+        },
         kernel::{max_chunk, plane_array, upload_planes, Binding, Kernel, PlaneArray},
         light_space::GpuLightSpace,
-        raster::{GpuScene, GpuShadowMapper},
+        mssm::GpuMssm,
+        raster::{GpuLayersFrame, GpuScene, GpuShadowMapper},
         receivers::RECEIVERS_WGSL,
         receivers::{GpuReceivers, RECEIVER_BYTES},
         shared::{pack_receivers, LightViewUniform},
@@ -289,16 +294,45 @@ impl GpuBackprojection {
 
     /// Copies rendered light-space data into the kernel's texture arrays (GPU to GPU).
     fn lay_out(&self, ctx: &GpuContext, gls: &GpuLightSpace) -> Result<DeviceMaps> {
-        let r = gls.view.r;
-        let planes: Vec<&wgpu::Texture> = gls
-            .layers
+        let (mut maps, copies) = self.prepare_layout(
+            ctx,
+            gls.view.r,
+            &gls.layers,
+            &gls.midpoints,
+            gls.mssm.as_ref(),
+        )?;
+        maps.view = gls.view;
+        ctx.scoped("backprojection layout", || {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("backprojection layout"),
+                });
+            copies.record(&self.copy, &mut enc);
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        Ok(maps)
+    }
+
+    /// Allocates the kernel's texture arrays for rendered layers, midpoints and MSSM of side `r`
+    /// and prepares the copies into them ([`LayoutCopies::record`]). The maps' view is a
+    /// placeholder the caller sets.
+    fn prepare_layout(
+        &self,
+        ctx: &GpuContext,
+        r: u32,
+        layers: &[GpuDepthMap],
+        midpoints: &[GpuDepthMap],
+        mssm: Option<&GpuMssm>,
+    ) -> Result<(DeviceMaps, LayoutCopies)> {
+        let planes: Vec<wgpu::Texture> = layers
             .iter()
-            .chain(&gls.midpoints)
-            .map(|d| &d.texture)
+            .chain(midpoints)
+            .map(|d| d.texture.clone())
             .collect();
         let maps = plane_array(ctx, "backprojection layers", r, planes.len().max(1) as u32)?;
-        let levels: &[_] = gls.mssm.as_ref().map_or(&[], |m| &m.levels[..]);
-        let mssm = match gls.mssm.as_ref() {
+        let levels: &[_] = mssm.map_or(&[], |m| &m.levels[..]);
+        let mssm_array = match mssm {
             Some(m) if !levels.is_empty() => {
                 let max = ctx.limits().max_storage_buffer_binding_size;
                 let bytes = m.size as u64 * m.size as u64 * 4;
@@ -313,41 +347,13 @@ impl GpuBackprojection {
             }
             _ => upload_planes(ctx, "backprojection mssm", 1, &[&[f32::INFINITY]])?,
         };
-        ctx.scoped("backprojection layout", || {
-            let mut enc = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("backprojection layout"),
-                });
-            for (i, tex) in planes.iter().enumerate() {
-                enc.copy_texture_to_texture(
-                    tex.as_image_copy(),
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &maps.texture,
-                        mip_level: 0,
-                        origin: wgpu::Origin3d {
-                            x: 0,
-                            y: 0,
-                            z: i as u32,
-                        },
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    wgpu::Extent3d {
-                        width: r,
-                        height: r,
-                        depth_or_array_layers: 1,
-                    },
-                );
-            }
-            if !levels.is_empty() {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("backprojection mssm copy"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.copy.pipeline);
-                for (l, level) in levels.iter().enumerate() {
+        let groups = ctx.scoped("backprojection layout", || {
+            levels
+                .iter()
+                .enumerate()
+                .map(|(l, level)| {
                     let pc = PlaneCopy {
-                        size: mssm.size,
+                        size: mssm_array.size,
                         layer: l as u32,
                         _pad0: 0,
                         _pad1: 0,
@@ -359,33 +365,37 @@ impl GpuBackprojection {
                             contents: bytemuck::bytes_of(&pc),
                             usage: wgpu::BufferUsages::UNIFORM,
                         });
-                    let group = self.copy.bind_group(
+                    self.copy.bind_group(
                         ctx,
                         "backprojection plane copy",
                         &[
                             u.as_entire_binding(),
                             level.min.as_entire_binding(),
-                            wgpu::BindingResource::TextureView(&mssm.view),
+                            wgpu::BindingResource::TextureView(&mssm_array.view),
                         ],
-                    );
-                    pass.set_bind_group(0, &group, &[]);
-                    let g = mssm.size.div_ceil(16);
-                    pass.dispatch_workgroups(g, g, 1);
-                }
-            }
-            ctx.queue.submit([enc.finish()]);
+                    )
+                })
+                .collect()
         })?;
-        Ok(DeviceMaps {
-            view: gls.view,
+        let copies = LayoutCopies {
+            r,
+            planes,
+            target: maps.texture.clone(),
+            groups,
+            mssm_size: mssm_array.size,
+        };
+        let maps = DeviceMaps {
+            view: LightView::placeholder(r),
             out_of_frustum: 0,
             window_scale: 0.0,
             maps,
-            mssm,
-            layers: gls.layers.len() as u32,
-            midpoints: gls.midpoints.len() as u32,
+            mssm: mssm_array,
+            layers: layers.len() as u32,
+            midpoints: midpoints.len() as u32,
             opacity: false,
-            mssm_levels: gls.mssm.as_ref().map(|m| m.levels()),
-        })
+            mssm_levels: mssm.map(|m| m.levels()),
+        };
+        Ok((maps, copies))
     }
 
     /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
@@ -592,48 +602,61 @@ impl GpuBackprojection {
                         usage: wgpu::BufferUsages::UNIFORM,
                     })
             };
-            let view_buf = uniform(
-                "light view",
-                bytemuck::bytes_of(&LightViewUniform::from(&maps.view)),
-            );
-            let est_buf = uniform("estimate uniform", bytemuck::bytes_of(eu));
-            let bp_buf = uniform("backprojection uniform", bytemuck::bytes_of(bpu));
-            let bits_buf = uniform("backprojection bit table", bytemuck::bytes_of(table));
+            let bufs = KernelUniforms {
+                view: uniform(
+                    "light view",
+                    bytemuck::bytes_of(&LightViewUniform::from(&maps.view)),
+                ),
+                est: uniform("estimate uniform", bytemuck::bytes_of(eu)),
+                bp: uniform("backprojection uniform", bytemuck::bytes_of(bpu)),
+                bits: uniform("backprojection bit table", bytemuck::bytes_of(table)),
+            };
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(LABEL) });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some(LABEL),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.kernel.pipeline);
-                for chunk in chunks.iter().filter(|c| c.len > 0) {
-                    let group = self.kernel.bind_group(
-                        ctx,
-                        LABEL,
-                        &[
-                            view_buf.as_entire_binding(),
-                            est_buf.as_entire_binding(),
-                            bp_buf.as_entire_binding(),
-                            wgpu::BindingResource::TextureView(&maps.maps.view),
-                            wgpu::BindingResource::TextureView(&maps.mssm.view),
-                            chunk.receivers.clone(),
-                            chunk.v.clone(),
-                            counters.as_entire_binding(),
-                            bits_buf.as_entire_binding(),
-                        ],
-                    );
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.dispatch_workgroups(
-                        (chunk.len as usize).div_ceil(WORKGROUP_SIZE as usize) as u32,
-                        1,
-                        1,
-                    );
-                }
-            }
+            self.encode_kernel(&mut enc, &bufs, maps, chunks, counters);
             ctx.queue.submit([enc.finish()]);
         })
+    }
+
+    /// Records the kernel's pass into `enc`: one dispatch per chunk, bound to `bufs`.
+    fn encode_kernel(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        bufs: &KernelUniforms,
+        maps: &DeviceMaps,
+        chunks: &[KernelChunk],
+        counters: &wgpu::Buffer,
+    ) {
+        let ctx = &*self.ctx;
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(LABEL),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.kernel.pipeline);
+        for chunk in chunks.iter().filter(|c| c.len > 0) {
+            let group = self.kernel.bind_group(
+                ctx,
+                LABEL,
+                &[
+                    bufs.view.as_entire_binding(),
+                    bufs.est.as_entire_binding(),
+                    bufs.bp.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&maps.maps.view),
+                    wgpu::BindingResource::TextureView(&maps.mssm.view),
+                    chunk.receivers.clone(),
+                    chunk.v.clone(),
+                    counters.as_entire_binding(),
+                    bufs.bits.as_entire_binding(),
+                ],
+            );
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(
+                (chunk.len as usize).div_ceil(WORKGROUP_SIZE as usize) as u32,
+                1,
+                1,
+            );
+        }
     }
 
     /// Builds the light-space data for receivers that stay on the GPU, known to the CPU only by
@@ -794,6 +817,65 @@ impl GpuBackprojection {
     }
 }
 
+/// The kernel's four uniforms: the light view, the estimate uniform, [`BpUniform`], the
+/// [`BitTable`].
+struct KernelUniforms {
+    view: wgpu::Buffer,
+    est: wgpu::Buffer,
+    bp: wgpu::Buffer,
+    bits: wgpu::Buffer,
+}
+
+/// The copies that lay rendered light-space data out in the kernel's texture arrays
+/// ([`GpuBackprojection::prepare_layout`]): the layers and midpoints texture to texture, the MSSM
+/// levels by `plane_to_layer.wgsl`, one dispatch each with its bind group made once.
+struct LayoutCopies {
+    r: u32,
+    planes: Vec<wgpu::Texture>,
+    target: wgpu::Texture,
+    groups: Vec<wgpu::BindGroup>,
+    mssm_size: u32,
+}
+
+impl LayoutCopies {
+    /// Records the copies into `enc`.
+    fn record(&self, copy: &Kernel, enc: &mut wgpu::CommandEncoder) {
+        for (i, tex) in self.planes.iter().enumerate() {
+            enc.copy_texture_to_texture(
+                tex.as_image_copy(),
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.target,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: 0,
+                        y: 0,
+                        z: i as u32,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::Extent3d {
+                    width: self.r,
+                    height: self.r,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        if self.groups.is_empty() {
+            return;
+        }
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("backprojection mssm copy"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&copy.pipeline);
+        let g = self.mssm_size.div_ceil(16);
+        for group in &self.groups {
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(g, g, 1);
+        }
+    }
+}
+
 /// One chunk of receivers for [`GpuBackprojection::submit_kernel`]: its receiver binding, its V
 /// binding (`len` u32) and its length.
 struct KernelChunk<'a> {
@@ -810,6 +892,150 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
             contents: bytemuck::cast_slice(&[0u32; 2]),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         })
+}
+
+/// Backprojection on the engine path (issue 20): per frame, recorded into the caller's command
+/// encoder from the caller's casters and receiver buffer, V into the caller's buffer, with no
+/// submit, no wait and no readback.
+///
+/// ```text
+/// let frame = BackprojectionFrame::prepare(ctx, &params)?;   // once: pipelines, maps, uniforms
+/// loop {
+///     let mut enc = device.create_command_encoder(&Default::default());
+///     frame.encode(&mut enc, &FrameInputs { casters, views, light, receivers, count, v })?;
+///     queue.submit([enc.finish()]);                          // the caller's submit
+/// }
+/// ```
+///
+/// A frame records the depth-peeling passes, the midpoint pass (clamped for the frame's view as
+/// [`request`](crate::cpu::request) clamps it), the anchored MSSM of layer 0 (every level up to
+/// `ceil(log2 r)`, at most 10, allocated once: the kernel's minimum query is exact whatever the
+/// number of levels, so V equals the twins' which build only the levels the view needs), the
+/// copies into the kernel's texture arrays, and the kernel over `count` receivers in one
+/// dispatch. The kernel's counters (receivers outside the light frustum, non-finite results
+/// replaced by 0) go to [`FrameEstimator::status`]. Every caster is opaque on this path (a
+/// [`GpuScene`] holds no opacity; semi-transparent scenes take [`GpuBackprojection`]'s `build`).
+/// The light view is the caller's: [`FrameEstimator::fit_views`] fits one on the CPU as `build`
+/// does.
+pub struct BackprojectionFrame {
+    gpu: GpuBackprojection,
+    layers: GpuLayersFrame,
+    maps: DeviceMaps,
+    copies: LayoutCopies,
+    bufs: KernelUniforms,
+    status: wgpu::Buffer,
+}
+
+impl BackprojectionFrame {
+    /// Compiles the pipelines and allocates the layers, the kernel's texture arrays, the
+    /// uniforms and the status buffer for the parameters `params` (a table of backprojection's
+    /// specs). Errors: the parameters' own; device limits as [`Error::Limit`].
+    pub fn prepare(ctx: Arc<GpuContext>, params: &shadow_map_core::Params) -> Result<Self> {
+        let mut gpu = GpuBackprojection::new(ctx.clone())?;
+        shadow_map_core::estimator::configure(&mut gpu, params)?;
+        let s = gpu.cpu.settings();
+        let r = s.resolution;
+        let req = shadow_map_core::LightSpaceRequest {
+            resolution: r,
+            layers: s.layers,
+            midpoints: s.shadow.midpoint().then_some(0.0),
+            mssm_levels: Some((r as f32).log2().ceil().clamp(1.0, 10.0) as u32),
+            dual_mssm_levels: None,
+            pyramid: false,
+            raster: shadow_map_core::RasterOptions::default(),
+            opacity: false,
+        };
+        let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
+        let (maps, copies) = gpu.prepare_layout(
+            &ctx,
+            r,
+            layers.layers(),
+            layers.midpoints(),
+            layers.min_max().mssm.as_ref(),
+        )?;
+        let uniform = |label, size: usize| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let bufs = KernelUniforms {
+            view: layers.view_uniform().clone(),
+            est: uniform("estimate uniform", std::mem::size_of::<EstimateUniform>()),
+            bp: uniform("backprojection uniform", std::mem::size_of::<BpUniform>()),
+            bits: uniform("backprojection bit table", std::mem::size_of::<BitTable>()),
+        };
+        let status = status_buffer(&ctx, "backprojection frame status", 2);
+        Ok(BackprojectionFrame {
+            gpu,
+            layers,
+            maps,
+            copies,
+            bufs,
+            status,
+        })
+    }
+}
+
+impl FrameEstimator for BackprojectionFrame {
+    fn name(&self) -> &'static str {
+        "backprojection"
+    }
+
+    /// The view the estimator's own `build` fits for `receivers` ([`plan`]).
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        let (view, _, _) = plan(self.gpu.cpu.settings(), scene, receivers)?;
+        Ok(vec![Some(view)])
+    }
+
+    /// Two u32: receivers outside the light frustum, non-finite results (written as 0).
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.status)
+    }
+
+    /// The layers, midpoints and MSSM rendered in the one view, laid out, then the kernel.
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+        let view = single_view(inputs.views)?;
+        let n = inputs.count as u64;
+        check_buffers(inputs.receivers, inputs.v, n)?;
+        let ctx = &*self.gpu.ctx;
+        let queue = &ctx.queue;
+        let settings = self.gpu.cpu.settings();
+        let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
+        self.layers
+            .encode(queue, enc, inputs.casters, view, clamp)?;
+        self.copies.record(&self.gpu.copy, enc);
+        let (eu, bpu, table) = self.gpu.uniforms(&self.maps, inputs.light);
+        queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
+        queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
+        queue.write_buffer(&self.bufs.bits, 0, bytemuck::bytes_of(&table));
+        enc.clear_buffer(&self.status, 0, None);
+        let chunk = KernelChunk {
+            receivers: buffer_range(inputs.receivers, n.max(1) * RECEIVER_BYTES),
+            v: buffer_range(inputs.v, n.max(1) * 4),
+            len: inputs.count,
+        };
+        self.gpu
+            .encode_kernel(enc, &self.bufs, &self.maps, &[chunk], &self.status);
+        Ok(())
+    }
+
+    /// [`CpuBackprojection::build_in_view`], then its estimate.
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>> {
+        let mut cpu = CpuBackprojection::new()?;
+        shadow_map_core::estimator::configure(&mut cpu, self.gpu.cpu.params())?;
+        cpu.build_in_view(scene, receivers, *single_view(views)?)?;
+        let mut v = vec![0.0; receivers.len()];
+        cpu.estimate(scene, receivers, &mut v)?;
+        Ok(v)
+    }
 }
 
 impl SoftShadowEstimator for GpuBackprojection {

@@ -10,5 +10,5 @@ pub mod math;
 
 pub use cpu::CpuBackprojection;
 #[cfg(feature = "gpu")]
-pub use gpu::GpuBackprojection;
+pub use gpu::{BackprojectionFrame, GpuBackprojection};
 pub use shadow_map_core::SoftShadowEstimator;

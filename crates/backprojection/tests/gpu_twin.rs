@@ -15,7 +15,7 @@ use proptest::prelude::*;
 use shadow_map_core::{gpu::GpuContext, run, Backend, Receivers, Scene, SoftShadowEstimator};
 use std::sync::Arc;
 use test_support::{
-    conformance::{random_twins, FixedCase, Params, TwinPair},
+    conformance::{random_twins, table, BoxedFrame, FixedCase, Params, TwinPair},
     fixtures::configure,
     proptest_config,
     scenes::{arb_bias, arb_case, BoxSpec, LightSpec, SceneRanges, SceneSpec, Shapes},
@@ -26,8 +26,11 @@ const TWIN: Tolerance = Tolerance::TWIN;
 const TIE_NUDGE_REL: f32 = 1e-5;
 
 test_support::twin_suite! {
-    backprojection [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin]
-        => Backprojection,
+    backprojection [
+        chunked_dispatch_equals_one_dispatch,
+        cli_path_matches_the_cpu_twin,
+        frame_path_matches_the_cpu_twin,
+    ] => Backprojection,
 }
 
 /// Rect, disk and sphere lights, no grazing or outside receivers.
@@ -219,6 +222,13 @@ impl TwinPair for Backprojection {
             FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
         }
     );
+
+    fn frame(&self, ctx: &Arc<GpuContext>, params: &Params) -> Option<BoxedFrame> {
+        let t = table(backprojection::cpu::SPECS, params);
+        Some(Box::new(
+            backprojection::BackprojectionFrame::prepare(ctx.clone(), &t).unwrap(),
+        ))
+    }
 
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let mut twin = GpuBackprojection::new(ctx.clone()).expect("gpu twin");

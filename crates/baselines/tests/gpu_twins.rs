@@ -25,7 +25,7 @@ use shadow_map_core::{
 };
 use std::sync::Arc;
 use test_support::{
-    conformance::{random_twins, CliRun, FixedCase, Params, TwinPair},
+    conformance::{random_twins, table, BoxedFrame, CliRun, FixedCase, Params, TwinPair},
     fixtures::{fixture_path, set_params},
     proptest_config,
     scenes::{arb_bias, arb_case, BoxSpec, LightSpec, SceneRanges, SceneSpec},
@@ -50,16 +50,29 @@ const SAMPLING_NUDGE_REL: f32 = 1e-6;
 const CLI_RMSE_MAX: f64 = 1e-3;
 
 test_support::twin_suite! {
-    hard [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin]
+    hard [
+        chunked_dispatch_equals_one_dispatch,
+        cli_path_matches_the_cpu_twin,
+        frame_path_matches_the_cpu_twin,
+    ]
         => Baseline(Which::Hard),
-    pcf [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin]
+    pcf [
+        chunked_dispatch_equals_one_dispatch,
+        cli_path_matches_the_cpu_twin,
+        frame_path_matches_the_cpu_twin,
+    ]
         => Baseline(Which::Pcf),
     pcss [
         chunked_dispatch_equals_one_dispatch,
         cli_path_matches_the_cpu_twin,
         loop_limit_is_detected_and_redone,
+        frame_path_matches_the_cpu_twin,
     ] => Baseline(Which::Pcss),
-    multi_sample [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin]
+    multi_sample [
+        chunked_dispatch_equals_one_dispatch,
+        cli_path_matches_the_cpu_twin,
+        frame_path_matches_the_cpu_twin,
+    ]
         => Baseline(Which::MultiSample),
 }
 
@@ -443,6 +456,28 @@ impl TwinPair for Baseline {
             GpuTwin::MultiSample(g) => g.set_max_chunk(65),
         }
         Some(t.boxed())
+    }
+
+    fn frame(&self, ctx: &Arc<GpuContext>, params: &Params) -> Option<BoxedFrame> {
+        use baselines::{gpu::MapFrame, hard::Hard, map_estimator::Filter, pcf::Pcf, pcss::Pcss};
+        fn map<F: baselines::gpu::GpuFilter + 'static>(
+            ctx: &Arc<GpuContext>,
+            params: &Params,
+        ) -> BoxedFrame {
+            Box::new(
+                MapFrame::<F>::prepare(ctx.clone(), &table(<F as Filter>::SPECS, params)).unwrap(),
+            )
+        }
+        Some(match self.0 {
+            Which::Hard => map::<Hard>(ctx, params),
+            Which::Pcf => map::<Pcf>(ctx, params),
+            Which::Pcss => map::<Pcss>(ctx, params),
+            Which::MultiSample => {
+                let t = table(baselines::multi_sample::SPECS, params);
+                let n = self.fixed_case().receivers.len() as u32;
+                Box::new(baselines::gpu::MultiSampleFrame::prepare(ctx.clone(), &t, n).unwrap())
+            }
+        })
     }
 
     fn fixed_case(&self) -> FixedCase {

@@ -126,6 +126,16 @@ pub fn built<T>(slot: Option<T>) -> Result<T> {
     slot.ok_or_else(|| crate::Error::param("build", "estimate called before build"))
 }
 
+/// Sets every parameter of `params` on `est` (by `set_param`, each value as its canonical
+/// text): an estimator configured from a table, e.g. an engine path's CPU twin. Errors: a key
+/// `est` does not declare, or a value it refuses.
+pub fn configure(est: &mut dyn SoftShadowEstimator, params: &crate::Params) -> Result<()> {
+    for (key, value) in params.iter() {
+        est.set_param(key, &value.to_string())?;
+    }
+    Ok(())
+}
+
 /// Builds and estimates in one call, returning V and the report.
 pub fn run(
     est: &mut dyn SoftShadowEstimator,

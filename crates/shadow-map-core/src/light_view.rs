@@ -177,6 +177,25 @@ pub const NEARFAR: ParamSpec = ParamSpec {
 };
 
 impl LightView {
+    /// A view of side `r` on the world axes (near 1, far 2, window [-1, 1]^2) that stands in for
+    /// a frame's view in buffers allocated before any view is known (the engine path).
+    pub fn placeholder(r: u32) -> LightView {
+        LightView {
+            frame: crate::light::LightFrame {
+                origin: glam::Vec3::ZERO,
+                ex: glam::Vec3::X,
+                ey: glam::Vec3::Y,
+                ez: glam::Vec3::Z,
+            },
+            n: 1.0,
+            far: 2.0,
+            window_min: glam::Vec2::splat(-1.0),
+            w: 2.0,
+            r,
+            projection: Default::default(),
+        }
+    }
+
     /// Receiver-side depth bias in world units (docs/methods.md §2, "Self-shadowing"):
     /// `eps = (w z_p / (n r)) (b0 + b1 min(tan theta, 10))`, where `w z_p / (n r)` is the world
     /// size of one texel at the receiver's depth and theta the angle between the receiver normal

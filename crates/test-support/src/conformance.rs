@@ -29,6 +29,22 @@ pub type BoxedEstimator = Box<dyn SoftShadowEstimator>;
 /// Parameters for both twins: `(key, value)`.
 pub type Params = Vec<(&'static str, String)>;
 
+/// A boxed engine path, as [`TwinPair::frame`] hands it out.
+pub type BoxedFrame = Box<dyn shadow_map_core::gpu::frame::FrameEstimator>;
+
+/// `params` set on a table of `specs` (a method's parameter table for its engine path's
+/// `prepare`); panics on a key or value the table refuses (a test's bug).
+pub fn table(
+    specs: &'static [shadow_map_core::ParamSpec],
+    params: &Params,
+) -> shadow_map_core::Params {
+    let mut t = shadow_map_core::Params::new(specs).expect("parameter table");
+    for (k, v) in params {
+        t.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
+    }
+    t
+}
+
 /// The fixed case of the focused checks: a scene, its receivers (some inactive) and the
 /// parameters both twins are given.
 pub struct FixedCase {
@@ -111,6 +127,34 @@ pub trait TwinPair {
         };
         let case = self.fixed_case();
         chunked_dispatch_equals_one_dispatch(&label, &mut *self.gpu(ctx), &mut *chunked, &case);
+    }
+
+    /// The GPU twin's engine path on `ctx`, prepared with `params` (the fixed case's), if the
+    /// method has one.
+    fn frame(&self, _ctx: &Arc<GpuContext>, _params: &Params) -> Option<BoxedFrame> {
+        None
+    }
+
+    /// Check: the engine path on the fixed case, three frames in the caller's encoder and
+    /// buffers ([`frames_match_the_cpu_twin`]), within [`Tolerance::TWIN`] of the CPU twin in
+    /// the same views.
+    fn frame_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
+        let label = self.label();
+        let case = self.fixed_case();
+        let Some(frame) = self.frame(ctx, &case.params) else {
+            panic!("{label}: the GPU twin has no engine path");
+        };
+        let c = frames_match_the_cpu_twin(&label, ctx, &*frame, &case.scene, &case.receivers);
+        let allowed = Tolerance::TWIN.allowed_beyond(c.active);
+        assert!(
+            c.active > 0 && c.beyond <= allowed,
+            "{label}: {} of {} active receivers beyond {} of the CPU twin (allowed {allowed}), \
+             max |dV| {}",
+            c.beyond,
+            c.active,
+            Tolerance::TWIN.abs,
+            c.max_dv
+        );
     }
 
     /// Check: the CLI path (`build` + `estimate` on both twins) agrees, the method's way.
@@ -443,5 +487,105 @@ impl CliRun {
     /// loop budget (`loop_limit_cpu_fallbacks`, "0" when absent).
     pub fn loop_limit_fallbacks(&self) -> String {
         note(&self.gpu_report, "loop_limit_cpu_fallbacks").unwrap_or_else(|| "0".to_string())
+    }
+}
+
+/// What [`frames_match_the_cpu_twin`] measured.
+#[derive(Debug, Clone)]
+pub struct FrameComparison {
+    /// Largest |dV| over the active receivers.
+    pub max_dv: f32,
+    /// Active receivers with |dV| beyond [`Tolerance::TWIN`]'s `abs`.
+    pub beyond: usize,
+    /// Active receivers.
+    pub active: usize,
+    /// The estimator's status words after the last frame (empty when it keeps none).
+    pub status: Vec<u32>,
+    /// The last frame's V.
+    pub v: Vec<f32>,
+}
+
+/// The engine path against the CPU twin: the views `frame` fits for `receivers`, then three
+/// frames through [`FrameEstimator::encode`](shadow_map_core::gpu::frame::FrameEstimator)
+/// (each its own encoder and submit, nothing read between them) from a caller's casters,
+/// receiver buffer and V buffer; V read back once after the last. Panics (naming `label`) unless
+/// every inactive receiver is NaN on both and every active GPU V is finite in [0, 1]; returns
+/// the comparison with [`FrameEstimator::cpu_twin`] in the same views for the caller's bound.
+pub fn frames_match_the_cpu_twin(
+    label: &str,
+    ctx: &GpuContext,
+    frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
+    scene: &Scene,
+    receivers: &Receivers,
+) -> FrameComparison {
+    use shadow_map_core::gpu::{frame::FrameInputs, receivers::GpuReceivers, GpuScene};
+    let views = frame
+        .fit_views(scene, receivers)
+        .unwrap_or_else(|e| panic!("{label}: fit_views: {e}"));
+    let casters = GpuScene::upload(ctx, scene).unwrap_or_else(|e| panic!("{label}: {e}"));
+    let rec = GpuReceivers::upload(ctx, receivers).unwrap_or_else(|e| panic!("{label}: {e}"));
+    let n = receivers.len() as u64;
+    let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("caller's V"),
+        size: 4 * n.max(1),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let inputs = FrameInputs {
+        casters: &casters,
+        views: &views,
+        light: &scene.light,
+        receivers: &rec.buffer,
+        count: rec.count,
+        v: &v_buf,
+    };
+    for _ in 0..3 {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        frame
+            .encode(&mut enc, &inputs)
+            .unwrap_or_else(|e| panic!("{label}: encode: {e}"));
+        ctx.queue.submit([enc.finish()]);
+    }
+    let bits: Vec<u32> = ctx
+        .read_buffer(&v_buf, 4 * n)
+        .unwrap_or_else(|e| panic!("{label}: {e}"));
+    let status: Vec<u32> = match frame.status() {
+        Some(b) => ctx
+            .read_buffer(b, b.size())
+            .unwrap_or_else(|e| panic!("{label}: {e}")),
+        None => Vec::new(),
+    };
+    let cpu = frame
+        .cpu_twin(scene, receivers, &views)
+        .unwrap_or_else(|e| panic!("{label}: CPU twin: {e}"));
+    let (mut max_dv, mut beyond, mut active) = (0.0f32, 0usize, 0usize);
+    for (k, (&b, &c)) in bits.iter().zip(&cpu).enumerate() {
+        let g = f32::from_bits(b);
+        if !receivers.active[k] {
+            assert!(
+                g.is_nan() && c.is_nan(),
+                "{label}: inactive receiver {k}: {g} / {c}"
+            );
+            continue;
+        }
+        assert!(
+            g.is_finite() && (0.0..=1.0).contains(&g),
+            "{label}: V[{k}] = {g} (bits {b:#x})"
+        );
+        let d = (g - c).abs();
+        max_dv = max_dv.max(d);
+        beyond += usize::from(d > Tolerance::TWIN.abs);
+        active += 1;
+    }
+    println!(
+        "{label}: frame API vs CPU twin, max |dV| {max_dv:.2e}, {beyond} of {active} beyond {:.0e}, status {status:?}",
+        Tolerance::TWIN.abs
+    );
+    FrameComparison {
+        max_dv,
+        beyond,
+        active,
+        status,
+        v: bits.into_iter().map(f32::from_bits).collect(),
     }
 }

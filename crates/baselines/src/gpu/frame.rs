@@ -1,20 +1,11 @@
-//! The engine path of hard, PCF, PCSS ([`MapFrame`]) and multi-sample ([`MultiSampleFrame`])
-//! (issue 20, first step): shadow maps and their filter recorded every frame into the caller's
-//! command encoder, from the caller's casters and receiver buffer, V written into the caller's
-//! buffer. Nothing is submitted, nothing waits,
-//! nothing is read back: the loop-budget and frustum counters go to a status buffer the caller
-//! may read when it likes ([`MapFrame::status`]).
+//! The engine path ([`FrameEstimator`]) of hard, PCF, PCSS ([`MapFrame`]) and multi-sample
+//! ([`MultiSampleFrame`]) (issue 20): shadow maps and their filter recorded every frame into the
+//! caller's command encoder, from the caller's casters and receiver buffer, V written into the
+//! caller's buffer. Nothing is submitted, nothing waits, nothing is read back: the loop-budget
+//! and frustum counters go to a status buffer the caller may read when it likes
+//! ([`FrameEstimator::status`]).
 //!
-//! ```text
-//! let frame = MapFrame::<Pcss>::prepare(ctx, &params)?;        // once: pipelines, map, uniforms
-//! loop {
-//!     let mut enc = device.create_command_encoder(&Default::default());
-//!     frame.encode(&mut enc, &FrameInputs { casters, view, light, receivers, v })?;
-//!     queue.submit([enc.finish()]);                             // the caller's submit
-//! }
-//! ```
-//!
-//! The light view is the caller's ([`MapFrame::fit_view`] fits one on the CPU, as the
+//! The light views are the caller's ([`FrameEstimator::fit_views`] fits them on the CPU, as the
 //! estimator's `build` does); `depth=unorm16` is not in the frame path yet (an error naming the
 //! key). Receivers the device's loop budget cuts short keep the `CUT_BITS` NaN payload in V and
 //! are counted in the status; the frame path does not redo them on the CPU.
@@ -27,47 +18,33 @@ use crate::{
     common::MapSettings,
     multi_sample::{jitter, MultiSampleParams},
 };
+use crate::{map_estimator::MapEstimator, MultiSample};
+pub use shadow_map_core::gpu::frame::{FrameEstimator, FrameInputs};
 use shadow_map_core::{
+    estimator::configure,
     gpu::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
+        frame::{buffer_range, check_buffers, single_view, status_buffer},
         receivers::RECEIVER_BYTES,
-        GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
+        GpuContext, GpuMapFrame, GpuShadowMapper,
     },
     light_space::point_frame,
-    light_view::{FitReport, LightView},
-    DepthPrecision, Error, Light, Params, Receivers, Result, Scene,
+    light_view::LightView,
+    DepthPrecision, Error, Params, Receivers, Result, Scene, SoftShadowEstimator,
 };
-use std::{marker::PhantomData, num::NonZeroU64, sync::Arc};
-
-/// What one frame reads and writes, all the caller's.
-#[derive(Debug, Clone, Copy)]
-pub struct FrameInputs<'a> {
-    /// The casters' triangles (a [`GpuScene`]: `vec4` positions, three per triangle).
-    pub casters: &'a GpuScene,
-    /// The frame's light view, at the resolution the frame was prepared with.
-    pub view: &'a LightView,
-    /// The light.
-    pub light: &'a Light,
-    /// The receivers: an array of the core's `ReceiverGpu` (32 bytes each), `STORAGE` usage.
-    pub receivers: &'a wgpu::Buffer,
-    /// How many receivers the buffer holds (from its start).
-    pub count: u32,
-    /// V per receiver as f32 bits (NaN for inactive receivers), `STORAGE` usage, at least
-    /// `4 count` bytes.
-    pub v: &'a wgpu::Buffer,
-}
+use std::sync::Arc;
 
 /// Hard, PCF or PCSS (`F`) on the engine path (module documentation).
 pub struct MapFrame<F: GpuFilter> {
     ctx: Arc<GpuContext>,
+    params: Params,
     settings: MapSettings,
-    uniform: EstimateUniform,
+    filter: F,
     map: GpuMapFrame,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
     est: wgpu::Buffer,
     status: wgpu::Buffer,
-    _f: PhantomData<fn() -> F>,
 }
 
 impl<F: GpuFilter> MapFrame<F> {
@@ -83,15 +60,14 @@ impl<F: GpuFilter> MapFrame<F> {
             ));
         }
         let filter = F::from_params(params)?;
-        let (b0, b1) = settings.biases();
-        // The light is written per frame; these are the settings around it.
-        let mut uniform = EstimateUniform::new(&Light::directional(glam::Vec3::NEG_Y, 1.0), b0, b1);
-        uniform.receiver_plane = u32::from(settings.receiver_plane);
-        filter.set_uniform(&mut uniform);
         let mapper = GpuShadowMapper::new(&ctx)?;
         let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), 1)?;
         let label = format!("{} frame", F::NAME);
-        let module = kernel_module(&ctx, &label, &shader_parts::<F>(DepthPrecision::F32))?;
+        let module = shadow_map_core::gpu::kernel::shader_module(
+            &ctx,
+            &label,
+            &shader_parts::<F>(DepthPrecision::F32),
+        )?;
         let layout = kernel::map_layout(&ctx, &label, DepthPrecision::F32);
         let pipeline = shadow_map_core::gpu::kernel::compute_pipeline(
             &ctx, &label, &module, &layout, "estimate", OVERRIDES,
@@ -103,84 +79,52 @@ impl<F: GpuFilter> MapFrame<F> {
             usage,
             mapped_at_creation: false,
         });
-        let status = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame status"),
-            size: 16,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let status = status_buffer(&ctx, "frame status", 4);
         Ok(MapFrame {
             ctx,
+            params: params.clone(),
             settings,
-            uniform,
+            filter,
             map,
             layout,
             pipeline,
             est,
             status,
-            _f: PhantomData,
         })
     }
+}
 
-    /// The view the estimator's own `build` fits for `receivers` (CPU work over the scene's
-    /// triangles: the engine path's GPU fit is still to come).
-    pub fn fit_view(&self, scene: &Scene, receivers: &Receivers) -> Result<(LightView, FitReport)> {
-        self.settings
+impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
+    fn name(&self) -> &'static str {
+        F::NAME
+    }
+
+    /// The view the estimator's own `build` fits for `receivers`.
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        let (view, _) = self
+            .settings
             .request()
-            .fit_view(scene, receivers, &self.settings.view)
+            .fit_view(scene, receivers, &self.settings.view)?;
+        Ok(vec![Some(view)])
     }
 
-    /// The status of the last frame the caller submitted, three u32: receivers outside the
-    /// light frustum, non-finite results (written as 0), receivers cut by the device's loop
-    /// budget (`CUT_BITS` in V). `COPY_SRC`: the caller copies it out when it likes.
-    pub fn status(&self) -> &wgpu::Buffer {
-        &self.status
+    /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
+    /// receivers cut by the device's loop budget (`CUT_BITS` in V).
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.status)
     }
 
-    /// Records one frame into `enc`: the status cleared, the map rendered in `inputs.view`, then
-    /// the filter over `inputs.count` receivers writing V. Stages the view and the light with
-    /// `queue.write_buffer` (they take effect at the caller's next submit: one `encode` per
-    /// submit). Errors, before anything is recorded: a view of another resolution
-    /// ([`Error::LightView`]); a receiver count beyond one dispatch
-    /// (`65535 x WORKGROUP_SIZE`) or buffers smaller than the count needs ([`Error::Limit`]).
-    pub fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+    /// The status cleared, the map rendered in the one view, then the filter over the receivers.
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+        let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
-        let max = 65_535 * WORKGROUP_SIZE as u64;
-        if n > max {
-            return Err(Error::Limit {
-                what: "receivers per frame (one dispatch)",
-                requested: n,
-                max,
-            });
-        }
-        for (what, have, need) in [
-            (
-                "receiver buffer bytes",
-                inputs.receivers.size(),
-                n * RECEIVER_BYTES,
-            ),
-            ("V buffer bytes", inputs.v.size(), n * 4),
-        ] {
-            if have < need {
-                return Err(Error::Limit {
-                    what,
-                    requested: need,
-                    max: have,
-                });
-            }
-        }
+        check_buffers(inputs.receivers, inputs.v, n)?;
         let queue = &self.ctx.queue;
-        self.map
-            .encode(queue, enc, inputs.casters, inputs.view, 0)?;
-        let mut u = EstimateUniform::new(inputs.light, 0.0, 0.0);
-        u.bias = self.uniform.bias;
-        u.slope_bias = self.uniform.slope_bias;
-        u.receiver_plane = self.uniform.receiver_plane;
-        u.kernel_half = self.uniform.kernel_half;
-        u.max_taps = self.uniform.max_taps;
-        u.inv_samples = self.uniform.inv_samples;
+        self.map.encode(queue, enc, inputs.casters, view, 0)?;
+        let (b0, b1) = self.settings.biases();
+        let mut u = EstimateUniform::new(inputs.light, b0, b1);
+        u.receiver_plane = u32::from(self.settings.receiver_plane);
+        self.filter.set_uniform(&mut u);
         queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&u));
         enc.clear_buffer(&self.status, 0, None);
         if n == 0 {
@@ -210,55 +154,20 @@ impl<F: GpuFilter> MapFrame<F> {
         pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
         Ok(())
     }
-}
 
-/// Checks one frame's receiver count against one dispatch (`65535 x WORKGROUP_SIZE`) and the
-/// caller's buffers against the count ([`Error::Limit`]).
-fn check_buffers(receivers: &wgpu::Buffer, v: &wgpu::Buffer, n: u64) -> Result<()> {
-    let max = 65_535 * WORKGROUP_SIZE as u64;
-    if n > max {
-        return Err(Error::Limit {
-            what: "receivers per frame (one dispatch)",
-            requested: n,
-            max,
-        });
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>> {
+        let mut e = MapEstimator::<F>::new()?;
+        configure(&mut e, &self.params)?;
+        e.build_in_view(scene, *single_view(views)?)?;
+        let mut v = vec![0.0; receivers.len()];
+        e.estimate(scene, receivers, &mut v)?;
+        Ok(v)
     }
-    for (what, have, need) in [
-        (
-            "receiver buffer bytes",
-            receivers.size(),
-            n * RECEIVER_BYTES,
-        ),
-        ("V buffer bytes", v.size(), n * 4),
-    ] {
-        if have < need {
-            return Err(Error::Limit {
-                what,
-                requested: need,
-                max: have,
-            });
-        }
-    }
-    Ok(())
-}
-
-/// What one multi-sample frame reads and writes: [`FrameInputs`] with one view per sub-light
-/// ([`MultiSampleFrame::fit_views`]; `None`: a sub-light no receiver is in front of, which
-/// lights nothing but counts in N, as on the CPU).
-#[derive(Debug, Clone, Copy)]
-pub struct MultiSampleInputs<'a> {
-    /// The casters.
-    pub casters: &'a GpuScene,
-    /// One view per sub-light, in [`MultiSampleFrame::fit_views`]' order.
-    pub views: &'a [Option<LightView>],
-    /// The light.
-    pub light: &'a Light,
-    /// The receivers (`ReceiverGpu` array).
-    pub receivers: &'a wgpu::Buffer,
-    /// How many receivers.
-    pub count: u32,
-    /// V per receiver as f32 bits.
-    pub v: &'a wgpu::Buffer,
 }
 
 /// Multi-sample shadows on the engine path: per frame, the S x S sub-light maps rendered in turn
@@ -267,6 +176,7 @@ pub struct MultiSampleInputs<'a> {
 /// allocated at `prepare` for at most `max_receivers`.
 pub struct MultiSampleFrame {
     ctx: Arc<GpuContext>,
+    params: Params,
     settings: MapSettings,
     own: MultiSampleParams,
     map: GpuMapFrame,
@@ -307,6 +217,7 @@ impl MultiSampleFrame {
         });
         Ok(MultiSampleFrame {
             ctx,
+            params: params.clone(),
             settings,
             own,
             map,
@@ -316,14 +227,17 @@ impl MultiSampleFrame {
             max_receivers,
         })
     }
+}
+
+impl FrameEstimator for MultiSampleFrame {
+    fn name(&self) -> &'static str {
+        "multi-sample"
+    }
 
     /// The sub-light views the estimator fits for `receivers` (CPU work, as its `estimate`
-    /// does): one per jittered stratum of the light, `None` where no receiver is in front.
-    pub fn fit_views(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-    ) -> Result<Vec<Option<LightView>>> {
+    /// does): one per jittered stratum of the light, `None` where no receiver is in front (a
+    /// sub-light that lights nothing but counts in N, as on the CPU).
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
         let MultiSampleParams { sublights, seed } = self.own;
         let light = &scene.light;
         light
@@ -347,15 +261,15 @@ impl MultiSampleFrame {
             .collect()
     }
 
-    /// Records one frame into `enc` (one `encode` per submit; module documentation). Errors,
-    /// before anything is recorded: more views than sub-lights, views of another resolution
-    /// ([`Error::LightView`]), more receivers than `max_receivers` or than the caller's buffers
-    /// hold ([`Error::Limit`]).
-    pub fn encode(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        inputs: &MultiSampleInputs<'_>,
-    ) -> Result<()> {
+    /// Keeps no counters.
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        None
+    }
+
+    /// The sub-light maps rendered in turn, each followed by its `accumulate` pass, then
+    /// `finalize`. Errors also for more views than sub-lights ([`Error::LightView`]) and more
+    /// receivers than `max_receivers` ([`Error::Limit`]).
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let n = inputs.count as u64;
         check_buffers(inputs.receivers, inputs.v, n)?;
         if inputs.count > self.max_receivers {
@@ -432,17 +346,16 @@ impl MultiSampleFrame {
         pass.dispatch_workgroups(wg, 1, 1);
         Ok(())
     }
-}
-
-/// The first `bytes` of `b` as a binding.
-fn buffer_range(b: &wgpu::Buffer, bytes: u64) -> wgpu::BindingResource<'_> {
-    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-        buffer: b,
-        offset: 0,
-        size: NonZeroU64::new(bytes),
-    })
-}
-
-fn kernel_module(ctx: &GpuContext, label: &str, parts: &[&str]) -> Result<wgpu::ShaderModule> {
-    shadow_map_core::gpu::kernel::shader_module(ctx, label, parts)
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>> {
+        let mut e = MultiSample::new()?;
+        configure(&mut e, &self.params)?;
+        let mut v = vec![0.0; receivers.len()];
+        e.estimate_in_views(scene, receivers, views, &mut v)?;
+        Ok(v)
+    }
 }

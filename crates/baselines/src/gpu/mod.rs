@@ -33,7 +33,7 @@ pub mod multi_sample;
 pub mod pcf;
 pub mod pcss;
 
-pub use frame::{FrameInputs, MapFrame, MultiSampleFrame, MultiSampleInputs};
+pub use frame::{FrameEstimator, FrameInputs, MapFrame, MultiSampleFrame};
 pub use hard::GpuHardShadow;
 pub use map_estimator::{GpuFilter, GpuMapEstimator};
 pub use maps::{DepthTexture, GpuMaps, MapBuilder, MapDepth, MapOrigin};

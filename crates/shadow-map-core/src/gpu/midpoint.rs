@@ -67,20 +67,32 @@ impl GpuMidpoints {
         out: &[GpuDepthMap],
         max_bias: f32,
     ) {
-        let Some(first) = layers.first() else { return };
-        let size = first.size;
+        if let Some(pass) = self.prepare(ctx, layers, out) {
+            pass.record(&ctx.queue, encoder, max_bias);
+        }
+    }
+
+    /// The bind groups and the parameter buffer of the dispatches [`encode`](Self::encode)
+    /// records, created once (`None` for no layers): the engine path records them every frame.
+    pub fn prepare(
+        &self,
+        ctx: &GpuContext,
+        layers: &[GpuDepthMap],
+        out: &[GpuDepthMap],
+    ) -> Option<GpuMidpointPass> {
+        let size = layers.first()?.size;
         let params = buffer_init(
             &ctx.device,
             "midpoint",
             bytemuck::bytes_of(&MidpointParams {
                 size,
-                max_bias,
+                max_bias: 0.0,
                 _pad0: 0,
                 _pad1: 0,
             }),
-            wgpu::BufferUsages::UNIFORM,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
-        let groups: Vec<wgpu::BindGroup> = out
+        let groups = out
             .iter()
             .zip(layers.windows(2))
             .map(|(o, pair)| {
@@ -108,13 +120,42 @@ impl GpuMidpoints {
                 })
             })
             .collect();
+        Some(GpuMidpointPass {
+            pipeline: self.pipeline.clone(),
+            params,
+            size,
+            groups,
+        })
+    }
+}
+
+/// The midpoint dispatches of fixed layers ([`GpuMidpoints::prepare`]), recorded as often as the
+/// layers change, with the clamp of the frame.
+#[derive(Debug)]
+pub struct GpuMidpointPass {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    size: u32,
+    groups: Vec<wgpu::BindGroup>,
+}
+
+impl GpuMidpointPass {
+    /// Stages `max_bias` (it takes effect at the next submit) and records the pass.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, max_bias: f32) {
+        let p = MidpointParams {
+            size: self.size,
+            max_bias,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("midpoint"),
             timestamp_writes: None,
         });
         pass.set_pipeline(&self.pipeline);
-        let n = size.div_ceil(MIDPOINT_WORKGROUP);
-        for g in &groups {
+        let n = self.size.div_ceil(MIDPOINT_WORKGROUP);
+        for g in &self.groups {
             pass.set_bind_group(0, g, &[]);
             pass.dispatch_workgroups(n, n, 1);
         }

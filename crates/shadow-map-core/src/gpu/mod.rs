@@ -24,6 +24,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 pub mod depth_map;
 pub mod estimate;
+pub mod frame;
 pub mod gbuffer;
 pub mod kernel;
 pub mod light_space;
@@ -39,9 +40,12 @@ pub use estimate::EstimateUniform;
 pub use gbuffer::{GpuGBuffer, GpuGBufferImage};
 pub use kernel::{Binding, Kernel};
 pub use light_space::GpuLightSpace;
-pub use mssm::{GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder};
+pub use midpoint::GpuMidpointPass;
+pub use mssm::{
+    GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPass, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder,
+};
 pub use precision::{GpuUnorm16Encoder, GpuUnorm16Map};
-pub use raster::{GpuMapFrame, GpuScene, GpuShadowMapper};
+pub use raster::{GpuLayersFrame, GpuMapFrame, GpuScene, GpuShadowMapper};
 pub use receivers::GpuReceivers;
 
 /// Every WGSL shader of the crate as `(name, complete source)`, shared structs prepended where a

@@ -454,11 +454,14 @@ impl<'a> Recorder<'a> {
         })
     }
 
-    /// Writes all parameters into one uniform buffer (one aligned slot per dispatch), creates the
-    /// bind groups and records one compute pass.
-    fn record(self, b: &GpuMssmBuilder, encoder: &mut wgpu::CommandEncoder) {
+    /// Writes all parameters into one uniform buffer (one aligned slot per dispatch) and creates
+    /// the bind groups: the pass, ready to record any number of times.
+    fn finish(self, b: &GpuMssmBuilder) -> GpuMinMaxPass {
         if self.dispatches.is_empty() {
-            return;
+            return GpuMinMaxPass {
+                builder: b.clone(),
+                dispatches: Vec::new(),
+            };
         }
         let device = &self.ctx.device;
         let psize = std::mem::size_of::<MinMaxParams>() as u64;
@@ -476,7 +479,7 @@ impl<'a> Recorder<'a> {
             mapped_at_creation: false,
         });
         self.ctx.queue.write_buffer(&params, 0, &bytes);
-        let groups: Vec<wgpu::BindGroup> = self
+        let dispatches = self
             .dispatches
             .iter()
             .enumerate()
@@ -510,25 +513,49 @@ impl<'a> Recorder<'a> {
                     Kind::Step => &b.step_layout,
                     Kind::Reduce => &b.reduce_layout,
                 };
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("mssm"),
                     layout,
                     entries: &entries,
-                })
+                });
+                (d.kind, group, d.groups)
             })
             .collect();
+        GpuMinMaxPass {
+            builder: b.clone(),
+            dispatches,
+        }
+    }
+}
+
+/// The recorded form of one MSSM build ([`GpuMssmBuilder::prepare`]): its parameters written and
+/// its bind groups created once, so [`record`](Self::record) only records the compute pass (the
+/// engine path records it every frame, after the depth map it reads is rendered).
+#[derive(Debug)]
+pub struct GpuMinMaxPass {
+    builder: GpuMssmBuilder,
+    dispatches: Vec<(Kind, wgpu::BindGroup, (u32, u32))>,
+}
+
+impl GpuMinMaxPass {
+    /// Records the pass into `encoder` (nothing when no structure was requested).
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
+        if self.dispatches.is_empty() {
+            return;
+        }
+        let b = &self.builder;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("mssm"),
             timestamp_writes: None,
         });
-        for (d, g) in self.dispatches.iter().zip(&groups) {
-            pass.set_pipeline(match d.kind {
+        for (kind, group, (x, y)) in &self.dispatches {
+            pass.set_pipeline(match kind {
                 Kind::Load => &b.load,
                 Kind::Step => &b.step,
                 Kind::Reduce => &b.reduce,
             });
-            pass.set_bind_group(0, g, &[]);
-            pass.dispatch_workgroups(d.groups.0, d.groups.1, 1);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(*x, *y, 1);
         }
     }
 }
@@ -642,8 +669,26 @@ impl GpuMssmBuilder {
         depth: &GpuDepthMap,
         req: MinMaxRequest,
     ) -> Result<GpuMinMaxSet> {
+        let (set, pass) = self.prepare(ctx, depth, req)?;
+        pass.record(encoder);
+        Ok(set)
+    }
+
+    /// Allocates the requested structures over `depth` and prepares the pass that builds them
+    /// ([`GpuMinMaxPass::record`], as often as `depth` changes). The buffers hold their values
+    /// once a recorded pass is submitted.
+    pub fn prepare(
+        &self,
+        ctx: &GpuContext,
+        depth: &GpuDepthMap,
+        req: MinMaxRequest,
+    ) -> Result<(GpuMinMaxSet, GpuMinMaxPass)> {
         if req.mssm_levels.is_none() && req.dual_mssm_levels.is_none() && !req.pyramid {
-            return Ok(GpuMinMaxSet::default());
+            let pass = GpuMinMaxPass {
+                builder: self.clone(),
+                dispatches: Vec::new(),
+            };
+            return Ok((GpuMinMaxSet::default(), pass));
         }
         let mut rec = Recorder {
             ctx,
@@ -684,8 +729,7 @@ impl GpuMssmBuilder {
             }
             set.pyramid = Some(GpuMinMaxPyramid { size: s, levels });
         }
-        rec.record(self, encoder);
-        Ok(set)
+        Ok((set, rec.finish(self)))
     }
 
     /// Builds the requested structures over `depth` and submits the work.

@@ -335,7 +335,37 @@ impl GpuShadowMapper {
         view: &LightView,
         req: &LightSpaceRequest,
     ) -> Result<GpuLightSpace> {
-        let r = view.r;
+        let frame = self.layers_frame(ctx, view.r, req)?;
+        ctx.scoped("raster", || -> Result<GpuLightSpace> {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("raster"),
+                });
+            frame.encode(
+                &ctx.queue,
+                &mut enc,
+                scene,
+                view,
+                req.midpoints.unwrap_or(0.0),
+            )?;
+            ctx.queue.submit([enc.finish()]);
+            Ok(frame.light_space(view))
+        })?
+    }
+
+    /// The resources of [`render_layers`](Self::render_layers) for views of side `r`, allocated
+    /// once and rendered every frame into the caller's command encoder ([`GpuLayersFrame`], the
+    /// engine path): the peeled layers (`req.layers`, at least 1, plus one when midpoints are
+    /// requested), the midpoint layers, the MSSM family of layer 0 as requested, the uniforms
+    /// and every bind group. `req.resolution` is ignored (`r` is the side). Errors as
+    /// `render_layers`.
+    pub fn layers_frame(
+        &self,
+        ctx: &GpuContext,
+        r: u32,
+        req: &LightSpaceRequest,
+    ) -> Result<GpuLayersFrame> {
         check_size(ctx, r)?;
         let layers_out = req.layers.max(1);
         let k = layers_out + u32::from(req.midpoints.is_some());
@@ -348,68 +378,58 @@ impl GpuShadowMapper {
         } else {
             None
         };
-        ctx.scoped("raster", || -> Result<GpuLightSpace> {
+        ctx.scoped("raster", || -> Result<GpuLayersFrame> {
             let device = &ctx.device;
-            let (view_uniform, params) = create_raster_uniforms(device, view, bias);
+            let (view_uniform, params) =
+                create_raster_uniforms(device, &LightView::placeholder(r), bias);
             let depth_test = create_depth_test(device, r);
             let mut layers = Vec::with_capacity(k as usize);
             for m in 0..k {
                 layers.push(GpuDepthMap::new(ctx, r, &format!("raster.layer{m}"))?);
             }
-            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("raster"),
-            });
-            for m in 0..k as usize {
-                let prev = if m == 0 {
-                    &self.no_prev
-                } else {
-                    &layers[m - 1].view
-                };
-                let group = self.layer_bind_group(device, &view_uniform, &params, prev);
-                let mut pass = begin_layer_pass(&mut enc, m, &layers[m].view, &depth_test);
-                if scene.triangles > 0 {
-                    let pipeline = match (&peel, m) {
-                        (Some(p), 1..) => p,
-                        _ => &first,
+            let groups = (0..k as usize)
+                .map(|m| {
+                    let prev = if m == 0 {
+                        &self.no_prev
+                    } else {
+                        &layers[m - 1].view
                     };
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.set_vertex_buffer(0, scene.vertices.slice(..));
-                    pass.draw(0..3 * scene.triangles, 0..1);
-                }
-            }
+                    let pipeline = match (&peel, m) {
+                        (Some(p), 1..) => p.clone(),
+                        _ => first.clone(),
+                    };
+                    let group = self.layer_bind_group(device, &view_uniform, &params, prev);
+                    (pipeline, group)
+                })
+                .collect();
             let mut midpoints = Vec::new();
-            if let Some(max_bias) = req.midpoints {
+            let mut midpoint_pass = None;
+            if req.midpoints.is_some() {
                 for m in 0..k - 1 {
                     midpoints.push(GpuDepthMap::new(ctx, r, &format!("midpoint.layer{m}"))?);
                 }
-                self.midpoints
-                    .encode(ctx, &mut enc, &layers, &midpoints, max_bias);
+                midpoint_pass = self.midpoints.prepare(ctx, &layers, &midpoints);
             }
-            layers.truncate(layers_out as usize);
-            let set = match layers.first() {
-                Some(l0) => self.mssm.encode(
-                    ctx,
-                    &mut enc,
-                    l0,
-                    MinMaxRequest {
-                        mssm_levels: req.mssm_levels,
-                        dual_mssm_levels: req.dual_mssm_levels,
-                        pyramid: req.pyramid,
-                    },
-                )?,
-                None => Default::default(),
-            };
-            ctx.queue.submit([enc.finish()]);
-            Ok(GpuLightSpace {
-                view: *view,
-                fit: FitReport::default(),
+            let (set, mssm_pass) = self.mssm.prepare(
+                ctx,
+                &layers[0],
+                MinMaxRequest {
+                    mssm_levels: req.mssm_levels,
+                    dual_mssm_levels: req.dual_mssm_levels,
+                    pyramid: req.pyramid,
+                },
+            )?;
+            Ok(GpuLayersFrame {
+                r,
+                layers_out: layers_out as usize,
                 view_uniform,
                 layers,
                 midpoints,
-                mssm: set.mssm,
-                dual_mssm: set.dual_mssm,
-                pyramid: set.pyramid,
+                set,
+                depth_test,
+                groups,
+                midpoint_pass,
+                mssm_pass,
             })
         })?
     }
@@ -431,20 +451,7 @@ impl GpuShadowMapper {
         let pipeline = self.pipeline(ctx, (cull_key(raster.cull), false, biased))?;
         ctx.scoped("raster.frame", || -> Result<GpuMapFrame> {
             let device = &ctx.device;
-            let placeholder = LightView {
-                frame: crate::light::LightFrame {
-                    origin: glam::Vec3::ZERO,
-                    ex: glam::Vec3::X,
-                    ey: glam::Vec3::Y,
-                    ez: glam::Vec3::Z,
-                },
-                n: 1.0,
-                far: 2.0,
-                window_min: glam::Vec2::splat(-1.0),
-                w: 2.0,
-                r,
-                projection: Default::default(),
-            };
+            let placeholder = LightView::placeholder(r);
             let slots = (0..views.max(1))
                 .map(|_| {
                     let (view_uniform, params) = create_raster_uniforms(device, &placeholder, bias);
@@ -560,6 +567,102 @@ impl GpuMapFrame {
             pass.draw(0..3 * casters.triangles, 0..1);
         }
         Ok(())
+    }
+}
+
+/// The depth-peeled layers, midpoint layers and MSSM family of one view, rendered every frame
+/// into the caller's command encoder (the engine path, [`GpuShadowMapper::layers_frame`]): the
+/// resources and bind groups of [`GpuShadowMapper::render_layers`], allocated once;
+/// [`encode`](Self::encode) stages the view and the midpoint clamp with `queue.write_buffer` and
+/// records the peeling passes, the midpoint pass and the MSSM pass. Nothing is submitted, nothing
+/// waits, no CPU work grows with the triangles or texels; one `encode` per submit.
+#[derive(Debug)]
+pub struct GpuLayersFrame {
+    /// Side in texels.
+    pub r: u32,
+    layers_out: usize,
+    view_uniform: wgpu::Buffer,
+    /// Every peeled layer, the extra one the midpoints read included.
+    layers: Vec<GpuDepthMap>,
+    midpoints: Vec<GpuDepthMap>,
+    set: super::mssm::GpuMinMaxSet,
+    depth_test: wgpu::TextureView,
+    /// Per peeling pass: its pipeline and bind group.
+    groups: Vec<(wgpu::RenderPipeline, wgpu::BindGroup)>,
+    midpoint_pass: Option<super::midpoint::GpuMidpointPass>,
+    mssm_pass: super::mssm::GpuMinMaxPass,
+}
+
+impl GpuLayersFrame {
+    /// The view uniform ([`LightViewUniform`]) the passes read, for estimate kernels to bind.
+    pub fn view_uniform(&self) -> &wgpu::Buffer {
+        &self.view_uniform
+    }
+
+    /// The peeled layers the request asked for, nearest first.
+    pub fn layers(&self) -> &[GpuDepthMap] {
+        &self.layers[..self.layers_out]
+    }
+
+    /// The midpoint layers (empty unless requested).
+    pub fn midpoints(&self) -> &[GpuDepthMap] {
+        &self.midpoints
+    }
+
+    /// The MSSM family of layer 0 as requested.
+    pub fn min_max(&self) -> &super::mssm::GpuMinMaxSet {
+        &self.set
+    }
+
+    /// Stages `view` and the midpoint clamp `max_bias` (world units; unused without midpoints)
+    /// and records every pass. Errors: [`Error::LightView`] for a view of another resolution.
+    pub fn encode(
+        &self,
+        queue: &wgpu::Queue,
+        enc: &mut wgpu::CommandEncoder,
+        casters: &GpuScene,
+        view: &LightView,
+        max_bias: f32,
+    ) -> Result<()> {
+        if view.r != self.r {
+            return Err(Error::LightView(format!(
+                "the frame's view has resolution {} but the layers were prepared at {}",
+                view.r, self.r
+            )));
+        }
+        queue.write_buffer(
+            &self.view_uniform,
+            0,
+            bytemuck::bytes_of(&LightViewUniform::from(view)),
+        );
+        for (m, (pipeline, group)) in self.groups.iter().enumerate() {
+            let mut pass = begin_layer_pass(enc, m, &self.layers[m].view, &self.depth_test);
+            if casters.triangles > 0 {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.set_vertex_buffer(0, casters.vertices.slice(..));
+                pass.draw(0..3 * casters.triangles, 0..1);
+            }
+        }
+        if let Some(p) = &self.midpoint_pass {
+            p.record(queue, enc, max_bias);
+        }
+        self.mssm_pass.record(enc);
+        Ok(())
+    }
+
+    /// The maps as a [`GpuLightSpace`] in `view` (sharing this frame's textures and buffers).
+    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
+        GpuLightSpace {
+            view: *view,
+            fit: FitReport::default(),
+            view_uniform: self.view_uniform.clone(),
+            layers: self.layers().to_vec(),
+            midpoints: self.midpoints.clone(),
+            mssm: self.set.mssm.clone(),
+            dual_mssm: self.set.dual_mssm.clone(),
+            pyramid: self.set.pyramid.clone(),
+        }
     }
 }
 

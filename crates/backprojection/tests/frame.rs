@@ -1,0 +1,62 @@
+//! Backprojection's engine path ([`backprojection::BackprojectionFrame`], issue 20) through the
+//! conformance suite's [`frames_match_the_cpu_twin`]: depth peeling, midpoints, the MSSM, the
+//! layout copies and the kernel recorded into the caller's command encoder three frames running,
+//! V read back once, against the CPU twin in the same view, on a rect light (bunny), a disk light
+//! and a low sun; and bit for bit the GPU twin's ordinary `build` + `estimate` (the same view and
+//! request but for the MSSM's level count, which the exact minimum query does not see).
+#![cfg(feature = "gpu")]
+
+use backprojection::{BackprojectionFrame, GpuBackprojection};
+use glam::Vec3;
+use shadow_map_core::{
+    gpu::context_for_tests, run, Light, LightShape, Params, Receivers, Scene, SceneBvh,
+};
+use test_support::{conformance::frames_match_the_cpu_twin, fixtures::fixture};
+
+fn scenes() -> Vec<(&'static str, Scene, Receivers)> {
+    let (bunny, rec) = fixture("bunny", 64, 48);
+    let with_light = |light: Light| {
+        let mut s = bunny.clone();
+        s.light = light;
+        let r = Receivers::from_camera(&s, &SceneBvh::new(&s));
+        (s, r)
+    };
+    let mut disk = bunny.light;
+    disk.shape = LightShape::Disk {
+        radius: bunny.light.half_extent().max_element(),
+    };
+    let (disk, disk_rec) = with_light(disk);
+    let (sun, sun_rec) = with_light(Light::directional(Vec3::new(0.6, -0.5, 0.3), 3.0));
+    vec![
+        ("bunny", bunny, rec),
+        ("disk-bunny", disk, disk_rec),
+        ("sun-bunny", sun, sun_rec),
+    ]
+}
+
+#[test]
+fn backprojection_frames_match_the_twins() {
+    let Some(ctx) = context_for_tests("backprojection_frames_match_the_twins").unwrap() else {
+        return;
+    };
+    let params = Params::new(backprojection::cpu::SPECS).unwrap();
+    let frame = BackprojectionFrame::prepare(ctx.clone(), &params).unwrap();
+    for (name, scene, rec) in scenes() {
+        let label = format!("backprojection {name}");
+        let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
+        let mut gpu = GpuBackprojection::new(ctx.clone()).unwrap();
+        let (v_gpu, _) = run(&mut gpu, &scene, &rec).unwrap();
+        let differ_gpu = (0..rec.len())
+            .filter(|&k| rec.active[k] && c.v[k] != v_gpu[k])
+            .count();
+        assert_eq!(differ_gpu, 0, "{label}: differs from the GPU twin's build");
+        assert_eq!(c.status[1], 0, "{label}: non-finite results {:?}", c.status);
+        assert!(
+            c.beyond * 1000 <= c.active,
+            "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {})",
+            c.beyond,
+            c.active,
+            c.max_dv
+        );
+    }
+}

@@ -1,0 +1,136 @@
+//! What every estimator's engine path shares (issue 20): the trait each estimator's frame type
+//! implements ([`FrameEstimator`]), the inputs of one frame, all the caller's
+//! ([`FrameInputs`]), the checks made before anything is recorded ([`check_buffers`]), and the
+//! status buffer that replaces a readback ([`status_buffer`]).
+//!
+//! ```text
+//! let frame = SomeFrame::prepare(ctx, &params)?;              // once: pipelines, maps, uniforms
+//! let views = frame.fit_views(&scene, &bounds_receivers)?;    // when the light or scene moves
+//! loop {
+//!     let mut enc = device.create_command_encoder(&Default::default());
+//!     frame.encode(&mut enc, &FrameInputs { casters, views: &views, light, receivers, count, v })?;
+//!     queue.submit([enc.finish()]);                           // the caller's submit
+//! }
+//! ```
+use super::{estimate::WORKGROUP_SIZE, receivers::RECEIVER_BYTES, GpuContext, GpuScene};
+use crate::{light_view::LightView, Error, Light, Receivers, Result, Scene};
+use std::num::NonZeroU64;
+
+/// An estimator's engine path: prepared once, then [`encode`](Self::encode) records each frame
+/// into the caller's command encoder (render and compute passes only: no submit, no wait, no
+/// readback), reading the caller's casters and receiver buffer and writing V into the caller's
+/// buffer.
+pub trait FrameEstimator {
+    /// The estimator's name (its `SoftShadowEstimator::name`).
+    fn name(&self) -> &'static str;
+
+    /// The light views the estimator's own `build` fits for `receivers`, one per view slot
+    /// (one for most methods, one per sub-light for multi-sample; `None`: a slot no receiver is
+    /// in front of). CPU work over the scene's triangles, for when the light or the scene moves,
+    /// not per frame.
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>>;
+
+    /// Records one frame into `enc` (one `encode` per submit: uniforms are staged with
+    /// `queue.write_buffer`). Errors, before anything is recorded: views of another resolution
+    /// or number ([`Error::LightView`]); a receiver count beyond one dispatch or buffers smaller
+    /// than the count needs ([`Error::Limit`]).
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()>;
+
+    /// The counters of the last submitted frame (u32s, each estimator's own: receivers outside
+    /// the frustum, non-finite results replaced, ...), for the caller to copy out when it likes;
+    /// `None` when the estimator keeps none.
+    fn status(&self) -> Option<&wgpu::Buffer>;
+
+    /// The CPU twin's V for `receivers` in the same `views` (what the conformance check and
+    /// `examples/frame_loop.rs` compare a frame with).
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>>;
+}
+
+/// The one view of a single-view method's frame: `views` must hold exactly one, present
+/// ([`Error::LightView`] otherwise).
+pub fn single_view(views: &[Option<LightView>]) -> Result<&LightView> {
+    match views {
+        [Some(v)] => Ok(v),
+        _ => Err(Error::LightView(format!(
+            "this estimator renders one light view per frame, {} given ({} present)",
+            views.len(),
+            views.iter().flatten().count()
+        ))),
+    }
+}
+
+/// What one frame reads and writes, all the caller's.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameInputs<'a> {
+    /// The casters' triangles (a [`GpuScene`]: `vec4` positions, three per triangle).
+    pub casters: &'a GpuScene,
+    /// The frame's light views ([`FrameEstimator::fit_views`]), at the resolution the frame
+    /// was prepared with.
+    pub views: &'a [Option<LightView>],
+    /// The light.
+    pub light: &'a Light,
+    /// The receivers: an array of the core's `ReceiverGpu` (32 bytes each), `STORAGE` usage.
+    pub receivers: &'a wgpu::Buffer,
+    /// How many receivers the buffer holds (from its start).
+    pub count: u32,
+    /// V per receiver as f32 bits (NaN for inactive receivers), `STORAGE` usage, at least
+    /// `4 count` bytes.
+    pub v: &'a wgpu::Buffer,
+}
+
+/// Checks one frame's receiver count against one dispatch (`65535 x WORKGROUP_SIZE`) and the
+/// caller's buffers against the count ([`Error::Limit`]).
+pub fn check_buffers(receivers: &wgpu::Buffer, v: &wgpu::Buffer, n: u64) -> Result<()> {
+    let max = 65_535 * WORKGROUP_SIZE as u64;
+    if n > max {
+        return Err(Error::Limit {
+            what: "receivers per frame (one dispatch)",
+            requested: n,
+            max,
+        });
+    }
+    for (what, have, need) in [
+        (
+            "receiver buffer bytes",
+            receivers.size(),
+            n * RECEIVER_BYTES,
+        ),
+        ("V buffer bytes", v.size(), n * 4),
+    ] {
+        if have < need {
+            return Err(Error::Limit {
+                what,
+                requested: need,
+                max: have,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame
+/// writes for the caller to read when it likes (cleared by each `encode`).
+pub fn status_buffer(ctx: &GpuContext, label: &str, words: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: 4 * words.max(1),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// The first `bytes` of `b` as a binding.
+pub fn buffer_range(b: &wgpu::Buffer, bytes: u64) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer: b,
+        offset: 0,
+        size: NonZeroU64::new(bytes),
+    })
+}
