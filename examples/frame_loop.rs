@@ -6,7 +6,10 @@
 //! light view(s).
 //!
 //! The scene is run twice: as loaded ("small") and with its triangles split into 4^k (at least
-//! 50 times as many, "large"); host ms is the CPU time spent in `encode` per frame. The light
+//! 50 times as many, "large"); host ms is the CPU time spent in `encode` per frame. After the
+//! readback, [`TIMED_FRAMES`] more frames on the last receivers are submitted back to back and
+//! waited for once (`gpu_ms_per_frame_*`: the frame's wall time on the device), and the CPU
+//! twin's build and estimate on the same receivers are timed (`cpu_twin_ms_*`). The light
 //! views are fitted once, on the CPU, to every vertex of the scene (a view that holds any
 //! receiver the orbit can see), so no per-frame CPU work grows with the triangles.
 //!
@@ -106,12 +109,25 @@ fn frame_path(ctx: &Arc<GpuContext>, algo: &str, scene: &Scene) -> Result<Path> 
 
 /// Runs `frames` frames of `path` over `scene`; returns host ms per frame in `encode`, and the
 /// RMSE of the last frame's V against the CPU twin over the active receivers.
-fn run(
-    ctx: &Arc<GpuContext>,
-    (path, views): Path,
-    scene: &Scene,
-    frames: u32,
-) -> Result<(f64, f64)> {
+/// What [`run`] measured for one estimator on one scene.
+#[derive(Default)]
+struct Measured {
+    /// CPU ms spent in `encode` per frame.
+    host_ms: f64,
+    /// RMSE of the last frame's V against the CPU twin over the active receivers.
+    rmse: f64,
+    /// Wall ms per frame of [`TIMED_FRAMES`] frames on the last frame's receivers, submitted
+    /// back to back and waited for once: encode, submit and the device's work (on lavapipe the
+    /// device is this machine's CPU cores).
+    gpu_ms: f64,
+    /// Wall ms of the CPU twin's build and estimate on the same receivers in the same views.
+    cpu_ms: f64,
+}
+
+/// Frames timed after the readback-free run (the wait that ends them is the only stall).
+const TIMED_FRAMES: u32 = 10;
+
+fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -> Result<Measured> {
     let casters = GpuScene::upload(ctx, scene)?;
     let gbuffer = GpuGBuffer::new(ctx)?;
     let pixels = (scene.camera.width * scene.camera.height) as u64;
@@ -145,13 +161,15 @@ fn run(
     }
     // The one readback, after the last frame.
     let Some((img, camera)) = last else {
-        return Ok((0.0, 0.0));
+        return Ok(Measured::default());
     };
     let receivers = img.read_back(ctx)?;
     let bits: Vec<u32> = ctx.read_buffer(&v, 4 * pixels)?;
     let mut s = scene.clone();
     s.camera = camera;
+    let t = Instant::now();
     let cpu = path.cpu_twin(&s, &receivers, &views)?;
+    let cpu_ms = t.elapsed().as_secs_f64() * 1e3;
     let (mut se, mut n) = (0.0f64, 0usize);
     for (k, c) in cpu.iter().enumerate() {
         if receivers.active[k] {
@@ -160,7 +178,30 @@ fn run(
             n += 1;
         }
     }
-    Ok((host / frames.max(1) as f64, (se / n.max(1) as f64).sqrt()))
+    // After the comparison: frames timed on the last receivers, waited for once.
+    let inputs = FrameInputs {
+        casters: &casters,
+        views: &views,
+        light: &scene.light,
+        receivers: &img.receivers.buffer,
+        count: img.receivers.count,
+        v: &v,
+    };
+    ctx.wait()?;
+    let t = Instant::now();
+    for _ in 0..TIMED_FRAMES {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        path.encode(&mut enc, &inputs)?;
+        ctx.queue.submit([enc.finish()]);
+    }
+    ctx.wait()?;
+    let gpu_ms = t.elapsed().as_secs_f64() * 1e3 / TIMED_FRAMES as f64;
+    Ok(Measured {
+        host_ms: host / frames.max(1) as f64,
+        rmse: (se / n.max(1) as f64).sqrt(),
+        gpu_ms,
+        cpu_ms,
+    })
 }
 
 fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
@@ -182,19 +223,18 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         .ok_or("no tessellation level")?;
     let large = tessellated(&small, levels)?;
     for algo in ALGOS {
-        let (host_small, _) = run(&ctx, frame_path(&ctx, algo, &small)?, &small, frames)?;
-        let (host_large, rmse) = run(&ctx, frame_path(&ctx, algo, &large)?, &large, frames)?;
+        let sm = run(&ctx, frame_path(&ctx, algo, &small)?, &small, frames)?;
+        let lg = run(&ctx, frame_path(&ctx, algo, &large)?, &large, frames)?;
+        let (ts, tl) = (small.triangles.len(), large.triangles.len());
         if json {
             println!(
-                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{},\"triangles_large\":{},\"host_ms_per_frame_small\":{host_small:.4},\"host_ms_per_frame_large\":{host_large:.4},\"rmse_vs_cpu\":{rmse:.3e}}}",
-                small.triangles.len(),
-                large.triangles.len()
+                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3}}}",
+                sm.host_ms, lg.host_ms, lg.rmse, sm.gpu_ms, lg.gpu_ms, sm.cpu_ms, lg.cpu_ms
             );
         } else {
             println!(
-                "{algo:>12}: {frames} frames, host ms/frame in encode {host_small:.3} ({} triangles) / {host_large:.3} ({} triangles), last frame RMSE vs CPU twin {rmse:.2e}",
-                small.triangles.len(),
-                large.triangles.len()
+                "{algo:>14}: {frames} frames; host ms/frame in encode {:.3} ({ts} triangles) / {:.3} ({tl} triangles); frame ms {:.2} / {:.2} against the CPU twin's {:.2} / {:.2}; last frame RMSE vs CPU twin {:.2e}",
+                sm.host_ms, lg.host_ms, sm.gpu_ms, lg.gpu_ms, sm.cpu_ms, lg.cpu_ms, lg.rmse
             );
         }
     }
