@@ -1,6 +1,6 @@
 //! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
 //! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
-//! frame API (hard, PCF, PCSS, multi-sample, backprojection so far: [`ALGOS`]) into its own command encoder from that
+//! frame API (hard, PCF, PCSS, multi-sample, backprojection, accumulation so far: [`ALGOS`]) into its own command encoder from that
 //! G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
 //! frame; then V and the receivers are read once and compared with the CPU twin in the same
 //! light view(s).
@@ -25,6 +25,7 @@ use shadow_map_core::{
     Camera, LightView, Params, Receivers, Result, Scene,
 };
 use softshadow::{
+    accumulation::AccumulationFrame,
     backprojection::BackprojectionFrame,
     baselines::{
         gpu::{GpuFilter, MapFrame, MultiSampleFrame},
@@ -36,7 +37,14 @@ use softshadow::{
 use std::{sync::Arc, time::Instant};
 
 /// The estimators with an engine path, in the order they are run.
-const ALGOS: [&str; 5] = ["hard", "pcf", "pcss", "multi-sample", "backprojection"];
+const ALGOS: [&str; 6] = [
+    "hard",
+    "pcf",
+    "pcss",
+    "multi-sample",
+    "backprojection",
+    "accumulation",
+];
 
 /// Every vertex of the scene as a receiver facing its triangle's normal: what the views are
 /// fitted to.
@@ -93,6 +101,10 @@ fn frame_path(ctx: &Arc<GpuContext>, algo: &str, scene: &Scene) -> Result<Path> 
         "hard" => map::<Hard>(ctx)?,
         "pcf" => map::<Pcf>(ctx)?,
         "pcss" => map::<Pcss>(ctx)?,
+        "accumulation" => Box::new(AccumulationFrame::prepare(
+            ctx.clone(),
+            &Params::new(softshadow::accumulation::cpu::SPECS)?,
+        )?),
         "backprojection" => Box::new(BackprojectionFrame::prepare(
             ctx.clone(),
             &Params::new(softshadow::backprojection::cpu::SPECS)?,

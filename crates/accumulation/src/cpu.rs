@@ -182,13 +182,30 @@ pub fn plan(
     s: &Settings,
     resolution: u32,
 ) -> Result<(LightView, FitReport, LightSpaceRequest)> {
-    let light = &scene.light;
-    let frame = light.frame();
-    let half = match s.sphere {
-        SphereModel::Contract => shadow_map_core::light_view::fit_half_extent(light, receivers),
-        SphereModel::Paper => light.half_extent(),
-    };
+    let frame = scene.light.frame();
+    let half = plan_half_extent(scene, receivers, s);
     let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
+    Ok((view, fit, request(s, &view, half)))
+}
+
+/// The half extent [`plan`] fits the window to: the contract's sphere model needs
+/// [`fit_half_extent`](shadow_map_core::light_view::fit_half_extent) over the receivers, the
+/// paper's the light's bounding half extent.
+pub fn plan_half_extent(scene: &Scene, receivers: &Receivers, s: &Settings) -> Vec2 {
+    match s.sphere {
+        SphereModel::Contract => {
+            shadow_map_core::light_view::fit_half_extent(&scene.light, receivers)
+        }
+        SphereModel::Paper => scene.light.half_extent(),
+    }
+}
+
+/// The light-space request of [`plan`] in `view` for a window half extent `half`
+/// ([`plan_half_extent`]): peeled layers for the exact variant, the anchored MSSM for the
+/// adaptive kernel with enough levels for its widest kernel (the levels only speed the minimum
+/// query up: it is exact whatever their number).
+pub fn request(s: &Settings, view: &LightView, half: Vec2) -> LightSpaceRequest {
+    let resolution = view.r;
     let mssm_levels = (s.kernel == KernelMode::Adaptive).then(|| {
         let l = 2.0 * half.max_element();
         let wmax = view
@@ -196,7 +213,7 @@ pub fn plan(
             .clamp(1.0, resolution as f32);
         (wmax.log2().ceil() as u32).clamp(1, MAX_MSSM_LEVEL)
     });
-    let req = LightSpaceRequest {
+    LightSpaceRequest {
         resolution,
         layers: s.peeled_layers().max(1),
         midpoints: None,
@@ -205,8 +222,7 @@ pub fn plan(
         pyramid: false,
         raster: RasterOptions::default(),
         opacity: false,
-    };
-    Ok((view, fit, req))
+    }
 }
 
 /// Half-open texel rectangle `[x0, x1) x [y0, y1)` covering continuous bounds, clamped to the map.
@@ -629,6 +645,36 @@ impl CpuAccumulation {
     /// The typed settings.
     pub fn settings(&self) -> Settings {
         self.settings
+    }
+
+    /// Builds the light-space data in a given `view` (the engine path's CPU twin: a view the
+    /// caller fitted, e.g. with an engine path's `FrameEstimator::fit_views`), with the request
+    /// [`request`] makes for `receivers`. Errors: a view of another resolution than the
+    /// parameters' ([`Error::LightView`]).
+    pub fn build_in_view(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        view: LightView,
+    ) -> Result<()> {
+        if view.r != self.settings.resolution {
+            return Err(Error::LightView(format!(
+                "a view of resolution {} for resolution={}",
+                view.r, self.settings.resolution
+            )));
+        }
+        self.report = Report::default();
+        let req = request(
+            &self.settings,
+            &view,
+            plan_half_extent(scene, receivers, &self.settings),
+        );
+        let ls = self.report.time("build", || {
+            LightSpace::build_in_view(scene, view, FitReport::default(), &req)
+        });
+        self.report.light_space_bytes = ls.bytes();
+        self.ls = Some(ls);
+        Ok(())
     }
 
     /// Estimates V from given light-space data (as `build` makes them). Returns the lexel taps

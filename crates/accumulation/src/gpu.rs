@@ -26,13 +26,19 @@ use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        frame::{
+            buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
+        },
         kernel::{max_chunk, upload_planes, Binding, Kernel},
-        receivers::RECEIVERS_WGSL,
+        layout::{GpuLayout, KernelMaps},
+        raster::{GpuLayersFrame, GpuShadowMapper},
+        receivers::{RECEIVERS_WGSL, RECEIVER_BYTES},
         redo_cut_receivers,
         shared::{pack_receivers, LightViewUniform},
         GpuContext,
     },
     light_space::LightSpace,
+    light_view::LightView,
     Error, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
@@ -108,16 +114,30 @@ pub struct AccUniform {
     pub _pad: u32,
 }
 
-/// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits).
+/// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits) for
+/// the light-space data `ls`.
 pub fn uniform_and_tables(
     s: &Settings,
     shape: &LightShape,
     ls: &LightSpace,
 ) -> (AccUniform, Vec<[f32; 2]>) {
+    let mssm = ls.mssm.as_ref().map(|m| (m.levels(), m.size()));
+    uniform_and_tables_in(s, shape, &ls.view, ls.layers.len(), mssm)
+}
+
+/// [`uniform_and_tables`] for maps known by their view, their number of layers and their MSSM's
+/// `(levels, size)`.
+pub fn uniform_and_tables_in(
+    s: &Settings,
+    shape: &LightShape,
+    view: &LightView,
+    layers: usize,
+    mssm: Option<(u32, u32)>,
+) -> (AccUniform, Vec<[f32; 2]>) {
     // One patch for every receiver: the sun's is the disk L above each in its footprint's frame
     // (Footprint::for_light).
     let sun = matches!(shape, LightShape::Directional { .. });
-    let lift = if sun { sun_lift(ls.view.far) } else { 0.0 };
+    let lift = if sun { sun_lift(view.far) } else { 0.0 };
     let at = if sun {
         Vec3::new(0.0, 0.0, lift)
     } else {
@@ -136,7 +156,7 @@ pub fn uniform_and_tables(
     for k in 0..bits * bits {
         tables.push(patch.bit_local(k % bits, k / bits, bits).to_array());
     }
-    let phase = ring_phase(&ls.view, s.view.fit);
+    let phase = ring_phase(view, s.view.fit);
     let u = AccUniform {
         inv_area: 1.0 / patch.area(),
         n_hull: patch.hull_points(),
@@ -149,7 +169,7 @@ pub fn uniform_and_tables(
             KernelMode::Lexels => 2,
         },
         variant: u32::from(s.variant == Variant::Exact),
-        layers: (s.peeled_layers() as usize).min(ls.layers.len()).max(1) as u32,
+        layers: (s.peeled_layers() as usize).min(layers).max(1) as u32,
         sphere_contract: u32::from(
             matches!(shape, LightShape::Sphere { .. }) && s.sphere == SphereModel::Contract,
         ),
@@ -159,9 +179,9 @@ pub fn uniform_and_tables(
         half,
         b0: s.bias,
         b1: s.slope_bias,
-        mssm_present: u32::from(ls.mssm.is_some()),
-        mssm_levels: ls.mssm.as_ref().map_or(0, |m| m.levels()),
-        mssm_size: ls.mssm.as_ref().map_or(0, |m| m.size()),
+        mssm_present: u32::from(mssm.is_some()),
+        mssm_levels: mssm.map_or(0, |m| m.0),
+        mssm_size: mssm.map_or(0, |m| m.1),
         phase_y: phase[1],
         probe: shadow_map_core::gpu::shared::LOOP_PROBE,
         sun: u32::from(sun),
@@ -440,6 +460,189 @@ impl GpuAccumulation {
             self.report.note("settled_without_map", n);
         }
         Ok(())
+    }
+}
+
+/// Accumulation on the engine path (issue 20): per frame, recorded into the caller's command
+/// encoder from the caller's casters and receiver buffer, V into the caller's buffer, with no
+/// submit, no wait and no readback ([`FrameEstimator`]).
+///
+/// A frame records the depth-peeling passes (the exact variant's layers), the anchored MSSM of
+/// layer 0 for the adaptive kernel (every level up to `ceil(log2 r)`, at most
+/// [`MAX_MSSM_LEVEL`](crate::cpu::MAX_MSSM_LEVEL), allocated once: the minimum query is exact
+/// whatever the number of levels), the copies into the kernel's texture arrays
+/// ([`shadow_map_core::gpu::layout`]) and the kernel over `count` receivers in one dispatch. The
+/// status holds the kernel's three counters: lit receivers outside the light frustum (left NaN:
+/// the CPU twin settles them by ray casting, which the frame path cannot; fit the view to the
+/// receivers, or to bounds holding them, and there are none), non-finite results (written as 0),
+/// receivers cut by the device's loop budget (`CUT_BITS` in V, not redone on the CPU).
+pub struct AccumulationFrame {
+    gpu: GpuAccumulation,
+    layers: GpuLayersFrame,
+    km: KernelMaps,
+    acc: wgpu::Buffer,
+    est: wgpu::Buffer,
+    tables: wgpu::Buffer,
+    status: wgpu::Buffer,
+}
+
+impl AccumulationFrame {
+    /// Compiles the pipelines and allocates the layers, the kernel's texture arrays, the
+    /// uniforms and the status buffer for the parameters `params` (a table of accumulation's
+    /// specs). Errors: the parameters' own; device limits as [`Error::Limit`].
+    pub fn prepare(ctx: Arc<GpuContext>, params: &shadow_map_core::Params) -> Result<Self> {
+        let mut gpu = GpuAccumulation::new(ctx.clone())?;
+        shadow_map_core::estimator::configure(&mut gpu, params)?;
+        let s = gpu.cpu.settings();
+        let r = s.resolution;
+        let levels = (r as f32)
+            .log2()
+            .ceil()
+            .clamp(1.0, crate::cpu::MAX_MSSM_LEVEL as f32) as u32;
+        let req = shadow_map_core::LightSpaceRequest {
+            resolution: r,
+            layers: s.peeled_layers().max(1),
+            midpoints: None,
+            mssm_levels: (s.kernel == KernelMode::Adaptive).then_some(levels),
+            dual_mssm_levels: None,
+            pyramid: false,
+            raster: shadow_map_core::RasterOptions::default(),
+            opacity: false,
+        };
+        let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
+        let km = GpuLayout::new(&ctx)?.prepare(
+            &ctx,
+            "accumulation",
+            r,
+            layers.layers(),
+            &[],
+            layers.min_max().mssm.as_ref(),
+        )?;
+        let buffer = |label, size: usize, usage| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let uniform = wgpu::BufferUsages::UNIFORM;
+        let est = buffer(
+            "estimate uniform",
+            std::mem::size_of::<EstimateUniform>(),
+            uniform,
+        );
+        let acc = buffer(
+            "accumulation uniform",
+            std::mem::size_of::<AccUniform>(),
+            uniform,
+        );
+        let max_points = HULL_SLOTS + (MAX_BITS * MAX_BITS) as usize;
+        let tables = buffer(
+            "accumulation tables",
+            8 * max_points,
+            wgpu::BufferUsages::STORAGE,
+        );
+        let status = status_buffer(&ctx, "accumulation frame status", 3);
+        Ok(AccumulationFrame {
+            gpu,
+            layers,
+            km,
+            acc,
+            est,
+            tables,
+            status,
+        })
+    }
+}
+
+impl AccumulationFrame {
+    /// The maps the last submitted frame rendered, in `view` (the frame's): what a test reads
+    /// back ([`GpuLightSpace::to_cpu`](shadow_map_core::gpu::GpuLightSpace::to_cpu)) to run the
+    /// CPU twin on the very maps the kernel read.
+    pub fn light_space(&self, view: &LightView) -> shadow_map_core::gpu::GpuLightSpace {
+        self.layers.light_space(view)
+    }
+}
+
+impl FrameEstimator for AccumulationFrame {
+    fn name(&self) -> &'static str {
+        "accumulation"
+    }
+
+    /// The view the estimator's own `build` fits for `receivers` ([`plan`](crate::cpu::plan)).
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        let s = self.gpu.cpu.settings();
+        let (view, _, _) = crate::cpu::plan(scene, receivers, &s, s.resolution)?;
+        Ok(vec![Some(view)])
+    }
+
+    /// Three u32: lit receivers outside the light frustum (left NaN), non-finite results
+    /// (written as 0), receivers cut by the device's loop budget (`CUT_BITS` in V).
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.status)
+    }
+
+    /// The layers (and MSSM) rendered in the one view, laid out, then the kernel.
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+        let view = single_view(inputs.views)?;
+        let n = inputs.count as u64;
+        check_buffers(inputs.receivers, inputs.v, n)?;
+        let ctx = &*self.gpu.ctx;
+        let queue = &ctx.queue;
+        self.layers.encode(queue, enc, inputs.casters, view, 0.0)?;
+        self.km.record(enc);
+        let s = self.gpu.cpu.settings();
+        let mssm = self.km.mssm_levels.map(|l| (l, self.km.mssm.size));
+        let (au, tables) =
+            uniform_and_tables_in(&s, &inputs.light.shape, view, self.km.layers as usize, mssm);
+        let mut eu = EstimateUniform::new(inputs.light, s.bias, s.slope_bias);
+        eu.receiver_plane = u32::from(s.receiver_plane);
+        queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&eu));
+        queue.write_buffer(&self.acc, 0, bytemuck::bytes_of(&au));
+        queue.write_buffer(&self.tables, 0, bytemuck::cast_slice(&tables));
+        enc.clear_buffer(&self.status, 0, None);
+        if n == 0 {
+            return Ok(());
+        }
+        let group = self.gpu.kernel.bind_group(
+            ctx,
+            LABEL,
+            &[
+                self.layers.view_uniform().as_entire_binding(),
+                self.est.as_entire_binding(),
+                self.acc.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&self.km.maps.view),
+                wgpu::BindingResource::TextureView(&self.km.mssm.view),
+                self.tables.as_entire_binding(),
+                buffer_range(inputs.receivers, n * RECEIVER_BYTES),
+                buffer_range(inputs.v, n * 4),
+                self.status.as_entire_binding(),
+            ],
+        );
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(LABEL),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.gpu.kernel.pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
+        Ok(())
+    }
+
+    /// [`CpuAccumulation::build_in_view`], then its estimate (outside receivers settled).
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>> {
+        let mut cpu = CpuAccumulation::new()?;
+        shadow_map_core::estimator::configure(&mut cpu, self.gpu.cpu.params())?;
+        cpu.build_in_view(scene, receivers, *single_view(views)?)?;
+        let mut v = vec![0.0; receivers.len()];
+        cpu.estimate(scene, receivers, &mut v)?;
+        Ok(v)
     }
 }
 

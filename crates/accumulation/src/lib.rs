@@ -10,5 +10,5 @@ pub mod math;
 
 pub use cpu::CpuAccumulation;
 #[cfg(feature = "gpu")]
-pub use gpu::GpuAccumulation;
+pub use gpu::{AccumulationFrame, GpuAccumulation};
 pub use shadow_map_core::SoftShadowEstimator;

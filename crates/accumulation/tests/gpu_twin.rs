@@ -20,7 +20,7 @@ use shadow_map_core::{
 };
 use std::sync::Arc;
 use test_support::{
-    conformance::{random_twins, CliRun, FixedCase, Params, TwinPair},
+    conformance::{random_twins, table, BoxedFrame, CliRun, FixedCase, Params, TwinPair},
     fixtures::{configure, fixture_path, note, points},
     proptest_config,
     scenes::{arb_bias, arb_case, BoxSpec, LightSpec, SceneRanges, SceneSpec, Shapes},
@@ -36,6 +36,7 @@ test_support::twin_suite! {
         chunked_dispatch_equals_one_dispatch,
         cli_path_matches_the_cpu_twin,
         loop_limit_is_detected_and_redone,
+        frame_path_matches_the_cpu_twin,
     ] => Accumulation,
 }
 
@@ -259,6 +260,13 @@ impl TwinPair for Accumulation {
             FixedCase::new(&case.scene, settings_kv(&case.settings, 1.0))
         }
     );
+
+    fn frame(&self, ctx: &Arc<GpuContext>, params: &Params) -> Option<BoxedFrame> {
+        let t = table(accumulation::cpu::SPECS, params);
+        Some(Box::new(
+            accumulation::AccumulationFrame::prepare(ctx.clone(), &t).unwrap(),
+        ))
+    }
 
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let mut twin = GpuAccumulation::new(ctx.clone()).expect("gpu twin");

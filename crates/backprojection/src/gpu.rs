@@ -4,7 +4,7 @@
 //! **Build, on the GPU.** The scene is uploaded and rasterised from the light by
 //! [`GpuShadowMapper::render_layers`] (peeled layers, midpoint layers and the anchored MSSM of
 //! layer 0, all in one submission); the layers are copied into one `R32Float` texture array and
-//! the MSSM levels into another (`plane_to_layer.wgsl`), the layout `backprojection.wgsl` reads.
+//! the MSSM levels into another (`shadow_map_core::gpu::layout`), the layout `backprojection.wgsl` reads.
 //! Nothing is read back. [`GpuBackprojection::set_light_space_on_cpu`] switches to building the
 //! maps on the CPU exactly as the CPU twin does and uploading them (what
 //! [`GpuBackprojection::estimate_with`] does for given maps), so a test can feed both twins
@@ -29,14 +29,13 @@ use crate::cpu::{emitter_bits, plan, CpuBackprojection, Occlusion};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
-        depth_map::GpuDepthMap,
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
         frame::{
             buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
         },
-        kernel::{max_chunk, plane_array, upload_planes, Binding, Kernel, PlaneArray},
+        kernel::{max_chunk, upload_planes, Binding, Kernel, PlaneArray},
+        layout::{GpuLayout, KernelMaps},
         light_space::GpuLightSpace,
-        mssm::GpuMssm,
         raster::{GpuLayersFrame, GpuScene, GpuShadowMapper},
         receivers::RECEIVERS_WGSL,
         receivers::{GpuReceivers, RECEIVER_BYTES},
@@ -50,23 +49,6 @@ use shadow_map_core::{
 };
 use std::{num::NonZeroU64, sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
-
-/// The MSSM-level copy into a texture array layer.
-pub const PLANE_TO_LAYER_WGSL: &str = include_str!("plane_to_layer.wgsl");
-
-/// Uniform of one [`PLANE_TO_LAYER_WGSL`] dispatch (mirrors `PlaneCopy`).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
-pub struct PlaneCopy {
-    /// Side of the plane.
-    pub size: u32,
-    /// Destination array layer.
-    pub layer: u32,
-    /// Padding.
-    pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
-}
 
 /// The estimator's own WGSL (appended after the parts in [`SHADER_PARTS`]' head).
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
@@ -159,6 +141,21 @@ impl DeviceMaps {
         self.maps.bytes + self.mssm.bytes
     }
 
+    /// The arrays of `km` (rendered maps, opaque) in `view`.
+    fn laid_out(km: &KernelMaps, view: LightView) -> Self {
+        DeviceMaps {
+            view,
+            out_of_frustum: 0,
+            window_scale: 0.0,
+            maps: km.maps.clone(),
+            mssm: km.mssm.clone(),
+            layers: km.layers,
+            midpoints: km.midpoints,
+            opacity: false,
+            mssm_levels: km.mssm_levels,
+        }
+    }
+
     /// Uploads light-space data built on the CPU.
     fn upload(ctx: &GpuContext, ls: &LightSpace, midpoint: bool) -> Result<Self> {
         let r = ls.view.r;
@@ -201,7 +198,7 @@ pub struct GpuBackprojection {
     ctx: Arc<GpuContext>,
     cpu: CpuBackprojection,
     kernel: Kernel,
-    copy: Kernel,
+    layout: GpuLayout,
     mapper: Option<GpuShadowMapper>,
     maps: Option<DeviceMaps>,
     light_space_on_cpu: bool,
@@ -236,23 +233,12 @@ impl GpuBackprojection {
             ],
             OVERRIDES,
         )?;
-        let copy = Kernel::new(
-            &ctx,
-            "backprojection plane copy",
-            &[PLANE_TO_LAYER_WGSL],
-            "copy_plane",
-            &[
-                Binding::Uniform,
-                Binding::Storage,
-                Binding::StorageTexture2dArrayR32Write,
-            ],
-            &[],
-        )?;
+        let layout = GpuLayout::new(&ctx)?;
         Ok(GpuBackprojection {
             ctx,
             cpu: CpuBackprojection::new()?,
             kernel,
-            copy,
+            layout,
             mapper: None,
             maps: None,
             light_space_on_cpu: false,
@@ -294,108 +280,24 @@ impl GpuBackprojection {
 
     /// Copies rendered light-space data into the kernel's texture arrays (GPU to GPU).
     fn lay_out(&self, ctx: &GpuContext, gls: &GpuLightSpace) -> Result<DeviceMaps> {
-        let (mut maps, copies) = self.prepare_layout(
+        let km = self.layout.prepare(
             ctx,
+            "backprojection",
             gls.view.r,
             &gls.layers,
             &gls.midpoints,
             gls.mssm.as_ref(),
         )?;
-        maps.view = gls.view;
         ctx.scoped("backprojection layout", || {
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("backprojection layout"),
                 });
-            copies.record(&self.copy, &mut enc);
+            km.record(&mut enc);
             ctx.queue.submit([enc.finish()]);
         })?;
-        Ok(maps)
-    }
-
-    /// Allocates the kernel's texture arrays for rendered layers, midpoints and MSSM of side `r`
-    /// and prepares the copies into them ([`LayoutCopies::record`]). The maps' view is a
-    /// placeholder the caller sets.
-    fn prepare_layout(
-        &self,
-        ctx: &GpuContext,
-        r: u32,
-        layers: &[GpuDepthMap],
-        midpoints: &[GpuDepthMap],
-        mssm: Option<&GpuMssm>,
-    ) -> Result<(DeviceMaps, LayoutCopies)> {
-        let planes: Vec<wgpu::Texture> = layers
-            .iter()
-            .chain(midpoints)
-            .map(|d| d.texture.clone())
-            .collect();
-        let maps = plane_array(ctx, "backprojection layers", r, planes.len().max(1) as u32)?;
-        let levels: &[_] = mssm.map_or(&[], |m| &m.levels[..]);
-        let mssm_array = match mssm {
-            Some(m) if !levels.is_empty() => {
-                let max = ctx.limits().max_storage_buffer_binding_size;
-                let bytes = m.size as u64 * m.size as u64 * 4;
-                if bytes > max {
-                    return Err(Error::Limit {
-                        what: "backprojection MSSM plane bytes (max_storage_buffer_binding_size)",
-                        requested: bytes,
-                        max,
-                    });
-                }
-                plane_array(ctx, "backprojection mssm", m.size, levels.len() as u32)?
-            }
-            _ => upload_planes(ctx, "backprojection mssm", 1, &[&[f32::INFINITY]])?,
-        };
-        let groups = ctx.scoped("backprojection layout", || {
-            levels
-                .iter()
-                .enumerate()
-                .map(|(l, level)| {
-                    let pc = PlaneCopy {
-                        size: mssm_array.size,
-                        layer: l as u32,
-                        _pad0: 0,
-                        _pad1: 0,
-                    };
-                    let u = ctx
-                        .device
-                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                            label: Some("backprojection plane copy"),
-                            contents: bytemuck::bytes_of(&pc),
-                            usage: wgpu::BufferUsages::UNIFORM,
-                        });
-                    self.copy.bind_group(
-                        ctx,
-                        "backprojection plane copy",
-                        &[
-                            u.as_entire_binding(),
-                            level.min.as_entire_binding(),
-                            wgpu::BindingResource::TextureView(&mssm_array.view),
-                        ],
-                    )
-                })
-                .collect()
-        })?;
-        let copies = LayoutCopies {
-            r,
-            planes,
-            target: maps.texture.clone(),
-            groups,
-            mssm_size: mssm_array.size,
-        };
-        let maps = DeviceMaps {
-            view: LightView::placeholder(r),
-            out_of_frustum: 0,
-            window_scale: 0.0,
-            maps,
-            mssm: mssm_array,
-            layers: layers.len() as u32,
-            midpoints: midpoints.len() as u32,
-            opacity: false,
-            mssm_levels: mssm.map(|m| m.levels()),
-        };
-        Ok((maps, copies))
+        Ok(DeviceMaps::laid_out(&km, gls.view))
     }
 
     /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
@@ -826,56 +728,6 @@ struct KernelUniforms {
     bits: wgpu::Buffer,
 }
 
-/// The copies that lay rendered light-space data out in the kernel's texture arrays
-/// ([`GpuBackprojection::prepare_layout`]): the layers and midpoints texture to texture, the MSSM
-/// levels by `plane_to_layer.wgsl`, one dispatch each with its bind group made once.
-struct LayoutCopies {
-    r: u32,
-    planes: Vec<wgpu::Texture>,
-    target: wgpu::Texture,
-    groups: Vec<wgpu::BindGroup>,
-    mssm_size: u32,
-}
-
-impl LayoutCopies {
-    /// Records the copies into `enc`.
-    fn record(&self, copy: &Kernel, enc: &mut wgpu::CommandEncoder) {
-        for (i, tex) in self.planes.iter().enumerate() {
-            enc.copy_texture_to_texture(
-                tex.as_image_copy(),
-                wgpu::TexelCopyTextureInfo {
-                    texture: &self.target,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d {
-                        x: 0,
-                        y: 0,
-                        z: i as u32,
-                    },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                wgpu::Extent3d {
-                    width: self.r,
-                    height: self.r,
-                    depth_or_array_layers: 1,
-                },
-            );
-        }
-        if self.groups.is_empty() {
-            return;
-        }
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("backprojection mssm copy"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&copy.pipeline);
-        let g = self.mssm_size.div_ceil(16);
-        for group in &self.groups {
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(g, g, 1);
-        }
-    }
-}
-
 /// One chunk of receivers for [`GpuBackprojection::submit_kernel`]: its receiver binding, its V
 /// binding (`len` u32) and its length.
 struct KernelChunk<'a> {
@@ -921,7 +773,7 @@ pub struct BackprojectionFrame {
     gpu: GpuBackprojection,
     layers: GpuLayersFrame,
     maps: DeviceMaps,
-    copies: LayoutCopies,
+    km: KernelMaps,
     bufs: KernelUniforms,
     status: wgpu::Buffer,
 }
@@ -946,13 +798,15 @@ impl BackprojectionFrame {
             opacity: false,
         };
         let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
-        let (maps, copies) = gpu.prepare_layout(
+        let km = gpu.layout.prepare(
             &ctx,
+            "backprojection",
             r,
             layers.layers(),
             layers.midpoints(),
             layers.min_max().mssm.as_ref(),
         )?;
+        let maps = DeviceMaps::laid_out(&km, LightView::placeholder(r));
         let uniform = |label, size: usize| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -972,7 +826,7 @@ impl BackprojectionFrame {
             gpu,
             layers,
             maps,
-            copies,
+            km,
             bufs,
             status,
         })
@@ -1006,7 +860,7 @@ impl FrameEstimator for BackprojectionFrame {
         let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
         self.layers
             .encode(queue, enc, inputs.casters, view, clamp)?;
-        self.copies.record(&self.gpu.copy, enc);
+        self.km.record(enc);
         let (eu, bpu, table) = self.gpu.uniforms(&self.maps, inputs.light);
         queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
         queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
@@ -1100,10 +954,7 @@ mod tests {
 
     #[test]
     fn shader_validates_with_naga() {
-        assert_shaders_valid([
-            ("backprojection", shader_source(&SHADER_PARTS)),
-            ("plane_to_layer", PLANE_TO_LAYER_WGSL.to_string()),
-        ]);
+        assert_shaders_valid([("backprojection", shader_source(&SHADER_PARTS))]);
     }
 
     #[test]
@@ -1134,15 +985,5 @@ mod tests {
         );
         assert_eq!(std::mem::size_of::<BpUniform>(), 80);
         assert_eq!(std::mem::size_of::<BitTable>(), 16 * BIT_TABLE_VEC4S);
-        shadow_map_core::assert_wgsl_layout!(
-            PLANE_TO_LAYER_WGSL,
-            PlaneCopy {
-                size,
-                layer,
-                _pad0,
-                _pad1,
-            }
-        );
-        assert_eq!(std::mem::size_of::<PlaneCopy>(), 16);
     }
 }

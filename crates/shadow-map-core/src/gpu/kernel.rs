@@ -325,7 +325,7 @@ pub fn read_v(ctx: &GpuContext, chunks: &[ReceiverChunk], v: &mut [f32]) -> Resu
 }
 
 /// `size x size` R32Float planes in one texture array.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct PlaneArray {
     /// The `D2` texture, one array layer a plane.
     pub texture: wgpu::Texture,

@@ -27,6 +27,7 @@ pub mod estimate;
 pub mod frame;
 pub mod gbuffer;
 pub mod kernel;
+pub mod layout;
 pub mod light_space;
 pub mod midpoint;
 pub mod mssm;
@@ -60,6 +61,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("estimate", estimate::ESTIMATE_HEAD_WGSL),
     ("bitmask", estimate::BITMASK_WGSL),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
+    ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
 ];
 
 /// Redoes the receivers a kernel flagged with [`shared::CUT_BITS`] (cut short by the device's

@@ -1,0 +1,218 @@
+//! Rendered light-space data laid out for an estimate kernel: the depth layers (then the
+//! midpoint layers) in one `R32Float` texture array, the anchored MSSM's levels in another (a
+//! 1 x 1 plane holding +inf when there is none), the layout `backprojection.wgsl` and
+//! `accumulation.wgsl` read. [`GpuLayout::prepare`] allocates the arrays and the copies once;
+//! [`KernelMaps::record`] records the copies (textures to texture, MSSM planes by
+//! `plane_to_layer.wgsl`) as often as the maps are rendered again: once for a `build`, every
+//! frame on the engine path.
+use super::{
+    depth_map::GpuDepthMap,
+    kernel::{plane_array, upload_planes, Binding, Kernel, PlaneArray},
+    mssm::GpuMssm,
+    GpuContext,
+};
+use crate::{Error, Result};
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+/// The MSSM-level copy into a texture array layer.
+pub const PLANE_TO_LAYER_WGSL: &str = include_str!("plane_to_layer.wgsl");
+
+/// Uniform of one [`PLANE_TO_LAYER_WGSL`] dispatch (mirrors `PlaneCopy`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PlaneCopy {
+    /// Side of the plane.
+    pub size: u32,
+    /// Destination array layer.
+    pub layer: u32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+}
+
+/// The plane-copy pipeline, compiled once per context.
+#[derive(Debug)]
+pub struct GpuLayout {
+    copy: Kernel,
+}
+
+/// The kernel's texture arrays and the copies that fill them from rendered maps.
+#[derive(Debug)]
+pub struct KernelMaps {
+    /// Depth layers, then midpoint layers (at least one plane).
+    pub maps: PlaneArray,
+    /// The MSSM's levels, or one 1 x 1 plane holding +inf.
+    pub mssm: PlaneArray,
+    /// Depth layers in `maps`.
+    pub layers: u32,
+    /// Midpoint layers in `maps`, after the depth layers.
+    pub midpoints: u32,
+    /// MSSM levels in `mssm` (`None`: no MSSM).
+    pub mssm_levels: Option<u32>,
+    r: u32,
+    planes: Vec<wgpu::Texture>,
+    pipeline: wgpu::ComputePipeline,
+    groups: Vec<wgpu::BindGroup>,
+}
+
+impl GpuLayout {
+    /// Compiles the plane copy (label `layout`).
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let copy = Kernel::new(
+            ctx,
+            "layout plane copy",
+            &[PLANE_TO_LAYER_WGSL],
+            "copy_plane",
+            &[
+                Binding::Uniform,
+                Binding::Storage,
+                Binding::StorageTexture2dArrayR32Write,
+            ],
+            &[],
+        )?;
+        Ok(GpuLayout { copy })
+    }
+
+    /// Allocates the texture arrays (labels `{label} layers`, `{label} mssm`) for `layers` and
+    /// `midpoints` of side `r` and the MSSM `mssm`, and prepares the copies into them. Errors:
+    /// device limits ([`Error::Limit`]), e.g. an MSSM plane beyond one storage binding.
+    pub fn prepare(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        r: u32,
+        layers: &[GpuDepthMap],
+        midpoints: &[GpuDepthMap],
+        mssm: Option<&GpuMssm>,
+    ) -> Result<KernelMaps> {
+        let planes: Vec<wgpu::Texture> = layers
+            .iter()
+            .chain(midpoints)
+            .map(|d| d.texture.clone())
+            .collect();
+        let maps = plane_array(
+            ctx,
+            &format!("{label} layers"),
+            r,
+            planes.len().max(1) as u32,
+        )?;
+        let levels: &[_] = mssm.map_or(&[], |m| &m.levels[..]);
+        let mssm_label = format!("{label} mssm");
+        let mssm_array = match mssm {
+            Some(m) if !levels.is_empty() => {
+                let max = ctx.limits().max_storage_buffer_binding_size;
+                let bytes = m.size as u64 * m.size as u64 * 4;
+                if bytes > max {
+                    return Err(Error::Limit {
+                        what: "MSSM plane bytes (max_storage_buffer_binding_size)",
+                        requested: bytes,
+                        max,
+                    });
+                }
+                plane_array(ctx, &mssm_label, m.size, levels.len() as u32)?
+            }
+            _ => upload_planes(ctx, &mssm_label, 1, &[&[f32::INFINITY]])?,
+        };
+        let groups = ctx.scoped("layout", || {
+            levels
+                .iter()
+                .enumerate()
+                .map(|(l, level)| {
+                    let pc = PlaneCopy {
+                        size: mssm_array.size,
+                        layer: l as u32,
+                        _pad0: 0,
+                        _pad1: 0,
+                    };
+                    let u = ctx
+                        .device
+                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some("layout plane copy"),
+                            contents: bytemuck::bytes_of(&pc),
+                            usage: wgpu::BufferUsages::UNIFORM,
+                        });
+                    self.copy.bind_group(
+                        ctx,
+                        "layout plane copy",
+                        &[
+                            u.as_entire_binding(),
+                            level.min.as_entire_binding(),
+                            wgpu::BindingResource::TextureView(&mssm_array.view),
+                        ],
+                    )
+                })
+                .collect()
+        })?;
+        Ok(KernelMaps {
+            maps,
+            mssm: mssm_array,
+            layers: layers.len() as u32,
+            midpoints: midpoints.len() as u32,
+            mssm_levels: mssm.map(|m| m.levels()),
+            r,
+            planes,
+            pipeline: self.copy.pipeline.clone(),
+            groups,
+        })
+    }
+}
+
+impl KernelMaps {
+    /// Records the copies into `enc`.
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        for (i, tex) in self.planes.iter().enumerate() {
+            enc.copy_texture_to_texture(
+                tex.as_image_copy(),
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.maps.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: 0,
+                        y: 0,
+                        z: i as u32,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::Extent3d {
+                    width: self.r,
+                    height: self.r,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        if self.groups.is_empty() {
+            return;
+        }
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("layout mssm copy"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        let g = self.mssm.size.div_ceil(16);
+        for group in &self.groups {
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(g, g, 1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_copy_matches_the_wgsl() {
+        crate::assert_wgsl_layout!(
+            PLANE_TO_LAYER_WGSL,
+            PlaneCopy {
+                size,
+                layer,
+                _pad0,
+                _pad1,
+            }
+        );
+        assert_eq!(std::mem::size_of::<PlaneCopy>(), 16);
+    }
+}
