@@ -214,6 +214,7 @@ fn main() -> BenchResult<()> {
     };
     rows.extend(stages::gpu_stages(&env)?);
     rows.extend(stages::estimate_stages(&env)?);
+    rows.extend(stages::frame_stages(&env, cfg.cpu)?);
 
     // CPU: the tap ceiling (the twin of taps_kernel, checked against it) and the same stages.
     if cfg.cpu {

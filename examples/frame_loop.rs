@@ -14,7 +14,11 @@
 //! receiver the orbit can see), so no per-frame CPU work grows with the triangles.
 //!
 //! ```text
-//! WGPU_BACKEND=vulkan cargo run --release --example frame_loop -- [--json] [--frames N] [SCENE.toml]
+//! WGPU_BACKEND=vulkan cargo run --release --example frame_loop -- [--json] [--frames N]
+//!     [--size WxH] [--resolution R] [--algo NAME] [SCENE.toml]
+//!
+//! `--size` sets the camera's image (the receivers), `--resolution` every estimator's shadow-map
+//! resolution, `--algo` runs one estimator only.
 //! ```
 use glam::Vec3;
 use shadow_map_core::{
@@ -30,6 +34,7 @@ use softshadow::{
     baselines::{
         gpu::{GpuFilter, MapFrame, MultiSampleFrame},
         hard::Hard,
+        map_estimator::Filter,
         pcf::Pcf,
         pcss::Pcss,
     },
@@ -90,37 +95,56 @@ type Path = (Box<dyn FrameEstimator>, Vec<Option<LightView>>);
 
 /// The frame path of `algo` for `scene` at default parameters, and its views fitted to every
 /// vertex.
-fn frame_path(ctx: &Arc<GpuContext>, algo: &str, scene: &Scene) -> Result<Path> {
-    fn map<F: GpuFilter + 'static>(ctx: &Arc<GpuContext>) -> Result<Box<dyn FrameEstimator>> {
-        Ok(Box::new(MapFrame::<F>::prepare(
-            ctx.clone(),
-            &Params::new(F::SPECS)?,
-        )?))
+fn frame_path(
+    ctx: &Arc<GpuContext>,
+    algo: &str,
+    scene: &Scene,
+    resolution: Option<u32>,
+) -> Result<Path> {
+    let params = |specs| -> Result<Params> {
+        let mut p = Params::new(specs)?;
+        if let Some(r) = resolution {
+            p.set("resolution", &r.to_string())?;
+        }
+        Ok(p)
+    };
+    fn map<F: GpuFilter + 'static>(
+        ctx: &Arc<GpuContext>,
+        params: Params,
+    ) -> Result<Box<dyn FrameEstimator>> {
+        Ok(Box::new(MapFrame::<F>::prepare(ctx.clone(), &params)?))
     }
     let path: Box<dyn FrameEstimator> = match algo {
-        "hard" => map::<Hard>(ctx)?,
-        "pcf" => map::<Pcf>(ctx)?,
-        "pcss" => map::<Pcss>(ctx)?,
+        "hard" => map::<Hard>(ctx, params(<Hard as Filter>::SPECS)?)?,
+        "pcf" => map::<Pcf>(ctx, params(<Pcf as Filter>::SPECS)?)?,
+        "pcss" => map::<Pcss>(ctx, params(<Pcss as Filter>::SPECS)?)?,
         "accumulation" => Box::new(AccumulationFrame::prepare(
             ctx.clone(),
-            &Params::new(softshadow::accumulation::cpu::SPECS)?,
+            &params(softshadow::accumulation::cpu::SPECS)?,
         )?),
         "backprojection" => Box::new(BackprojectionFrame::prepare(
             ctx.clone(),
-            &Params::new(softshadow::backprojection::cpu::SPECS)?,
+            &params(softshadow::backprojection::cpu::SPECS)?,
         )?),
-        _ => {
-            let params = Params::new(softshadow::baselines::multi_sample::SPECS)?;
+        "multi-sample" => {
             let pixels = scene.camera.width * scene.camera.height;
-            Box::new(MultiSampleFrame::prepare(ctx.clone(), &params, pixels)?)
+            Box::new(MultiSampleFrame::prepare(
+                ctx.clone(),
+                &params(softshadow::baselines::multi_sample::SPECS)?,
+                pixels,
+            )?)
+        }
+        other => {
+            return Err(shadow_map_core::Error::param(
+                "algo",
+                format!("{other} has no engine path (one of {})", ALGOS.join(", ")),
+            ))
         }
     };
     let views = path.fit_views(scene, &vertex_receivers(scene)?)?;
     Ok((path, views))
 }
 
-/// Runs `frames` frames of `path` over `scene`; returns host ms per frame in `encode`, and the
-/// RMSE of the last frame's V against the CPU twin over the active receivers.
 /// What [`run`] measured for one estimator on one scene.
 #[derive(Default)]
 struct Measured {
@@ -139,6 +163,8 @@ struct Measured {
 /// Frames timed after the readback-free run (the wait that ends them is the only stall).
 const TIMED_FRAMES: u32 = 10;
 
+/// Runs `frames` frames of `path` over `scene`, reads V and the receivers back once after the
+/// last, compares with the CPU twin, then times [`TIMED_FRAMES`] more frames.
 fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -> Result<Measured> {
     let casters = GpuScene::upload(ctx, scene)?;
     let gbuffer = GpuGBuffer::new(ctx)?;
@@ -220,23 +246,54 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
     let mut json = false;
     let mut frames = 60u32;
     let mut path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny/bunny.toml").to_string();
+    let (mut size, mut resolution, mut only) = (None, None, None);
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
+        let mut value = || args.next().ok_or(format!("{a} needs a value"));
         match a.as_str() {
             "--json" => json = true,
-            "--frames" => frames = args.next().ok_or("--frames needs a value")?.parse()?,
+            "--frames" => frames = value()?.parse()?,
+            "--resolution" => resolution = Some(value()?.parse::<u32>()?),
+            "--algo" => only = Some(value()?),
+            "--size" => {
+                let v = value()?;
+                let (w, h) = v
+                    .split_once('x')
+                    .ok_or("--size takes WxH, e.g. 1920x1080")?;
+                size = Some((w.parse::<u32>()?, h.parse::<u32>()?));
+            }
             _ => path = a,
         }
     }
+    if let Some(o) = only.as_deref().filter(|o| !ALGOS.contains(o)) {
+        return Err(format!("--algo {o}: no engine path (one of {})", ALGOS.join(", ")).into());
+    }
     let ctx = GpuContext::shared()?;
-    let small = Scene::load(&path)?;
+    let mut small = Scene::load(&path)?;
+    if let Some((w, h)) = size {
+        small.camera.width = w;
+        small.camera.height = h;
+    }
     let levels = (1..8)
         .find(|l| 4usize.pow(*l) >= 50)
         .ok_or("no tessellation level")?;
     let large = tessellated(&small, levels)?;
-    for algo in ALGOS {
-        let sm = run(&ctx, frame_path(&ctx, algo, &small)?, &small, frames)?;
-        let lg = run(&ctx, frame_path(&ctx, algo, &large)?, &large, frames)?;
+    for algo in ALGOS
+        .into_iter()
+        .filter(|a| only.as_deref().is_none_or(|o| o == *a))
+    {
+        let sm = run(
+            &ctx,
+            frame_path(&ctx, algo, &small, resolution)?,
+            &small,
+            frames,
+        )?;
+        let lg = run(
+            &ctx,
+            frame_path(&ctx, algo, &large, resolution)?,
+            &large,
+            frames,
+        )?;
         let (ts, tl) = (small.triangles.len(), large.triangles.len());
         if json {
             println!(

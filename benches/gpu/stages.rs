@@ -253,3 +253,129 @@ pub fn estimate_stages(env: &StageEnv) -> BenchResult<Vec<Row>> {
     ));
     Ok(rows)
 }
+
+/// The engine path of every estimator that has one (`FrameEstimator`): a frame recorded into
+/// the bench's encoder (views fitted once, receivers uploaded once, V into a buffer of the
+/// bench's), timed with every iteration in one encoder and one submit, timestamps around each
+/// where the device has them; beside it the CPU twin's build and estimate in the same views. Work:
+/// the casters' triangles times the frame's passes over them, so the GPU row reads as a fraction
+/// of the triangle ceiling (the frame's kernels come on top: the fraction is what raster alone
+/// would allow).
+pub fn frame_stages(env: &StageEnv, cpu: bool) -> BenchResult<Vec<Row>> {
+    use shadow_map_core::{
+        gpu::{
+            frame::{FrameEstimator, FrameInputs},
+            receivers::GpuReceivers,
+        },
+        Params,
+    };
+    let (g, r, name) = (env.g, env.cfg.res, &env.cfg.name);
+    let ctx = std::sync::Arc::new(g.ctx.clone());
+    let table = |specs| -> BenchResult<Params> {
+        let mut p = Params::new(specs)?;
+        p.set("resolution", &r.to_string())?;
+        Ok(p)
+    };
+    let receivers = GpuReceivers::upload(g.ctx, env.receivers)?;
+    let n = env.receivers.len() as u64;
+    let v = g.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bench V"),
+        size: 4 * n.max(1),
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let frames: Vec<(&str, Box<dyn FrameEstimator>)> = {
+        use baselines::{
+            gpu::{MapFrame, MultiSampleFrame},
+            hard::Hard,
+            map_estimator::Filter,
+            pcf::Pcf,
+            pcss::Pcss,
+        };
+        vec![
+            (
+                "hard",
+                Box::new(MapFrame::<Hard>::prepare(
+                    ctx.clone(),
+                    &table(<Hard as Filter>::SPECS)?,
+                )?),
+            ),
+            (
+                "pcf",
+                Box::new(MapFrame::<Pcf>::prepare(
+                    ctx.clone(),
+                    &table(<Pcf as Filter>::SPECS)?,
+                )?),
+            ),
+            (
+                "pcss",
+                Box::new(MapFrame::<Pcss>::prepare(
+                    ctx.clone(),
+                    &table(<Pcss as Filter>::SPECS)?,
+                )?),
+            ),
+            (
+                "multi-sample",
+                Box::new(MultiSampleFrame::prepare(
+                    ctx.clone(),
+                    &table(baselines::multi_sample::SPECS)?,
+                    n as u32,
+                )?),
+            ),
+            (
+                "backprojection",
+                Box::new(backprojection::BackprojectionFrame::prepare(
+                    ctx.clone(),
+                    &table(backprojection::cpu::SPECS)?,
+                )?),
+            ),
+            (
+                "accumulation",
+                Box::new(accumulation::AccumulationFrame::prepare(
+                    ctx.clone(),
+                    &table(accumulation::cpu::SPECS)?,
+                )?),
+            ),
+        ]
+    };
+    let tris = env.gpu_scene.triangles as f64;
+    let mut rows = Vec::new();
+    for (algo, frame) in &frames {
+        let views = frame.fit_views(env.scene, env.receivers)?;
+        let work = tris * frame.caster_passes(&views) as f64;
+        let inputs = FrameInputs {
+            casters: &env.gpu_scene,
+            views: &views,
+            light: &env.scene.light,
+            receivers: &receivers.buffer,
+            count: receivers.count,
+            v: &v,
+        };
+        let t = g.time_encoded(StampAt::Encoder, (r as u64).pow(2) * 16, |enc, _| {
+            Ok(frame.encode(enc, &inputs)?)
+        })?;
+        rows.push(Row::new(
+            format!("frame/gpu/{algo}/{r}@{name}"),
+            t,
+            work,
+            "triangles",
+            Some(Bound::GpuTriangles),
+        ));
+        if cpu {
+            let mut t = try_time_cpu(g.budget_ms, || {
+                frame
+                    .cpu_twin(env.scene, env.receivers, &views)
+                    .map(|v| drop(black_box(v)))
+            })?;
+            t.note = Some("the CPU twin's build and estimate in the frame's views".into());
+            rows.push(Row::new(
+                format!("frame/cpu/{algo}/{r}@{name}"),
+                t,
+                work,
+                "triangles",
+                None,
+            ));
+        }
+    }
+    Ok(rows)
+}

@@ -630,6 +630,10 @@ impl FrameEstimator for AccumulationFrame {
         Ok(())
     }
 
+    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+        self.layers.passes()
+    }
+
     /// [`CpuAccumulation::build_in_view`], then its estimate (outside receivers settled).
     fn cpu_twin(
         &self,

@@ -876,6 +876,10 @@ impl FrameEstimator for BackprojectionFrame {
         Ok(())
     }
 
+    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+        self.layers.passes()
+    }
+
     /// [`CpuBackprojection::build_in_view`], then its estimate.
     fn cpu_twin(
         &self,

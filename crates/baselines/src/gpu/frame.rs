@@ -155,6 +155,10 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         Ok(())
     }
 
+    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+        1
+    }
+
     fn cpu_twin(
         &self,
         scene: &Scene,
@@ -346,6 +350,11 @@ impl FrameEstimator for MultiSampleFrame {
         pass.dispatch_workgroups(wg, 1, 1);
         Ok(())
     }
+    /// One per sub-light with a view.
+    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
+        views.iter().flatten().count() as u32
+    }
+
     fn cpu_twin(
         &self,
         scene: &Scene,

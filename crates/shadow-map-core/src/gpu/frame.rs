@@ -41,6 +41,10 @@ pub trait FrameEstimator {
     /// `None` when the estimator keeps none.
     fn status(&self) -> Option<&wgpu::Buffer>;
 
+    /// Render passes over the casters one frame records in `views` (peeled layers, sub-lights):
+    /// what a frame's raster work is, in units of the casters' triangles.
+    fn caster_passes(&self, views: &[Option<LightView>]) -> u32;
+
     /// The CPU twin's V for `receivers` in the same `views` (what the conformance check and
     /// `examples/frame_loop.rs` compare a frame with).
     fn cpu_twin(

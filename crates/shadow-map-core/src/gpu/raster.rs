@@ -599,6 +599,12 @@ impl GpuLayersFrame {
         &self.view_uniform
     }
 
+    /// Render passes over the casters per `encode` (the peeled layers, the midpoints' extra one
+    /// included).
+    pub fn passes(&self) -> u32 {
+        self.groups.len() as u32
+    }
+
     /// The peeled layers the request asked for, nearest first.
     pub fn layers(&self) -> &[GpuDepthMap] {
         &self.layers[..self.layers_out]
