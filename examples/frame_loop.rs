@@ -1,7 +1,8 @@
 //! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
 //! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
-//! frame API (hard, PCF, PCSS, multi-sample, backprojection, accumulation so far: [`ALGOS`]) into its own command encoder from that
-//! G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
+//! frame API ([`softshadow::FRAME_ALGOS`]: hard, PCF, PCSS, multi-sample, backprojection,
+//! accumulation so far; [`softshadow::frame_estimator`] makes them) into its own command encoder
+//! from that G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
 //! frame; then V and the receivers are read once and compared with the CPU twin in the same
 //! light view(s).
 //!
@@ -26,30 +27,10 @@ use shadow_map_core::{
         frame::{FrameEstimator, FrameInputs},
         GpuContext, GpuGBuffer, GpuScene,
     },
-    Camera, LightView, Params, Receivers, Result, Scene,
+    Camera, LightView, Receivers, Result, Scene,
 };
-use softshadow::{
-    accumulation::AccumulationFrame,
-    backprojection::BackprojectionFrame,
-    baselines::{
-        gpu::{GpuFilter, MapFrame, MultiSampleFrame},
-        hard::Hard,
-        map_estimator::Filter,
-        pcf::Pcf,
-        pcss::Pcss,
-    },
-};
+use softshadow::FRAME_ALGOS;
 use std::{sync::Arc, time::Instant};
-
-/// The estimators with an engine path, in the order they are run.
-const ALGOS: [&str; 6] = [
-    "hard",
-    "pcf",
-    "pcss",
-    "multi-sample",
-    "backprojection",
-    "accumulation",
-];
 
 /// Every vertex of the scene as a receiver facing its triangle's normal: what the views are
 /// fitted to.
@@ -101,46 +82,15 @@ fn frame_path(
     scene: &Scene,
     resolution: Option<u32>,
 ) -> Result<Path> {
-    let params = |specs| -> Result<Params> {
-        let mut p = Params::new(specs)?;
-        if let Some(r) = resolution {
-            p.set("resolution", &r.to_string())?;
-        }
-        Ok(p)
-    };
-    fn map<F: GpuFilter + 'static>(
-        ctx: &Arc<GpuContext>,
-        params: Params,
-    ) -> Result<Box<dyn FrameEstimator>> {
-        Ok(Box::new(MapFrame::<F>::prepare(ctx.clone(), &params)?))
+    let mut params = (softshadow::method(algo)?.cpu)()?.params().clone();
+    if let Some(r) = resolution {
+        params.set("resolution", &r.to_string())?;
     }
-    let path: Box<dyn FrameEstimator> = match algo {
-        "hard" => map::<Hard>(ctx, params(<Hard as Filter>::SPECS)?)?,
-        "pcf" => map::<Pcf>(ctx, params(<Pcf as Filter>::SPECS)?)?,
-        "pcss" => map::<Pcss>(ctx, params(<Pcss as Filter>::SPECS)?)?,
-        "accumulation" => Box::new(AccumulationFrame::prepare(
-            ctx.clone(),
-            &params(softshadow::accumulation::cpu::SPECS)?,
-        )?),
-        "backprojection" => Box::new(BackprojectionFrame::prepare(
-            ctx.clone(),
-            &params(softshadow::backprojection::cpu::SPECS)?,
-        )?),
-        "multi-sample" => {
-            let pixels = scene.camera.width * scene.camera.height;
-            Box::new(MultiSampleFrame::prepare(
-                ctx.clone(),
-                &params(softshadow::baselines::multi_sample::SPECS)?,
-                pixels,
-            )?)
-        }
-        other => {
-            return Err(shadow_map_core::Error::param(
-                "algo",
-                format!("{other} has no engine path (one of {})", ALGOS.join(", ")),
-            ))
-        }
-    };
+    let pixels = scene.camera.width * scene.camera.height;
+    let path =
+        softshadow::frame_estimator(algo, ctx.clone(), &params, pixels)?.ok_or_else(|| {
+            shadow_map_core::Error::param("algo", format!("{algo} has no engine path"))
+        })?;
     let views = path.fit_views(scene, &vertex_receivers(scene)?)?;
     Ok((path, views))
 }
@@ -265,8 +215,12 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
             _ => path = a,
         }
     }
-    if let Some(o) = only.as_deref().filter(|o| !ALGOS.contains(o)) {
-        return Err(format!("--algo {o}: no engine path (one of {})", ALGOS.join(", ")).into());
+    if let Some(o) = only.as_deref().filter(|o| !FRAME_ALGOS.contains(o)) {
+        return Err(format!(
+            "--algo {o}: no engine path (one of {})",
+            FRAME_ALGOS.join(", ")
+        )
+        .into());
     }
     let ctx = GpuContext::shared()?;
     let mut small = Scene::load(&path)?;
@@ -278,8 +232,9 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         .find(|l| 4usize.pow(*l) >= 50)
         .ok_or("no tessellation level")?;
     let large = tessellated(&small, levels)?;
-    for algo in ALGOS
-        .into_iter()
+    for algo in FRAME_ALGOS
+        .iter()
+        .copied()
         .filter(|a| only.as_deref().is_none_or(|o| o == *a))
     {
         let sm = run(

@@ -129,6 +129,53 @@ fn gpu_estimator(m: &Method) -> Result<Box<dyn SoftShadowEstimator>> {
     ))
 }
 
+/// The estimators with an engine path ([`frame_estimator`]), in listing order.
+pub const FRAME_ALGOS: &[&str] = &[
+    "hard",
+    "pcf",
+    "pcss",
+    "multi-sample",
+    "backprojection",
+    "accumulation",
+];
+
+/// The engine path of the estimator `name` on `ctx` ([`core::gpu::frame::FrameEstimator`]),
+/// prepared with the parameters `params` (a table of the method's own specs, without the cascade
+/// keys), for at most `max_receivers` receivers a frame; `None` for a method that has none yet
+/// (not in [`FRAME_ALGOS`]). Errors: an unknown name, the parameters' own, device limits.
+#[cfg(feature = "gpu")]
+pub fn frame_estimator(
+    name: &str,
+    ctx: std::sync::Arc<core::gpu::GpuContext>,
+    params: &core::Params,
+    max_receivers: u32,
+) -> Result<Option<Box<dyn core::gpu::frame::FrameEstimator>>> {
+    use baselines::gpu::{MapFrame, MultiSampleFrame};
+    method(name)?;
+    Ok(Some(match name {
+        "hard" => Box::new(MapFrame::<baselines::hard::Hard>::prepare(ctx, params)?),
+        "pcf" => Box::new(MapFrame::<baselines::pcf::Pcf>::prepare(ctx, params)?),
+        "pcss" => Box::new(MapFrame::<baselines::pcss::Pcss>::prepare(ctx, params)?),
+        "multi-sample" => Box::new(MultiSampleFrame::prepare(ctx, params, max_receivers)?),
+        "backprojection" => Box::new(backprojection::BackprojectionFrame::prepare(ctx, params)?),
+        "accumulation" => Box::new(accumulation::AccumulationFrame::prepare(ctx, params)?),
+        _ => return Ok(None),
+    }))
+}
+
+/// The parameter table of `name`'s own estimator (without the cascade keys) holding every value
+/// of `params` it declares: what [`frame_estimator`] takes from an [`estimator`]'s table.
+pub fn own_params(name: &str, params: &core::Params) -> Result<core::Params> {
+    let own = (method(name)?.cpu)()?;
+    let mut p = own.params().clone();
+    for s in p.clone().specs() {
+        if let Some(v) = params.get(s.key) {
+            p.set(s.key, &v.to_string())?;
+        }
+    }
+    Ok(p)
+}
+
 /// The backends each registered estimator has (none for an unknown name).
 pub fn backends(name: &str) -> &'static [&'static str] {
     match method(name) {

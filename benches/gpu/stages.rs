@@ -262,20 +262,9 @@ pub fn estimate_stages(env: &StageEnv) -> BenchResult<Vec<Row>> {
 /// of the triangle ceiling (the frame's kernels come on top: the fraction is what raster alone
 /// would allow).
 pub fn frame_stages(env: &StageEnv, cpu: bool) -> BenchResult<Vec<Row>> {
-    use shadow_map_core::{
-        gpu::{
-            frame::{FrameEstimator, FrameInputs},
-            receivers::GpuReceivers,
-        },
-        Params,
-    };
+    use shadow_map_core::gpu::{frame::FrameInputs, receivers::GpuReceivers};
     let (g, r, name) = (env.g, env.cfg.res, &env.cfg.name);
     let ctx = std::sync::Arc::new(g.ctx.clone());
-    let table = |specs| -> BenchResult<Params> {
-        let mut p = Params::new(specs)?;
-        p.set("resolution", &r.to_string())?;
-        Ok(p)
-    };
     let receivers = GpuReceivers::upload(g.ctx, env.receivers)?;
     let n = env.receivers.len() as u64;
     let v = g.ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -284,60 +273,14 @@ pub fn frame_stages(env: &StageEnv, cpu: bool) -> BenchResult<Vec<Row>> {
         usage: wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     });
-    let frames: Vec<(&str, Box<dyn FrameEstimator>)> = {
-        use baselines::{
-            gpu::{MapFrame, MultiSampleFrame},
-            hard::Hard,
-            map_estimator::Filter,
-            pcf::Pcf,
-            pcss::Pcss,
-        };
-        vec![
-            (
-                "hard",
-                Box::new(MapFrame::<Hard>::prepare(
-                    ctx.clone(),
-                    &table(<Hard as Filter>::SPECS)?,
-                )?),
-            ),
-            (
-                "pcf",
-                Box::new(MapFrame::<Pcf>::prepare(
-                    ctx.clone(),
-                    &table(<Pcf as Filter>::SPECS)?,
-                )?),
-            ),
-            (
-                "pcss",
-                Box::new(MapFrame::<Pcss>::prepare(
-                    ctx.clone(),
-                    &table(<Pcss as Filter>::SPECS)?,
-                )?),
-            ),
-            (
-                "multi-sample",
-                Box::new(MultiSampleFrame::prepare(
-                    ctx.clone(),
-                    &table(baselines::multi_sample::SPECS)?,
-                    n as u32,
-                )?),
-            ),
-            (
-                "backprojection",
-                Box::new(backprojection::BackprojectionFrame::prepare(
-                    ctx.clone(),
-                    &table(backprojection::cpu::SPECS)?,
-                )?),
-            ),
-            (
-                "accumulation",
-                Box::new(accumulation::AccumulationFrame::prepare(
-                    ctx.clone(),
-                    &table(accumulation::cpu::SPECS)?,
-                )?),
-            ),
-        ]
-    };
+    let mut frames = Vec::new();
+    for algo in softshadow::FRAME_ALGOS {
+        let mut p = (softshadow::method(algo)?.cpu)()?.params().clone();
+        p.set("resolution", &r.to_string())?;
+        if let Some(f) = softshadow::frame_estimator(algo, ctx.clone(), &p, n as u32)? {
+            frames.push((algo, f));
+        }
+    }
     let tris = env.gpu_scene.triangles as f64;
     let mut rows = Vec::new();
     for (algo, frame) in &frames {

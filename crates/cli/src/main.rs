@@ -297,13 +297,16 @@ fn render_frame(
     t_all: Instant,
     frame: Option<usize>,
 ) -> Result<path::Frame, String> {
-    let backend = est.backend();
     let mut stages: Vec<(String, f64)> = vec![("load".into(), load_ms)];
-    let t = Instant::now();
-    let receivers = camera_receivers(scene, backend).map_err(|e| e.to_string())?;
-    stages.push(("gbuffer".into(), ms(t)));
-    let (v, mut report) =
-        shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
+    let (receivers, v, mut report) = match engine_frame(scene, est).map_err(|e| e.to_string())? {
+        Engine::Done(receivers, v, report) => (receivers, v, report),
+        Engine::Twin(receivers, gbuffer_ms) => {
+            stages.push(("gbuffer".into(), gbuffer_ms));
+            let (v, report) =
+                shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
+            (receivers, v, report)
+        }
+    };
     stages.extend(report.stages.iter().cloned());
     if stats {
         let params = est.params();
@@ -363,6 +366,107 @@ fn render_frame(
         active: receivers.active,
         v,
     })
+}
+
+/// What [`engine_frame`] did.
+#[cfg_attr(not(feature = "gpu"), allow(dead_code))]
+enum Engine {
+    /// The frame was rendered on the engine path: receivers, V and the report (stages included).
+    Done(Receivers, Vec<f32>, shadow_map_core::Report),
+    /// The estimator's `build` and `estimate` are to run on these receivers (the G-buffer took
+    /// the milliseconds given).
+    Twin(Receivers, f64),
+}
+
+/// `--backend gpu` for an estimator with an engine path (`softshadow::FRAME_ALGOS`) whose
+/// cascade settings resolve to one view set on this frame
+/// (`shadow_map_core::cascades::is_one_view`): the G-buffer rendered on the GPU, its receiver
+/// buffer handed to the frame API (`FrameEstimator::encode` into one command encoder, one submit)
+/// and only V read back. The G-buffer is read back too, before the frame: the EXR's Z channel and
+/// the view fit (on the CPU, as the estimator's `build` fits it) need it. Active receivers the
+/// frame leaves NaN (cut short by the device's loop budget, or lit outside accumulation's frustum)
+/// are redone by the CPU twin in the same views (`frame_cpu_redo` in the notes). Every other case
+/// renders the G-buffer as [`camera_receivers`] does and leaves the estimator to its twin path.
+fn engine_frame(
+    scene: &Scene,
+    est: &dyn shadow_map_core::SoftShadowEstimator,
+) -> shadow_map_core::Result<Engine> {
+    let t = Instant::now();
+    #[cfg(feature = "gpu")]
+    if est.backend() == Backend::Gpu && softshadow::FRAME_ALGOS.contains(&est.name()) {
+        use shadow_map_core::gpu::{frame::FrameInputs, raster::GpuScene, GpuContext, GpuGBuffer};
+        let ctx = GpuContext::shared()?;
+        let casters = GpuScene::upload(&ctx, scene)?;
+        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, &scene.camera)?;
+        let receivers = image.read_back(&ctx)?;
+        let gbuffer_ms = ms(t);
+        let inner = softshadow::own_params(est.name(), est.params())?;
+        if !shadow_map_core::cascades::is_one_view(est.params(), scene, &receivers, &inner)? {
+            return Ok(Engine::Twin(receivers, gbuffer_ms));
+        }
+        let n = receivers.len();
+        let Some(frame) = softshadow::frame_estimator(est.name(), ctx.clone(), &inner, n as u32)?
+        else {
+            return Ok(Engine::Twin(receivers, gbuffer_ms));
+        };
+        let mut report = shadow_map_core::Report::default();
+        report.stages.push(("gbuffer".into(), gbuffer_ms));
+        let t = Instant::now();
+        let views = frame.fit_views(scene, &receivers)?;
+        report.stages.push(("fit".into(), ms(t)));
+        let t = Instant::now();
+        let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("softshadow render V"),
+            size: 4 * n.max(1) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        frame.encode(
+            &mut enc,
+            &FrameInputs {
+                casters: &casters,
+                views: &views,
+                light: &scene.light,
+                receivers: &image.receivers.buffer,
+                count: image.receivers.count,
+                v: &v_buf,
+            },
+        )?;
+        ctx.queue.submit([enc.finish()]);
+        report.stages.push(("encode".into(), ms(t)));
+        let t = Instant::now();
+        let mut v: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n as u64)?;
+        report.stages.push(("frame".into(), ms(t)));
+        if let Some(status) = frame.status() {
+            let words: Vec<u32> = ctx.read_buffer(status, status.size())?;
+            report.note("frame_status", format!("{words:?}"));
+        }
+        let redo: Vec<usize> = (0..n)
+            .filter(|&k| receivers.active[k] && !v[k].is_finite())
+            .collect();
+        if !redo.is_empty() {
+            let t = Instant::now();
+            let sub = Receivers::from_points(
+                redo.iter().map(|&k| receivers.position[k]).collect(),
+                redo.iter().map(|&k| receivers.normal[k]).collect(),
+            )?;
+            let vs = frame.cpu_twin(scene, &sub, &views)?;
+            for (&k, x) in redo.iter().zip(vs) {
+                v[k] = x;
+            }
+            report.stages.push(("frame: CPU redo".into(), ms(t)));
+            report.note("frame_cpu_redo", redo.len());
+        }
+        report.note(
+            "engine_path",
+            "frame API: one encode into one command encoder, one submit, V read back",
+        );
+        report.note("views", views.iter().flatten().count());
+        return Ok(Engine::Done(receivers, v, report));
+    }
+    let receivers = camera_receivers(scene, est.backend())?;
+    Ok(Engine::Twin(receivers, ms(t)))
 }
 
 /// The camera's G-buffer: rasterised on the GPU for `--backend gpu`, ray cast through the BVH

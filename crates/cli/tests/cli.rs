@@ -231,3 +231,71 @@ fn camera_path_writes_numbered_frames_and_flicker() {
     ]);
     assert!(err.contains("--pan"), "{err}");
 }
+
+/// `render --backend gpu` of an estimator with an engine path renders on the frame API (one
+/// encode, one submit, V read back; the `engine_path` note), never leaves an active pixel
+/// without a finite V (receivers the device's loop budget cuts are redone by the CPU twin: the
+/// exact variant of accumulation on lavapipe), and matches the CPU backend's image but for the
+/// G-buffer's pixels (rasterised on the GPU, ray cast on the CPU); with `cascades=3` it takes the
+/// twin's path (no `engine_path` note).
+#[cfg(feature = "gpu")]
+#[test]
+fn render_gpu_takes_the_frame_api() {
+    if shadow_map_core::gpu::context_for_tests("render_gpu_takes_the_frame_api")
+        .unwrap()
+        .is_none()
+    {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = fixture("parallel-squares/parallel-squares.toml");
+    let sc = scene.to_str().unwrap();
+    let cases: [(&str, &[&str], bool); 4] = [
+        ("pcss", &["resolution=256"], true),
+        ("backprojection", &["resolution=256"], true),
+        ("accumulation", &["resolution=256", "variant=exact"], true),
+        ("pcss", &["resolution=256", "cascades=3"], false),
+    ];
+    for (algo, params, engine) in cases {
+        let mut imgs = Vec::new();
+        for backend in ["cpu", "gpu"] {
+            let out = dir.path().join(format!("{algo}-{backend}.exr"));
+            let stats = run_ok(&render(
+                sc,
+                algo,
+                params,
+                &[
+                    "--backend",
+                    backend,
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--stats",
+                ],
+            ));
+            let j: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
+            if backend == "gpu" {
+                assert_eq!(
+                    j["notes"].get("engine_path").is_some(),
+                    engine,
+                    "{algo} {params:?}: {j}"
+                );
+            }
+            imgs.push(out);
+        }
+        let s: serde_json::Value = serde_json::from_str(
+            run_ok(&[
+                "score",
+                imgs[1].to_str().unwrap(),
+                imgs[0].to_str().unwrap(),
+            ])
+            .trim(),
+        )
+        .unwrap();
+        assert_eq!(s["nonfinite_v"], 0, "{algo} {params:?}: {s}");
+        assert!(
+            s["matched_fraction"].as_f64().unwrap() > 0.999
+                && s["frac_abs_error_gt_0_1"].as_f64().unwrap() < 0.002,
+            "{algo} {params:?}: GPU vs CPU {s}"
+        );
+    }
+}

@@ -511,6 +511,26 @@ fn cascade_receivers(
     sub
 }
 
+/// Whether [`Cascaded`] with the parameters `params` (its table: the inner estimator's and the
+/// cascade keys) serves `receivers` with one view of the inner estimator (parameters `inner`)
+/// and settles none of them without a map: the decisions its `build` makes ([`settle`],
+/// [`plan`]), so an engine path that renders the inner estimator's one view set can stand in
+/// for it exactly.
+pub fn is_one_view(
+    params: &Params,
+    scene: &Scene,
+    receivers: &Receivers,
+    inner: &Params,
+) -> Result<bool> {
+    let settings = CascadeSettings::from_params(params)?;
+    let all_p95 = OnceCell::new();
+    let p95 = || *all_p95.get_or_init(|| one_view_p95(scene, receivers, inner));
+    if settle(&settings, scene, receivers, p95).is_some() {
+        return Ok(false);
+    }
+    Ok(plan(&settings, scene, receivers, inner, p95).is_one_view())
+}
+
 /// The 95th percentile of the texel density of the one light-centre view an estimator with
 /// parameters `inner` fits for `receivers` (`None` without a map, or with no receiver inside).
 pub fn one_view_p95(scene: &Scene, receivers: &Receivers, inner: &Params) -> Option<f32> {
