@@ -2,38 +2,17 @@
 //! conformance suite's [`frames_match_the_cpu_twin`]: depth peeling, the MSSM, the layout copies
 //! and the kernel recorded into the caller's command encoder three frames running, V read back
 //! once, against the CPU twin in the same view and on the frame's own maps, on a rect light
-//! (bunny), a disk light and a low sun, at the defaults and with the exact variant's layers; and within the twins' tolerance of
-//! the GPU twin's ordinary `build` + `estimate` (whose maps are rasterised on the CPU).
+//! (bunny), a disk light and a low sun, at the defaults and with the exact variant's layers; and
+//! within the twins' tolerance of the GPU twin's ordinary `build` + `estimate` (whose maps are
+//! rasterised on the CPU).
 #![cfg(feature = "gpu")]
 
 use accumulation::{AccumulationFrame, GpuAccumulation};
-use glam::Vec3;
-use shadow_map_core::gpu::frame::FrameEstimator;
 use shadow_map_core::{
-    gpu::context_for_tests, run, Light, LightShape, Params, Receivers, Scene, SceneBvh,
+    gpu::{context_for_tests, frame::FrameEstimator},
+    run, Params,
 };
-use test_support::{conformance::frames_match_the_cpu_twin, fixtures::fixture};
-
-fn scenes() -> Vec<(&'static str, Scene, Receivers)> {
-    let (bunny, rec) = fixture("bunny", 64, 48);
-    let with_light = |light: Light| {
-        let mut s = bunny.clone();
-        s.light = light;
-        let r = Receivers::from_camera(&s, &SceneBvh::new(&s));
-        (s, r)
-    };
-    let mut disk = bunny.light;
-    disk.shape = LightShape::Disk {
-        radius: bunny.light.half_extent().max_element(),
-    };
-    let (disk, disk_rec) = with_light(disk);
-    let (sun, sun_rec) = with_light(Light::directional(Vec3::new(0.6, -0.5, 0.3), 3.0));
-    vec![
-        ("bunny", bunny, rec),
-        ("disk-bunny", disk, disk_rec),
-        ("sun-bunny", sun, sun_rec),
-    ]
-}
+use test_support::{conformance::frames_match_the_cpu_twin, fixtures::bunny_under_three_lights};
 
 #[test]
 fn accumulation_frames_match_the_twins() {
@@ -47,10 +26,11 @@ fn accumulation_frames_match_the_twins() {
     // Within lavapipe's loop budget (the frame path counts cut receivers, it does not redo them).
     exact.set("k", "5").unwrap();
     exact.set("bits", "4").unwrap();
-    for (params, (name, scene, rec)) in [&defaults, &exact]
-        .into_iter()
-        .flat_map(|p| scenes().into_iter().map(move |s| (p, s)))
-    {
+    for (params, (name, scene, rec)) in [&defaults, &exact].into_iter().flat_map(|p| {
+        bunny_under_three_lights(64, 48)
+            .into_iter()
+            .map(move |s| (p, s))
+    }) {
         let frame = AccumulationFrame::prepare(ctx.clone(), params).unwrap();
         let name = format!("{name} variant={}", params.choice("variant"));
         let label = format!("accumulation {name}");

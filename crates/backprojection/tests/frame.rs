@@ -7,32 +7,8 @@
 #![cfg(feature = "gpu")]
 
 use backprojection::{BackprojectionFrame, GpuBackprojection};
-use glam::Vec3;
-use shadow_map_core::{
-    gpu::context_for_tests, run, Light, LightShape, Params, Receivers, Scene, SceneBvh,
-};
-use test_support::{conformance::frames_match_the_cpu_twin, fixtures::fixture};
-
-fn scenes() -> Vec<(&'static str, Scene, Receivers)> {
-    let (bunny, rec) = fixture("bunny", 64, 48);
-    let with_light = |light: Light| {
-        let mut s = bunny.clone();
-        s.light = light;
-        let r = Receivers::from_camera(&s, &SceneBvh::new(&s));
-        (s, r)
-    };
-    let mut disk = bunny.light;
-    disk.shape = LightShape::Disk {
-        radius: bunny.light.half_extent().max_element(),
-    };
-    let (disk, disk_rec) = with_light(disk);
-    let (sun, sun_rec) = with_light(Light::directional(Vec3::new(0.6, -0.5, 0.3), 3.0));
-    vec![
-        ("bunny", bunny, rec),
-        ("disk-bunny", disk, disk_rec),
-        ("sun-bunny", sun, sun_rec),
-    ]
-}
+use shadow_map_core::{gpu::context_for_tests, run, Params};
+use test_support::{conformance::frames_match_the_cpu_twin, fixtures::bunny_under_three_lights};
 
 #[test]
 fn backprojection_frames_match_the_twins() {
@@ -41,7 +17,7 @@ fn backprojection_frames_match_the_twins() {
     };
     let params = Params::new(backprojection::cpu::SPECS).unwrap();
     let frame = BackprojectionFrame::prepare(ctx.clone(), &params).unwrap();
-    for (name, scene, rec) in scenes() {
+    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
         let label = format!("backprojection {name}");
         let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
         let mut gpu = GpuBackprojection::new(ctx.clone()).unwrap();

@@ -2,8 +2,8 @@
 //! ([`baselines::gpu::MultiSampleFrame`]) through the conformance suite's
 //! [`frames_match_the_cpu_twin`]: frames recorded into the caller's command encoder from the
 //! caller's casters and receiver buffer, V into the caller's buffer, read back once after the
-//! last frame, against the CPU twin in the same views: a perspective view (bunny, rect light) and
-//! an orthographic one (the bunny under a low sun).
+//! last frame, against the CPU twin in the same views: perspective views (the bunny under its rect
+//! light and a disk light) and an orthographic one (under a low sun).
 //!
 //! GPU tests run on the shared Vulkan context; with no adapter they print a loud skip, or fail
 //! under `SOFTSHADOW_REQUIRE_GPU=1`.
@@ -16,28 +16,21 @@ use baselines::{
     pcf::Pcf,
     pcss::Pcss,
 };
-use glam::Vec3;
 use shadow_map_core::{
     gpu::{context_for_tests, receivers::GpuReceivers, GpuContext, GpuScene},
-    run, Light, Params, Receivers, Scene, SceneBvh,
+    run, Params,
 };
 use std::sync::Arc;
-use test_support::{conformance::frames_match_the_cpu_twin, fixtures::fixture};
-
-/// The bunny fixture at 64 x 48, and the same under a low 3-degree sun.
-fn scenes() -> Vec<(&'static str, Scene, Receivers)> {
-    let (bunny, rec) = fixture("bunny", 64, 48);
-    let mut sun = bunny.clone();
-    sun.light = Light::directional(Vec3::new(0.6, -0.5, 0.3), 3.0);
-    let sun_rec = Receivers::from_camera(&sun, &SceneBvh::new(&sun));
-    vec![("bunny", bunny, rec), ("sun-bunny", sun, sun_rec)]
-}
+use test_support::{
+    conformance::frames_match_the_cpu_twin,
+    fixtures::{bunny_under_three_lights, fixture},
+};
 
 /// Hard, PCF or PCSS: the twins' tolerance (|dV| <= 1e-4 on 99.9% of the receivers, PCSS's
 /// compensated sums differing in their last bits, and no |dV| above 1e-3); the status counts no
 /// receiver cut by the loop budget.
 fn map_frames_match<F: GpuFilter>(ctx: &Arc<GpuContext>) {
-    for (name, scene, rec) in scenes() {
+    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
         let frame = MapFrame::<F>::prepare(ctx.clone(), &Params::new(F::SPECS).unwrap()).unwrap();
         let label = format!("{} {name}", F::NAME);
         let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
@@ -71,7 +64,7 @@ fn multi_sample_frames_match_the_cpu_twin() {
     let Some(ctx) = context_for_tests("multi_sample_frames_match_the_cpu_twin").unwrap() else {
         return;
     };
-    for (name, scene, rec) in scenes() {
+    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
         let params = Params::new(baselines::multi_sample::SPECS).unwrap();
         let frame = MultiSampleFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
         assert_eq!(frame.fit_views(&scene, &rec).unwrap().len(), 16);

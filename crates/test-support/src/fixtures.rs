@@ -200,6 +200,30 @@ fn fixture_scene(name: &str) -> Scene {
 }
 
 /// `scene` and its camera's receivers.
+/// The bunny fixture at `w x h` under three lights, each with its camera receivers: its own rect
+/// light (`bunny`), a disk of the rect's larger half extent in its place (`disk-bunny`) and a
+/// low 3-degree sun (`sun-bunny`): the engine-path tests' perspective, disk and orthographic
+/// cases.
+pub fn bunny_under_three_lights(w: u32, h: u32) -> Vec<(&'static str, Scene, Receivers)> {
+    let (bunny, rec) = fixture("bunny", w, h);
+    let lit = |light: Light| {
+        let mut s = bunny.clone();
+        s.light = light;
+        with_camera_receivers(s)
+    };
+    let mut disk = bunny.light;
+    disk.shape = LightShape::Disk {
+        radius: bunny.light.half_extent().max_element(),
+    };
+    let (disk, disk_rec) = lit(disk);
+    let (sun, sun_rec) = lit(Light::directional(Vec3::new(0.6, -0.5, 0.3), 3.0));
+    vec![
+        ("bunny", bunny, rec),
+        ("disk-bunny", disk, disk_rec),
+        ("sun-bunny", sun, sun_rec),
+    ]
+}
+
 fn with_camera_receivers(scene: Scene) -> (Scene, Receivers) {
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     (scene, rec)
