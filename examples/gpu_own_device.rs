@@ -27,6 +27,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }))?;
     println!("adapter: {:?}", adapter.get_info().name);
     let ctx = Arc::new(GpuContext::from_device(device.clone(), queue.clone()));
+    // The renderer keeps its own device-lost callback and forwards losses to the context (a weak
+    // handle: the device holding a callback that holds the device would never be freed).
+    let weak = Arc::downgrade(&ctx);
+    device.set_device_lost_callback(move |reason, msg| {
+        eprintln!("my renderer: device lost ({reason:?}: {msg})");
+        if let Some(c) = weak.upgrade() {
+            c.report_device_lost(format!("{reason:?}: {msg}"));
+        }
+    });
 
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),

@@ -145,24 +145,36 @@ impl GpuContext {
         .map_err(|e| Error::NoAdapter(format!("request_device: {e}")))?;
         let mut ctx = Self::from_device(device, queue);
         ctx.adapter = Some(adapter.get_info());
-        Ok(ctx)
-    }
-
-    /// Wraps a user's device and queue. Nothing is created or changed on them, except that a
-    /// device-lost callback is installed so losses come back as [`Error::DeviceLost`].
-    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
-        let lost = Arc::new(Mutex::new(None));
-        let l = lost.clone();
-        device.set_device_lost_callback(move |reason, msg| {
-            if let Ok(mut g) = l.lock() {
+        // The device is ours: its losses come back as Error::DeviceLost (the callback holds the
+        // flag only, not the device, so no reference cycle keeps the device alive).
+        let lost = ctx.lost.clone();
+        ctx.device.set_device_lost_callback(move |reason, msg| {
+            if let Ok(mut g) = lost.lock() {
                 *g = Some(format!("{reason:?}: {msg}"));
             }
         });
+        Ok(ctx)
+    }
+
+    /// Wraps a user's device and queue. Nothing is created or changed on them: the device-lost
+    /// callback stays the host renderer's (wgpu keeps one per device). To have losses come back
+    /// from this crate as [`Error::DeviceLost`], call
+    /// [`report_device_lost`](Self::report_device_lost) from that callback.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
         GpuContext {
             device,
             queue,
             adapter: None,
-            lost,
+            lost: Arc::new(Mutex::new(None)),
+        }
+    }
+
+    /// Marks the device lost (`reason` is kept for the error): every later call through this
+    /// context (and its clones) fails with [`Error::DeviceLost`]. For a host that owns the
+    /// device-lost callback ([`from_device`](Self::from_device)).
+    pub fn report_device_lost(&self, reason: impl Into<String>) {
+        if let Ok(mut g) = self.lost.lock() {
+            *g = Some(reason.into());
         }
     }
 
