@@ -387,10 +387,7 @@ fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
     let uv = q0.xy;
     let zr = q0.z;
     let l = vec2<f32>(P.light_x, P.light_y);
-    var ws = l * ((zr - P.near) / zr) * P.to_texels;
-    if (P.ortho != 0u) {
-        ws = l * (zr - P.near) * P.to_texels; // baselines::pcss::search_width, the sun
-    }
+    let ws = pcss_search_width(l, zr, P.near, P.to_texels, P.ortho != 0u);
     var steps = 0u;
     var sum = Sum(0.0, 0.0);
     var count = Sum(0.0, 0.0);
@@ -416,10 +413,7 @@ fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
     }
     if (!(count.s > 0.0)) { return TapT(1.0, steps); }
     let z_avg = sum.s / count.s;
-    var wf = l * ((zr - z_avg) / z_avg) * (P.near / zr) * P.to_texels;
-    if (P.ortho != 0u) {
-        wf = l * (zr - z_avg) * P.to_texels; // baselines::pcss::filter_width, the sun
-    }
+    let wf = pcss_filter_width(l, zr, z_avg, P.near, P.to_texels, P.ortho != 0u);
     var lit = Sum(0.0, 0.0);
     var total = Sum(0.0, 0.0);
     let fy = cells_new(uv.y - 0.5 * wf.y, uv.y + 0.5 * wf.y, P.max_taps);

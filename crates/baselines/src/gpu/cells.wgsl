@@ -1,6 +1,26 @@
-// Twins of crates/baselines/src/map_estimator.rs `cells` and pcss.rs `Kahan`, shared by every
-// kernel that samples a region of a map by cells (the baselines' map estimator and PCSS,
-// deep-shadow's filter=pcss). No bindings: a part that any module may include.
+// Twins of crates/baselines/src/map_estimator.rs `cells` and pcss.rs `Kahan`, `search_width` and
+// `filter_width`, shared by every kernel that samples a region of a map by cells (the baselines'
+// map estimator and PCSS, deep-shadow's filter=pcss). No bindings: a part that any module may
+// include.
+
+// pcss::search_width in texels: the blocker search region W_search = l (z_r - n) / z_r on the
+// plane z = n, or l (z_r - n) world units in an orthographic view (the sun); `l` the light's
+// extent per axis (world units; the sun's: 2 tan(angle / 2)), `to_texels` = r / w.
+fn pcss_search_width(l: vec2<f32>, zr: f32, n: f32, to_texels: f32, ortho: bool) -> vec2<f32> {
+    if ortho {
+        return l * (zr - n) * to_texels;
+    }
+    return l * ((zr - n) / zr) * to_texels;
+}
+
+// pcss::filter_width in texels: the penumbra w_p = (z_r - z_avg) l / z_avg carried to the plane
+// z = n (times n / z_r), or (z_r - z_avg) l world units kept by an orthographic map (the sun).
+fn pcss_filter_width(l: vec2<f32>, zr: f32, z_avg: f32, n: f32, to_texels: f32, ortho: bool) -> vec2<f32> {
+    if ortho {
+        return l * (zr - z_avg) * to_texels;
+    }
+    return l * ((zr - z_avg) / z_avg) * (n / zr) * to_texels;
+}
 
 // map_estimator::cells, as an indexable range: [a, b) split in whole texels clipped to the
 // interval when it spans at most `max` texels (mode 1), in `max` equal cells otherwise (mode 2),

@@ -15,11 +15,7 @@ fn visibility(r: ReceiverSample) -> f32 {
     let l = 2.0 * est.light_half_extent;
     let to_texels = f32(view.r) / view.w;
     // 1. Blocker search.
-    // The sun (orthographic view, pcss::search_width): l (z_r - n) world units.
-    var ws = l * ((zr - view.n) / zr) * to_texels;
-    if view.ortho != 0u {
-        ws = l * (zr - view.n) * to_texels;
-    }
+    let ws = pcss_search_width(l, zr, view.n, to_texels, view.ortho != 0u);
     let cy = cells_new(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, est.max_taps);
     let cx = cells_new(r.uv.x - 0.5 * ws.x, r.uv.x + 0.5 * ws.x, est.max_taps);
     var sum = Sum(0.0, 0.0);
@@ -46,11 +42,7 @@ fn visibility(r: ReceiverSample) -> f32 {
     }
     let z_avg = sum.s / count.s;
     // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
-    // The sun (pcss::filter_width): w_p = (z_r - z_avg) l world units, kept by the map.
-    var wf = l * ((zr - z_avg) / z_avg) * (view.n / zr) * to_texels;
-    if view.ortho != 0u {
-        wf = l * (zr - z_avg) * to_texels;
-    }
+    let wf = pcss_filter_width(l, zr, z_avg, view.n, to_texels, view.ortho != 0u);
     let disk = est.light_shape != LIGHT_RECT;
     let rad = 0.5 * wf.x;
     let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
