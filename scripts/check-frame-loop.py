@@ -24,9 +24,10 @@ for r in rows:
     if r["triangles_large"] < 50 * r["triangles_small"]:
         bad.append("%s: large scene has only %d triangles" % (a, r["triangles_large"]))
     print("%-14s frames %d, host ms/frame %.4f (%d tris) / %.4f (%d tris), rmse_vs_cpu %.2e, "
-          "frame ms %.2f / %.2f vs CPU twin %.2f / %.2f" % (
+          "warm encode ms %.4f / %.4f, frame ms %.2f / %.2f vs CPU twin %.2f / %.2f" % (
         a, r["frames"], r["host_ms_per_frame_small"], r["triangles_small"],
         r["host_ms_per_frame_large"], r["triangles_large"], r["rmse_vs_cpu"],
+        r.get("host_ms_warm_small", float("nan")), r.get("host_ms_warm_large", float("nan")),
         r.get("gpu_ms_per_frame_small", float("nan")), r.get("gpu_ms_per_frame_large", float("nan")),
         r.get("cpu_twin_ms_small", float("nan")), r.get("cpu_twin_ms_large", float("nan"))))
 if bad:
