@@ -1,7 +1,7 @@
 //! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
 //! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
 //! frame API ([`softshadow::FRAME_ALGOS`]: hard, PCF, PCSS, multi-sample, backprojection,
-//! accumulation so far; [`softshadow::frame_estimator`] makes them) into its own command encoder
+//! accumulation, deep-shadow so far; [`softshadow::frame_estimator`] makes them) into its own command encoder
 //! from that G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
 //! frame; then V and the receivers are read once and compared with the CPU twin in the same
 //! light view(s).

@@ -137,6 +137,7 @@ pub const FRAME_ALGOS: &[&str] = &[
     "multi-sample",
     "backprojection",
     "accumulation",
+    "deep-shadow",
 ];
 
 /// The engine path of the estimator `name` on `ctx` ([`core::gpu::frame::FrameEstimator`]),
@@ -159,6 +160,11 @@ pub fn frame_estimator(
         "multi-sample" => Box::new(MultiSampleFrame::prepare(ctx, params, max_receivers)?),
         "backprojection" => Box::new(backprojection::BackprojectionFrame::prepare(ctx, params)?),
         "accumulation" => Box::new(accumulation::AccumulationFrame::prepare(ctx, params)?),
+        "deep-shadow" => Box::new(deep_shadow::DeepShadowFrame::prepare(
+            ctx,
+            params,
+            max_receivers,
+        )?),
         _ => return Ok(None),
     }))
 }

@@ -386,14 +386,18 @@ enum Engine {
 /// the view fit (on the CPU, as the estimator's `build` fits it) need it. Active receivers the
 /// frame leaves NaN (cut short by the device's loop budget, or lit outside accumulation's frustum)
 /// are redone by the CPU twin in the same views (`frame_cpu_redo` in the notes). Every other case
-/// renders the G-buffer as [`camera_receivers`] does and leaves the estimator to its twin path.
+/// (a scene with semi-transparent meshes among them: the frame API's casters are opaque) renders
+/// the G-buffer as [`camera_receivers`] does and leaves the estimator to its twin path.
 fn engine_frame(
     scene: &Scene,
     est: &dyn shadow_map_core::SoftShadowEstimator,
 ) -> shadow_map_core::Result<Engine> {
     let t = Instant::now();
     #[cfg(feature = "gpu")]
-    if est.backend() == Backend::Gpu && softshadow::FRAME_ALGOS.contains(&est.name()) {
+    if est.backend() == Backend::Gpu
+        && softshadow::FRAME_ALGOS.contains(&est.name())
+        && scene.is_opaque()
+    {
         use shadow_map_core::gpu::{frame::FrameInputs, raster::GpuScene, GpuContext, GpuGBuffer};
         let ctx = GpuContext::shared()?;
         let casters = GpuScene::upload(&ctx, scene)?;

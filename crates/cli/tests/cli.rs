@@ -248,18 +248,28 @@ fn render_gpu_takes_the_frame_api() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let scene = fixture("parallel-squares/parallel-squares.toml");
-    let sc = scene.to_str().unwrap();
-    let cases: [(&str, &[&str], bool); 4] = [
-        ("pcss", &["resolution=256"], true),
-        ("backprojection", &["resolution=256"], true),
-        ("accumulation", &["resolution=256", "variant=exact"], true),
-        ("pcss", &["resolution=256", "cascades=3"], false),
+    let squares = fixture("parallel-squares/parallel-squares.toml");
+    // Semi-transparent strands: the frame API's casters are opaque, so the twin's path.
+    let strands = fixture("strands/strands.toml");
+    let cases: [(&str, &[&str], bool, &std::path::Path); 7] = [
+        ("pcss", &["resolution=256"], true, &squares),
+        ("backprojection", &["resolution=256"], true, &squares),
+        (
+            "accumulation",
+            &["resolution=256", "variant=exact"],
+            true,
+            &squares,
+        ),
+        ("deep-shadow", &["resolution=256"], true, &squares),
+        ("pcss", &["resolution=256", "cascades=3"], false, &squares),
+        ("backprojection", &["resolution=256"], false, &strands),
+        ("deep-shadow", &["resolution=256"], false, &strands),
     ];
-    for (algo, params, engine) in cases {
+    for (algo, params, engine, scene) in cases {
+        let sc = scene.to_str().unwrap();
         let mut imgs = Vec::new();
         for backend in ["cpu", "gpu"] {
-            let out = dir.path().join(format!("{algo}-{backend}.exr"));
+            let out = dir.path().join(format!("{algo}-{engine}-{backend}.exr"));
             let stats = run_ok(&render(
                 sc,
                 algo,

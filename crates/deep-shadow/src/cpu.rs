@@ -376,6 +376,133 @@ impl CpuDeepShadow {
     pub fn settings(&self) -> Settings {
         self.settings
     }
+
+    /// V in the given sub-light views (one per sub-light point, as [`Tally::fit_view`] fits
+    /// them; the engine path's views, `crate::DeepShadowFrame`), each map built and read in turn.
+    pub fn estimate_in_views(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[LightView],
+        v: &mut [f32],
+    ) -> Result<()> {
+        receivers.check_output(v)?;
+        let mut tally = Tally::default();
+        let views: Vec<(LightView, FitReport)> = views
+            .iter()
+            .map(|view| {
+                tally.add_planes(view);
+                (*view, FitReport::default())
+            })
+            .collect();
+        self.estimate_views(scene, receivers, &views, tally, 0.0, v)
+    }
+
+    /// The estimate in fitted `views` (`t_fit`: the fit's milliseconds, for the report).
+    fn estimate_views(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[(LightView, FitReport)],
+        mut tally: Tally,
+        t_fit: f64,
+        v: &mut [f32],
+    ) -> Result<()> {
+        self.report = Report::default();
+        let s = self.settings();
+        let opaque = scene.is_opaque();
+        let mut acc = vec![0.0f32; receivers.len()];
+        let mut t_est = 0.0;
+        let mut t_stages = [0.0f64; 4];
+        let mut t_build = t_fit;
+        for &(view, fit) in views {
+            let t = Instant::now();
+            let map = if opaque {
+                let ls = LightSpace::build_in_view(
+                    scene,
+                    view,
+                    fit,
+                    &LightSpaceRequest::single(s.resolution),
+                );
+                Source::Opaque(
+                    ls.layers
+                        .into_iter()
+                        .next()
+                        .unwrap_or_else(|| DepthMap::empty(s.resolution)),
+                )
+            } else {
+                let dsm = build_deep_map_timed(scene, &view, &s, &mut t_stages)?;
+                tally.fragments += dsm.stats.fragments;
+                tally.kept += dsm.stats.kept;
+                tally.capacity = tally.capacity.max(dsm.stats.capacity);
+                tally.passes += dsm.stats.passes;
+                tally.max_len = tally.max_len.max(dsm.stats.max_len);
+                Source::Deep(dsm)
+            };
+            tally.peak = tally.peak.max(match &map {
+                Source::Opaque(m) => m.bytes(),
+                Source::Deep(d) => d.bytes(),
+            });
+            t_build += t.elapsed().as_secs_f64() * 1e3;
+            let t = Instant::now();
+            let ls = lookup_settings(&view, &scene.light, &s);
+            let (lookups, steps) = acc
+                .par_iter_mut()
+                .enumerate()
+                .map(|(k, a)| {
+                    if !receivers.active[k] {
+                        return (0u64, 0u64);
+                    }
+                    match query(
+                        &view,
+                        &scene.light,
+                        receivers.position[k],
+                        receivers.normal[k],
+                        &s,
+                    ) {
+                        Query::Fixed(x) => {
+                            *a += x;
+                            (0, 0)
+                        }
+                        Query::Look { uv, plane, facing } => match &map {
+                            Source::Opaque(m) => {
+                                *a += facing * transmittance_opaque_plane(m, uv, &plane, &ls);
+                                (1, 0)
+                            }
+                            Source::Deep(dsm) => {
+                                let (tr, st) = dsm.transmittance_plane(uv, &plane, &ls);
+                                *a += facing * tr;
+                                (1, st as u64)
+                            }
+                        },
+                    }
+                })
+                .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+            tally.lookups += lookups;
+            tally.steps += steps;
+            t_est += t.elapsed().as_secs_f64() * 1e3;
+        }
+        let bad = finish(scene, receivers, &acc, views.len(), v);
+        if opaque {
+            self.report.stages.push(("build".into(), t_build));
+        } else {
+            // The build's parts (their sum is the build; `total_ms("build")` adds them up).
+            let rest = t_build - t_stages.iter().sum::<f64>() - t_fit;
+            self.report.stages.push(("build: fit view".into(), t_fit));
+            for (k, name) in ["raster", "insert", "process", "link"].iter().enumerate() {
+                self.report
+                    .stages
+                    .push((format!("build: {name}"), t_stages[k]));
+            }
+            self.report
+                .stages
+                .push(("build: other".into(), rest.max(0.0)));
+        }
+        self.report.stages.push(("estimate".into(), t_est));
+        tally.note(&mut self.report, scene, opaque, views.len());
+        self.report.note("non_finite", bad);
+        Ok(())
+    }
 }
 
 /// Writes `V = acc / views` (NaN for inactive receivers, 0 behind a one-sided light), clamped to
@@ -525,105 +652,15 @@ impl SoftShadowEstimator for CpuDeepShadow {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        self.report = Report::default();
         let s = self.settings();
-        let opaque = scene.is_opaque();
-        let points = sublight_points(scene, s.sublights);
-        let mut acc = vec![0.0f32; receivers.len()];
-        let (mut t_build, mut t_est) = (0.0, 0.0);
-        let mut t_fit = 0.0;
-        let mut t_stages = [0.0f64; 4];
         let mut tally = Tally::default();
-        for y in &points {
-            let t = Instant::now();
-            let t_f = Instant::now();
-            let (view, fit) = tally.fit_view(scene, receivers, *y, &s)?;
-            t_fit += t_f.elapsed().as_secs_f64() * 1e3;
-            let map = if opaque {
-                let ls = LightSpace::build_in_view(
-                    scene,
-                    view,
-                    fit,
-                    &LightSpaceRequest::single(s.resolution),
-                );
-                Source::Opaque(
-                    ls.layers
-                        .into_iter()
-                        .next()
-                        .unwrap_or_else(|| DepthMap::empty(s.resolution)),
-                )
-            } else {
-                let dsm = build_deep_map_timed(scene, &view, &s, &mut t_stages)?;
-                tally.fragments += dsm.stats.fragments;
-                tally.kept += dsm.stats.kept;
-                tally.capacity = tally.capacity.max(dsm.stats.capacity);
-                tally.passes += dsm.stats.passes;
-                tally.max_len = tally.max_len.max(dsm.stats.max_len);
-                Source::Deep(dsm)
-            };
-            tally.peak = tally.peak.max(match &map {
-                Source::Opaque(m) => m.bytes(),
-                Source::Deep(d) => d.bytes(),
-            });
-            t_build += t.elapsed().as_secs_f64() * 1e3;
-            let t = Instant::now();
-            let ls = lookup_settings(&view, &scene.light, &s);
-            let (lookups, steps) = acc
-                .par_iter_mut()
-                .enumerate()
-                .map(|(k, a)| {
-                    if !receivers.active[k] {
-                        return (0u64, 0u64);
-                    }
-                    match query(
-                        &view,
-                        &scene.light,
-                        receivers.position[k],
-                        receivers.normal[k],
-                        &s,
-                    ) {
-                        Query::Fixed(x) => {
-                            *a += x;
-                            (0, 0)
-                        }
-                        Query::Look { uv, plane, facing } => match &map {
-                            Source::Opaque(m) => {
-                                *a += facing * transmittance_opaque_plane(m, uv, &plane, &ls);
-                                (1, 0)
-                            }
-                            Source::Deep(dsm) => {
-                                let (tr, st) = dsm.transmittance_plane(uv, &plane, &ls);
-                                *a += facing * tr;
-                                (1, st as u64)
-                            }
-                        },
-                    }
-                })
-                .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
-            tally.lookups += lookups;
-            tally.steps += steps;
-            t_est += t.elapsed().as_secs_f64() * 1e3;
-        }
-        let bad = finish(scene, receivers, &acc, points.len(), v);
-        if opaque {
-            self.report.stages.push(("build".into(), t_build));
-        } else {
-            // The build's parts (their sum is the build; `total_ms("build")` adds them up).
-            let rest = t_build - t_stages.iter().sum::<f64>() - t_fit;
-            self.report.stages.push(("build: fit view".into(), t_fit));
-            for (k, name) in ["raster", "insert", "process", "link"].iter().enumerate() {
-                self.report
-                    .stages
-                    .push((format!("build: {name}"), t_stages[k]));
-            }
-            self.report
-                .stages
-                .push(("build: other".into(), rest.max(0.0)));
-        }
-        self.report.stages.push(("estimate".into(), t_est));
-        tally.note(&mut self.report, scene, opaque, points.len());
-        self.report.note("non_finite", bad);
-        Ok(())
+        let t = Instant::now();
+        let views = sublight_points(scene, s.sublights)
+            .into_iter()
+            .map(|y| tally.fit_view(scene, receivers, y, &s))
+            .collect::<Result<Vec<_>>>()?;
+        let t_fit = t.elapsed().as_secs_f64() * 1e3;
+        self.estimate_views(scene, receivers, &views, tally, t_fit, v)
     }
     fn report(&self) -> Report {
         self.report.clone()

@@ -6,9 +6,10 @@
 // before this one.
 // Structs mirror shared.rs field for field.
 
-// Set from Rust as pipeline overrides (shared::NIL, gpu::WORKGROUP_SIZE, dsm::EDSM_CUTOFF).
+// Set from Rust as pipeline overrides (shared::NIL, dsm::EDSM_CUTOFF; the workgroup size WG,
+// gpu::WORKGROUP_SIZE, is declared by the part before this one: gpu.rs WG_WGSL for the twin's
+// module, the core's estimate.wgsl for the engine path's).
 override NIL: u32;
-override WG: u32;
 override EDSM_CUTOFF: f32;
 const SORT_LOCAL: u32 = 64u;
 const FILTER_FIRST: u32 = 0u;
@@ -531,18 +532,13 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
-// The opaque path: head[] holds the nearest depth's bits (NIL: empty), no lists.
-@compute @workgroup_size(WG)
-fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-                 @builtin(local_invocation_id) lid: vec3<u32>) {
-    let q_id = linear_id(wid, nwg, lid);
-    if (q_id >= P.n_queries) { return; }
-    let q = queries[2u * q_id];
-    let q1 = queries[2u * q_id + 1u];
-    if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
+// The opaque path's transmittance of one query (q0 = (u, v, z_p, fixed), q1 the caster test;
+// gpu.rs PackedQuery): head[] holds the nearest depth's bits (NIL: empty), no lists. `lookup_opaque`
+// and the engine path's `frame_lookup` both call it.
+fn opaque_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
+    if (q.w >= 0.0) { return q.w; }
     if (P.filter_mode == FILTER_PCSS) {
-        out_t[q_id] = -q.w * soft_transmittance(q, q1, true).t;
-        return;
+        return -q.w * soft_transmittance(q, q1, true).t;
     }
     let r = i32(P.r);
     let ci = i32(floor(q.x));
@@ -571,7 +567,15 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
             sum += lit;
         }
     }
-    out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
+    return -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
+}
+
+@compute @workgroup_size(WG)
+fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                 @builtin(local_invocation_id) lid: vec3<u32>) {
+    let q_id = linear_id(wid, nwg, lid);
+    if (q_id >= P.n_queries) { return; }
+    out_t[q_id] = opaque_transmittance(queries[2u * q_id], queries[2u * q_id + 1u]);
 }
 
 // The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one

@@ -39,17 +39,26 @@ use wgpu::util::DeviceExt;
 pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
 
 /// Every shader of the crate as `(name, source)` (validated with naga by a unit test).
-pub const SHADERS: &[(&str, &[&str])] = &[("deep_shadow", SHADER_PARTS)];
+pub const SHADERS: &[(&str, &[&str])] = &[
+    ("deep_shadow", SHADER_PARTS),
+    ("deep_shadow_frame", crate::frame::FRAME_SHADER_PARTS),
+];
 
-/// The WGSL parts of the module, in order: the baselines' `cells` and Kahan `Sum` (the PCSS
-/// sampling `filter=pcss` shares), then [`DEEP_SHADOW_WGSL`].
-pub const SHADER_PARTS: &[&str] = &[CELLS_WGSL, DEEP_SHADOW_WGSL];
+/// The WGSL parts of the module, in order: the workgroup size's declaration ([`WG_WGSL`]), the
+/// baselines' `cells` and Kahan `Sum` (the PCSS sampling `filter=pcss` shares), then
+/// [`DEEP_SHADOW_WGSL`].
+pub const SHADER_PARTS: &[&str] = &[WG_WGSL, CELLS_WGSL, DEEP_SHADOW_WGSL];
+
+/// The workgroup size's declaration, `override WG` ([`WORKGROUP_SIZE`]): its own part, since the
+/// engine path's module takes it from the core's `estimate.wgsl` instead.
+pub const WG_WGSL: &str = "override WG: u32;\n";
 
 /// The constants the kernels share with the CPU twin, passed as pipeline overrides (never copied
 /// into the WGSL by hand).
-const OVERRIDES: &[(&str, f64)] = &[
+/// The twin's module adds `WG` ([`WORKGROUP_SIZE`]); the engine path's takes `WG` and the light
+/// codes from the core's estimate overrides.
+pub(crate) const OWN_OVERRIDES: &[(&str, f64)] = &[
     ("NIL", crate::shared::NIL as f64),
-    ("WG", WORKGROUP_SIZE as f64),
     ("EDSM_CUTOFF", crate::dsm::EDSM_CUTOFF as f64),
 ];
 
@@ -97,7 +106,7 @@ pub struct GpuDeepShadow {
     pipes: Pipelines,
 }
 
-fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
+pub(crate) fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
     let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
     let x = groups.min(65535);
     let y = groups.div_ceil(x);
@@ -124,7 +133,12 @@ impl GpuDeepShadow {
                 ],
             )
         })?;
-        let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, OVERRIDES);
+        let overrides: Vec<(&str, f64)> = OWN_OVERRIDES
+            .iter()
+            .copied()
+            .chain([("WG", WORKGROUP_SIZE as f64)])
+            .collect();
+        let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, &overrides);
         let pipes = Pipelines {
             clear: mk("clear")?,
             raster: mk("raster")?,
@@ -562,33 +576,12 @@ impl GpuDeepShadow {
         let mut out = Vec::with_capacity(n);
         let mut steps = 0u64;
         for part in queries.chunks(max_q.max(1)) {
-            let u = self.uniform(&DsUniform {
-                r: map.r,
-                capacity: map.stats.capacity as u32,
-                n_items: 0,
-                n_queries: part.len() as u32,
-                epsilon: 0.0,
-                filter_mode: match ls.filter {
-                    Filter::First => 0,
-                    Filter::None => 1,
-                    Filter::Pcf => 2,
-                    Filter::Edsm => 3,
-                    Filter::Pcss => 4,
-                },
-                kernel: ls.kernel,
-                traversal: match ls.traversal {
-                    Traversal::Linked => 0,
-                    Traversal::Naive => 1,
-                },
-                c_world: ls.c_world,
-                near: ls.soft.near,
-                to_texels: ls.soft.to_texels,
-                max_taps: ls.soft.max_taps,
-                light_x: ls.soft.light.x,
-                light_y: ls.soft.light.y,
-                disk: ls.soft.disk as u32,
-                ortho: ls.soft.ortho as u32,
-            });
+            let u = self.uniform(&lookup_uniform(
+                map.r,
+                map.stats.capacity as u32,
+                part.len() as u32,
+                ls,
+            ));
             let q = self.storage("deep-shadow queries", bytemuck::cast_slice(part));
             let o = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("deep-shadow T"),
@@ -620,6 +613,43 @@ impl GpuDeepShadow {
             steps += ctx.read_buffer::<u32>(&map.counters, 8)?[1] as u64;
         }
         Ok((out, steps))
+    }
+}
+
+/// The uniform of a lookup of `n_queries` queries in an `r x r` map with element capacity
+/// `capacity` under `ls` (the lookup stages read nothing else of it).
+pub(crate) fn lookup_uniform(
+    r: u32,
+    capacity: u32,
+    n_queries: u32,
+    ls: &LookupSettings,
+) -> DsUniform {
+    DsUniform {
+        r,
+        capacity,
+        n_items: 0,
+        n_queries,
+        epsilon: 0.0,
+        filter_mode: match ls.filter {
+            Filter::First => 0,
+            Filter::None => 1,
+            Filter::Pcf => 2,
+            Filter::Edsm => 3,
+            Filter::Pcss => 4,
+        },
+        kernel: ls.kernel,
+        traversal: match ls.traversal {
+            Traversal::Linked => 0,
+            Traversal::Naive => 1,
+        },
+        c_world: ls.c_world,
+        near: ls.soft.near,
+        to_texels: ls.soft.to_texels,
+        max_taps: ls.soft.max_taps,
+        light_x: ls.soft.light.x,
+        light_y: ls.soft.light.y,
+        disk: ls.soft.disk as u32,
+        ortho: ls.soft.ortho as u32,
     }
 }
 

@@ -6,12 +6,16 @@
 pub mod cpu;
 pub mod dsm;
 #[cfg(feature = "gpu")]
+pub mod frame;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod params;
 pub mod raster;
 pub mod shared;
 
 pub use cpu::CpuDeepShadow;
+#[cfg(feature = "gpu")]
+pub use frame::DeepShadowFrame;
 #[cfg(feature = "gpu")]
 pub use gpu::GpuDeepShadow;
 pub use shadow_map_core::SoftShadowEstimator;

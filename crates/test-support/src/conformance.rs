@@ -499,6 +499,9 @@ pub struct FrameComparison {
     pub beyond: usize,
     /// Active receivers.
     pub active: usize,
+    /// Root mean square of dV over the active receivers (what `frame_loop`'s `rmse_vs_cpu`
+    /// bounds).
+    pub rmse: f64,
     /// The estimator's status words after the last frame (empty when it keeps none).
     pub status: Vec<u32>,
     /// The last frame's V.
@@ -558,7 +561,7 @@ pub fn frames_match_the_cpu_twin(
     let cpu = frame
         .cpu_twin(scene, receivers, &views)
         .unwrap_or_else(|e| panic!("{label}: CPU twin: {e}"));
-    let (mut max_dv, mut beyond, mut active) = (0.0f32, 0usize, 0usize);
+    let (mut max_dv, mut beyond, mut active, mut sq) = (0.0f32, 0usize, 0usize, 0.0f64);
     for (k, (&b, &c)) in bits.iter().zip(&cpu).enumerate() {
         let g = f32::from_bits(b);
         if !receivers.active[k] {
@@ -573,18 +576,21 @@ pub fn frames_match_the_cpu_twin(
             "{label}: V[{k}] = {g} (bits {b:#x})"
         );
         let d = (g - c).abs();
+        sq += d as f64 * d as f64;
         max_dv = max_dv.max(d);
         beyond += usize::from(d > Tolerance::TWIN.abs);
         active += 1;
     }
+    let rmse = (sq / active.max(1) as f64).sqrt();
     println!(
-        "{label}: frame API vs CPU twin, max |dV| {max_dv:.2e}, {beyond} of {active} beyond {:.0e}, status {status:?}",
+        "{label}: frame API vs CPU twin, max |dV| {max_dv:.2e}, rmse {rmse:.2e}, {beyond} of {active} beyond {:.0e}, status {status:?}",
         Tolerance::TWIN.abs
     );
     FrameComparison {
         max_dv,
         beyond,
         active,
+        rmse,
         status,
         v: bits.into_iter().map(f32::from_bits).collect(),
     }

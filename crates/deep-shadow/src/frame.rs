@@ -1,0 +1,431 @@
+//! Deep shadow maps on the engine path (issue 20): [`DeepShadowFrame`], prepared once, then each
+//! frame recorded into the caller's command encoder from the caller's casters and receiver buffer,
+//! V written into the caller's buffer; nothing submitted, waited for or read back.
+//!
+//! Per sub-light view, in turn (one view for the default S = 1):
+//! 1. the core's raster pass renders the casters into one R32Float layer
+//!    ([`GpuMapFrame`]: the hardware rasteriser, as every other engine path; the CPU twin's
+//!    opaque path reads the core's CPU raster of the same view). The hardware rasteriser snaps
+//!    vertices to sub-texel steps (8 bits on lavapipe), so a texel centre within about 1/256
+//!    texel of an edge can be covered here and not on the CPU, or the reverse: on thin strands
+//!    at 5 x 5 PCF, 4 of 659 receivers differ by one tap (`tests/gpu_twin.rs`). The twin's own
+//!    compute rasteriser follows the CPU's fill rule exactly, but takes triangles set up on the
+//!    CPU; moving that set-up and binning into a compute pass is not done;
+//! 2. `frame_head` turns the layer into the opaque path's head buffer (the nearest depth's bits,
+//!    `NIL` where empty);
+//! 3. `frame_lookup` makes each receiver's query on the GPU (the twin of [`crate::cpu::query`]:
+//!    facing, light-space position, projection, caster test) and adds its filtered transmittance
+//!    (`opaque_transmittance` in `deep_shadow.wgsl`, the twin's own lookup) into a per-receiver
+//!    sum.
+//!
+//! Then `frame_finish` writes `V = sum / views` ([`crate::cpu::finish`]).
+//!
+//! **Casters are opaque on this path**, as on every engine path (a [`GpuScene`](shadow_map_core::gpu::GpuScene) holds
+//! positions only): the frame is deep-shadow's opaque path, an ordinary shadow map per view read by the
+//! same filters (pcss, pcf, edsm, none, first). [`FrameEstimator::cpu_twin`] compares with the
+//! CPU twin on the scene made opaque. Lists of semi-transparent fragments on the frame path would
+//! need an opacity per caster beside the positions, and the twin's compute rasteriser with its
+//! triangle set-up and binning moved into a compute pass; not built.
+//!
+//! The status buffer (two u32, cleared by each `encode`): `[0]` receivers looked up at a texel
+//! outside their view's map (summed over views), `[1]` non-finite V written as 0.
+use crate::cpu::{lookup_settings, sublight_points, view_light, CpuDeepShadow, Tally};
+use crate::dsm::Filter;
+use crate::gpu::{dispatch, lookup_uniform, OWN_OVERRIDES};
+use crate::params::{Settings, NAME};
+use crate::shared::DsUniform;
+use baselines::gpu::map_estimator::CELLS_WGSL;
+use bytemuck::{Pod, Zeroable};
+use shadow_map_core::{
+    estimator::configure,
+    gpu::{
+        estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        frame::{buffer_range, check_buffers, status_buffer, FrameEstimator, FrameInputs},
+        kernel::{compute_pipeline, shader_module, Binding},
+        receivers::RECEIVER_BYTES,
+        shared::SHARED_WGSL,
+        GpuContext, GpuMapFrame, GpuShadowMapper,
+    },
+    raster::RasterOptions,
+    Error, LightView, Params, Receivers, Result, Scene,
+};
+use std::sync::Arc;
+
+/// The engine path's own WGSL (appended to [`FRAME_SHADER_PARTS`]' others).
+pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
+
+/// The engine path's module, in order: the core's shared structs, estimate uniform and math,
+/// the baselines' cells, [`crate::gpu::DEEP_SHADOW_WGSL`], then [`FRAME_WGSL`].
+pub const FRAME_SHADER_PARTS: &[&str] = &[
+    SHARED_WGSL,
+    ESTIMATE_WGSL,
+    MATH_WGSL,
+    CELLS_WGSL,
+    crate::gpu::DEEP_SHADOW_WGSL,
+    FRAME_WGSL,
+];
+
+// One workgroup size for the twin's `dispatch` and the core's `WG` override this module takes.
+const _: () = assert!(WORKGROUP_SIZE == crate::gpu::WORKGROUP_SIZE);
+
+/// The frame's settings as `frame.wgsl` reads them (`DsFrameUniform`), 32 bytes.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, Default)]
+pub struct DsFrameUniform {
+    /// Constant bias b0 ([`Settings::bias`]).
+    pub bias: f32,
+    /// Slope bias b1 ([`Settings::slope_bias`]).
+    pub slope_bias: f32,
+    /// 1: receiver-plane rejection ([`Settings::receiver_plane`]).
+    pub receiver_plane: u32,
+    /// 1: `filter=pcss`, whose facing factor is the fraction of the view's light in front.
+    pub pcss: u32,
+    /// Receivers this frame.
+    pub count: u32,
+    /// `1 / views`.
+    pub inv_views: f32,
+    /// Padding.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+}
+
+/// The bindings `frame.wgsl`'s entry points use: `deep_shadow.wgsl`'s uniform, head and
+/// elements, then the engine path's own.
+const BINDINGS: &[(u32, Binding)] = &[
+    (0, Binding::Uniform),
+    (3, Binding::StorageRw),
+    (4, Binding::StorageRw),
+    (8, Binding::Uniform),
+    (9, Binding::Uniform),
+    (10, Binding::Texture2d),
+    (11, Binding::Storage),
+    (12, Binding::StorageRw),
+    (13, Binding::StorageRw),
+    (14, Binding::StorageRw),
+    (15, Binding::Uniform),
+];
+
+/// Per view slot: the lookup uniform and the view's light.
+struct Slot {
+    ds: wgpu::Buffer,
+    light: wgpu::Buffer,
+}
+
+/// Deep shadow maps on the engine path (module documentation).
+pub struct DeepShadowFrame {
+    ctx: Arc<GpuContext>,
+    params: Params,
+    settings: Settings,
+    map: GpuMapFrame,
+    layout: wgpu::BindGroupLayout,
+    head_pipe: wgpu::ComputePipeline,
+    lookup_pipe: wgpu::ComputePipeline,
+    finish_pipe: wgpu::ComputePipeline,
+    head: wgpu::Buffer,
+    nodes: wgpu::Buffer,
+    slots: Vec<Slot>,
+    light: wgpu::Buffer,
+    frame: wgpu::Buffer,
+    acc: wgpu::Buffer,
+    status: wgpu::Buffer,
+    max_receivers: u32,
+}
+
+fn uniform_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+fn storage_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl DeepShadowFrame {
+    /// Compiles the pipelines and allocates the map (one view slot per sub-light), the head
+    /// buffer, the uniforms and the per-receiver sums for `max_receivers`, for `params` (a table
+    /// of deep-shadow's specs). Errors: the parameters' own, a resolution beyond the device's
+    /// limits ([`Error::Limit`]).
+    pub fn prepare(ctx: Arc<GpuContext>, params: &Params, max_receivers: u32) -> Result<Self> {
+        let settings = Settings::from_params(params)?;
+        let r = settings.resolution;
+        let texels = r as u64 * r as u64;
+        let head_bytes = 4 * texels;
+        let max_binding = ctx.limits().max_storage_buffer_binding_size;
+        if head_bytes > max_binding {
+            return Err(Error::Limit {
+                what: "deep-shadow head buffer bytes (max_storage_buffer_binding_size)",
+                requested: head_bytes,
+                max: max_binding,
+            });
+        }
+        let views = settings.sublights * settings.sublights;
+        let map =
+            GpuShadowMapper::new(&ctx)?.map_frame(&ctx, r, RasterOptions::default(), views)?;
+        let module = shader_module(&ctx, "deep-shadow frame", FRAME_SHADER_PARTS)?;
+        let layout = ctx.scoped("deep-shadow frame layout", || {
+            let entries: Vec<_> = BINDINGS.iter().map(|(k, b)| b.entry(*k)).collect();
+            ctx.device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("deep-shadow frame"),
+                    entries: &entries,
+                })
+        })?;
+        let overrides: Vec<(&str, f64)> = OVERRIDES.iter().chain(OWN_OVERRIDES).copied().collect();
+        let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, &overrides);
+        let (head_pipe, lookup_pipe, finish_pipe) =
+            (mk("frame_head")?, mk("frame_lookup")?, mk("frame_finish")?);
+        let ds_bytes = std::mem::size_of::<DsUniform>() as u64;
+        let est_bytes = std::mem::size_of::<EstimateUniform>() as u64;
+        let slots = (0..views)
+            .map(|_| Slot {
+                ds: uniform_buffer(&ctx, "deep-shadow frame lookup uniform", ds_bytes),
+                light: uniform_buffer(&ctx, "deep-shadow frame view light", est_bytes),
+            })
+            .collect();
+        Ok(DeepShadowFrame {
+            head: storage_buffer(&ctx, "deep-shadow frame head", head_bytes),
+            nodes: storage_buffer(&ctx, "deep-shadow frame elements (unused)", 32),
+            light: uniform_buffer(&ctx, "deep-shadow frame light", est_bytes),
+            frame: uniform_buffer(
+                &ctx,
+                "deep-shadow frame uniform",
+                std::mem::size_of::<DsFrameUniform>() as u64,
+            ),
+            acc: storage_buffer(&ctx, "deep-shadow frame sums", 4 * max_receivers as u64),
+            status: status_buffer(&ctx, "deep-shadow frame status", 2),
+            params: params.clone(),
+            settings,
+            map,
+            layout,
+            head_pipe,
+            lookup_pipe,
+            finish_pipe,
+            slots,
+            max_receivers,
+            ctx,
+        })
+    }
+
+    fn group(
+        &self,
+        ds: &wgpu::Buffer,
+        view: &wgpu::Buffer,
+        light: &wgpu::Buffer,
+        inputs: &FrameInputs<'_>,
+    ) -> wgpu::BindGroup {
+        let n = inputs.count.max(1) as u64;
+        let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+        self.ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("deep-shadow frame"),
+                layout: &self.layout,
+                entries: &[
+                    e(0, ds.as_entire_binding()),
+                    e(3, self.head.as_entire_binding()),
+                    e(4, self.nodes.as_entire_binding()),
+                    e(8, view.as_entire_binding()),
+                    e(9, light.as_entire_binding()),
+                    e(10, wgpu::BindingResource::TextureView(&self.map.layer.view)),
+                    e(11, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
+                    e(12, buffer_range(&self.acc, n * 4)),
+                    e(13, buffer_range(inputs.v, n * 4)),
+                    e(14, self.status.as_entire_binding()),
+                    e(15, self.frame.as_entire_binding()),
+                ],
+            })
+    }
+}
+
+fn run(
+    enc: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipe: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    threads: u64,
+) {
+    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipe);
+    pass.set_bind_group(0, group, &[]);
+    dispatch(&mut pass, threads);
+}
+
+impl FrameEstimator for DeepShadowFrame {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+
+    /// One view per sub-light point, as the estimator's `estimate` fits them
+    /// ([`Tally::fit_view`]: the filter margin, and under `filter=pcss` the reach of the view's
+    /// light). A sub-light no receiver is in front of fails the fit, as on the CPU.
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        let mut tally = Tally::default();
+        sublight_points(scene, self.settings.sublights)
+            .into_iter()
+            .map(|y| Ok(Some(tally.fit_view(scene, receivers, y, &self.settings)?.0)))
+            .collect()
+    }
+
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.status)
+    }
+
+    /// Per view: the raster pass, `frame_head`, `frame_lookup`; then `frame_finish`. Errors
+    /// also for views missing or more than the sub-lights ([`Error::LightView`]) and more
+    /// receivers than `max_receivers` ([`Error::Limit`]).
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+        let n = inputs.count as u64;
+        check_buffers(inputs.receivers, inputs.v, n)?;
+        if inputs.count > self.max_receivers {
+            return Err(Error::Limit {
+                what: "receivers per deep-shadow frame (max_receivers at prepare)",
+                requested: n,
+                max: self.max_receivers as u64,
+            });
+        }
+        let views: Vec<&LightView> = inputs.views.iter().flatten().collect();
+        if views.len() != inputs.views.len() || views.len() != self.slots.len() {
+            return Err(Error::LightView(format!(
+                "deep-shadow renders one view per sub-light ({}), {} given ({} present)",
+                self.slots.len(),
+                inputs.views.len(),
+                views.len()
+            )));
+        }
+        if let Some(v) = views.iter().find(|v| v.r != self.map.r) {
+            return Err(Error::LightView(format!(
+                "a sub-light view has resolution {} but the map was prepared at {}",
+                v.r, self.map.r
+            )));
+        }
+        let queue = &self.ctx.queue;
+        let s = &self.settings;
+        let light = inputs.light;
+        queue.write_buffer(
+            &self.light,
+            0,
+            bytemuck::bytes_of(&EstimateUniform::new(light, s.bias, s.slope_bias)),
+        );
+        let fu = DsFrameUniform {
+            bias: s.bias,
+            slope_bias: s.slope_bias,
+            receiver_plane: u32::from(s.receiver_plane),
+            pcss: u32::from(s.filter == Filter::Pcss),
+            count: inputs.count,
+            inv_views: 1.0 / views.len().max(1) as f32,
+            ..Default::default()
+        };
+        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&fu));
+        enc.clear_buffer(&self.status, 0, None);
+        enc.clear_buffer(&self.acc, 0, None);
+        if n == 0 {
+            return Ok(());
+        }
+        let texels = self.map.r as u64 * self.map.r as u64;
+        for (slot, (view, bufs)) in views.iter().zip(&self.slots).enumerate() {
+            let ls = lookup_settings(view, light, s);
+            queue.write_buffer(
+                &bufs.ds,
+                0,
+                bytemuck::bytes_of(&lookup_uniform(view.r, 0, inputs.count, &ls)),
+            );
+            let vl = view_light(light, view, s.sublights);
+            queue.write_buffer(
+                &bufs.light,
+                0,
+                bytemuck::bytes_of(&EstimateUniform::new(&vl, s.bias, s.slope_bias)),
+            );
+            self.map.encode(queue, enc, inputs.casters, view, slot)?;
+            let group = self.group(&bufs.ds, self.map.view_uniform(slot), &bufs.light, inputs);
+            run(
+                enc,
+                "deep-shadow frame head",
+                &self.head_pipe,
+                &group,
+                texels,
+            );
+            run(
+                enc,
+                "deep-shadow frame lookup",
+                &self.lookup_pipe,
+                &group,
+                n,
+            );
+        }
+        let group = self.group(
+            &self.slots[0].ds,
+            self.map.view_uniform(0),
+            &self.light,
+            inputs,
+        );
+        run(
+            enc,
+            "deep-shadow frame finish",
+            &self.finish_pipe,
+            &group,
+            n,
+        );
+        Ok(())
+    }
+
+    /// One per sub-light.
+    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
+        views.iter().flatten().count() as u32
+    }
+
+    /// The CPU twin in the same views, on the scene with every mesh opaque (the casters the
+    /// frame sees).
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>> {
+        let mut opaque = scene.clone();
+        for m in &mut opaque.meshes {
+            m.opacity = 1.0;
+        }
+        let views: Vec<LightView> = views.iter().flatten().copied().collect();
+        let mut e = CpuDeepShadow::new()?;
+        configure(&mut e, &self.params)?;
+        let mut v = vec![0.0; receivers.len()];
+        e.estimate_in_views(&opaque, receivers, &views, &mut v)?;
+        Ok(v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_uniform_matches_the_wgsl_layout() {
+        let src = shadow_map_core::gpu::kernel::shader_source(FRAME_SHADER_PARTS);
+        shadow_map_core::assert_wgsl_layout!(
+            src,
+            DsFrameUniform {
+                bias,
+                slope_bias,
+                receiver_plane,
+                pcss,
+                count,
+                inv_views,
+                _pad0,
+                _pad1,
+            }
+        );
+    }
+}

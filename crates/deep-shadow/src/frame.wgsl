@@ -1,0 +1,112 @@
+// Deep shadow maps on the engine path (frame.rs, DeepShadowFrame): the caster map of each
+// sub-light view comes from the core's raster pass (an R32Float layer, +inf where empty); its
+// depths go into head[] as the opaque path's bits (`frame_head`); each receiver's query is made
+// here from the caller's receiver buffer, the twin of cpu.rs `query` and gpu.rs `pack_query`
+// (`frame_lookup`, which adds the view's transmittance into acc); `frame_finish` writes V, the
+// twin of cpu.rs `finish`. Appended after the core's shared.wgsl, estimate.wgsl and math.wgsl,
+// the baselines' cells.wgsl and deep_shadow.wgsl (bindings 0 to 7; the engine path binds 0, 3
+// and 4).
+
+// Mirrors frame.rs DsFrameUniform field for field.
+struct DsFrameUniform {
+    bias: f32,
+    slope_bias: f32,
+    receiver_plane: u32,
+    pcss: u32,
+    count: u32,
+    inv_views: f32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+@group(0) @binding(8) var<uniform> fview: LightViewUniform;
+// The view's light (cpu.rs view_light) in frame_lookup, the scene's light in frame_finish.
+@group(0) @binding(9) var<uniform> flight: EstimateUniform;
+@group(0) @binding(10) var depth_map: texture_2d<f32>;
+@group(0) @binding(11) var<storage, read> receivers: array<ReceiverGpu>;
+@group(0) @binding(12) var<storage, read_write> acc: array<f32>;
+@group(0) @binding(13) var<storage, read_write> v_out: array<u32>;
+// [0]: looked-up receivers whose texel lies outside the map (per view); [1]: non-finite V.
+@group(0) @binding(14) var<storage, read_write> status: array<atomic<u32>, 2>;
+@group(0) @binding(15) var<uniform> F: DsFrameUniform;
+
+// The map's depth at texel t as the opaque path's head: its bits, NIL where empty.
+@compute @workgroup_size(WG)
+fn frame_head(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+              @builtin(local_invocation_id) lid: vec3<u32>) {
+    let t = linear_id(wid, nwg, lid);
+    if (t >= P.r * P.r) { return; }
+    let z = textureLoad(depth_map, vec2<i32>(i32(t % P.r), i32(t / P.r)), 0).x;
+    atomicStore(&head[t], select(NIL, bitcast<u32>(z), is_finite(z)));
+}
+
+// cpu.rs facing: 1 or 0 by the side of the tangent plane the view's point (the sun: -e_z) lies
+// on; under filter=pcss the fraction of the view's light in front of it.
+fn frame_facing(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
+    if (F.pcss != 0u) {
+        return front_fraction_world(flight, pw, nw);
+    }
+    var towards = fview.frame.origin - pw;
+    if (fview.ortho != 0u) {
+        towards = -fview.frame.ez;
+    }
+    return select(0.0, 1.0, dot3(nw, towards) > 0.0);
+}
+
+// cpu.rs query, packed as gpu.rs pack_query: (u, v, z_p, fixed) and the caster test.
+fn frame_query(pw: vec3<f32>, nw: vec3<f32>) -> array<vec4<f32>, 2> {
+    var q = array<vec4<f32>, 2>(vec4<f32>(0.0), vec4<f32>(0.0));
+    let facing = frame_facing(pw, nw);
+    if (!(facing > 0.0)) { return q; }
+    let p = view_to_light(fview, pw);
+    if (!(p.z > 0.0)) { return q; }
+    if (p.z <= fview.n) {
+        q[0].w = facing;
+        return q;
+    }
+    let n = view_dir_to_light(fview, nw);
+    let uv = project(fview, p);
+    let rp = plane_new(F.receiver_plane != 0u, fview, p, n, F.bias, F.slope_bias, 0.0);
+    q[0] = vec4<f32>(uv, rp.zp, -facing);
+    if (fview.ortho != 0u) {
+        q[1] = vec4<f32>(rp.g0, rp.cu, rp.cv, rp.c);
+    } else {
+        q[1] = vec4<f32>(rp.g0, rp.gu, rp.gv, rp.c);
+    }
+    if (!view_contains(fview, uv)) { atomicAdd(&status[0], 1u); }
+    return q;
+}
+
+// One receiver per invocation: its transmittance in this view, added into acc.
+@compute @workgroup_size(WG)
+fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                @builtin(local_invocation_id) lid: vec3<u32>) {
+    let k = linear_id(wid, nwg, lid);
+    if (k >= F.count || receivers[k].is_active == 0u) { return; }
+    let q = frame_query(receivers[k].position, receivers[k].normal);
+    acc[k] += opaque_transmittance(q[0], q[1]);
+}
+
+// cpu.rs finish: V = acc / views clamped to [0, 1] (NaN for inactive receivers, 0 behind a
+// one-sided light); a non-finite V is written as 0 and counted.
+@compute @workgroup_size(WG)
+fn frame_finish(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                @builtin(local_invocation_id) lid: vec3<u32>) {
+    let k = linear_id(wid, nwg, lid);
+    if (k >= F.count) { return; }
+    if (receivers[k].is_active == 0u) {
+        v_out[k] = NAN_BITS;
+        return;
+    }
+    if (flight.light_one_sided != 0u && frame_to_light(flight.light_frame, receivers[k].position).z <= 0.0) {
+        v_out[k] = 0u;
+        return;
+    }
+    let x = acc[k] * F.inv_views;
+    if (is_finite(x)) {
+        v_out[k] = bitcast<u32>(clamp(x, 0.0, 1.0));
+    } else {
+        v_out[k] = 0u;
+        atomicAdd(&status[1], 1u);
+    }
+}
