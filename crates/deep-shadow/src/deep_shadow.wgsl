@@ -56,9 +56,12 @@ struct DsUniform {
     ortho: u32,
 }
 
+// gpu.rs COUNTER_BYTES. `wraps` counts the element counter's wraps past u32::MAX (gpu.rs turns
+// any into Error::Limit).
 struct Counters {
     count: atomic<u32>,
     steps: atomic<u32>,
+    wraps: atomic<u32>,
 }
 
 @group(0) @binding(0) var<uniform> P: DsUniform;
@@ -150,6 +153,7 @@ fn raster_item(k: u32, mode: u32) {
             }
             // Listing 1.2: allocate with the counter, write, exchange the head.
             let e = atomicAdd(&counters.count, 1u);
+            if (e == 0xffffffffu) { atomicAdd(&counters.wraps, 1u); }
             if (e >= P.capacity) { continue; } // overflow: counted, never linked
             nodes[e].depth = z;
             nodes[e].alpha = t.alpha;

@@ -12,7 +12,10 @@
 //!
 //! Stages: `clear` (head = NIL), `raster` (Listing 1.2: `atomicAdd` on the counter,
 //! `atomicExchange` on the head; past the capacity only the counter moves), a counter readback
-//! (capacity check: grow and rebuild, or [`Error::Limit`]), `process` (sort, tau, prev, truncation),
+//! (capacity check: grow and rebuild, or [`Error::Limit`]; the counter is a u32, so the
+//! invocation that takes index `u32::MAX` also counts a wrap in a third word, and a wrapped pass
+//! needs more than `u32::MAX` elements: [`Error::Limit`], never a wrapped count taken for a small
+//! one), `process` (sort, tau, prev, truncation),
 //! `link`, then `lookup` per receiver. The receivers' light-space queries (texel coordinates,
 //! caster test, facing) are computed on the CPU with the CPU twin's code
 //! ([`crate::cpu::query`]) and uploaded. A fully opaque scene takes `raster_opaque` (an
@@ -104,7 +107,14 @@ pub struct GpuDeepShadow {
     settings: Settings,
     report: Report,
     pipes: Pipelines,
+    /// The fragment counter's value before each raster pass: 0, except in tests that reach the
+    /// u32 wrap without 2^32 fragments ([`GpuDeepShadow::set_counter_start`]).
+    counter_start: u32,
 }
+
+/// Bytes of the counter buffer: the element counter, the step counter, the element counter's
+/// wraps (`Counters` in `deep_shadow.wgsl`).
+pub const COUNTER_BYTES: u64 = 12;
 
 pub(crate) fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
     let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
@@ -157,7 +167,15 @@ impl GpuDeepShadow {
             params,
             report: Report::default(),
             pipes,
+            counter_start: 0,
         })
+    }
+
+    /// Tests only: start the list builds' fragment counter at `start` instead of 0, so that a
+    /// small scene reaches the u32 wrap a scene of 2^32 fragments would.
+    #[doc(hidden)]
+    pub fn set_counter_start(&mut self, start: u32) {
+        self.counter_start = start;
     }
 
     /// The current settings.
@@ -295,7 +313,10 @@ impl GpuDeepShadow {
             });
             let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
             self.run_raster(&group, &counters, texels, items.len() as u64, opaque)?;
-            let count = ctx.read_buffer::<u32>(&counters, 8)?[0] as u64;
+            let c = ctx.read_buffer::<u32>(&counters, COUNTER_BYTES)?;
+            // Elements asked for: the wraps of the u32 counter (from the invocation that took
+            // index u32::MAX) above its last value.
+            let count = (c[2] as u64) << 32 | c[0] as u64;
             if opaque || count <= capacity {
                 map.stats = BuildStats {
                     fragments: count,
@@ -336,7 +357,8 @@ impl GpuDeepShadow {
         Ok(())
     }
 
-    /// Creates the head buffer (one entry per texel) and the two-word counter buffer.
+    /// Creates the head buffer (one entry per texel) and the counter buffer ([`COUNTER_BYTES`]:
+    /// elements, steps, wraps of the element counter).
     fn head_and_counters(&self, texels: u64) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
         let ctx = &self.ctx;
         let head = ctx.scoped("deep-shadow head", || {
@@ -349,7 +371,7 @@ impl GpuDeepShadow {
         })?;
         let counters = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("deep-shadow counters"),
-            size: 8,
+            size: COUNTER_BYTES,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
@@ -384,6 +406,18 @@ impl GpuDeepShadow {
         ctx.scoped("deep-shadow raster", || {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             enc.clear_buffer(counters, 0, None);
+            if self.counter_start != 0 {
+                // The clear above runs first; this copy lands after it in the same encoder.
+                let start = [self.counter_start, 0, 0];
+                let staging = ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("deep-shadow counter start"),
+                        contents: bytemuck::cast_slice(&start),
+                        usage: wgpu::BufferUsages::COPY_SRC,
+                    });
+                enc.copy_buffer_to_buffer(&staging, 0, counters, 0, COUNTER_BYTES);
+            }
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("deep-shadow build"),
@@ -503,7 +537,7 @@ impl GpuDeepShadow {
                 "ceiling elements",
                 n as u64 * std::mem::size_of::<Node>() as u64,
             ),
-            counters: mk("ceiling counters", 8),
+            counters: mk("ceiling counters", COUNTER_BYTES),
             opaque: false,
             stats: BuildStats::default(),
         };

@@ -443,6 +443,40 @@ fn gpu_capacity_grows_or_fails_with_a_typed_error() {
     }
 }
 
+/// The element counter is a u32 (issue 21): a pass past 2^32 fragments used to wrap, the wrapped
+/// indices overwrote live elements and the wrapped count passed the capacity check. Started just
+/// below the wrap (`set_counter_start`), the build is refused with the true need.
+#[test]
+fn gpu_counter_wrap_is_a_limit_error() {
+    let Some(ctx) = test_support::gpu("gpu_counter_wrap_is_a_limit_error") else {
+        return;
+    };
+    let (scene, rec) = fixture("strands", 32, 24);
+    let mut g = GpuDeepShadow::new(ctx).unwrap();
+    let mut s = settings();
+    s.resolution = 64;
+    let (v, _) = sublight_view(&scene, &rec, Vec2::ZERO, 64, 0).unwrap();
+    let full = g.build_map(&scene, &v, &s).unwrap();
+    assert!(full.stats.fragments > 100, "{}", full.stats.fragments);
+    let start = u32::MAX - 10;
+    g.set_counter_start(start);
+    match g.build_map(&scene, &v, &s) {
+        Err(Error::Limit { requested, max, .. }) => {
+            assert_eq!(requested, start as u64 + full.stats.fragments);
+            assert!(max < u32::MAX as u64);
+        }
+        Err(e) => panic!("expected a limit error, got {e}"),
+        Ok(m) => panic!(
+            "a wrapped counter was taken for {} fragments",
+            m.stats.fragments
+        ),
+    }
+    // Below the wrap the same start is an ordinary need: grown, then built (from 0 again).
+    g.set_counter_start(0);
+    let again = g.build_map(&scene, &v, &s).unwrap();
+    compare_maps(&g.read_map(&full).unwrap(), &g.read_map(&again).unwrap()).unwrap();
+}
+
 /// Every `fit` x `nearfar` combination on a semi-transparent fixture (deep lists) and an opaque
 /// one, through both estimators, with a filter margin (`pcf`/`edsm`, the stable fit's lattice
 /// margin included): V in [0, 1] and finite for every active receiver, within 1e-4 of the CPU
