@@ -54,14 +54,21 @@ struct DsUniform {
     light_y: f32,
     disk: u32,
     ortho: u32,
+    probe: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // gpu.rs COUNTER_BYTES. `wraps` counts the element counter's wraps past u32::MAX (gpu.rs turns
-// any into Error::Limit).
+// any into Error::Limit); `cut` the invocations the device's loop budget cut short (shared.wgsl
+// loop_limit_hit): texels of process/link (gpu.rs then builds the map with the CPU twin) or
+// lookups (written as CUT_BITS, redone on the CPU).
 struct Counters {
     count: atomic<u32>,
     steps: atomic<u32>,
     wraps: atomic<u32>,
+    cut: atomic<u32>,
 }
 
 @group(0) @binding(0) var<uniform> P: DsUniform;
@@ -250,6 +257,9 @@ fn process(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         prev = e;
         e = nodes[e].next;
     }
+    // Out of the device's loop budget (a long list's selection sort): counted; gpu.rs replaces
+    // the whole map by the CPU twin's.
+    if (loop_limit_hit(P.probe)) { atomicAdd(&counters.cut, 1u); }
 }
 
 // The depth-nearest element of list `b` for every element of list `a` (ties to the shallower).
@@ -290,6 +300,7 @@ fn link(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
     if (j + 1u < r) { upper = atomicLoad(&head[t + r]); }
     link_list(h, right, false);
     link_list(h, upper, true);
+    if (loop_limit_hit(P.probe)) { atomicAdd(&counters.cut, 1u); }
 }
 
 // The slope g and height c of the caster test at the centre of texel (i, j): q1 = (g0, gu, gv, c)
@@ -466,7 +477,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     if (P.filter_mode == FILTER_PCSS) {
         let tt = soft_transmittance(q, q1, false);
         atomicAdd(&counters.steps, tt.steps);
-        out_t[q_id] = -q.w * tt.t;
+        out_t[q_id] = lookup_result(-q.w * tt.t);
         return;
     }
     let r = i32(P.r);
@@ -533,7 +544,17 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         }
     }
     atomicAdd(&counters.steps, steps);
-    out_t[q_id] = -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
+    out_t[q_id] = lookup_result(-q.w * clamp(sum / f32(n * n), 0.0, 1.0));
+}
+
+// A lookup's result, or CUT_BITS (counted) when the device's loop budget cut the invocation
+// short (long lists under the naive walk, large kernels): gpu.rs redoes it on the CPU.
+fn lookup_result(t: f32) -> f32 {
+    if (loop_limit_hit(P.probe)) {
+        atomicAdd(&counters.cut, 1u);
+        return bitcast<f32>(CUT_BITS);
+    }
+    return t;
 }
 
 // The opaque path's transmittance of one query (q0 = (u, v, z_p, fixed), q1 the caster test;
@@ -579,7 +600,7 @@ fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
                  @builtin(local_invocation_id) lid: vec3<u32>) {
     let q_id = linear_id(wid, nwg, lid);
     if (q_id >= P.n_queries) { return; }
-    out_t[q_id] = opaque_transmittance(queries[2u * q_id], queries[2u * q_id + 1u]);
+    out_t[q_id] = lookup_result(opaque_transmittance(queries[2u * q_id], queries[2u * q_id + 1u]));
 }
 
 // The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one

@@ -27,8 +27,11 @@
 //! need an opacity per caster beside the positions, and the twin's compute rasteriser with its
 //! triangle set-up and binning moved into a compute pass; not built.
 //!
-//! The status buffer (two u32, cleared by each `encode`): `[0]` receivers looked up at a texel
-//! outside their view's map (summed over views), `[1]` non-finite V written as 0.
+//! The status buffer (three u32, cleared by each `encode`): `[0]` receivers looked up at a texel
+//! outside their view's map (summed over views), `[1]` non-finite V written as 0, `[2]`
+//! receivers the device's loop budget cut short (`loop_limit_hit`, lavapipe's 65535 loop
+//! iterations per invocation: PCSS's blocker search and filter at large kernels): V left NaN,
+//! for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same views).
 use crate::cpu::{lookup_settings, sublight_points, view_light, CpuDeepShadow, Tally};
 use crate::dsm::Filter;
 use crate::gpu::{dispatch, lookup_uniform, OWN_OVERRIDES};
@@ -202,7 +205,7 @@ impl DeepShadowFrame {
                 std::mem::size_of::<DsFrameUniform>() as u64,
             ),
             acc: storage_buffer(&ctx, "deep-shadow frame sums", 4 * max_receivers as u64),
-            status: status_buffer(&ctx, "deep-shadow frame status", 2),
+            status: status_buffer(&ctx, "deep-shadow frame status", 3),
             params: params.clone(),
             settings,
             map,

@@ -27,7 +27,7 @@ struct DsFrameUniform {
 @group(0) @binding(12) var<storage, read_write> acc: array<f32>;
 @group(0) @binding(13) var<storage, read_write> v_out: array<u32>;
 // [0]: looked-up receivers whose texel lies outside the map (per view); [1]: non-finite V.
-@group(0) @binding(14) var<storage, read_write> status: array<atomic<u32>, 2>;
+@group(0) @binding(14) var<storage, read_write> status: array<atomic<u32>, 3>;
 @group(0) @binding(15) var<uniform> F: DsFrameUniform;
 
 // The map's depth at texel t as the opaque path's head: its bits, NIL where empty.
@@ -83,8 +83,17 @@ fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
                 @builtin(local_invocation_id) lid: vec3<u32>) {
     let k = linear_id(wid, nwg, lid);
     if (k >= F.count || receivers[k].is_active == 0u) { return; }
+    // Cut short in an earlier view: stays cut.
+    if (bitcast<u32>(acc[k]) == CUT_BITS) { return; }
     let q = frame_query(receivers[k].position, receivers[k].normal);
-    acc[k] += opaque_transmittance(q[0], q[1]);
+    let t = opaque_transmittance(q[0], q[1]);
+    // Out of the device's loop budget (shared.wgsl): marked, counted, V left NaN by frame_finish.
+    if (loop_limit_hit(P.probe)) {
+        acc[k] = bitcast<f32>(CUT_BITS);
+        atomicAdd(&status[2], 1u);
+        return;
+    }
+    acc[k] += t;
 }
 
 // cpu.rs finish: V = acc / views clamped to [0, 1] (NaN for inactive receivers, 0 behind a
@@ -100,6 +109,10 @@ fn frame_finish(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
     }
     if (flight.light_one_sided != 0u && frame_to_light(flight.light_frame, receivers[k].position).z <= 0.0) {
         v_out[k] = 0u;
+        return;
+    }
+    if (bitcast<u32>(acc[k]) == CUT_BITS) {
+        v_out[k] = NAN_BITS;
         return;
     }
     let x = acc[k] * F.inv_views;

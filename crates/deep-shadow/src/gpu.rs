@@ -31,9 +31,11 @@ use glam::Vec2;
 use shadow_map_core::{
     gpu::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
+        shared::{CUT_BITS, LOOP_PROBE, SHARED_WGSL},
         GpuContext,
     },
-    Error, LightView, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    raster::DepthMap,
+    Error, LightView, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 use wgpu::util::DeviceExt;
@@ -48,9 +50,9 @@ pub const SHADERS: &[(&str, &[&str])] = &[
 ];
 
 /// The WGSL parts of the module, in order: the workgroup size's declaration ([`WG_WGSL`]), the
-/// baselines' `cells` and Kahan `Sum` (the PCSS sampling `filter=pcss` shares), then
+/// core's shared structs and loop-budget probe ([`SHARED_WGSL`]), the baselines' `cells` and Kahan `Sum` (the PCSS sampling `filter=pcss` shares), then
 /// [`DEEP_SHADOW_WGSL`].
-pub const SHADER_PARTS: &[&str] = &[WG_WGSL, CELLS_WGSL, DEEP_SHADOW_WGSL];
+pub const SHADER_PARTS: &[&str] = &[WG_WGSL, SHARED_WGSL, CELLS_WGSL, DEEP_SHADOW_WGSL];
 
 /// The workgroup size's declaration, `override WG` ([`WORKGROUP_SIZE`]): its own part, since the
 /// engine path's module takes it from the core's `estimate.wgsl` instead.
@@ -97,6 +99,9 @@ pub struct GpuMap {
     pub opaque: bool,
     /// Build statistics (`kept` and `max_len` are not measured on the GPU).
     pub stats: BuildStats,
+    /// Texels whose `process` or `link` the device's loop budget cut short ([`LOOP_LIMIT`]); when
+    /// non-zero the lists are the CPU twin's, built for this view and uploaded.
+    pub cut_texels: u64,
 }
 
 /// Deep shadow maps through wgpu; see the module documentation.
@@ -112,9 +117,19 @@ pub struct GpuDeepShadow {
     counter_start: u32,
 }
 
+/// Why a stage can be cut short: some devices bound the loop iterations of one shader invocation
+/// (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run), which would
+/// silently leave a long list half sorted or a lookup's walk half done. Every stage that loops over
+/// lists ends with the core's two-trip probe (`loop_limit_hit`) and counts a cut: a cut `process`
+/// or `link` texel makes [`GpuDeepShadow::build_map`] build that view's map with the CPU twin and
+/// upload it in the GPU's layout; a cut lookup is written as `CUT_BITS` and redone by
+/// [`GpuDeepShadow::lookup`] with the CPU twin's lookup on the same map (both reported as
+/// `loop_limit_cpu_fallbacks`).
+pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
+
 /// Bytes of the counter buffer: the element counter, the step counter, the element counter's
-/// wraps (`Counters` in `deep_shadow.wgsl`).
-pub const COUNTER_BYTES: u64 = 12;
+/// wraps, the invocations cut short by the loop budget (`Counters` in `deep_shadow.wgsl`).
+pub const COUNTER_BYTES: u64 = 16;
 
 pub(crate) fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
     let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
@@ -297,6 +312,7 @@ impl GpuDeepShadow {
                 counters: counters.clone(),
                 opaque,
                 stats: BuildStats::default(),
+                cut_texels: 0,
             };
             let u = self.uniform(&DsUniform {
                 r,
@@ -309,6 +325,7 @@ impl GpuDeepShadow {
                 traversal: 0,
                 c_world: 0.0,
                 ortho: u32::from(view.is_ortho()),
+                probe: LOOP_PROBE,
                 ..Default::default()
             });
             let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
@@ -327,6 +344,10 @@ impl GpuDeepShadow {
                 // Process and link (§1.3.2, §1.3.3).
                 if !opaque {
                     self.run_process_link(&group, texels)?;
+                    let cut = ctx.read_buffer::<u32>(&counters, COUNTER_BYTES)?[3] as u64;
+                    if cut > 0 {
+                        self.upload_cpu_lists(scene, view, s, &mut map, cut)?;
+                    }
                 }
                 ctx.wait()?;
                 return Ok(map);
@@ -341,6 +362,35 @@ impl GpuDeepShadow {
             }
             capacity = count;
         }
+    }
+
+    /// The loop budget cut `cut` texels' `process` or `link` short ([`LOOP_LIMIT`]): the CPU
+    /// twin builds, processes and links the lists of `view` ([`crate::cpu::build_deep_map`]) and
+    /// they replace `map`'s head and element buffers (the same layout, [`Node`]).
+    fn upload_cpu_lists(
+        &self,
+        scene: &Scene,
+        view: &LightView,
+        s: &Settings,
+        map: &mut GpuMap,
+        cut: u64,
+    ) -> Result<()> {
+        let ctx = &self.ctx;
+        let dsm = crate::cpu::build_deep_map(scene, view, s)?;
+        ctx.queue
+            .write_buffer(&map.head, 0, bytemuck::cast_slice(&dsm.head));
+        let nodes = self.element_buffer(dsm.nodes.len().max(1) as u64)?;
+        if !dsm.nodes.is_empty() {
+            ctx.queue
+                .write_buffer(&nodes, 0, bytemuck::cast_slice(&dsm.nodes));
+        }
+        map.nodes = nodes;
+        map.stats = BuildStats {
+            passes: map.stats.passes,
+            ..dsm.stats
+        };
+        map.cut_texels = cut;
+        Ok(())
     }
 
     /// Fails with [`Error::Limit`] when the `texels`-entry head buffer exceeds what the device
@@ -365,7 +415,9 @@ impl GpuDeepShadow {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("deep-shadow head"),
                 size: texels * 4,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         })?;
@@ -387,7 +439,9 @@ impl GpuDeepShadow {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("deep-shadow elements"),
                 size: capacity * std::mem::size_of::<Node>() as u64,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         })
@@ -408,7 +462,8 @@ impl GpuDeepShadow {
             enc.clear_buffer(counters, 0, None);
             if self.counter_start != 0 {
                 // The clear above runs first; this copy lands after it in the same encoder.
-                let start = [self.counter_start, 0, 0];
+                let mut start = [0u32; COUNTER_BYTES as usize / 4];
+                start[0] = self.counter_start;
                 let staging = ctx
                     .device
                     .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -540,6 +595,7 @@ impl GpuDeepShadow {
             counters: mk("ceiling counters", COUNTER_BYTES),
             opaque: false,
             stats: BuildStats::default(),
+            cut_texels: 0,
         };
         let u = self.uniform(&DsUniform {
             r,
@@ -592,19 +648,21 @@ impl GpuDeepShadow {
         })
     }
 
-    /// Filtered transmittance for each packed query ([`pack_query`]; fixed >= 0: no lookup), and
-    /// the list elements visited.
+    /// Filtered transmittance for each packed query ([`pack_query`]; fixed >= 0: no lookup), the
+    /// list elements visited, and how many lookups the device's loop budget cut short and the
+    /// CPU twin's lookup redid on the same map ([`LOOP_LIMIT`]).
     pub fn lookup(
         &self,
         map: &GpuMap,
         ls: &LookupSettings,
         queries: &[PackedQuery],
-    ) -> Result<(Vec<f32>, u64)> {
+    ) -> Result<(Vec<f32>, u64, usize)> {
         let ctx = &self.ctx;
         let n = queries.len();
         if n == 0 {
-            return Ok((Vec::new(), 0));
+            return Ok((Vec::new(), 0, 0));
         }
+        let mut counted = 0usize;
         let max_q = (ctx.limits().max_storage_buffer_binding_size as usize)
             / std::mem::size_of::<PackedQuery>();
         let mut out = Vec::with_capacity(n);
@@ -627,7 +685,8 @@ impl GpuDeepShadow {
             let group = self.group(&u, &dummy, &dummy, map, &q, &o);
             ctx.scoped("deep-shadow lookup", || {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
-                enc.clear_buffer(&map.counters, 4, Some(4));
+                // Steps, wraps (unused here) and cut lookups.
+                enc.clear_buffer(&map.counters, 4, Some(COUNTER_BYTES - 4));
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                         label: Some("deep-shadow lookup"),
@@ -644,9 +703,73 @@ impl GpuDeepShadow {
                 ctx.queue.submit([enc.finish()]);
             })?;
             out.extend(ctx.read_buffer::<f32>(&o, (part.len() * 4) as u64)?);
-            steps += ctx.read_buffer::<u32>(&map.counters, 8)?[1] as u64;
+            let c = ctx.read_buffer::<u32>(&map.counters, COUNTER_BYTES)?;
+            steps += c[1] as u64;
+            counted += c[3] as usize;
         }
-        Ok((out, steps))
+        let redone = self.redo_cut_lookups(map, ls, queries, &mut out, counted)?;
+        Ok((out, steps, redone))
+    }
+
+    /// Lookups written as `CUT_BITS` ([`LOOP_LIMIT`]): the CPU twin's lookup on the same map,
+    /// read back once. `counted` is the kernel's own count; a mismatch with the flags is an
+    /// [`Error::Gpu`].
+    fn redo_cut_lookups(
+        &self,
+        map: &GpuMap,
+        ls: &LookupSettings,
+        queries: &[PackedQuery],
+        out: &mut [f32],
+        counted: usize,
+    ) -> Result<usize> {
+        let cut: Vec<usize> = (0..out.len())
+            .filter(|&k| out[k].to_bits() == CUT_BITS)
+            .collect();
+        if cut.len() != counted {
+            return Err(Error::Gpu {
+                stage: "deep-shadow lookup".into(),
+                reason: format!(
+                    "{counted} lookups counted as cut short by the loop limit, {} flagged",
+                    cut.len()
+                ),
+            });
+        }
+        if cut.is_empty() {
+            return Ok(0);
+        }
+        let lists = if map.opaque {
+            None
+        } else {
+            Some(self.read_map(map)?)
+        };
+        let depth = if map.opaque {
+            let head: Vec<u32> = self.ctx.read_buffer(&map.head, map.head.size())?;
+            Some(DepthMap {
+                size: map.r,
+                depth: head
+                    .into_iter()
+                    .map(|b| {
+                        if b == crate::shared::NIL {
+                            f32::INFINITY
+                        } else {
+                            f32::from_bits(b)
+                        }
+                    })
+                    .collect(),
+            })
+        } else {
+            None
+        };
+        for &k in &cut {
+            let (uv, plane, facing) = unpack_look(&queries[k], ls.soft.ortho);
+            let t = match (&lists, &depth) {
+                (Some(dsm), _) => dsm.transmittance_plane(uv, &plane, ls).0,
+                (None, Some(m)) => crate::dsm::transmittance_opaque_plane(m, uv, &plane, ls),
+                (None, None) => unreachable!("one of the two maps is read"),
+            };
+            out[k] = facing * t;
+        }
+        Ok(cut.len())
     }
 }
 
@@ -684,6 +807,8 @@ pub(crate) fn lookup_uniform(
         light_y: ls.soft.light.y,
         disk: ls.soft.disk as u32,
         ortho: ls.soft.ortho as u32,
+        probe: LOOP_PROBE,
+        ..Default::default()
     }
 }
 
@@ -715,6 +840,28 @@ pub fn pack_query(q: Query) -> PackedQuery {
     }
 }
 
+/// The lookup a packed `Look` query holds (the inverse of [`pack_query`]): texel coordinates,
+/// the caster test (`ortho`: the plane's `(cu, cv)`, else `(gu, gv)`), the facing factor.
+pub fn unpack_look(q: &PackedQuery, ortho: bool) -> (Vec2, ReceiverPlane, f32) {
+    let (a, b) = (q[5], q[6]);
+    let (gu, gv, cu, cv) = if ortho {
+        (0.0, 0.0, a, b)
+    } else {
+        (a, b, 0.0, 0.0)
+    };
+    let plane = ReceiverPlane {
+        g0: q[4],
+        gu,
+        gv,
+        c: q[7],
+        cu,
+        cv,
+        zp: q[2],
+        hs: 0.0,
+    };
+    (Vec2::new(q[0], q[1]), plane, -q[3])
+}
+
 /// The packed query of a lookup at `uv` with the plain depth test `z < d`
 /// ([`crate::dsm::depth_test`]).
 pub fn pack_depth_query(uv: Vec2, d: f32) -> PackedQuery {
@@ -744,6 +891,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
         let mut acc = vec![0.0f32; receivers.len()];
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let mut tally = Tally::default();
+        let (mut fallbacks, mut cut_texels) = (0usize, 0u64);
         for y in &points {
             let t = Instant::now();
             let (view, _) = tally.fit_view(scene, receivers, *y, &s)?;
@@ -773,7 +921,9 @@ impl SoftShadowEstimator for GpuDeepShadow {
                 })
                 .collect();
             let ls = lookup_settings(&view, &scene.light, &s);
-            let (tv, steps) = self.lookup(&map, &ls, &queries)?;
+            let (tv, steps, redone) = self.lookup(&map, &ls, &queries)?;
+            fallbacks += redone;
+            cut_texels += map.cut_texels;
             tally.lookups += queries.iter().filter(|q| q[3] < 0.0).count() as u64;
             tally.steps += steps;
             for (a, x) in acc.iter_mut().zip(&tv) {
@@ -789,6 +939,10 @@ impl SoftShadowEstimator for GpuDeepShadow {
             .notes
             .retain(|n| n.0 != "elements_kept" && n.0 != "truncated" && n.0 != "max_list");
         self.report.note("non_finite", bad);
+        if fallbacks > 0 || cut_texels > 0 {
+            self.report.note("loop_limit_cpu_fallbacks", fallbacks);
+            self.report.note("loop_limit_cpu_lists", cut_texels);
+        }
         self.report.note("device", self.ctx.describe());
         Ok(())
     }
@@ -863,6 +1017,10 @@ mod tests {
                 light_y,
                 disk,
                 ortho,
+                probe,
+                _pad0,
+                _pad1,
+                _pad2,
             }
         );
     }

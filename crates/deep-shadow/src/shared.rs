@@ -84,7 +84,7 @@ pub struct Tri {
     pub _pad1: u32,
 }
 
-/// The settings every GPU stage reads (`DsUniform` in `deep_shadow.wgsl`). 64 bytes.
+/// The settings every GPU stage reads (`DsUniform` in `deep_shadow.wgsl`). 80 bytes.
 #[repr(C)]
 #[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -122,4 +122,14 @@ pub struct DsUniform {
     /// 1 for an orthographic view (the sun): the raster's depth term is z, not 1/z, and pcss's
     /// widths are world units ([`crate::dsm::SoftLookup::ortho`]).
     pub ortho: u32,
+    /// The loop-budget probe's trip count, always `shadow_map_core::gpu::shared::LOOP_PROBE`
+    /// (2) on every stage that loops over lists (process, link, lookups); see
+    /// `crate::gpu::LOOP_LIMIT`.
+    pub probe: u32,
+    /// Padding to 16 bytes.
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+    /// Padding.
+    pub _pad2: u32,
 }

@@ -38,7 +38,11 @@ const DEPTH_REL: f32 = 2e-6;
 const T_TOL: f32 = 2e-5;
 
 test_support::twin_suite! {
-    deep_shadow [cli_path_matches_the_cpu_twin, frame_path_matches_the_cpu_twin] => DeepShadow,
+    deep_shadow [
+        cli_path_matches_the_cpu_twin,
+        frame_path_matches_the_cpu_twin,
+        loop_limit_is_detected_and_redone
+    ] => DeepShadow,
 }
 
 /// A sheet: texel rectangle [a0, a1) x [b0, b1), depth index, alpha.
@@ -353,7 +357,7 @@ impl TwinPair for DeepShadow {
                                 traversal,
                                 soft,
                             };
-                            let (tg, _) = g.lookup(&gm, &ls, &queries).unwrap();
+                            let (tg, _, _) = g.lookup(&gm, &ls, &queries).unwrap();
                             for (q, t) in queries.iter().zip(&tg) {
                                 let (tc, _) = cm.transmittance(Vec2::new(q[0], q[1]), q[2], &ls);
                                 prop_assert!(
@@ -376,6 +380,71 @@ impl TwinPair for DeepShadow {
     /// Both estimators on the fixtures `hair`, `strands` and `bunny` through the CLI path, every
     /// filter mode: the same name, description and path, fragment counts within coverage ties,
     /// V within 1e-4 at 99.5% of the receivers.
+    /// Lists long enough to spend llvmpipe's loop budget (65535 iterations per invocation, issue
+    /// 21): 1500 stacked sheets of opacity 0.002 over a ground, no truncation (`epsilon=0`), so
+    /// every covered texel holds a list of 1500 elements, sorted by selection (past 64) in
+    /// `process`, and the receivers on the ground under them walk whole lists at each of the
+    /// 7 x 7 PCF taps (`traversal=naive`). Cut texels make the twin build that view's lists with
+    /// the CPU twin and upload them, cut lookups are redone with the CPU twin's lookup on the
+    /// same map: V must equal the CPU twin's on any device, and on llvmpipe both fallbacks must
+    /// have happened (the probe is what found them).
+    fn loop_limit_is_detected_and_redone(&self, ctx: &Arc<GpuContext>) {
+        let light = test_support::fixtures::rect_light(1.0, 3.0);
+        let mut meshes = vec![(test_support::fixtures::quad(-4.0, -4.0, 4.0, 4.0, 0.0), 1.0)];
+        for k in 0..1500 {
+            let y = 1.0 + k as f32 * 0.0004;
+            meshes.push((test_support::fixtures::quad(-1.0, -1.0, 1.0, 1.0, y), 0.002));
+        }
+        let scene = Scene::from_meshes(
+            "stacked sheets",
+            test_support::fixtures::camera(8, 6),
+            light,
+            meshes,
+        )
+        .unwrap();
+        let pos: Vec<Vec3> = (0..36)
+            .map(|k| {
+                Vec3::new(
+                    -0.7 + 0.28 * (k % 6) as f32,
+                    0.0,
+                    -0.7 + 0.28 * (k / 6) as f32,
+                )
+            })
+            .collect();
+        let rec = test_support::fixtures::points(pos, Vec3::Y);
+        let mut c = CpuDeepShadow::new().unwrap();
+        let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();
+        for (k, v) in [
+            ("resolution", "16"),
+            ("filter", "pcf"),
+            ("kernel", "7"),
+            ("traversal", "naive"),
+            ("epsilon", "0"),
+        ] {
+            c.set_param(k, v).unwrap();
+            g.set_param(k, v).unwrap();
+        }
+        let (vc, _) = run(&mut c, &scene, &rec).unwrap();
+        let (vg, rg) = run(&mut g, &scene, &rec).unwrap();
+        let lookups = note(&rg, "loop_limit_cpu_fallbacks").unwrap_or_else(|| "0".into());
+        let lists = note(&rg, "loop_limit_cpu_lists").unwrap_or_else(|| "0".into());
+        eprintln!(
+            "loop-limit CPU fallbacks on {}: {lookups} of {} lookups, {lists} texels' lists",
+            ctx.describe(),
+            rec.len()
+        );
+        for (k, (a, b)) in vc.iter().zip(&vg).enumerate() {
+            assert!((a - b).abs() <= 1e-6, "receiver {k}: CPU {a}, GPU {b}");
+        }
+        assert!(
+            vc.iter().any(|&v| v < 0.2),
+            "the sheets should shadow: {vc:?}"
+        );
+        if ctx.describe().contains("llvmpipe") {
+            assert!(lookups != "0" && lists != "0", "{lookups} / {lists}");
+        }
+    }
+
     fn cli_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
         for name in ["hair", "strands", "bunny"] {
             let (scene, rec) = fixture(name, 40, 30);
