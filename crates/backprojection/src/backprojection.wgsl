@@ -27,7 +27,7 @@ struct BpUniform {
     first_nonzero: u32,
     nbits: u32,
     opacity: u32,
-    _pad0: u32,
+    probe: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -47,7 +47,9 @@ struct BitTable {
 @group(0) @binding(5) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(6) var<storage, read_write> v_out: array<u32>;
 // [0]: receivers outside the light frustum, [1]: non-finite results.
-@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 2>;
+// [0] outside the light frustum, [1] non-finite V replaced by 0, [2] cut short by the loop
+// budget (gpu.rs LOOP_LIMIT).
+@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 3>;
 @group(0) @binding(8) var<uniform> bits: BitTable;
 
 const FAR_BOUND: f32 = 1e30;
@@ -630,5 +632,11 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let x = estimate_receiver(receivers[k].position, receivers[k].normal);
+    // Out of the device's loop budget (shared.wgsl): flagged, redone on the CPU.
+    if loop_limit_hit(bp.probe) {
+        v_out[k] = CUT_BITS;
+        atomicAdd(&counters[2], 1u);
+        return;
+    }
     store_v(k, x);
 }

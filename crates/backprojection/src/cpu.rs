@@ -259,6 +259,114 @@ impl CpuBackprojection {
     pub fn settings(&self) -> &Settings {
         &self.settings
     }
+    /// Takes given light-space data as the last build's (the GPU twin's loop-limit redo: the CPU
+    /// estimate on the data the GPU read).
+    pub fn set_light_space(&mut self, ls: LightSpace) {
+        self.ls = Some(ls);
+    }
+    /// [`SoftShadowEstimator::estimate`] with only the light taken from a scene: V of
+    /// `receivers` from the light-space data of the last build or [`Self::set_light_space`].
+    pub fn estimate_light(
+        &mut self,
+        light: &shadow_map_core::Light,
+        receivers: &Receivers,
+        v: &mut [f32],
+    ) -> Result<()> {
+        receivers.check_output(v)?;
+        let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
+        let h = light.half_extent();
+        let emitter = Emitter::of(&light.shape);
+        let res = self.settings.resolve(!ls.opacity.is_empty());
+        let setup = Setup {
+            ls,
+            emitter,
+            half: [h.x, h.y],
+            area: emitter.area(),
+            midpoint: self.settings.shadow.midpoint(),
+            gap_filling: res.gap_filling,
+            max_nspp: self.settings.max_nspp,
+            b0: self.settings.shadow.bias,
+            b1: self.settings.shadow.slope_bias,
+            receiver_plane: self.settings.shadow.receiver_plane,
+            first_nonzero: res.first_nonzero,
+            max_step: AtomicU32::new(1),
+            bit_pts: match res.occlusion {
+                Occlusion::Bitmask => emitter_bits(&emitter, self.settings.bits),
+                _ => Vec::new(),
+            },
+            bit_side: self.settings.bits,
+        };
+        let view = &ls.view;
+        let outside = AtomicUsize::new(0);
+        let t = std::time::Instant::now();
+        let nonfinite: usize = v
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, out)| {
+                if !receivers.active[k] {
+                    *out = f32::NAN;
+                    return 0;
+                }
+                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+                let facing = light.front_fraction_world(pw, nw);
+                let p = view.frame.to_light(pw);
+                // A sphere's silhouette disk seen from p (None: it reaches p's depth).
+                let sil = match emitter {
+                    Emitter::Sphere { radius } if p.z > 0.0 => Silhouette::new(p, radius),
+                    _ => None,
+                };
+                let sphere_unserved = matches!(emitter, Emitter::Sphere { .. }) && sil.is_none();
+                let x = if !(facing > 0.0) {
+                    0.0
+                } else if p.z <= 0.0 || sphere_unserved {
+                    // Behind a sphere light's frustum, or beside its silhouette.
+                    outside.fetch_add(1, Ordering::Relaxed);
+                    facing
+                } else if p.z <= view.n {
+                    facing
+                } else {
+                    let uv = view.project(p);
+                    if !view.contains(uv) {
+                        outside.fetch_add(1, Ordering::Relaxed);
+                        facing
+                    } else {
+                        let n = view.frame.dir_to_light(nw);
+                        facing * setup.visibility(p, n, uv, sil.as_ref())
+                    }
+                };
+                if x.is_finite() {
+                    *out = x.clamp(0.0, 1.0);
+                    0
+                } else {
+                    *out = 0.0;
+                    1
+                }
+            })
+            .sum();
+        self.report
+            .stages
+            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
+        self.report.note("resolution", view.r);
+        self.report.note("layers", ls.layers.len());
+        self.report
+            .note("self_shadow", self.settings.shadow.self_shadow);
+        note_resolved(&mut self.report, &self.settings, res);
+        self.report
+            .note("receiver_plane", self.settings.shadow.receiver_plane);
+        self.report
+            .note("max_step", setup.max_step.load(Ordering::Relaxed));
+        self.report.note("near", view.n);
+        self.report.note("far", view.far);
+        self.report.note(
+            "out_of_frustum",
+            outside.into_inner() + ls.fit.out_of_frustum,
+        );
+        self.report.note("window_scale", ls.fit.window_scale);
+        if nonfinite > 0 {
+            self.report.note("nonfinite_replaced", nonfinite);
+        }
+        Ok(())
+    }
     /// Builds the light-space data in a given `view` (the engine path's CPU twin: a view the
     /// caller fitted, e.g. an engine path's `FrameEstimator::fit_views`), with the request
     /// [`request`] makes for `receivers`. Errors: `view` of another resolution than the
@@ -643,101 +751,7 @@ impl SoftShadowEstimator for CpuBackprojection {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        receivers.check_output(v)?;
-        let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
-        let light = &scene.light;
-        let h = light.half_extent();
-        let emitter = Emitter::of(&light.shape);
-        let res = self.settings.resolve(!ls.opacity.is_empty());
-        let setup = Setup {
-            ls,
-            emitter,
-            half: [h.x, h.y],
-            area: emitter.area(),
-            midpoint: self.settings.shadow.midpoint(),
-            gap_filling: res.gap_filling,
-            max_nspp: self.settings.max_nspp,
-            b0: self.settings.shadow.bias,
-            b1: self.settings.shadow.slope_bias,
-            receiver_plane: self.settings.shadow.receiver_plane,
-            first_nonzero: res.first_nonzero,
-            max_step: AtomicU32::new(1),
-            bit_pts: match res.occlusion {
-                Occlusion::Bitmask => emitter_bits(&emitter, self.settings.bits),
-                _ => Vec::new(),
-            },
-            bit_side: self.settings.bits,
-        };
-        let view = &ls.view;
-        let outside = AtomicUsize::new(0);
-        let t = std::time::Instant::now();
-        let nonfinite: usize = v
-            .par_iter_mut()
-            .enumerate()
-            .map(|(k, out)| {
-                if !receivers.active[k] {
-                    *out = f32::NAN;
-                    return 0;
-                }
-                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
-                let facing = light.front_fraction_world(pw, nw);
-                let p = view.frame.to_light(pw);
-                // A sphere's silhouette disk seen from p (None: it reaches p's depth).
-                let sil = match emitter {
-                    Emitter::Sphere { radius } if p.z > 0.0 => Silhouette::new(p, radius),
-                    _ => None,
-                };
-                let sphere_unserved = matches!(emitter, Emitter::Sphere { .. }) && sil.is_none();
-                let x = if !(facing > 0.0) {
-                    0.0
-                } else if p.z <= 0.0 || sphere_unserved {
-                    // Behind a sphere light's frustum, or beside its silhouette.
-                    outside.fetch_add(1, Ordering::Relaxed);
-                    facing
-                } else if p.z <= view.n {
-                    facing
-                } else {
-                    let uv = view.project(p);
-                    if !view.contains(uv) {
-                        outside.fetch_add(1, Ordering::Relaxed);
-                        facing
-                    } else {
-                        let n = view.frame.dir_to_light(nw);
-                        facing * setup.visibility(p, n, uv, sil.as_ref())
-                    }
-                };
-                if x.is_finite() {
-                    *out = x.clamp(0.0, 1.0);
-                    0
-                } else {
-                    *out = 0.0;
-                    1
-                }
-            })
-            .sum();
-        self.report
-            .stages
-            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
-        self.report.note("resolution", view.r);
-        self.report.note("layers", ls.layers.len());
-        self.report
-            .note("self_shadow", self.settings.shadow.self_shadow);
-        note_resolved(&mut self.report, &self.settings, res);
-        self.report
-            .note("receiver_plane", self.settings.shadow.receiver_plane);
-        self.report
-            .note("max_step", setup.max_step.load(Ordering::Relaxed));
-        self.report.note("near", view.n);
-        self.report.note("far", view.far);
-        self.report.note(
-            "out_of_frustum",
-            outside.into_inner() + ls.fit.out_of_frustum,
-        );
-        self.report.note("window_scale", ls.fit.window_scale);
-        if nonfinite > 0 {
-            self.report.note("nonfinite_replaced", nonfinite);
-        }
-        Ok(())
+        self.estimate_light(&scene.light, receivers, v)
     }
     fn report(&self) -> Report {
         self.report.clone()

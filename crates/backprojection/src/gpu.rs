@@ -113,8 +113,9 @@ pub struct BpUniform {
     /// 1: one opacity plane per depth layer follows the midpoints in the layer array
     /// (semi-transparent scenes); 0: every occluder is opaque.
     pub opacity: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// The loop-budget probe's trip count, always
+    /// [`LOOP_PROBE`](shadow_map_core::gpu::shared::LOOP_PROBE) ([`LOOP_LIMIT`]).
+    pub probe: u32,
     /// Padding.
     pub _pad1: u32,
     /// Padding.
@@ -193,6 +194,27 @@ impl DeviceMaps {
     }
 }
 
+/// What one CPU-receivers dispatch returns: receivers outside the light frustum, non-finite
+/// results replaced by 0, receivers cut short by the loop budget ([`LOOP_LIMIT`]), and the
+/// estimate's and readback's milliseconds.
+#[derive(Debug, Default)]
+struct Dispatched {
+    outside: usize,
+    nonfinite: usize,
+    cut: usize,
+    est_ms: f64,
+    read_ms: f64,
+}
+
+/// Why a receiver can come back flagged: some devices bound the loop iterations of one shader
+/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run),
+/// which would silently truncate a large kernel's walk (`max_nspp` up to 4096 samples, up to 4
+/// layers, up to 64 occlusion bits each). The kernel ends with the core's two-trip probe
+/// (`loop_limit_hit`): a cut receiver is written as `CUT_BITS` and counted, and
+/// [`GpuBackprojection`] redoes it with the CPU twin (`loop_limit_cpu_fallbacks` in the report);
+/// the resident and engine paths leave it NaN and count it in their counters / status.
+pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
+
 /// The GPU twin of [`CpuBackprojection`].
 pub struct GpuBackprojection {
     ctx: Arc<GpuContext>,
@@ -205,6 +227,9 @@ pub struct GpuBackprojection {
     report: Report,
     chunk_cap: usize,
     resident_counters: Option<wgpu::Buffer>,
+    /// Whether the last `build` made the light-space data on the CPU (the loop-limit redo then
+    /// reuses them).
+    maps_on_cpu: bool,
     /// Stages and notes of the report after the last build: each `estimate_resident` keeps
     /// these and replaces the rest, so a report does not grow frame after frame.
     built: (usize, usize),
@@ -245,6 +270,7 @@ impl GpuBackprojection {
             report: Report::default(),
             chunk_cap: usize::MAX,
             resident_counters: None,
+            maps_on_cpu: false,
             built: (0, 0),
         })
     }
@@ -323,23 +349,47 @@ impl GpuBackprojection {
         self.report
             .stages
             .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
-        self.estimate_maps(&maps, light, receivers, v)
+        let params = self.cpu.params().clone();
+        self.estimate_maps(&maps, light, receivers, v, |sub, vs| {
+            // The CPU twin on the same light-space data.
+            let mut cpu = CpuBackprojection::new()?;
+            shadow_map_core::estimator::configure(&mut cpu, &params)?;
+            cpu.set_light_space(ls.clone());
+            cpu.estimate_light(light, sub, vs)
+        })
     }
 
-    /// V from maps already on the device; appends to the report.
+    /// V from maps already on the device; appends to the report. Receivers the loop budget
+    /// cut short ([`LOOP_LIMIT`]) are redone by `redo` (the CPU twin on the same light-space
+    /// data, or in the same view), given just those receivers.
     fn estimate_maps(
         &mut self,
         maps: &DeviceMaps,
         light: &Light,
         receivers: &Receivers,
         v: &mut [f32],
+        redo: impl FnOnce(&Receivers, &mut [f32]) -> Result<()>,
     ) -> Result<()> {
         receivers.check_output(v)?;
         let (eu, bpu, table) = self.uniforms(maps, light);
-        let (outside, nonfinite, est_ms, read_ms) =
-            self.dispatch(maps, &eu, &bpu, &table, receivers, v)?;
+        let Dispatched {
+            outside,
+            nonfinite,
+            cut,
+            est_ms,
+            read_ms,
+        } = self.dispatch(maps, &eu, &bpu, &table, receivers, v)?;
         self.report.stages.push(("estimate".into(), est_ms));
         self.report.stages.push(("readback".into(), read_ms));
+        let t = Instant::now();
+        let redone = shadow_map_core::gpu::redo_cut_receivers(v, receivers, cut, LABEL, redo)?;
+        if redone > 0 {
+            self.report.stages.push((
+                "estimate: CPU fallback".into(),
+                t.elapsed().as_secs_f64() * 1e3,
+            ));
+            self.report.note("loop_limit_cpu_fallbacks", redone);
+        }
         self.note_estimate(maps);
         self.report
             .note("out_of_frustum", outside + maps.out_of_frustum);
@@ -388,7 +438,7 @@ impl GpuBackprojection {
             first_nonzero: u32::from(res.first_nonzero),
             nbits,
             opacity: u32::from(maps.opacity),
-            _pad0: 0,
+            probe: shadow_map_core::gpu::shared::LOOP_PROBE,
             _pad1: 0,
             _pad2: 0,
         };
@@ -425,9 +475,9 @@ impl GpuBackprojection {
         table: &BitTable,
         receivers: &Receivers,
         v: &mut [f32],
-    ) -> Result<(usize, usize, f64, f64)> {
+    ) -> Result<Dispatched> {
         if receivers.is_empty() {
-            return Ok((0, 0, 0.0, 0.0));
+            return Ok(Dispatched::default());
         }
         let ctx = &*self.ctx;
         let t = Instant::now();
@@ -473,13 +523,14 @@ impl GpuBackprojection {
             let part: Vec<f32> = ctx.read_buffer(out, (*len * 4) as u64)?;
             v[*start..*start + *len].copy_from_slice(&part);
         }
-        let c: Vec<u32> = ctx.read_buffer(&counters, 8)?;
-        Ok((
-            c.first().copied().unwrap_or(0) as usize,
-            c.get(1).copied().unwrap_or(0) as usize,
+        let c: Vec<u32> = ctx.read_buffer(&counters, 12)?;
+        Ok(Dispatched {
+            outside: c[0] as usize,
+            nonfinite: c[1] as usize,
+            cut: c[2] as usize,
             est_ms,
-            t.elapsed().as_secs_f64() * 1e3,
-        ))
+            read_ms: t.elapsed().as_secs_f64() * 1e3,
+        })
     }
 
     /// The dispatch both paths share: one submission with one compute dispatch per chunk
@@ -711,8 +762,9 @@ impl GpuBackprojection {
     }
 
     /// The counters of the last [`estimate_resident`](Self::estimate_resident), left on the GPU
-    /// for the caller to read when they want (e.g. [`GpuContext::read_buffer`]): two `u32`,
-    /// receivers outside the light frustum and non-finite results replaced by 0 (usages
+    /// for the caller to read when they want (e.g. [`GpuContext::read_buffer`]): three `u32`,
+    /// receivers outside the light frustum, non-finite results replaced by 0, and receivers the
+    /// loop budget cut short, left as NaN in the caller's V ([`LOOP_LIMIT`]) (usages
     /// `STORAGE | COPY_SRC`). `None` before the first call.
     pub fn resident_counters(&self) -> Option<&wgpu::Buffer> {
         self.resident_counters.as_ref()
@@ -741,7 +793,7 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
     ctx.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("backprojection counters"),
-            contents: bytemuck::cast_slice(&[0u32; 2]),
+            contents: bytemuck::cast_slice(&[0u32; 3]),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         })
 }
@@ -765,7 +817,8 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
 /// number of levels, so V equals the twins' which build only the levels the view needs), the
 /// copies into the kernel's texture arrays, and the kernel over `count` receivers in one
 /// dispatch. The kernel's counters (receivers outside the light frustum, non-finite results
-/// replaced by 0) go to [`FrameEstimator::status`]. Every caster is opaque on this path (a
+/// replaced by 0, receivers cut short by the loop budget and left NaN, [`LOOP_LIMIT`]) go to
+/// [`FrameEstimator::status`]. Every caster is opaque on this path (a
 /// [`GpuScene`] holds no opacity; semi-transparent scenes take [`GpuBackprojection`]'s `build`).
 /// The light view is the caller's: [`FrameEstimator::fit_views`] fits one on the CPU as `build`
 /// does.
@@ -821,7 +874,7 @@ impl BackprojectionFrame {
             bp: uniform("backprojection uniform", std::mem::size_of::<BpUniform>()),
             bits: uniform("backprojection bit table", std::mem::size_of::<BitTable>()),
         };
-        let status = status_buffer(&ctx, "backprojection frame status", 2);
+        let status = status_buffer(&ctx, "backprojection frame status", 3);
         Ok(BackprojectionFrame {
             gpu,
             layers,
@@ -907,6 +960,7 @@ impl SoftShadowEstimator for GpuBackprojection {
         // Semi-transparent scenes need each layer's opacity, which the GPU raster does not
         // write: their light-space data are built on the CPU and uploaded.
         let on_cpu = self.light_space_on_cpu || !scene.is_opaque();
+        self.maps_on_cpu = on_cpu;
         let maps = if on_cpu {
             self.cpu.build(scene, receivers)?;
             self.report = self.cpu.report();
@@ -942,7 +996,25 @@ impl SoftShadowEstimator for GpuBackprojection {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         let maps = shadow_map_core::estimator::built(self.maps.take())?;
-        let out = self.estimate_maps(&maps, &scene.light, receivers, v);
+        let view = maps.view;
+        let on_cpu = self.maps_on_cpu;
+        let cpu_ls = if on_cpu {
+            self.cpu.light_space().cloned()
+        } else {
+            None
+        };
+        let params = self.cpu.params().clone();
+        let out = self.estimate_maps(&maps, &scene.light, receivers, v, |sub, vs| {
+            // The CPU twin on the same data when the build was the CPU's, else in the same view
+            // (its own raster: equal up to texel-centre ties, tests/gpu_maps.rs).
+            let mut cpu = CpuBackprojection::new()?;
+            shadow_map_core::estimator::configure(&mut cpu, &params)?;
+            match cpu_ls {
+                Some(ls) => cpu.set_light_space(ls),
+                None => cpu.build_in_view(scene, receivers, view)?,
+            }
+            cpu.estimate(scene, sub, vs)
+        });
         self.maps = Some(maps);
         out
     }
@@ -982,7 +1054,7 @@ mod tests {
                 first_nonzero,
                 nbits,
                 opacity,
-                _pad0,
+                probe,
                 _pad1,
                 _pad2,
             }

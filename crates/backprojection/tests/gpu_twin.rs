@@ -30,6 +30,7 @@ test_support::twin_suite! {
         chunked_dispatch_equals_one_dispatch,
         cli_path_matches_the_cpu_twin,
         frame_path_matches_the_cpu_twin,
+        loop_limit_is_detected_and_redone,
     ] => Backprojection,
 }
 
@@ -244,6 +245,61 @@ impl TwinPair for Backprojection {
     /// The fixed case through the CLI path, with the light space rendered on the GPU (the
     /// default) and with the CPU's uploaded: each within the tolerance of the CPU twin at every
     /// receiver, NaN at inactive ones, and some umbra or penumbra.
+    /// A kernel heavy enough to spend llvmpipe's loop budget (65535 iterations per invocation,
+    /// issue 21): up to 4096 samples per receiver (`max_nspp`) over 4 layers with 8 x 8
+    /// occlusion bits, on the stacked fixture at r = 1024. Flagged receivers are redone with the
+    /// CPU twin: on the CPU's light-space data (`set_light_space_on_cpu`) V must equal the CPU
+    /// twin's exactly on any device, and on the GPU-rendered maps no active receiver may be left
+    /// NaN; on llvmpipe the report's `loop_limit_cpu_fallbacks` must be non-zero (printed).
+    fn loop_limit_is_detected_and_redone(&self, ctx: &Arc<GpuContext>) {
+        let mut scene = Scene::load(test_support::fixtures::fixture_path("stacked")).unwrap();
+        scene.camera.width = 40;
+        scene.camera.height = 30;
+        let rec = Receivers::from_camera(&scene, &shadow_map_core::SceneBvh::new(&scene));
+        let kv = [
+            ("resolution", "1024"),
+            ("max_nspp", "4096"),
+            ("layers", "4"),
+            ("occlusion", "bitmask"),
+            ("bits", "8"),
+        ];
+        let mut c = CpuBackprojection::new().unwrap();
+        let mut g = GpuBackprojection::new(ctx.clone()).unwrap();
+        for (k, v) in kv {
+            c.set_param(k, v).unwrap();
+            g.set_param(k, v).unwrap();
+        }
+        let (vc, _) = run(&mut c, &scene, &rec).unwrap();
+        g.set_light_space_on_cpu(true);
+        let (vg, rg) = run(&mut g, &scene, &rec).unwrap();
+        let fallbacks = |r: &shadow_map_core::Report| {
+            r.notes
+                .iter()
+                .find(|n| n.0 == "loop_limit_cpu_fallbacks")
+                .map_or(0, |n| n.1.parse::<usize>().unwrap())
+        };
+        eprintln!(
+            "loop-limit CPU fallbacks on {}: {} of {} receivers",
+            ctx.describe(),
+            fallbacks(&rg),
+            rec.len()
+        );
+        for (k, (a, b)) in vc.iter().zip(&vg).enumerate() {
+            assert!(
+                a.to_bits() == b.to_bits() || (a - b).abs() <= 1e-5,
+                "receiver {k}: CPU {a}, GPU {b}"
+            );
+        }
+        g.set_light_space_on_cpu(false);
+        let (vr, rr) = run(&mut g, &scene, &rec).unwrap();
+        for (k, x) in vr.iter().enumerate() {
+            assert_eq!(rec.active[k], x.is_finite(), "receiver {k}: {x}");
+        }
+        if ctx.describe().contains("llvmpipe") {
+            assert!(fallbacks(&rg) > 0 && fallbacks(&rr) > 0);
+        }
+    }
+
     fn cli_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
         let case = fixed_case();
         let (scene, rec) = case.scene.scene_and_receivers();
