@@ -1,7 +1,7 @@
 //! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
 //! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
 //! frame API ([`softshadow::FRAME_ALGOS`]: hard, PCF, PCSS, multi-sample, backprojection,
-//! accumulation, deep-shadow so far; [`softshadow::frame_estimator`] makes them) into its own command encoder
+//! accumulation, deep-shadow, packet-hsm; [`softshadow::frame_estimator`] makes them) into its own command encoder
 //! from that G-buffer's receiver buffer, V into a buffer of its own. Nothing is read back until the last
 //! frame; then V and the receivers are read once and compared with the CPU twin in the same
 //! light view(s).
@@ -103,8 +103,12 @@ fn frame_path(
 struct Measured {
     /// CPU ms spent in `encode` per frame.
     host_ms: f64,
-    /// RMSE of the last frame's V against the CPU twin over the active receivers.
+    /// RMSE of the last frame's V against the CPU twin over the active receivers the frame
+    /// computed (those left NaN are counted in [`left_nan`](Self::left_nan)).
     rmse: f64,
+    /// Active receivers the last frame left NaN for the caller to redo (cut short by the
+    /// device's loop budget, counted in the estimator's status).
+    left_nan: usize,
     /// Wall ms per frame of [`TIMED_FRAMES`] frames on the last frame's receivers, submitted
     /// back to back and waited for once: encode, submit and the device's work (on lavapipe the
     /// device is this machine's CPU cores).
@@ -171,10 +175,15 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     let t = Instant::now();
     let cpu = path.cpu_twin(&s, &receivers, &views)?;
     let cpu_ms = t.elapsed().as_secs_f64() * 1e3;
-    let (mut se, mut n) = (0.0f64, 0usize);
+    let (mut se, mut n, mut left_nan) = (0.0f64, 0usize, 0usize);
     for (k, c) in cpu.iter().enumerate() {
         if receivers.active[k] {
-            let d = f32::from_bits(bits[k]) as f64 - *c as f64;
+            let g = f32::from_bits(bits[k]);
+            if g.is_nan() {
+                left_nan += 1;
+                continue;
+            }
+            let d = g as f64 - *c as f64;
             se += d * d;
             n += 1;
         }
@@ -218,6 +227,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     Ok(Measured {
         host_ms: host / frames.max(1) as f64,
         rmse: (se / n.max(1) as f64).sqrt(),
+        left_nan,
         gpu_ms,
         host_idle_ms: host_idle / TIMED_FRAMES as f64,
         host_warm_ms,
@@ -285,7 +295,7 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         let (ts, tl) = (small.triangles.len(), large.triangles.len());
         if json {
             println!(
-                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4}}}",
+                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan\":{},\"pixels\":{}}}",
                 sm.host_ms,
                 lg.host_ms,
                 lg.rmse,
@@ -296,7 +306,9 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
                 sm.host_idle_ms,
                 lg.host_idle_ms,
                 sm.host_warm_ms,
-                lg.host_warm_ms
+                lg.host_warm_ms,
+                lg.left_nan,
+                large.camera.width * large.camera.height
             );
         } else {
             println!(

@@ -9,7 +9,7 @@ on shared CI machines are noise; the ratio goal lives in the closing notes and t
 import json
 import sys
 
-EXPECTED = {"hard", "pcf", "pcss", "multi-sample", "backprojection", "accumulation", "deep-shadow"}
+EXPECTED = {"hard", "pcf", "pcss", "multi-sample", "backprojection", "accumulation", "deep-shadow", "packet-hsm"}
 rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
 seen = {r["algo"] for r in rows}
 bad = []
@@ -19,17 +19,22 @@ for r in rows:
     a = r["algo"]
     if r["readbacks_during_frames"] != 0:
         bad.append("%s: %d readbacks during frames" % (a, r["readbacks_during_frames"]))
+    # Receivers a frame leaves NaN (cut short by the device's loop budget, counted in its
+    # status) are the caller's to redo; at most 2% of the image.
+    if r.get("left_nan", 0) > 0.02 * r.get("pixels", 0):
+        bad.append("%s: %d receivers left NaN" % (a, r["left_nan"]))
     if not r["rmse_vs_cpu"] <= 2e-3:
         bad.append("%s: rmse_vs_cpu %g > 2e-3" % (a, r["rmse_vs_cpu"]))
     if r["triangles_large"] < 50 * r["triangles_small"]:
         bad.append("%s: large scene has only %d triangles" % (a, r["triangles_large"]))
     print("%-14s frames %d, host ms/frame %.4f (%d tris) / %.4f (%d tris), rmse_vs_cpu %.2e, "
-          "warm encode ms %.4f / %.4f, frame ms %.2f / %.2f vs CPU twin %.2f / %.2f" % (
+          "warm encode ms %.4f / %.4f, frame ms %.2f / %.2f vs CPU twin %.2f / %.2f, left NaN %d" % (
         a, r["frames"], r["host_ms_per_frame_small"], r["triangles_small"],
         r["host_ms_per_frame_large"], r["triangles_large"], r["rmse_vs_cpu"],
         r.get("host_ms_warm_small", float("nan")), r.get("host_ms_warm_large", float("nan")),
         r.get("gpu_ms_per_frame_small", float("nan")), r.get("gpu_ms_per_frame_large", float("nan")),
-        r.get("cpu_twin_ms_small", float("nan")), r.get("cpu_twin_ms_large", float("nan"))))
+        r.get("cpu_twin_ms_small", float("nan")), r.get("cpu_twin_ms_large", float("nan")),
+        r.get("left_nan", 0)))
 if bad:
     print("frame_loop check failed:\n  " + "\n  ".join(bad))
     sys.exit(1)

@@ -138,6 +138,7 @@ pub const FRAME_ALGOS: &[&str] = &[
     "backprojection",
     "accumulation",
     "deep-shadow",
+    "packet-hsm",
 ];
 
 /// The engine path of the estimator `name` on `ctx` ([`core::gpu::frame::FrameEstimator`]),
@@ -161,6 +162,11 @@ pub fn frame_estimator(
         "backprojection" => Box::new(backprojection::BackprojectionFrame::prepare(ctx, params)?),
         "accumulation" => Box::new(accumulation::AccumulationFrame::prepare(ctx, params)?),
         "deep-shadow" => Box::new(deep_shadow::DeepShadowFrame::prepare(
+            ctx,
+            params,
+            max_receivers,
+        )?),
+        "packet-hsm" => Box::new(packet_hsm::PacketHsmFrame::prepare(
             ctx,
             params,
             max_receivers,

@@ -413,6 +413,11 @@ fn engine_frame(
         else {
             return Ok(Engine::Twin(receivers, gbuffer_ms));
         };
+        // A light or setting the engine path does not model (packet-hsm: sphere lights,
+        // sub-lights): the twin path.
+        if frame.refuses(scene).is_some() {
+            return Ok(Engine::Twin(receivers, gbuffer_ms));
+        }
         let mut report = shadow_map_core::Report::default();
         report.stages.push(("gbuffer".into(), gbuffer_ms));
         let t = Instant::now();

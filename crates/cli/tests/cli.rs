@@ -251,7 +251,9 @@ fn render_gpu_takes_the_frame_api() {
     let squares = fixture("parallel-squares/parallel-squares.toml");
     // Semi-transparent strands: the frame API's casters are opaque, so the twin's path.
     let strands = fixture("strands/strands.toml");
-    let cases: [(&str, &[&str], bool, &std::path::Path); 7] = [
+    // A sphere light: packet-hsm's engine path refuses it (FrameEstimator::refuses), the twin's.
+    let sphere = fixture("sphere-light/sphere-light.toml");
+    let cases: [(&str, &[&str], bool, &std::path::Path); 9] = [
         ("pcss", &["resolution=256"], true, &squares),
         ("backprojection", &["resolution=256"], true, &squares),
         (
@@ -264,6 +266,8 @@ fn render_gpu_takes_the_frame_api() {
         ("pcss", &["resolution=256", "cascades=3"], false, &squares),
         ("backprojection", &["resolution=256"], false, &strands),
         ("deep-shadow", &["resolution=256"], false, &strands),
+        ("packet-hsm", &["resolution=256"], true, &squares),
+        ("packet-hsm", &["resolution=256"], false, &sphere),
     ];
     for (algo, params, engine, scene) in cases {
         let sc = scene.to_str().unwrap();

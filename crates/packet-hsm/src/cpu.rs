@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light::front_fraction,
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{LightView, ViewOptions, RESOLUTION},
+    light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
     mssm::Mssm,
     params::FromParam,
     peeling::SelfShadowSettings,
@@ -470,11 +470,46 @@ impl SubView {
         cfg: &Config,
         own_plane: OwnPlane,
     ) -> Result<SubView> {
+        let (view, fit) = Self::fit(scene, receivers, (r, centre, half), cfg)?;
+        Self::build_in_view(scene, receivers, view, fit, half, cfg, own_plane)
+    }
+
+    /// The view [`SubView::build`] fits for the sub-light centred at `centre` with half extents
+    /// `half` on an `r x r` map.
+    pub fn fit(
+        scene: &Scene,
+        receivers: &Receivers,
+        (r, centre, half): (u32, Vec2, Vec2),
+        cfg: &Config,
+    ) -> Result<(LightView, FitReport)> {
         let frame = shadow_map_core::light_space::point_frame(&scene.light, centre)?;
-        let (view, fit) = LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)?;
+        LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)
+    }
+
+    /// The MSSM's levels and the most dual cells a kernel spans ([`PaddedDualMssm::build`]'s
+    /// `max_cells`) for a sub-light of half extents `half` in `view`: what the view alone decides.
+    pub fn levels(view: &LightView, half: Vec2) -> (u32, u32) {
+        let r = view.r;
         let l = 2.0 * half.max_element();
         let wmax = view.kernel_texels(l, view.n, view.far).clamp(1.0, r as f32) + 2.0;
         let levels = (wmax.log2().ceil() as u32).clamp(1, 16);
+        let max_cells = (wmax.ceil() as u32).saturating_add(3).min(r + 2);
+        (levels, max_cells)
+    }
+
+    /// [`SubView::build`] in a given `view` (fitted by [`SubView::fit`] or by the caller: the
+    /// engine path's CPU twin).
+    pub fn build_in_view(
+        scene: &Scene,
+        receivers: &Receivers,
+        view: LightView,
+        fit: FitReport,
+        half: Vec2,
+        cfg: &Config,
+        own_plane: OwnPlane,
+    ) -> Result<SubView> {
+        let r = view.r;
+        let (levels, max_cells) = Self::levels(&view, half);
         let req = LightSpaceRequest {
             resolution: r,
             layers: 1,
@@ -493,23 +528,8 @@ impl SubView {
         } else {
             &l0.depth
         };
-        let max_cells = (wmax.ceil() as u32).saturating_add(3).min(r + 2);
         let dual = PaddedDualMssm::build(class, l0.size, max_cells);
-        let (emitter, shape) = match scene.light.shape {
-            LightShape::Disk { radius } => (Emitter::Disk(radius as f64), scene.light.shape),
-            // The sun: its disk of directions at unit distance (docs/methods.md §14).
-            LightShape::Directional { .. } => (
-                Emitter::Disk(scene.light.shape.tan_half() as f64),
-                scene.light.shape,
-            ),
-            LightShape::Sphere { radius } => (Emitter::Sphere(radius as f64), scene.light.shape),
-            _ => (
-                Emitter::Rect(half.as_dvec2()),
-                LightShape::Rect {
-                    size: [2.0 * half.x, 2.0 * half.y],
-                },
-            ),
-        };
+        let (emitter, shape) = emitter_of(&scene.light, half);
         let mut sv = SubView {
             ls,
             mssm,
@@ -594,6 +614,25 @@ impl SubView {
             + self.mssm.bytes()
             + self.dual.bytes()
             + self.fit.as_ref().map_or(0, DualFit::bytes)
+    }
+}
+
+/// The (sub-)light the radial integration measures, and its shape in the sub-light's frame (for
+/// the facing fraction), for a sub-light of half extents `half` of `light`.
+pub fn emitter_of(light: &Light, half: Vec2) -> (Emitter, LightShape) {
+    match light.shape {
+        LightShape::Disk { radius } => (Emitter::Disk(radius as f64), light.shape),
+        // The sun: its disk of directions at unit distance (docs/methods.md §14).
+        LightShape::Directional { .. } => {
+            (Emitter::Disk(light.shape.tan_half() as f64), light.shape)
+        }
+        LightShape::Sphere { radius } => (Emitter::Sphere(radius as f64), light.shape),
+        _ => (
+            Emitter::Rect(half.as_dvec2()),
+            LightShape::Rect {
+                size: [2.0 * half.x, 2.0 * half.y],
+            },
+        ),
     }
 }
 

@@ -34,7 +34,8 @@ use shadow_map_core::{
         GpuContext,
     },
     silhouette::Silhouette,
-    Error, ImageLayout, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Error, ImageLayout, LightView, ReceiverPlane, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
@@ -185,16 +186,16 @@ impl RecIn {
 }
 
 const LABEL: &str = "packet-hsm estimate";
-const WORKGROUP: u32 = 64;
+pub(crate) const WORKGROUP: u32 = 64;
 
 /// The GPU twin of [`CpuPacketHsm`].
 pub struct GpuPacketHsm {
-    ctx: Arc<GpuContext>,
+    pub(crate) ctx: Arc<GpuContext>,
     cpu: CpuPacketHsm,
-    layout: wgpu::BindGroupLayout,
-    prepare: wgpu::ComputePipeline,
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) prepare: wgpu::ComputePipeline,
     packets: wgpu::ComputePipeline,
-    pixels: wgpu::ComputePipeline,
+    pub(crate) pixels: wgpu::ComputePipeline,
     report: Report,
 }
 
@@ -424,7 +425,7 @@ fn flatten_hierarchies(sv: &SubView, r: u32) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
 }
 
 /// The packet pass of one [`GpuPacketHsm::run_sublight`]: whether it runs and over what grid.
-struct PacketPlan {
+pub(crate) struct PacketPlan {
     /// True when an image layout is given and the packet is larger than 1x1.
     packet_mode: bool,
     /// Image size (0 x 0 without a layout).
@@ -440,7 +441,7 @@ struct PacketPlan {
 
 impl PacketPlan {
     /// Plans the packet pass; [`Error::Limit`] when the packets exceed one dispatch of `per`.
-    fn new(cfg: &Config, layout: Option<ImageLayout>, per: usize) -> Result<Self> {
+    pub(crate) fn new(cfg: &Config, layout: Option<ImageLayout>, per: usize) -> Result<Self> {
         let (pw, ph) = cfg.packet.size();
         let packet_mode = layout.is_some() && (pw, ph) != (1, 1);
         let (width, height) = layout.map_or((0, 0), |l| (l.width, l.height));
@@ -469,6 +470,35 @@ impl PacketPlan {
     }
 }
 
+/// What the kernel's uniform takes from one sub-light: its view, half extents and emitter, and
+/// the sizes of its hierarchies (a [`SubView`]'s, or on the engine path what the view decides).
+pub(crate) struct SubLightShape {
+    pub view: LightView,
+    pub half: glam::Vec2,
+    pub emitter: Emitter,
+    /// Side of the padded dual-grid MSSM, `r + 2`.
+    pub padded: u32,
+    /// Levels of the anchored MSSM and of the dual-grid MSSM.
+    pub mssm_levels: u32,
+    pub dual_levels: u32,
+    /// The classification depths are the true depths.
+    pub class_is_depth: bool,
+}
+
+impl SubLightShape {
+    fn of(sv: &SubView, cfg: &Config) -> Self {
+        SubLightShape {
+            view: sv.ls.view,
+            half: sv.half,
+            emitter: sv.emitter,
+            padded: sv.dual.mssm.size(),
+            mssm_levels: sv.mssm.levels(),
+            dual_levels: sv.dual.mssm.levels(),
+            class_is_depth: sv.grid(cfg).class_is_depth(),
+        }
+    }
+}
+
 /// The uniform of one dispatch over `count` receivers from `base` (0, 0 for the packet pass).
 fn hsm_uniform(
     sv: &SubView,
@@ -478,12 +508,24 @@ fn hsm_uniform(
     count: usize,
     base: usize,
 ) -> HsmUniform {
-    let (m, d, view) = (&sv.mssm, &sv.dual.mssm, &sv.ls.view);
+    hsm_uniform_of(&SubLightShape::of(sv, cfg), cfg, r, plan, count, base)
+}
+
+/// [`hsm_uniform`] from a [`SubLightShape`].
+pub(crate) fn hsm_uniform_of(
+    sv: &SubLightShape,
+    cfg: &Config,
+    r: u32,
+    plan: &PacketPlan,
+    count: usize,
+    base: usize,
+) -> HsmUniform {
+    let view = &sv.view;
     HsmUniform {
         r,
-        padded: d.size(),
-        mssm_levels: m.levels().max(1),
-        dual_levels: d.levels().max(1),
+        padded: sv.padded,
+        mssm_levels: sv.mssm_levels.max(1),
+        dual_levels: sv.dual_levels.max(1),
         alpha: view.alpha(),
         n: view.n,
         k: crate::contour::Scale::of(view).k as f32,
@@ -505,7 +547,7 @@ fn hsm_uniform(
         far: view.far,
         probe: 2,
         receiver_plane: cfg.shadow.receiver_plane as u32,
-        class_is_depth: sv.grid(cfg).class_is_depth() as u32,
+        class_is_depth: sv.class_is_depth as u32,
         shape: match sv.emitter {
             Emitter::Rect(_) => SHAPE_RECT,
             Emitter::Disk(_) => SHAPE_DISK,

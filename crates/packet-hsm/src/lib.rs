@@ -7,9 +7,13 @@ pub mod contour;
 pub mod cpu;
 pub mod fit;
 #[cfg(feature = "gpu")]
+pub mod frame;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 
 pub use cpu::CpuPacketHsm;
+#[cfg(feature = "gpu")]
+pub use frame::PacketHsmFrame;
 #[cfg(feature = "gpu")]
 pub use gpu::GpuPacketHsm;
 pub use shadow_map_core::SoftShadowEstimator;

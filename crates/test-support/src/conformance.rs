@@ -504,6 +504,9 @@ pub struct FrameComparison {
     pub rmse: f64,
     /// The estimator's status words after the last frame (empty when it keeps none).
     pub status: Vec<u32>,
+    /// Active receivers the frame left NaN as cut short by the device's loop budget (only with
+    /// [`frames_match_the_cpu_twin_with_cuts`]; excluded from the figures above).
+    pub cut: usize,
     /// The last frame's V.
     pub v: Vec<f32>,
 }
@@ -520,6 +523,32 @@ pub fn frames_match_the_cpu_twin(
     frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
     scene: &Scene,
     receivers: &Receivers,
+) -> FrameComparison {
+    frames_compared(label, ctx, frame, scene, receivers, None)
+}
+
+/// [`frames_match_the_cpu_twin`] for an engine path that leaves receivers cut short by the
+/// device's loop budget NaN and counts them in status word `cut_word` (for the caller to redo,
+/// as the CLI does): an active NaN is allowed only there, their number must equal that word, and
+/// they are left out of the comparison ([`FrameComparison::cut`]).
+pub fn frames_match_the_cpu_twin_with_cuts(
+    label: &str,
+    ctx: &GpuContext,
+    frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
+    scene: &Scene,
+    receivers: &Receivers,
+    cut_word: usize,
+) -> FrameComparison {
+    frames_compared(label, ctx, frame, scene, receivers, Some(cut_word))
+}
+
+fn frames_compared(
+    label: &str,
+    ctx: &GpuContext,
+    frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
+    scene: &Scene,
+    receivers: &Receivers,
+    cut_word: Option<usize>,
 ) -> FrameComparison {
     use shadow_map_core::gpu::{frame::FrameInputs, receivers::GpuReceivers, GpuScene};
     let views = frame
@@ -562,6 +591,7 @@ pub fn frames_match_the_cpu_twin(
         .cpu_twin(scene, receivers, &views)
         .unwrap_or_else(|e| panic!("{label}: CPU twin: {e}"));
     let (mut max_dv, mut beyond, mut active, mut sq) = (0.0f32, 0usize, 0usize, 0.0f64);
+    let mut cut = 0usize;
     for (k, (&b, &c)) in bits.iter().zip(&cpu).enumerate() {
         let g = f32::from_bits(b);
         if !receivers.active[k] {
@@ -569,6 +599,10 @@ pub fn frames_match_the_cpu_twin(
                 g.is_nan() && c.is_nan(),
                 "{label}: inactive receiver {k}: {g} / {c}"
             );
+            continue;
+        }
+        if g.is_nan() && cut_word.is_some() {
+            cut += 1;
             continue;
         }
         assert!(
@@ -581,9 +615,16 @@ pub fn frames_match_the_cpu_twin(
         beyond += usize::from(d > Tolerance::TWIN.abs);
         active += 1;
     }
+    if let Some(w) = cut_word {
+        assert_eq!(
+            status.get(w).copied().unwrap_or(0) as usize,
+            cut,
+            "{label}: active receivers left NaN against the status' cut count (word {w})"
+        );
+    }
     let rmse = (sq / active.max(1) as f64).sqrt();
     println!(
-        "{label}: frame API vs CPU twin, max |dV| {max_dv:.2e}, rmse {rmse:.2e}, {beyond} of {active} beyond {:.0e}, status {status:?}",
+        "{label}: frame API vs CPU twin, max |dV| {max_dv:.2e}, rmse {rmse:.2e}, {beyond} of {active} beyond {:.0e}, {cut} cut, status {status:?}",
         Tolerance::TWIN.abs
     );
     FrameComparison {
@@ -592,6 +633,7 @@ pub fn frames_match_the_cpu_twin(
         active,
         rmse,
         status,
+        cut,
         v: bits.into_iter().map(f32::from_bits).collect(),
     }
 }

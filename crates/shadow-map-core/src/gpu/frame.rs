@@ -45,6 +45,13 @@ pub trait FrameEstimator {
     /// what a frame's raster work is, in units of the casters' triangles.
     fn caster_passes(&self, views: &[Option<LightView>]) -> u32;
 
+    /// Why this engine path does not take `scene` (a light or a setting it does not model), for
+    /// the caller to use the estimator's twin instead; `None` (the default) when it does.
+    /// [`encode`](Self::encode) fails with the same reason.
+    fn refuses(&self, _scene: &Scene) -> Option<String> {
+        None
+    }
+
     /// The CPU twin's V for `receivers` in the same `views` (what the conformance check and
     /// `examples/frame_loop.rs` compare a frame with).
     fn cpu_twin(
