@@ -40,12 +40,12 @@ fn bench(c: &mut Criterion) {
     g.bench_function("cpu/process", |b| {
         b.iter(|| {
             let mut d = built.clone();
-            d.process(black_box(0.001));
+            d.process(black_box(0.001), 0.0);
             d
         })
     });
     let mut processed = built.clone();
-    processed.process(0.001);
+    processed.process(0.001, 0.0);
     g.bench_function("cpu/link", |b| {
         b.iter(|| {
             let mut d = processed.clone();

@@ -264,6 +264,17 @@ pub fn query(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) 
     }
 }
 
+/// EDSM's `c'` in world units for `view`: `c / (far - n)`.
+pub fn c_world(view: &LightView, s: &Settings) -> f32 {
+    s.c / (view.far - view.n).max(f32::MIN_POSITIVE)
+}
+
+/// The depth window the lists keep behind their truncation point in `view`
+/// ([`crate::dsm::truncation_window`] for the settings' filter).
+pub fn truncation_window(view: &LightView, s: &Settings) -> f32 {
+    crate::dsm::truncation_window(s.filter, c_world(view, s))
+}
+
 /// Lookup settings for a view of `light`: `c' = c / (far - n)` turns the notes' c over normalised
 /// depth into world units; `filter=pcss` sizes its regions by the light each view stands for
 /// ([`view_light_extent`]).
@@ -271,7 +282,7 @@ pub fn lookup_settings(view: &LightView, light: &Light, s: &Settings) -> LookupS
     LookupSettings {
         filter: s.filter,
         kernel: s.kernel,
-        c_world: s.c / (view.far - view.n).max(f32::MIN_POSITIVE),
+        c_world: c_world(view, s),
         traversal: s.traversal,
         soft: SoftLookup {
             light: view_light_extent(light, s.sublights),
@@ -337,7 +348,7 @@ pub fn build_deep_map_timed(
     let mut dsm = DeepShadowMap::build(&frags, view.r, s.capacity, s.max_capacity)?;
     ms[1] += t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    dsm.process(s.epsilon);
+    dsm.process(s.epsilon, truncation_window(view, s));
     ms[2] += t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
     dsm.link();

@@ -55,7 +55,7 @@ struct DsUniform {
     disk: u32,
     ortho: u32,
     probe: u32,
-    _pad0: u32,
+    trunc_window: f32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -69,6 +69,10 @@ struct Counters {
     steps: atomic<u32>,
     wraps: atomic<u32>,
     cut: atomic<u32>,
+    // process: elements left in the lists after truncation, and the longest list before it
+    // (the CPU twin's BuildStats::kept and max_len).
+    kept: atomic<u32>,
+    max_len: atomic<u32>,
 }
 
 @group(0) @binding(0) var<uniform> P: DsUniform;
@@ -243,20 +247,37 @@ fn process(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
             a = nodes[a].next;
         }
     }
+    atomicMax(&counters.max_len, len);
     var tau = 1.0;
     var prev = NIL;
+    var kept = 0u;
+    // dsm.rs process_list: once tau_K <= epsilon, EDSM keeps the elements nearer than
+    // z_K + trunc_window; the hard filters truncate right after K (trunc_window 0).
+    var cutting = false;
+    var cut_at = 0.0;
     e = h;
     while (e != NIL) {
+        if (cutting && nodes[e].depth >= cut_at) {
+            nodes[prev].next = NIL;
+            break;
+        }
+        kept++;
         tau = tau * (1.0 - nodes[e].alpha);
         nodes[e].tau = tau;
         nodes[e].prev = prev;
-        if (P.epsilon > 0.0 && tau <= P.epsilon) {
-            nodes[e].next = NIL;
-            break;
+        if (!cutting && P.epsilon > 0.0 && tau <= P.epsilon) {
+            if (P.trunc_window > 0.0) {
+                cutting = true;
+                cut_at = nodes[e].depth + P.trunc_window;
+            } else {
+                nodes[e].next = NIL;
+                break;
+            }
         }
         prev = e;
         e = nodes[e].next;
     }
+    atomicAdd(&counters.kept, kept);
     // Out of the device's loop budget (a long list's selection sort): counted; gpu.rs replaces
     // the whole map by the CPU twin's.
     if (loop_limit_hit(P.probe)) { atomicAdd(&counters.cut, 1u); }

@@ -217,10 +217,22 @@ impl DeepShadowMap {
 
     /// Processing (§1.3.2), one texel at a time in parallel: sort the list by depth (insertion
     /// sort of its payloads, ties broken by alpha so any insertion order gives the same list),
-    /// store `tau_k = prod_{i<=k} (1 - alpha_i)` (Eq. 1.1) and the `prev` links, and truncate after
-    /// the first element with `tau_k <= epsilon` (0 disables): no later fragment can change the
-    /// transmittance by more than `tau_k`, so the lookup error is at most `epsilon`.
-    pub fn process(&mut self, epsilon: f32) {
+    /// store `tau_k = prod_{i<=k} (1 - alpha_i)` (Eq. 1.1) and the `prev` links, and truncate
+    /// (`epsilon` 0 disables) once `tau_K <= epsilon` at an element K:
+    ///
+    /// - `window = 0` (the hard lookups: first, none, pcf, pcss): right after K. Every later
+    ///   fragment lies behind a transmittance `tau_K <= epsilon`, so the lookup error is at most
+    ///   `epsilon`.
+    /// - `window > 0` (EDSM, [`truncation_window`]): before the first element at or beyond
+    ///   `z_K + window`. EDSM's soft product ([`soft_tau`]) weights a fragment at `z_j` by
+    ///   `o_c(d - z_j)`, small just behind it, so truncating right after K is not bounded by
+    ///   epsilon (two coincident opaque fragments give `e^{-c't}` instead of `e^{-2c't}`: an
+    ///   error up to 1/4; a run of m coincident fragments up to nearly 1). With the window every
+    ///   fragment within `EDSM_CUTOFF / c'` of K is kept, so for `d < z_K + window` the product
+    ///   is exact, and beyond it the walk from the receiver meets a hard element at or after K,
+    ///   so the truncated value is at most `tau_K <= epsilon` and at least the full one: the error
+    ///   is again at most `epsilon`.
+    pub fn process(&mut self, epsilon: f32, window: f32) {
         let ptr = NodesPtr(self.nodes.as_mut_ptr());
         let res: Vec<(u64, u32)> = self
             .head
@@ -230,7 +242,7 @@ impl DeepShadowMap {
                 |scratch, &h| {
                     let p = ptr;
                     // SAFETY: only the elements of this texel's list are touched.
-                    unsafe { process_list(p.0, h, epsilon, scratch) }
+                    unsafe { process_list(p.0, h, (epsilon, window), scratch) }
                 },
             )
             .collect();
@@ -436,6 +448,17 @@ pub fn find_by(nodes: &[Node], start: u32, caster: impl Fn(f32) -> bool) -> (u32
     }
 }
 
+/// The depth window [`DeepShadowMap::process`] keeps behind the truncation point for a lookup
+/// with EDSM's `c'` (`c_world`): `EDSM_CUTOFF / c'` under [`Filter::Edsm`], 0 (truncate right
+/// after it) for the hard filters.
+pub fn truncation_window(filter: Filter, c_world: f32) -> f32 {
+    if filter == Filter::Edsm && c_world > 0.0 {
+        EDSM_CUTOFF / c_world
+    } else {
+        0.0
+    }
+}
+
 /// EDSM transmittance of one tap (docs/methods.md §7, the soft-tested product):
 /// `tau_c(d) = prod_{z_j < d} (1 - alpha_j o_c(d - z_j))`, `o_c(t) = 1 - exp(-c' t)`.
 ///
@@ -466,7 +489,7 @@ pub fn soft_tau(nodes: &[Node], k: u32, d: f32, c_world: f32) -> f32 {
 unsafe fn process_list(
     nodes: *mut Node,
     head: u32,
-    epsilon: f32,
+    (epsilon, window): (f32, f32),
     (idx, pay): &mut (Vec<u32>, Vec<(f32, f32)>),
 ) -> (u64, u32) {
     if head == NIL {
@@ -494,17 +517,28 @@ unsafe fn process_list(
     }
     let mut tau = 1.0f32;
     let mut kept = idx.len();
+    // z_K + window once tau_K <= epsilon (window > 0).
+    let mut cut_at: Option<f32> = None;
     for (k, (&i, &(z, al))) in idx.iter().zip(pay.iter()).enumerate() {
+        if cut_at.is_some_and(|c| z >= c) {
+            at(idx[k - 1]).next = NIL;
+            kept = k;
+            break;
+        }
         tau *= 1.0 - al;
         let n = at(i);
         n.depth = z;
         n.alpha = al;
         n.tau = tau;
         n.prev = if k == 0 { NIL } else { idx[k - 1] };
-        if epsilon > 0.0 && tau <= epsilon {
-            n.next = NIL;
-            kept = k + 1;
-            break;
+        if cut_at.is_none() && epsilon > 0.0 && tau <= epsilon {
+            if window > 0.0 {
+                cut_at = Some(z + window);
+            } else {
+                n.next = NIL;
+                kept = k + 1;
+                break;
+            }
         }
     }
     (kept as u64, idx.len() as u32)

@@ -97,7 +97,7 @@ pub struct GpuMap {
     pub counters: wgpu::Buffer,
     /// True for the opaque path (no lists).
     pub opaque: bool,
-    /// Build statistics (`kept` and `max_len` are not measured on the GPU).
+    /// Build statistics (`lists` is not measured on the GPU).
     pub stats: BuildStats,
     /// Texels whose `process` or `link` the device's loop budget cut short ([`LOOP_LIMIT`]); when
     /// non-zero the lists are the CPU twin's, built for this view and uploaded.
@@ -128,8 +128,9 @@ pub struct GpuDeepShadow {
 pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 
 /// Bytes of the counter buffer: the element counter, the step counter, the element counter's
-/// wraps, the invocations cut short by the loop budget (`Counters` in `deep_shadow.wgsl`).
-pub const COUNTER_BYTES: u64 = 16;
+/// wraps, the invocations cut short by the loop budget, the elements kept after truncation and
+/// the longest list (`Counters` in `deep_shadow.wgsl`).
+pub const COUNTER_BYTES: u64 = 24;
 
 pub(crate) fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
     let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
@@ -326,6 +327,7 @@ impl GpuDeepShadow {
                 c_world: 0.0,
                 ortho: u32::from(view.is_ortho()),
                 probe: LOOP_PROBE,
+                trunc_window: crate::cpu::truncation_window(view, s),
                 ..Default::default()
             });
             let group = self.group(&u, &tri_buf, &item_buf, &map, &dummy, &dummy_rw);
@@ -344,7 +346,10 @@ impl GpuDeepShadow {
                 // Process and link (§1.3.2, §1.3.3).
                 if !opaque {
                     self.run_process_link(&group, texels)?;
-                    let cut = ctx.read_buffer::<u32>(&counters, COUNTER_BYTES)?[3] as u64;
+                    let c = ctx.read_buffer::<u32>(&counters, COUNTER_BYTES)?;
+                    let cut = c[3] as u64;
+                    map.stats.kept = c[4] as u64;
+                    map.stats.max_len = c[5];
                     if cut > 0 {
                         self.upload_cpu_lists(scene, view, s, &mut map, cut)?;
                     }
@@ -897,7 +902,12 @@ impl SoftShadowEstimator for GpuDeepShadow {
             let (view, _) = tally.fit_view(scene, receivers, *y, &s)?;
             let map = self.build_map(scene, &view, &s)?;
             tally.fragments += map.stats.fragments;
-            tally.kept += map.stats.fragments;
+            tally.kept += if opaque {
+                map.stats.fragments
+            } else {
+                map.stats.kept
+            };
+            tally.max_len = tally.max_len.max(map.stats.max_len);
             tally.capacity = tally.capacity.max(map.stats.capacity);
             tally.passes += map.stats.passes;
             tally.peak = tally
@@ -935,9 +945,6 @@ impl SoftShadowEstimator for GpuDeepShadow {
         self.report.stages.push(("build".into(), t_build));
         self.report.stages.push(("estimate".into(), t_est));
         tally.note(&mut self.report, scene, opaque, points.len());
-        self.report
-            .notes
-            .retain(|n| n.0 != "elements_kept" && n.0 != "truncated" && n.0 != "max_list");
         self.report.note("non_finite", bad);
         if fallbacks > 0 || cut_texels > 0 {
             self.report.note("loop_limit_cpu_fallbacks", fallbacks);
@@ -1018,7 +1025,7 @@ mod tests {
                 disk,
                 ortho,
                 probe,
-                _pad0,
+                trunc_window,
                 _pad1,
                 _pad2,
             }

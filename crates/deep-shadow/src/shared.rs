@@ -126,8 +126,9 @@ pub struct DsUniform {
     /// (2) on every stage that loops over lists (process, link, lookups); see
     /// `crate::gpu::LOOP_LIMIT`.
     pub probe: u32,
-    /// Padding to 16 bytes.
-    pub _pad0: u32,
+    /// `process`: the depth window kept behind the truncation point
+    /// ([`crate::dsm::truncation_window`]; 0: truncate right after it).
+    pub trunc_window: f32,
     /// Padding.
     pub _pad1: u32,
     /// Padding.

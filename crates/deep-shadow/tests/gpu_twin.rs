@@ -478,6 +478,18 @@ impl TwinPair for DeepShadow {
                     (fc - fg).abs() <= 2 + fc / 10_000,
                     "{name} {kv:?}: fragments {fc} vs {fg}"
                 );
+                // The truncation's notes (issue 21: the GPU twin used to drop them): elements
+                // kept and the longest list, up to the same ties.
+                let num = |r: &shadow_map_core::Report, key| -> i64 {
+                    note(r, key).map_or(-1, |f| f.parse().unwrap())
+                };
+                for key in ["elements_kept", "truncated", "max_list"] {
+                    let (c, g) = (num(&rc, key), num(&rg, key));
+                    assert!(
+                        (c < 0) == (g < 0) && (c - g).abs() <= 2 + c / 10_000,
+                        "{name} {kv:?}: {key} {c} vs {g}"
+                    );
+                }
                 assert_fixture_within(&format!("{name} {kv:?}"), &vc, &vg, rec.active_count());
             }
         }
