@@ -264,6 +264,61 @@ pub fn query(view: &LightView, light: &Light, pw: Vec3, nw: Vec3, s: &Settings) 
     }
 }
 
+/// Marks in `outside` every active receiver that looks up outside `view`'s map (beyond the
+/// light view's reach, [`MAX_TAN`] off the light's axis): no map holds its casters there.
+pub fn mark_outside(
+    view: &LightView,
+    light: &Light,
+    receivers: &Receivers,
+    s: &Settings,
+    outside: &mut [bool],
+) {
+    outside.par_iter_mut().enumerate().for_each(|(k, o)| {
+        if receivers.active[k] && !*o {
+            if let Query::Look { uv, .. } =
+                query(view, light, receivers.position[k], receivers.normal[k], s)
+            {
+                *o = !view.contains(uv);
+            }
+        }
+    });
+}
+
+/// The receivers [`mark_outside`] found (issue 21): each one the core's
+/// [`Settler`](shadow_map_core::settle::Settler) proves unshadowed (no scene triangle in its light
+/// pyramid) gets its facing fraction, exactly; any other fails the estimate with
+/// [`shadow_map_core::Error::Receivers`] naming the count (a map-less transmittance of 1 would be
+/// a silent guess). Returns how many were settled.
+pub fn settle_outside(
+    scene: &Scene,
+    receivers: &Receivers,
+    outside: &[bool],
+    v: &mut [f32],
+) -> Result<usize> {
+    let idx: Vec<usize> = (0..outside.len()).filter(|&k| outside[k]).collect();
+    if idx.is_empty() {
+        return Ok(0);
+    }
+    let settler = shadow_map_core::settle::Settler::new(scene);
+    let proven: Vec<bool> = idx
+        .par_iter()
+        .map(|&k| settler.unshadowed(receivers.position[k], receivers.normal[k]))
+        .collect();
+    let unproven = proven.iter().filter(|p| !**p).count();
+    if unproven > 0 {
+        return Err(shadow_map_core::Error::Receivers(format!(
+            "{unproven} lit receivers lie outside deep-shadow's light view (beyond {:.0} degrees off the light's axis) and scene geometry lies between them and the light, so no map defines their transmittance: aim the light's normal at them, or use the CLI's cascades (it splits such views)",
+            MAX_TAN.atan().to_degrees()
+        )));
+    }
+    for &k in &idx {
+        v[k] = scene
+            .light
+            .front_fraction_world(receivers.position[k], receivers.normal[k]);
+    }
+    Ok(idx.len())
+}
+
 /// EDSM's `c'` in world units for `view`: `c / (far - n)`.
 pub fn c_world(view: &LightView, s: &Settings) -> f32 {
     s.c / (view.far - view.n).max(f32::MIN_POSITIVE)
@@ -423,6 +478,7 @@ impl CpuDeepShadow {
         let s = self.settings();
         let opaque = scene.is_opaque();
         let mut acc = vec![0.0f32; receivers.len()];
+        let mut outside = vec![false; receivers.len()];
         let mut t_est = 0.0;
         let mut t_stages = [0.0f64; 4];
         let mut t_build = t_fit;
@@ -457,6 +513,7 @@ impl CpuDeepShadow {
             t_build += t.elapsed().as_secs_f64() * 1e3;
             let t = Instant::now();
             let ls = lookup_settings(&view, &scene.light, &s);
+            mark_outside(&view, &scene.light, receivers, &s, &mut outside);
             let (lookups, steps) = acc
                 .par_iter_mut()
                 .enumerate()
@@ -494,6 +551,7 @@ impl CpuDeepShadow {
             t_est += t.elapsed().as_secs_f64() * 1e3;
         }
         let bad = finish(scene, receivers, &acc, views.len(), v);
+        let settled = settle_outside(scene, receivers, &outside, v)?;
         if opaque {
             self.report.stages.push(("build".into(), t_build));
         } else {
@@ -512,6 +570,9 @@ impl CpuDeepShadow {
         self.report.stages.push(("estimate".into(), t_est));
         tally.note(&mut self.report, scene, opaque, views.len());
         self.report.note("non_finite", bad);
+        if settled > 0 {
+            self.report.note("settled_outside", settled);
+        }
         Ok(())
     }
 }

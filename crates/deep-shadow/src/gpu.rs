@@ -897,6 +897,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let mut tally = Tally::default();
         let (mut fallbacks, mut cut_texels) = (0usize, 0u64);
+        let mut outside = vec![false; receivers.len()];
         for y in &points {
             let t = Instant::now();
             let (view, _) = tally.fit_view(scene, receivers, *y, &s)?;
@@ -931,6 +932,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
                 })
                 .collect();
             let ls = lookup_settings(&view, &scene.light, &s);
+            crate::cpu::mark_outside(&view, &scene.light, receivers, &s, &mut outside);
             let (tv, steps, redone) = self.lookup(&map, &ls, &queries)?;
             fallbacks += redone;
             cut_texels += map.cut_texels;
@@ -942,6 +944,10 @@ impl SoftShadowEstimator for GpuDeepShadow {
             t_est += t.elapsed().as_secs_f64() * 1e3;
         }
         let bad = finish(scene, receivers, &acc, points.len(), v);
+        let settled = crate::cpu::settle_outside(scene, receivers, &outside, v)?;
+        if settled > 0 {
+            self.report.note("settled_outside", settled);
+        }
         self.report.stages.push(("build".into(), t_build));
         self.report.stages.push(("estimate".into(), t_est));
         tally.note(&mut self.report, scene, opaque, points.len());

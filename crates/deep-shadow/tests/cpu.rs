@@ -849,3 +849,34 @@ fn edsm_truncation_error_is_at_most_epsilon() {
     assert!(err <= eps + 1e-6, "max |dT| {err} > epsilon {eps}");
     assert!(new.stats.kept < full.stats.kept, "nothing was truncated");
 }
+
+/// Receivers beyond the light view's reach (issue 21): deep-shadow used to give them T = 1 with
+/// only an `out_of_frustum` note, V = 1 behind a wall. Now one the scene's BVH proves unshadowed
+/// gets its facing fraction exactly (`settled_outside`), and one with geometry between it and
+/// the light fails the estimate with a one-line error naming the count.
+#[test]
+fn receivers_beyond_the_view_are_settled_or_refused() {
+    let (open, rec) = beyond_reach(false);
+    let mut e = est(&[]);
+    let (v, rep) = run(&mut e, &open, &rec).unwrap();
+    let want = open
+        .light
+        .front_fraction_world(rec.position[1], rec.normal[1]);
+    assert_eq!(v[1], want);
+    assert_eq!(note(&rep, "settled_outside").as_deref(), Some("1"));
+    assert!(
+        v[0] < 1.0,
+        "the receiver under the sheet is shadowed: {}",
+        v[0]
+    );
+    let (walled, rec) = beyond_reach(true);
+    match run(&mut est(&[]), &walled, &rec) {
+        Err(Error::Receivers(m)) => {
+            assert!(
+                m.starts_with("1 lit receivers lie outside") && !m.contains('\n'),
+                "{m}"
+            )
+        }
+        other => panic!("expected a receivers error, got {other:?}"),
+    }
+}

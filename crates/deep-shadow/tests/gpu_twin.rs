@@ -619,3 +619,25 @@ fn every_fit_and_nearfar_match_on_both_estimators() {
         }
     }
 }
+
+/// The GPU twin settles or refuses receivers beyond the light view's reach as the CPU twin does
+/// (issue 21; `tests/cpu.rs` `receivers_beyond_the_view_are_settled_or_refused`).
+#[test]
+fn gpu_receivers_beyond_the_view_are_settled_or_refused() {
+    let Some(ctx) = test_support::gpu("gpu_receivers_beyond_the_view_are_settled_or_refused")
+    else {
+        return;
+    };
+    let (open, rec) = beyond_reach(false);
+    let mut g = GpuDeepShadow::new(ctx.clone()).unwrap();
+    let (v, rep) = run(&mut g, &open, &rec).unwrap();
+    let (vc, _) = run(&mut CpuDeepShadow::new().unwrap(), &open, &rec).unwrap();
+    assert_eq!(v[1], vc[1]);
+    assert!((v[0] - vc[0]).abs() <= 1e-4, "{} vs {}", v[0], vc[0]);
+    assert_eq!(note(&rep, "settled_outside").as_deref(), Some("1"));
+    let (walled, rec) = beyond_reach(true);
+    assert!(matches!(
+        run(&mut GpuDeepShadow::new(ctx).unwrap(), &walled, &rec),
+        Err(Error::Receivers(_))
+    ));
+}

@@ -37,3 +37,27 @@ pub fn grid(h: f32, y: f32, n: usize) -> Receivers {
     }
     Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap()
 }
+
+/// Beyond the light view's reach (issue 21): a 0.5 x 0.5 rect light at height 1 pointing down,
+/// a ground `[-100, 100]^2`, a semi-transparent sheet under the light and a wall (opacity 0.8)
+/// at x = 20, 2 high. Receivers: one under the light, and one on the ground 40 away, 88.6
+/// degrees off the light's axis (beyond `MAX_TAN`), on the wall's side (`walled`, shadowed) or
+/// the open side.
+pub fn beyond_reach(walled: bool) -> (Scene, Receivers) {
+    let light = test_support::fixtures::rect_light(0.5, 1.0);
+    let meshes = vec![
+        (quad(-100.0, -100.0, 100.0, 100.0, 0.0), 1.0),
+        (quad(-0.2, -0.2, 0.2, 0.2, 0.5), 0.5),
+        (
+            test_support::fixtures::cuboid(Vec3::new(20.0, 0.0, -5.0), Vec3::new(20.2, 2.0, 5.0)),
+            0.8,
+        ),
+    ];
+    let scene = Scene::from_meshes("beyond reach", camera(), light, meshes).unwrap();
+    let far = if walled { 40.0 } else { -40.0 };
+    let pos = vec![Vec3::new(0.05, 0.0, 0.03), Vec3::new(far, 0.0, 0.0)];
+    (
+        scene,
+        Receivers::from_points(pos, vec![Vec3::Y; 2]).unwrap(),
+    )
+}
