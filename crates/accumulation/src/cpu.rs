@@ -670,8 +670,8 @@ impl CpuAccumulation {
             plan_half_extent(scene, receivers, &self.settings),
         );
         let ls = self.report.time("build", || {
-            LightSpace::build_in_view(scene, view, FitReport::default(), &req)
-        });
+            LightSpace::try_build_in_view(scene, view, FitReport::default(), &req)
+        })?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);
         Ok(())
@@ -806,7 +806,7 @@ impl SoftShadowEstimator for CpuAccumulation {
         let r = s.resolution;
         let ls = self.report.time("build", || -> Result<LightSpace> {
             let (view, fit, req) = plan(scene, receivers, &s, r)?;
-            Ok(LightSpace::build_in_view(scene, view, fit, &req))
+            LightSpace::try_build_in_view(scene, view, fit, &req)
         })?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);

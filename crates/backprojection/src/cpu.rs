@@ -387,8 +387,8 @@ impl CpuBackprojection {
         let half = shadow_map_core::light_view::fit_half_extent(&scene.light, receivers);
         let req = request(&self.settings, &view, half);
         let ls = self.report.time("build", || {
-            LightSpace::build_in_view(scene, view, FitReport::default(), &req)
-        });
+            LightSpace::try_build_in_view(scene, view, FitReport::default(), &req)
+        })?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);
         Ok(())
@@ -744,7 +744,7 @@ impl SoftShadowEstimator for CpuBackprojection {
         self.ls = None;
         let ls = self.report.time("build", || -> Result<LightSpace> {
             let (view, fit, req) = plan(&self.settings, scene, receivers)?;
-            Ok(LightSpace::build_in_view(scene, view, fit, &req))
+            LightSpace::try_build_in_view(scene, view, fit, &req)
         })?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);

@@ -99,7 +99,7 @@ impl<F: Filter> MapEstimator<F> {
         let settings = MapSettings::from_params(&self.params)?;
         let mut req = settings.request();
         req.resolution = view.r;
-        let mut ls = LightSpace::build_in_view(scene, view, Default::default(), &req);
+        let mut ls = LightSpace::try_build_in_view(scene, view, Default::default(), &req)?;
         let q16 = encode_layer0(&mut ls, settings.depth);
         self.report.light_space_bytes = ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes);
         self.ls = Some(ls);

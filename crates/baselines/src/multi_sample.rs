@@ -149,12 +149,7 @@ impl MultiSample {
         self.report = Report::default();
         let req = MapSettings::from_params(&self.params)?.request();
         let maps = views.iter().map(|view| match view {
-            Some(view) => Ok(LightSpace::build_in_view(
-                scene,
-                *view,
-                Default::default(),
-                &req,
-            )),
+            Some(view) => LightSpace::try_build_in_view(scene, *view, Default::default(), &req),
             None => Err(Error::LightView(
                 "no receiver in front of this sub-light".into(),
             )),

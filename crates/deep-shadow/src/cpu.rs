@@ -485,12 +485,12 @@ impl CpuDeepShadow {
         for &(view, fit) in views {
             let t = Instant::now();
             let map = if opaque {
-                let ls = LightSpace::build_in_view(
+                let ls = LightSpace::try_build_in_view(
                     scene,
                     view,
                     fit,
                     &LightSpaceRequest::single(s.resolution),
-                );
+                )?;
                 Source::Opaque(
                     ls.layers
                         .into_iter()

@@ -520,6 +520,16 @@ impl SubView {
             raster: RasterOptions::default(),
             opacity: false,
         };
+        // The light space, the MSSM and the padded dual-grid MSSM (two planes a level), refused
+        // together before any is allocated when they cannot fit in host memory.
+        let p = r as u64 + 2;
+        let dual_levels = (p as f64).log2().floor() as u64 + 1;
+        shadow_map_core::light_space::check_host_bytes(
+            "packet-hsm light-space bytes (half the host memory available)",
+            req.host_bytes(r)
+                + 4 * r as u64 * r as u64 * (levels as u64 + 1)
+                + 8 * p * p * dual_levels,
+        )?;
         let ls = LightSpace::build_in_view(scene, view, fit, &req);
         let l0 = &ls.layers[0];
         let mssm = Mssm::build(&l0.depth, l0.size, levels);

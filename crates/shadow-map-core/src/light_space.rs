@@ -35,7 +35,70 @@ pub struct LightSpaceRequest {
     pub opacity: bool,
 }
 
+/// Host memory available for new allocations (`MemAvailable` of `/proc/meminfo`), where the
+/// system says; `None` elsewhere (no check is made then).
+pub fn host_memory_available() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Refuses (`Error::Limit` naming the bytes, before anything is allocated) a build whose planes
+/// need more than half the host memory available ([`host_memory_available`]; the other half is
+/// left to the estimator's own structures, the rasteriser's working sets and the rest of the
+/// process). Issue 21: at `resolution=16384` backprojection and packet-hsm were killed by the
+/// OOM killer at 24 GB on a 23 GB machine.
+pub fn check_host_bytes(what: &'static str, bytes: u64) -> Result<()> {
+    match host_memory_available() {
+        Some(avail) if bytes > avail / 2 => Err(crate::Error::Limit {
+            what,
+            requested: bytes,
+            max: avail / 2,
+        }),
+        _ => Ok(()),
+    }
+}
+
 impl LightSpaceRequest {
+    /// Host bytes a build of this request at side `r` holds at its peak, from above: every
+    /// peeled layer (the midpoints' extra one included), one opacity plane per layer when asked
+    /// for, the midpoint layers, the anchored MSSM's levels, the dual-grid MSSM's two planes per
+    /// level and the pyramid (4/3 of two planes).
+    pub fn host_bytes(&self, r: u32) -> u64 {
+        let plane = 4 * r as u64 * r as u64;
+        let top = 31 - r.max(1).leading_zeros();
+        let k = self.layers.max(1) as u64 + u64::from(self.midpoints.is_some());
+        let mut planes = k;
+        if self.opacity {
+            planes += k;
+        }
+        if self.midpoints.is_some() {
+            planes += k - 1;
+        }
+        if let Some(l) = self.mssm_levels {
+            planes += l.min(top) as u64 + 1;
+        }
+        if let Some(l) = self.dual_mssm_levels {
+            planes += 2 * (l.min(top) as u64 + 1);
+        }
+        let mut bytes = planes.saturating_mul(plane);
+        if self.pyramid {
+            bytes = bytes.saturating_add(plane.saturating_mul(8) / 3);
+        }
+        bytes
+    }
+
+    /// Refuses, before anything is allocated, a build at side `r` whose planes
+    /// ([`host_bytes`](Self::host_bytes)) need more than half the host memory available
+    /// ([`check_host_bytes`]).
+    pub fn check_host_memory(&self, r: u32) -> Result<()> {
+        check_host_bytes(
+            "light-space bytes (half the host memory available)",
+            self.host_bytes(r),
+        )
+    }
+
     /// A single plain shadow map of resolution `r`.
     pub fn single(r: u32) -> Self {
         LightSpaceRequest {
@@ -132,7 +195,7 @@ impl LightSpace {
         opts: &ViewOptions,
     ) -> Result<Self> {
         let (view, fit) = req.fit_view(scene, receivers, opts)?;
-        Ok(Self::build_in_view(scene, view, fit, req))
+        Self::try_build_in_view(scene, view, fit, req)
     }
 
     /// Fits a view whose centre of projection is the point `at` of the light plane (light-space
@@ -157,6 +220,20 @@ impl LightSpace {
         let frame = point_frame(&scene.light, at)?;
         let (view, fit) =
             LightView::fit_with(scene, receivers, frame, Vec2::ZERO, req.resolution, opts)?;
+        Self::try_build_in_view(scene, view, fit, req)
+    }
+
+    /// [`build_in_view`](Self::build_in_view) after
+    /// [`LightSpaceRequest::check_host_memory`]: a build that cannot fit in host memory is an
+    /// [`Error::Limit`](crate::Error::Limit) instead of an allocation failure. What every
+    /// estimator calls.
+    pub fn try_build_in_view(
+        scene: &Scene,
+        view: LightView,
+        fit: FitReport,
+        req: &LightSpaceRequest,
+    ) -> Result<Self> {
+        req.check_host_memory(view.r)?;
         Ok(Self::build_in_view(scene, view, fit, req))
     }
 
@@ -227,5 +304,32 @@ impl LightSpace {
             + self.mssm.as_ref().map_or(0, Mssm::bytes)
             + self.dual_mssm.as_ref().map_or(0, DualMssm::bytes)
             + self.pyramid.as_ref().map_or(0, MinMaxPyramid::bytes)
+    }
+}
+
+#[cfg(test)]
+mod host_memory_tests {
+    use super::*;
+
+    /// The planes a request holds, and the refusal before allocation (issue 21).
+    #[test]
+    fn host_bytes_count_the_planes_and_huge_builds_are_refused() {
+        let mut req = LightSpaceRequest::single(1024);
+        assert_eq!(req.host_bytes(1024), 4 << 20);
+        req.layers = 3;
+        req.midpoints = Some(0.1);
+        req.mssm_levels = Some(20);
+        req.dual_mssm_levels = Some(2);
+        // 4 peeled + 3 midpoint + 11 MSSM levels (capped at log2 1024) + 2 x 3 dual planes.
+        assert_eq!(req.host_bytes(1024), 24 * (4 << 20));
+        assert!(check_host_bytes("test", 1).is_ok());
+        if host_memory_available().is_some() {
+            match check_host_bytes("test", u64::MAX) {
+                Err(crate::Error::Limit { requested, max, .. }) => {
+                    assert!(requested == u64::MAX && max > 0)
+                }
+                other => panic!("expected a limit error, got {other:?}"),
+            }
+        }
     }
 }
