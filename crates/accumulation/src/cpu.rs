@@ -625,6 +625,7 @@ pub struct CpuAccumulation {
     settings: Settings,
     ls: Option<LightSpace>,
     report: Report,
+    cancel: shadow_map_core::Cancel,
 }
 
 impl CpuAccumulation {
@@ -636,7 +637,13 @@ impl CpuAccumulation {
             params,
             ls: None,
             report: Report::default(),
+            cancel: shadow_map_core::Cancel::new(),
         })
+    }
+    /// The cancellation token `estimate` checks ([`SoftShadowEstimator::set_cancel`]), shared
+    /// with the GPU twin.
+    pub fn cancel(&self) -> &shadow_map_core::Cancel {
+        &self.cancel
     }
     /// The light-space data of the last build.
     pub fn light_space(&self) -> Option<&LightSpace> {
@@ -693,41 +700,37 @@ impl CpuAccumulation {
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let taps = AtomicU64::new(0);
-        let nonfinite: usize = v
-            .par_iter_mut()
-            .enumerate()
-            .map(|(k, out)| {
-                if !receivers.active[k] {
-                    *out = f32::NAN;
-                    return 0;
-                }
-                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
-                let facing = light.front_fraction_world(pw, nw);
-                if !(facing > 0.0) {
-                    *out = 0.0;
-                    return 0;
-                }
-                let p = view.frame.to_light(pw);
-                let fp = Footprint::for_light(&light.shape, s.sphere, p, (view.n, view.far));
-                let uv = view.project(p);
-                if !fp.covered() || !view.contains(uv) {
-                    outside.fetch_add(1, Ordering::Relaxed);
-                    *out = f32::NAN;
-                    return 0;
-                }
-                let mut st = TapStats::default();
-                let sh = acc.shadowing(&fp, view.frame.dir_to_light(nw), uv, &mut st);
-                taps.fetch_add(st.taps, Ordering::Relaxed);
-                let x = facing * (1.0 - sh);
-                if x.is_finite() {
-                    *out = x.clamp(0.0, 1.0);
-                    0
-                } else {
-                    *out = 0.0;
-                    1
-                }
-            })
-            .sum();
+        let nonfinite: usize = self.cancel.par_sum(v, |k, out| {
+            if !receivers.active[k] {
+                *out = f32::NAN;
+                return 0;
+            }
+            let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+            let facing = light.front_fraction_world(pw, nw);
+            if !(facing > 0.0) {
+                *out = 0.0;
+                return 0;
+            }
+            let p = view.frame.to_light(pw);
+            let fp = Footprint::for_light(&light.shape, s.sphere, p, (view.n, view.far));
+            let uv = view.project(p);
+            if !fp.covered() || !view.contains(uv) {
+                outside.fetch_add(1, Ordering::Relaxed);
+                *out = f32::NAN;
+                return 0;
+            }
+            let mut st = TapStats::default();
+            let sh = acc.shadowing(&fp, view.frame.dir_to_light(nw), uv, &mut st);
+            taps.fetch_add(st.taps, Ordering::Relaxed);
+            let x = facing * (1.0 - sh);
+            if x.is_finite() {
+                *out = x.clamp(0.0, 1.0);
+                0
+            } else {
+                *out = 0.0;
+                1
+            }
+        })?;
         let _ = outside.into_inner();
         if nonfinite > 0 {
             return Err(Error::Receivers(format!(
@@ -736,6 +739,44 @@ impl CpuAccumulation {
         }
         Ok(taps.into_inner())
     }
+}
+
+/// How many active receivers need a window wider than a sphere light's is allowed to be: under
+/// the contract's sphere model the window half extent is capped at
+/// [`SPHERE_WINDOW_CAP`](shadow_map_core::light_view::SPHERE_WINDOW_CAP) radii
+/// ([`shadow_map_core::light_view::fit_half_extent`]); a receiver whose
+/// [`sphere_window_factor`](shadow_map_core::light_view::sphere_window_factor) is larger (far
+/// off the light's axis, about 65 degrees at 8 radii from the light) has its kernel clipped at
+/// the map's edge. The part clipped holds casters within a few radii of the light's own plane,
+/// which a perspective view from the light's centre cannot hold at any window size (their
+/// projection runs to infinity as their depth goes to 0): a wider window does not bring them
+/// back (issue 21: a second view at 64 radii was tried and measured no better, see
+/// `tests/accuracy.rs::sphere_receivers_beyond_the_window_are_counted`). Reported as the note
+/// `beyond_sphere_window`, so no loss is silent. 0 for other lights, the paper's model and the
+/// fixed lexel kernel.
+pub fn beyond_window(
+    view: &LightView,
+    light: &shadow_map_core::Light,
+    receivers: &Receivers,
+    s: &Settings,
+) -> usize {
+    let LightShape::Sphere { radius } = light.shape else {
+        return 0;
+    };
+    if s.kernel == KernelMode::Lexels || s.sphere != SphereModel::Contract {
+        return 0;
+    }
+    let cap = shadow_map_core::light_view::SPHERE_WINDOW_CAP;
+    (0..receivers.len())
+        .into_par_iter()
+        .filter(|&k| {
+            receivers.active[k]
+                && shadow_map_core::light_view::sphere_window_factor(
+                    radius,
+                    view.frame.to_light(receivers.position[k]),
+                ) > cap
+        })
+        .count()
 }
 
 /// The error for lit receivers outside the one light frustum that [`settle_outside`] could not
@@ -798,6 +839,9 @@ impl SoftShadowEstimator for CpuAccumulation {
         self.params.set(key, value)?;
         self.settings = Settings::from_params(&self.params)?;
         Ok(())
+    }
+    fn set_cancel(&mut self, cancel: shadow_map_core::Cancel) {
+        self.cancel = cancel;
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
@@ -880,6 +924,10 @@ pub fn note_settings(
     }
     report.note("out_of_frustum_fit", ls.fit.out_of_frustum);
     report.note("window_scale", ls.fit.window_scale);
+    let beyond = beyond_window(view, light, receivers, s);
+    if beyond > 0 {
+        report.note("beyond_sphere_window", beyond);
+    }
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ use crate::cpu::{
 use crate::math::{sun_lift, LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
+use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
@@ -42,7 +43,6 @@ use shadow_map_core::{
     Error, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
-use wgpu::util::DeviceExt;
 
 /// The estimator's own WGSL (after the parts in [`SHADER_PARTS`]' head).
 pub const ACCUMULATION_WGSL: &str = include_str!("accumulation.wgsl");
@@ -572,6 +572,7 @@ impl FrameEstimator for AccumulationFrame {
 
     /// The view the estimator's own `build` fits for `receivers` ([`plan`](crate::cpu::plan)).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.gpu.ctx.check_lost()?;
         let s = self.gpu.cpu.settings();
         let (view, _, _) = crate::cpu::plan(scene, receivers, &s, s.resolution)?;
         Ok(vec![Some(view)])
@@ -587,7 +588,7 @@ impl FrameEstimator for AccumulationFrame {
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
-        check_buffers(inputs.receivers, inputs.v, n)?;
+        check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.gpu.ctx;
         let queue = &ctx.queue;
         self.layers.encode(queue, enc, inputs.casters, view, 0.0)?;
@@ -654,11 +655,16 @@ impl SoftShadowEstimator for GpuAccumulation {
     shadow_map_core::estimator_identity!(twin of cpu, Gpu);
     /// Builds the light-space data on the CPU, exactly as [`CpuAccumulation`] does.
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
+        // The device first: a lost one, or a resolution its texture arrays cannot hold, is
+        // refused before the CPU builds anything.
+        self.ctx.check_lost()?;
+        self.ctx.check_resolution(self.cpu.settings().resolution)?;
         self.cpu.build(scene, receivers)?;
         self.report = self.cpu.report();
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
+        self.cpu.cancel().check()?;
         let build = self.report.clone();
         let ls = shadow_map_core::estimator::built(self.cpu.light_space().cloned())?;
         let out = self.estimate_with(&ls, scene, receivers, v);

@@ -3,13 +3,12 @@ use crate::math::{
     backprojected_micropatch, micropatch_k, micropatch_scale, Emitter, Rect, Silhouette,
 };
 use glam::Vec3;
-use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
     peeling::SelfShadowSettings,
-    ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    Cancel, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
@@ -238,6 +237,7 @@ pub struct CpuBackprojection {
     settings: Settings,
     ls: Option<LightSpace>,
     report: Report,
+    cancel: Cancel,
 }
 
 impl CpuBackprojection {
@@ -249,7 +249,13 @@ impl CpuBackprojection {
             params,
             ls: None,
             report: Report::default(),
+            cancel: Cancel::new(),
         })
+    }
+    /// The cancellation token `estimate` checks ([`SoftShadowEstimator::set_cancel`]), for the
+    /// GPU twin's CPU redo on a fresh estimator.
+    pub fn cancel(&self) -> &Cancel {
+        &self.cancel
     }
     /// The light-space data of the last build.
     pub fn light_space(&self) -> Option<&LightSpace> {
@@ -299,50 +305,46 @@ impl CpuBackprojection {
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let t = std::time::Instant::now();
-        let nonfinite: usize = v
-            .par_iter_mut()
-            .enumerate()
-            .map(|(k, out)| {
-                if !receivers.active[k] {
-                    *out = f32::NAN;
-                    return 0;
-                }
-                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
-                let facing = light.front_fraction_world(pw, nw);
-                let p = view.frame.to_light(pw);
-                // A sphere's silhouette disk seen from p (None: it reaches p's depth).
-                let sil = match emitter {
-                    Emitter::Sphere { radius } if p.z > 0.0 => Silhouette::new(p, radius),
-                    _ => None,
-                };
-                let sphere_unserved = matches!(emitter, Emitter::Sphere { .. }) && sil.is_none();
-                let x = if !(facing > 0.0) {
-                    0.0
-                } else if p.z <= 0.0 || sphere_unserved {
-                    // Behind a sphere light's frustum, or beside its silhouette.
+        let nonfinite: usize = self.cancel.par_sum(v, |k, out| {
+            if !receivers.active[k] {
+                *out = f32::NAN;
+                return 0;
+            }
+            let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+            let facing = light.front_fraction_world(pw, nw);
+            let p = view.frame.to_light(pw);
+            // A sphere's silhouette disk seen from p (None: it reaches p's depth).
+            let sil = match emitter {
+                Emitter::Sphere { radius } if p.z > 0.0 => Silhouette::new(p, radius),
+                _ => None,
+            };
+            let sphere_unserved = matches!(emitter, Emitter::Sphere { .. }) && sil.is_none();
+            let x = if !(facing > 0.0) {
+                0.0
+            } else if p.z <= 0.0 || sphere_unserved {
+                // Behind a sphere light's frustum, or beside its silhouette.
+                outside.fetch_add(1, Ordering::Relaxed);
+                facing
+            } else if p.z <= view.n {
+                facing
+            } else {
+                let uv = view.project(p);
+                if !view.contains(uv) {
                     outside.fetch_add(1, Ordering::Relaxed);
                     facing
-                } else if p.z <= view.n {
-                    facing
                 } else {
-                    let uv = view.project(p);
-                    if !view.contains(uv) {
-                        outside.fetch_add(1, Ordering::Relaxed);
-                        facing
-                    } else {
-                        let n = view.frame.dir_to_light(nw);
-                        facing * setup.visibility(p, n, uv, sil.as_ref())
-                    }
-                };
-                if x.is_finite() {
-                    *out = x.clamp(0.0, 1.0);
-                    0
-                } else {
-                    *out = 0.0;
-                    1
+                    let n = view.frame.dir_to_light(nw);
+                    facing * setup.visibility(p, n, uv, sil.as_ref())
                 }
-            })
-            .sum();
+            };
+            if x.is_finite() {
+                *out = x.clamp(0.0, 1.0);
+                0
+            } else {
+                *out = 0.0;
+                1
+            }
+        })?;
         self.report
             .stages
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
@@ -752,6 +754,9 @@ impl SoftShadowEstimator for CpuBackprojection {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         self.estimate_light(&scene.light, receivers, v)
+    }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
     }
     fn report(&self) -> Report {
         self.report.clone()

@@ -27,6 +27,7 @@
 //! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
 use crate::cpu::{emitter_bits, plan, CpuBackprojection, Occlusion};
 use bytemuck::{Pod, Zeroable};
+use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
@@ -48,7 +49,6 @@ use shadow_map_core::{
     Error, Light, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::{num::NonZeroU64, sync::Arc, time::Instant};
-use wgpu::util::DeviceExt;
 
 /// The estimator's own WGSL (appended after the parts in [`SHADER_PARTS`]' head).
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
@@ -350,10 +350,12 @@ impl GpuBackprojection {
             .stages
             .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
         let params = self.cpu.params().clone();
+        let cancel = self.cpu.cancel().clone();
         self.estimate_maps(&maps, light, receivers, v, |sub, vs| {
             // The CPU twin on the same light-space data.
             let mut cpu = CpuBackprojection::new()?;
             shadow_map_core::estimator::configure(&mut cpu, &params)?;
+            cpu.set_cancel(cancel);
             cpu.set_light_space(ls.clone());
             cpu.estimate_light(light, sub, vs)
         })
@@ -371,6 +373,7 @@ impl GpuBackprojection {
         redo: impl FnOnce(&Receivers, &mut [f32]) -> Result<()>,
     ) -> Result<()> {
         receivers.check_output(v)?;
+        self.cpu.cancel().check()?;
         let (eu, bpu, table) = self.uniforms(maps, light);
         let Dispatched {
             outside,
@@ -893,6 +896,7 @@ impl FrameEstimator for BackprojectionFrame {
 
     /// The view the estimator's own `build` fits for `receivers` ([`plan`]).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.gpu.ctx.check_lost()?;
         let (view, _, _) = plan(self.gpu.cpu.settings(), scene, receivers)?;
         Ok(vec![Some(view)])
     }
@@ -906,7 +910,7 @@ impl FrameEstimator for BackprojectionFrame {
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
-        check_buffers(inputs.receivers, inputs.v, n)?;
+        check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.gpu.ctx;
         let queue = &ctx.queue;
         let settings = self.gpu.cpu.settings();
@@ -1004,11 +1008,13 @@ impl SoftShadowEstimator for GpuBackprojection {
             None
         };
         let params = self.cpu.params().clone();
+        let cancel = self.cpu.cancel().clone();
         let out = self.estimate_maps(&maps, &scene.light, receivers, v, |sub, vs| {
             // The CPU twin on the same data when the build was the CPU's, else in the same view
             // (its own raster: equal up to texel-centre ties, tests/gpu_maps.rs).
             let mut cpu = CpuBackprojection::new()?;
             shadow_map_core::estimator::configure(&mut cpu, &params)?;
+            cpu.set_cancel(cancel);
             match cpu_ls {
                 Some(ls) => cpu.set_light_space(ls),
                 None => cpu.build_in_view(scene, receivers, view)?,

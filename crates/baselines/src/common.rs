@@ -1,11 +1,10 @@
 //! What the four baselines share: parameter declarations, the raster options, and the
 //! per-receiver loop that guarantees V in [0, 1] and NaN only for inactive receivers.
 use glam::Vec3;
-use rayon::prelude::*;
 use shadow_map_core::{
     light_space::LightSpaceRequest, light_view::ViewOptions, precision::DEPTH,
-    receiver_plane::RECEIVER_PLANE, Cull, DepthBias, DepthPrecision, ParamKind, ParamSpec, Params,
-    RasterOptions, Receivers, Result,
+    receiver_plane::RECEIVER_PLANE, Cancel, Cull, DepthBias, DepthPrecision, ParamKind, ParamSpec,
+    Params, RasterOptions, Receivers, Result,
 };
 
 pub use shadow_map_core::light_view::{BIAS, RESOLUTION, SLOPE_BIAS};
@@ -74,27 +73,26 @@ pub fn map_request(p: &Params) -> Result<LightSpaceRequest> {
 
 /// Runs `f(position, normal)` for every active receiver in parallel, writes NaN for inactive ones,
 /// and clamps results into [0, 1]. Returns how many results were not finite (they are written as
-/// 0 and must be reported: a non-zero count is a bug).
+/// 0 and must be reported: a non-zero count is a bug). Checks `cancel` between chunks of
+/// receivers ([`Cancel::par_sum`]): `Err(Cancelled)` once it is set.
 pub fn for_each_receiver(
+    cancel: &Cancel,
     receivers: &Receivers,
     v: &mut [f32],
-    f: impl Fn(Vec3, Vec3) -> f32 + Sync,
-) -> usize {
-    v.par_iter_mut()
-        .enumerate()
-        .map(|(k, out)| {
-            if !receivers.active[k] {
-                *out = f32::NAN;
-                return 0;
-            }
-            let x = f(receivers.position[k], receivers.normal[k]);
-            if x.is_finite() {
-                *out = x.clamp(0.0, 1.0);
-                0
-            } else {
-                *out = 0.0;
-                1
-            }
-        })
-        .sum()
+    f: impl Fn(Vec3, Vec3) -> f32 + Sync + Send,
+) -> Result<usize> {
+    cancel.par_sum(v, |k, out| {
+        if !receivers.active[k] {
+            *out = f32::NAN;
+            return 0;
+        }
+        let x = f(receivers.position[k], receivers.normal[k]);
+        if x.is_finite() {
+            *out = x.clamp(0.0, 1.0);
+            0
+        } else {
+            *out = 0.0;
+            1
+        }
+    })
 }

@@ -3,8 +3,9 @@
 use crate::common::{self, MapSettings};
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::LightSpace, light_view::LightView, DepthLookup, DepthPrecision, Light, ParamSpec,
-    Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
+    light_space::LightSpace, light_view::LightView, Cancel, DepthLookup, DepthPrecision, Light,
+    ParamSpec, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Unorm16Map,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -67,6 +68,7 @@ pub struct MapEstimator<F: Filter> {
     ls: Option<LightSpace>,
     q16: Option<Unorm16Map>,
     report: Report,
+    cancel: Cancel,
     _f: std::marker::PhantomData<F>,
 }
 
@@ -78,6 +80,7 @@ impl<F: Filter> MapEstimator<F> {
             ls: None,
             q16: None,
             report: Report::default(),
+            cancel: Cancel::new(),
             _f: Default::default(),
         })
     }
@@ -113,6 +116,9 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
     }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
+    }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let settings = MapSettings::from_params(&self.params)?;
@@ -137,6 +143,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
         let t = std::time::Instant::now();
         let (nonfinite, outside) = match &self.q16 {
             Some(q) => filter_all(
+                &self.cancel,
                 &filter,
                 &ls.view,
                 q,
@@ -145,8 +152,9 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
                 receivers,
                 v,
                 test,
-            ),
+            )?,
             None => filter_all(
+                &self.cancel,
                 &filter,
                 &ls.view,
                 &ls.layers[0],
@@ -155,7 +163,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
                 receivers,
                 v,
                 test,
-            ),
+            )?,
         };
         let view = &ls.view;
         self.report
@@ -200,9 +208,10 @@ pub fn encode_layer0(ls: &mut LightSpace, precision: DepthPrecision) -> Option<U
 
 /// Runs `filter` over every receiver with the map `map` (f32 or 16-bit; `extra_eps` is half a
 /// code step for 16-bit maps, else 0) and the caster test `(receiver_plane, (b0, b1))`. Returns
-/// (non-finite results, receivers outside the frustum).
+/// (non-finite results, receivers outside the frustum); `Err(Cancelled)` once `cancel` is set.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
+    cancel: &Cancel,
     filter: &F,
     view: &LightView,
     map: &M,
@@ -211,9 +220,9 @@ pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
     receivers: &Receivers,
     v: &mut [f32],
     (on, biases): (bool, (f32, f32)),
-) -> (usize, usize) {
+) -> Result<(usize, usize)> {
     let outside = AtomicUsize::new(0);
-    let nonfinite = common::for_each_receiver(receivers, v, |pw, nw| {
+    let nonfinite = common::for_each_receiver(cancel, receivers, v, |pw, nw| {
         let facing = filter.facing(light, pw, nw);
         if facing <= 0.0 {
             return 0.0;
@@ -234,8 +243,8 @@ pub(crate) fn filter_all<F: Filter, M: DepthLookup>(
         }
         let plane = ReceiverPlane::new(on, view, p, n, biases, extra_eps);
         facing * filter.visibility(view, map, light, &ReceiverSample { p, n, uv, plane })
-    });
-    (nonfinite, outside.into_inner())
+    })?;
+    Ok((nonfinite, outside.into_inner()))
 }
 
 /// `1` when the map sample at texel (i, j) does not shadow the receiver `r`.
@@ -252,14 +261,20 @@ pub fn lit<M: DepthLookup>(map: &M, i: i32, j: i32, r: &ReceiverSample) -> f32 {
 /// interval when it spans at most `max` texels, equal cells otherwise. Yields
 /// `(texel index sampled, weight = cell length)`.
 pub fn cells(a: f32, b: f32, max: u32, mut f: impl FnMut(i32, f32)) {
+    // A window past 2^24 texels (an absurd light size: the fuzz met one 1e30 wide) is cut there:
+    // f32 texel coordinates are exact up to 2^24, every map is far smaller, and the cells stay
+    // finite.
+    const LIM: f32 = 16_777_216.0;
+    let (a, b) = (a.clamp(-LIM, LIM), b.clamp(-LIM, LIM));
     let len = b - a;
     if !(len > 0.0) {
         f(a.floor() as i32, 1.0);
         return;
     }
+    // Saturating casts: a kernel grown past i64 (an absurd light size) still splits into cells.
     let first = a.floor() as i64;
-    let last = (b.ceil() as i64 - 1).max(first);
-    if (last - first + 1) as u64 <= max as u64 {
+    let last = (b.ceil() as i64).saturating_sub(1).max(first);
+    if (last as i128 - first as i128 + 1) <= max as i128 {
         for i in first..=last {
             let lo = (i as f32).max(a);
             let hi = ((i + 1) as f32).min(b);
@@ -273,5 +288,35 @@ pub fn cells(a: f32, b: f32, max: u32, mut f: impl FnMut(i32, f32)) {
             let c = a + (k as f32 + 0.5) * step;
             f(c.floor() as i32, step);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cells;
+
+    /// Windows of absurd or infinite width give finite cells, never an overflow (the CLI fuzz
+    /// found `attempt to subtract with overflow` here under a light 1e30 wide).
+    #[test]
+    fn cells_of_infinite_windows_are_finite() {
+        for (a, b) in [
+            (f32::NEG_INFINITY, f32::INFINITY),
+            (-1e30, 1e30),
+            (f32::NEG_INFINITY, 3.0),
+            (2.0, f32::INFINITY),
+        ] {
+            let mut n = 0;
+            let mut total = 0.0f64;
+            cells(a, b, 8, |_, w| {
+                n += 1;
+                assert!(w.is_finite() && w > 0.0, "{a} {b}: weight {w}");
+                total += w as f64;
+            });
+            assert_eq!(n, 8, "{a} {b}");
+            assert!(total.is_finite());
+        }
+        let mut seen = Vec::new();
+        cells(0.25, 2.5, 8, |i, w| seen.push((i, w)));
+        assert_eq!(seen, vec![(0, 0.75), (1, 1.0), (2, 0.5)]);
     }
 }

@@ -4,9 +4,8 @@
 use crate::common::MapSettings;
 use crate::map_estimator::encode_layer0;
 use glam::Vec2;
-use rayon::prelude::*;
 use shadow_map_core::{
-    light_space::LightSpace, DepthLookup, Error, LightShape, ParamKind, ParamSpec, Params,
+    light_space::LightSpace, Cancel, DepthLookup, Error, LightShape, ParamKind, ParamSpec, Params,
     ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
 };
 
@@ -82,6 +81,7 @@ pub(crate) fn note_run(
 pub struct MultiSample {
     params: Params,
     report: Report,
+    cancel: Cancel,
 }
 
 impl MultiSample {
@@ -90,6 +90,7 @@ impl MultiSample {
         Ok(MultiSample {
             params: Params::new(SPECS)?,
             report: Report::default(),
+            cancel: Cancel::new(),
         })
     }
 }
@@ -112,6 +113,9 @@ impl SoftShadowEstimator for MultiSample {
     shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
+    }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
     }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
@@ -164,7 +168,7 @@ impl MultiSample {
         scene: &Scene,
         receivers: &Receivers,
         v: &mut [f32],
-        maps: impl ExactSizeIterator<Item = Result<LightSpace>>,
+        mut maps: impl ExactSizeIterator<Item = Result<LightSpace>>,
     ) -> Result<()> {
         receivers.check_output(v)?;
         let settings = MapSettings::from_params(&self.params)?;
@@ -178,7 +182,10 @@ impl MultiSample {
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let mut peak = 0usize;
         let mut behind = 0usize;
-        for built in maps {
+        loop {
+            // Between sub-lights, before `next()` builds another map.
+            self.cancel.check()?;
+            let Some(built) = maps.next() else { break };
             let t = std::time::Instant::now();
             let mut ls = match built {
                 Ok(ls) => ls,
@@ -197,7 +204,7 @@ impl MultiSample {
             // The sun: y is a point of its disk of directions and the view looks along
             // e_z + y_x e_x + y_y e_y (docs/methods.md §14 "Multi-sample"); the light arrives from -e_z.
             let toward_sun = view.is_ortho().then_some(-view.frame.ez);
-            acc.par_iter_mut().enumerate().for_each(|(k, a)| {
+            self.cancel.par_for_each(&mut acc, |k, a| {
                 if !receivers.active[k] {
                     return;
                 }
@@ -229,7 +236,7 @@ impl MultiSample {
                 if !plane.caster(i, j, z) {
                     *a += 1.0;
                 }
-            });
+            })?;
             t_est += t.elapsed().as_secs_f64() * 1e3;
         }
         let inv = 1.0 / n_points.max(1) as f32;

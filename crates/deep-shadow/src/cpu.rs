@@ -9,8 +9,8 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},
-    DepthMap, Light, LightShape, LightView, Params, ReceiverPlane, Receivers, Report, Result,
-    Scene, SoftShadowEstimator,
+    Cancel, DepthMap, Light, LightShape, LightView, Params, ReceiverPlane, Receivers, Report,
+    Result, Scene, SoftShadowEstimator,
 };
 use std::time::Instant;
 
@@ -426,6 +426,7 @@ pub struct CpuDeepShadow {
     /// `params`, typed (re-read on every `set_param`).
     settings: Settings,
     report: Report,
+    cancel: Cancel,
 }
 
 impl CpuDeepShadow {
@@ -436,6 +437,7 @@ impl CpuDeepShadow {
             settings: Settings::from_params(&params)?,
             params,
             report: Report::default(),
+            cancel: Cancel::new(),
         })
     }
     /// The current settings.
@@ -483,6 +485,7 @@ impl CpuDeepShadow {
         let mut t_stages = [0.0f64; 4];
         let mut t_build = t_fit;
         for &(view, fit) in views {
+            self.cancel.check()?;
             let t = Instant::now();
             let map = if opaque {
                 let ls = LightSpace::try_build_in_view(
@@ -514,10 +517,9 @@ impl CpuDeepShadow {
             let t = Instant::now();
             let ls = lookup_settings(&view, &scene.light, &s);
             mark_outside(&view, &scene.light, receivers, &s, &mut outside);
-            let (lookups, steps) = acc
-                .par_iter_mut()
-                .enumerate()
-                .map(|(k, a)| {
+            let (lookups, steps) = self.cancel.par_map_reduce(
+                &mut acc,
+                |k, a| {
                     if !receivers.active[k] {
                         return (0u64, 0u64);
                     }
@@ -544,8 +546,10 @@ impl CpuDeepShadow {
                             }
                         },
                     }
-                })
-                .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+                },
+                || (0, 0),
+                |x, y| (x.0 + y.0, x.1 + y.1),
+            )?;
             tally.lookups += lookups;
             tally.steps += steps;
             t_est += t.elapsed().as_secs_f64() * 1e3;
@@ -716,6 +720,9 @@ impl SoftShadowEstimator for CpuDeepShadow {
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.settings = params::set(&mut self.params, key, value)?;
         Ok(())
+    }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
     }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.

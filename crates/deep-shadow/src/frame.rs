@@ -43,7 +43,10 @@ use shadow_map_core::{
     estimator::configure,
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, WORKGROUP_SIZE},
-        frame::{buffer_range, check_buffers, status_buffer, FrameEstimator, FrameInputs},
+        frame::{
+            buffer_range, check_buffers, check_per_receiver, status_buffer, FrameEstimator,
+            FrameInputs,
+        },
         kernel::{compute_pipeline, shader_module, Binding},
         receivers::RECEIVER_BYTES,
         shared::SHARED_WGSL,
@@ -163,14 +166,15 @@ impl DeepShadowFrame {
         let r = settings.resolution;
         let texels = r as u64 * r as u64;
         let head_bytes = 4 * texels;
-        let max_binding = ctx.limits().max_storage_buffer_binding_size;
-        if head_bytes > max_binding {
-            return Err(Error::Limit {
-                what: "deep-shadow head buffer bytes (max_storage_buffer_binding_size)",
-                requested: head_bytes,
-                max: max_binding,
-            });
-        }
+        ctx.check_storage_bytes(
+            "deep-shadow head buffer bytes (max_storage_buffer_binding_size)",
+            head_bytes,
+        )?;
+        check_per_receiver(
+            &ctx,
+            "deep-shadow frame sums bytes (max_storage_buffer_binding_size)",
+            max_receivers,
+        )?;
         let views = settings.sublights * settings.sublights;
         let map =
             GpuShadowMapper::new(&ctx)?.map_frame(&ctx, r, RasterOptions::default(), views)?;
@@ -275,6 +279,7 @@ impl FrameEstimator for DeepShadowFrame {
     /// ([`Tally::fit_view`]: the filter margin, and under `filter=pcss` the reach of the view's
     /// light). A sub-light no receiver is in front of fails the fit, as on the CPU.
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.ctx.check_lost()?;
         let mut tally = Tally::default();
         sublight_points(scene, self.settings.sublights)
             .into_iter()
@@ -291,7 +296,7 @@ impl FrameEstimator for DeepShadowFrame {
     /// receivers than `max_receivers` ([`Error::Limit`]).
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let n = inputs.count as u64;
-        check_buffers(inputs.receivers, inputs.v, n)?;
+        check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         if inputs.count > self.max_receivers {
             return Err(Error::Limit {
                 what: "receivers per deep-shadow frame (max_receivers at prepare)",

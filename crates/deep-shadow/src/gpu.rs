@@ -28,6 +28,7 @@ use crate::raster::prepare;
 use crate::shared::{DsUniform, Node, Tri};
 use baselines::gpu::map_estimator::CELLS_WGSL;
 use glam::Vec2;
+use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
@@ -35,10 +36,10 @@ use shadow_map_core::{
         GpuContext,
     },
     raster::DepthMap,
-    Error, LightView, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Cancel, Error, LightView, Params, ReceiverPlane, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
-use wgpu::util::DeviceExt;
 
 /// The WGSL of every stage.
 pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
@@ -115,6 +116,8 @@ pub struct GpuDeepShadow {
     /// The fragment counter's value before each raster pass: 0, except in tests that reach the
     /// u32 wrap without 2^32 fragments ([`GpuDeepShadow::set_counter_start`]).
     counter_start: u32,
+    /// Checked between sub-light views.
+    cancel: Cancel,
 }
 
 /// Why a stage can be cut short: some devices bound the loop iterations of one shader invocation
@@ -184,6 +187,7 @@ impl GpuDeepShadow {
             report: Report::default(),
             pipes,
             counter_start: 0,
+            cancel: Cancel::new(),
         })
     }
 
@@ -360,7 +364,11 @@ impl GpuDeepShadow {
             // Overflow: the counter holds the need.
             if count > max_cap {
                 return Err(Error::Limit {
-                    what: "deep shadow map list elements on this device (raise max_capacity, lower resolution)",
+                    what: if max_cap < s.max_capacity.min(u32::MAX as u64 - 1) {
+                        "deep shadow map list elements in one storage binding (max_storage_buffer_binding_size; lower resolution)"
+                    } else {
+                        "deep shadow map list elements (raise max_capacity, lower resolution)"
+                    },
                     requested: count,
                     max: max_cap,
                 });
@@ -404,9 +412,9 @@ impl GpuDeepShadow {
         let l = self.ctx.limits();
         if texels * 4 > l.max_storage_buffer_binding_size.min(l.max_buffer_size) {
             return Err(Error::Limit {
-                what: "deep-shadow head buffer bytes (lower the resolution)",
+                what: "deep-shadow head buffer bytes (max_storage_buffer_binding_size; lower the resolution)",
                 requested: texels * 4,
-                max: l.max_storage_buffer_binding_size,
+                max: l.max_storage_buffer_binding_size.min(l.max_buffer_size),
             });
         }
         Ok(())
@@ -883,6 +891,9 @@ impl SoftShadowEstimator for GpuDeepShadow {
         self.settings = params::set(&mut self.params, key, value)?;
         Ok(())
     }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
+    }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         Ok(())
@@ -899,6 +910,7 @@ impl SoftShadowEstimator for GpuDeepShadow {
         let (mut fallbacks, mut cut_texels) = (0usize, 0u64);
         let mut outside = vec![false; receivers.len()];
         for y in &points {
+            self.cancel.check()?;
             let t = Instant::now();
             let (view, _) = tally.fit_view(scene, receivers, *y, &s)?;
             let map = self.build_map(scene, &view, &s)?;

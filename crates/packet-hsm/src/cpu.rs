@@ -16,7 +16,7 @@ use shadow_map_core::{
     params::FromParam,
     peeling::SelfShadowSettings,
     silhouette::Silhouette,
-    Error, Light, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions,
+    Cancel, Error, Light, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions,
     ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -97,6 +97,7 @@ pub struct CpuPacketHsm {
     params: Params,
     report: Report,
     diagnostics: Vec<PixelDiag>,
+    cancel: Cancel,
 }
 
 impl CpuPacketHsm {
@@ -106,7 +107,13 @@ impl CpuPacketHsm {
             params: Params::new(SPECS)?,
             report: Report::default(),
             diagnostics: Vec::new(),
+            cancel: Cancel::new(),
         })
+    }
+    /// The cancellation token `estimate` checks ([`SoftShadowEstimator::set_cancel`]), shared
+    /// with the GPU twin.
+    pub fn cancel(&self) -> &Cancel {
+        &self.cancel
     }
     /// Per-receiver diagnostics of the last estimate (kernel size, visited nodes, packet class).
     pub fn diagnostics(&self) -> &[PixelDiag] {
@@ -1002,6 +1009,9 @@ fn pixel_wise(
 }
 
 /// Steps 5-8 for one sub-light: adds `weight * V_k` to `acc` and fills the diagnostics.
+/// Checks `cancel` before each packet column of each band of receiver rows:
+/// `Err(Cancelled)` once it is set (`acc` then incomplete).
+#[allow(clippy::too_many_arguments)]
 pub fn estimate_sublight(
     sv: &SubView,
     cfg: &Config,
@@ -1010,7 +1020,8 @@ pub fn estimate_sublight(
     acc: &mut [f32],
     diag: &mut [PixelDiag],
     counters: &Counters,
-) {
+    cancel: &Cancel,
+) -> Result<()> {
     let grid = sv.grid(cfg);
     let k = Scale::of(&sv.ls.view);
     let em = &sv.emitter;
@@ -1035,6 +1046,9 @@ pub fn estimate_sublight(
             let mut local = [0u64; 6]; // penumbra, visited, packets, coherent, rejected, diverged
             let mut bx = 0usize;
             while bx < width {
+                if cancel.is_cancelled() {
+                    return;
+                }
                 pens.clear();
                 let bw = (pw as usize).min(width - bx);
                 for dy in 0..rows.max(1) {
@@ -1158,7 +1172,9 @@ pub fn estimate_sublight(
             counters.coherent.fetch_add(local[3], Ordering::Relaxed);
             counters.rejected.fetch_add(local[4], Ordering::Relaxed);
             counters.diverged.fetch_add(local[5], Ordering::Relaxed);
+            cancel.add_progress(acc.len());
         });
+    cancel.check()
 }
 
 /// V (with the facing factor) of one receiver on one sub-light, per pixel with the configured
@@ -1209,6 +1225,9 @@ impl SoftShadowEstimator for CpuPacketHsm {
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
     }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
+    }
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
         self.report = Report::default();
@@ -1228,10 +1247,12 @@ impl SoftShadowEstimator for CpuPacketHsm {
         for b in 0..s {
             for a in 0..s {
                 for (level, lw) in levels.iter() {
+                    self.cancel.check()?;
                     let sv = subs.build(level, receivers, &cfg, (a, b))?;
                     let t = std::time::Instant::now();
                     let w = subs.weight * lw;
-                    estimate_sublight(&sv, &cfg, receivers, w, &mut subs.acc, &mut diag, &counters);
+                    let (acc, cancel) = (&mut subs.acc, &self.cancel);
+                    estimate_sublight(&sv, &cfg, receivers, w, acc, &mut diag, &counters, cancel)?;
                     subs.t_est += t.elapsed().as_secs_f64() * 1e3;
                 }
             }

@@ -193,25 +193,32 @@ impl PacketHsmFrame {
         let dual = set
             .dual_mssm
             .ok_or_else(|| Error::param("resolution", "no dual-grid MSSM was built"))?;
-        let limit = ctx.limits().max_storage_buffer_binding_size;
         let mssm_bytes = 4 * (r as u64 * r as u64) * (floor_log2(r) as u64 + 1);
         let dual_bytes = 4 * (p as u64 * p as u64) * dual.levels.len() as u64;
         let n = max_receivers.max(1) as u64;
         for (what, bytes) in [
-            ("packet-hsm frame MSSM bytes", mssm_bytes),
-            ("packet-hsm frame dual-grid MSSM bytes", dual_bytes),
             (
-                "packet-hsm frame receiver bytes",
+                "packet-hsm frame MSSM bytes (max_storage_buffer_binding_size)",
+                mssm_bytes,
+            ),
+            (
+                "packet-hsm frame dual-grid MSSM bytes (max_storage_buffer_binding_size)",
+                dual_bytes,
+            ),
+            (
+                "packet-hsm frame receiver bytes (max_storage_buffer_binding_size)",
                 n * std::mem::size_of::<RecIn>() as u64,
             ),
+            (
+                "packet-hsm frame prep bytes (max_storage_buffer_binding_size)",
+                n * std::mem::size_of::<PrepGpu>() as u64,
+            ),
+            (
+                "packet-hsm frame kernel V bytes (max_storage_buffer_binding_size)",
+                8 * n,
+            ),
         ] {
-            if bytes > limit {
-                return Err(Error::Limit {
-                    what,
-                    requested: bytes,
-                    max: limit,
-                });
-            }
+            ctx.check_storage_bytes(what, bytes)?;
         }
         let storage = wgpu::BufferUsages::STORAGE;
         let texels = 4 * r as u64 * r as u64;
@@ -407,6 +414,7 @@ impl FrameEstimator for PacketHsmFrame {
 
     /// The view [`SubView::fit`] fits for the whole light (`sublights=1`).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.gpu.ctx.check_lost()?;
         let half = scene.light.half_extent();
         let (view, _) = SubView::fit(
             scene,
@@ -431,7 +439,7 @@ impl FrameEstimator for PacketHsmFrame {
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
-        check_buffers(inputs.receivers, inputs.v, n)?;
+        check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
         if inputs.count > self.max_receivers {
             return Err(Error::Limit {
                 what: "receivers per frame (packet-hsm frame prepared for fewer)",

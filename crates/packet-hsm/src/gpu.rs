@@ -28,6 +28,7 @@ use crate::cpu::{pixel_value, prepare_setup, ReceiverSetup};
 use crate::cpu::{Config, CpuPacketHsm, OpacityLevels, OwnPlane, SubLights, SubView};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
+use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
         kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
@@ -38,7 +39,6 @@ use shadow_map_core::{
     SoftShadowEstimator,
 };
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// The kernel's own WGSL.
 pub const PACKET_HSM_WGSL: &str = include_str!("packet_hsm.wgsl");
@@ -290,7 +290,7 @@ impl GpuPacketHsm {
         let out_bytes = (recs.len() * 8) as u64;
         if out_bytes > limit {
             return Err(Error::Limit {
-                what: "packet-hsm output bytes",
+                what: "packet-hsm output bytes (max_storage_buffer_binding_size)",
                 requested: out_bytes,
                 max: limit,
             });
@@ -578,6 +578,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
         for b in 0..s {
             for a in 0..s {
                 for (level, lw) in levels.iter() {
+                    // Between sub-lights (the CPU twin's token, `set_cancel`).
+                    self.cpu.cancel().check()?;
                     let sv = subs.build(level, receivers, &cfg, (a, b))?;
                     let t = std::time::Instant::now();
                     let setups: Vec<ReceiverSetup> = prepare_setup(&sv, &cfg, receivers);

@@ -15,7 +15,7 @@ use packet_hsm::cpu::{
     estimate_sublight, reference_pixel, Config, Counters, PixelDiag, SubView, PACKETS,
 };
 use proptest::prelude::*;
-use shadow_map_core::{run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::{run, Cancel, Receivers, Scene, SceneBvh, SoftShadowEstimator};
 
 const TOL: f32 = 1e-5;
 
@@ -85,7 +85,17 @@ fn check_all_combinations(scene: &Scene, res: u32, self_shadow: &str) -> f32 {
                 let mut acc = vec![0.0f32; rec.len()];
                 let mut diag = vec![PixelDiag::default(); rec.len()];
                 let counters = Counters::default();
-                estimate_sublight(&sv, &cfg, &rec, 1.0, &mut acc, &mut diag, &counters);
+                estimate_sublight(
+                    &sv,
+                    &cfg,
+                    &rec,
+                    1.0,
+                    &mut acc,
+                    &mut diag,
+                    &counters,
+                    &Cancel::new(),
+                )
+                .unwrap();
                 packet_evals += counters.coherent.load(std::sync::atomic::Ordering::Relaxed);
                 for k in 0..rec.len() {
                     if !rec.active[k] {
@@ -257,7 +267,17 @@ fn own_plane_pruning_is_exact_and_prunes_a_grazing_ground() {
         let mut acc = vec![0.0f32; rec.len()];
         let mut diag = vec![PixelDiag::default(); rec.len()];
         let counters = Counters::default();
-        estimate_sublight(&sv, &cfg, &rec, 1.0, &mut acc, &mut diag, &counters);
+        estimate_sublight(
+            &sv,
+            &cfg,
+            &rec,
+            1.0,
+            &mut acc,
+            &mut diag,
+            &counters,
+            &Cancel::new(),
+        )
+        .unwrap();
         let visited = counters.visited.load(std::sync::atomic::Ordering::Relaxed);
         (acc, visited)
     };

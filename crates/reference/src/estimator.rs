@@ -1,8 +1,8 @@
 //! The reference as a [`SoftShadowEstimator`] (`--algo reference`).
-use crate::trace::{visibility, TraceOptions};
+use crate::trace::{visibility_cancellable, TraceOptions};
 use shadow_map_core::{
     estimator::{Report, SoftShadowEstimator},
-    ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
+    Cancel, ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
 };
 
 shadow_map_core::typed_params! {
@@ -46,6 +46,7 @@ pub struct ReferenceEstimator {
     bvh: Option<SceneBvh>,
     report: Report,
     progress: bool,
+    cancel: Cancel,
 }
 
 impl std::fmt::Debug for ReferenceEstimator {
@@ -69,6 +70,7 @@ impl ReferenceEstimator {
             bvh: None,
             report: Report::default(),
             progress: false,
+            cancel: Cancel::new(),
         })
     }
     /// Turns the progress bar (standard error, large receiver sets only) on or off.
@@ -99,6 +101,9 @@ impl SoftShadowEstimator for ReferenceEstimator {
         self.settings = ReferenceSettings::from_params(&self.params)?;
         Ok(())
     }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
+    }
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let bvh = self.report.time("build", || SceneBvh::new(scene));
@@ -118,7 +123,8 @@ impl SoftShadowEstimator for ReferenceEstimator {
         let mut out = Ok(());
         if let Some(bvh) = self.bvh.as_ref() {
             out = self.report.time("estimate", || {
-                visibility(scene, bvh, receivers, &opts, v, progress)
+                let cancel = &self.cancel;
+                visibility_cancellable(scene, bvh, receivers, &opts, v, progress, cancel)
             });
         }
         out?;

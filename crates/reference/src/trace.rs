@@ -38,7 +38,7 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use shadow_map_core::{
-    light::default_tangent, Error, Light, LightShape, Receivers, Result, Scene, SceneBvh,
+    light::default_tangent, Cancel, Error, Light, LightShape, Receivers, Result, Scene, SceneBvh,
 };
 
 /// Default samples per side of the stratified grid: `32 * 32 = 1024` samples per receiver.
@@ -122,6 +122,21 @@ pub fn visibility(
     v: &mut [f32],
     progress: bool,
 ) -> Result<()> {
+    visibility_cancellable(scene, bvh, receivers, opts, v, progress, &Cancel::new())
+}
+
+/// [`visibility`] that checks `cancel` before every receiver (one relaxed load next to its
+/// `s * s` shadow rays) and returns [`Error::Cancelled`] once it is set, V then incomplete.
+/// Receivers finished are added to [`Cancel::progress`] per chunk of 64.
+pub fn visibility_cancellable(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    receivers: &Receivers,
+    opts: &TraceOptions,
+    v: &mut [f32],
+    progress: bool,
+    cancel: &Cancel,
+) -> Result<()> {
     opts.validate()?;
     let n = receivers.len();
     if v.len() != n || receivers.normal.len() != n || receivers.active.len() != n {
@@ -140,6 +155,9 @@ pub fn visibility(
         let base = c * CHUNK;
         let mut done = 0u64;
         for (k, slot) in out.iter_mut().enumerate() {
+            if cancel.is_cancelled() {
+                return;
+            }
             let i = base + k;
             *slot = if receivers.active[i] {
                 done += 1;
@@ -158,11 +176,12 @@ pub fn visibility(
         if let Some(bar) = &bar {
             bar.inc(done);
         }
+        cancel.add_progress(out.len());
     });
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    Ok(())
+    cancel.check()
 }
 
 fn progress_bar(len: u64) -> ProgressBar {

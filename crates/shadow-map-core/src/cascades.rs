@@ -648,6 +648,8 @@ pub struct Cascaded {
     settled: Option<Settled>,
     /// Milliseconds the last build spent settling receivers.
     settle_ms: f64,
+    /// Checked between cascades and tiles (the inner estimator holds a clone).
+    cancel: crate::Cancel,
     report: Report,
 }
 
@@ -667,6 +669,7 @@ impl Cascaded {
             plan: None,
             settled: None,
             settle_ms: 0.0,
+            cancel: crate::Cancel::new(),
             report: Report::default(),
         })
     }
@@ -699,6 +702,10 @@ impl SoftShadowEstimator for Cascaded {
         self.inner.set_param(key, value)?;
         self.params.set(key, value)
     }
+    fn set_cancel(&mut self, cancel: crate::Cancel) {
+        self.inner.set_cancel(cancel.clone());
+        self.cancel = cancel;
+    }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.plan = None;
@@ -721,6 +728,7 @@ impl SoftShadowEstimator for Cascaded {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
+        self.cancel.check()?;
         let Some(settled) = self.settled.take() else {
             return self.estimate_views(scene, receivers, v);
         };
@@ -817,6 +825,7 @@ impl Cascaded {
             for tile in 0..plan.tiles[c].count {
                 let sub = plan.receivers(receivers, c, tile);
                 let mut vt = vec![f32::NAN; receivers.len()];
+                self.cancel.check()?;
                 if sub.active.iter().any(|a| *a) {
                     self.inner.build(scene, &sub)?;
                     self.inner.estimate(scene, &sub, &mut vt)?;

@@ -84,6 +84,9 @@ pub enum Error {
         /// What went wrong.
         reason: String,
     },
+    /// The render was cancelled through its [`Cancel`](crate::Cancel) token (V is incomplete).
+    #[error("cancelled")]
+    Cancelled,
     /// An I/O error on a named file.
     #[error("{}: {source}", path.display())]
     Io {

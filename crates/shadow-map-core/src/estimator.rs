@@ -1,5 +1,5 @@
 //! The one trait every soft-shadow estimator implements, CPU and GPU backends alike.
-use crate::{params::Params, receivers::Receivers, scene::Scene, Result};
+use crate::{cancel::Cancel, params::Params, receivers::Receivers, scene::Scene, Result};
 use std::time::Instant;
 
 /// Where an estimator runs.
@@ -112,6 +112,13 @@ pub trait SoftShadowEstimator: Send {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()>;
     /// What the last build and estimate cost.
     fn report(&self) -> Report;
+    /// Takes the cancellation token later calls check ([`Cancel`]): once it is cancelled (from
+    /// any thread), a running or later `estimate` stops between chunks of receivers or between
+    /// views and returns [`Error::Cancelled`](crate::Error::Cancelled), V then incomplete. The
+    /// estimator stays usable: give it a fresh token to render again. A GPU twin hands the token
+    /// to its CPU twin (fallbacks, redone receivers) and checks it between its own dispatches
+    /// or views where it has several. An estimator starts with a token nobody cancels.
+    fn set_cancel(&mut self, cancel: Cancel);
 }
 
 /// What an estimator's `build` left (`slot`, its light-space data), or the one-line error of an
@@ -149,12 +156,13 @@ pub fn run(
 }
 
 /// The identity half of a [`SoftShadowEstimator`] impl (`name`, `description`, `backend`,
-/// `params`, and for a twin `set_param`), written once:
+/// `params`, and for a twin `set_param` and `set_cancel`), written once:
 ///
 /// - `estimator_identity!(NAME, DESCRIPTION, Cpu, params)`: the estimator owns its [`Params`]
 ///   in the field `params` (`set_param` is left to the impl, which may refresh typed settings);
 /// - `estimator_identity!(twin of cpu, Gpu)`: a GPU twin that keeps its CPU twin in the field
-///   `cpu` and shares its name, description and parameter table.
+///   `cpu` and shares its name, description, parameter table and cancellation token
+///   (`set_cancel` hands it to the CPU twin).
 #[macro_export]
 macro_rules! estimator_identity {
     ($name:expr, $description:expr, $backend:ident, $params:ident) => {
@@ -186,6 +194,9 @@ macro_rules! estimator_identity {
         }
         fn set_param(&mut self, key: &str, value: &str) -> $crate::Result<()> {
             self.$cpu.set_param(key, value)
+        }
+        fn set_cancel(&mut self, cancel: $crate::Cancel) {
+            self.$cpu.set_cancel(cancel)
         }
     };
 }

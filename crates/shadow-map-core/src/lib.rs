@@ -6,6 +6,7 @@
 pub mod bitmask;
 pub mod bvh;
 pub mod camera;
+pub mod cancel;
 pub mod cascades;
 pub mod error;
 pub mod estimator;
@@ -26,6 +27,7 @@ pub mod silhouette;
 
 pub use bvh::SceneBvh;
 pub use camera::Camera;
+pub use cancel::Cancel;
 pub use error::{Error, Result};
 pub use estimator::{run, Backend, Report, SoftShadowEstimator};
 pub use light::{Light, LightFrame, LightShape};

@@ -405,9 +405,21 @@ impl LightView {
 /// lights. The contract's sphere is a silhouette disk that leaves the light plane by up to
 /// `z_max = R |r_xy| / |r|` (light space); it is fitted to the half extent of its equivalent disk
 /// in the light plane (where the lines from r through the disk meet z = 0),
-/// `h = (|r_xy| z_max + R r_z) / (r_z - z_max)`, the largest over the receivers, capped at 4 R
-/// (receivers needing more lose casters beyond the window edge).
+/// `h = (|r_xy| z_max + R r_z) / (r_z - z_max)`, the largest over the receivers, capped at
+/// [`SPHERE_WINDOW_CAP`] R (a receiver needing more would lose casters beyond the window edge: an
+/// estimator finds them with its footprint and redoes them in a wider window,
+/// [`fit_half_extent_capped`], as accumulation does).
 pub fn fit_half_extent(light: &crate::Light, receivers: &Receivers) -> Vec2 {
+    fit_half_extent_capped(light, receivers, SPHERE_WINDOW_CAP)
+}
+
+/// The cap of [`fit_half_extent`]: a sphere light's window half extent is at most this many
+/// radii, so one grazing receiver does not spread every other receiver's texels over a window
+/// many times wider.
+pub const SPHERE_WINDOW_CAP: f32 = 4.0;
+
+/// [`fit_half_extent`] with another cap (in radii).
+pub fn fit_half_extent_capped(light: &crate::Light, receivers: &Receivers, cap: f32) -> Vec2 {
     let half = light.half_extent();
     let crate::LightShape::Sphere { radius } = light.shape else {
         return half;
@@ -415,20 +427,27 @@ pub fn fit_half_extent(light: &crate::Light, receivers: &Receivers) -> Vec2 {
     let frame = light.frame();
     let mut f = 1.0f32;
     for (k, pw) in receivers.position.iter().enumerate() {
-        if !receivers.active[k] {
-            continue;
-        }
-        let p = frame.to_light(*pw);
-        if p.z <= 0.0 {
-            continue;
-        }
-        let rxy = Vec2::new(p.x, p.y).length();
-        let zmax = radius * rxy / p.length();
-        if zmax < p.z && radius > 0.0 {
-            f = f.max((rxy * zmax + radius * p.z) / (radius * (p.z - zmax)));
+        if receivers.active[k] {
+            f = f.max(sphere_window_factor(radius, frame.to_light(*pw)));
         }
     }
-    half * f.min(4.0)
+    half * f.min(cap)
+}
+
+/// The window half extent, in radii, that the receiver at light-space `p` needs under a sphere
+/// light of `radius` ([`fit_half_extent`]'s `h / R`); 1 for receivers at or behind the light's
+/// plane, or whose silhouette disk reaches it.
+pub fn sphere_window_factor(radius: f32, p: Vec3) -> f32 {
+    if !(p.z > 0.0) || !(radius > 0.0) {
+        return 1.0;
+    }
+    let rxy = Vec2::new(p.x, p.y).length();
+    let zmax = radius * rxy / p.length();
+    if zmax < p.z {
+        ((rxy * zmax + radius * p.z) / (radius * (p.z - zmax))).max(1.0)
+    } else {
+        1.0
+    }
 }
 
 fn check_resolution(r: u32) -> Result<()> {

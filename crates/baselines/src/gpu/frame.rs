@@ -24,7 +24,7 @@ use shadow_map_core::{
     estimator::configure,
     gpu::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
-        frame::{buffer_range, check_buffers, single_view, status_buffer},
+        frame::{buffer_range, check_buffers, check_per_receiver, single_view, status_buffer},
         receivers::RECEIVER_BYTES,
         GpuContext, GpuMapFrame, GpuShadowMapper,
     },
@@ -101,6 +101,7 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
 
     /// The view the estimator's own `build` fits for `receivers`.
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.ctx.check_lost()?;
         let (view, _) = self
             .settings
             .request()
@@ -118,7 +119,7 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
-        check_buffers(inputs.receivers, inputs.v, n)?;
+        check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let queue = &self.ctx.queue;
         self.map.encode(queue, enc, inputs.casters, view, 0)?;
         let (b0, b1) = self.settings.biases();
@@ -193,7 +194,8 @@ pub struct MultiSampleFrame {
 impl MultiSampleFrame {
     /// Compiles the pipelines and allocates the map (one view slot per sub-light), the uniform
     /// and the counts for `max_receivers`, for the parameters `params` (a table of
-    /// multi-sample's specs). Errors as [`MapFrame::prepare`].
+    /// multi-sample's specs). Errors as [`MapFrame::prepare`], and [`Error::Limit`] for counts
+    /// beyond the device's `max_storage_buffer_binding_size`.
     pub fn prepare(ctx: Arc<GpuContext>, params: &Params, max_receivers: u32) -> Result<Self> {
         let settings = MapSettings::from_params(params)?;
         if settings.depth != DepthPrecision::F32 {
@@ -203,6 +205,11 @@ impl MultiSampleFrame {
             ));
         }
         let own = MultiSampleParams::from_params(params)?;
+        check_per_receiver(
+            &ctx,
+            "multi-sample frame counts bytes (max_storage_buffer_binding_size)",
+            max_receivers,
+        )?;
         let mapper = GpuShadowMapper::new(&ctx)?;
         let views = own.sublights * own.sublights;
         let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), views)?;
@@ -242,6 +249,7 @@ impl FrameEstimator for MultiSampleFrame {
     /// does): one per jittered stratum of the light, `None` where no receiver is in front (a
     /// sub-light that lights nothing but counts in N, as on the CPU).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.ctx.check_lost()?;
         let MultiSampleParams { sublights, seed } = self.own;
         let light = &scene.light;
         light
@@ -275,7 +283,7 @@ impl FrameEstimator for MultiSampleFrame {
     /// receivers than `max_receivers` ([`Error::Limit`]).
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let n = inputs.count as u64;
-        check_buffers(inputs.receivers, inputs.v, n)?;
+        check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         if inputs.count > self.max_receivers {
             return Err(Error::Limit {
                 what: "receivers per multi-sample frame (max_receivers at prepare)",

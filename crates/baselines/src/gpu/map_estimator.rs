@@ -8,6 +8,7 @@ use crate::{
     common::MapSettings,
     map_estimator::{filter_all, Filter},
 };
+use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
@@ -17,11 +18,10 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::LightSpace,
-    DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
-    Unorm16Map,
+    Cancel, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator, Unorm16Map,
 };
 use std::{marker::PhantomData, sync::Arc, time::Instant};
-use wgpu::util::DeviceExt;
 
 /// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point).
 pub const MAP_ESTIMATOR_WGSL: &str = include_str!("map_estimator.wgsl");
@@ -77,6 +77,8 @@ pub struct GpuMapEstimator<F: GpuFilter> {
     builder: MapBuilder,
     report: Report,
     chunk_cap: usize,
+    /// Checked before the dispatch and by the CPU redo of cut receivers.
+    cancel: Cancel,
     _f: PhantomData<fn() -> F>,
 }
 
@@ -102,6 +104,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
             maps: None,
             report: Report::default(),
             chunk_cap: usize::MAX,
+            cancel: Cancel::new(),
             _f: PhantomData,
         };
         e.kernel(DepthPrecision::F32)?;
@@ -197,6 +200,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         receivers: &Receivers,
         v: &mut [f32],
     ) -> Result<()> {
+        self.cancel.check()?;
         let settings = MapSettings::from_params(&self.params)?;
         let (b0, b1) = settings.biases();
         let mut u = EstimateUniform::new(light, b0, b1);
@@ -250,6 +254,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         let filter = F::from_params(&self.params)?;
         let biases = MapSettings::from_params(&self.params)?.caster_test();
         let ctx = &*self.ctx;
+        let cancel = &self.cancel;
         let stage = format!("{} estimate", F::NAME);
         redo_cut_receivers(v, receivers, expected, &stage, |sub, vs| {
             match &maps.depth {
@@ -260,12 +265,16 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
                         view: t.view.clone(),
                     };
                     let map = shadow_map_core::gpu::read_depth_map(ctx, &g)?;
-                    filter_all(&filter, &maps.view, &map, 0.0, light, sub, vs, biases);
+                    filter_all(
+                        cancel, &filter, &maps.view, &map, 0.0, light, sub, vs, biases,
+                    )?;
                 }
                 MapDepth::Unorm16(m) => {
                     let map = m.read(ctx)?;
                     let half = map.half_step();
-                    filter_all(&filter, &maps.view, &map, half, light, sub, vs, biases);
+                    filter_all(
+                        cancel, &filter, &maps.view, &map, half, light, sub, vs, biases,
+                    )?;
                 }
             }
             Ok(())
@@ -371,6 +380,9 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
     shadow_map_core::estimator_identity!(F::NAME, F::DESCRIPTION, Gpu, params);
     fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
         self.params.set(key, value)
+    }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();

@@ -32,7 +32,7 @@ impl DepthTexture {
         let max = ctx.limits().max_texture_dimension_2d;
         if map.size == 0 || map.size > max {
             return Err(Error::Limit {
-                what: "shadow-map texture side",
+                what: "shadow-map texture side (max_texture_dimension_2d)",
                 requested: map.size as u64,
                 max: max as u64,
             });

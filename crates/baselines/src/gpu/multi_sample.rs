@@ -18,7 +18,8 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_space::{LightSpace, LightSpaceRequest},
-    DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Cancel, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 
@@ -88,6 +89,8 @@ pub struct GpuMultiSample {
     builder: Arc<MapBuilder>,
     report: Report,
     chunk_cap: usize,
+    /// Checked before each sub-light's map and dispatch.
+    cancel: Cancel,
 }
 
 impl GpuMultiSample {
@@ -105,6 +108,7 @@ impl GpuMultiSample {
             kernels: [None, None],
             report: Report::default(),
             chunk_cap: usize::MAX,
+            cancel: Cancel::new(),
         };
         e.kernels(DepthPrecision::F32)?;
         Ok(e)
@@ -189,6 +193,7 @@ impl GpuMultiSample {
         let (mut t_build, mut t_est) = (0.0, 0.0);
         let (mut peak, mut behind, mut n_points) = (0usize, 0usize, 0usize);
         loop {
+            self.cancel.check()?;
             let t = Instant::now();
             let Some(item) = sub_lights.next() else {
                 break;
@@ -304,6 +309,9 @@ impl SoftShadowEstimator for GpuMultiSample {
         self.map = MapSettings::from_params(&self.params)?;
         self.own = MultiSampleParams::from_params(&self.params)?;
         Ok(())
+    }
+    fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
     }
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.

@@ -27,13 +27,24 @@ pub trait FrameEstimator {
     /// The light views the estimator's own `build` fits for `receivers`, one per view slot
     /// (one for most methods, one per sub-light for multi-sample; `None`: a slot no receiver is
     /// in front of). CPU work over the scene's triangles, for when the light or the scene moves,
-    /// not per frame.
+    /// not per frame. [`Error::DeviceLost`] once the estimator's device is lost (the views are
+    /// of no use to it any more).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>>;
 
     /// Records one frame into `enc` (one `encode` per submit: uniforms are staged with
     /// `queue.write_buffer`). Errors, before anything is recorded: views of another resolution
-    /// or number ([`Error::LightView`]); a receiver count beyond one dispatch or buffers smaller
-    /// than the count needs ([`Error::Limit`]).
+    /// or number ([`Error::LightView`]); a receiver count beyond one dispatch, bindings beyond
+    /// the device's `max_storage_buffer_binding_size` or buffers smaller than the count needs
+    /// ([`Error::Limit`], [`check_buffers`]); a lost device ([`Error::DeviceLost`]: checked
+    /// first, never blocking; see below).
+    ///
+    /// **Device loss.** Once the device is lost (as [`GpuContext::check_lost`] sees it: a real
+    /// loss at once, an explicit `destroy` at the device's next poll) every call gives
+    /// [`Error::DeviceLost`], never a panic; a frame recorded before wgpu reports a `destroy`
+    /// is recorded into objects wgpu has invalidated, which is harmless. The estimator is not
+    /// revived: the caller makes a new context on its new device and prepares the estimator
+    /// again (`softshadow::frame_estimator` with the same parameters), which then gives what
+    /// an estimator on a device that never saw a loss gives.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()>;
 
     /// The counters of the last submitted frame (u32s, each estimator's own: receivers outside
@@ -94,9 +105,18 @@ pub struct FrameInputs<'a> {
     pub v: &'a wgpu::Buffer,
 }
 
-/// Checks one frame's receiver count against one dispatch (`65535 x WORKGROUP_SIZE`) and the
-/// caller's buffers against the count ([`Error::Limit`]).
-pub fn check_buffers(receivers: &wgpu::Buffer, v: &wgpu::Buffer, n: u64) -> Result<()> {
+/// The checks every [`FrameEstimator::encode`] makes first, before anything is recorded: the
+/// device not lost ([`GpuContext::check_lost`], a flag: no poll, no wait), then the receiver
+/// count against one dispatch (`65535 x WORKGROUP_SIZE`), the bindings of the count's
+/// receivers and V against the device's `max_storage_buffer_binding_size`, and the caller's
+/// buffers against the count ([`Error::Limit`], `what` naming the limit).
+pub fn check_buffers(
+    ctx: &GpuContext,
+    receivers: &wgpu::Buffer,
+    v: &wgpu::Buffer,
+    n: u64,
+) -> Result<()> {
+    ctx.check_lost()?;
     let max = 65_535 * WORKGROUP_SIZE as u64;
     if n > max {
         return Err(Error::Limit {
@@ -104,6 +124,25 @@ pub fn check_buffers(receivers: &wgpu::Buffer, v: &wgpu::Buffer, n: u64) -> Resu
             requested: n,
             max,
         });
+    }
+    let binding = ctx.limits().max_storage_buffer_binding_size;
+    for (what, bytes) in [
+        (
+            "receiver binding bytes of a frame (max_storage_buffer_binding_size)",
+            n * RECEIVER_BYTES,
+        ),
+        (
+            "V binding bytes of a frame (max_storage_buffer_binding_size)",
+            n * 4,
+        ),
+    ] {
+        if bytes > binding {
+            return Err(Error::Limit {
+                what,
+                requested: bytes,
+                max: binding,
+            });
+        }
     }
     for (what, have, need) in [
         (
@@ -122,6 +161,13 @@ pub fn check_buffers(receivers: &wgpu::Buffer, v: &wgpu::Buffer, n: u64) -> Resu
         }
     }
     Ok(())
+}
+
+/// The per-receiver storage buffer of `4 max_receivers` bytes an engine path allocates at
+/// `prepare` ([`Error::Limit`] naming `max_storage_buffer_binding_size` beyond the device's
+/// binding or buffer size; `what` names the buffer).
+pub fn check_per_receiver(ctx: &GpuContext, what: &'static str, max_receivers: u32) -> Result<()> {
+    ctx.check_storage_bytes(what, 4 * max_receivers as u64)
 }
 
 /// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame

@@ -14,7 +14,6 @@
 //! ```
 use super::{depth_map::texture_desc, shared::pack_receivers, shared::ReceiverGpu, GpuContext};
 use crate::{Receivers, Result};
-use wgpu::util::DeviceExt;
 
 /// What one binding of a compute kernel is (its number is its position in the list).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -212,7 +211,8 @@ pub fn bind_group(
     })
 }
 
-/// A buffer of `usage` holding `contents` (the bytes of a Pod value or slice).
+/// A buffer of `usage` holding `contents` (the bytes of a Pod value or slice), made as
+/// [`BufferInitExt::create_buffer_init`] makes it (no panic on a lost device).
 pub fn buffer_init(
     device: &wgpu::Device,
     label: &str,
@@ -224,6 +224,51 @@ pub fn buffer_init(
         contents,
         usage,
     })
+}
+
+/// wgpu's `DeviceExt::create_buffer_init`, without its panic when the device is lost: wgpu's
+/// version expects the mapping of the new buffer, which fails (a panic) for a buffer of a
+/// device that was destroyed or lost and not yet reported as such. Here the buffer is then
+/// returned as made (invalid, like every object of a lost device), and the loss is reported
+/// by the next check ([`GpuContext::check_lost`], [`GpuContext::scoped`]) as
+/// [`Error::DeviceLost`](crate::Error::DeviceLost). Import it in place of `DeviceExt`
+/// (`use shadow_map_core::gpu::kernel::BufferInitExt;`).
+pub trait BufferInitExt {
+    /// A buffer of `desc.usage` holding `desc.contents` (padded to `COPY_BUFFER_ALIGNMENT`, at
+    /// least 4 bytes; none for empty contents).
+    fn create_buffer_init(&self, desc: &wgpu::util::BufferInitDescriptor<'_>) -> wgpu::Buffer;
+}
+
+impl BufferInitExt for wgpu::Device {
+    fn create_buffer_init(&self, desc: &wgpu::util::BufferInitDescriptor<'_>) -> wgpu::Buffer {
+        let len = desc.contents.len() as u64;
+        if len == 0 {
+            return self.create_buffer(&wgpu::BufferDescriptor {
+                label: desc.label,
+                size: 0,
+                usage: desc.usage,
+                mapped_at_creation: false,
+            });
+        }
+        let align = wgpu::COPY_BUFFER_ALIGNMENT;
+        let buffer = self.create_buffer(&wgpu::BufferDescriptor {
+            label: desc.label,
+            size: len.div_ceil(align).max(1) * align,
+            usage: desc.usage,
+            mapped_at_creation: true,
+        });
+        let mapped = match buffer.get_mapped_range_mut(..) {
+            Ok(mut view) => {
+                view.slice(..len as usize).copy_from_slice(desc.contents);
+                true
+            }
+            Err(_) => false,
+        };
+        if mapped {
+            buffer.unmap();
+        }
+        buffer
+    }
 }
 
 /// A uniform buffer holding `value`.
@@ -344,14 +389,14 @@ pub fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Resu
     let l = ctx.limits();
     if size == 0 || size > l.max_texture_dimension_2d {
         return Err(crate::Error::Limit {
-            what: "texture-array side",
+            what: "texture-array side (max_texture_dimension_2d)",
             requested: size as u64,
             max: l.max_texture_dimension_2d as u64,
         });
     }
     if count == 0 || count > l.max_texture_array_layers {
         return Err(crate::Error::Limit {
-            what: "texture-array layers",
+            what: "texture-array layers (max_texture_array_layers)",
             requested: count as u64,
             max: l.max_texture_array_layers as u64,
         });

@@ -11,9 +11,9 @@ use super::{
     mssm::GpuMssm,
     GpuContext,
 };
+use crate::gpu::kernel::BufferInitExt;
 use crate::{Error, Result};
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 /// The MSSM-level copy into a texture array layer.
 pub const PLANE_TO_LAYER_WGSL: &str = include_str!("plane_to_layer.wgsl");

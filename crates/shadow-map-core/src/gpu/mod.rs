@@ -20,7 +20,7 @@
 //! | [`estimate`] (`estimate.wgsl`, `math.wgsl`) | [`EstimateUniform`]: the light and bias every estimate kernel reads, f32 light math | [`crate::light`], [`crate::LightView::receiver_bias`] |
 //! | [`kernel`] | [`Kernel`]: layouts from a binding list, pipelines, chunked receivers, readback, naga checks | |
 use crate::{Error, Result};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 
 pub mod depth_map;
 pub mod estimate;
@@ -178,10 +178,22 @@ impl GpuContext {
         }
     }
 
-    /// One context per process, created on first use (tests and the CLI share it).
+    /// One context per process, created on first use (tests, the registry's GPU twins and the
+    /// CLI share it). Once its device is lost ([`check_lost`](Self::check_lost), after a
+    /// non-blocking poll so that wgpu can report an explicit `destroy`), the next call creates
+    /// a fresh context and hands that out from then on: a loss is never cached for the rest of
+    /// the process. Holders of the lost context keep it (every call through it gives
+    /// [`Error::DeviceLost`]) and make their estimators again from a new `shared()`. A missing
+    /// adapter is cached ([`Error::NoAdapter`] every time).
     pub fn shared() -> Result<Arc<GpuContext>> {
-        static CTX: OnceLock<std::result::Result<Arc<GpuContext>, String>> = OnceLock::new();
-        CTX.get_or_init(|| {
+        static CTX: Mutex<Option<std::result::Result<Arc<GpuContext>, String>>> = Mutex::new(None);
+        let mut slot = CTX.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(Ok(c)) = slot.as_ref() {
+            if c.poll_lost().is_err() {
+                *slot = None;
+            }
+        }
+        slot.get_or_insert_with(|| {
             GpuContext::new().map(Arc::new).map_err(|e| match e {
                 Error::NoAdapter(m) => m,
                 other => other.to_string(),
@@ -189,6 +201,79 @@ impl GpuContext {
         })
         .clone()
         .map_err(Error::NoAdapter)
+    }
+
+    /// [`check_lost`](Self::check_lost) after a non-blocking poll of the device, which is when
+    /// wgpu reports an explicit `Device::destroy` (a real loss is reported as it happens). A
+    /// blocking call's check, not `encode`'s (a poll runs the device's pending callbacks).
+    pub fn poll_lost(&self) -> Result<()> {
+        self.check_lost()?;
+        self.poll(wgpu::PollType::Poll)?;
+        self.check_lost()
+    }
+
+    /// `device.poll`, with a loss as [`Error::DeviceLost`]: wgpu panics when polling a device
+    /// the driver lost (its fatal-error path), so that panic is caught here and reported as the
+    /// loss its device-lost callback has recorded by then.
+    fn poll(&self, poll: wgpu::PollType) -> Result<wgpu::PollStatus> {
+        let polled =
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.device.poll(poll)));
+        match polled {
+            Ok(Ok(status)) => Ok(status),
+            Ok(Err(e)) => Err(self.lost_or(Error::Gpu {
+                stage: "poll".into(),
+                reason: e.to_string(),
+            })),
+            Err(panic) => {
+                let reason = panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "wgpu panicked in Device::poll".into());
+                Err(self.lost_or(Error::Gpu {
+                    stage: "poll".into(),
+                    reason: reason.replace('\n', " "),
+                }))
+            }
+        }
+    }
+
+    /// `e`, or [`Error::DeviceLost`] when the device has been lost: the errors wgpu gives for
+    /// objects of a lost device (an invalid buffer, a failed mapping) are the loss. Polls once
+    /// (non-blocking) when no loss is recorded yet, so a `destroy` wgpu has not reported counts.
+    fn lost_or(&self, e: Error) -> Error {
+        if self.check_lost().is_ok() {
+            let poll = || self.device.poll(wgpu::PollType::Poll);
+            let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(poll));
+        }
+        match self.check_lost() {
+            Err(lost) => lost,
+            Ok(()) => e,
+        }
+    }
+
+    /// Fails with [`Error::Limit`] (naming `max_texture_dimension_2d`) when a square texture
+    /// of side `size` (a shadow-map resolution) cannot be created on this device: what every
+    /// estimator checks before allocating anything of that size, CPU-side twins included.
+    pub fn check_resolution(&self, size: u32) -> Result<()> {
+        depth_map::check_size(self, size)
+    }
+
+    /// Fails with [`Error::Limit`] when a storage buffer of `bytes`, bound whole, exceeds
+    /// `max_storage_buffer_binding_size` or `max_buffer_size` (the maximum reported is the
+    /// smaller). `what` names the buffer and the limit, e.g.
+    /// `"multi-sample frame counts bytes (max_storage_buffer_binding_size)"`.
+    pub fn check_storage_bytes(&self, what: &'static str, bytes: u64) -> Result<()> {
+        let l = self.limits();
+        let max = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+        if bytes > max {
+            return Err(Error::Limit {
+                what,
+                requested: bytes,
+                max,
+            });
+        }
+        Ok(())
     }
 
     /// The device's limits.
@@ -204,7 +289,15 @@ impl GpuContext {
         }
     }
 
-    /// Fails with [`Error::DeviceLost`] once the device has been lost.
+    /// Fails with [`Error::DeviceLost`] once the device has been lost: a real loss as wgpu
+    /// meets it, an explicit `Device::destroy` once wgpu reports it (at the device's next poll,
+    /// WebGPU's "lost after the queued work"). Reads a flag only: never blocks, never polls, so
+    /// every [`FrameEstimator::encode`](frame::FrameEstimator::encode) calls it first.
+    ///
+    /// **After a loss** nothing made on the device works again (a wgpu device is not revived):
+    /// the caller makes a new context ([`new`](Self::new), [`from_device`](Self::from_device)
+    /// with its new device, or [`shared`](Self::shared), which replaces a lost one) and prepares
+    /// its estimators again on it; the library keeps no other state bound to a device.
     pub fn check_lost(&self) -> Result<()> {
         match self.lost.lock().ok().and_then(|g| g.clone()) {
             Some(m) => Err(Error::DeviceLost(m)),
@@ -222,59 +315,58 @@ impl GpuContext {
         let v = pollster::block_on(val.pop());
         let o = pollster::block_on(oom.pop());
         if let Some(e) = o {
-            return Err(Error::OutOfMemory(format!("{stage}: {e}")));
+            return Err(self.lost_or(Error::OutOfMemory(format!("{stage}: {e}"))));
         }
         if let Some(e) = v {
-            return Err(Error::Gpu {
+            return Err(self.lost_or(Error::Gpu {
                 stage: stage.to_string(),
                 reason: e.to_string().replace('\n', " "),
-            });
+            }));
         }
         self.check_lost()?;
         Ok(out)
     }
 
-    /// Blocks until all submitted work is done.
+    /// Blocks until all submitted work is done. [`Error::DeviceLost`] once the device is lost
+    /// (the wait is when wgpu reports an explicit `destroy`).
     pub fn wait(&self) -> Result<()> {
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map(|_| ())
-            .map_err(|e| Error::Gpu {
-                stage: "poll".into(),
-                reason: e.to_string(),
-            })
+        self.check_lost()?;
+        self.poll(wgpu::PollType::wait_indefinitely())?;
+        self.check_lost()
     }
 
     /// Copies a buffer back to the CPU as `T`s (a staging buffer, one submit, one wait).
     pub fn read_buffer<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: bytes,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(src, 0, &staging, 0, bytes);
-        self.queue.submit([enc.finish()]);
-        let slice = staging.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
+        let gpu = |reason: String| Error::Gpu {
+            stage: "readback".into(),
+            reason,
+        };
+        // Scoped: on a lost device the staging buffer is invalid and mapping it is a validation
+        // error, which would otherwise reach wgpu's default handler (a panic).
+        let (staging, rx) = self.scoped("readback", || {
+            let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            let mut enc = self.device.create_command_encoder(&Default::default());
+            enc.copy_buffer_to_buffer(src, 0, &staging, 0, bytes);
+            self.queue.submit([enc.finish()]);
+            let (tx, rx) = std::sync::mpsc::channel();
+            staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send(r);
+            });
+            (staging, rx)
+        })?;
         self.wait()?;
         rx.recv()
-            .map_err(|e| Error::Gpu {
-                stage: "readback".into(),
-                reason: e.to_string(),
-            })?
-            .map_err(|e| Error::Gpu {
-                stage: "readback".into(),
-                reason: e.to_string(),
-            })?;
-        let data = slice.get_mapped_range().map_err(|e| Error::Gpu {
-            stage: "readback".into(),
-            reason: format!("{e:?}"),
-        })?;
+            .map_err(|e| self.lost_or(gpu(e.to_string())))?
+            .map_err(|e| self.lost_or(gpu(e.to_string())))?;
+        let slice = staging.slice(..);
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| self.lost_or(gpu(format!("{e:?}"))))?;
         // Copy into a `Vec<T>` rather than casting the mapping, which need not be aligned for `T`.
         let n = data.len() / std::mem::size_of::<T>().max(1);
         let mut out = vec![T::zeroed(); n];

@@ -280,7 +280,7 @@ impl<'a> Recorder<'a> {
         let rows = self.limit.saturating_sub(self.align) / row_bytes.max(1);
         if rows == 0 {
             return Err(Error::Limit {
-                what: "GPU storage binding for one MSSM row (bytes, with offset alignment)",
+                what: "MSSM row bytes with offset alignment (max_storage_buffer_binding_size)",
                 requested: row_bytes + self.align,
                 max: self.limit,
             });

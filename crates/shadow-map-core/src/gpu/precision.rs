@@ -117,7 +117,8 @@ fn check_buffer(ctx: &GpuContext, size: u32) -> Result<()> {
     let need = words(size) * 4;
     if need > max {
         return Err(Error::Limit {
-            what: "16-bit shadow-map bytes in one storage binding",
+            what:
+                "16-bit shadow-map bytes in one storage binding (max_storage_buffer_binding_size)",
             requested: need,
             max,
         });

@@ -46,7 +46,7 @@ impl GpuReceivers {
         let max = (ctx.limits().max_buffer_size / RECEIVER_BYTES).min(u32::MAX as u64);
         if n > max {
             return Err(Error::Limit {
-                what: "receivers in one GPU buffer",
+                what: "receivers in one GPU buffer (max_buffer_size / 32 bytes)",
                 requested: n,
                 max,
             });
