@@ -13,7 +13,9 @@
 //! encodes each with the device idle (`host_ms_idle_*`: on a CPU adapter the device's threads
 //! share the cores with `encode` during the run), then 2000 encodes in a tight loop, dropped
 //! unsubmitted (`host_ms_warm_*`: the API's own host cost, caches warm), and the CPU twin's build
-//! and estimate on the same receivers are timed (`cpu_twin_ms_*`). The light
+//! and estimate on the same receivers are timed (`cpu_twin_ms_*`), and one more frame is
+//! recorded with timestamps between its passes (`gpu_stage_ms_*`: GPU ms per stage, from
+//! [`FrameTimestamps`], where the adapter has timestamp queries). The light
 //! views are fitted once, on the CPU, to every vertex of the scene (a view that holds any
 //! receiver the orbit can see), so no per-frame CPU work grows with the triangles.
 //!
@@ -27,7 +29,7 @@
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
-        frame::{FrameEstimator, FrameInputs},
+        frame::{FrameEstimator, FrameInputs, FrameTimestamps},
         GpuContext, GpuGBuffer, GpuScene,
     },
     Camera, LightView, Receivers, Result, Scene,
@@ -122,6 +124,18 @@ struct Measured {
     host_warm_ms: f64,
     /// Wall ms of the CPU twin's build and estimate on the same receivers in the same views.
     cpu_ms: f64,
+    /// GPU ms per stage of one more frame, from timestamps written between its passes
+    /// ([`FrameTimestamps`]); empty where the adapter has no timestamp queries.
+    stages: Vec<(&'static str, f64)>,
+}
+
+/// A JSON object of stage names to milliseconds.
+fn stages_json(stages: &[(&'static str, f64)]) -> String {
+    let body: Vec<String> = stages
+        .iter()
+        .map(|(s, ms)| format!("\"{s}\":{ms:.4}"))
+        .collect();
+    format!("{{{}}}", body.join(","))
 }
 
 /// Frames timed after the readback-free run (the wait that ends them is the only stall).
@@ -158,6 +172,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
                 receivers: &img.receivers.buffer,
                 count: img.receivers.count,
                 v: &v,
+                timestamps: None,
             },
         )?;
         host += t.elapsed().as_secs_f64() * 1e3;
@@ -196,6 +211,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
         receivers: &img.receivers.buffer,
         count: img.receivers.count,
         v: &v,
+        timestamps: None,
     };
     ctx.wait()?;
     let t = Instant::now();
@@ -224,6 +240,22 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
         ctx.queue.submit([enc.finish()]);
     }
     ctx.wait()?;
+    // One more frame with timestamps between its passes: GPU ms per stage.
+    let mut stages = Vec::new();
+    if let Some(ts) = FrameTimestamps::new(ctx, 256)? {
+        ts.reset();
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        path.encode(
+            &mut enc,
+            &FrameInputs {
+                timestamps: Some(&ts),
+                ..inputs
+            },
+        )?;
+        ts.resolve(&mut enc);
+        ctx.queue.submit([enc.finish()]);
+        stages = ts.read(ctx)?;
+    }
     Ok(Measured {
         host_ms: host / frames.max(1) as f64,
         rmse: (se / n.max(1) as f64).sqrt(),
@@ -232,6 +264,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
         host_idle_ms: host_idle / TIMED_FRAMES as f64,
         host_warm_ms,
         cpu_ms,
+        stages,
     })
 }
 
@@ -295,7 +328,7 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         let (ts, tl) = (small.triangles.len(), large.triangles.len());
         if json {
             println!(
-                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan\":{},\"pixels\":{}}}",
+                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan\":{},\"pixels\":{},\"gpu_stage_ms_small\":{},\"gpu_stage_ms_large\":{}}}",
                 sm.host_ms,
                 lg.host_ms,
                 lg.rmse,
@@ -308,13 +341,23 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
                 sm.host_warm_ms,
                 lg.host_warm_ms,
                 lg.left_nan,
-                large.camera.width * large.camera.height
+                large.camera.width * large.camera.height,
+                stages_json(&sm.stages),
+                stages_json(&lg.stages)
             );
         } else {
             println!(
                 "{algo:>14}: {frames} frames; host ms/frame in encode {:.3} ({ts} triangles) / {:.3} ({tl} triangles); frame ms {:.2} / {:.2} against the CPU twin's {:.2} / {:.2}; last frame RMSE vs CPU twin {:.2e}",
                 sm.host_ms, lg.host_ms, sm.gpu_ms, lg.gpu_ms, sm.cpu_ms, lg.cpu_ms, lg.rmse
             );
+            if !lg.stages.is_empty() {
+                println!(
+                    "{:>14}  GPU ms per stage (timestamps), small {} / large {}",
+                    "",
+                    stages_json(&sm.stages),
+                    stages_json(&lg.stages)
+                );
+            }
         }
     }
     Ok(())

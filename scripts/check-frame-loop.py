@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Checks `frame_loop --json` output (stdin): one line per estimator on the frame path, no
-readback during the frames, the last frame's V within 2e-3 RMSE of the CPU twin, and the large
-scene at least 50 times the small one's triangles. Host times are printed, not asserted (timings
+readback during the frames, the last frame's V within 2e-3 RMSE of the CPU twin, the large
+scene at least 50 times the small one's triangles, and the GPU ms per stage (timestamps, where
+the adapter has them) finite and non-negative. Host times are printed, not asserted (timings
 on shared CI machines are noise; the ratio goal lives in the closing notes and the report).
 
     cargo run --release --example frame_loop -- --json --frames 3 | python3 scripts/check-frame-loop.py
@@ -35,6 +36,14 @@ for r in rows:
         r.get("gpu_ms_per_frame_small", float("nan")), r.get("gpu_ms_per_frame_large", float("nan")),
         r.get("cpu_twin_ms_small", float("nan")), r.get("cpu_twin_ms_large", float("nan")),
         r.get("left_nan", 0)))
+    # GPU ms per stage from the frame's timestamps (where the adapter has them).
+    for size in ("small", "large"):
+        st = r.get("gpu_stage_ms_" + size, {})
+        if any(not (ms >= 0.0) for ms in st.values()):
+            bad.append("%s: a negative or NaN stage time in %s" % (a, st))
+        if st:
+            print("%-14s   GPU ms per stage, %s: %s" % ("", size, ", ".join(
+                "%s %.3f" % (k, v) for k, v in st.items())))
 if bad:
     print("frame_loop check failed:\n  " + "\n  ".join(bad))
     sys.exit(1)

@@ -2,7 +2,8 @@
 # The GPU benchmarks on a machine with a real GPU: the GPU bench (benches/gpu.rs: the adapter's
 # ceilings, the shadow-map stages, and every estimator's frame on the engine path beside its CPU
 # twin, with per-frame GPU timestamps where the adapter has them) and examples/frame_loop.rs (the
-# 60-frame orbit through the frame API), both at 1920x1080 receivers and 2048^2 maps.
+# 60-frame orbit through the frame API, then one frame with timestamps between its passes: GPU ms
+# per stage, `gpu_stage_ms_*`), both at 1920x1080 receivers and 2048^2 maps.
 #
 #   scripts/gpu-bench.sh              # a machine with the toolchain and the GPU: build, then run
 #   scripts/gpu-bench.sh build        # here: release-build both into .gpu-bench/

@@ -99,6 +99,7 @@ impl Caller {
             receivers: &self.receivers.buffer,
             count: self.receivers.count,
             v: &self.v,
+            timestamps: None,
         }
     }
 }

@@ -293,6 +293,7 @@ pub fn frame_stages(env: &StageEnv, cpu: bool) -> BenchResult<Vec<Row>> {
             receivers: &receivers.buffer,
             count: receivers.count,
             v: &v,
+            timestamps: None,
         };
         let t = g.time_encoded(StampAt::Encoder, (r as u64).pow(2) * 16, |enc, _| {
             Ok(frame.encode(enc, &inputs)?)

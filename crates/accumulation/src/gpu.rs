@@ -591,8 +591,11 @@ impl FrameEstimator for AccumulationFrame {
         check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.gpu.ctx;
         let queue = &ctx.queue;
+        inputs.mark(enc, "start");
         self.layers.encode(queue, enc, inputs.casters, view, 0.0)?;
+        inputs.mark(enc, "layers");
         self.km.record(enc);
+        inputs.mark(enc, "layout");
         let s = self.gpu.cpu.settings();
         let mssm = self.km.mssm_levels.map(|l| (l, self.km.mssm.size));
         let (au, tables) =
@@ -628,6 +631,8 @@ impl FrameEstimator for AccumulationFrame {
         pass.set_pipeline(&self.gpu.kernel.pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
+        drop(pass);
+        inputs.mark(enc, "estimate");
         Ok(())
     }
 

@@ -915,9 +915,12 @@ impl FrameEstimator for BackprojectionFrame {
         let queue = &ctx.queue;
         let settings = self.gpu.cpu.settings();
         let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
+        inputs.mark(enc, "start");
         self.layers
             .encode(queue, enc, inputs.casters, view, clamp)?;
+        inputs.mark(enc, "layers");
         self.km.record(enc);
+        inputs.mark(enc, "layout");
         let (eu, bpu, table) = self.gpu.uniforms(&self.maps, inputs.light);
         queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
         queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
@@ -930,6 +933,7 @@ impl FrameEstimator for BackprojectionFrame {
         };
         self.gpu
             .encode_kernel(enc, &self.bufs, &self.maps, &[chunk], &self.status);
+        inputs.mark(enc, "estimate");
         Ok(())
     }
 

@@ -117,6 +117,7 @@ fn bad_frames_are_refused() {
         receivers: &receivers.buffer,
         count: receivers.count,
         v: &small,
+        timestamps: None,
     };
     let err = frame.encode(&mut enc, &inputs).unwrap_err().to_string();
     assert!(err.contains("V buffer"), "{err}");

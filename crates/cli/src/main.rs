@@ -471,6 +471,7 @@ fn engine_frame(
                 receivers: &image.receivers.buffer,
                 count: image.receivers.count,
                 v: &v_buf,
+                timestamps: None,
             },
         )?;
         ctx.queue.submit([enc.finish()]);

@@ -343,6 +343,7 @@ impl FrameEstimator for DeepShadowFrame {
             return Ok(());
         }
         let texels = self.map.r as u64 * self.map.r as u64;
+        inputs.mark(enc, "start");
         for (slot, (view, bufs)) in views.iter().zip(&self.slots).enumerate() {
             let ls = lookup_settings(view, light, s);
             queue.write_buffer(
@@ -357,6 +358,7 @@ impl FrameEstimator for DeepShadowFrame {
                 bytemuck::bytes_of(&EstimateUniform::new(&vl, s.bias, s.slope_bias)),
             );
             self.map.encode(queue, enc, inputs.casters, view, slot)?;
+            inputs.mark(enc, "raster");
             let group = self.group(&bufs.ds, self.map.view_uniform(slot), &bufs.light, inputs);
             run(
                 enc,
@@ -365,6 +367,7 @@ impl FrameEstimator for DeepShadowFrame {
                 &group,
                 texels,
             );
+            inputs.mark(enc, "heads");
             run(
                 enc,
                 "deep-shadow frame lookup",
@@ -372,6 +375,7 @@ impl FrameEstimator for DeepShadowFrame {
                 &group,
                 n,
             );
+            inputs.mark(enc, "lookup");
         }
         let group = self.group(
             &self.slots[0].ds,
@@ -386,6 +390,7 @@ impl FrameEstimator for DeepShadowFrame {
             &group,
             n,
         );
+        inputs.mark(enc, "finish");
         Ok(())
     }
 

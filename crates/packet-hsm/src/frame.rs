@@ -452,8 +452,10 @@ impl FrameEstimator for PacketHsmFrame {
         let queue = &ctx.queue;
         let cfg = &self.cfg;
         let clamp = cfg.shadow.midpoint_clamp(view).unwrap_or(0.0);
+        inputs.mark(enc, "start");
         self.layers
             .encode(queue, enc, inputs.casters, view, clamp)?;
+        inputs.mark(enc, "layers");
         // The classification layer into the padded map's interior, then its dual-grid MSSM.
         let class = match self.layers.midpoints().first() {
             Some(m) if cfg.shadow.midpoint() => m,
@@ -533,11 +535,15 @@ impl FrameEstimator for PacketHsmFrame {
         if n == 0 {
             return Ok(());
         }
+        inputs.mark(enc, "mssm");
         run(enc, "packet-hsm frame set-up", &self.setup_pipe, &group, n);
         let kernel = self.kernel_group();
         run(enc, "packet-hsm prepare", &self.gpu.prepare, &kernel, n);
+        inputs.mark(enc, "set-up");
         run(enc, "packet-hsm pixels", &self.gpu.pixels, &kernel, n);
+        inputs.mark(enc, "estimate");
         run(enc, "packet-hsm frame finish", &self.finish_pipe, &group, n);
+        inputs.mark(enc, "finish");
         Ok(())
     }
 

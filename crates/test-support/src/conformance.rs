@@ -542,6 +542,53 @@ pub fn frames_match_the_cpu_twin_with_cuts(
     frames_compared(label, ctx, frame, scene, receivers, Some(cut_word))
 }
 
+/// One more frame with [`FrameTimestamps`](shadow_map_core::gpu::frame::FrameTimestamps)
+/// written between its passes: V bit for bit `bits` (the timestamps change nothing), at least one
+/// stage, every stage's GPU ms finite and >= 0, no mark dropped. Adapters without timestamp
+/// queries print a loud skip of this part only.
+fn timestamped_frame_matches(
+    label: &str,
+    ctx: &GpuContext,
+    frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
+    inputs: &shadow_map_core::gpu::frame::FrameInputs<'_>,
+    bits: &[u32],
+) {
+    use shadow_map_core::gpu::frame::{FrameInputs, FrameTimestamps};
+    let Some(ts) = FrameTimestamps::new(ctx, 64).unwrap_or_else(|e| panic!("{label}: {e}")) else {
+        eprintln!("SKIPPED (no timestamp queries on this adapter): {label}: frame timestamps");
+        return;
+    };
+    ts.reset();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    frame
+        .encode(
+            &mut enc,
+            &FrameInputs {
+                timestamps: Some(&ts),
+                ..*inputs
+            },
+        )
+        .unwrap_or_else(|e| panic!("{label}: encode with timestamps: {e}"));
+    ts.resolve(&mut enc);
+    ctx.queue.submit([enc.finish()]);
+    let again: Vec<u32> = ctx
+        .read_buffer(inputs.v, 4 * inputs.count as u64)
+        .unwrap_or_else(|e| panic!("{label}: {e}"));
+    assert_eq!(again, bits, "{label}: V changed under timestamps");
+    let stages = ts.read(ctx).unwrap_or_else(|e| panic!("{label}: {e}"));
+    assert_eq!(ts.dropped(), 0, "{label}: timestamps dropped");
+    if inputs.count > 0 {
+        assert!(!stages.is_empty(), "{label}: no stage timed");
+    }
+    for (stage, ms) in &stages {
+        assert!(
+            ms.is_finite() && *ms >= 0.0,
+            "{label}: stage {stage}: {ms} ms"
+        );
+    }
+    println!("{label}: GPU ms per stage {stages:?}");
+}
+
 fn frames_compared(
     label: &str,
     ctx: &GpuContext,
@@ -570,6 +617,7 @@ fn frames_compared(
         receivers: &rec.buffer,
         count: rec.count,
         v: &v_buf,
+        timestamps: None,
     };
     for _ in 0..3 {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -581,6 +629,7 @@ fn frames_compared(
     let bits: Vec<u32> = ctx
         .read_buffer(&v_buf, 4 * n)
         .unwrap_or_else(|e| panic!("{label}: {e}"));
+    timestamped_frame_matches(label, ctx, frame, &inputs, &bits);
     let status: Vec<u32> = match frame.status() {
         Some(b) => ctx
             .read_buffer(b, b.size())

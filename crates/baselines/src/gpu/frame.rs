@@ -121,7 +121,9 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         let n = inputs.count as u64;
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let queue = &self.ctx.queue;
+        inputs.mark(enc, "start");
         self.map.encode(queue, enc, inputs.casters, view, 0)?;
+        inputs.mark(enc, "raster");
         let (b0, b1) = self.settings.biases();
         let mut u = EstimateUniform::new(inputs.light, b0, b1);
         u.receiver_plane = u32::from(self.settings.receiver_plane);
@@ -153,6 +155,8 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
+        drop(pass);
+        inputs.mark(enc, "estimate");
         Ok(())
     }
 
@@ -332,9 +336,11 @@ impl FrameEstimator for MultiSampleFrame {
                 })
         };
         let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
+        inputs.mark(enc, "start");
         for (slot, view) in inputs.views.iter().enumerate() {
             let Some(view) = view else { continue };
             self.map.encode(queue, enc, inputs.casters, view, slot)?;
+            inputs.mark(enc, "raster");
             let group = groups(
                 self.map.view_uniform(slot),
                 wgpu::BindingResource::TextureView(&self.map.layer.view),
@@ -346,6 +352,8 @@ impl FrameEstimator for MultiSampleFrame {
             pass.set_pipeline(&k.accumulate);
             pass.set_bind_group(0, &group, &[]);
             pass.dispatch_workgroups(wg, 1, 1);
+            drop(pass);
+            inputs.mark(enc, "estimate");
         }
         // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
         let group = groups(self.map.view_uniform(0), k.placeholder.binding());
@@ -356,6 +364,8 @@ impl FrameEstimator for MultiSampleFrame {
         pass.set_pipeline(&k.finalize);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(wg, 1, 1);
+        drop(pass);
+        inputs.mark(enc, "finalize");
         Ok(())
     }
     /// One per sub-light with a view.

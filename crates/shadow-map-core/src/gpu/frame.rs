@@ -103,6 +103,142 @@ pub struct FrameInputs<'a> {
     /// V per receiver as f32 bits (NaN for inactive receivers), `STORAGE` usage, at least
     /// `4 count` bytes.
     pub v: &'a wgpu::Buffer,
+    /// Optional GPU timestamps per stage ([`FrameTimestamps`]); `None`: none written.
+    pub timestamps: Option<&'a FrameTimestamps>,
+}
+
+impl FrameInputs<'_> {
+    /// Writes a timestamp closing the stage `stage` (the stage ends here; the frame's first
+    /// mark, `"start"`, opens it) when the caller passed [`FrameTimestamps`]; nothing otherwise.
+    /// Called by every estimator's `encode` between its passes.
+    pub fn mark(&self, enc: &mut wgpu::CommandEncoder, stage: &'static str) {
+        if let Some(t) = self.timestamps {
+            t.mark(enc, stage);
+        }
+    }
+}
+
+/// GPU time per stage of a frame (issue 20), from a timestamp query set the caller owns: each
+/// estimator's `encode` writes a timestamp when it starts and after each of its stages
+/// ([`FrameInputs::mark`], `CommandEncoder::write_timestamp` between passes), the caller
+/// resolves them into the same encoder after the frame ([`resolve`](Self::resolve)) and, when it
+/// likes, after the submit, reads them as milliseconds per stage ([`read`](Self::read): a
+/// readback, so once at the end of a run, not per frame). Needs
+/// `Features::TIMESTAMP_QUERY | TIMESTAMP_QUERY_INSIDE_ENCODERS`, which [`GpuContext::new`]
+/// requests where the adapter has them: [`new`](Self::new) is `None` elsewhere.
+///
+/// ```text
+/// let ts = FrameTimestamps::new(&ctx, 64)?;          // Option: None without the features
+/// ts.as_ref().map(|t| t.reset());
+/// frame.encode(&mut enc, &FrameInputs { timestamps: ts.as_ref(), .. })?;
+/// ts.as_ref().map(|t| t.resolve(&mut enc));
+/// queue.submit([enc.finish()]);
+/// let stages = ts.unwrap().read(&ctx)?;               // [("raster", 0.4), ("estimate", 1.2)]
+/// ```
+#[derive(Debug)]
+pub struct FrameTimestamps {
+    set: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    capacity: u32,
+    /// The stage each mark closes, in order (mark 0 opens the frame), and marks dropped for
+    /// want of room.
+    marks: std::sync::Mutex<(Vec<&'static str>, u32)>,
+    period_ns: f32,
+}
+
+impl FrameTimestamps {
+    /// The features timestamps between passes need.
+    pub const FEATURES: wgpu::Features =
+        wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
+
+    /// A query set of `capacity` timestamps (2 to `wgpu::QUERY_SET_MAX_QUERIES`, else
+    /// [`Error::Limit`]); `None` when the device lacks [`Self::FEATURES`].
+    pub fn new(ctx: &GpuContext, capacity: u32) -> Result<Option<Self>> {
+        ctx.check_lost()?;
+        if !ctx.device.features().contains(Self::FEATURES) {
+            return Ok(None);
+        }
+        if !(2..=wgpu::QUERY_SET_MAX_QUERIES).contains(&capacity) {
+            return Err(Error::Limit {
+                what: "timestamps per frame (wgpu::QUERY_SET_MAX_QUERIES)",
+                requested: capacity as u64,
+                max: wgpu::QUERY_SET_MAX_QUERIES as u64,
+            });
+        }
+        let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("frame timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: capacity,
+        });
+        let resolved = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame timestamps resolved"),
+            size: 8 * capacity as u64,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        Ok(Some(FrameTimestamps {
+            set,
+            resolved,
+            capacity,
+            marks: std::sync::Mutex::new((Vec::new(), 0)),
+            period_ns: ctx.queue.get_timestamp_period(),
+        }))
+    }
+
+    /// Forgets the marks of the last frame (call before each frame's `encode`).
+    pub fn reset(&self) {
+        if let Ok(mut m) = self.marks.lock() {
+            m.0.clear();
+            m.1 = 0;
+        }
+    }
+
+    /// Writes the next timestamp, closing `stage` (see [`FrameInputs::mark`]); past the
+    /// capacity the mark is dropped and counted ([`dropped`](Self::dropped)).
+    pub fn mark(&self, enc: &mut wgpu::CommandEncoder, stage: &'static str) {
+        let Ok(mut m) = self.marks.lock() else { return };
+        let k = m.0.len() as u32;
+        if k < self.capacity {
+            enc.write_timestamp(&self.set, k);
+            m.0.push(stage);
+        } else {
+            m.1 += 1;
+        }
+    }
+
+    /// Marks dropped since [`reset`](Self::reset) for want of room.
+    pub fn dropped(&self) -> u32 {
+        self.marks.lock().map(|m| m.1).unwrap_or(0)
+    }
+
+    /// Resolves the frame's timestamps into the buffer [`read`](Self::read) copies out (record
+    /// after the frame, in the same or a later encoder, before the submit).
+    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
+        let n = self.marks.lock().map(|m| m.0.len() as u32).unwrap_or(0);
+        if n > 0 {
+            enc.resolve_query_set(&self.set, 0..n, &self.resolved, 0);
+        }
+    }
+
+    /// The frame's stages in order with their GPU milliseconds (the time from the previous mark
+    /// to the stage's own; a stage marked several times, e.g. once per sub-light, is summed
+    /// under its first place). A readback: call after the submit, outside the frame loop.
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<(&'static str, f64)>> {
+        let labels = self.marks.lock().map(|m| m.0.clone()).unwrap_or_default();
+        if labels.len() < 2 {
+            return Ok(Vec::new());
+        }
+        let ticks: Vec<u64> = ctx.read_buffer(&self.resolved, 8 * labels.len() as u64)?;
+        let mut out: Vec<(&'static str, f64)> = Vec::new();
+        for k in 1..labels.len() {
+            let ns = ticks[k].saturating_sub(ticks[k - 1]) as f64 * self.period_ns as f64;
+            match out.iter_mut().find(|(s, _)| *s == labels[k]) {
+                Some(e) => e.1 += ns * 1e-6,
+                None => out.push((labels[k], ns * 1e-6)),
+            }
+        }
+        Ok(out)
+    }
 }
 
 /// The checks every [`FrameEstimator::encode`] makes first, before anything is recorded: the
