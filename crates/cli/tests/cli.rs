@@ -313,3 +313,93 @@ fn render_gpu_takes_the_frame_api() {
         );
     }
 }
+
+/// V and Z of an EXR the CLI wrote.
+fn read_vz(path: &Path) -> (Vec<f32>, Vec<f32>) {
+    use exr::prelude::{ReadChannels, ReadLayers};
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
+    let get = |name: &str| -> Vec<f32> {
+        image
+            .layer_data
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap()
+            .sample_data
+            .values_as_f32()
+            .collect()
+    };
+    (get("V"), get("Z"))
+}
+
+/// The `.glb` bunny renders the V of the OBJ bunny (issue 22: max |dV| <= 1e-5) on both
+/// backends, through the engine path (backprojection on the GPU) and the twin path alike.
+#[test]
+fn glb_bunny_renders_the_obj_bunny() {
+    let dir = tempfile::tempdir().unwrap();
+    let toml = std::fs::read_to_string(fixture("bunny/bunny.toml")).unwrap();
+    let abs = |s: &str| fixture(s).display().to_string();
+    let scene = |mesh: &str| {
+        let t = toml
+            .replace("../common/plane.obj", &abs("common/plane.obj"))
+            .replace(
+                "\"bunny.obj\"",
+                &format!("\"{}\"", abs(&format!("bunny/{mesh}"))),
+            )
+            .replace("width = 320", "width = 96")
+            .replace("height = 240", "height = 72");
+        let p = dir.path().join(format!("{mesh}.toml"));
+        std::fs::write(&p, t).unwrap();
+        p
+    };
+    let (obj, glb) = (scene("bunny.obj"), scene("bunny.glb"));
+    let gpu = shadow_map_core::gpu::context_for_tests("glb_bunny_renders_the_obj_bunny")
+        .unwrap()
+        .is_some();
+    for backend in ["cpu", "gpu"] {
+        if backend == "gpu" && !gpu {
+            continue;
+        }
+        for algo in ["pcss", "backprojection"] {
+            let out = |s: &Path, tag: &str| {
+                let o = dir.path().join(format!("{algo}-{backend}-{tag}.exr"));
+                run_ok(&[
+                    "render",
+                    s.to_str().unwrap(),
+                    "--algo",
+                    algo,
+                    "--backend",
+                    backend,
+                    "--param",
+                    "resolution=512",
+                    "--out",
+                    o.to_str().unwrap(),
+                ]);
+                read_vz(&o)
+            };
+            let ((va, za), (vb, zb)) = (out(&obj, "obj"), out(&glb, "glb"));
+            assert_eq!(za.len(), zb.len());
+            let mut max = 0.0f32;
+            for k in 0..va.len() {
+                assert_eq!(
+                    za[k].is_finite(),
+                    zb[k].is_finite(),
+                    "{algo} {backend} pixel {k}"
+                );
+                if za[k].is_finite() {
+                    max = max.max((va[k] - vb[k]).abs());
+                }
+            }
+            println!("{algo} on {backend}: glb against obj, max |dV| {max:.2e}");
+            assert!(max <= 1e-5, "{algo} on {backend}: max |dV| {max}");
+        }
+    }
+}

@@ -18,8 +18,10 @@
 //! uses seed + k), `SOFTSHADOW_FUZZ_JOBS` (runs at once, default 2),
 //! `SOFTSHADOW_FUZZ_GPU_PERCENT` (the share of runs of a GPU-capable estimator sent to
 //! `--backend gpu`, default 50; a GPU run costs a device's start-up), `SOFTSHADOW_FUZZ_KEEP` (a
-//! directory where every failing case is kept with its command line). glTF is not fuzzed: scenes
-//! load OBJ only today.
+//! directory where every failing case is kept with its command line). A quarter of the cases turn
+//! one mesh into glTF 2.0 (a `.glb`, or a `.gltf` with its buffer in a `data:` URI) before the
+//! mutations, which then also flip and cut its bytes or edit its JSON (primitive mode, counts,
+//! lengths, URIs, scene and node references).
 use exr::prelude::{ReadChannels, ReadLayers};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -594,6 +596,100 @@ enum Outcome {
     Failure(String),
 }
 
+/// `tris` as a binary glTF 2.0 file (one mesh, one node, one scene; positions and indices).
+fn glb_of(tris: &[[glam::Vec3; 3]]) -> Vec<u8> {
+    let (json, bin) = gltf_parts(tris, None);
+    let mut js = json.into_bytes();
+    js.resize(js.len().div_ceil(4) * 4, b' ');
+    let mut bin = bin;
+    bin.resize(bin.len().div_ceil(4) * 4, 0);
+    let mut body = Vec::new();
+    body.extend((js.len() as u32).to_le_bytes());
+    body.extend(b"JSON");
+    body.extend(&js);
+    body.extend((bin.len() as u32).to_le_bytes());
+    body.extend(b"BIN\0");
+    body.extend(&bin);
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend((12 + body.len() as u32).to_le_bytes());
+    out.extend(body);
+    out
+}
+
+/// The JSON of a glTF 2.0 file holding `tris` and its buffer's bytes; the buffer is the GLB's
+/// BIN chunk when `data_uri` is `None`, else a base64 `data:` URI (a `.gltf` on its own).
+fn gltf_parts(tris: &[[glam::Vec3; 3]], data_uri: Option<()>) -> (String, Vec<u8>) {
+    let pos: Vec<u8> = tris
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let n = 3 * tris.len() as u32;
+    let mut bin = pos.clone();
+    bin.extend((0..n).flat_map(u32::to_le_bytes));
+    let (mut lo, mut hi) = (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN));
+    for v in tris.iter().flatten() {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    let uri = match data_uri {
+        Some(()) => {
+            use base64::Engine as _;
+            format!(
+                "\"uri\":\"data:application/octet-stream;base64,{}\",",
+                base64::engine::general_purpose::STANDARD.encode(&bin)
+            )
+        }
+        None => String::new(),
+    };
+    let json = format!(
+        "{{\"asset\":{{\"version\":\"2.0\"}},\"scene\":0,\"scenes\":[{{\"nodes\":[0]}}],\"nodes\":[{{\"mesh\":0}}],\"meshes\":[{{\"primitives\":[{{\"attributes\":{{\"POSITION\":0}},\"indices\":1,\"mode\":4}}]}}],\"buffers\":[{{{uri}\"byteLength\":{}}}],\"bufferViews\":[{{\"buffer\":0,\"byteOffset\":0,\"byteLength\":{}}},{{\"buffer\":0,\"byteOffset\":{},\"byteLength\":{}}}],\"accessors\":[{{\"bufferView\":0,\"componentType\":5126,\"count\":{n},\"type\":\"VEC3\",\"min\":[{},{},{}],\"max\":[{},{},{}]}},{{\"bufferView\":1,\"componentType\":5125,\"count\":{n},\"type\":\"SCALAR\"}}]}}",
+        bin.len(),
+        pos.len(),
+        pos.len(),
+        bin.len() - pos.len(),
+        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+    );
+    (json, bin)
+}
+
+/// One edit of a glTF document's JSON text.
+fn mutate_gltf_json(rng: &mut fastrand::Rng, json: &str, what: &mut Vec<String>) -> String {
+    let edits: [(&str, &str); 12] = [
+        ("\"mode\":4", "\"mode\":1"),
+        ("\"mode\":4", "\"mode\":0"),
+        ("\"mode\":4", "\"mode\":6"),
+        ("\"scene\":0", "\"scene\":5"),
+        (
+            "\"nodes\":[{\"mesh\":0}]",
+            "\"nodes\":[{\"mesh\":0,\"children\":[0]}]",
+        ),
+        (
+            "\"nodes\":[{\"mesh\":0}]",
+            "\"nodes\":[{\"mesh\":0,\"scale\":[0,0,0]}]",
+        ),
+        (
+            "\"nodes\":[{\"mesh\":0}]",
+            "\"nodes\":[{\"mesh\":0,\"translation\":[1e39,0,0]}]",
+        ),
+        ("\"indices\":1,", ""),
+        ("\"componentType\":5125", "\"componentType\":5123"),
+        ("\"type\":\"VEC3\"", "\"type\":\"VEC2\""),
+        ("\"byteOffset\":0", "\"byteOffset\":4"),
+        ("\"uri\":\"data:", "\"uri\":\"missing.bin\",\"x\":\""),
+    ];
+    let (from, to) = edits[rng.usize(..edits.len())];
+    if json.contains(from) {
+        what.push(format!("gltf json {from} -> {to}"));
+        return json.replacen(from, to, 1);
+    }
+    // A count grown past the data.
+    what.push("gltf json count".into());
+    json.replacen("\"count\":", "\"count\":9", 1)
+}
+
 /// A test case: its directory, arguments and what was mutated.
 struct Case {
     args: Vec<String>,
@@ -646,6 +742,32 @@ fn make_case(seed: u64, dir: &Path, algos: &[Algo], gpu: bool, gpu_percent: u32)
         let text = std::fs::read_to_string(dir.join(&f)).unwrap();
         let bytes = mutate_obj(&mut rng, &text, &mut what);
         std::fs::write(dir.join(&f), bytes).unwrap();
+    }
+    // One mesh as glTF: the OBJ's triangles written as a .glb or a .gltf, the scene pointed at
+    // it (a text replacement, so a mutated TOML stays as mutated), then perhaps mutated.
+    if !mesh_files.is_empty() && rng.u32(..4) == 0 {
+        let f = pick(&mut rng, &mesh_files).clone();
+        if let Ok(tris) = shadow_map_core::scene::load_obj_triangles(&dir.join(&f)) {
+            let binary = rng.bool();
+            let name = f.replace(".obj", if binary { ".glb" } else { ".gltf" });
+            let mut bytes = if binary {
+                glb_of(&tris)
+            } else {
+                gltf_parts(&tris, Some(())).0.into_bytes()
+            };
+            match rng.u32(..4) {
+                0 => mutate_text(&mut rng, &mut bytes, &mut what),
+                1 if !binary => {
+                    let json = String::from_utf8_lossy(&bytes).into_owned();
+                    bytes = mutate_gltf_json(&mut rng, &json, &mut what).into_bytes();
+                }
+                _ => {}
+            }
+            std::fs::write(dir.join(&name), bytes).unwrap();
+            let toml = String::from_utf8_lossy(&toml_bytes).replace(&f, &name);
+            std::fs::write(dir.join("scene.toml"), toml).unwrap();
+            what.push(format!("{f} as {name}"));
+        }
     }
 
     let algo = pick(&mut rng, algos);

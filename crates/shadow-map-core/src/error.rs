@@ -33,6 +33,15 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// A glTF 2.0 file is missing or malformed (not glTF, truncated, a buffer missing, a
+    /// primitive mode other than triangles, ...).
+    #[error("{}: {reason}", path.display())]
+    Gltf {
+        /// The glTF file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
     /// The scene has nothing to render (no triangles left after loading).
     #[error("{}: the scene has no triangles ({skipped} degenerate triangles were skipped)", path.display())]
     EmptyScene {

@@ -1,6 +1,7 @@
 //! The scene model: world-space triangles with per-mesh opacity, one area light, one camera.
 //!
 //! Model only what a scene needs (docs/methods.md §11): no materials, no textures, no scene graph.
+mod gltf;
 mod obj;
 mod toml;
 
@@ -8,6 +9,7 @@ use crate::{camera::Camera, light::Light};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
+pub use gltf::load_gltf_triangles;
 pub use obj::load_obj_triangles;
 
 /// One mesh's bookkeeping: where it came from and how much light its surfaces pass.

@@ -303,7 +303,8 @@ fn round_light(cx: &Ctx<'_>, l: &LightFile, normal: Vec3) -> Result<(LightShape,
     Ok((shape, default_tangent(normal)))
 }
 
-/// Validates `[[mesh]]` entry `k` and loads its OBJ (relative to `dir`) into world space.
+/// Validates `[[mesh]]` entry `k` and loads its OBJ or glTF 2.0 file (`.gltf`, `.glb`; relative
+/// to `dir`) into world space.
 fn load_mesh(
     cx: &Ctx<'_>,
     dir: &Path,
@@ -328,7 +329,15 @@ fn load_mesh(
         return Err(cx.err(&key("opacity"), format!("must be in [0, 1], got {opacity}")));
     }
     let obj_path: PathBuf = dir.join(&m.path);
-    let local = super::obj::load_obj_triangles(&obj_path)?;
+    let gltf = obj_path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+    let local = if gltf {
+        super::gltf::load_gltf_triangles(&obj_path)?
+    } else {
+        super::obj::load_obj_triangles(&obj_path)?
+    };
     let rotation = glam::Quat::from_rotation_y(rot.to_radians());
     let tris = local
         .into_iter()
