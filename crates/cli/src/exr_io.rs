@@ -20,8 +20,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use exr::prelude::{
-    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, ReadChannels,
-    ReadLayers, SmallVec, Text, WritableImage,
+    AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
+    ReadChannels, ReadLayers, SmallVec, Text, WritableImage,
 };
 
 /// Name of the visibility channel: the fraction of the light's area visible
@@ -118,7 +118,20 @@ pub struct VisibilityImage {
     /// Names are unique. After [`read_exr`] the order is the file's, which is
     /// alphabetical (EXR sorts channels by name).
     pub channels: Vec<(String, Vec<f32>)>,
+    /// String header attributes `(name, value)`: the contract's provenance
+    /// (`softshadow.algo`, `.backend`, `.params`, `.version`, `.scene`; [`PROVENANCE`]).
+    /// [`read_exr`] returns every string attribute of the file's header.
+    pub attributes: Vec<(String, String)>,
 }
+
+/// The contract's provenance attributes, in the order `score` prints them.
+pub const PROVENANCE: [&str; 5] = [
+    "softshadow.algo",
+    "softshadow.backend",
+    "softshadow.params",
+    "softshadow.version",
+    "softshadow.scene",
+];
 
 impl VisibilityImage {
     /// An image of `width x height` pixels with no channels yet.
@@ -127,6 +140,7 @@ impl VisibilityImage {
             width,
             height,
             channels: Vec::new(),
+            attributes: Vec::new(),
         }
     }
 
@@ -212,9 +226,19 @@ pub fn write_exr(path: &Path, img: &VisibilityImage) -> Result<(), ImageError> {
         list.push(AnyChannel::new(text, FlatSamples::F32(data.clone())));
     }
 
+    let mut attributes = LayerAttributes::default();
+    for (name, value) in &img.attributes {
+        let (Some(key), Some(text)) = (Text::new_or_none(name), Text::new_or_none(latin1(value)))
+        else {
+            return Err(fail(format!(
+                "attribute `{name}` is not representable in EXR"
+            )));
+        };
+        attributes.other.insert(key, AttributeValue::Text(text));
+    }
     let layer = Layer::new(
         (img.width, img.height),
-        LayerAttributes::default(),
+        attributes,
         Encoding::SMALL_LOSSLESS, // ZIP16, scan lines, increasing line order
         AnyChannels::sort(list),
     );
@@ -223,6 +247,15 @@ pub fn write_exr(path: &Path, img: &VisibilityImage) -> Result<(), ImageError> {
     write_atomic(path, |writer| {
         image.write().to_buffered(writer).map_err(|e| e.to_string())
     })
+}
+
+/// `value` with every character outside Latin-1 (EXR text) replaced by `?`: a scene path in
+/// another script keeps its shape.
+fn latin1(value: &str) -> String {
+    value
+        .chars()
+        .map(|c| if (c as u32) < 256 { c } else { '?' })
+        .collect()
 }
 
 /// Reads every channel of the first layer of an OpenEXR file, converting
@@ -257,6 +290,19 @@ pub fn read_exr(path: &Path) -> Result<VisibilityImage, ImageError> {
     let width = layer.size.width();
     let height = layer.size.height();
     let mut out = VisibilityImage::new(width, height);
+    let mut text_attributes: Vec<(String, String)> = image
+        .attributes
+        .other
+        .iter()
+        .chain(layer.attributes.other.iter())
+        .filter_map(|(k, v)| match v {
+            AttributeValue::Text(t) => Some((k.to_string(), t.to_string())),
+            _ => None,
+        })
+        .collect();
+    text_attributes.sort();
+    text_attributes.dedup();
+    out.attributes = text_attributes;
     for channel in layer.channel_data.list.iter() {
         let name = channel.name.to_string();
         let data: Vec<f32> = match &channel.sample_data {
@@ -496,6 +542,34 @@ mod tests {
         read_visibility_exr(&path).unwrap();
     }
 
+    /// String attributes (the contract's provenance) survive a write and a read, and a value
+    /// outside Latin-1 keeps its shape.
+    #[test]
+    fn attributes_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.exr");
+        let mut img = sample_image();
+        img.attributes = vec![
+            ("softshadow.algo".into(), "pcss".into()),
+            ("softshadow.params".into(), r#"{"resolution":"256"}"#.into()),
+            ("softshadow.scene".into(), "scènes/兔.toml".into()),
+        ];
+        write_exr(&path, &img).unwrap();
+        let back = read_exr(&path).unwrap();
+        let get = |k: &str| {
+            back.attributes
+                .iter()
+                .find(|(n, _)| n == k)
+                .map(|(_, v)| v.clone())
+        };
+        assert_eq!(get("softshadow.algo").as_deref(), Some("pcss"));
+        assert_eq!(
+            get("softshadow.params").as_deref(),
+            Some(r#"{"resolution":"256"}"#)
+        );
+        assert_eq!(get("softshadow.scene").as_deref(), Some("scènes/?.toml"));
+    }
+
     #[test]
     fn rows_are_stored_top_down() {
         let dir = tempfile::tempdir().unwrap();
@@ -554,6 +628,7 @@ mod tests {
             width: 4,
             height: 2,
             channels: vec![("V".into(), vec![0.0; 3])],
+            attributes: Vec::new(),
         };
         let err = write_exr(&path, &bad).unwrap_err();
         assert!(matches!(err, ImageError::Write { .. }));

@@ -350,7 +350,8 @@ fn render_frame(
     }
     let t = Instant::now();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    let img = report::visibility_image(scene, &receivers, v.clone())?;
+    let mut img = report::visibility_image(scene, &receivers, v.clone())?;
+    img.attributes = provenance(est, scene_path);
     exr_io::write_exr(out, &img).map_err(|e| e.to_string())?;
     if let Some(p) = png {
         exr_io::write_png_preview(p, w, h, &v).map_err(|e| e.to_string())?;
@@ -397,6 +398,49 @@ fn render_frame(
         active: receivers.active,
         v,
     })
+}
+
+/// The contract's provenance attributes of an image `est` rendered from `scene_path`
+/// ([`exr_io::PROVENANCE`]): the algorithm, the backend, every parameter's value as a JSON
+/// object, this crate's version and the scene file as given.
+fn provenance(
+    est: &dyn shadow_map_core::SoftShadowEstimator,
+    scene_path: &std::path::Path,
+) -> Vec<(String, String)> {
+    let params: Map<String, Value> = est
+        .params()
+        .iter()
+        .map(|(k, v)| (k.to_string(), json!(v.to_string())))
+        .collect();
+    let values = [
+        est.name().to_string(),
+        est.backend().to_string(),
+        Value::Object(params).to_string(),
+        env!("CARGO_PKG_VERSION").to_string(),
+        scene_path.display().to_string(),
+    ];
+    exr_io::PROVENANCE
+        .iter()
+        .zip(values)
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+}
+
+/// The provenance attributes of `img` present, as a JSON object (`params` parsed), or `None`.
+fn provenance_json(img: &exr_io::VisibilityImage) -> Option<Value> {
+    let mut out = Map::new();
+    for key in exr_io::PROVENANCE {
+        if let Some((_, v)) = img.attributes.iter().find(|(k, _)| k == key) {
+            let short = key.trim_start_matches("softshadow.").to_string();
+            let value = if short == "params" {
+                serde_json::from_str(v).unwrap_or_else(|_| json!(v))
+            } else {
+                json!(v)
+            };
+            out.insert(short, value);
+        }
+    }
+    (!out.is_empty()).then_some(Value::Object(out))
 }
 
 /// What [`engine_frame`] did.
@@ -563,6 +607,17 @@ fn score_cmd(
     if let Some(p) = err_png {
         score::write_error_png(p, &c, &r).map_err(|e| e.to_string())?;
     }
-    println!("{}", score::score_json(&s));
+    // The score's JSON (its fields in declaration order), with each image's provenance after
+    // them when the file carries it.
+    let mut line = score::score_json(&s);
+    for (key, img) in [("candidate_provenance", &c), ("reference_provenance", &r)] {
+        if let Some(p) = provenance_json(img) {
+            if line.ends_with('}') {
+                line.pop();
+                line.push_str(&format!(",\"{key}\":{p}}}"));
+            }
+        }
+    }
+    println!("{line}");
     Ok(())
 }

@@ -72,6 +72,16 @@ fn render_stats_and_score() {
     assert_eq!(s["matched_fraction"], 1.0);
     assert!(s["rmse"].as_f64().unwrap() < 0.05, "{s}");
     assert_eq!(s["nonfinite_v"], 0);
+    // Provenance (the contract's five header attributes), printed by score beside its JSON.
+    let c = &s["candidate_provenance"];
+    assert_eq!(c["algo"], "pcss", "{s}");
+    assert_eq!(c["backend"], "cpu");
+    assert_eq!(c["params"]["resolution"], "256");
+    assert_eq!(c["params"]["max_taps"], "32");
+    assert_eq!(c["version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(c["scene"], sc);
+    assert_eq!(s["reference_provenance"]["algo"], "reference");
+    assert_eq!(s["reference_provenance"]["params"]["spp"], "64");
     // An image against itself scores zero, and the error image is written.
     let err_png = dir.path().join("err.png");
     let s: serde_json::Value = serde_json::from_str(

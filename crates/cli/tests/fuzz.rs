@@ -1,10 +1,10 @@
-//! End-to-end fuzz of `softshadow render` (issue 21): mutated scene TOMLs and OBJs (and now and
-//! then a mutated command line) rendered with random estimators, random parameters and both
-//! backends. Every run must either exit 0 having written a valid EXR (channels V and Z, the
-//! camera's size, V in [0, 1] on every hit pixel, V = NaN exactly where Z = +inf) and the PNG
-//! asked for, or exit 1 (2 for a command line clap refuses) with exactly one line on standard
-//! error and leave no file behind. A
-//! panic, a signal, a hang, NaN on a hit pixel or a file left by a failed run is a failure.
+//! End-to-end fuzz of `softshadow render` (issue 21): mutated scene TOMLs, OBJs and glTFs (and
+//! now and then a mutated command line) rendered with random estimators, random parameters and
+//! both backends. Every run must either exit 0 having written a valid EXR (channels V and Z, V in
+//! [0, 1] on every hit pixel, V = NaN exactly where Z = +inf, the five provenance attributes) and
+//! the PNG asked for, or exit 1 (2 for a command line clap refuses) with exactly one line on
+//! standard error and leave no file behind. A panic, a signal, a hang, NaN on a hit pixel or a
+//! file left by a failed run is a failure.
 //!
 //! CI runs [`DEFAULT_RUNS`] runs from a fixed seed, so a failure reproduces. The soak (10^5 runs,
 //! outside CI) is the same test with more runs and other seeds:
@@ -837,6 +837,25 @@ fn check_exr(path: &Path) -> Result<(), String> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| format!("the EXR does not read back: {e}"))?;
+    // The contract's provenance: five string attributes in the header.
+    let names: Vec<String> = image
+        .attributes
+        .other
+        .keys()
+        .chain(image.layer_data.attributes.other.keys())
+        .map(|k| k.to_string())
+        .collect();
+    for key in [
+        "softshadow.algo",
+        "softshadow.backend",
+        "softshadow.params",
+        "softshadow.version",
+        "softshadow.scene",
+    ] {
+        if !names.iter().any(|n| n == key) {
+            return Err(format!("the EXR lacks the attribute {key}"));
+        }
+    }
     let layer = image.layer_data;
     let n = layer.size.width() * layer.size.height();
     let mut chans: BTreeMap<String, Vec<f32>> = BTreeMap::new();
