@@ -333,8 +333,7 @@ fn render_frame(
         Engine::Done(receivers, v, report) => (receivers, v, report),
         Engine::Twin(receivers, gbuffer_ms) => {
             stages.push(("gbuffer".into(), gbuffer_ms));
-            let (v, report) =
-                shadow_map_core::run(est, scene, &receivers).map_err(|e| e.to_string())?;
+            let (v, report) = run_with_progress(est, scene, &receivers)?;
             (receivers, v, report)
         }
     };
@@ -397,6 +396,45 @@ fn render_frame(
         position: receivers.position,
         active: receivers.active,
         v,
+    })
+}
+
+/// `shadow_map_core::run`, with a progress bar on standard error for the ray-traced reference
+/// (a render of minutes): the estimator counts the receivers it has finished in its
+/// [`Cancel`](shadow_map_core::Cancel) token, which a thread draws every 100 ms. indicatif draws
+/// only to a terminal, so a script's or CI's standard error stays one line on failure.
+fn run_with_progress(
+    est: &mut dyn shadow_map_core::SoftShadowEstimator,
+    scene: &Scene,
+    receivers: &Receivers,
+) -> Result<(Vec<f32>, shadow_map_core::Report), String> {
+    if est.name() != "reference" {
+        return shadow_map_core::run(est, scene, receivers).map_err(|e| e.to_string());
+    }
+    let token = shadow_map_core::Cancel::new();
+    est.set_cancel(token.clone());
+    let total = receivers.len() as u64;
+    let done = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            let bar = indicatif::ProgressBar::with_draw_target(
+                Some(total),
+                indicatif::ProgressDrawTarget::stderr(),
+            );
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "reference {bar:40} {pos}/{len} receivers ({percent}%, {elapsed} elapsed, ~{eta} left)",
+            ) {
+                bar.set_style(style);
+            }
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                bar.set_position(token.progress().min(total));
+                std::thread::sleep(std::time::Duration::from_millis(100));
+            }
+            bar.finish_and_clear();
+        });
+        let out = shadow_map_core::run(est, scene, receivers).map_err(|e| e.to_string());
+        done.store(true, std::sync::atomic::Ordering::Relaxed);
+        out
     })
 }
 
