@@ -3,8 +3,9 @@
 //! against the ray-traced reference; the speed-versus-error picture written out.
 //!
 //! **Reference.** Rendered by the `reference` crate (never by the code under test) and cached in
-//! `OUT/cache/` under an FNV-1a hash of the scene file, every OBJ it names, the image size and the
-//! sample count, so a second report reuses it and an edited scene gets a new one.
+//! `OUT/cache/` under a SHA-256 key over the parsed scene, every mesh file's bytes, the sample
+//! count and the reference crate's version and revision ([`cache_key`]), so a second report
+//! reuses it and an edited scene, mesh or tracer gets a new one.
 //!
 //! **Times.** `build ms` and `estimate ms` are the estimator's own stage times (its
 //! [`Report`](shadow_map_core::Report): GPU rows include upload, dispatch and readback); `frame ms`
@@ -103,13 +104,6 @@ pub struct FlickerRow {
     pub pairs: usize,
 }
 
-fn fnv1a(h: &mut u64, bytes: &[u8]) {
-    for b in bytes {
-        *h ^= *b as u64;
-        *h = h.wrapping_mul(0x100000001b3);
-    }
-}
-
 /// The fixtures under `dir`, sorted: every `NAME/NAME.toml`.
 pub fn fixtures(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let rd = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -128,25 +122,41 @@ pub fn fixtures(dir: &Path) -> Result<Vec<PathBuf>, String> {
     Ok(out)
 }
 
-fn cache_key(scene_path: &Path, scene: &Scene, spp: u32) -> Result<u64, String> {
-    let mut h = 0xcbf29ce484222325u64;
-    let text = std::fs::read(scene_path).map_err(|e| format!("{}: {e}", scene_path.display()))?;
-    fnv1a(&mut h, &text);
-    // Every OBJ the scene names, relative to the scene file.
-    let dir = scene_path.parent().unwrap_or(Path::new("."));
-    for line in String::from_utf8_lossy(&text).lines() {
-        let l = line.trim();
-        if let Some(rest) = l.strip_prefix("path") {
-            let p = rest.trim_start_matches([' ', '=']).trim().trim_matches('"');
-            if let Ok(b) = std::fs::read(dir.join(p)) {
-                fnv1a(&mut h, &b);
+/// The key under which the reference image of `scene` at `spp` samples is cached: SHA-256 over
+/// the parsed scene (camera, light, every world-space triangle and each mesh's opacity and
+/// triangle range), every mesh file's bytes, the sample count and the reference crate's version
+/// and revision ([`reference::VERSION`], [`reference::REVISION`]); 128 bits of it as hex. A
+/// change to any of them (a TOML value, a mesh, the tracer) misses the cache; a TOML edit that
+/// parses to the same scene (a comment, spacing) hits it.
+pub fn cache_key(scene: &Scene, spp: u32) -> Result<String, String> {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    h.update(b"softshadow reference cache\0");
+    h.update(reference::VERSION.as_bytes());
+    h.update(reference::REVISION.to_le_bytes());
+    h.update(spp.to_le_bytes());
+    // Debug of f32 is the shortest text that reads back to the same bits: a faithful encoding.
+    h.update(format!("{:?}\0{:?}\0", scene.camera, scene.light).as_bytes());
+    for t in &scene.triangles {
+        for v in t {
+            for x in v.to_array() {
+                h.update(x.to_le_bytes());
             }
         }
     }
-    fnv1a(&mut h, &scene.camera.width.to_le_bytes());
-    fnv1a(&mut h, &scene.camera.height.to_le_bytes());
-    fnv1a(&mut h, &spp.to_le_bytes());
-    Ok(h)
+    for m in &scene.meshes {
+        h.update(m.opacity.to_le_bytes());
+        h.update((m.triangles.start as u64).to_le_bytes());
+        h.update((m.triangles.end as u64).to_le_bytes());
+        if m.source.is_file() {
+            let bytes =
+                std::fs::read(&m.source).map_err(|e| format!("{}: {e}", m.source.display()))?;
+            h.update((bytes.len() as u64).to_le_bytes());
+            h.update(&bytes);
+        }
+    }
+    let digest = h.finalize();
+    Ok(digest[..16].iter().map(|b| format!("{b:02x}")).collect())
 }
 
 /// The contract's image of V for `rec` (the camera's receivers): channels `V` and `Z` (view
@@ -169,15 +179,14 @@ pub fn visibility_image(
 
 fn reference(
     args: &ReportArgs,
-    scene_path: &Path,
     scene: &Scene,
     rec: &Receivers,
 ) -> Result<exr_io::VisibilityImage, String> {
     let spp: u32 = if args.quick { 256 } else { 1024 };
-    let key = cache_key(scene_path, scene, spp)?;
+    let key = cache_key(scene, spp)?;
     let dir = args.out.join("cache");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let file = dir.join(format!("reference-{key:016x}.exr"));
+    let file = dir.join(format!("reference-{key}.exr"));
     if let Ok(img) = exr_io::read_visibility_exr(&file) {
         return Ok(img);
     }
@@ -251,7 +260,7 @@ pub fn report(args: &ReportArgs) -> Result<(), String> {
         }
         let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
         bar.set_message(format!("{name}: reference"));
-        let refimg = reference(args, scene_path, &scene, &rec)?;
+        let refimg = reference(args, &scene, &rec)?;
         let ref_v = refimg.channel("V").map(|v| v.to_vec()).unwrap_or_default();
         exr_io::write_png_preview(
             &img_dir.join(format!("{name}-reference.png")),
@@ -892,5 +901,46 @@ fn flicker_section(md: &mut String, flicker: &[FlickerRow]) {
             "| {} | {} | {} | {} | {:.5} | {:.4} | {} |",
             f.fixture, f.algo, f.backend, f.fit, f.mean_abs_dv, f.p99_abs_dv, f.pairs
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cache_key;
+    use shadow_map_core::Scene;
+    use std::path::Path;
+
+    /// The reference cache's key follows the parsed scene, the mesh files and the sample count:
+    /// a comment or spacing in the TOML keeps it, a value, a mesh byte or the sample count moves
+    /// it.
+    #[test]
+    fn cache_key_follows_the_scene_the_meshes_and_the_samples() {
+        let dir = tempfile::tempdir().unwrap();
+        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
+        let toml = std::fs::read_to_string(fixtures.join("parallel-squares/parallel-squares.toml"))
+            .unwrap();
+        let plane = fixtures.join("common/plane.obj");
+        let occ = std::fs::read_to_string(fixtures.join("parallel-squares/occluder.obj")).unwrap();
+        std::fs::write(dir.path().join("occluder.obj"), &occ).unwrap();
+        let toml = toml.replace("../common/plane.obj", &plane.display().to_string());
+        let key = |text: &str, spp: u32| {
+            let p = dir.path().join("scene.toml");
+            std::fs::write(&p, text).unwrap();
+            cache_key(&Scene::load(&p).unwrap(), spp).unwrap()
+        };
+        let base = key(&toml, 256);
+        assert_eq!(base.len(), 32);
+        assert_eq!(key(&toml, 256), base, "not deterministic");
+        let commented = format!("# a comment\n{}", toml.replace(" = ", "   =   "));
+        assert_eq!(key(&commented, 256), base, "a comment moved the key");
+        assert_ne!(key(&toml, 1024), base, "the sample count");
+        assert_ne!(
+            key(&toml.replace("fov_y_deg = 40.0", "fov_y_deg = 41.0"), 256),
+            base,
+            "a camera value"
+        );
+        // A mesh byte that moves no vertex (a comment) still moves the key: its bytes are hashed.
+        std::fs::write(dir.path().join("occluder.obj"), format!("# edited\n{occ}")).unwrap();
+        assert_ne!(key(&toml, 256), base, "the mesh file's bytes");
     }
 }
