@@ -95,9 +95,13 @@ enum Cmd {
         candidate: PathBuf,
         /// Reference image.
         reference: PathBuf,
-        /// Write a false-colour error image (blue: too dark, red: too bright).
+        /// Write a false-colour error image (a diverging map: blue too dark, red too bright).
         #[arg(long)]
         err_png: Option<PathBuf>,
+        /// The error mapped to the colour map's ends in the error image (errors beyond are
+        /// clamped).
+        #[arg(long, value_name = "E", default_value_t = score::DEFAULT_ERR_RANGE)]
+        err_range: f64,
     },
 }
 
@@ -177,7 +181,8 @@ fn main() -> ExitCode {
             candidate,
             reference,
             err_png,
-        } => score_cmd(&candidate, &reference, err_png.as_deref()),
+            err_range,
+        } => score_cmd(&candidate, &reference, err_png.as_deref(), err_range),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -638,12 +643,13 @@ fn score_cmd(
     cand: &std::path::Path,
     reference: &std::path::Path,
     err_png: Option<&std::path::Path>,
+    err_range: f64,
 ) -> Result<(), String> {
     let c = exr_io::read_visibility_exr(cand).map_err(|e| e.to_string())?;
     let r = exr_io::read_visibility_exr(reference).map_err(|e| e.to_string())?;
     let s = score::score(&c, &r).map_err(|e| e.to_string())?;
     if let Some(p) = err_png {
-        score::write_error_png(p, &c, &r).map_err(|e| e.to_string())?;
+        score::write_error_png(p, &c, &r, err_range).map_err(|e| e.to_string())?;
     }
     // The score's JSON (its fields in declaration order), with each image's provenance after
     // them when the file carries it.

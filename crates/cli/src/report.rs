@@ -290,8 +290,13 @@ pub fn report(args: &ReportArgs) -> Result<(), String> {
                 )
                 .map_err(|e| e.to_string())?;
             }
-            score::write_error_png(&img_dir.join(format!("{stem}-error.png")), img, &refimg)
-                .map_err(|e| e.to_string())?;
+            score::write_error_png(
+                &img_dir.join(format!("{stem}-error.png")),
+                img,
+                &refimg,
+                score::DEFAULT_ERR_RANGE,
+            )
+            .map_err(|e| e.to_string())?;
         }
         // Flicker per fit mode: a short pan, every estimator with a `fit` parameter, defaults.
         for (algo, backend, _) in &plan {

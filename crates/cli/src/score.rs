@@ -280,26 +280,28 @@ pub const ERROR_UNMATCHED: [u8; 3] = [128, 128, 128];
 /// Colour of pixels that are background in both images.
 pub const ERROR_BACKGROUND: [u8; 3] = [48, 48, 48];
 
-/// The false colour of a signed error `e = Vc - Vr`, clamped to [-1, 1] and
-/// interpolated linearly in 8-bit values: -1 blue `(0, 0, 255)` (candidate too
-/// dark), 0 white, +1 red `(255, 0, 0)` (candidate too bright).
-fn error_colour(e: f64) -> [u8; 3] {
-    let e = e.clamp(-1.0, 1.0);
-    // 255 at e = 0, 0 at |e| = 1; rounded.
-    let fade = (255.0 * (1.0 - e.abs()) + 0.5) as u8;
-    if e < 0.0 {
-        [fade, fade, 255]
-    } else {
-        [255, fade, fade]
-    }
+/// The default of `score --err-range`: errors of +-0.1 and beyond get the map's end colours,
+/// so the typical errors of 0.02 to 0.1 are visible (a map over +-1 left them white).
+pub const DEFAULT_ERR_RANGE: f64 = 0.1;
+
+/// The false colour of a signed error `e = Vc - Vr` under a diverging map over `[-range, range]`
+/// (ColorBrewer's RdBu through `colorous`, built for perception: equal steps look alike on both
+/// sides): blue for a candidate too dark, near-white at 0, red for too bright, clamped at the
+/// range's ends.
+fn error_colour(e: f64, range: f64) -> [u8; 3] {
+    let x = (0.5 + 0.5 * e / range).clamp(0.0, 1.0);
+    // RED_BLUE runs red (0) to blue (1): too bright (x near 1) must be red.
+    let c = colorous::RED_BLUE.eval_continuous(1.0 - x);
+    [c.r, c.g, c.b]
 }
 
 /// Writes a false-colour PNG of the per-pixel error of `candidate` against
 /// `reference` (same size, both with `V` and `Z`), row 0 at the top:
 ///
 /// - scored pixels (see the module documentation): the signed error
-///   `Vc - Vr` mapped linearly from blue (-1, candidate too dark) through
-///   white (0) to red (+1, candidate too bright), clamped;
+///   `Vc - Vr` on a perceptual diverging map over `[-range, range]`
+///   ([`error_colour`]): blue (candidate too dark) through near-white (0) to red
+///   (too bright), clamped;
 /// - candidate hit pixels with non-finite `Vc`: magenta [`ERROR_NONFINITE`];
 /// - other unmatched pixels (only one image hits, depths differ by more than
 ///   1 %, or the reference V is not finite): grey [`ERROR_UNMATCHED`];
@@ -310,12 +312,19 @@ pub fn write_error_png(
     path: &Path,
     candidate: &VisibilityImage,
     reference: &VisibilityImage,
+    range: f64,
 ) -> Result<(), ImageError> {
+    if !(range.is_finite() && range > 0.0) {
+        return Err(ImageError::Write {
+            path: path.to_path_buf(),
+            reason: format!("--err-range must be a finite number > 0, got {range}"),
+        });
+    }
     let p = pair(candidate, reference)?;
     let mut rgb = Vec::with_capacity(p.zr.len().saturating_mul(3));
     for (vc, zc, vr, zr) in p.pixels() {
         let colour = match classify(vc, zc, vr, zr) {
-            PixelClass::Scored(e) => error_colour(e),
+            PixelClass::Scored(e) => error_colour(e, range),
             PixelClass::NonFinite => ERROR_NONFINITE,
             PixelClass::Unmatched => ERROR_UNMATCHED,
             PixelClass::Background => ERROR_BACKGROUND,
@@ -511,7 +520,7 @@ mod tests {
 
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("err.png");
-        assert!(write_error_png(&path, &a, &b).is_err());
+        assert!(write_error_png(&path, &a, &b, DEFAULT_ERR_RANGE).is_err());
         assert!(!path.exists());
     }
 
@@ -548,17 +557,55 @@ mod tests {
         let zc = vec![1.0, 1.0, 1.0, 1.0, 1.0, inf, inf];
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("err.png");
-        write_error_png(&path, &image(7, 1, vc, zc), &image(7, 1, vr, zr)).unwrap();
+        write_error_png(
+            &path,
+            &image(7, 1, vc.clone(), zc.clone()),
+            &image(7, 1, vr.clone(), zr.clone()),
+            1.0,
+        )
+        .unwrap();
         let png = image::open(&path).unwrap().to_rgb8();
         let px = |x| png.get_pixel(x, 0).0;
-        assert_eq!(px(0), [255, 255, 255]);
-        assert_eq!(px(1), [0, 0, 255]);
-        assert_eq!(px(2), [255, 0, 0]);
-        assert_eq!(px(3), [255, 128, 128]);
+        // RdBu: its middle near-white, its ends dark red and dark blue (range 1 here).
+        let (red, blue) = (
+            colorous::RED_BLUE.eval_continuous(0.0),
+            colorous::RED_BLUE.eval_continuous(1.0),
+        );
+        let mid = colorous::RED_BLUE.eval_continuous(0.5);
+        assert_eq!(px(0), [mid.r, mid.g, mid.b]);
+        assert!(mid.r > 230 && mid.g > 230 && mid.b > 230, "{mid:?}");
+        assert_eq!(px(1), [blue.r, blue.g, blue.b]);
+        assert_eq!(px(2), [red.r, red.g, red.b]);
+        // +0.5: half way to red, redder than it is blue.
+        assert!(px(3)[0] > px(3)[2], "{:?}", px(3));
         assert_eq!(px(4), ERROR_NONFINITE);
         assert_eq!(px(5), ERROR_UNMATCHED);
         assert_eq!(px(6), ERROR_BACKGROUND);
         let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(names.len(), 1);
+        // The default range, 0.1: an error of 0.05 is half way to the end colour, far from white
+        // (over +-1 it was 97% white); +0.5 and -1 are clamped to the ends.
+        let vc2 = vec![0.55, 0.0, 1.0, 0.75, nan, 0.5, nan];
+        write_error_png(
+            &path,
+            &image(7, 1, vc2, zc),
+            &image(7, 1, vr, zr),
+            DEFAULT_ERR_RANGE,
+        )
+        .unwrap();
+        let png = image::open(&path).unwrap().to_rgb8();
+        let px = |x| png.get_pixel(x, 0).0;
+        let q = colorous::RED_BLUE.eval_continuous(0.25);
+        assert_eq!(px(0), [q.r, q.g, q.b]);
+        assert!(px(0)[2] < 200, "{:?}", px(0));
+        assert_eq!(px(1), [blue.r, blue.g, blue.b]);
+        assert_eq!(px(3), [red.r, red.g, red.b]);
+        assert!(write_error_png(
+            &path,
+            &image(1, 1, vec![0.5], vec![1.0]),
+            &image(1, 1, vec![0.5], vec![1.0]),
+            0.0
+        )
+        .is_err());
     }
 }
