@@ -52,6 +52,18 @@ for svg in [f for f in os.listdir(out) if f.endswith(".svg")]:
     s = open(os.path.join(out, svg)).read()
     if "<svg" not in s or "</svg>" not in s:
         fail.append(f"{svg} is not an SVG")
+# Each fixture: the time and the memory plot, each with a legend entry per backend present.
+backends_present = {r["backend"] for r in rows if r["status"] == "ok"}
+for fx in fixtures:
+    for kind in ("plot", "memory"):
+        p = os.path.join(out, f"{kind}-{fx}.svg")
+        if not os.path.exists(p):
+            fail.append(f"{kind}-{fx}.svg missing")
+            continue
+        s = open(p).read()
+        for b in backends_present:
+            if not re.search(r">\s*%s\s*<" % b.upper(), s):
+                fail.append(f"{kind}-{fx}.svg has no {b.upper()} legend entry")
 for section in ("## Summary", "## Each seed algorithm", "## Flicker per fit mode"):
     if section not in md:
         fail.append(f"index.md lacks {section!r}")

@@ -15,7 +15,9 @@
 //!
 //! **Outputs** (in `OUT`): `results.csv` and `results.json` (one row per run), `flicker.csv` (the
 //! frame-to-frame |dV| of each fit mode on a camera pan, see [`crate::path`]), `index.md` (per
-//! fixture: the time-vs-RMSE plot `plot-FIXTURE.svg` with its Pareto front, the Pareto table, an
+//! fixture: the time-vs-RMSE plot `plot-FIXTURE.svg` with its Pareto front (a colour per
+//! algorithm, circles CPU and triangles GPU), the memory-vs-RMSE plot `memory-FIXTURE.svg`
+//! (`light_space_bytes`), the Pareto table, an
 //! image grid of the reference, each algorithm's most accurate setting and its error image; then
 //! the summary: the most accurate setting within each time budget, and each seed algorithm
 //! against PCSS and multi-sample at matched time).
@@ -488,37 +490,71 @@ pub fn pareto(rows: &[&Row]) -> Vec<usize> {
     front
 }
 
-fn plot(path: &Path, fixture: &str, rows: &[&Row]) -> Result<(), String> {
+/// What a plot's x axis shows.
+#[derive(Clone, Copy, PartialEq)]
+enum PlotX {
+    /// `frame_ms`: build + estimate.
+    Time,
+    /// `light_space_bytes`: the light-space data's memory.
+    Memory,
+}
+
+impl PlotX {
+    fn of(self, r: &Row) -> f64 {
+        match self {
+            PlotX::Time => r.frame_ms,
+            PlotX::Memory => r.light_space_bytes as f64,
+        }
+    }
+    fn desc(self) -> &'static str {
+        match self {
+            PlotX::Time => "build + estimate, ms (log)",
+            PlotX::Memory => "light-space data, bytes (log)",
+        }
+    }
+    fn title(self) -> &'static str {
+        match self {
+            PlotX::Time => "frame time vs RMSE",
+            PlotX::Memory => "light-space memory vs RMSE",
+        }
+    }
+}
+
+/// One fixture's RMSE against `x` (time or memory, log scale) for every run: a colour per
+/// algorithm, a marker shape per backend (circle CPU, triangle GPU), filled for the seed methods
+/// and hollow for the baselines; the legend draws exactly those markers (the algorithms in
+/// their colour as CPU circles, then the two backend shapes in black); the time plot adds the
+/// Pareto front over both backends.
+fn plot(path: &Path, fixture: &str, rows: &[&Row], x: PlotX) -> Result<(), String> {
     use plotters::prelude::*;
     let ok: Vec<&Row> = rows
         .iter()
         .copied()
-        .filter(|r| r.rmse.is_finite() && r.frame_ms.is_finite())
+        .filter(|r| r.rmse.is_finite() && x.of(r).is_finite() && x.of(r) > 0.0)
         .collect();
     let root = SVGBackend::new(path, (760, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let tmin = ok
+    let xmin = ok
         .iter()
-        .map(|r| r.frame_ms)
+        .map(|r| x.of(r))
         .fold(f64::INFINITY, f64::min)
-        .max(1e-3);
-    let tmax = ok
+        .clamp(1e-3, 1e30);
+    let xmax = ok
         .iter()
-        .map(|r| r.frame_ms)
+        .map(|r| x.of(r))
         .fold(0.0, f64::max)
-        .max(tmin * 2.0);
+        .max(xmin * 2.0);
     let emax = ok.iter().map(|r| r.rmse).fold(0.0, f64::max).max(1e-3) * 1.1;
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{fixture}: frame time vs RMSE"), ("sans-serif", 18))
+        .caption(format!("{fixture}: {}", x.title()), ("sans-serif", 18))
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .right_y_label_area_size(10)
-        .build_cartesian_2d((tmin / 1.5..tmax * 1.5).log_scale(), 0.0..emax)
+        .build_cartesian_2d((xmin / 1.5..xmax * 1.5).log_scale(), 0.0..emax)
         .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
-        .x_desc("build + estimate, ms (log)")
+        .x_desc(x.desc())
         .y_desc("RMSE vs reference")
         .draw()
         .map_err(|e| e.to_string())?;
@@ -530,44 +566,63 @@ fn plot(path: &Path, fixture: &str, rows: &[&Row]) -> Result<(), String> {
     };
     for (k, algo) in algos.iter().enumerate() {
         let colour = Palette99::pick(k).to_rgba();
-        let pts: Vec<(f64, f64)> = ok
-            .iter()
-            .filter(|r| &r.algo == algo)
-            .map(|r| (r.frame_ms, r.rmse))
-            .collect();
         let baseline = BASELINES.contains(&algo.as_str());
         let label = if baseline {
             format!("{algo} (baseline)")
         } else {
             algo.clone()
         };
-        let series = pts.iter().map(move |&(x, y)| {
-            if baseline {
-                EmptyElement::at((x, y)) + Cross::new((0, 0), 4, colour.stroke_width(2))
-            } else {
-                EmptyElement::at((x, y)) + Cross::new((0, 0), 0, colour)
-            }
-        });
-        chart.draw_series(series).map_err(|e| e.to_string())?;
-        let dots = pts
-            .iter()
-            .filter(|_| !baseline)
-            .map(move |&(x, y)| Circle::new((x, y), 4, colour.filled()));
+        // Filled for the seed methods, hollow for the baselines.
+        let style = if baseline {
+            colour.stroke_width(2)
+        } else {
+            colour.filled()
+        };
+        let pts = |gpu: bool| -> Vec<(f64, f64)> {
+            ok.iter()
+                .filter(|r| &r.algo == algo && (r.backend == "gpu") == gpu)
+                .map(|r| (x.of(r), r.rmse))
+                .collect()
+        };
         chart
-            .draw_series(dots)
+            .draw_series(
+                pts(true)
+                    .into_iter()
+                    .map(|at| TriangleMarker::new(at, 5, style)),
+            )
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(pts(false).into_iter().map(|at| Circle::new(at, 4, style)))
             .map_err(|e| e.to_string())?
             .label(label)
-            .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
+            .legend(move |at| Circle::new(at, 4, style));
     }
-    let front: Vec<(f64, f64)> = pareto(&ok)
-        .iter()
-        .map(|&i| (ok[i].frame_ms, ok[i].rmse))
-        .collect();
-    chart
-        .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
-        .map_err(|e| e.to_string())?
-        .label("Pareto front")
-        .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+    // The backends' shapes, in black.
+    if ok.iter().any(|r| r.backend != "gpu") {
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(|e| e.to_string())?
+            .label("CPU")
+            .legend(|at| Circle::new(at, 4, BLACK.filled()));
+    }
+    if ok.iter().any(|r| r.backend == "gpu") {
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(|e| e.to_string())?
+            .label("GPU")
+            .legend(|at| TriangleMarker::new(at, 5, BLACK.filled()));
+    }
+    if x == PlotX::Time {
+        let front: Vec<(f64, f64)> = pareto(&ok)
+            .iter()
+            .map(|&i| (ok[i].frame_ms, ok[i].rmse))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
+            .map_err(|e| e.to_string())?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+    }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
@@ -602,8 +657,10 @@ fn write_outputs(
     for fx in fixtures {
         let fr: Vec<&Row> = rows.iter().filter(|r| &r.fixture == fx).collect();
         let svg = format!("plot-{fx}.svg");
-        plot(&args.out.join(&svg), fx, &fr)?;
-        fixture_section(&mut md, fx, &svg, &fr);
+        plot(&args.out.join(&svg), fx, &fr, PlotX::Time)?;
+        let mem = format!("memory-{fx}.svg");
+        plot(&args.out.join(&mem), fx, &fr, PlotX::Memory)?;
+        fixture_section(&mut md, fx, &svg, &mem, &fr);
         summary_row(&mut summary, fx, &fr, &budgets);
         matched_rows(&mut matched, fx, &fr);
     }
@@ -775,8 +832,8 @@ fn matched_header() -> String {
 }
 
 /// A fixture's section of `index.md`: its plot, Pareto table, runs not made and best images.
-fn fixture_section(md: &mut String, fx: &str, svg: &str, fr: &[&Row]) {
-    let _ = writeln!(md, "## {fx}\n\n![{fx}]({svg})\n");
+fn fixture_section(md: &mut String, fx: &str, svg: &str, mem: &str, fr: &[&Row]) {
+    let _ = writeln!(md, "## {fx}\n\n![{fx}]({svg})\n\n![{fx}: memory]({mem})\n");
     let _ = writeln!(md, "Pareto-optimal settings:\n\n| algo | backend | setting | ms | RMSE | p99 |\n|---|---|---|---|---|---|");
     for i in pareto(fr) {
         let r = fr[i];
