@@ -22,7 +22,7 @@ use shadow_map_core::{
         receivers::GpuReceivers,
         GpuContext, GpuScene,
     },
-    run, Error, LightView, Params, Receivers, Result, Scene, SceneBvh,
+    run, Error, LightView, Params, Receivers, Result, Scene,
 };
 use softshadow::{FRAME_ALGOS, METHODS};
 use std::{
@@ -32,15 +32,7 @@ use std::{
 
 /// The parallel-squares fixture at a small image, and its camera receivers.
 fn scene() -> (Scene, Receivers) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/fixtures/parallel-squares/parallel-squares.toml"
-    );
-    let mut scene = Scene::load(path).unwrap();
-    scene.camera.width = 16;
-    scene.camera.height = 12;
-    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
-    (scene, rec)
+    test_support::fixtures::fixture("parallel-squares", 16, 12)
 }
 
 /// `algo`'s own parameter table with `resolution` set.

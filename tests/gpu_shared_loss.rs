@@ -6,7 +6,7 @@
 
 use shadow_map_core::{
     gpu::{context_for_tests, GpuContext},
-    run, Error, Receivers, Scene, SceneBvh,
+    run, Error,
 };
 use softshadow::{estimator, Backend};
 use std::sync::Arc;
@@ -18,14 +18,7 @@ fn shared_context_is_replaced_once_its_device_is_lost() {
     else {
         return;
     };
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/fixtures/parallel-squares/parallel-squares.toml"
-    );
-    let mut scene = Scene::load(path).unwrap();
-    scene.camera.width = 16;
-    scene.camera.height = 12;
-    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let (scene, rec) = test_support::fixtures::fixture("parallel-squares", 16, 12);
     let make = || {
         let mut e = estimator("pcf", Backend::Gpu).unwrap();
         e.set_param("resolution", "128").unwrap();
