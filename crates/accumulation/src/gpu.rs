@@ -248,6 +248,7 @@ impl GpuAccumulation {
     }
 
     /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
+    #[cfg(feature = "testing")]
     pub fn set_max_chunk(&mut self, receivers: usize) {
         self.chunk_cap = receivers.max(1);
     }

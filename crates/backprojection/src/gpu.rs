@@ -5,10 +5,10 @@
 //! [`GpuShadowMapper::render_layers`] (peeled layers, midpoint layers and the anchored MSSM of
 //! layer 0, all in one submission); the layers are copied into one `R32Float` texture array and
 //! the MSSM levels into another (`shadow_map_core::gpu::layout`), the layout `backprojection.wgsl` reads.
-//! Nothing is read back. [`GpuBackprojection::set_light_space_on_cpu`] switches to building the
-//! maps on the CPU exactly as the CPU twin does and uploading them (what
-//! [`GpuBackprojection::estimate_with`] does for given maps), so a test can feed both twins
-//! identical data.
+//! Nothing is read back. The test hook `GpuBackprojection::set_light_space_on_cpu` (feature
+//! `testing`) switches to building the maps on the CPU exactly as the CPU twin does and uploading
+//! them (what `GpuBackprojection::estimate_with` does for given maps), so a test can feed both
+//! twins identical data.
 //!
 //! **Estimate.** One compute dispatch per chunk of receivers (`backprojection.wgsl`, one
 //! invocation per receiver), modelled on the baselines' GPU twins (`baselines::gpu`).
@@ -277,6 +277,7 @@ impl GpuBackprojection {
 
     /// `true`: `build` makes the light-space data on the CPU exactly as [`CpuBackprojection`]
     /// does and uploads them; `false` (the default): renders them on the GPU.
+    #[cfg(feature = "testing")]
     pub fn set_light_space_on_cpu(&mut self, on: bool) {
         self.light_space_on_cpu = on;
     }
@@ -327,6 +328,7 @@ impl GpuBackprojection {
     }
 
     /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
+    #[cfg(feature = "testing")]
     pub fn set_max_chunk(&mut self, receivers: usize) {
         self.chunk_cap = receivers.max(1);
     }
@@ -334,6 +336,7 @@ impl GpuBackprojection {
     /// Estimates V from given light-space data (as [`CpuBackprojection`] builds them: layers,
     /// midpoints in midpoint mode, MSSM), uploaded, so a test can feed both twins identical data.
     /// Replaces the report.
+    #[cfg(feature = "testing")]
     pub fn estimate_with(
         &mut self,
         ls: &LightSpace,
@@ -621,7 +624,7 @@ impl GpuBackprojection {
     /// is fitted as [`build`](SoftShadowEstimator::build) fits it, over the box's 8 corners
     /// ([`LightView::fit_bounds`]; conservative, so the window, and the texel pitch, are usually
     /// larger than with the receivers themselves). The rest is `build`: rendered on the GPU (or on
-    /// the CPU after [`set_light_space_on_cpu`](Self::set_light_space_on_cpu)), nothing read
+    /// the CPU after the test hook `set_light_space_on_cpu`, feature `testing`), nothing read
     /// back.
     ///
     /// Errors: [`Error::Receivers`] for an inverted, empty or non-finite box,
@@ -651,7 +654,7 @@ impl GpuBackprojection {
     /// in chunks ([`GpuReceivers::chunks`]) whose first receiver is a multiple of
     /// `min_storage_buffer_offset_alignment / 4`, so both the receiver binding (32 bytes per
     /// receiver) and the V binding (4 bytes) start on aligned offsets; a cap from
-    /// [`set_max_chunk`](Self::set_max_chunk) is rounded up to that multiple.
+    /// `set_max_chunk` (feature `testing`) is rounded up to that multiple.
     ///
     /// Errors, never a panic: [`Error::Receivers`] when either buffer lacks the `STORAGE` usage or
     /// is too small, [`Error::Param`] before a build or for a non-rect light, [`Error::Gpu`] for
@@ -959,8 +962,8 @@ impl FrameEstimator for BackprojectionFrame {
 
 impl SoftShadowEstimator for GpuBackprojection {
     shadow_map_core::estimator_identity!(twin of cpu, Gpu);
-    /// Builds the light-space data on the GPU (or, after
-    /// [`set_light_space_on_cpu`](Self::set_light_space_on_cpu), on the CPU and uploads them).
+    /// Builds the light-space data on the GPU (or, after the
+    /// test hook `set_light_space_on_cpu` (feature `testing`), on the CPU and uploads them).
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.maps = None;
         self.report = Report::default();

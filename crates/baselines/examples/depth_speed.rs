@@ -5,7 +5,7 @@
 //! adapter) the GPU, at the fixture's full image size and r = 1024 (or `--resolution R`).
 //!
 //! ```sh
-//! WGPU_BACKEND=vulkan cargo run --release -p baselines --example depth_speed -- [--runs N] [--resolution R] [fixture ...]
+//! WGPU_BACKEND=vulkan cargo run --release -p softshadow-baselines --example depth_speed -- [--runs N] [--resolution R] [fixture ...]
 //! ```
 use baselines::{HardShadow, MultiSample, PcfShadow, PcssShadow};
 use shadow_map_core::{run, Receivers, Scene, SceneBvh, SoftShadowEstimator};

@@ -4,10 +4,10 @@
 //! `Error::DeviceLost`.
 #![cfg(feature = "gpu")]
 
-use shadow_map_core::{
-    gpu::{context_for_tests, GpuContext},
-    Error,
-};
+mod common;
+
+use common::context_for_tests;
+use shadow_map_core::{gpu::GpuContext, Error};
 use std::sync::{Arc, Mutex};
 
 #[test]

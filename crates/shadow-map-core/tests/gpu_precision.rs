@@ -6,8 +6,11 @@
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
+mod common;
+
+use common::context_for_tests;
 use shadow_map_core::{
-    gpu::{context_for_tests, upload_depth_map, GpuUnorm16Encoder, GpuUnorm16Map},
+    gpu::{upload_depth_map, GpuUnorm16Encoder, GpuUnorm16Map},
     DepthMap, Unorm16Map,
 };
 

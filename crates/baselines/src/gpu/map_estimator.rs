@@ -17,10 +17,11 @@ use shadow_map_core::{
         shared::LightViewUniform,
         GpuContext, GpuScene,
     },
-    light_space::LightSpace,
     Cancel, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator, Unorm16Map,
+    SoftShadowEstimator,
 };
+#[cfg(feature = "testing")]
+use shadow_map_core::{light_space::LightSpace, Unorm16Map};
 use std::{marker::PhantomData, sync::Arc, time::Instant};
 
 /// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point).
@@ -131,6 +132,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
 
     /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
     /// small caps to exercise the chunked path that large receiver counts take.
+    #[cfg(feature = "testing")]
     pub fn set_max_chunk(&mut self, receivers: usize) {
         self.chunk_cap = receivers.max(1);
     }
@@ -143,6 +145,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
     /// Estimates V from given light-space data (its view and layer 0, uploaded here and encoded
     /// on the GPU under `depth=unorm16`), so a test can feed the CPU and GPU twins identical
     /// data. Replaces the report.
+    #[cfg(feature = "testing")]
     pub fn estimate_with(
         &mut self,
         ls: &LightSpace,
@@ -159,6 +162,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
     /// Estimates V from the view of `ls` and CPU 16-bit codes uploaded as they are (the CPU
     /// twin's [`unorm16`](crate::map_estimator::MapEstimator::unorm16) map), so a test can feed
     /// both twins identical codes. Replaces the report.
+    #[cfg(feature = "testing")]
     pub fn estimate_with_unorm16(
         &mut self,
         ls: &LightSpace,
@@ -173,6 +177,7 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
     }
 
     /// The common part of `estimate_with*`: a fresh report, the upload timed, then [`run`](Self::run).
+    #[cfg(feature = "testing")]
     fn run_uploaded(
         &mut self,
         light: &Light,

@@ -9,8 +9,9 @@
 //!
 //! Each implements [`SoftShadowEstimator`](shadow_map_core::SoftShadowEstimator) with
 //! `backend() == Backend::Gpu` and the CPU twin's name, description and parameter table, and
-//! offers `estimate_with`, which takes the light-space data as input so a test can give both
-//! twins identical data. The per-receiver stage is a compute kernel (one invocation per receiver,
+//! offers `estimate_with` (with `set_max_chunk`, test-only hooks behind the `testing` feature,
+//! which the workspace's tests enable through test-support), which takes the light-space data as
+//! input so a test can give both twins identical data. The per-receiver stage is a compute kernel (one invocation per receiver,
 //! [`WORKGROUP_SIZE`](shadow_map_core::gpu::estimate::WORKGROUP_SIZE) per workgroup, receivers in chunks that fit the device's limits) reading
 //! receivers as the core's `ReceiverGpu`, the shadow map as an R32Float texture, and writing V
 //! to a storage buffer that is read back.

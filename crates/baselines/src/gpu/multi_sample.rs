@@ -17,7 +17,7 @@ use shadow_map_core::{
         shared::LightViewUniform,
         GpuContext, GpuScene,
     },
-    light_space::{LightSpace, LightSpaceRequest},
+    light_space::LightSpaceRequest,
     Cancel, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
@@ -130,6 +130,7 @@ impl GpuMultiSample {
 
     /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
     /// small caps to exercise the chunked path that large receiver counts take.
+    #[cfg(feature = "testing")]
     pub fn set_max_chunk(&mut self, receivers: usize) {
         self.chunk_cap = receivers.max(1);
     }
@@ -150,9 +151,10 @@ impl GpuMultiSample {
     /// [`sub_light_points`](Self::sub_light_points) with [`request`](Self::request)). An item
     /// `Err(Error::LightView(_))` is a sub-light no receiver is in front of: it lights nothing but
     /// counts in N, as on the CPU; any other error is returned. Replaces the report.
+    #[cfg(feature = "testing")]
     pub fn estimate_with(
         &mut self,
-        sub_lights: impl IntoIterator<Item = Result<LightSpace>>,
+        sub_lights: impl IntoIterator<Item = Result<shadow_map_core::LightSpace>>,
         light: &Light,
         receivers: &Receivers,
         v: &mut [f32],

@@ -379,7 +379,9 @@ impl GpuContext {
 }
 
 /// For GPU tests: the shared context, or `None` after printing a loud skip message. With
-/// `SOFTSHADOW_REQUIRE_GPU=1` a missing adapter is a failure (an `Err`), never a skip.
+/// `SOFTSHADOW_REQUIRE_GPU=1` a missing adapter is a failure (an `Err`), never a skip. A test
+/// hook (feature `testing`, which the workspace's tests enable), not a public API.
+#[cfg(feature = "testing")]
 pub fn context_for_tests(test: &str) -> Result<Option<Arc<GpuContext>>> {
     match GpuContext::shared() {
         Ok(c) => Ok(Some(c)),

@@ -1,5 +1,5 @@
 //! glTF 2.0 loading through the `gltf` crate, as the scene contract defines it
-//! (`docs/methods.md` §11, `../shared/notes/contract.md`): every triangle primitive of the file's
+//! (`docs/methods.md` §11): every triangle primitive of the file's
 //! default scene (scene 0 when none is marked), each in its node's world transform, in the
 //! file's own units. `.gltf` files with their buffers (files beside it or `data:` URIs) and `.glb`
 //! files (the `BIN` chunk) alike. Errors name the file and what is wrong, in one line
