@@ -7,11 +7,16 @@
 //! light view(s).
 //!
 //! The scene is run twice: as loaded ("small") and with its triangles split into 4^k (at least
-//! 50 times as many, "large"); host ms is the CPU time spent in `encode` per frame. After the
+//! 50 times as many, "large"); host ms is the CPU time spent in `encode` per frame: the calling
+//! thread's CPU clock (`CLOCK_THREAD_CPUTIME_ID` through the `cpu-time` crate), which the
+//! device's own threads do not inflate when a CPU adapter (lavapipe) shares the cores with it;
+//! the wall time of the same calls is `host_wall_ms_per_frame_*`. After the
 //! readback, [`TIMED_FRAMES`] more frames on the last receivers are submitted back to back and
-//! waited for once (`gpu_ms_per_frame_*`: the frame's wall time on the device), then as many
-//! encodes each with the device idle (`host_ms_idle_*`: on a CPU adapter the device's threads
-//! share the cores with `encode` during the run), then 2000 encodes in a tight loop, dropped
+//! waited for once (`gpu_ms_per_frame_*`: the frame's wall time on the device), then
+//! [`IDLE_ENCODES`] encodes each with the device idle and the host's caches swept by a [`SWEEP_BYTES`] write
+//! (`host_ms_idle_*`, thread CPU time: on a CPU adapter the device's own work runs on the host's
+//! cores and evicts `encode`'s working set, more for the large scene; after the sweep both
+//! scenes start equally cold), then 2000 encodes in a tight loop, dropped
 //! unsubmitted (`host_ms_warm_*`: the API's own host cost, caches warm), and the CPU twin's build
 //! and estimate on the same receivers are timed (`cpu_twin_ms_*`), and one more frame is
 //! recorded with timestamps between its passes (`gpu_stage_ms_*`: GPU ms per stage, from
@@ -26,6 +31,7 @@
 //! `--size` sets the camera's image (the receivers), `--resolution` every estimator's shadow-map
 //! resolution, `--algo` runs one estimator only.
 //! ```
+use cpu_time::ThreadTime;
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
@@ -103,8 +109,11 @@ fn frame_path(
 /// What [`run`] measured for one estimator on one scene.
 #[derive(Default)]
 struct Measured {
-    /// CPU ms spent in `encode` per frame.
+    /// CPU ms spent in `encode` per frame: the calling thread's CPU clock.
     host_ms: f64,
+    /// Wall ms spent in `encode` per frame (on a CPU adapter, also the device threads'
+    /// contention for the cores).
+    host_wall_ms: f64,
     /// RMSE of the last frame's V against the CPU twin over the active receivers the frame
     /// computed (those left NaN are counted in [`left_nan`](Self::left_nan)).
     rmse: f64,
@@ -115,9 +124,10 @@ struct Measured {
     /// back to back and waited for once: encode, submit and the device's work (on lavapipe the
     /// device is this machine's CPU cores).
     gpu_ms: f64,
-    /// CPU ms in `encode` per frame with the device idle (each of [`TIMED_FRAMES`] encodes
-    /// after a wait): on a CPU adapter the device's threads share the cores with `encode`, so
-    /// [`host_ms`](Self::host_ms) also counts their contention.
+    /// CPU ms (thread clock) in `encode` per frame with the device idle and the caches swept:
+    /// the median of [`IDLE_ENCODES`] encodes, each after a wait and a [`SWEEP_BYTES`] write: on a CPU
+    /// adapter the device's work runs on the host's cores and evicts `encode`'s working set,
+    /// which [`host_ms`](Self::host_ms) also counts.
     host_idle_ms: f64,
     /// CPU ms per `encode` in a tight loop of [`WARM_ENCODES`] recordings that are dropped, not
     /// submitted: the API's own host cost with warm caches, which no device work disturbs.
@@ -138,8 +148,25 @@ fn stages_json(stages: &[(&'static str, f64)]) -> String {
     format!("{{{}}}", body.join(","))
 }
 
+/// Frames the loop lets the device queue before it waits for the oldest (the pacing a
+/// swapchain gives a renderer); nothing is read back.
+const FRAMES_IN_FLIGHT: usize = 2;
+
 /// Frames timed after the readback-free run (the wait that ends them is the only stall).
 const TIMED_FRAMES: u32 = 10;
+
+/// Encodes of the idle, cold-cache measurement ([`Measured::host_idle_ms`]).
+const IDLE_ENCODES: usize = 31;
+
+/// The median of `x` (0 when empty).
+fn median(x: &mut [f64]) -> f64 {
+    x.sort_by(f64::total_cmp);
+    x.get(x.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Bytes written before each idle encode ([`Measured::host_idle_ms`]): more than the host's
+/// caches, so small and large scenes start equally cold.
+const SWEEP_BYTES: usize = 64 << 20;
 
 /// Recordings of the warm-encode measurement ([`Measured::host_warm_ms`]).
 const WARM_ENCODES: u32 = 2000;
@@ -156,13 +183,14 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let mut host = 0.0;
+    let (mut host, mut host_wall) = (0.0, 0.0);
+    let mut in_flight = std::collections::VecDeque::new();
     let mut last = None;
     for k in 0..frames {
         let camera = orbit(&scene.camera, k, frames);
         let img = gbuffer.render(ctx, &casters, &camera)?;
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        let t = Instant::now();
+        let (t, cpu) = (Instant::now(), ThreadTime::now());
         path.encode(
             &mut enc,
             &FrameInputs {
@@ -175,8 +203,24 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
                 timestamps: None,
             },
         )?;
-        host += t.elapsed().as_secs_f64() * 1e3;
-        ctx.queue.submit([enc.finish()]);
+        host += cpu.elapsed().as_secs_f64() * 1e3;
+        host_wall += t.elapsed().as_secs_f64() * 1e3;
+        in_flight.push_back(ctx.queue.submit([enc.finish()]));
+        // A renderer's pacing: at most FRAMES_IN_FLIGHT frames queued on the device (what a
+        // swapchain's present gives), so the host does not run ahead of the device unboundedly.
+        if in_flight.len() > FRAMES_IN_FLIGHT {
+            if let Some(idx) = in_flight.pop_front() {
+                ctx.device
+                    .poll(wgpu::PollType::Wait {
+                        submission_index: Some(idx),
+                        timeout: None,
+                    })
+                    .map_err(|e| shadow_map_core::Error::Gpu {
+                        stage: "frame pacing".into(),
+                        reason: e.to_string(),
+                    })?;
+            }
+        }
         last = Some((img, camera));
     }
     // The one readback, after the last frame.
@@ -230,13 +274,19 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
         drop(enc);
     }
     let host_warm_ms = t.elapsed().as_secs_f64() * 1e3 / WARM_ENCODES as f64;
-    let mut host_idle = 0.0;
-    for _ in 0..TIMED_FRAMES {
+    let mut host_idle = Vec::with_capacity(IDLE_ENCODES);
+    let mut sweep = vec![0u8; SWEEP_BYTES];
+    for k in 0..IDLE_ENCODES {
         ctx.wait()?;
+        sweep
+            .iter_mut()
+            .step_by(64)
+            .for_each(|b| *b = b.wrapping_add(k as u8 | 1));
+        std::hint::black_box(&sweep);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        let t = Instant::now();
+        let t = ThreadTime::now();
         path.encode(&mut enc, &inputs)?;
-        host_idle += t.elapsed().as_secs_f64() * 1e3;
+        host_idle.push(t.elapsed().as_secs_f64() * 1e3);
         ctx.queue.submit([enc.finish()]);
     }
     ctx.wait()?;
@@ -258,10 +308,11 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     }
     Ok(Measured {
         host_ms: host / frames.max(1) as f64,
+        host_wall_ms: host_wall / frames.max(1) as f64,
         rmse: (se / n.max(1) as f64).sqrt(),
         left_nan,
         gpu_ms,
-        host_idle_ms: host_idle / TIMED_FRAMES as f64,
+        host_idle_ms: median(&mut host_idle),
         host_warm_ms,
         cpu_ms,
         stages,
@@ -328,9 +379,11 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         let (ts, tl) = (small.triangles.len(), large.triangles.len());
         if json {
             println!(
-                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan\":{},\"pixels\":{},\"gpu_stage_ms_small\":{},\"gpu_stage_ms_large\":{}}}",
+                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"host_wall_ms_per_frame_small\":{:.4},\"host_wall_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan\":{},\"pixels\":{},\"gpu_stage_ms_small\":{},\"gpu_stage_ms_large\":{}}}",
                 sm.host_ms,
                 lg.host_ms,
+                sm.host_wall_ms,
+                lg.host_wall_ms,
                 lg.rmse,
                 sm.gpu_ms,
                 lg.gpu_ms,

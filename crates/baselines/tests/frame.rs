@@ -18,7 +18,7 @@ use baselines::{
 };
 use shadow_map_core::{
     gpu::{context_for_tests, receivers::GpuReceivers, GpuContext, GpuScene},
-    run, Params,
+    run, Params, SoftShadowEstimator,
 };
 use std::sync::Arc;
 use test_support::{
@@ -87,15 +87,14 @@ fn multi_sample_frames_match_the_cpu_twin() {
 }
 
 /// Bad frames are refused with a typed error before anything is recorded: a view of another
-/// resolution, two views for a single-view method, a V buffer too small for the count,
-/// `depth=unorm16`.
+/// resolution, two views for a single-view method, a V buffer too small for the count.
 #[test]
 fn bad_frames_are_refused() {
     let Some(ctx) = context_for_tests("bad_frames_are_refused").unwrap() else {
         return;
     };
     let (scene, rec) = fixture("bunny", 16, 12);
-    let mut params = Params::new(<Pcss as Filter>::SPECS).unwrap();
+    let params = Params::new(<Pcss as Filter>::SPECS).unwrap();
     let frame = MapFrame::<Pcss>::prepare(ctx.clone(), &params).unwrap();
     let views = frame.fit_views(&scene, &rec).unwrap();
     let casters = GpuScene::upload(&ctx, &scene).unwrap();
@@ -151,10 +150,66 @@ fn bad_frames_are_refused() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("one light view"), "{err}");
-    params.set("depth", "unorm16").unwrap();
-    let err = MapFrame::<Pcss>::prepare(ctx, &params)
-        .err()
-        .expect("unorm16 refused")
-        .to_string();
-    assert!(err.contains("depth"), "{err}");
+}
+
+/// `depth=unorm16` on the engine path: each layer encoded into 16-bit codes within the frame
+/// ([`shadow_map_core::gpu::GpuUnorm16Frame`]). V is bit for bit the GPU twin's (whose build
+/// encodes the same GPU raster with the one-shot encoder) and within the twins' tolerance of the
+/// CPU twin's own 16-bit map, for hard, PCF, PCSS and multi-sample (whose S x S sub-light views
+/// each get their own code step) under the rect, disk and sun lights.
+#[test]
+fn unorm16_frames_match_their_twins() {
+    let Some(ctx) = context_for_tests("unorm16_frames_match_their_twins").unwrap() else {
+        return;
+    };
+    fn map<F: GpuFilter>(ctx: &Arc<GpuContext>, mut gpu: impl SoftShadowEstimator) {
+        for (name, scene, rec) in bunny_under_three_lights(64, 48) {
+            let mut params = Params::new(F::SPECS).unwrap();
+            params.set("depth", "unorm16").unwrap();
+            let frame = MapFrame::<F>::prepare(ctx.clone(), &params).unwrap();
+            let label = format!("{} unorm16 {name}", F::NAME);
+            let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
+            assert!(
+                c.max_dv <= 1e-3 && c.beyond * 1000 <= c.active,
+                "{label}: max |dV| {}, {} of {} beyond 1e-4",
+                c.max_dv,
+                c.beyond,
+                c.active
+            );
+            gpu.set_param("depth", "unorm16").unwrap();
+            let (v_gpu, report) = run(&mut gpu, &scene, &rec).unwrap();
+            assert!(
+                report.notes.iter().any(|(k, _)| k == "depth_step"),
+                "{label}"
+            );
+            let differ = (0..rec.len())
+                .filter(|&k| rec.active[k] && c.v[k].to_bits() != v_gpu[k].to_bits())
+                .count();
+            assert_eq!(differ, 0, "{label}: differs from the GPU twin");
+        }
+    }
+    map::<Hard>(&ctx, baselines::GpuHardShadow::new(ctx.clone()).unwrap());
+    map::<Pcf>(&ctx, baselines::GpuPcfShadow::new(ctx.clone()).unwrap());
+    map::<Pcss>(&ctx, baselines::GpuPcssShadow::new(ctx.clone()).unwrap());
+    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
+        let mut params = Params::new(baselines::multi_sample::SPECS).unwrap();
+        params.set("depth", "unorm16").unwrap();
+        let frame = MultiSampleFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
+        let label = format!("multi-sample unorm16 {name}");
+        let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
+        let mut gpu = baselines::GpuMultiSample::new(ctx.clone()).unwrap();
+        gpu.set_param("depth", "unorm16").unwrap();
+        let (v_gpu, _) = run(&mut gpu, &scene, &rec).unwrap();
+        let differ_gpu = (0..rec.len())
+            .filter(|&k| rec.active[k] && c.v[k] != v_gpu[k])
+            .count();
+        assert_eq!(differ_gpu, 0, "{label}: differs from the GPU twin");
+        assert!(
+            c.beyond * 1000 <= c.active && c.max_dv <= 1.0 / 16.0 + 1e-6,
+            "{label}: {} of {} differ from the CPU twin, max |dV| {}",
+            c.beyond,
+            c.active,
+            c.max_dv
+        );
+    }
 }

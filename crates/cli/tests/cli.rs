@@ -263,8 +263,10 @@ fn render_gpu_takes_the_frame_api() {
     let strands = fixture("strands/strands.toml");
     // A sphere light: packet-hsm's engine path refuses it (FrameEstimator::refuses), the twin's.
     let sphere = fixture("sphere-light/sphere-light.toml");
-    let cases: [(&str, &[&str], bool, &std::path::Path); 9] = [
+    let cases: [(&str, &[&str], bool, &std::path::Path); 10] = [
         ("pcss", &["resolution=256"], true, &squares),
+        // 16-bit maps: encoded within the frame (the engine path used to refuse them).
+        ("hard", &["resolution=256", "depth=unorm16"], true, &squares),
         ("backprojection", &["resolution=256"], true, &squares),
         (
             "accumulation",

@@ -6,8 +6,9 @@
 //! ([`FrameEstimator::status`]).
 //!
 //! The light views are the caller's ([`FrameEstimator::fit_views`] fits them on the CPU, as the
-//! estimator's `build` does); `depth=unorm16` is not in the frame path yet (an error naming the
-//! key). Receivers the device's loop budget cuts short keep the `CUT_BITS` NaN payload in V and
+//! estimator's `build` does). Under `depth=unorm16` each rendered layer is encoded into 16-bit
+//! codes by the core's [`GpuUnorm16Frame`] within the frame, bit for bit the codes the GPU twin's
+//! build writes, and the filter reads the codes. Receivers the device's loop budget cuts short keep the `CUT_BITS` NaN payload in V and
 //! are counted in the status; the frame path does not redo them on the CPU.
 use super::{
     kernel,
@@ -26,7 +27,7 @@ use shadow_map_core::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
         frame::{buffer_range, check_buffers, check_per_receiver, single_view, status_buffer},
         receivers::RECEIVER_BYTES,
-        GpuContext, GpuMapFrame, GpuShadowMapper,
+        GpuContext, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
     light_view::LightView,
@@ -41,6 +42,8 @@ pub struct MapFrame<F: GpuFilter> {
     settings: MapSettings,
     filter: F,
     map: GpuMapFrame,
+    /// The layer's 16-bit codes under `depth=unorm16`.
+    unorm16: Option<GpuUnorm16Frame>,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
     est: wgpu::Buffer,
@@ -48,27 +51,22 @@ pub struct MapFrame<F: GpuFilter> {
 }
 
 impl<F: GpuFilter> MapFrame<F> {
-    /// Compiles the raster and estimate pipelines and allocates the map, the uniforms and the
-    /// status buffer for the parameters `params` (a table of `F::SPECS`). Errors: the
-    /// parameters' own; [`Error::Param`] for `depth=unorm16`; device limits as [`Error::Limit`].
+    /// Compiles the raster and estimate pipelines and allocates the map (and its 16-bit codes
+    /// under `depth=unorm16`), the uniforms and the status buffer for the parameters `params` (a
+    /// table of `F::SPECS`). Errors: the parameters' own; device limits as [`Error::Limit`].
     pub fn prepare(ctx: Arc<GpuContext>, params: &Params) -> Result<Self> {
         let settings = MapSettings::from_params(params)?;
-        if settings.depth != DepthPrecision::F32 {
-            return Err(Error::param(
-                "depth",
-                "the frame path renders f32 maps only so far (use depth=f32)",
-            ));
-        }
         let filter = F::from_params(params)?;
         let mapper = GpuShadowMapper::new(&ctx)?;
         let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), 1)?;
+        let unorm16 = unorm16_frame(&ctx, settings.depth, &map)?;
         let label = format!("{} frame", F::NAME);
         let module = shadow_map_core::gpu::kernel::shader_module(
             &ctx,
             &label,
-            &shader_parts::<F>(DepthPrecision::F32),
+            &shader_parts::<F>(settings.depth),
         )?;
-        let layout = kernel::map_layout(&ctx, &label, DepthPrecision::F32);
+        let layout = kernel::map_layout(&ctx, &label, settings.depth);
         let pipeline = shadow_map_core::gpu::kernel::compute_pipeline(
             &ctx, &label, &module, &layout, "estimate", OVERRIDES,
         )?;
@@ -86,6 +84,7 @@ impl<F: GpuFilter> MapFrame<F> {
             settings,
             filter,
             map,
+            unorm16,
             layout,
             pipeline,
             est,
@@ -128,6 +127,10 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         let mut u = EstimateUniform::new(inputs.light, b0, b1);
         u.receiver_plane = u32::from(self.settings.receiver_plane);
         self.filter.set_uniform(&mut u);
+        if let Some(codes) = &self.unorm16 {
+            u.depth_step = codes.encode(&self.ctx, enc, 0, view.n, view.far)?;
+            inputs.mark(enc, "unorm16");
+        }
         queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&u));
         enc.clear_buffer(&self.status, 0, None);
         if n == 0 {
@@ -142,7 +145,7 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
                 entries: &[
                     entry(0, self.map.view_uniform(0).as_entire_binding()),
                     entry(1, self.est.as_entire_binding()),
-                    entry(2, wgpu::BindingResource::TextureView(&self.map.layer.view)),
+                    entry(2, map_binding(&self.map, self.unorm16.as_ref())),
                     entry(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
                     entry(4, buffer_range(inputs.v, n * 4)),
                     entry(5, self.status.as_entire_binding()),
@@ -179,6 +182,30 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
     }
 }
 
+/// The 16-bit codes of `map`'s layer under `depth=unorm16` (one encoder uniform per view slot),
+/// `None` for f32 maps.
+fn unorm16_frame(
+    ctx: &GpuContext,
+    depth: DepthPrecision,
+    map: &GpuMapFrame,
+) -> Result<Option<GpuUnorm16Frame>> {
+    match depth {
+        DepthPrecision::F32 => Ok(None),
+        DepthPrecision::Unorm16 => Ok(Some(GpuUnorm16Frame::new(ctx, &map.layer, map.slots())?)),
+    }
+}
+
+/// What the filter kernels bind as the map: the layer (f32) or its codes (`depth=unorm16`).
+fn map_binding<'a>(
+    map: &'a GpuMapFrame,
+    unorm16: Option<&'a GpuUnorm16Frame>,
+) -> wgpu::BindingResource<'a> {
+    match unorm16 {
+        Some(codes) => codes.binding(),
+        None => wgpu::BindingResource::TextureView(&map.layer.view),
+    }
+}
+
 /// Multi-sample shadows on the engine path: per frame, the S x S sub-light maps rendered in turn
 /// into one layer, each followed by the `accumulate` dispatch that reads it, then `finalize`
 /// into the caller's V (module documentation). The per-receiver counts live in a buffer
@@ -189,8 +216,11 @@ pub struct MultiSampleFrame {
     settings: MapSettings,
     own: MultiSampleParams,
     map: GpuMapFrame,
+    /// The layer's 16-bit codes under `depth=unorm16`, re-encoded after each sub-light's raster.
+    unorm16: Option<GpuUnorm16Frame>,
     kernels: MultiSampleKernels,
-    est: wgpu::Buffer,
+    /// One estimate uniform per view slot (the code step is the sub-light view's own).
+    est: Vec<wgpu::Buffer>,
     acc: wgpu::Buffer,
     max_receivers: u32,
 }
@@ -202,12 +232,6 @@ impl MultiSampleFrame {
     /// beyond the device's `max_storage_buffer_binding_size`.
     pub fn prepare(ctx: Arc<GpuContext>, params: &Params, max_receivers: u32) -> Result<Self> {
         let settings = MapSettings::from_params(params)?;
-        if settings.depth != DepthPrecision::F32 {
-            return Err(Error::param(
-                "depth",
-                "the frame path renders f32 maps only so far (use depth=f32)",
-            ));
-        }
         let own = MultiSampleParams::from_params(params)?;
         check_per_receiver(
             &ctx,
@@ -217,13 +241,18 @@ impl MultiSampleFrame {
         let mapper = GpuShadowMapper::new(&ctx)?;
         let views = own.sublights * own.sublights;
         let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), views)?;
-        let kernels = MultiSampleKernels::new(&ctx, DepthPrecision::F32)?;
-        let est = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("multi-sample frame uniform"),
-            size: std::mem::size_of::<EstimateUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let unorm16 = unorm16_frame(&ctx, settings.depth, &map)?;
+        let kernels = MultiSampleKernels::new(&ctx, settings.depth)?;
+        let est = (0..map.slots())
+            .map(|_| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("multi-sample frame uniform"),
+                    size: std::mem::size_of::<EstimateUniform>() as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
         let acc = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("multi-sample frame counts"),
             size: 4 * max_receivers.max(1) as u64,
@@ -236,6 +265,7 @@ impl MultiSampleFrame {
             settings,
             own,
             map,
+            unorm16,
             kernels,
             est,
             acc,
@@ -313,13 +343,13 @@ impl FrameEstimator for MultiSampleFrame {
         let mut u = EstimateUniform::new(inputs.light, b0, b1);
         u.receiver_plane = u32::from(self.settings.receiver_plane);
         u.inv_samples = 1.0 / inputs.views.len().max(1) as f32;
-        queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&u));
+        queue.write_buffer(&self.est[0], 0, bytemuck::bytes_of(&u));
         enc.clear_buffer(&self.acc, 0, None);
         if n == 0 {
             return Ok(());
         }
         let k = &self.kernels;
-        let groups = |view: &wgpu::Buffer, map: wgpu::BindingResource<'_>| {
+        let groups = |view: &wgpu::Buffer, est: &wgpu::Buffer, map: wgpu::BindingResource<'_>| {
             self.ctx
                 .device
                 .create_bind_group(&wgpu::BindGroupDescriptor {
@@ -327,7 +357,7 @@ impl FrameEstimator for MultiSampleFrame {
                     layout: &k.layout,
                     entries: &[
                         entry(0, view.as_entire_binding()),
-                        entry(1, self.est.as_entire_binding()),
+                        entry(1, est.as_entire_binding()),
                         entry(2, map),
                         entry(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
                         entry(4, buffer_range(&self.acc, n * 4)),
@@ -341,9 +371,21 @@ impl FrameEstimator for MultiSampleFrame {
             let Some(view) = view else { continue };
             self.map.encode(queue, enc, inputs.casters, view, slot)?;
             inputs.mark(enc, "raster");
+            if let Some(codes) = &self.unorm16 {
+                let mut us = u;
+                us.depth_step = codes.encode(&self.ctx, enc, slot, view.n, view.far)?;
+                queue.write_buffer(&self.est[slot], 0, bytemuck::bytes_of(&us));
+                inputs.mark(enc, "unorm16");
+            }
+            let est = if self.unorm16.is_some() {
+                &self.est[slot]
+            } else {
+                &self.est[0]
+            };
             let group = groups(
                 self.map.view_uniform(slot),
-                wgpu::BindingResource::TextureView(&self.map.layer.view),
+                est,
+                map_binding(&self.map, self.unorm16.as_ref()),
             );
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("multi-sample frame accumulate"),
@@ -356,7 +398,11 @@ impl FrameEstimator for MultiSampleFrame {
             inputs.mark(enc, "estimate");
         }
         // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
-        let group = groups(self.map.view_uniform(0), k.placeholder.binding());
+        let group = groups(
+            self.map.view_uniform(0),
+            &self.est[0],
+            k.placeholder.binding(),
+        );
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("multi-sample frame finalize"),
             timestamp_writes: None,

@@ -45,7 +45,7 @@ pub use midpoint::GpuMidpointPass;
 pub use mssm::{
     GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPass, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder,
 };
-pub use precision::{GpuUnorm16Encoder, GpuUnorm16Map};
+pub use precision::{GpuUnorm16Encoder, GpuUnorm16Frame, GpuUnorm16Map};
 pub use raster::{GpuLayersFrame, GpuMapFrame, GpuScene, GpuShadowMapper};
 pub use receivers::GpuReceivers;
 

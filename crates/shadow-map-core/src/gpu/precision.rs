@@ -160,57 +160,18 @@ impl GpuUnorm16Encoder {
         let step = step_for(n, far);
         let out = ctx.scoped("unorm16 encode", || {
             let device = &ctx.device;
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("unorm16 depth map"),
-                size: words(map.size) * 4,
-                usage: USAGE,
-                mapped_at_creation: false,
-            });
+            let buffer = code_buffer(ctx, map.size);
             let params = buffer_init(
                 device,
                 "unorm16 encode",
-                bytemuck::bytes_of(&EncodeParams {
-                    size: map.size,
-                    near: n,
-                    inv_step: 1.0 / step,
-                    _pad0: 0,
-                }),
+                bytemuck::bytes_of(&encode_params(map.size, n, step)),
                 wgpu::BufferUsages::UNIFORM,
             );
-            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("unorm16 encode"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(&map.view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: buffer.as_entire_binding(),
-                    },
-                ],
-            });
+            let group = self.group(ctx, &params, map, &buffer);
             let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("unorm16 encode"),
             });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("unorm16 encode"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &group, &[]);
-                let groups = words(map.size).div_ceil(ENCODE_WORKGROUP as u64);
-                let max = (ctx.limits().max_compute_workgroups_per_dimension as u64).max(1);
-                // Rows of at most `max` workgroups; the shader folds (x, y) back into one index.
-                let x = groups.min(max);
-                pass.dispatch_workgroups(x as u32, groups.div_ceil(x) as u32, 1);
-            }
+            self.record(ctx, &mut enc, &group, map.size);
             ctx.queue.submit([enc.finish()]);
             GpuUnorm16Map {
                 size: map.size,
@@ -221,6 +182,157 @@ impl GpuUnorm16Encoder {
         })?;
         ctx.wait()?;
         Ok(out)
+    }
+
+    /// The bind group of one encoding: `params`, the f32 `map`, the `codes` written.
+    fn group(
+        &self,
+        ctx: &GpuContext,
+        params: &wgpu::Buffer,
+        map: &GpuDepthMap,
+        codes: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("unorm16 encode"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&map.view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: codes.as_entire_binding(),
+                },
+            ],
+        })
+    }
+
+    /// Records the encoding pass of a `size`-texel map with bind group `group` into `enc`.
+    fn record(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        group: &wgpu::BindGroup,
+        size: u32,
+    ) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("unorm16 encode"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, group, &[]);
+        let groups = words(size).div_ceil(ENCODE_WORKGROUP as u64);
+        let max = (ctx.limits().max_compute_workgroups_per_dimension as u64).max(1);
+        // Rows of at most `max` workgroups; the shader folds (x, y) back into one index.
+        let x = groups.min(max);
+        pass.dispatch_workgroups(x as u32, groups.div_ceil(x) as u32, 1);
+    }
+}
+
+/// The encoder's uniform for a `size`-texel map over `[n, n + 65534 step]`.
+fn encode_params(size: u32, n: f32, step: f32) -> EncodeParams {
+    EncodeParams {
+        size,
+        near: n,
+        inv_step: 1.0 / step,
+        _pad0: 0,
+    }
+}
+
+/// A code buffer for a `size`-texel map.
+fn code_buffer(ctx: &GpuContext, size: u32) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("unorm16 depth map"),
+        size: words(size) * 4,
+        usage: USAGE,
+        mapped_at_creation: false,
+    })
+}
+
+/// 16-bit encoding on the engine path (issue 20): the codes of one f32 layer, recorded into the
+/// caller's command encoder after each raster of that layer. Allocated once: one code buffer
+/// (each encoding overwrites it, so a kernel reads it before the next raster into the layer)
+/// and one encoder uniform per view slot (a frame's `queue.write_buffer`s all land before its
+/// passes run, so views rendered in turn within one frame need one each).
+#[derive(Debug)]
+pub struct GpuUnorm16Frame {
+    encoder: GpuUnorm16Encoder,
+    size: u32,
+    codes: wgpu::Buffer,
+    /// Per slot: the encoder uniform and its bind group.
+    slots: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
+}
+
+impl GpuUnorm16Frame {
+    /// The encoder compiled and its buffers allocated for `layer` (the frame's f32 map) and
+    /// `slots` views per frame. [`Error::Limit`] where the codes exceed a storage binding.
+    pub fn new(ctx: &GpuContext, layer: &GpuDepthMap, slots: usize) -> Result<Self> {
+        check_buffer(ctx, layer.size)?;
+        let encoder = GpuUnorm16Encoder::new(ctx)?;
+        ctx.scoped("unorm16 frame", || {
+            let codes = code_buffer(ctx, layer.size);
+            let slots = (0..slots.max(1))
+                .map(|_| {
+                    let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("unorm16 frame params"),
+                        size: std::mem::size_of::<EncodeParams>() as u64,
+                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    });
+                    let group = encoder.group(ctx, &params, layer, &codes);
+                    (params, group)
+                })
+                .collect();
+            GpuUnorm16Frame {
+                encoder,
+                size: layer.size,
+                codes,
+                slots,
+            }
+        })
+    }
+
+    /// Stages slot `slot`'s uniform for planes `n` and `far` and records the encoding of the
+    /// layer into `enc`; returns the code step s (`EstimateUniform::depth_step`). Nothing is
+    /// submitted or waited for.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        slot: usize,
+        n: f32,
+        far: f32,
+    ) -> Result<f32> {
+        let Some((params, group)) = self.slots.get(slot) else {
+            return Err(Error::Limit {
+                what: "view slot of a frame's 16-bit map",
+                requested: slot as u64,
+                max: self.slots.len().saturating_sub(1) as u64,
+            });
+        };
+        let step = step_for(n, far);
+        ctx.queue.write_buffer(
+            params,
+            0,
+            bytemuck::bytes_of(&encode_params(self.size, n, step)),
+        );
+        self.encoder.record(ctx, enc, group, self.size);
+        Ok(step)
+    }
+
+    /// The packed codes, for a kernel's `depth_codes` binding.
+    pub fn binding(&self) -> wgpu::BindingResource<'_> {
+        self.codes.as_entire_binding()
+    }
+
+    /// Bytes of the packed codes.
+    pub fn bytes(&self) -> usize {
+        words(self.size) as usize * 4
     }
 }
 
