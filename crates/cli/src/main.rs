@@ -186,11 +186,36 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(_) if interrupt().is_cancelled() => {
+            eprintln!("softshadow: interrupted (Ctrl-C): the frame being rendered was not written");
+            ExitCode::from(130)
+        }
         Err(e) => {
             eprintln!("softshadow: {}", e.replace('\n', " "));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The token Ctrl-C (SIGINT) cancels: `render` hands it to its estimator, which stops at its
+/// next check ([`shadow_map_core::Cancel`]) and returns `Error::Cancelled`; the frame being
+/// rendered is then not written (frames of a camera path already written stay, each complete)
+/// and the exit status is 130. A second Ctrl-C exits at once.
+fn interrupt() -> &'static shadow_map_core::Cancel {
+    static TOKEN: std::sync::OnceLock<shadow_map_core::Cancel> = std::sync::OnceLock::new();
+    TOKEN.get_or_init(shadow_map_core::Cancel::new)
+}
+
+/// Installs the Ctrl-C handler of [`interrupt`] (once; an error installing it is ignored: the
+/// default handler, which ends the process, stays).
+fn catch_interrupt() {
+    let token = interrupt().clone();
+    let _ = ctrlc::set_handler(move || {
+        if token.is_cancelled() {
+            std::process::exit(130);
+        }
+        token.cancel();
+    });
 }
 
 /// A command line clap refuses: help and version print as clap prints them; every other error
@@ -259,6 +284,8 @@ fn render(
         Backend::Cpu
     };
     let mut est = estimator(algo, backend).map_err(|e| e.to_string())?;
+    catch_interrupt();
+    est.set_cancel(interrupt().clone());
     for kv in params {
         let (k, v) = shadow_map_core::params::parse_assignment(kv).map_err(|e| e.to_string())?;
         est.set_param(k, v).map_err(|e| e.to_string())?;
@@ -406,7 +433,8 @@ fn render_frame(
 
 /// `shadow_map_core::run`, with a progress bar on standard error for the ray-traced reference
 /// (a render of minutes): the estimator counts the receivers it has finished in its
-/// [`Cancel`](shadow_map_core::Cancel) token, which a thread draws every 100 ms. indicatif draws
+/// [`Cancel`](shadow_map_core::Cancel) token (the one Ctrl-C cancels, [`interrupt`]), which a
+/// thread draws every 100 ms. indicatif draws
 /// only to a terminal, so a script's or CI's standard error stays one line on failure.
 fn run_with_progress(
     est: &mut dyn shadow_map_core::SoftShadowEstimator,
@@ -416,8 +444,9 @@ fn run_with_progress(
     if est.name() != "reference" {
         return shadow_map_core::run(est, scene, receivers).map_err(|e| e.to_string());
     }
-    let token = shadow_map_core::Cancel::new();
-    est.set_cancel(token.clone());
+    // The token `render` handed the estimator (Ctrl-C's), which also counts its progress.
+    let token = interrupt();
+    let start = token.progress();
     let total = receivers.len() as u64;
     let done = std::sync::atomic::AtomicBool::new(false);
     std::thread::scope(|s| {
@@ -432,7 +461,7 @@ fn run_with_progress(
                 bar.set_style(style);
             }
             while !done.load(std::sync::atomic::Ordering::Relaxed) {
-                bar.set_position(token.progress().min(total));
+                bar.set_position((token.progress() - start).min(total));
                 std::thread::sleep(std::time::Duration::from_millis(100));
             }
             bar.finish_and_clear();

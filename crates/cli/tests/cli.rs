@@ -415,3 +415,53 @@ fn glb_bunny_renders_the_obj_bunny() {
         }
     }
 }
+
+/// Ctrl-C (SIGINT) during a long render stops it at the estimator's next cancellation check:
+/// exit status 130, one line on standard error, no output file. Without the handler the
+/// process would die by the signal (no status 130, no message).
+#[test]
+fn ctrl_c_stops_a_render_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ref.exr");
+    let scene = fixture("bunny/bunny.toml");
+    let mut child = bin()
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "--algo",
+            "reference",
+            "--param",
+            "spp=65536",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Long enough for the scene to load and the handler to be installed; the render itself
+    // takes minutes at this sample count.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success(), "kill -INT failed");
+    let t = std::time::Instant::now();
+    let output = loop {
+        if child.try_wait().unwrap().is_some() {
+            break child.wait_with_output().unwrap();
+        }
+        if t.elapsed().as_secs() > 60 {
+            let _ = child.kill();
+            panic!("render still running 60 s after SIGINT");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let err = String::from_utf8_lossy(&output.stderr);
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(output.status.code(), Some(130), "stderr: {err}");
+    assert_eq!(lines.len(), 1, "stderr: {err}");
+    assert!(lines[0].contains("interrupted"), "{err}");
+    assert!(!out.exists(), "a partial output was written");
+}
