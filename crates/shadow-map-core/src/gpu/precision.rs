@@ -129,14 +129,13 @@ fn check_buffer(ctx: &GpuContext, size: u32) -> Result<()> {
 /// The encoder pipeline, created once per estimator.
 #[derive(Debug, Clone)]
 pub struct GpuUnorm16Encoder {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Kernel,
 }
 
 impl GpuUnorm16Encoder {
     /// Compiles the pipeline (label `unorm16 encode`).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let Kernel { layout, pipeline } = Kernel::new(
+        let kernel = Kernel::new(
             ctx,
             "unorm16 encode",
             &[PRECISION_WGSL],
@@ -144,7 +143,7 @@ impl GpuUnorm16Encoder {
             &[Binding::Uniform, Binding::Texture2d, Binding::StorageRw],
             &[("WG", ENCODE_WORKGROUP as f64)],
         )?;
-        Ok(GpuUnorm16Encoder { layout, pipeline })
+        Ok(GpuUnorm16Encoder { kernel })
     }
 
     /// Encodes `map` for a view with planes `n` and `far` into a new code buffer (submitted and
@@ -192,24 +191,15 @@ impl GpuUnorm16Encoder {
         map: &GpuDepthMap,
         codes: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("unorm16 encode"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&map.view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: codes.as_entire_binding(),
-                },
+        self.kernel.bind_group(
+            ctx,
+            "unorm16 encode",
+            &[
+                params.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&map.view),
+                codes.as_entire_binding(),
             ],
-        })
+        )
     }
 
     /// Records the encoding pass of a `size`-texel map with bind group `group` into `enc`.
@@ -224,7 +214,7 @@ impl GpuUnorm16Encoder {
             label: Some("unorm16 encode"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.kernel.pipeline);
         pass.set_bind_group(0, group, &[]);
         let groups = words(size).div_ceil(ENCODE_WORKGROUP as u64);
         let max = (ctx.limits().max_compute_workgroups_per_dimension as u64).max(1);
