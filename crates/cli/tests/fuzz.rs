@@ -61,6 +61,7 @@ const FIXTURES: &[&str] = &[
     "sun-bunny",
     "sun-fence",
     "sun-half-plane",
+    "sun-stone",
     "sun-street",
     "thin-sticks",
 ];
