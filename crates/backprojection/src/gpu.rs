@@ -30,7 +30,10 @@ use bytemuck::{Pod, Zeroable};
 use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
-        estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{
+            EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
+            WORKGROUP_SIZE,
+        },
         frame::{
             buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
         },
@@ -54,8 +57,9 @@ use std::{num::NonZeroU64, sync::Arc, time::Instant};
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 4] = [
+pub const SHADER_PARTS: [&str; 5] = [
     ESTIMATE_HEAD_WGSL,
+    SILHOUETTE_SETUP_WGSL,
     RECEIVERS_WGSL,
     BITMASK_WGSL,
     BACKPROJECTION_WGSL,

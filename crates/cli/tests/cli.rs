@@ -261,9 +261,10 @@ fn render_gpu_takes_the_frame_api() {
     let squares = fixture("parallel-squares/parallel-squares.toml");
     // Semi-transparent strands: the frame API's casters are opaque, so the twin's path.
     let strands = fixture("strands/strands.toml");
-    // A sphere light: packet-hsm's engine path refuses it (FrameEstimator::refuses), the twin's.
+    // A sphere light: packet-hsm's engine path sets its silhouette up on the device; sub-lights
+    // it refuses (FrameEstimator::refuses): the twin's path.
     let sphere = fixture("sphere-light/sphere-light.toml");
-    let cases: [(&str, &[&str], bool, &std::path::Path); 10] = [
+    let cases: [(&str, &[&str], bool, &std::path::Path); 11] = [
         ("pcss", &["resolution=256"], true, &squares),
         // 16-bit maps: encoded within the frame (the engine path used to refuse them).
         ("hard", &["resolution=256", "depth=unorm16"], true, &squares),
@@ -279,7 +280,13 @@ fn render_gpu_takes_the_frame_api() {
         ("backprojection", &["resolution=256"], false, &strands),
         ("deep-shadow", &["resolution=256"], false, &strands),
         ("packet-hsm", &["resolution=256"], true, &squares),
-        ("packet-hsm", &["resolution=256"], false, &sphere),
+        ("packet-hsm", &["resolution=256"], true, &sphere),
+        (
+            "packet-hsm",
+            &["resolution=256", "sublights=2"],
+            false,
+            &squares,
+        ),
     ];
     for (algo, params, engine, scene) in cases {
         let sc = scene.to_str().unwrap();

@@ -14,8 +14,8 @@
 //!    `packet_hsm.wgsl` reads; the MSSM levels the view needs ([`SubView::levels`]) copied level
 //!    after level into one buffer each (the layout [`GpuPacketHsm`]'s upload has);
 //! 4. `frame_setup`: each receiver's set-up on the GPU, the twin of
-//!    [`crate::cpu::setup_receiver`] (light-space transform, facing fraction, projection, bias
-//!    or receiver plane);
+//!    [`crate::cpu::setup_receiver`] (light-space transform, facing fraction, a sphere light's
+//!    silhouette disk, projection, bias or receiver plane);
 //! 5. `packet_hsm.wgsl`'s `prepare` and `pixels` passes, unchanged (the per-pixel GBP07 with
 //!    Yang's hierarchy: receivers in a buffer carry no image layout, so no packets);
 //! 6. `frame_finish`: V = facing x the kernel's V, or what the set-up settled.
@@ -23,8 +23,9 @@
 //! **What this path does not take.** Casters are opaque (a
 //! [`GpuScene`](shadow_map_core::gpu::GpuScene) holds positions only; the opacity levels need
 //! one pass per level). One view: rect lights with `sublights=1` (S x S sub-lights would need one
-//! layer set per sub-light). Sphere lights: their silhouette set-up is not ported to WGSL here; a
-//! sphere light is an [`Error::Param`] on this path (the GPU twin [`GpuPacketHsm`] takes them).
+//! layer set per sub-light). Every light shape: a sphere light's silhouette disk is set up per
+//! receiver by the core's `silhouette_setup.wgsl` (the twin of
+//! [`Silhouette::new`](shadow_map_core::silhouette::Silhouette::new)).
 //!
 //! The status buffer (three u32, cleared by each `encode`): `[0]` receivers projecting outside
 //! the map (V = facing), `[1]` non-finite V written as 0, `[2]` receivers the device's loop
@@ -39,7 +40,10 @@ use crate::gpu::{
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
-        estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{
+            EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
+            SILHOUETTE_WGSL, WORKGROUP_SIZE,
+        },
         frame::{
             buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
         },
@@ -50,17 +54,23 @@ use shadow_map_core::{
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuShadowMapper,
     },
     light_view::FitReport,
-    Error, LightShape, LightSpaceRequest, LightView, Params, RasterOptions, Receivers, Result,
-    Scene,
+    Error, LightSpaceRequest, LightView, Params, RasterOptions, Receivers, Result, Scene,
 };
 use std::sync::Arc;
 
 /// The engine path's own WGSL.
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
-/// The engine path's set-up module, in order: the core's shared structs, estimate uniform and
-/// math, then [`FRAME_WGSL`].
-pub const FRAME_SHADER_PARTS: &[&str] = &[SHARED_WGSL, ESTIMATE_WGSL, MATH_WGSL, FRAME_WGSL];
+/// The engine path's set-up module, in order: the core's shared structs, estimate uniform, math
+/// and a sphere light's silhouette set-up, then [`FRAME_WGSL`].
+pub const FRAME_SHADER_PARTS: &[&str] = &[
+    SHARED_WGSL,
+    ESTIMATE_WGSL,
+    MATH_WGSL,
+    SILHOUETTE_WGSL,
+    SILHOUETTE_SETUP_WGSL,
+    FRAME_WGSL,
+];
 
 // One workgroup size for the core's `WG` override this module takes and the kernel's.
 const _: () = assert!(WORKGROUP_SIZE == WORKGROUP);
@@ -291,7 +301,7 @@ impl PacketHsmFrame {
     /// What the kernel's uniform takes from the frame's view ([`SubView::levels`], the padded
     /// dual-grid MSSM's levels as [`crate::contour::PaddedDualMssm::build`] chooses them).
     fn shape(&self, view: &LightView, light: &shadow_map_core::Light) -> Result<SubLightShape> {
-        if let Some((key, why)) = self.refusal(light) {
+        if let Some((key, why)) = self.refusal() {
             return Err(Error::param(key, why));
         }
         let half = light.half_extent();
@@ -313,16 +323,10 @@ impl PacketHsmFrame {
     }
 
     /// What this path does not model (module docs): `(parameter, reason)`.
-    fn refusal(&self, light: &shadow_map_core::Light) -> Option<(&'static str, &'static str)> {
-        if self.cfg.sublights != 1 {
-            return Some((
-                "sublights",
-                "packet-hsm's engine path renders one light view per frame: sublights=1",
-            ));
-        }
-        matches!(light.shape, LightShape::Sphere { .. }).then_some((
-            "light",
-            "packet-hsm's engine path takes rect and disk lights and the sun; a sphere light needs GpuPacketHsm",
+    fn refusal(&self) -> Option<(&'static str, &'static str)> {
+        (self.cfg.sublights != 1).then_some((
+            "sublights",
+            "packet-hsm's engine path renders one light view per frame: sublights=1",
         ))
     }
 
@@ -430,10 +434,9 @@ impl FrameEstimator for PacketHsmFrame {
         Some(&self.status)
     }
 
-    /// `sublights` other than 1, or a sphere light.
-    fn refuses(&self, scene: &Scene) -> Option<String> {
-        self.refusal(&scene.light)
-            .map(|(key, why)| format!("{key}: {why}"))
+    /// `sublights` other than 1.
+    fn refuses(&self, _scene: &Scene) -> Option<String> {
+        self.refusal().map(|(key, why)| format!("{key}: {why}"))
     }
 
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
@@ -562,7 +565,7 @@ impl FrameEstimator for PacketHsmFrame {
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
         let view = *single_view(views)?;
-        if let Some((key, why)) = self.refusal(&scene.light) {
+        if let Some((key, why)) = self.refusal() {
             return Err(Error::param(key, why));
         }
         let mut opaque = scene.clone();

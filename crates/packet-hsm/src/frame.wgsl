@@ -1,7 +1,7 @@
 // Packet-hsm on the engine path (frame.rs, PacketHsmFrame): the maps come from the core's raster,
 // midpoint and MSSM passes; `frame_maps` turns the depth and classification layers into the
-// buffers packet_hsm.wgsl reads; `frame_setup` is the twin of cpu.rs `setup_receiver` (rect, disk
-// and the sun; no sphere light on this path), writing each receiver's RecIn for the kernel's
+// buffers packet_hsm.wgsl reads; `frame_setup` is the twin of cpu.rs `setup_receiver` (every light
+// shape; a sphere's silhouette from the core's silhouette_setup.wgsl), writing each receiver's RecIn for the kernel's
 // `prepare` and `pixels` passes and what the CPU would have settled; `frame_finish` combines
 // them into V, the twin of gpu.rs `GpuPacketHsm::estimate`'s sum and cpu.rs SubLights::finish.
 // Appended after the core's shared.wgsl, estimate.wgsl and math.wgsl.
@@ -102,7 +102,25 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n = view_dir_to_light(fview, nw);
     let size = vec2<f32>(flight.light_size_x, flight.light_size_y);
     var facing = 0.0;
-    if fview.ortho != 0u {
+    var sil: Sil;
+    sil.ok = false;
+    if flight.light_shape == LIGHT_SPHERE {
+        // Two-sided: the contract's silhouette disk in world space; a receiver behind the map's
+        // plane or whose silhouette reaches its depth is outside every view (V = facing).
+        facing = front_fraction_world(flight, pw, nw);
+        if !(facing > 0.0) {
+            settle(k, SETUP_SETTLED, 0.0);
+            return;
+        }
+        if p.z > 0.0 {
+            sil = sil_new(p, flight.light_size_x);
+        }
+        if !sil.ok {
+            atomicAdd(&status[0], 1u);
+            settle(k, SETUP_OUTSIDE, facing);
+            return;
+        }
+    } else if fview.ortho != 0u {
         // The sun: its disk of directions one unit from p.
         facing = front_fraction(LIGHT_DISK, size, vec3<f32>(0.0, 0.0, 1.0), n);
     } else {
@@ -134,6 +152,13 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
     r.uv = uv;
     r.zp = p.z;
     r.t = t;
+    if sil.ok {
+        // gpu.rs RecIn: (a, dist), (e1, radius), (e2, 0), clip.
+        r.sil_a = vec4<f32>(sil.a, sil.dist);
+        r.sil_e1 = vec4<f32>(sil.e1, sil.radius);
+        r.sil_e2 = vec4<f32>(sil.e2, 0.0);
+        r.sil_clip = sil.clip;
+    }
     if F.receiver_plane != 0u {
         let rp = plane_new(true, fview, p, n, F.bias, F.slope_bias, 0.0);
         r.g0 = rp.g0;

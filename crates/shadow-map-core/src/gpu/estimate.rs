@@ -23,6 +23,21 @@ pub const DISK_EDGE_WGSL: &str = include_str!("disk_edge.wgsl");
 /// WGSL twin of [`crate::silhouette::Silhouette::carry`], self-contained like
 /// [`DISK_EDGE_WGSL`].
 pub const SILHOUETTE_WGSL: &str = include_str!("silhouette.wgsl");
+/// WGSL twin of [`crate::silhouette::Silhouette::new`] and its hull (the per-receiver set-up of a
+/// sphere light's silhouette disk), after [`MATH_WGSL`] and [`SILHOUETTE_WGSL`]; not in
+/// [`ESTIMATE_HEAD_WGSL`]: kernels with sphere lights (backprojection, packet-hsm's frame set-up)
+/// append it.
+pub const SILHOUETTE_SETUP_WGSL: &str = include_str!("silhouette_setup.wgsl");
+/// [`SILHOUETTE_SETUP_WGSL`] after the estimate head, as [`super::SHADERS`] validates it.
+pub const SILHOUETTE_SETUP_CHECK_WGSL: &str = concat!(
+    include_str!("shared.wgsl"),
+    include_str!("estimate.wgsl"),
+    include_str!("math.wgsl"),
+    include_str!("disk_edge.wgsl"),
+    include_str!("silhouette.wgsl"),
+    include_str!("overlap.wgsl"),
+    include_str!("silhouette_setup.wgsl")
+);
 /// WGSL twins of the rest of [`crate::overlap`] (after [`MATH_WGSL`] and [`DISK_EDGE_WGSL`]).
 pub const OVERLAP_WGSL: &str = include_str!("overlap.wgsl");
 /// WGSL twin of [`crate::bitmask`] (containment tests and the mask), self-contained; not in

@@ -60,6 +60,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("precision", precision::PRECISION_WGSL),
     ("estimate", estimate::ESTIMATE_HEAD_WGSL),
     ("bitmask", estimate::BITMASK_WGSL),
+    ("silhouette_setup", estimate::SILHOUETTE_SETUP_CHECK_WGSL),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
     ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
 ];
