@@ -28,6 +28,8 @@ pub enum Binding {
     Texture2d,
     /// `texture_2d_array<f32>`, not filterable (layers, MSSM levels).
     Texture2dArray,
+    /// `texture_depth_2d` (a caller's depth attachment, read with `textureLoad`).
+    TextureDepth2d,
     /// `texture_storage_2d_array<r32float, write>`.
     StorageTexture2dArrayR32Write,
     /// `texture_storage_2d<r32float, write>`.
@@ -62,6 +64,11 @@ impl Binding {
             Binding::StorageRw => buffer(wgpu::BufferBindingType::Storage { read_only: false }),
             Binding::Texture2d => texture(wgpu::TextureViewDimension::D2),
             Binding::Texture2dArray => texture(wgpu::TextureViewDimension::D2Array),
+            Binding::TextureDepth2d => wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Depth,
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
             Binding::StorageTexture2dArrayR32Write => wgpu::BindingType::StorageTexture {
                 access: wgpu::StorageTextureAccess::WriteOnly,
                 format: wgpu::TextureFormat::R32Float,

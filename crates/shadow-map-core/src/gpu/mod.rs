@@ -23,6 +23,7 @@ use crate::{Error, Result};
 use std::sync::{Arc, Mutex};
 
 pub mod depth_map;
+pub mod depth_receivers;
 pub mod estimate;
 pub mod frame;
 pub mod gbuffer;
@@ -61,6 +62,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("estimate", estimate::ESTIMATE_HEAD_WGSL),
     ("bitmask", estimate::BITMASK_WGSL),
     ("silhouette_setup", estimate::SILHOUETTE_SETUP_CHECK_WGSL),
+    ("depth_receivers", depth_receivers::DEPTH_RECEIVERS_SOURCE),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
     ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
 ];

@@ -1,0 +1,322 @@
+//! Receivers from a caller's depth and normal textures (`gpu::depth_receivers`, issue 20) against
+//! the CPU's ray-traced [`Receivers::from_camera`] on the bunny and on sun-street (camera depths
+//! from 0.5 m to 150 m), under both depth conventions and both normal encodings.
+//!
+//! The textures are made from the CPU receivers: each hit's NDC depth (the camera's projection
+//! of its position) written as `frag_depth` by a full-screen pass into a `Depth32Float`
+//! attachment, the normal written with `write_texture` (`Rgba32Float` signed, or `Rgb10a2Unorm`
+//! as `n * 0.5 + 0.5`, Bevy's prepass encoding), a stored normal turned away from the eye half
+//! the time (the pass must turn it back). The pass must then give back the same active pixels,
+//! each position within `POS_TOL` of its distance from the eye (f32 depth), and the normal
+//! within 1e-5 (float) or 2.5e-3 (10-bit unorm) per component.
+#![cfg(feature = "gpu")]
+
+mod common;
+
+use glam::Vec3;
+use shadow_map_core::{
+    gpu::{
+        depth_receivers::{DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding},
+        shared::ReceiverGpu,
+        GpuContext,
+    },
+    Error, Receivers, Scene, SceneBvh,
+};
+use std::path::PathBuf;
+
+/// Position tolerance relative to the receiver's distance from the eye.
+const POS_TOL: f32 = 2e-4;
+
+fn fixture(name: &str, w: u32, h: u32) -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("../../fixtures/{name}/{name}.toml"));
+    let mut s = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    s.camera.width = w;
+    s.camera.height = h;
+    s
+}
+
+/// A `Depth32Float` texture holding `depth` per pixel (row-major, row 0 at the top), written
+/// by a full-screen pass (depth textures take no `write_texture`).
+fn depth_texture(ctx: &GpuContext, w: u32, h: u32, depth: &[f32]) -> wgpu::Texture {
+    use wgpu::util::DeviceExt;
+    let src = "
+        @group(0) @binding(0) var<storage, read> d: array<f32>;
+        @group(0) @binding(1) var<uniform> width: vec4<u32>;
+        @vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+            let x = f32(i32(i & 1u) * 4 - 1);
+            let y = f32(i32(i >> 1u) * 4 - 1);
+            return vec4<f32>(x, y, 0.0, 1.0);
+        }
+        @fragment fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
+            return d[u32(p.y) * width.x + u32(p.x)];
+        }";
+    let dev = &ctx.device;
+    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("test depth writer"),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
+    let tex = dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some("caller's depth"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("test depth writer"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let dbuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(depth),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let wbuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&[w, 0, 0, 0]),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: dbuf.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wbuf.as_entire_binding(),
+            },
+        ],
+    });
+    let view = tex.create_view(&Default::default());
+    let mut enc = dev.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: None,
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.5),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+    ctx.queue.submit([enc.finish()]);
+    tex
+}
+
+/// A normal texture of `format` (`Rgba32Float` signed or `Rgb10a2Unorm` as `n * 0.5 + 0.5`).
+fn normal_texture(ctx: &GpuContext, w: u32, h: u32, n: &[Vec3], unorm: bool) -> wgpu::Texture {
+    let format = if unorm {
+        wgpu::TextureFormat::Rgb10a2Unorm
+    } else {
+        wgpu::TextureFormat::Rgba32Float
+    };
+    let tex = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("caller's normals"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let (bytes, bpp): (Vec<u8>, u32) = if unorm {
+        let q = |x: f32| ((x * 0.5 + 0.5).clamp(0.0, 1.0) * 1023.0).round() as u32;
+        let words: Vec<u32> = n
+            .iter()
+            .map(|v| q(v.x) | (q(v.y) << 10) | (q(v.z) << 20) | (3 << 30))
+            .collect();
+        (bytemuck::cast_slice(&words).to_vec(), 4)
+    } else {
+        let f: Vec<[f32; 4]> = n.iter().map(|v| [v.x, v.y, v.z, 0.0]).collect();
+        (bytemuck::cast_slice(&f).to_vec(), 16)
+    };
+    ctx.queue.write_texture(
+        tex.as_image_copy(),
+        &bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(bpp * w),
+            rows_per_image: Some(h),
+        },
+        tex.size(),
+    );
+    tex
+}
+
+#[test]
+fn depth_and_normal_textures_give_the_camera_receivers() -> Result<(), Error> {
+    let Some(ctx) =
+        common::context_for_tests("depth_and_normal_textures_give_the_camera_receivers")?
+    else {
+        return Ok(());
+    };
+    let pass = GpuDepthReceivers::new(&ctx)?;
+    for (name, w, h, near, far) in [
+        ("bunny", 64, 48, 0.05, 20.0),
+        ("sun-street", 80, 60, 0.1, 400.0),
+    ] {
+        let scene = fixture(name, w, h);
+        let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+        for depth in [DepthConvention::ZeroToOne, DepthConvention::ReverseZ] {
+            for normals in [NormalEncoding::Signed, NormalEncoding::Unorm] {
+                let label = format!("{name} {depth:?} {normals:?}");
+                let far = if depth == DepthConvention::ReverseZ && name == "sun-street" {
+                    f32::INFINITY
+                } else {
+                    far
+                };
+                let cam = DepthCamera::perspective(&scene.camera, near, far, depth, normals)?;
+                let background = if depth == DepthConvention::ZeroToOne {
+                    1.0
+                } else {
+                    0.0
+                };
+                let (mut d, mut n) = (Vec::new(), Vec::new());
+                for k in 0..rec.len() {
+                    if rec.active[k] {
+                        let c = cam.view_proj * rec.position[k].extend(1.0);
+                        d.push(c.z / c.w);
+                        // Half the stored normals face away from the eye.
+                        n.push(if k % 2 == 0 {
+                            rec.normal[k]
+                        } else {
+                            -rec.normal[k]
+                        });
+                    } else {
+                        d.push(background);
+                        n.push(Vec3::Z);
+                    }
+                }
+                let unorm = normals == NormalEncoding::Unorm;
+                let dt = depth_texture(&ctx, w, h, &d);
+                let nt = normal_texture(&ctx, w, h, &n, unorm);
+                let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("caller's receivers"),
+                    size: 32 * rec.len() as u64,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                pass.encode(&ctx, &mut enc, &cam, &dt, &nt, &out)?;
+                ctx.queue.submit([enc.finish()]);
+                let got: Vec<ReceiverGpu> = ctx.read_buffer(&out, out.size())?;
+                let n_tol = if unorm { 2.5e-3 } else { 1e-5 };
+                let (mut worst_p, mut worst_n, mut active) = (0.0f32, 0.0f32, 0);
+                for (k, g) in got.iter().enumerate() {
+                    assert_eq!(g.active == 1, rec.active[k], "{label}: receiver {k} active");
+                    if !rec.active[k] {
+                        assert_eq!(
+                            Vec3::from(g.position),
+                            Vec3::ZERO,
+                            "{label}: background {k}"
+                        );
+                        continue;
+                    }
+                    active += 1;
+                    let dist = (rec.position[k] - scene.camera.eye).length();
+                    let ep = (Vec3::from(g.position) - rec.position[k]).length() / dist;
+                    let en = (Vec3::from(g.normal) - rec.normal[k]).abs().max_element();
+                    worst_p = worst_p.max(ep);
+                    worst_n = worst_n.max(en);
+                    assert!(
+                        ep <= POS_TOL,
+                        "{label}: receiver {k}: position off by {ep} of its distance"
+                    );
+                    assert!(
+                        en <= n_tol,
+                        "{label}: receiver {k}: normal {:?} vs {}",
+                        g.normal,
+                        rec.normal[k]
+                    );
+                }
+                assert!(active > rec.len() / 4, "{label}: {active} active");
+                println!("{label}: {active} receivers, position error <= {worst_p:.1e} of the distance, normal <= {worst_n:.1e}");
+            }
+        }
+    }
+    // Bad input: one line each, nothing recorded.
+    let scene = fixture("bunny", 8, 6);
+    let cam = DepthCamera::perspective(
+        &scene.camera,
+        0.05,
+        20.0,
+        DepthConvention::ZeroToOne,
+        NormalEncoding::Signed,
+    )?;
+    let dt = depth_texture(&ctx, 8, 6, &[1.0; 48]);
+    let small = normal_texture(&ctx, 4, 6, &[Vec3::Z; 24], false);
+    let nt = normal_texture(&ctx, 8, 6, &[Vec3::Z; 48], false);
+    let buf = |bytes| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    };
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let e = pass
+        .encode(&ctx, &mut enc, &cam, &dt, &small, &buf(32 * 48))
+        .unwrap_err();
+    assert!(e.to_string().contains("normal texture is 4x6"), "{e}");
+    let e = pass
+        .encode(&ctx, &mut enc, &cam, &dt, &nt, &buf(32 * 47))
+        .unwrap_err();
+    assert!(e.to_string().contains("need 1536"), "{e}");
+    let mut singular = cam;
+    singular.view_proj = glam::Mat4::ZERO;
+    let e = pass
+        .encode(&ctx, &mut enc, &singular, &dt, &nt, &buf(32 * 48))
+        .unwrap_err();
+    assert!(e.to_string().contains("singular"), "{e}");
+    Ok(())
+}
