@@ -22,6 +22,7 @@
 use crate::{Error, Result};
 use std::sync::{Arc, Mutex};
 
+pub mod casters;
 pub mod depth_map;
 pub mod depth_receivers;
 pub mod estimate;
@@ -63,6 +64,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("bitmask", estimate::BITMASK_WGSL),
     ("silhouette_setup", estimate::SILHOUETTE_SETUP_CHECK_WGSL),
     ("depth_receivers", depth_receivers::DEPTH_RECEIVERS_SOURCE),
+    ("casters", casters::CASTERS_WGSL),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
     ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
 ];

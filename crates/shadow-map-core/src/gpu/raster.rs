@@ -101,13 +101,44 @@ impl From<DepthBias> for RasterParams {
 /// vertex buffer of `vec4<f32>` positions (w = 1), three per triangle, non-indexed.
 #[derive(Debug, Clone)]
 pub struct GpuScene {
-    /// The vertex buffer (label `raster.scene`, usages `VERTEX | STORAGE | COPY_DST`).
+    /// The vertex buffer (label `raster.scene`, usages `VERTEX | STORAGE | COPY_DST | COPY_SRC`).
     pub vertices: wgpu::Buffer,
     /// Number of triangles.
     pub triangles: u32,
 }
 
 impl GpuScene {
+    /// Room for `triangles` triangles and none in it yet: the buffer
+    /// [`GpuCasterBuilder`](super::casters::GpuCasterBuilder) fills from the caller's meshes
+    /// every frame. [`Error::Limit`] beyond the device's `max_buffer_size`.
+    pub fn with_capacity(ctx: &GpuContext, triangles: u32) -> Result<Self> {
+        let max_tris = (ctx.limits().max_buffer_size / 48).min(u32::MAX as u64 / 3);
+        if triangles as u64 > max_tris {
+            return Err(Error::Limit {
+                what: "caster triangles on the GPU (max_buffer_size / 48 bytes)",
+                requested: triangles as u64,
+                max: max_tris,
+            });
+        }
+        ctx.scoped("raster.scene", || GpuScene {
+            vertices: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("raster.scene"),
+                size: 48 * triangles.max(1) as u64,
+                usage: wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            triangles: 0,
+        })
+    }
+
+    /// How many triangles the buffer holds room for.
+    pub fn capacity(&self) -> u32 {
+        (self.vertices.size() / 48) as u32
+    }
+
     /// Uploads `scene.triangles`. Fails with [`Error::Limit`] when the buffer would exceed the
     /// device's `max_buffer_size` or the vertex count `u32`.
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<Self> {
@@ -136,7 +167,8 @@ impl GpuScene {
                 bytemuck::cast_slice(&verts),
                 wgpu::BufferUsages::VERTEX
                     | wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_DST,
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
             ),
             triangles: n as u32,
         })
