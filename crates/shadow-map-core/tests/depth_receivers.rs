@@ -16,7 +16,9 @@ mod common;
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
-        depth_receivers::{DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding},
+        depth_receivers::{
+            depth_texture, DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding,
+        },
         shared::ReceiverGpu,
         GpuContext,
     },
@@ -34,117 +36,6 @@ fn fixture(name: &str, w: u32, h: u32) -> Scene {
     s.camera.width = w;
     s.camera.height = h;
     s
-}
-
-/// A `Depth32Float` texture holding `depth` per pixel (row-major, row 0 at the top), written
-/// by a full-screen pass (depth textures take no `write_texture`).
-fn depth_texture(ctx: &GpuContext, w: u32, h: u32, depth: &[f32]) -> wgpu::Texture {
-    use wgpu::util::DeviceExt;
-    let src = "
-        @group(0) @binding(0) var<storage, read> d: array<f32>;
-        @group(0) @binding(1) var<uniform> width: vec4<u32>;
-        @vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-            let x = f32(i32(i & 1u) * 4 - 1);
-            let y = f32(i32(i >> 1u) * 4 - 1);
-            return vec4<f32>(x, y, 0.0, 1.0);
-        }
-        @fragment fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
-            return d[u32(p.y) * width.x + u32(p.x)];
-        }";
-    let dev = &ctx.device;
-    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("test depth writer"),
-        source: wgpu::ShaderSource::Wgsl(src.into()),
-    });
-    let tex = dev.create_texture(&wgpu::TextureDescriptor {
-        label: Some("caller's depth"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Depth32Float,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
-    let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("test depth writer"),
-        layout: None,
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: Default::default(),
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Always),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs"),
-            compilation_options: Default::default(),
-            targets: &[],
-        }),
-        multiview_mask: None,
-        cache: None,
-    });
-    let dbuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::cast_slice(depth),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let wbuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::cast_slice(&[w, 0, 0, 0]),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: dbuf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wbuf.as_entire_binding(),
-            },
-        ],
-    });
-    let view = tex.create_view(&Default::default());
-    let mut enc = dev.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: None,
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(0.5),
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.draw(0..3, 0..1);
-    }
-    ctx.queue.submit([enc.finish()]);
-    tex
 }
 
 /// A normal texture of `format` (`Rgba32Float` signed or `Rgb10a2Unorm` as `n * 0.5 + 0.5`).
@@ -237,7 +128,7 @@ fn depth_and_normal_textures_give_the_camera_receivers() -> Result<(), Error> {
                     }
                 }
                 let unorm = normals == NormalEncoding::Unorm;
-                let dt = depth_texture(&ctx, w, h, &d);
+                let dt = depth_texture(&ctx, w, h, &d)?;
                 let nt = normal_texture(&ctx, w, h, &n, unorm);
                 let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("caller's receivers"),
@@ -292,7 +183,9 @@ fn depth_and_normal_textures_give_the_camera_receivers() -> Result<(), Error> {
         DepthConvention::ZeroToOne,
         NormalEncoding::Signed,
     )?;
-    let dt = depth_texture(&ctx, 8, 6, &[1.0; 48]);
+    let dt = depth_texture(&ctx, 8, 6, &[1.0; 48])?;
+    let e = depth_texture(&ctx, 8, 6, &[1.0; 47]).unwrap_err();
+    assert!(e.to_string().contains("47 depths for 8x6"), "{e}");
     let small = normal_texture(&ctx, 4, 6, &[Vec3::Z; 24], false);
     let nt = normal_texture(&ctx, 8, 6, &[Vec3::Z; 48], false);
     let buf = |bytes| {
