@@ -952,6 +952,48 @@ impl LightView {
     }
 }
 
+/// A stand-in, made from two world-space boxes alone, for the CPU scene and receivers an
+/// estimator's view fit reads (`FrameEstimator::fit_views`, [`LightView::fit_with`]): a scene
+/// whose casters are the 12 triangles of `casters` (the box holding every caster; the fit's near
+/// plane lands at or in front of the real casters, so nothing is clipped, only some depth
+/// precision is spent) under `light`, seen by `camera` (unused by the fit), and the 8 corners of
+/// `receivers` ([`bounds_receivers`], or the plain corners under the sun). For a renderer whose
+/// geometry and receivers stay on the GPU: fitting views to the stand-in costs the same for any
+/// number of triangles and receivers, and the views hold every receiver in the box, as
+/// [`LightView::fit_bounds`] explains; the price is texel density. A box flat on one axis (a
+/// ground) is thickened by 1e-6 of its diagonal. Errors: the boxes' ([`bounds_receivers`]'s).
+pub fn bounds_stand_in(
+    light: &crate::Light,
+    camera: &crate::Camera,
+    casters: &Aabb,
+    receivers: &Aabb,
+) -> Result<(Scene, Receivers)> {
+    let (min, max) = checked_bounds(casters)?;
+    let pad = Vec3::splat(1e-6 * (max - min).length().max(1e-6));
+    let (min, max) = (min - pad, max + pad);
+    let c: Vec<Vec3> = box_corners(min, max).collect();
+    // Corner k has bit 0 for x, 1 for y, 2 for z; two triangles per face.
+    let faces = [
+        [0, 2, 6, 4],
+        [1, 5, 7, 3],
+        [0, 4, 5, 1],
+        [2, 3, 7, 6],
+        [0, 1, 3, 2],
+        [4, 6, 7, 5],
+    ];
+    let tris: Vec<[Vec3; 3]> = faces
+        .iter()
+        .flat_map(|f| [[c[f[0]], c[f[1]], c[f[2]]], [c[f[0]], c[f[2]], c[f[3]]]])
+        .collect();
+    let scene = Scene::from_meshes("casters' bounds", *camera, *light, vec![(tris, 1.0)])?;
+    let corners = if light.is_directional() {
+        sun_bounds_receivers(receivers)?
+    } else {
+        bounds_receivers(&scene, receivers, light.frame())?
+    };
+    Ok((scene, corners))
+}
+
 #[cfg(test)]
 mod bounds_tests {
     use super::*;
