@@ -16,7 +16,8 @@ use glam::Mat4;
 use shadow_map_core::gpu::{
     casters::{CasterIndices, CasterInstance, CasterMesh, GpuCasterBuilder},
     depth_receivers::{
-        depth_texture, DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding,
+        depth_texture, normal_texture, DepthCamera, DepthConvention, GpuDepthReceivers,
+        NormalEncoding,
     },
     frame::FrameInputs,
     shared::ReceiverGpu,
@@ -107,29 +108,10 @@ fn frames_take_a_renderers_meshes_and_prepass() {
             (0.0, glam::Vec3::Z)
         };
         depth.push(d);
-        let q = |x: f32| ((x * 0.5 + 0.5).clamp(0.0, 1.0) * 1023.0).round() as u32;
-        normals.push(q(nn.x) | (q(nn.y) << 10) | (q(nn.z) << 20) | (3 << 30));
+        normals.push(nn);
     }
     let dt = depth_texture(&ctx, w, h, &depth).unwrap();
-    let nt = ctx.device.create_texture_with_data(
-        &ctx.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("renderer's normals"),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgb10a2Unorm,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        Default::default(),
-        bytemuck::cast_slice(&normals),
-    );
+    let nt = normal_texture(&ctx, w, h, &normals, NormalEncoding::Unorm).unwrap();
     let rbuf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("receivers"),
         size: 32 * n as u64,

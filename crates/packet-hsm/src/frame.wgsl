@@ -1,10 +1,11 @@
 // Packet-hsm on the engine path (frame.rs, PacketHsmFrame): the maps come from the core's raster,
 // midpoint and MSSM passes; `frame_maps` turns the depth and classification layers into the
-// buffers packet_hsm.wgsl reads; `frame_setup` is the twin of cpu.rs `setup_receiver` (every light
-// shape; a sphere's silhouette from the core's silhouette_setup.wgsl), writing each receiver's RecIn for the kernel's
-// `prepare` and `pixels` passes and what the CPU would have settled; `frame_finish` combines
-// them into V, the twin of gpu.rs `GpuPacketHsm::estimate`'s sum and cpu.rs SubLights::finish.
-// Appended after the core's shared.wgsl, estimate.wgsl and math.wgsl.
+// buffers packet_hsm.wgsl reads; `frame_setup` is the twin of cpu.rs `setup_receiver` (every
+// light shape; a sphere's silhouette from the core's silhouette_setup.wgsl), writing each
+// receiver's RecIn for the kernel's `prepare` and `pixels` passes and what the CPU would have
+// settled; `frame_finish` combines them into V, the twin of gpu.rs `GpuPacketHsm::estimate`'s
+// sum and cpu.rs SubLights::finish. Appended after the core's shared.wgsl, estimate.wgsl,
+// math.wgsl, silhouette.wgsl and silhouette_setup.wgsl.
 
 // Mirrors gpu.rs RecIn (checked by naga in frame.rs).
 struct RecIn {

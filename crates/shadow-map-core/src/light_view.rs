@@ -914,6 +914,17 @@ fn box_corners(min: Vec3, max: Vec3) -> impl Iterator<Item = Vec3> {
     })
 }
 
+/// The 8 corners of `bounds` as the receivers a view fit at `frame` in `scene` takes:
+/// [`bounds_receivers`], or under the sun [`sun_bounds_receivers`] (an orthographic view has no
+/// light plane to cross and no frustum to leave).
+fn corner_receivers(scene: &Scene, bounds: &Aabb, frame: LightFrame) -> Result<Receivers> {
+    if scene.light.is_directional() {
+        sun_bounds_receivers(bounds)
+    } else {
+        bounds_receivers(scene, bounds, frame)
+    }
+}
+
 /// [`bounds_receivers`] under the sun: the corners of a checked box (an orthographic view has
 /// no light plane to cross and no frustum to leave).
 fn sun_bounds_receivers(bounds: &Aabb) -> Result<Receivers> {
@@ -942,12 +953,7 @@ impl LightView {
         r: u32,
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
-        let corners = if scene.light.is_directional() {
-            // The sun: no light plane to cross and no frustum to leave (orthographic).
-            sun_bounds_receivers(bounds)?
-        } else {
-            bounds_receivers(scene, bounds, frame)?
-        };
+        let corners = corner_receivers(scene, bounds, frame)?;
         Self::fit_with(scene, &corners, frame, light_half, r, opts)
     }
 }
@@ -986,11 +992,7 @@ pub fn bounds_stand_in(
         .flat_map(|f| [[c[f[0]], c[f[1]], c[f[2]]], [c[f[0]], c[f[2]], c[f[3]]]])
         .collect();
     let scene = Scene::from_meshes("casters' bounds", *camera, *light, vec![(tris, 1.0)])?;
-    let corners = if light.is_directional() {
-        sun_bounds_receivers(receivers)?
-    } else {
-        bounds_receivers(&scene, receivers, light.frame())?
-    };
+    let corners = corner_receivers(&scene, receivers, light.frame())?;
     Ok((scene, corners))
 }
 

@@ -2,11 +2,10 @@
 //! the CPU's ray-traced [`Receivers::from_camera`] on the bunny and on sun-street (camera depths
 //! from 0.5 m to 150 m), under both depth conventions and both normal encodings.
 //!
-//! The textures are made from the CPU receivers: each hit's NDC depth (the camera's projection
-//! of its position) written as `frag_depth` by a full-screen pass into a `Depth32Float`
-//! attachment, the normal written with `write_texture` (`Rgba32Float` signed, or `Rgb10a2Unorm`
-//! as `n * 0.5 + 0.5`, Bevy's prepass encoding), a stored normal turned away from the eye half
-//! the time (the pass must turn it back). The pass must then give back the same active pixels,
+//! The textures are made from the CPU receivers with `depth_receivers::depth_texture` (each
+//! hit's NDC depth, the camera's projection of its position) and `normal_texture`
+//! (`Rgba32Float` signed, or `Rgb10a2Unorm` as `n * 0.5 + 0.5`, Bevy's prepass encoding), a
+//! stored normal turned away from the eye half the time (the pass must turn it back). The pass must then give back the same active pixels,
 //! each position within `POS_TOL` of its distance from the eye (f32 depth), and the normal
 //! within 1e-5 (float) or 2.5e-3 (10-bit unorm) per component.
 #![cfg(feature = "gpu")]
@@ -17,10 +16,10 @@ use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         depth_receivers::{
-            depth_texture, DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding,
+            depth_texture, normal_texture, DepthCamera, DepthConvention, GpuDepthReceivers,
+            NormalEncoding,
         },
         shared::ReceiverGpu,
-        GpuContext,
     },
     Error, Receivers, Scene, SceneBvh,
 };
@@ -36,51 +35,6 @@ fn fixture(name: &str, w: u32, h: u32) -> Scene {
     s.camera.width = w;
     s.camera.height = h;
     s
-}
-
-/// A normal texture of `format` (`Rgba32Float` signed or `Rgb10a2Unorm` as `n * 0.5 + 0.5`).
-fn normal_texture(ctx: &GpuContext, w: u32, h: u32, n: &[Vec3], unorm: bool) -> wgpu::Texture {
-    let format = if unorm {
-        wgpu::TextureFormat::Rgb10a2Unorm
-    } else {
-        wgpu::TextureFormat::Rgba32Float
-    };
-    let tex = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("caller's normals"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
-    let (bytes, bpp): (Vec<u8>, u32) = if unorm {
-        let q = |x: f32| ((x * 0.5 + 0.5).clamp(0.0, 1.0) * 1023.0).round() as u32;
-        let words: Vec<u32> = n
-            .iter()
-            .map(|v| q(v.x) | (q(v.y) << 10) | (q(v.z) << 20) | (3 << 30))
-            .collect();
-        (bytemuck::cast_slice(&words).to_vec(), 4)
-    } else {
-        let f: Vec<[f32; 4]> = n.iter().map(|v| [v.x, v.y, v.z, 0.0]).collect();
-        (bytemuck::cast_slice(&f).to_vec(), 16)
-    };
-    ctx.queue.write_texture(
-        tex.as_image_copy(),
-        &bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(bpp * w),
-            rows_per_image: Some(h),
-        },
-        tex.size(),
-    );
-    tex
 }
 
 #[test]
@@ -129,7 +83,7 @@ fn depth_and_normal_textures_give_the_camera_receivers() -> Result<(), Error> {
                 }
                 let unorm = normals == NormalEncoding::Unorm;
                 let dt = depth_texture(&ctx, w, h, &d)?;
-                let nt = normal_texture(&ctx, w, h, &n, unorm);
+                let nt = normal_texture(&ctx, w, h, &n, normals)?;
                 let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("caller's receivers"),
                     size: 32 * rec.len() as u64,
@@ -186,8 +140,10 @@ fn depth_and_normal_textures_give_the_camera_receivers() -> Result<(), Error> {
     let dt = depth_texture(&ctx, 8, 6, &[1.0; 48])?;
     let e = depth_texture(&ctx, 8, 6, &[1.0; 47]).unwrap_err();
     assert!(e.to_string().contains("47 depths for 8x6"), "{e}");
-    let small = normal_texture(&ctx, 4, 6, &[Vec3::Z; 24], false);
-    let nt = normal_texture(&ctx, 8, 6, &[Vec3::Z; 48], false);
+    let small = normal_texture(&ctx, 4, 6, &[Vec3::Z; 24], NormalEncoding::Signed)?;
+    let nt = normal_texture(&ctx, 8, 6, &[Vec3::Z; 48], NormalEncoding::Signed)?;
+    let e = normal_texture(&ctx, 8, 6, &[Vec3::Z; 47], NormalEncoding::Unorm).unwrap_err();
+    assert!(e.to_string().contains("47 normals for 8x6"), "{e}");
     let buf = |bytes| {
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: None,

@@ -247,14 +247,14 @@ impl GpuCasterBuilder {
             });
         }
         let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
+        // Each mesh's transforms, in the instances' order (one pass over the instances).
+        let mut by_mesh: Vec<Vec<[f32; 16]>> = vec![Vec::new(); meshes.len()];
+        for inst in instances {
+            by_mesh[inst.mesh].push(inst.transform.to_cols_array());
+        }
         let mut slot = 0u64; // next transform slot
         let mut first = 0u32; // next output triangle
-        for (k, m) in meshes.iter().enumerate() {
-            let mats: Vec<[f32; 16]> = instances
-                .iter()
-                .filter(|i| i.mesh == k)
-                .map(|i| i.transform.to_cols_array())
-                .collect();
+        for (k, (m, mats)) in meshes.iter().zip(&by_mesh).enumerate() {
             let per = m.index_count / 3;
             if mats.is_empty() || per == 0 {
                 continue;
@@ -284,7 +284,7 @@ impl GpuCasterBuilder {
             ctx.queue
                 .write_buffer(&self.params, p_off, bytemuck::bytes_of(&params));
             ctx.queue
-                .write_buffer(&self.transforms, 64 * slot, bytemuck::cast_slice(&mats));
+                .write_buffer(&self.transforms, 64 * slot, bytemuck::cast_slice(mats));
             let index_buf = match m.indices {
                 CasterIndices::None => &self.no_indices,
                 CasterIndices::U16(b) | CasterIndices::U32(b) => b,

@@ -18,6 +18,7 @@
 //! standard projection (reverse Z keeps that error nearly constant in z). `tests/depth_receivers.rs`
 //! measures it against the ray-traced G-buffer.
 use super::{
+    depth_map::texture_desc,
     kernel::{Binding, Kernel},
     shared::{ReceiverGpu, SHARED_WGSL},
     GpuContext,
@@ -327,20 +328,14 @@ pub fn depth_texture(ctx: &GpuContext, w: u32, h: u32, depth: &[f32]) -> Result<
         label: Some("test depth writer"),
         source: wgpu::ShaderSource::Wgsl(src.into()),
     });
-    let tex = dev.create_texture(&wgpu::TextureDescriptor {
-        label: Some("caller's depth"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Depth32Float,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
+    let tex = dev.create_texture(&texture_desc(
+        "caller's depth",
+        w,
+        h,
+        1,
+        wgpu::TextureFormat::Depth32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+    ));
     let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("test depth writer"),
         layout: None,
@@ -416,6 +411,61 @@ pub fn depth_texture(ctx: &GpuContext, w: u32, h: u32, depth: &[f32]) -> Result<
     }
     ctx.queue.submit([enc.finish()]);
     Ok(tex)
+}
+
+/// A normal texture (`TEXTURE_BINDING`) holding `normals` per pixel (row-major, row 0 at the
+/// top), stored as `encoding` says: `Rgba32Float` for [`NormalEncoding::Signed`],
+/// `Rgb10a2Unorm` holding `n * 0.5 + 0.5` for [`NormalEncoding::Unorm`] (Bevy's normal prepass):
+/// the companion of [`depth_texture`]. Errors: `normals` not `w * h` long, an empty size
+/// ([`Error::Receivers`]).
+pub fn normal_texture(
+    ctx: &GpuContext,
+    w: u32,
+    h: u32,
+    normals: &[Vec3],
+    encoding: NormalEncoding,
+) -> Result<wgpu::Texture> {
+    use wgpu::util::DeviceExt;
+    if normals.len() as u64 != w as u64 * h as u64 || w == 0 || h == 0 {
+        return Err(Error::Receivers(format!(
+            "normal texture: {} normals for {w}x{h} pixels",
+            normals.len()
+        )));
+    }
+    ctx.check_lost()?;
+    let (format, bytes): (_, Vec<u8>) = match encoding {
+        NormalEncoding::Unorm => {
+            let q = |x: f32| ((x * 0.5 + 0.5).clamp(0.0, 1.0) * 1023.0).round() as u32;
+            let words: Vec<u32> = normals
+                .iter()
+                .map(|v| q(v.x) | (q(v.y) << 10) | (q(v.z) << 20) | (3 << 30))
+                .collect();
+            (
+                wgpu::TextureFormat::Rgb10a2Unorm,
+                bytemuck::cast_slice(&words).to_vec(),
+            )
+        }
+        NormalEncoding::Signed => {
+            let f: Vec<[f32; 4]> = normals.iter().map(|v| v.extend(0.0).to_array()).collect();
+            (
+                wgpu::TextureFormat::Rgba32Float,
+                bytemuck::cast_slice(&f).to_vec(),
+            )
+        }
+    };
+    Ok(ctx.device.create_texture_with_data(
+        &ctx.queue,
+        &texture_desc(
+            "caller's normals",
+            w,
+            h,
+            1,
+            format,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        ),
+        Default::default(),
+        &bytes,
+    ))
 }
 
 #[cfg(test)]

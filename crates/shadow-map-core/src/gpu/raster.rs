@@ -107,27 +107,41 @@ pub struct GpuScene {
     pub triangles: u32,
 }
 
+/// Usages of [`GpuScene::vertices`].
+const SCENE_USAGE: wgpu::BufferUsages = wgpu::BufferUsages::VERTEX
+    .union(wgpu::BufferUsages::STORAGE)
+    .union(wgpu::BufferUsages::COPY_DST)
+    .union(wgpu::BufferUsages::COPY_SRC);
+
+/// [`Error::Limit`] (naming `what`) when `n` triangles (48 bytes each) exceed the device's
+/// `max_buffer_size` or a `u32` vertex count.
+fn check_triangles(ctx: &GpuContext, n: u64, what: &'static str) -> Result<()> {
+    let max = (ctx.limits().max_buffer_size / 48).min(u32::MAX as u64 / 3);
+    if n > max {
+        return Err(Error::Limit {
+            what,
+            requested: n,
+            max,
+        });
+    }
+    Ok(())
+}
+
 impl GpuScene {
     /// Room for `triangles` triangles and none in it yet: the buffer
     /// [`GpuCasterBuilder`](super::casters::GpuCasterBuilder) fills from the caller's meshes
     /// every frame. [`Error::Limit`] beyond the device's `max_buffer_size`.
     pub fn with_capacity(ctx: &GpuContext, triangles: u32) -> Result<Self> {
-        let max_tris = (ctx.limits().max_buffer_size / 48).min(u32::MAX as u64 / 3);
-        if triangles as u64 > max_tris {
-            return Err(Error::Limit {
-                what: "caster triangles on the GPU (max_buffer_size / 48 bytes)",
-                requested: triangles as u64,
-                max: max_tris,
-            });
-        }
+        check_triangles(
+            ctx,
+            triangles as u64,
+            "caster triangles on the GPU (max_buffer_size / 48 bytes)",
+        )?;
         ctx.scoped("raster.scene", || GpuScene {
             vertices: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("raster.scene"),
                 size: 48 * triangles.max(1) as u64,
-                usage: wgpu::BufferUsages::VERTEX
-                    | wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_DST
-                    | wgpu::BufferUsages::COPY_SRC,
+                usage: SCENE_USAGE,
                 mapped_at_creation: false,
             }),
             triangles: 0,
@@ -143,14 +157,11 @@ impl GpuScene {
     /// device's `max_buffer_size` or the vertex count `u32`.
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<Self> {
         let n = scene.triangles.len() as u64;
-        let max_tris = (ctx.limits().max_buffer_size / 48).min(u32::MAX as u64 / 3);
-        if n > max_tris {
-            return Err(Error::Limit {
-                what: "scene triangles on the GPU (max_buffer_size / 48 bytes)",
-                requested: n,
-                max: max_tris,
-            });
-        }
+        check_triangles(
+            ctx,
+            n,
+            "scene triangles on the GPU (max_buffer_size / 48 bytes)",
+        )?;
         let mut verts: Vec<[f32; 4]> = Vec::with_capacity(3 * n as usize);
         for t in &scene.triangles {
             for v in t {
@@ -165,10 +176,7 @@ impl GpuScene {
                 &ctx.device,
                 "raster.scene",
                 bytemuck::cast_slice(&verts),
-                wgpu::BufferUsages::VERTEX
-                    | wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_DST
-                    | wgpu::BufferUsages::COPY_SRC,
+                SCENE_USAGE,
             ),
             triangles: n as u32,
         })
