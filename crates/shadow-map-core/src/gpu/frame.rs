@@ -19,8 +19,8 @@ use std::num::NonZeroU64;
 /// An estimator's engine path: prepared once, then [`encode`](Self::encode) records each frame
 /// into the caller's command encoder (render and compute passes only: no submit, no wait, no
 /// readback), reading the caller's casters and receiver buffer and writing V into the caller's
-/// buffer.
-pub trait FrameEstimator {
+/// buffer. `Send + Sync`, so an engine can keep one in its render world (a Bevy resource).
+pub trait FrameEstimator: Send + Sync {
     /// The estimator's name (its `SoftShadowEstimator::name`).
     fn name(&self) -> &'static str;
 

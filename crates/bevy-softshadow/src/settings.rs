@@ -1,0 +1,164 @@
+//! What a Bevy app sets on a light: [`SoftShadowSettings`], with a typed [`Method`] and its
+//! typed [`MethodParams`].
+use bevy::prelude::*;
+
+/// The estimators this plugin runs each frame: every method with an engine path
+/// ([`softshadow::FRAME_ALGOS`]), by the registry's names ([`Method::name`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
+pub enum Method {
+    /// A hard shadow map, one tap (`hard`).
+    Hard,
+    /// Percentage-closer filtering with a fixed kernel (`pcf`).
+    Pcf,
+    /// Percentage-closer soft shadows (`pcss`): blocker search, then a filter of the width the
+    /// light's size and the blockers' depth give.
+    #[default]
+    Pcss,
+    /// Many hard shadow maps from points on the light, averaged (`multi-sample`).
+    MultiSample,
+    /// Backprojection of shadow-map micropatches onto the light (Bavoil 2008; `backprojection`).
+    Backprojection,
+    /// Shadow accumulation (Aszodi 2006; `accumulation`).
+    Accumulation,
+    /// Packet-based hierarchical shadow maps with MSSM (Yang 2009; `packet-hsm`).
+    PacketHsm,
+    /// Deep shadow maps with per-texel lists (Fuerst; `deep-shadow`).
+    DeepShadow,
+}
+
+impl Method {
+    /// Every method, in the registry's order.
+    pub const ALL: [Method; 8] = [
+        Method::Hard,
+        Method::Pcf,
+        Method::Pcss,
+        Method::MultiSample,
+        Method::Backprojection,
+        Method::Accumulation,
+        Method::DeepShadow,
+        Method::PacketHsm,
+    ];
+
+    /// The registry name (`softshadow render --algo NAME`, `docs/report/results.csv`'s `algo`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Hard => "hard",
+            Method::Pcf => "pcf",
+            Method::Pcss => "pcss",
+            Method::MultiSample => "multi-sample",
+            Method::Backprojection => "backprojection",
+            Method::Accumulation => "accumulation",
+            Method::PacketHsm => "packet-hsm",
+            Method::DeepShadow => "deep-shadow",
+        }
+    }
+
+    /// The method called `name` in the registry, if it is one of these.
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+/// A method's parameters. Every method takes its shadow map's resolution; everything else stays
+/// at the defaults `docs/report/` measures ([`crate::measured()`] gives those figures).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Reflect)]
+pub struct MethodParams {
+    /// Texels per side of the light's shadow map (`resolution`); `None`: the method's default
+    /// (1024 for most).
+    pub resolution: Option<u32>,
+}
+
+/// Soft shadows from the light this component is on, by `method`, for every 3D camera with a
+/// [`DepthPrepass`](bevy::core_pipeline::prepass::DepthPrepass) and a
+/// [`NormalPrepass`](bevy::core_pipeline::prepass::NormalPrepass) (and `Msaa::Off`).
+///
+/// The light it is on gives the shape (docs/methods.md §1, the contract's lights):
+/// - [`DirectionalLight`]: the sun, a disk of directions of angular diameter
+///   [`SunDisk::angular_size`](bevy::light::SunDisk) when the entity has a `SunDisk`, else
+///   [`sun_angle_deg`](Self::sun_angle_deg);
+/// - [`PointLight`] with a `radius` above 0: a sphere light of that radius;
+/// - [`RectLight`]: a one-sided rect light of its `width` (along the entity's local x) and
+///   `height` (local y), emitting along its local -z.
+///
+/// One light per app carries it (the first found; the others are ignored). Bevy's own shadow
+/// maps for that light should be off (`shadow_maps_enabled: false`): this plugin's V replaces
+/// them.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+pub struct SoftShadowSettings {
+    /// The estimator.
+    pub method: Method,
+    /// Its parameters.
+    pub params: MethodParams,
+    /// The sun's angular diameter in degrees for a [`DirectionalLight`] without a `SunDisk`.
+    pub sun_angle_deg: f32,
+    /// How much of the view's colour V scales in the provided composite pass
+    /// (`colour * mix(1, V, composite)`; 0 turns the pass off, leaving V to the app's own
+    /// material). The pass scales all light, ambient included: exact only where this light is
+    /// the only one.
+    pub composite: f32,
+}
+
+/// The sun's mean angular diameter seen from the Earth, in degrees.
+pub const DEFAULT_SUN_ANGLE_DEG: f32 = 0.53;
+
+impl Default for SoftShadowSettings {
+    fn default() -> Self {
+        SoftShadowSettings {
+            method: Method::default(),
+            params: MethodParams::default(),
+            sun_angle_deg: DEFAULT_SUN_ANGLE_DEG,
+            composite: 1.0,
+        }
+    }
+}
+
+impl SoftShadowSettings {
+    /// The settings for `method`, everything else at its default.
+    pub fn new(method: Method) -> Self {
+        SoftShadowSettings {
+            method,
+            ..Default::default()
+        }
+    }
+
+    /// The method's parameter table with these settings applied (what the frame estimator is
+    /// prepared with). Errors: a resolution the method does not take.
+    pub fn params_table(&self) -> softshadow::Result<softshadow::core::Params> {
+        let cpu = (softshadow::method(self.method.name())?.cpu)()?;
+        let mut p = softshadow::own_params(self.method.name(), cpu.params())?;
+        if let Some(r) = self.params.resolution {
+            p.set(softshadow::core::light_view::RESOLUTION.key, &r.to_string())?;
+        }
+        Ok(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_is_a_frame_estimator() {
+        let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+        assert_eq!(names, softshadow::FRAME_ALGOS);
+        for m in Method::ALL {
+            assert_eq!(Method::from_name(m.name()), Some(m));
+        }
+    }
+
+    #[test]
+    fn resolution_reaches_the_table_and_bad_ones_are_errors() {
+        let mut s = SoftShadowSettings::new(Method::Backprojection);
+        s.params.resolution = Some(512);
+        let p = s.params_table().unwrap();
+        assert_eq!(
+            p.get(softshadow::core::light_view::RESOLUTION.key)
+                .unwrap()
+                .to_string(),
+            "512"
+        );
+        s.params.resolution = Some(0);
+        let e = s.params_table().unwrap_err().to_string();
+        assert!(e.contains("resolution"), "{e}");
+    }
+}

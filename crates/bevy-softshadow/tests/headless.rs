@@ -1,0 +1,121 @@
+//! The plugin in a real Bevy app on the GPU (lavapipe in CI): a fixture rendered headless with
+//! methods switched between frames; each method's V, read back once, against its CPU twin on
+//! the receivers Bevy's prepass gave, in the same views (the bound: RMSE 0.01), and
+//! against `softshadow render --backend cpu` end to end. Small images keep it quick.
+// `!(x <= bound)` on purpose: a NaN figure fails.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use bevy_softshadow::{headless, Method};
+use shadow_map_core::Scene;
+
+fn fixture(name: &str, w: u32, h: u32) -> Scene {
+    let mut s = Scene::load(format!(
+        "{}/../../fixtures/{name}/{name}.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    s.camera.width = w;
+    s.camera.height = h;
+    s
+}
+
+/// Bevy panics without an adapter: ask the core's gate first (skips loudly, or fails when
+/// `SOFTSHADOW_REQUIRE_GPU=1`).
+fn gpu(name: &str) -> bool {
+    shadow_map_core::gpu::context_for_tests(name)
+        .unwrap()
+        .is_some()
+}
+
+/// One Bevy app at a time (the task pools are the process's).
+static ONE_APP: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn check(scene: &Scene, methods: &[Method]) {
+    let _one = ONE_APP.lock().unwrap_or_else(|e| e.into_inner());
+    let (runs, shot) = headless::run(scene, methods, 2, true).unwrap();
+    assert_eq!(runs.len(), methods.len());
+    let mut failures = Vec::new();
+    for r in &runs {
+        let c = match &r.result {
+            Ok(c) => c,
+            Err(e) => {
+                failures.push(format!("{}: {e}", r.method.name()));
+                continue;
+            }
+        };
+        let name = r.method.name();
+        eprintln!("{name}: {c:?}");
+        if !(c.rmse_vs_cpu <= 0.01) {
+            failures.push(format!("{name}: RMSE {} vs the CPU twin", c.rmse_vs_cpu));
+        }
+        // Not trivially lit: the fixtures' shadows cover a few percent of the image.
+        if !(c.frac_below_half > 0.01 && c.mean_v < 0.99) {
+            failures.push(format!("{name}: no shadow ({c:?})"));
+        }
+        // Receivers cut by the device's loop budget (lavapipe cuts 5% of packet-hsm's under
+        // the sphere light) stay NaN: the composite leaves them lit. Counted, bounded.
+        if c.nan * 10 > c.receivers {
+            failures.push(format!("{name}: {} of {} NaN", c.nan, c.receivers));
+        }
+        // The prepass is the ray-traced G-buffer but for silhouette pixels.
+        if c.pixels_covered_by_one + c.pixels_apart > c.receivers / 50 {
+            failures.push(format!("{name}: prepass far from the G-buffer ({c:?})"));
+        }
+        if !(c.rmse_vs_cpu_render <= 0.1) {
+            failures.push(format!("{name}: RMSE {} vs render", c.rmse_vs_cpu_render));
+        }
+    }
+    // The composite darkened the image where V < 1: some pixels are darker than the ground's
+    // lit colour (a crude check that the pass ran and wrote its destination).
+    let shot = shot.unwrap();
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    assert_eq!(shot.len(), (4 * w * h) as usize);
+    assert!(
+        shot.chunks_exact(4).any(|p| p[0] > 100),
+        "an all-dark image"
+    );
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn bunny_rect_light_in_bevy() {
+    if !gpu("bunny_rect_light_in_bevy") {
+        return;
+    }
+    check(
+        &fixture("bunny", 96, 72),
+        &[
+            Method::Pcss,
+            Method::Backprojection,
+            Method::Accumulation,
+            Method::PacketHsm,
+        ],
+    );
+}
+
+#[test]
+fn sun_bunny_in_bevy() {
+    if !gpu("sun_bunny_in_bevy") {
+        return;
+    }
+    check(
+        &fixture("sun-bunny", 96, 72),
+        &[
+            Method::Hard,
+            Method::Pcf,
+            Method::MultiSample,
+            Method::DeepShadow,
+        ],
+    );
+}
+
+#[test]
+fn sphere_light_in_bevy() {
+    if !gpu("sphere_light_in_bevy") {
+        return;
+    }
+    check(
+        &fixture("bunny-sphere", 96, 72),
+        &[Method::Pcss, Method::PacketHsm],
+    );
+}
