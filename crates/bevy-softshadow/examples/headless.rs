@@ -10,7 +10,7 @@
 //!
 //! `--json`: one line per method, `{"algo", "frames", "ms_per_frame", "rmse_vs_cpu", ...}`
 //! (the fields of `headless::Comparison`; `error` instead for a light the method does not
-//! model). `--size WxH`: another image size than the fixture's. `--screenshot FILE.png`: the last method's final image (the composite applied).
+//! model; `bevy_alone_ms_per_frame`: the same frames with the plugin's work off). `--size WxH`: another image size than the fixture's. `--screenshot FILE.png`: the last method's final image (the composite applied).
 use bevy_softshadow::{headless, Method};
 use serde_json::json;
 use shadow_map_core::Scene;
@@ -85,17 +85,18 @@ fn run() -> Result<(), String> {
         scene.camera.height = h;
     }
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let (runs, shot) = headless::run(
+    let out = headless::run(
         &scene,
         &args.methods,
         args.frames,
         args.screenshot.is_some(),
     )?;
-    for r in &runs {
+    for r in &out.runs {
         let mut line = json!({
             "algo": r.method.name(),
             "frames": r.frames,
             "ms_per_frame": r.ms_per_frame,
+            "bevy_alone_ms_per_frame": out.bevy_alone_ms,
             "width": w,
             "height": h,
         });
@@ -125,9 +126,10 @@ fn run() -> Result<(), String> {
         } else {
             match &r.result {
                 Ok(c) => println!(
-                    "{:<15} {:>8.2} ms/frame  rmse_vs_cpu {:.2e}  vs render --backend cpu {:.4}",
+                    "{:<15} {:>8.2} ms/frame (Bevy alone {:.2})  rmse_vs_cpu {:.2e}  vs render --backend cpu {:.4}",
                     r.method.name(),
                     r.ms_per_frame,
+                    out.bevy_alone_ms,
                     c.rmse_vs_cpu,
                     c.rmse_vs_cpu_render
                 ),
@@ -135,7 +137,7 @@ fn run() -> Result<(), String> {
             }
         }
     }
-    if let (Some(path), Some(rgba)) = (&args.screenshot, shot) {
+    if let (Some(path), Some(rgba)) = (&args.screenshot, out.screenshot) {
         image::save_buffer(path, &rgba, w, h, image::ExtendedColorType::Rgba8)
             .map_err(|e| format!("{path}: {e}"))?;
     }

@@ -59,27 +59,44 @@ pub struct Comparison {
     pub rmse_vs_cpu_render: f64,
 }
 
+/// What [`run`] gives.
+#[derive(Debug, Clone)]
+pub struct Headless {
+    /// One per method, in order.
+    pub runs: Vec<MethodRun>,
+    /// Bevy's own frame (prepass, main pass) without the plugin's work: the light's
+    /// [`SoftShadowSettings`] removed, ms per frame measured as [`MethodRun::ms_per_frame`].
+    pub bevy_alone_ms: f64,
+    /// The last method's final image (RGBA8, the composite applied), when asked for.
+    pub screenshot: Option<Vec<u8>>,
+}
+
 /// Renders `scene` headless with each of `methods` for `frames` frames (at least 2) and
-/// compares each method's last V with its CPU twins. With `screenshot`, also the final image
-/// of the last method (RGBA8, the composite applied). Errors: a scene or setting the app cannot
-/// render; panics only where Bevy itself does (no GPU adapter: check one first).
+/// compares each method's last V with its CPU twins; first, as many frames without the plugin's
+/// work. Errors: a scene or setting the app cannot render; panics only where Bevy itself does
+/// (no GPU adapter: check one first).
 pub fn run(
     scene: &Scene,
     methods: &[Method],
     frames: u32,
     screenshot: bool,
-) -> Result<(Vec<MethodRun>, Option<Vec<u8>>), String> {
+) -> Result<Headless, String> {
     if frames < 2 {
         return Err("frames: at least 2 (the first prepares the pipelines)".into());
     }
-    let Some(&first) = methods.first() else {
-        return Ok((Vec::new(), None));
-    };
+    let first = methods.first().copied().unwrap_or_default();
     let (mut app, light, target) = app(scene, first);
     // Two frames for the meshes to reach the GPU.
     for _ in 0..2 {
         frame(&mut app);
     }
+    let settings = app
+        .world_mut()
+        .entity_mut(light)
+        .take::<SoftShadowSettings>()
+        .ok_or("the light has no settings")?;
+    let alone: Vec<f64> = (0..frames).map(|_| frame(&mut app)).collect();
+    app.world_mut().entity_mut(light).insert(settings);
     let raytraced = Receivers::from_camera(scene, &SceneBvh::new(scene));
     let mut runs = Vec::new();
     for &method in methods {
@@ -100,7 +117,11 @@ pub fn run(
     } else {
         None
     };
-    Ok((runs, shot))
+    Ok(Headless {
+        runs,
+        bevy_alone_ms: alone[1..].iter().sum::<f64>() / (alone.len() - 1) as f64,
+        screenshot: shot,
+    })
 }
 
 /// The app: Bevy's default plugins without a window, the plugin, the scene with its light

@@ -32,7 +32,9 @@ static ONE_APP: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn check(scene: &Scene, methods: &[Method]) {
     let _one = ONE_APP.lock().unwrap_or_else(|e| e.into_inner());
-    let (runs, shot) = headless::run(scene, methods, 2, true).unwrap();
+    let out = headless::run(scene, methods, 2, true).unwrap();
+    let (runs, shot) = (out.runs, out.screenshot);
+    assert!(out.bevy_alone_ms > 0.0);
     assert_eq!(runs.len(), methods.len());
     let mut failures = Vec::new();
     for r in &runs {
