@@ -22,6 +22,7 @@ struct Args {
     methods: Vec<Method>,
     screenshot: Option<String>,
     size: Option<(u32, u32)>,
+    max_distance: Option<f32>,
 }
 
 fn args() -> Result<Args, String> {
@@ -36,6 +37,7 @@ fn args() -> Result<Args, String> {
         methods: Method::ALL.to_vec(),
         screenshot: None,
         size: None,
+        max_distance: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -51,6 +53,9 @@ fn args() -> Result<Args, String> {
                     .collect::<Result<_, _>>()?
             }
             "--screenshot" => a.screenshot = Some(val()?),
+            "--max-distance" => {
+                a.max_distance = Some(val()?.parse().map_err(|e| format!("--max-distance: {e}"))?)
+            }
             "--size" => {
                 let v = val()?;
                 let (w, h) = v
@@ -62,7 +67,7 @@ fn args() -> Result<Args, String> {
             _ => {
                 return Err(format!(
                     "unknown argument {k:?} (--json, --fixture PATH, --frames N, --methods a,b, \
-                     --size WxH, --screenshot FILE.png)"
+                     --size WxH, --max-distance D, --screenshot FILE.png)"
                 ))
             }
         }
@@ -90,6 +95,7 @@ fn run() -> Result<(), String> {
         &args.methods,
         args.frames,
         args.screenshot.is_some(),
+        args.max_distance,
     )?;
     for r in &out.runs {
         let mut line = json!({

@@ -36,6 +36,7 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     light_view::bounds_stand_in,
+    scene::Aabb,
     Camera, Light, LightView,
 };
 use std::sync::Arc;
@@ -112,7 +113,7 @@ pub struct ViewFrame {
     pub casters: GpuScene,
     /// The light views of the last frame.
     pub views: Vec<Option<LightView>>,
-    views_for: Option<(Light, [Vec3; 2])>,
+    views_for: Option<(Light, [Vec3; 4])>,
     /// The light of the last frame.
     pub light: Option<Light>,
     /// The camera of the last frame.
@@ -383,16 +384,21 @@ fn record(
         vf.casters = GpuScene::with_capacity(ctx, cap).map_err(|e| e.to_string())?;
     }
 
-    // Light views from the casters' box (the receivers lie on the casters: the same box).
-    let box_key = (*light, [bounds.min, bounds.max]);
+    // Light views from the casters' box and the receivers' (the receivers lie on the casters:
+    // the same box, cut to the camera's frustum up to `max_distance` when one is set).
+    let camera_c = contract_camera(extracted, width, height);
+    let receivers_box = match settings.max_distance {
+        Some(d) => receivers_within(&camera_c, d, &bounds)
+            .ok_or("no caster within max_distance of the camera")?,
+        None => bounds,
+    };
+    let box_key = (
+        *light,
+        [bounds.min, bounds.max, receivers_box.min, receivers_box.max],
+    );
     if vf.views_for != Some(box_key) {
-        let (scene, receivers) = bounds_stand_in(
-            light,
-            &contract_camera(extracted, width, height),
-            &bounds,
-            &bounds,
-        )
-        .map_err(|e| e.to_string())?;
+        let (scene, receivers) = bounds_stand_in(light, &camera_c, &bounds, &receivers_box)
+            .map_err(|e| e.to_string())?;
         vf.views = vf
             .frame
             .fit_views(&scene, &receivers)
@@ -454,6 +460,24 @@ fn record(
     vf.error = None;
     vf.composite = settings.composite;
     Ok(())
+}
+
+/// The part of `bounds` the camera sees within `distance` of its eye (along its view axis): the
+/// box of that frustum slice cut to `bounds`; `None` when they do not meet.
+pub fn receivers_within(camera: &Camera, distance: f32, bounds: &Aabb) -> Option<Aabb> {
+    let b = camera.basis();
+    let ty = (0.5 * camera.fov_y_deg.to_radians()).tan();
+    let tx = ty * camera.width as f32 / camera.height.max(1) as f32;
+    let mut slice = Aabb::EMPTY;
+    slice.grow(camera.eye);
+    for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+        slice.grow(camera.eye + distance * (b.forward + sx * tx * b.right + sy * ty * b.true_up));
+    }
+    let cut = Aabb {
+        min: slice.min.max(bounds.min),
+        max: slice.max.min(bounds.max),
+    };
+    (cut.min.cmple(cut.max).all()).then_some(cut)
 }
 
 /// A scene holding only `light` (what [`FrameEstimator::refuses`] reads).
@@ -529,4 +553,37 @@ fn caster_mesh<'a>(
         index_count,
         base_vertex,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn receivers_within_cut_the_box_to_the_frustum_slice() {
+        let camera = Camera {
+            eye: Vec3::new(0.0, 1.0, 0.0),
+            target: Vec3::new(0.0, 1.0, -1.0),
+            up: Vec3::Y,
+            fov_y_deg: 90.0,
+            width: 2,
+            height: 1,
+        };
+        let ground = Aabb {
+            min: Vec3::new(-200.0, 0.0, -200.0),
+            max: Vec3::new(200.0, 0.0, 200.0),
+        };
+        let b = receivers_within(&camera, 10.0, &ground).unwrap();
+        // 10 ahead, tan = 1 up and down, 2 sideways: x in [-20, 20], z in [-10, 0].
+        assert!(
+            (b.min - Vec3::new(-20.0, 0.0, -10.0)).length() < 1e-4,
+            "{b:?}"
+        );
+        assert!((b.max - Vec3::new(20.0, 0.0, 0.0)).length() < 1e-4, "{b:?}");
+        let far = Aabb {
+            min: Vec3::new(-1.0, 0.0, -100.0),
+            max: Vec3::new(1.0, 1.0, -50.0),
+        };
+        assert!(receivers_within(&camera, 10.0, &far).is_none());
+    }
 }

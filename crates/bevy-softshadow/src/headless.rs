@@ -73,19 +73,20 @@ pub struct Headless {
 
 /// Renders `scene` headless with each of `methods` for `frames` frames (at least 2) and
 /// compares each method's last V with its CPU twins; first, as many frames without the plugin's
-/// work. Errors: a scene or setting the app cannot render; panics only where Bevy itself does
+/// work. `max_distance`: [`SoftShadowSettings::max_distance`]. Errors: a scene or setting the app cannot render; panics only where Bevy itself does
 /// (no GPU adapter: check one first).
 pub fn run(
     scene: &Scene,
     methods: &[Method],
     frames: u32,
     screenshot: bool,
+    max_distance: Option<f32>,
 ) -> Result<Headless, String> {
     if frames < 2 {
         return Err("frames: at least 2 (the first prepares the pipelines)".into());
     }
     let first = methods.first().copied().unwrap_or_default();
-    let (mut app, light, target) = app(scene, first);
+    let (mut app, light, target) = app(scene, first, max_distance);
     // Two frames for the meshes to reach the GPU.
     for _ in 0..2 {
         frame(&mut app);
@@ -127,7 +128,7 @@ pub fn run(
 /// The app: Bevy's default plugins without a window, the plugin, the scene with its light
 /// carrying `method`, and its camera rendering into an image. Returns the light's entity and
 /// the image.
-fn app(scene: &Scene, method: Method) -> (App, Entity, Handle<Image>) {
+fn app(scene: &Scene, method: Method, max_distance: Option<f32>) -> (App, Entity, Handle<Image>) {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut app = App::new();
     app.add_plugins(DefaultPlugins.set(WindowPlugin {
@@ -155,7 +156,10 @@ fn app(scene: &Scene, method: Method) -> (App, Entity, Handle<Image>) {
             let mut commands = world.commands();
             fixture::spawn(
                 scene,
-                SoftShadowSettings::new(method),
+                SoftShadowSettings {
+                    max_distance,
+                    ..SoftShadowSettings::new(method)
+                },
                 &mut commands,
                 &mut meshes,
                 &mut materials,

@@ -91,6 +91,12 @@ pub struct SoftShadowSettings {
     pub params: MethodParams,
     /// The sun's angular diameter in degrees for a [`DirectionalLight`] without a `SunDisk`.
     pub sun_angle_deg: f32,
+    /// Shadows only within this distance of the camera (world units, along its view axis), as
+    /// Bevy's own cascades' `maximum_distance`: the light views are fitted to the part of the
+    /// scene's box the camera sees up to here, so a large ground gets finer texels near the
+    /// camera; receivers beyond get whatever the views give (outside the light's window: lit).
+    /// `None` (the default): the whole box.
+    pub max_distance: Option<f32>,
     /// How much of the view's colour V scales in the provided composite pass
     /// (`colour * mix(1, V, composite)`; 0 turns the pass off, leaving V to the app's own
     /// material). The pass scales all light, ambient included: exact only where this light is
@@ -107,6 +113,7 @@ impl Default for SoftShadowSettings {
             method: Method::default(),
             params: MethodParams::default(),
             sun_angle_deg: DEFAULT_SUN_ANGLE_DEG,
+            max_distance: None,
             composite: 1.0,
         }
     }

@@ -32,7 +32,7 @@ static ONE_APP: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn check(scene: &Scene, methods: &[Method]) {
     let _one = ONE_APP.lock().unwrap_or_else(|e| e.into_inner());
-    let out = headless::run(scene, methods, 2, true).unwrap();
+    let out = headless::run(scene, methods, 2, true, None).unwrap();
     let (runs, shot) = (out.runs, out.screenshot);
     assert!(out.bevy_alone_ms > 0.0);
     assert_eq!(runs.len(), methods.len());
@@ -120,4 +120,23 @@ fn sphere_light_in_bevy() {
         &fixture("bunny-sphere", 96, 72),
         &[Method::Pcss, Method::PacketHsm],
     );
+}
+
+/// A 200 m ground lit from 10 m up: one view over the whole box cannot hold it (a one-line
+/// error per view, no frame), one cut to 30 m of the camera can, close to the CPU render.
+#[test]
+fn long_yard_needs_max_distance() {
+    if !gpu("long_yard_needs_max_distance") {
+        return;
+    }
+    let _one = ONE_APP.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = fixture("long-yard", 80, 60);
+    let whole = headless::run(&scene, &[Method::Pcss], 2, false, None).unwrap();
+    let e = whole.runs[0].result.as_ref().unwrap_err();
+    assert!(e.contains("leave the light frustum"), "{e}");
+    let cut = headless::run(&scene, &[Method::Pcss], 2, false, Some(30.0)).unwrap();
+    let c = cut.runs[0].result.as_ref().unwrap();
+    eprintln!("{c:?}");
+    assert!(c.rmse_vs_cpu <= 0.01, "{c:?}");
+    assert!(c.rmse_vs_cpu_render <= 0.05, "{c:?}");
 }
