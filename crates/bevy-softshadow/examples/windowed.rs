@@ -4,7 +4,10 @@
 //!
 //! ```text
 //! cargo run --release -p bevy-softshadow --example windowed --features window -- fixtures/sun-bunny/sun-bunny.toml
+//! cargo run --release -p bevy-softshadow --example windowed --features window -- fixtures/sun-street/sun-street.toml 30
 //! ```
+//!
+//! The optional second argument is `SoftShadowSettings::max_distance` (large grounds).
 //!
 //! Keys: 1-8 pick a method (hard, pcf, pcss, multi-sample, backprojection, accumulation,
 //! deep-shadow, packet-hsm), Space cycles, Left/Right orbit, O stops or starts the orbit,
@@ -16,6 +19,7 @@ use shadow_map_core::Scene;
 #[derive(Resource)]
 struct Demo {
     scene: Scene,
+    max_distance: Option<f32>,
     fixture: String,
     light: Option<Entity>,
     angle: f32,
@@ -37,6 +41,7 @@ fn main() {
             std::process::exit(1);
         }
     };
+    let max_distance = std::env::args().nth(2).and_then(|d| d.parse().ok());
     let fixture = std::path::Path::new(&path)
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -54,6 +59,7 @@ fn main() {
         .add_plugins(SoftShadowPlugin)
         .insert_resource(Demo {
             scene,
+            max_distance,
             fixture,
             light: None,
             angle: 0.0,
@@ -73,7 +79,10 @@ fn setup(
     commands.spawn(fixture::camera_bundle(&demo.scene));
     let light = fixture::spawn(
         &demo.scene,
-        SoftShadowSettings::new(Method::Pcss),
+        SoftShadowSettings {
+            max_distance: demo.max_distance,
+            ..SoftShadowSettings::new(Method::Pcss)
+        },
         &mut commands,
         &mut meshes,
         &mut materials,

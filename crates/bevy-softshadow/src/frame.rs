@@ -31,6 +31,7 @@ use bevy::{
 use shadow_map_core::{
     gpu::{
         casters::{CasterIndices, CasterInstance, CasterMesh, GpuCasterBuilder},
+        depth_map,
         depth_receivers::{DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding},
         frame::{FrameEstimator, FrameInputs},
         GpuContext, GpuScene,
@@ -143,34 +144,28 @@ impl ViewFrame {
                 mapped_at_creation: false,
             })
         };
-        let v_texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("softshadow V"),
-            size: wgpu::Extent3d {
-                width: key.width,
-                height: key.height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING
+        let v_texture = device.create_texture(&depth_map::texture_desc(
+            "softshadow V",
+            key.width,
+            key.height,
+            1,
+            wgpu::TextureFormat::R32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::STORAGE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let size_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("softshadow V size"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let composite_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("softshadow composite"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        ));
+        let uniform = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (size_uniform, composite_uniform) = (
+            uniform("softshadow V size"),
+            uniform("softshadow composite"),
+        );
         ctx.queue.write_buffer(
             &size_uniform,
             0,
