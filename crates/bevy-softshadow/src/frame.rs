@@ -237,6 +237,17 @@ pub fn contract_camera(view: &ExtractedView, width: u32, height: u32) -> Camera 
     }
 }
 
+/// Drops the frames of views that are gone (a camera despawned), so their buffers and
+/// textures are freed. In `Render`, before the views render.
+pub fn drop_stale_views(
+    mut state: ResMut<SoftShadowViews>,
+    views: Query<Entity, With<ExtractedView>>,
+) {
+    if state.views.keys().any(|e| !views.contains(*e)) {
+        state.views.retain(|e, _| views.contains(*e));
+    }
+}
+
 /// The pass: see the module's documentation.
 #[allow(clippy::too_many_arguments)]
 pub fn soft_shadow_pass(

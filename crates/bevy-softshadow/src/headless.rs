@@ -44,6 +44,9 @@ pub struct Comparison {
     pub nan: usize,
     /// Light views the frame rendered.
     pub views: usize,
+    /// Frames the view's prepared frame recorded since the method was switched to (the frame is
+    /// prepared once per method and size, then kept).
+    pub frames_recorded: u64,
     /// Mean V over the receivers.
     pub mean_v: f64,
     /// Share of receivers with V below 0.5.
@@ -273,6 +276,7 @@ fn compare(
         receivers: active.len(),
         nan,
         views: vf.views.iter().flatten().count(),
+        frames_recorded: vf.frames,
         mean_v: per(finite.iter().sum(), finite.len()),
         frac_below_half: per(
             finite.iter().filter(|&&x| x < 0.5).count() as f64,

@@ -49,7 +49,7 @@ use bevy::{
     prelude::*,
     render::{
         mesh::allocator::MeshAllocatorSettings, render_resource::BufferUsages, ExtractSchedule,
-        RenderApp,
+        Render, RenderApp, RenderSystems,
     },
 };
 
@@ -80,6 +80,10 @@ impl Plugin for SoftShadowPlugin {
             .init_resource::<extract::ExtractedCasters>()
             .init_resource::<SoftShadowViews>()
             .add_systems(ExtractSchedule, extract::extract)
+            .add_systems(
+                Render,
+                frame::drop_stale_views.in_set(RenderSystems::PrepareResources),
+            )
             .add_systems(
                 Core3d,
                 (

@@ -47,6 +47,11 @@ fn check(scene: &Scene, methods: &[Method]) {
         };
         let name = r.method.name();
         eprintln!("{name}: {c:?}");
+        // Prepared once when switched to, then kept for every frame (the first method also
+        // recorded the warm-up frames).
+        if c.frames_recorded < r.frames as u64 {
+            failures.push(format!("{name}: {} frames on the view", c.frames_recorded));
+        }
         if !(c.rmse_vs_cpu <= 0.01) {
             failures.push(format!("{name}: RMSE {} vs the CPU twin", c.rmse_vs_cpu));
         }
