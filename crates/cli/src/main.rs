@@ -527,14 +527,18 @@ enum Engine {
 
 /// `--backend gpu` for an estimator with an engine path (`softshadow::FRAME_ALGOS`) whose
 /// cascade settings resolve to one view set on this frame
-/// (`shadow_map_core::cascades::is_one_view`): the G-buffer rendered on the GPU, its receiver
-/// buffer handed to the frame API (`FrameEstimator::encode` into one command encoder, one submit)
-/// and only V read back. The G-buffer is read back too, before the frame: the EXR's Z channel and
-/// the view fit (on the CPU, as the estimator's `build` fits it) need it. Active receivers the
-/// frame leaves NaN (cut short by the device's loop budget, or lit outside accumulation's frustum)
-/// are redone by the CPU twin in the same views (`frame_cpu_redo` in the notes). Every other case
-/// (a scene with semi-transparent meshes among them: the frame API's casters are opaque) renders
-/// the G-buffer as [`camera_receivers`] does and leaves the estimator to its twin path.
+/// (`shadow_map_core::cascades::is_one_view`): the G-buffer rendered on the GPU stays there, its
+/// receiver buffer handed to the frame API (`FrameEstimator::encode` into one command encoder,
+/// one submit), and only V is read back (with the frame's few status words). What the CPU needs
+/// besides, the view fit (as the estimator's `build` fits it), the EXR's Z channel and the
+/// background mask, comes from the camera's ray-cast receivers, the CPU backend's own: both
+/// backends render in the same views, and no G-buffer travels back. Where the two G-buffers
+/// disagree (silhouette pixels), the ray-cast one decides: V is NaN where it sees background, and
+/// active receivers the frame leaves NaN (the rasterised pixel missed, the device's loop budget
+/// cut it, or accumulation's frustum left it lit) are redone by the CPU twin in the same views
+/// (`frame_cpu_redo` in the notes). Every other case (a scene with semi-transparent meshes among
+/// them: the frame API's casters are opaque) renders the G-buffer as [`camera_receivers`] does
+/// and leaves the estimator to its twin path.
 fn engine_frame(
     scene: &Scene,
     est: &dyn shadow_map_core::SoftShadowEstimator,
@@ -548,8 +552,10 @@ fn engine_frame(
         use shadow_map_core::gpu::{frame::FrameInputs, raster::GpuScene, GpuContext, GpuGBuffer};
         let ctx = GpuContext::shared()?;
         let casters = GpuScene::upload(&ctx, scene)?;
+        // The frame's receivers: rasterised, and left on the device.
         let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, &scene.camera)?;
-        let receivers = image.read_back(&ctx)?;
+        // The CPU's: the view fit, Z and the background mask (no G-buffer readback).
+        let receivers = Receivers::from_camera(scene, &SceneBvh::new(scene));
         let gbuffer_ms = ms(t);
         let inner = softshadow::own_params(est.name(), est.params())?;
         if !shadow_map_core::cascades::is_one_view(est.params(), scene, &receivers, &inner)? {
@@ -595,6 +601,12 @@ fn engine_frame(
         let t = Instant::now();
         let mut v: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n as u64)?;
         report.stages.push(("frame".into(), ms(t)));
+        // Background where the ray-cast G-buffer sees none (a rasterised silhouette pixel).
+        for (x, &a) in v.iter_mut().zip(&receivers.active) {
+            if !a {
+                *x = f32::NAN;
+            }
+        }
         if let Some(status) = frame.status() {
             let words: Vec<u32> = ctx.read_buffer(status, status.size())?;
             report.note("frame_status", format!("{words:?}"));
@@ -617,7 +629,7 @@ fn engine_frame(
         }
         report.note(
             "engine_path",
-            "frame API: one encode into one command encoder, one submit, V read back",
+            "frame API: one encode into one command encoder, one submit, only V read back (views, Z and background from the ray-cast G-buffer)",
         );
         report.note("views", views.iter().flatten().count());
         return Ok(Engine::Done(receivers, v, report));
