@@ -117,8 +117,6 @@ pub struct ViewFrame {
     views_for: Option<(Light, [Vec3; 4])>,
     /// The light of the last frame.
     pub light: Option<Light>,
-    /// The camera of the last frame.
-    pub camera: Option<DepthCamera>,
     /// Frames recorded.
     pub frames: u64,
     /// The last frame's error (the frame was not recorded), if any.
@@ -187,7 +185,6 @@ impl ViewFrame {
             views: Vec::new(),
             views_for: None,
             light: None,
-            camera: None,
             frames: 0,
             error: None,
             composite: settings.composite,
@@ -347,9 +344,6 @@ fn record(
         }
     };
     vf.composite = 0.0;
-    if let Some(why) = vf.frame.refuses(&light_scene(light)?) {
-        return Err(format!("{}: {why}", key.method.name()));
-    }
     let camera = depth_camera(extracted, width, height)?;
 
     // Casters: one entry per distinct mesh, one instance per mesh entity.
@@ -405,6 +399,11 @@ fn record(
     if vf.views_for != Some(box_key) {
         let (scene, receivers) = bounds_stand_in(light, &camera_c, &bounds, &receivers_box)
             .map_err(|e| e.to_string())?;
+        // A light or setting the frame does not model: checked when the light changes, on the
+        // stand-in scene (its light; its casters are opaque, as the frame's are).
+        if let Some(why) = vf.frame.refuses(&scene) {
+            return Err(format!("{}: {why}", key.method.name()));
+        }
         vf.views = vf
             .frame
             .fit_views(&scene, &receivers)
@@ -461,7 +460,6 @@ fn record(
         pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
     }
     vf.light = Some(*light);
-    vf.camera = Some(camera);
     vf.frames += 1;
     vf.error = None;
     vf.composite = settings.composite;
@@ -484,21 +482,6 @@ pub fn receivers_within(camera: &Camera, distance: f32, bounds: &Aabb) -> Option
         max: slice.max.min(bounds.max),
     };
     (cut.min.cmple(cut.max).all()).then_some(cut)
-}
-
-/// A scene holding only `light` (what [`FrameEstimator::refuses`] reads).
-fn light_scene(light: &Light) -> Result<shadow_map_core::Scene, String> {
-    let cam = Camera {
-        eye: Vec3::new(0.0, 0.0, 5.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        fov_y_deg: 40.0,
-        width: 1,
-        height: 1,
-    };
-    let tri = vec![[Vec3::ZERO, Vec3::X, Vec3::Y]];
-    shadow_map_core::Scene::from_meshes("bevy light", cam, *light, vec![(tri, 1.0)])
-        .map_err(|e| e.to_string())
 }
 
 /// The mesh `id` as the caster builder reads it from Bevy's mesh allocator: `None` while it is

@@ -13,7 +13,10 @@ use bevy::{
     render::{render_asset::RenderAssets, renderer::RenderDevice, texture::GpuImage, RenderApp},
     window::{ExitCondition, WindowPlugin},
 };
-use shadow_map_core::{gpu::GpuContext, Receivers, Scene, SceneBvh};
+use shadow_map_core::{
+    gpu::{depth_map::read_texture_words, GpuContext},
+    Receivers, Scene, SceneBvh,
+};
 use std::time::Instant;
 
 /// What one method's frames gave.
@@ -289,47 +292,12 @@ fn compare(
     })
 }
 
-/// A texture's rows, tightly packed (4-byte texels: `R32Float` or `Rgba8`).
-fn read_rows(ctx: &GpuContext, tex: &wgpu::Texture) -> Result<Vec<u8>, String> {
-    let (w, h) = (tex.width(), tex.height());
-    let row = (4 * w).div_ceil(256) * 256;
-    let buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("headless readback"),
-        size: (row * h) as u64,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    enc.copy_texture_to_buffer(
-        tex.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buf,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(row),
-                rows_per_image: Some(h),
-            },
-        },
-        tex.size(),
-    );
-    ctx.queue.submit([enc.finish()]);
-    let bytes: Vec<u8> = ctx
-        .read_buffer(&buf, (row * h) as u64)
-        .map_err(|e| e.to_string())?;
-    Ok((0..h)
-        .flat_map(|y| {
-            bytes[(y * row) as usize..][..(4 * w) as usize]
-                .iter()
-                .copied()
-        })
-        .collect())
-}
-
 /// An `R32Float` texture's texels, row by row from the top.
 fn read_texture(ctx: &GpuContext, tex: &wgpu::Texture) -> Result<Vec<f32>, String> {
-    Ok(read_rows(ctx, tex)?
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+    Ok(read_texture_words(ctx, tex)
+        .map_err(|e| e.to_string())?
+        .into_iter()
+        .map(f32::from_bits)
         .collect())
 }
 
@@ -342,5 +310,6 @@ fn read_image(app: &App, target: &Handle<Image>) -> Result<Vec<u8>, String> {
         .ok_or("the target image is not on the GPU")?;
     let state = world.resource::<SoftShadowViews>();
     let ctx = &state.shared.as_ref().ok_or("no device state")?.ctx;
-    read_rows(ctx, &gpu.texture)
+    let words = read_texture_words(ctx, &gpu.texture).map_err(|e| e.to_string())?;
+    Ok(bytemuck::cast_slice(&words).to_vec())
 }

@@ -154,24 +154,45 @@ pub fn upload_depth_map(ctx: &GpuContext, map: &DepthMap) -> Result<GpuDepthMap>
 /// Largest staging buffer one readback chunk uses (bytes).
 const READBACK_CHUNK_BYTES: u64 = 64 << 20;
 
-/// Reads a depth map back (bit for bit). The texture is copied to a staging buffer whose rows
-/// are padded to `COPY_BYTES_PER_ROW_ALIGNMENT` (256 bytes), in chunks of rows so no staging
-/// buffer exceeds 64 MiB or `max_buffer_size`, and the padding is dropped.
+/// Reads a depth map back (bit for bit), through [`read_texture_words`].
 pub fn read_depth_map(ctx: &GpuContext, map: &GpuDepthMap) -> Result<DepthMap> {
-    let size = map.size;
-    let row_bytes = size as u64 * 4;
+    let depth = read_texture_words(ctx, &map.texture)?
+        .into_iter()
+        .map(f32::from_bits)
+        .collect();
+    Ok(DepthMap {
+        size: map.size,
+        depth,
+    })
+}
+
+/// The texels of a texture with 4-byte texels (`R32Float`, `Rgba8Unorm`, ...; layer 0, mip 0;
+/// `COPY_SRC` usage), row by row from the top, bit for bit: a readback and a wait, for tests and
+/// tools. The texture is copied to a staging buffer whose rows are padded to
+/// `COPY_BYTES_PER_ROW_ALIGNMENT` (256 bytes), in chunks of rows so no staging buffer exceeds
+/// 64 MiB or `max_buffer_size`, and the padding is dropped. [`Error::Gpu`] for another texel
+/// size.
+pub fn read_texture_words(ctx: &GpuContext, texture: &wgpu::Texture) -> Result<Vec<u32>> {
+    if texture.format().block_copy_size(None) != Some(4) {
+        return Err(Error::Gpu {
+            stage: "texture readback".into(),
+            reason: format!("{:?} has no 4-byte texels", texture.format()),
+        });
+    }
+    let (width, height) = (texture.width(), texture.height());
+    let row_bytes = width as u64 * 4;
     let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64;
     let padded = row_bytes.div_ceil(align) * align;
     let cap = READBACK_CHUNK_BYTES.min(ctx.limits().max_buffer_size);
-    let rows_per_chunk = (cap / padded).clamp(1, size.max(1) as u64) as u32;
-    let mut depth = Vec::with_capacity(size as usize * size as usize);
+    let rows_per_chunk = (cap / padded).clamp(1, height.max(1) as u64) as u32;
+    let mut words = Vec::with_capacity(width as usize * height as usize);
     let mut row0 = 0u32;
-    while row0 < size {
-        let rows = rows_per_chunk.min(size - row0);
+    while row0 < height {
+        let rows = rows_per_chunk.min(height - row0);
         let bytes = padded * rows as u64;
-        let staging = ctx.scoped("depth-map readback", || {
+        let staging = ctx.scoped("texture readback", || {
             let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("depth-map readback"),
+                label: Some("texture readback"),
                 size: bytes,
                 usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
@@ -179,11 +200,11 @@ pub fn read_depth_map(ctx: &GpuContext, map: &GpuDepthMap) -> Result<DepthMap> {
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("depth-map readback"),
+                    label: Some("texture readback"),
                 });
             enc.copy_texture_to_buffer(
                 wgpu::TexelCopyTextureInfo {
-                    texture: &map.texture,
+                    texture,
                     mip_level: 0,
                     origin: wgpu::Origin3d {
                         x: 0,
@@ -201,7 +222,7 @@ pub fn read_depth_map(ctx: &GpuContext, map: &GpuDepthMap) -> Result<DepthMap> {
                     },
                 },
                 wgpu::Extent3d {
-                    width: size,
+                    width,
                     height: rows,
                     depth_or_array_layers: 1,
                 },
@@ -209,12 +230,12 @@ pub fn read_depth_map(ctx: &GpuContext, map: &GpuDepthMap) -> Result<DepthMap> {
             ctx.queue.submit([enc.finish()]);
             staging
         })?;
-        let data: Vec<f32> = ctx.read_buffer(&staging, bytes)?;
+        let data: Vec<u32> = ctx.read_buffer(&staging, bytes)?;
         let stride = (padded / 4) as usize;
         for r in 0..rows as usize {
-            depth.extend_from_slice(&data[r * stride..r * stride + size as usize]);
+            words.extend_from_slice(&data[r * stride..r * stride + width as usize]);
         }
         row0 += rows;
     }
-    Ok(DepthMap { size, depth })
+    Ok(words)
 }
