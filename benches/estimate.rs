@@ -48,9 +48,9 @@ fn bench(c: &mut Criterion) {
     let ls = LightSpace::build(&scene, &receivers, &req).expect("build");
     let d = &ls.layers[0];
     let uv: Vec<(i32, i32, f32)> = receivers
-        .position
+        .position()
         .iter()
-        .zip(&receivers.active)
+        .zip(receivers.active())
         .filter(|(_, a)| **a)
         .map(|(p, _)| {
             let q = ls.view.frame.to_light(*p);

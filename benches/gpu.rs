@@ -41,7 +41,7 @@ type BenchResult<T> = Result<T, Box<dyn std::error::Error>>;
 /// fresh one.
 fn open_device(smoke: bool) -> BenchResult<Option<Arc<GpuContext>>> {
     if smoke {
-        Ok(shadow_map_core::gpu::context_for_tests("benches/gpu")?)
+        Ok(test_support::gate::context_for_tests("benches/gpu")?)
     } else {
         Ok(Some(Arc::new(GpuContext::new()?)))
     }
@@ -77,15 +77,14 @@ fn load_fixture(smoke: bool, cpu_adapter: bool) -> BenchResult<(Config, Scene, R
     let mut scene = Scene::load(&fixture)?;
     let mut cfg = Config::from_env(
         fixture,
-        (scene.camera.width, scene.camera.height),
+        (scene.camera().width, scene.camera().height),
         if cpu_adapter { 1024 } else { 2048 },
     )?;
     if smoke {
         println!("smoke run (no --bench argument): tiny sizes, no JSON; `cargo bench --bench gpu` measures");
         cfg.shrink_for_smoke();
     }
-    scene.camera.width = cfg.width;
-    scene.camera.height = cfg.height;
+    scene.set_resolution(cfg.width, cfg.height).unwrap();
     let bvh = SceneBvh::new(&scene);
     let receivers = Receivers::from_camera(&scene, &bvh);
     Ok((cfg, scene, receivers))
@@ -171,7 +170,7 @@ fn main() -> BenchResult<()> {
     // Fixture, receivers and view: outside every timed region.
     let (cfg, scene, receivers) = load_fixture(smoke, g.cpu_adapter)?;
     let g = Gpu::new(&ctx, cfg.budget_s);
-    let light = &scene.light;
+    let light = scene.light();
     let (view, _fit) = LightView::fit(
         &scene,
         &receivers,
@@ -182,7 +181,7 @@ fn main() -> BenchResult<()> {
     println!(
         "fixture: {} ({} triangles), shadow map {r}x{r}, receivers {}x{} ({} active), kernel {K}x{K}",
         cfg.fixture,
-        scene.triangles.len(),
+        scene.triangles().len(),
         cfg.width,
         cfg.height,
         receivers.active_count(),

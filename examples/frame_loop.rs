@@ -47,7 +47,7 @@ use std::{sync::Arc, time::Instant};
 /// fitted to.
 fn vertex_receivers(scene: &Scene) -> Result<Receivers> {
     let (mut p, mut n) = (Vec::new(), Vec::new());
-    for t in &scene.triangles {
+    for t in scene.triangles() {
         let nrm = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or(Vec3::Y);
         for v in t {
             p.push(*v);
@@ -59,7 +59,7 @@ fn vertex_receivers(scene: &Scene) -> Result<Receivers> {
 
 /// `scene` with every triangle split into `4^levels` by its edge midpoints (one opaque mesh).
 fn tessellated(scene: &Scene, levels: u32) -> Result<Scene> {
-    let mut tris = scene.triangles.clone();
+    let mut tris = scene.triangles().to_vec();
     for _ in 0..levels {
         tris = tris
             .iter()
@@ -69,7 +69,7 @@ fn tessellated(scene: &Scene, levels: u32) -> Result<Scene> {
             })
             .collect();
     }
-    Scene::from_meshes("large", scene.camera, scene.light, vec![(tris, 1.0)])
+    Scene::from_meshes("large", *scene.camera(), *scene.light(), vec![(tris, 1.0)])
 }
 
 /// Frame `k` of `n`: the camera orbited about the vertical axis through its target, 40 degrees
@@ -97,7 +97,7 @@ fn frame_path(
     if let Some(r) = resolution {
         params.set("resolution", &r.to_string())?;
     }
-    let pixels = scene.camera.width * scene.camera.height;
+    let pixels = scene.camera().width * scene.camera().height;
     let path =
         softshadow::frame_estimator(algo, ctx.clone(), &params, pixels)?.ok_or_else(|| {
             shadow_map_core::Error::param("algo", format!("{algo} has no engine path"))
@@ -120,6 +120,10 @@ struct Measured {
     /// Active receivers the last frame left NaN for the caller to redo (cut short by the
     /// device's loop budget, counted in the estimator's status).
     left_nan: usize,
+    /// Active receivers of the last frame.
+    active: usize,
+    /// Buffers the library mapped back to the CPU during the frames ([`GpuContext::readbacks`]).
+    readbacks: u64,
     /// Wall ms per frame of [`TIMED_FRAMES`] frames on the last frame's receivers, submitted
     /// back to back and waited for once: encode, submit and the device's work (on lavapipe the
     /// device is this machine's CPU cores).
@@ -176,7 +180,7 @@ const WARM_ENCODES: u32 = 2000;
 fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -> Result<Measured> {
     let casters = GpuScene::upload(ctx, scene)?;
     let gbuffer = GpuGBuffer::new(ctx)?;
-    let pixels = (scene.camera.width * scene.camera.height) as u64;
+    let pixels = (scene.camera().width * scene.camera().height) as u64;
     let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("frame_loop V"),
         size: 4 * pixels,
@@ -186,8 +190,9 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     let (mut host, mut host_wall) = (0.0, 0.0);
     let mut in_flight = std::collections::VecDeque::new();
     let mut last = None;
+    let readbacks_before = ctx.readbacks();
     for k in 0..frames {
-        let camera = orbit(&scene.camera, k, frames);
+        let camera = orbit(scene.camera(), k, frames);
         let img = gbuffer.render(ctx, &casters, &camera)?;
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         let (t, cpu) = (Instant::now(), ThreadTime::now());
@@ -196,7 +201,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
             &FrameInputs {
                 casters: &casters,
                 views: &views,
-                light: &scene.light,
+                light: scene.light(),
                 receivers: &img.receivers.buffer,
                 count: img.receivers.count,
                 v: &v,
@@ -223,6 +228,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
         }
         last = Some((img, camera));
     }
+    let readbacks = ctx.readbacks() - readbacks_before;
     // The one readback, after the last frame.
     let Some((img, camera)) = last else {
         return Ok(Measured::default());
@@ -230,13 +236,13 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     let receivers = img.read_back(ctx)?;
     let bits: Vec<u32> = ctx.read_buffer(&v, 4 * pixels)?;
     let mut s = scene.clone();
-    s.camera = camera;
+    s.set_camera(camera)?;
     let t = Instant::now();
     let cpu = path.cpu_twin(&s, &receivers, &views)?;
     let cpu_ms = t.elapsed().as_secs_f64() * 1e3;
     let (mut se, mut n, mut left_nan) = (0.0f64, 0usize, 0usize);
     for (k, c) in cpu.iter().enumerate() {
-        if receivers.active[k] {
+        if receivers.active()[k] {
             let g = f32::from_bits(bits[k]);
             if g.is_nan() {
                 left_nan += 1;
@@ -251,7 +257,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     let inputs = FrameInputs {
         casters: &casters,
         views: &views,
-        light: &scene.light,
+        light: scene.light(),
         receivers: &img.receivers.buffer,
         count: img.receivers.count,
         v: &v,
@@ -310,8 +316,14 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     Ok(Measured {
         host_ms: host / frames.max(1) as f64,
         host_wall_ms: host_wall / frames.max(1) as f64,
-        rmse: (se / n.max(1) as f64).sqrt(),
+        rmse: if n > 0 {
+            (se / n as f64).sqrt()
+        } else {
+            f64::NAN
+        },
         left_nan,
+        active: n + left_nan,
+        readbacks,
         gpu_ms,
         host_idle_ms: median(&mut host_idle),
         host_warm_ms,
@@ -353,8 +365,7 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
     let ctx = GpuContext::shared()?;
     let mut small = Scene::load(&path)?;
     if let Some((w, h)) = size {
-        small.camera.width = w;
-        small.camera.height = h;
+        small.set_resolution(w, h)?;
     }
     let levels = (1..8)
         .find(|l| 4usize.pow(*l) >= 50)
@@ -377,14 +388,16 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
             &large,
             frames,
         )?;
-        let (ts, tl) = (small.triangles.len(), large.triangles.len());
+        let (ts, tl) = (small.triangles().len(), large.triangles().len());
         if json {
             println!(
-                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":0,\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"host_wall_ms_per_frame_small\":{:.4},\"host_wall_ms_per_frame_large\":{:.4},\"rmse_vs_cpu\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan\":{},\"pixels\":{},\"gpu_stage_ms_small\":{},\"gpu_stage_ms_large\":{}}}",
+                "{{\"algo\":\"{algo}\",\"frames\":{frames},\"readbacks_during_frames\":{},\"triangles_small\":{ts},\"triangles_large\":{tl},\"host_ms_per_frame_small\":{:.4},\"host_ms_per_frame_large\":{:.4},\"host_wall_ms_per_frame_small\":{:.4},\"host_wall_ms_per_frame_large\":{:.4},\"rmse_vs_cpu_small\":{:.3e},\"rmse_vs_cpu_large\":{:.3e},\"gpu_ms_per_frame_small\":{:.3},\"gpu_ms_per_frame_large\":{:.3},\"cpu_twin_ms_small\":{:.3},\"cpu_twin_ms_large\":{:.3},\"host_ms_idle_small\":{:.4},\"host_ms_idle_large\":{:.4},\"host_ms_warm_small\":{:.4},\"host_ms_warm_large\":{:.4},\"left_nan_small\":{},\"left_nan_large\":{},\"active_small\":{},\"active_large\":{},\"gpu_stage_ms_small\":{},\"gpu_stage_ms_large\":{}}}",
+                sm.readbacks + lg.readbacks,
                 sm.host_ms,
                 lg.host_ms,
                 sm.host_wall_ms,
                 lg.host_wall_ms,
+                sm.rmse,
                 lg.rmse,
                 sm.gpu_ms,
                 lg.gpu_ms,
@@ -394,15 +407,18 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
                 lg.host_idle_ms,
                 sm.host_warm_ms,
                 lg.host_warm_ms,
+                sm.left_nan,
                 lg.left_nan,
-                large.camera.width * large.camera.height,
+                sm.active,
+                lg.active,
                 stages_json(&sm.stages),
                 stages_json(&lg.stages)
             );
         } else {
             println!(
-                "{algo:>14}: {frames} frames; host ms/frame in encode {:.3} ({ts} triangles) / {:.3} ({tl} triangles); frame ms {:.2} / {:.2} against the CPU twin's {:.2} / {:.2}; last frame RMSE vs CPU twin {:.2e}",
-                sm.host_ms, lg.host_ms, sm.gpu_ms, lg.gpu_ms, sm.cpu_ms, lg.cpu_ms, lg.rmse
+                "{algo:>14}: {frames} frames; host ms/frame in encode {:.3} ({ts} triangles) / {:.3} ({tl} triangles); frame ms {:.2} / {:.2} against the CPU twin's {:.2} / {:.2}; last frame RMSE vs CPU twin {:.2e} / {:.2e}, left NaN {} / {}, readbacks during frames {}",
+                sm.host_ms, lg.host_ms, sm.gpu_ms, lg.gpu_ms, sm.cpu_ms, lg.cpu_ms, sm.rmse, lg.rmse,
+                sm.left_nan, lg.left_nan, sm.readbacks + lg.readbacks
             );
             if !lg.stages.is_empty() {
                 println!(

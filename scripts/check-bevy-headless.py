@@ -4,7 +4,7 @@ listed, none refused on the fixture, each method's V within RMSE 0.01 of its CPU
 receivers Bevy's prepass gave (issue 23's bound), shadows present, at most 10% of receivers left
 NaN by the device's loop budget. Times are printed, not asserted.
 
-    cargo run -p bevy-softshadow --example headless -- --json --frames 3 | python3 scripts/check-bevy-headless.py
+    cd crates/bevy-softshadow && cargo run --example headless -- --json --frames 3 | python3 ../../scripts/check-bevy-headless.py
 """
 import json
 import sys

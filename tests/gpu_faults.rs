@@ -17,7 +17,6 @@
 
 use shadow_map_core::{
     gpu::{
-        context_for_tests,
         frame::{FrameEstimator, FrameInputs},
         receivers::GpuReceivers,
         GpuContext, GpuScene,
@@ -29,6 +28,7 @@ use std::{
     panic::{catch_unwind, AssertUnwindSafe},
     sync::Arc,
 };
+use test_support::gate::context_for_tests;
 
 /// The parallel-squares fixture at a small image, and its camera receivers.
 fn scene() -> (Scene, Receivers) {
@@ -87,7 +87,7 @@ impl Caller {
         FrameInputs {
             casters: &self.casters,
             views,
-            light: &scene.light,
+            light: scene.light(),
             receivers: &self.receivers.buffer,
             count: self.receivers.count,
             v: &self.v,
@@ -258,7 +258,7 @@ fn device_loss_is_a_typed_error_and_a_new_device_works_in_every_gpu_twin() {
                 worst = worst.max((a - b).abs());
             }
         }
-        // Within 1e-5, as tests/threads.rs: the twins' atomics may order ties differently.
+        // Within 1e-5, as tests/workspace/threads.rs: the twins' atomics may order ties differently.
         assert!(worst <= 1e-5, "{}: {worst}", m.name);
         println!(
             "{}: twin DeviceLost after the loss; on a new device max |dV| {worst:.1e} against a device never lost",
@@ -417,9 +417,9 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
     let tiny = limited(|l| l.max_storage_buffer_binding_size = 4096);
     let translucent = Scene::from_meshes(
         "translucent squares",
-        scene.camera,
-        scene.light,
-        vec![(scene.triangles.clone(), 0.5)],
+        *scene.camera(),
+        *scene.light(),
+        vec![(scene.triangles().to_vec(), 0.5)],
     )
     .unwrap();
     let what = "deep-shadow twin: list elements past the binding";

@@ -4,12 +4,10 @@
 //! it destroys the process-wide device, which every other test of a binary would share.
 #![cfg(feature = "gpu")]
 
-use shadow_map_core::{
-    gpu::{context_for_tests, GpuContext},
-    run, Error,
-};
+use shadow_map_core::{gpu::GpuContext, run, Error};
 use softshadow::{estimator, Backend};
 use std::sync::Arc;
+use test_support::gate::context_for_tests;
 
 #[test]
 fn shared_context_is_replaced_once_its_device_is_lost() {

@@ -229,7 +229,7 @@ pub fn estimate_stages(env: &StageEnv) -> BenchResult<Vec<Row>> {
     let mut gpu = GpuPcssShadow::new(std::sync::Arc::new(env.g.ctx.clone()))?;
     gpu.set_param("resolution", &r.to_string())?;
     let mut t = try_time_cpu(2000.0, || {
-        gpu.estimate_with(&ls, &env.scene.light, env.receivers, &mut v)
+        gpu.estimate_with(&ls, env.scene.light(), env.receivers, &mut v)
     })?;
     t.method = Method::WallCalls;
     t.note = Some("whole estimate call: receiver upload, dispatch and V readback".into());
@@ -289,7 +289,7 @@ pub fn frame_stages(env: &StageEnv, cpu: bool) -> BenchResult<Vec<Row>> {
         let inputs = FrameInputs {
             casters: &env.gpu_scene,
             views: &views,
-            light: &env.scene.light,
+            light: env.scene.light(),
             receivers: &receivers.buffer,
             count: receivers.count,
             v: &v,

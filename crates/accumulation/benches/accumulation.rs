@@ -46,7 +46,9 @@ fn bench(c: &mut Criterion) {
                 gpu.set_param("kernel", kernel).expect("kernel");
                 gpu.build(&scene, &receivers).expect("build");
                 let ls = gpu.cpu().light_space().expect("light space").clone();
-                let prep = gpu.prepare(&ls, &scene.light, &receivers).expect("prepare");
+                let prep = gpu
+                    .prepare(&ls, scene.light(), &receivers)
+                    .expect("prepare");
                 g.bench_function(format!("gpu/estimate/{variant}-{kernel}"), |b| {
                     b.iter_custom(|iters| {
                         let ms = gpu.dispatch(&prep, iters as u32).expect("dispatch");

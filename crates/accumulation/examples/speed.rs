@@ -47,10 +47,11 @@ fn main() {
         "/../../fixtures/bunny/bunny.toml"
     );
     let mut scene = Scene::load(path).expect("fixture loads");
-    scene.camera.width = size.0;
-    scene.camera.height = size.1;
-    let radius = 0.5 * scene.light.diameter() / std::f32::consts::SQRT_2;
-    scene.light.shape = LightShape::Sphere { radius };
+    scene.set_resolution(size.0, size.1).unwrap();
+    let mut light = *scene.light();
+    let radius = 0.5 * light.diameter() / std::f32::consts::SQRT_2;
+    light.shape = LightShape::Sphere { radius };
+    scene.set_light(light).unwrap();
     let t = Instant::now();
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     eprintln!(
@@ -94,7 +95,7 @@ fn main() {
             gpu.set_param(k, v).unwrap();
         }
         let ls = cpu.light_space().unwrap().clone();
-        let prep = gpu.prepare(&ls, &scene.light, &rec).expect("prepare");
+        let prep = gpu.prepare(&ls, scene.light(), &rec).expect("prepare");
         gpu.dispatch(&prep, 1).expect("warm-up");
         let ms = gpu.dispatch(&prep, reps).expect("dispatch") / reps as f64;
         let gtaps = taps * rec.active_count() as f64 / (ms * 1e-3) / 1e9;

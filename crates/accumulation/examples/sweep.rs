@@ -103,7 +103,7 @@ fn measure(
         best = best.min(t.elapsed().as_secs_f64() * 1e3);
     }
     (
-        rmse(&v, reference, &rec.active),
+        rmse(&v, reference, rec.active()),
         report.total_ms("build"),
         best,
     )
@@ -118,8 +118,7 @@ fn fixture(name: &str) -> String {
 
 fn load(name: &str, a: &Args) -> (Scene, Receivers, Vec<f32>) {
     let mut scene = Scene::load(fixture(name)).unwrap();
-    scene.camera.width = a.size.0;
-    scene.camera.height = a.size.1;
+    scene.set_resolution(a.size.0, a.size.1).unwrap();
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     let mut re = ReferenceEstimator::new().unwrap();
     re.set_param("spp", &a.spp.to_string()).unwrap();

@@ -182,7 +182,7 @@ pub fn plan(
     s: &Settings,
     resolution: u32,
 ) -> Result<(LightView, FitReport, LightSpaceRequest)> {
-    let frame = scene.light.frame();
+    let frame = scene.light().frame();
     let half = plan_half_extent(scene, receivers, s);
     let (view, fit) = LightView::fit_with(scene, receivers, frame, half, resolution, &s.view)?;
     Ok((view, fit, request(s, &view, half)))
@@ -194,9 +194,9 @@ pub fn plan(
 pub fn plan_half_extent(scene: &Scene, receivers: &Receivers, s: &Settings) -> Vec2 {
     match s.sphere {
         SphereModel::Contract => {
-            shadow_map_core::light_view::fit_half_extent(&scene.light, receivers)
+            shadow_map_core::light_view::fit_half_extent(scene.light(), receivers)
         }
-        SphereModel::Paper => scene.light.half_extent(),
+        SphereModel::Paper => scene.light().half_extent(),
     }
 }
 
@@ -696,16 +696,16 @@ impl CpuAccumulation {
         receivers.check_output(v)?;
         let s = self.settings();
         let acc = Accumulator { ls, s };
-        let light = &scene.light;
+        let light = scene.light();
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let taps = AtomicU64::new(0);
         let nonfinite: usize = self.cancel.par_sum(v, |k, out| {
-            if !receivers.active[k] {
+            if !receivers.active()[k] {
                 *out = f32::NAN;
                 return 0;
             }
-            let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+            let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
             let facing = light.front_fraction_world(pw, nw);
             if !(facing > 0.0) {
                 *out = 0.0;
@@ -770,10 +770,10 @@ pub fn beyond_window(
     (0..receivers.len())
         .into_par_iter()
         .filter(|&k| {
-            receivers.active[k]
+            receivers.active()[k]
                 && shadow_map_core::light_view::sphere_window_factor(
                     radius,
-                    view.frame.to_light(receivers.position[k]),
+                    view.frame.to_light(receivers.position()[k]),
                 ) > cap
         })
         .count()
@@ -801,17 +801,17 @@ pub fn outside_error(count: usize, light: &shadow_map_core::Light) -> Error {
 /// BVH only when some receiver needs it.
 pub fn settle_outside(scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<usize> {
     let open: Vec<usize> = (0..v.len())
-        .filter(|&k| receivers.active[k] && v[k].is_nan())
+        .filter(|&k| receivers.active()[k] && v[k].is_nan())
         .collect();
     if open.is_empty() {
         return Ok(0);
     }
     let settler = shadow_map_core::settle::Settler::new(scene);
-    let light = &scene.light;
+    let light = scene.light();
     let settled: Vec<Option<f32>> = open
         .par_iter()
         .map(|&k| {
-            let (p, n) = (receivers.position[k], receivers.normal[k]);
+            let (p, n) = (receivers.position()[k], receivers.normal()[k]);
             settler
                 .unshadowed(p, n)
                 .then(|| light.front_fraction_world(p, n).clamp(0.0, 1.0))
@@ -880,10 +880,13 @@ impl SoftShadowEstimator for CpuAccumulation {
             &mut self.report,
             &settings,
             &ls,
-            &scene.light,
+            scene.light(),
             receivers,
             taps,
         );
+        // Every caster is opaque to the occlusion this method accumulates.
+        self.report
+            .warn_all(shadow_map_core::Warning::opaque_casters(scene));
         self.ls = Some(ls);
         out.and(settled).map(|_| ())
     }
@@ -928,6 +931,7 @@ pub fn note_settings(
     if beyond > 0 {
         report.note("beyond_sphere_window", beyond);
     }
+    report.warn(shadow_map_core::Warning::KernelClipped { receivers: beyond });
 }
 
 #[cfg(test)]

@@ -247,10 +247,15 @@ impl GpuAccumulation {
         })
     }
 
-    /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
-    #[cfg(feature = "testing")]
-    pub fn set_max_chunk(&mut self, receivers: usize) {
-        self.chunk_cap = receivers.max(1);
+    /// Caps the receivers of one dispatch at `receivers` (default: as many as the device's limits
+    /// allow). Smaller dispatches bound the run time of each, e.g. under a display driver's
+    /// watchdog; V is the same for any cap. Errors: 0 ([`Error::Param`]).
+    pub fn set_max_chunk(&mut self, receivers: usize) -> Result<()> {
+        if receivers == 0 {
+            return Err(Error::param("max_chunk", "must be at least 1 receiver"));
+        }
+        self.chunk_cap = receivers;
+        Ok(())
     }
 
     /// The CPU twin holding the parameters and, after `build`, the light-space data.
@@ -397,8 +402,8 @@ impl GpuAccumulation {
         Ok(t.elapsed().as_secs_f64() * 1e3)
     }
 
-    /// Estimates V from given light-space data (as [`CpuAccumulation`] builds them), so a test can
-    /// feed both twins identical data. Replaces the report.
+    /// Estimates V from light-space data the caller made (as [`CpuAccumulation`] builds them), so
+    /// both twins can see identical data. Replaces the report.
     pub fn estimate_with(
         &mut self,
         ls: &LightSpace,
@@ -412,7 +417,7 @@ impl GpuAccumulation {
             return Ok(());
         }
         let t = Instant::now();
-        let prep = self.prepare(ls, &scene.light, receivers)?;
+        let prep = self.prepare(ls, scene.light(), receivers)?;
         self.report
             .stages
             .push(("upload".into(), t.elapsed().as_secs_f64() * 1e3));
@@ -444,7 +449,9 @@ impl GpuAccumulation {
             self.report.note("loop_limit_cpu_fallbacks", redone);
         }
         let s = self.cpu.settings();
-        note_settings(&mut self.report, &s, ls, &scene.light, receivers, 0);
+        note_settings(&mut self.report, &s, ls, scene.light(), receivers, 0);
+        self.report
+            .warn_all(shadow_map_core::Warning::opaque_casters(scene));
         let nonfinite = c.get(1).copied().unwrap_or(0) as usize;
         if nonfinite > 0 {
             return Err(Error::Receivers(format!(
@@ -585,6 +592,17 @@ impl FrameEstimator for AccumulationFrame {
         Some(&self.status)
     }
 
+    /// Receivers outside the one frustum are left NaN (for the caller to settle or redo), as
+    /// are those the loop budget cut.
+    fn decode_status(&self, words: &[u32]) -> shadow_map_core::gpu::frame::FrameStatus {
+        let w = |k: usize| words.get(k).copied().unwrap_or(0);
+        shadow_map_core::gpu::frame::FrameStatus {
+            outside: 0,
+            nonfinite: w(1),
+            left_nan: w(0) + w(2),
+        }
+    }
+
     /// The layers (and MSSM) rendered in the one view, laid out, then the kernel.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
@@ -687,7 +705,8 @@ impl SoftShadowEstimator for GpuAccumulation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use shadow_map_core::gpu::kernel::{assert_shaders_valid, shader_source};
+    use shadow_map_core::gpu::kernel::shader_source;
+    use test_support::wgsl::assert_shaders_valid;
 
     #[test]
     fn shader_validates_with_naga() {
@@ -696,7 +715,7 @@ mod tests {
 
     #[test]
     fn uniform_layout_matches_wgsl() {
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             shader_source(&SHADER_PARTS),
             AccUniform {
                 inv_area,

@@ -26,20 +26,19 @@ fn main() -> shadow_map_core::Result<()> {
     });
     let mut scene = Scene::load(&scene_path)?;
     if let Some((w, h)) = args.get(1).and_then(|s| s.split_once('x')) {
-        scene.camera.width = w
-            .parse()
-            .map_err(|_| shadow_map_core::Error::param("size", "WxH"))?;
-        scene.camera.height = h
-            .parse()
-            .map_err(|_| shadow_map_core::Error::param("size", "WxH"))?;
+        let size = |s: &str| {
+            s.parse()
+                .map_err(|_| shadow_map_core::Error::param("size", "WxH"))
+        };
+        scene.set_resolution(size(w)?, size(h)?)?;
     }
     let res = args.get(2).cloned().unwrap_or_else(|| "1024".into());
     let runs: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(5).max(1);
     let receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     println!(
         "{scene_path}: {}x{} camera, {} active receivers, r = {res}, median of {runs}",
-        scene.camera.width,
-        scene.camera.height,
+        scene.camera().width,
+        scene.camera().height,
         receivers.active_count()
     );
     let mut estimators: Vec<Box<dyn SoftShadowEstimator>> =

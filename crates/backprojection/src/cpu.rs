@@ -8,7 +8,7 @@ use shadow_map_core::{
     light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
     peeling::SelfShadowSettings,
     Cancel, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result,
-    Scene, SoftShadowEstimator,
+    Scene, SoftShadowEstimator, Warning,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
@@ -111,6 +111,14 @@ pub fn note_resolved(report: &mut Report, s: &Settings, res: Resolved) {
     report.note("gap_filling", res.gap_filling);
     if res.occlusion == Occlusion::Bitmask {
         report.note("bits", s.bits);
+    }
+}
+
+/// Warns that `scene`'s semi-transparent meshes were cast opaque when `occlusion=bitmask` was
+/// asked for (the bits carry no opacity; `auto` takes additive occlusion there), both twins.
+pub fn warn_bitmask_opacity(report: &mut Report, s: &Settings, scene: &Scene) {
+    if s.occlusion == Occlusion::Bitmask {
+        report.warn_all(Warning::opaque_casters(scene));
     }
 }
 
@@ -306,11 +314,11 @@ impl CpuBackprojection {
         let outside = AtomicUsize::new(0);
         let t = std::time::Instant::now();
         let nonfinite: usize = self.cancel.par_sum(v, |k, out| {
-            if !receivers.active[k] {
+            if !receivers.active()[k] {
                 *out = f32::NAN;
                 return 0;
             }
-            let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+            let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
             let facing = light.front_fraction_world(pw, nw);
             let p = view.frame.to_light(pw);
             // A sphere's silhouette disk seen from p (None: it reaches p's depth).
@@ -359,14 +367,18 @@ impl CpuBackprojection {
             .note("max_step", setup.max_step.load(Ordering::Relaxed));
         self.report.note("near", view.n);
         self.report.note("far", view.far);
-        self.report.note(
-            "out_of_frustum",
-            outside.into_inner() + ls.fit.out_of_frustum,
-        );
+        let outside = outside.into_inner();
+        self.report
+            .note("out_of_frustum", outside + ls.fit.out_of_frustum);
         self.report.note("window_scale", ls.fit.window_scale);
-        if nonfinite > 0 {
-            self.report.note("nonfinite_replaced", nonfinite);
-        }
+        self.report.warn(Warning::NonFiniteV {
+            receivers: nonfinite,
+        });
+        self.report
+            .warn(Warning::OutsideViews { receivers: outside });
+        self.report.warn(Warning::KernelClipped {
+            receivers: shadow_map_core::light_view::beyond_sphere_window(view, light, receivers),
+        });
         Ok(())
     }
     /// Builds the light-space data in a given `view` (the engine path's CPU twin: a view the
@@ -386,7 +398,7 @@ impl CpuBackprojection {
             )));
         }
         self.report = Report::default();
-        let half = shadow_map_core::light_view::fit_half_extent(&scene.light, receivers);
+        let half = shadow_map_core::light_view::fit_half_extent(scene.light(), receivers);
         let req = request(&self.settings, &view, half);
         let ls = self.report.time("build", || {
             LightSpace::try_build_in_view(scene, view, FitReport::default(), &req)
@@ -704,7 +716,7 @@ pub fn plan(
     scene: &Scene,
     receivers: &Receivers,
 ) -> Result<(LightView, FitReport, LightSpaceRequest)> {
-    let light = &scene.light;
+    let light = scene.light();
     let r = settings.resolution;
     let opts = settings.view;
     let half = shadow_map_core::light_view::fit_half_extent(light, receivers);
@@ -753,7 +765,9 @@ impl SoftShadowEstimator for CpuBackprojection {
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        self.estimate_light(&scene.light, receivers, v)
+        self.estimate_light(scene.light(), receivers, v)?;
+        warn_bitmask_opacity(&mut self.report, &self.settings, scene);
+        Ok(())
     }
     fn set_cancel(&mut self, cancel: Cancel) {
         self.cancel = cancel;

@@ -5,10 +5,9 @@
 //! [`GpuShadowMapper::render_layers`] (peeled layers, midpoint layers and the anchored MSSM of
 //! layer 0, all in one submission); the layers are copied into one `R32Float` texture array and
 //! the MSSM levels into another (`shadow_map_core::gpu::layout`), the layout `backprojection.wgsl` reads.
-//! Nothing is read back. The test hook `GpuBackprojection::set_light_space_on_cpu` (feature
-//! `testing`) switches to building the maps on the CPU exactly as the CPU twin does and uploading
-//! them (what `GpuBackprojection::estimate_with` does for given maps), so a test can feed both
-//! twins identical data.
+//! Nothing is read back. [`GpuBackprojection::set_light_space_on_cpu`] switches to building the
+//! maps on the CPU exactly as the CPU twin does and uploading them (what
+//! [`GpuBackprojection::estimate_with`] does for given maps), so both twins see identical data.
 //!
 //! **Estimate.** One compute dispatch per chunk of receivers (`backprojection.wgsl`, one
 //! invocation per receiver), modelled on the baselines' GPU twins (`baselines::gpu`).
@@ -49,7 +48,7 @@ use shadow_map_core::{
     light_space::LightSpace,
     light_view::{bounds_receivers, LightView},
     scene::Aabb,
-    Error, Light, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Error, Light, Receivers, Report, Result, Scene, SoftShadowEstimator, Warning,
 };
 use std::{num::NonZeroU64, sync::Arc, time::Instant};
 
@@ -279,9 +278,10 @@ impl GpuBackprojection {
         })
     }
 
-    /// `true`: `build` makes the light-space data on the CPU exactly as [`CpuBackprojection`]
-    /// does and uploads them; `false` (the default): renders them on the GPU.
-    #[cfg(feature = "testing")]
+    /// `true`: [`build`](SoftShadowEstimator::build) makes the light-space data on the CPU
+    /// exactly as [`CpuBackprojection`] does and uploads them (the CPU twin's maps, at the CPU
+    /// raster's cost); `false` (the default): renders them on the GPU. Semi-transparent scenes
+    /// take the CPU path either way.
     pub fn set_light_space_on_cpu(&mut self, on: bool) {
         self.light_space_on_cpu = on;
     }
@@ -331,16 +331,22 @@ impl GpuBackprojection {
         Ok(DeviceMaps::laid_out(&km, gls.view))
     }
 
-    /// Caps the receivers per dispatch (tests use small caps to exercise chunking).
-    #[cfg(feature = "testing")]
-    pub fn set_max_chunk(&mut self, receivers: usize) {
-        self.chunk_cap = receivers.max(1);
+    /// Caps the receivers of one dispatch at `receivers` (default: as many as the device's limits
+    /// allow). Smaller dispatches bound the run time of each, e.g. under a display driver's
+    /// watchdog; V is the same for any cap. The resident path rounds the cap up to its chunk
+    /// alignment ([`estimate_resident`](Self::estimate_resident)). Errors: 0 ([`Error::Param`]).
+    pub fn set_max_chunk(&mut self, receivers: usize) -> Result<()> {
+        if receivers == 0 {
+            return Err(Error::param("max_chunk", "must be at least 1 receiver"));
+        }
+        self.chunk_cap = receivers;
+        Ok(())
     }
 
-    /// Estimates V from given light-space data (as [`CpuBackprojection`] builds them: layers,
-    /// midpoints in midpoint mode, MSSM), uploaded, so a test can feed both twins identical data.
-    /// Replaces the report.
-    #[cfg(feature = "testing")]
+    /// Estimates V from light-space data the caller made (as [`CpuBackprojection`] builds them:
+    /// layers, midpoints in midpoint mode, MSSM), uploaded instead of built, so both twins can see
+    /// identical data. Replaces the report. Errors: `v` not one per receiver, an upload the
+    /// device refuses, and the estimate's errors.
     pub fn estimate_with(
         &mut self,
         ls: &LightSpace,
@@ -404,9 +410,16 @@ impl GpuBackprojection {
         self.report
             .note("out_of_frustum", outside + maps.out_of_frustum);
         self.report.note("window_scale", maps.window_scale);
-        if nonfinite > 0 {
-            self.report.note("nonfinite_replaced", nonfinite);
-        }
+        self.report.warn(Warning::NonFiniteV {
+            receivers: nonfinite,
+        });
+        self.report
+            .warn(Warning::OutsideViews { receivers: outside });
+        self.report.warn(Warning::KernelClipped {
+            receivers: shadow_map_core::light_view::beyond_sphere_window(
+                &maps.view, light, receivers,
+            ),
+        });
         Ok(())
     }
 
@@ -628,14 +641,13 @@ impl GpuBackprojection {
     /// is fitted as [`build`](SoftShadowEstimator::build) fits it, over the box's 8 corners
     /// ([`LightView::fit_bounds`]; conservative, so the window, and the texel pitch, are usually
     /// larger than with the receivers themselves). The rest is `build`: rendered on the GPU (or on
-    /// the CPU after the test hook `set_light_space_on_cpu`, feature `testing`), nothing read
-    /// back.
+    /// the CPU after `set_light_space_on_cpu`), nothing read back.
     ///
     /// Errors: [`Error::Receivers`] for an inverted, empty or non-finite box,
     /// [`Error::LightView`] for a box crossing the light plane or leaving the frustum (see
     /// [`bounds_receivers`]), and `build`'s errors.
     pub fn build_resident(&mut self, scene: &Scene, bounds: &Aabb) -> Result<()> {
-        let corners = bounds_receivers(scene, bounds, scene.light.frame())?;
+        let corners = bounds_receivers(scene, bounds, scene.light().frame())?;
         self.build(scene, &corners)?;
         self.report
             .note("fit_bounds", format!("{}..{}", bounds.min, bounds.max));
@@ -658,7 +670,7 @@ impl GpuBackprojection {
     /// in chunks ([`GpuReceivers::chunks`]) whose first receiver is a multiple of
     /// `min_storage_buffer_offset_alignment / 4`, so both the receiver binding (32 bytes per
     /// receiver) and the V binding (4 bytes) start on aligned offsets; a cap from
-    /// `set_max_chunk` (feature `testing`) is rounded up to that multiple.
+    /// [`set_max_chunk`](Self::set_max_chunk) is rounded up to that multiple.
     ///
     /// Errors, never a panic: [`Error::Receivers`] when either buffer lacks the `STORAGE` usage or
     /// is too small, [`Error::Param`] before a build or for a non-rect light, [`Error::Gpu`] for
@@ -672,7 +684,7 @@ impl GpuBackprojection {
         receivers: &GpuReceivers,
         v_out: &wgpu::Buffer,
     ) -> Result<()> {
-        let light = &scene.light;
+        let light = scene.light();
         let count = receivers.count as u64;
         if !receivers
             .buffer
@@ -913,6 +925,11 @@ impl FrameEstimator for BackprojectionFrame {
         Some(&self.status)
     }
 
+    /// Semi-transparent scenes: the frame's casters are opaque, the twin models opacity.
+    fn refuses(&self, scene: &Scene) -> Option<String> {
+        shadow_map_core::gpu::frame::refuse_semi_transparent(scene)
+    }
+
     /// The layers, midpoints and MSSM rendered in the one view, laid out, then the kernel.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
@@ -966,8 +983,9 @@ impl FrameEstimator for BackprojectionFrame {
 
 impl SoftShadowEstimator for GpuBackprojection {
     shadow_map_core::estimator_identity!(twin of cpu, Gpu);
-    /// Builds the light-space data on the GPU (or, after the
-    /// test hook `set_light_space_on_cpu` (feature `testing`), on the CPU and uploads them).
+    /// Builds the light-space data on the GPU (or, after
+    /// [`set_light_space_on_cpu`](GpuBackprojection::set_light_space_on_cpu), on the CPU and
+    /// uploads them).
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.maps = None;
         self.report = Report::default();
@@ -1020,7 +1038,7 @@ impl SoftShadowEstimator for GpuBackprojection {
         };
         let params = self.cpu.params().clone();
         let cancel = self.cpu.cancel().clone();
-        let out = self.estimate_maps(&maps, &scene.light, receivers, v, |sub, vs| {
+        let out = self.estimate_maps(&maps, scene.light(), receivers, v, |sub, vs| {
             // The CPU twin on the same data when the build was the CPU's, else in the same view
             // (its own raster: equal up to texel-centre ties, tests/gpu_maps.rs).
             let mut cpu = CpuBackprojection::new()?;
@@ -1033,7 +1051,9 @@ impl SoftShadowEstimator for GpuBackprojection {
             cpu.estimate(scene, sub, vs)
         });
         self.maps = Some(maps);
-        out
+        out?;
+        crate::cpu::warn_bitmask_opacity(&mut self.report, self.cpu.settings(), scene);
+        Ok(())
     }
     fn report(&self) -> Report {
         self.report.clone()
@@ -1043,7 +1063,8 @@ impl SoftShadowEstimator for GpuBackprojection {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use shadow_map_core::gpu::kernel::{assert_shaders_valid, shader_source};
+    use shadow_map_core::gpu::kernel::shader_source;
+    use test_support::wgsl::assert_shaders_valid;
 
     #[test]
     fn shader_validates_with_naga() {
@@ -1052,7 +1073,7 @@ mod tests {
 
     #[test]
     fn uniforms_match_the_wgsl() {
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             shader_source(&SHADER_PARTS),
             BpUniform {
                 half,

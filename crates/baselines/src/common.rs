@@ -82,11 +82,11 @@ pub fn for_each_receiver(
     f: impl Fn(Vec3, Vec3) -> f32 + Sync + Send,
 ) -> Result<usize> {
     cancel.par_sum(v, |k, out| {
-        if !receivers.active[k] {
+        if !receivers.active()[k] {
             *out = f32::NAN;
             return 0;
         }
-        let x = f(receivers.position[k], receivers.normal[k]);
+        let x = f(receivers.position()[k], receivers.normal()[k]);
         if x.is_finite() {
             *out = x.clamp(0.0, 1.0);
             0

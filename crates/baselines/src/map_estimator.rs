@@ -5,7 +5,7 @@ use glam::{Vec2, Vec3};
 use shadow_map_core::{
     light_space::LightSpace, light_view::LightView, Cancel, DepthLookup, DepthPrecision, Light,
     ParamSpec, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
-    Unorm16Map,
+    Unorm16Map, Warning,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -139,7 +139,7 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
         let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
         let filter = F::from_params(&self.params)?;
         let test = MapSettings::from_params(&self.params)?.caster_test();
-        let light = &scene.light;
+        let light = scene.light();
         let t = std::time::Instant::now();
         let (nonfinite, outside) = match &self.q16 {
             Some(q) => filter_all(
@@ -178,9 +178,12 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
             self.report.note("depth_step", q.step);
         }
         self.report.note("window_scale", ls.fit.window_scale);
-        if nonfinite > 0 {
-            self.report.note("nonfinite_replaced", nonfinite);
-        }
+        self.report.warn(Warning::NonFiniteV {
+            receivers: nonfinite,
+        });
+        self.report
+            .warn(Warning::OutsideViews { receivers: outside });
+        self.report.warn_all(Warning::opaque_casters(scene));
         if matches!(light.shape, shadow_map_core::LightShape::Sphere { .. }) {
             self.report.note(
                 "approximation",

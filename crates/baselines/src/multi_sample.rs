@@ -6,7 +6,7 @@ use crate::map_estimator::encode_layer0;
 use glam::Vec2;
 use shadow_map_core::{
     light_space::LightSpace, Cancel, DepthLookup, Error, LightShape, ParamKind, ParamSpec, Params,
-    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map,
+    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map, Warning,
 };
 
 /// Registry name of multi-sample shadows (shared with the GPU twin).
@@ -59,6 +59,7 @@ pub(crate) fn note_run(
     report.light_space_bytes = peak;
     report.note("sublights", s * s);
     report.note("out_of_frustum", behind);
+    report.warn(Warning::OutsideViews { receivers: behind });
     if matches!(light.shape, LightShape::Sphere { .. }) {
         report.note(
             "approximation",
@@ -127,7 +128,7 @@ impl SoftShadowEstimator for MultiSample {
         let MultiSampleParams { sublights: s, seed } =
             MultiSampleParams::from_params(&self.params)?;
         let (req, opts) = (settings.request(), settings.view);
-        let points = scene.light.stratified_points(s, |k| jitter(seed, k));
+        let points = scene.light().stratified_points(s, |k| jitter(seed, k));
         let maps = points
             .iter()
             .map(|y| LightSpace::build_point_with(scene, receivers, *y, &req, &opts));
@@ -175,7 +176,7 @@ impl MultiSample {
         let s = MultiSampleParams::from_params(&self.params)?.sublights;
         let (on, biases) = settings.caster_test();
         let precision = settings.depth;
-        let light = scene.light;
+        let light = *scene.light();
         let n_points = maps.len();
         let frame = light.frame();
         let mut acc = vec![0.0f32; receivers.len()];
@@ -205,10 +206,10 @@ impl MultiSample {
             // e_z + y_x e_x + y_y e_y (docs/methods.md §14 "Multi-sample"); the light arrives from -e_z.
             let toward_sun = view.is_ortho().then_some(-view.frame.ez);
             self.cancel.par_for_each(&mut acc, |k, a| {
-                if !receivers.active[k] {
+                if !receivers.active()[k] {
                     return;
                 }
-                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+                let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
                 let towards = toward_sun.unwrap_or(yw - pw);
                 if nw.dot(towards) <= 0.0 {
                     return; // the sample is behind the receiver's tangent plane
@@ -242,15 +243,16 @@ impl MultiSample {
         let inv = 1.0 / n_points.max(1) as f32;
         let one_sided = light.one_sided();
         for (k, out) in v.iter_mut().enumerate() {
-            *out = if !receivers.active[k] {
+            *out = if !receivers.active()[k] {
                 f32::NAN
-            } else if one_sided && frame.to_light(receivers.position[k]).z <= 0.0 {
+            } else if one_sided && frame.to_light(receivers.position()[k]).z <= 0.0 {
                 0.0
             } else {
                 (acc[k] * inv).clamp(0.0, 1.0)
             };
         }
         note_run(&mut self.report, (t_build, t_est), peak, s, behind, &light);
+        self.report.warn_all(Warning::opaque_casters(scene));
         Ok(())
     }
 }

@@ -1,17 +1,23 @@
 //! A headless Bevy app (no window; the camera renders into an image) that loads a fixture
 //! scene, renders `--frames` frames with each method through `SoftShadowPlugin`, then reads the
 //! method's V texture back once and compares it with the CPU twin on the same receivers (the ones
-//! Bevy's prepass gave) in the same light views (`bevy_softshadow::headless`).
+//! Bevy's prepass gave) in the same light views (`tests/common/headless.rs`, shared with the
+//! tests).
 //!
 //! ```text
-//! cargo run --release -p bevy-softshadow --example headless -- --json
-//! cargo run --release -p bevy-softshadow --example headless -- --fixture fixtures/sun-bunny/sun-bunny.toml --frames 30
+//! cargo run --release --example headless -- --json
+//! cargo run --release --example headless -- --fixture ../../fixtures/sun-bunny/sun-bunny.toml --frames 30
 //! ```
 //!
 //! `--json`: one line per method, `{"algo", "frames", "ms_per_frame", "rmse_vs_cpu", ...}`
 //! (the fields of `headless::Comparison`; `error` instead for a light the method does not
 //! model; `bevy_alone_ms_per_frame`: the same frames with the plugin's work off). `--size WxH`: another image size than the fixture's. `--screenshot FILE.png`: the last method's final image (the composite applied).
-use bevy_softshadow::{headless, Method};
+#[path = "../tests/common/fixture.rs"]
+mod fixture;
+#[path = "../tests/common/headless.rs"]
+mod headless;
+
+use bevy_softshadow::Method;
 use serde_json::json;
 use shadow_map_core::Scene;
 
@@ -86,10 +92,9 @@ fn run() -> Result<(), String> {
     let args = args()?;
     let mut scene = Scene::load(&args.fixture).map_err(|e| e.to_string())?;
     if let Some((w, h)) = args.size {
-        scene.camera.width = w;
-        scene.camera.height = h;
+        scene.set_resolution(w, h).unwrap();
     }
-    let (w, h) = (scene.camera.width, scene.camera.height);
+    let (w, h) = (scene.camera().width, scene.camera().height);
     let out = headless::run(
         &scene,
         &args.methods,

@@ -3,8 +3,8 @@
 //! CPU twin against the ray-traced reference on this fixture) in the window's title.
 //!
 //! ```text
-//! cargo run --release -p bevy-softshadow --example windowed --features window -- fixtures/sun-bunny/sun-bunny.toml
-//! cargo run --release -p bevy-softshadow --example windowed --features window -- fixtures/sun-street/sun-street.toml 30
+//! cargo run --release --example windowed --features window -- ../../fixtures/sun-bunny/sun-bunny.toml
+//! cargo run --release --example windowed --features window -- ../../fixtures/sun-street/sun-street.toml 30
 //! ```
 //!
 //! The optional second argument is `SoftShadowSettings::max_distance` (large grounds).
@@ -13,8 +13,12 @@
 //! deep-shadow, packet-hsm), Space cycles, Left/Right orbit, O stops or starts the orbit,
 //! C turns the composite off and on (Bevy's own lighting without the plugin's shadow).
 use bevy::{prelude::*, window::PrimaryWindow};
-use bevy_softshadow::{fixture, measured, Method, SoftShadowPlugin, SoftShadowSettings};
+use bevy_softshadow::{measured, Method, SoftShadowPlugin, SoftShadowSettings};
 use shadow_map_core::Scene;
+
+/// The contract scene as Bevy entities (shared with the tests).
+#[path = "../tests/common/fixture.rs"]
+mod fixture;
 
 #[derive(Resource)]
 struct Demo {
@@ -46,7 +50,10 @@ fn main() {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let (w, h) = (scene.camera.width.max(640), scene.camera.height.max(480));
+    let (w, h) = (
+        scene.camera().width.max(640),
+        scene.camera().height.max(480),
+    );
     App::new()
         .add_plugins(DefaultPlugins.set(WindowPlugin {
             primary_window: Some(Window {
@@ -138,7 +145,7 @@ fn orbit(time: Res<Time>, mut demo: ResMut<Demo>, mut cams: Query<&mut Transform
     if demo.orbit {
         demo.angle += 0.2 * time.delta_secs();
     }
-    let c = &demo.scene.camera;
+    let c = demo.scene.camera();
     let offset = Quat::from_axis_angle(c.up.normalize(), demo.angle) * (c.eye - c.target);
     for mut t in &mut cams {
         *t = Transform::from_translation(c.target + offset).looking_at(c.target, c.up);

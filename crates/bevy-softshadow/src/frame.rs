@@ -289,11 +289,11 @@ pub fn soft_shadow_pass(
         if let Some(vf) = state.views.get_mut(&entity) {
             vf.composite = 0.0;
             if vf.error.as_deref() != Some(e.as_str()) {
-                eprintln!("bevy-softshadow: {e}");
+                bevy::log::warn!("bevy-softshadow: {e}");
             }
             vf.error = Some(e);
         } else {
-            eprintln!("bevy-softshadow: {e}");
+            bevy::log::warn!("bevy-softshadow: {e}");
         }
     }
 }

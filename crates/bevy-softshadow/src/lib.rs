@@ -34,9 +34,7 @@
 
 pub mod composite;
 pub mod extract;
-pub mod fixture;
 pub mod frame;
-pub mod headless;
 pub mod measured;
 mod settings;
 

@@ -5,7 +5,12 @@
 // `!(x <= bound)` on purpose: a NaN figure fails.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use bevy_softshadow::{headless, Method};
+#[path = "common/fixture.rs"]
+mod fixture;
+#[path = "common/headless.rs"]
+mod headless;
+
+use bevy_softshadow::Method;
 use shadow_map_core::Scene;
 
 fn fixture(name: &str, w: u32, h: u32) -> Scene {
@@ -14,15 +19,14 @@ fn fixture(name: &str, w: u32, h: u32) -> Scene {
         env!("CARGO_MANIFEST_DIR")
     ))
     .unwrap();
-    s.camera.width = w;
-    s.camera.height = h;
+    s.set_resolution(w, h).unwrap();
     s
 }
 
-/// Bevy panics without an adapter: ask the core's gate first (skips loudly, or fails when
+/// Bevy panics without an adapter: ask test-support's gate first (skips loudly, or fails when
 /// `SOFTSHADOW_REQUIRE_GPU=1`).
 fn gpu(name: &str) -> bool {
-    shadow_map_core::gpu::context_for_tests(name)
+    test_support::gate::context_for_tests(name)
         .unwrap()
         .is_some()
 }
@@ -75,7 +79,7 @@ fn check(scene: &Scene, methods: &[Method]) {
     // The composite darkened the image where V < 1: some pixels are darker than the ground's
     // lit colour (a crude check that the pass ran and wrote its destination).
     let shot = shot.unwrap();
-    let (w, h) = (scene.camera.width, scene.camera.height);
+    let (w, h) = (scene.camera().width, scene.camera().height);
     assert_eq!(shot.len(), (4 * w * h) as usize);
     assert!(
         shot.chunks_exact(4).any(|p| p[0] > 100),

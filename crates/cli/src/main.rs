@@ -307,10 +307,12 @@ fn render(
         )
         .map(|_| ());
     };
-    let base = scene.camera;
+    let base = *scene.camera();
     let mut flicker = path::Flicker::default();
     for k in 0..frames {
-        scene.camera = cam_path.camera(&base, k, frames);
+        scene
+            .set_camera(cam_path.camera(&base, k, frames))
+            .map_err(|e| e.to_string())?;
         let out_k = path::numbered(out, k);
         let png_k = png.map(|p| path::numbered(p, k));
         let frame = render_frame(
@@ -370,6 +372,10 @@ fn render_frame(
         }
     };
     stages.extend(report.stages.iter().cloned());
+    // What the estimator could not model, always (one line each).
+    for w in &report.warnings {
+        eprintln!("warning: {}: {w}", est.name());
+    }
     if stats {
         let params = est.params();
         if let Some((m, p95)) =
@@ -380,7 +386,10 @@ fn render_frame(
         }
     }
     let t = Instant::now();
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let (w, h) = (
+        scene.camera().width as usize,
+        scene.camera().height as usize,
+    );
     let mut img = report::visibility_image(scene, &receivers, v.clone())?;
     img.attributes = provenance(est, scene_path);
     exr_io::write_exr(out, &img).map_err(|e| e.to_string())?;
@@ -410,13 +419,14 @@ fn render_frame(
             "scene": scene_path.display().to_string(),
             "width": w, "height": h,
             "receivers": receivers.active_count(),
-            "triangles": scene.triangles.len(),
-            "skipped_degenerate_triangles": scene.skipped_degenerate,
+            "triangles": scene.triangles().len(),
+            "skipped_degenerate_triangles": scene.skipped_degenerate(),
             "params": params,
             "stages_ms": st,
             "total_ms": ms(t_all),
             "light_space_bytes": report.light_space_bytes,
             "notes": notes,
+            "warnings": report.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
         });
         if let Some(k) = frame {
             line["frame"] = json!(k);
@@ -424,9 +434,9 @@ fn render_frame(
         println!("{line}");
     }
     Ok(path::Frame {
-        camera: scene.camera,
-        position: receivers.position,
-        active: receivers.active,
+        camera: *scene.camera(),
+        position: receivers.position().to_vec(),
+        active: receivers.active().to_vec(),
         v,
     })
 }
@@ -537,7 +547,7 @@ enum Engine {
 /// active receivers the frame leaves NaN (the rasterised pixel missed, the device's loop budget
 /// cut it, or accumulation's frustum left it lit) are redone by the CPU twin in the same views
 /// (`frame_cpu_redo` in the notes). Every other case (a scene with semi-transparent meshes among
-/// them: the frame API's casters are opaque) renders the G-buffer as [`camera_receivers`] does
+/// them: the frame API's casters are opaque) ray casts the receivers ([`camera_receivers`])
 /// and leaves the estimator to its twin path.
 fn engine_frame(
     scene: &Scene,
@@ -553,7 +563,7 @@ fn engine_frame(
         let ctx = GpuContext::shared()?;
         let casters = GpuScene::upload(&ctx, scene)?;
         // The frame's receivers: rasterised, and left on the device.
-        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, &scene.camera)?;
+        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, scene.camera())?;
         // The CPU's: the view fit, Z and the background mask (no G-buffer readback).
         let receivers = Receivers::from_camera(scene, &SceneBvh::new(scene));
         let gbuffer_ms = ms(t);
@@ -589,7 +599,7 @@ fn engine_frame(
             &FrameInputs {
                 casters: &casters,
                 views: &views,
-                light: &scene.light,
+                light: scene.light(),
                 receivers: &image.receivers.buffer,
                 count: image.receivers.count,
                 v: &v_buf,
@@ -602,23 +612,29 @@ fn engine_frame(
         let mut v: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n as u64)?;
         report.stages.push(("frame".into(), ms(t)));
         // Background where the ray-cast G-buffer sees none (a rasterised silhouette pixel).
-        for (x, &a) in v.iter_mut().zip(&receivers.active) {
+        for (x, &a) in v.iter_mut().zip(receivers.active()) {
             if !a {
                 *x = f32::NAN;
             }
         }
-        if let Some(status) = frame.status() {
-            let words: Vec<u32> = ctx.read_buffer(status, status.size())?;
-            report.note("frame_status", format!("{words:?}"));
+        if let Some(status) = frame.read_status(&ctx)? {
+            report.note("frame_status", format!("{status:?}"));
+            // Receivers left NaN are redone below: no loss here.
+            report.warn_all(
+                status
+                    .warnings()
+                    .into_iter()
+                    .filter(|w| !matches!(w, shadow_map_core::Warning::FrameLeftNan { .. })),
+            );
         }
         let redo: Vec<usize> = (0..n)
-            .filter(|&k| receivers.active[k] && !v[k].is_finite())
+            .filter(|&k| receivers.active()[k] && !v[k].is_finite())
             .collect();
         if !redo.is_empty() {
             let t = Instant::now();
             let sub = Receivers::from_points(
-                redo.iter().map(|&k| receivers.position[k]).collect(),
-                redo.iter().map(|&k| receivers.normal[k]).collect(),
+                redo.iter().map(|&k| receivers.position()[k]).collect(),
+                redo.iter().map(|&k| receivers.normal()[k]).collect(),
             )?;
             let vs = frame.cpu_twin(scene, &sub, &views)?;
             for (&k, x) in redo.iter().zip(vs) {
@@ -634,22 +650,15 @@ fn engine_frame(
         report.note("views", views.iter().flatten().count());
         return Ok(Engine::Done(receivers, v, report));
     }
-    let receivers = camera_receivers(scene, est.backend())?;
+    let receivers = camera_receivers(scene)?;
     Ok(Engine::Twin(receivers, ms(t)))
 }
 
-/// The camera's G-buffer: rasterised on the GPU for `--backend gpu`, ray cast through the BVH
-/// otherwise.
-fn camera_receivers(scene: &Scene, backend: Backend) -> shadow_map_core::Result<Receivers> {
-    #[cfg(feature = "gpu")]
-    if backend == Backend::Gpu {
-        use shadow_map_core::gpu::{raster::GpuScene, GpuContext, GpuGBuffer};
-        let ctx = GpuContext::shared()?;
-        let gpu_scene = GpuScene::upload(&ctx, scene)?;
-        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &gpu_scene, &scene.camera)?;
-        return image.read_back(&ctx);
-    }
-    let _ = backend;
+/// The camera's G-buffer, ray cast through the BVH for either backend: both backends render the
+/// same receivers, which the scoring tools compare pixel by pixel (a rasterised G-buffer differs
+/// from the ray cast one on silhouette and sub-pixel-thin geometry, which would make a pixel
+/// background on one backend and ground on the other).
+fn camera_receivers(scene: &Scene) -> shadow_map_core::Result<Receivers> {
     Ok(Receivers::from_camera(scene, &SceneBvh::new(scene)))
 }
 

@@ -138,15 +138,15 @@ pub fn cache_key(scene: &Scene, spp: u32) -> Result<String, String> {
     h.update(reference::REVISION.to_le_bytes());
     h.update(spp.to_le_bytes());
     // Debug of f32 is the shortest text that reads back to the same bits: a faithful encoding.
-    h.update(format!("{:?}\0{:?}\0", scene.camera, scene.light).as_bytes());
-    for t in &scene.triangles {
+    h.update(format!("{:?}\0{:?}\0", *scene.camera(), *scene.light()).as_bytes());
+    for t in scene.triangles() {
         for v in t {
             for x in v.to_array() {
                 h.update(x.to_le_bytes());
             }
         }
     }
-    for m in &scene.meshes {
+    for m in scene.meshes() {
         h.update(m.opacity.to_le_bytes());
         h.update((m.triangles.start as u64).to_le_bytes());
         h.update((m.triangles.end as u64).to_le_bytes());
@@ -168,11 +168,13 @@ pub fn visibility_image(
     rec: &Receivers,
     v: Vec<f32>,
 ) -> Result<exr_io::VisibilityImage, String> {
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let (w, h) = (
+        scene.camera().width as usize,
+        scene.camera().height as usize,
+    );
     let z = rec
-        .view_depth
-        .clone()
-        .unwrap_or_else(|| vec![f32::INFINITY; w * h]);
+        .view_depth()
+        .map_or_else(|| vec![f32::INFINITY; w * h], <[f32]>::to_vec);
     let mut img = exr_io::VisibilityImage::new(w, h);
     img.push_channel("V", v).map_err(|e| e.to_string())?;
     img.push_channel("Z", z).map_err(|e| e.to_string())?;
@@ -257,8 +259,10 @@ pub fn report(args: &ReportArgs) -> Result<(), String> {
             .unwrap_or_default();
         fixture_names.push(name.clone());
         if args.quick {
-            scene.camera.width = (scene.camera.width / 2).max(8);
-            scene.camera.height = (scene.camera.height / 2).max(6);
+            let c = *scene.camera();
+            scene
+                .set_resolution((c.width / 2).max(8), (c.height / 2).max(6))
+                .map_err(|e| e.to_string())?;
         }
         let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
         bar.set_message(format!("{name}: reference"));
@@ -419,7 +423,7 @@ fn flicker_one(
     e.set_param("fit", fit).map_err(|e| e.to_string())?;
     let frames = if quick { 3 } else { 6 };
     // A sideways pan of a tenth of the camera's distance to its target.
-    let c = scene.camera;
+    let c = *scene.camera();
     let b = c.basis();
     let cam_path = path::CameraPath::Pan(b.right * (0.1 * (c.target - c.eye).length()));
     let mut s = scene.clone();
@@ -427,16 +431,17 @@ fn flicker_one(
     // Only the camera moves: one BVH serves every frame.
     let bvh = SceneBvh::new(scene);
     for k in 0..frames {
-        s.camera = cam_path.camera(&c, k, frames);
+        s.set_camera(cam_path.camera(&c, k, frames))
+            .map_err(|e| e.to_string())?;
         let rec = Receivers::from_camera(&s, &bvh);
         let v = match shadow_map_core::run(e.as_mut(), &s, &rec) {
             Ok((v, _)) => v,
             Err(_) => return Ok(None),
         };
         let f = path::Frame {
-            camera: s.camera,
-            position: rec.position,
-            active: rec.active,
+            camera: *s.camera(),
+            position: rec.position().to_vec(),
+            active: rec.active().to_vec(),
             v,
         };
         flicker.push(f);

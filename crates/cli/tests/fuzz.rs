@@ -985,7 +985,7 @@ fn cli_fuzz_renders_or_fails_cleanly() {
     let jobs = env_usize("SOFTSHADOW_FUZZ_JOBS", 2).max(1);
     let keep = std::env::var_os("SOFTSHADOW_FUZZ_KEEP").map(PathBuf::from);
     let gpu_percent = env_usize("SOFTSHADOW_FUZZ_GPU_PERCENT", 50).min(100) as u32;
-    let gpu = match shadow_map_core::gpu::context_for_tests("cli_fuzz_renders_or_fails_cleanly") {
+    let gpu = match test_support::gate::context_for_tests("cli_fuzz_renders_or_fails_cleanly") {
         Ok(Some(_)) => true,
         Ok(None) => false,
         Err(e) => panic!("{e}"),

@@ -56,9 +56,9 @@ fn bench(c: &mut Criterion) {
     let mut dsm = processed.clone();
     dsm.link();
     let looks: Vec<(Vec2, shadow_map_core::ReceiverPlane)> = (0..rec.len())
-        .filter(|&k| rec.active[k])
+        .filter(|&k| rec.active()[k])
         .filter_map(
-            |k| match query(&view, &scene.light, rec.position[k], rec.normal[k], &s) {
+            |k| match query(&view, scene.light(), rec.position()[k], rec.normal()[k], &s) {
                 Query::Look { uv, plane, .. } => Some((uv, plane)),
                 Query::Fixed(_) => None,
             },
@@ -77,7 +77,7 @@ fn bench(c: &mut Criterion) {
             p.set_param("filter", filter).unwrap();
             p.set_param("kernel", kernel).unwrap();
             p.set_param("traversal", traversal).unwrap();
-            let ls = lookup_settings(&view, &scene.light, &p.settings());
+            let ls = lookup_settings(&view, scene.light(), &p.settings());
             g.bench_function(format!("cpu/lookup/{label}/{traversal}"), |b| {
                 b.iter(|| {
                     looks

@@ -96,14 +96,14 @@ fn accuracy() {
         let vref2 = reference_v(&scene, &rec, &[("spp", &spp), ("seed", "12345")]);
         println!(
             "| {name} | reference vs itself (other seed), / sqrt 2 | {:.4} | | |",
-            rmse(&vref, &vref2, &rec.active) / 2f64.sqrt()
+            rmse(&vref, &vref2, rec.active()) / 2f64.sqrt()
         );
         for (label, kv) in &rows {
             let mut e = cpu_ds(&[&[("resolution", &res)], kv]);
             let (v, rep) = run(&mut e, &scene, &rec).unwrap();
             println!(
                 "| {name} | {label} | {:.4} | {:.1} | {:.1} |",
-                rmse(&v, &vref, &rec.active),
+                rmse(&v, &vref, rec.active()),
                 rep.total_ms("build"),
                 rep.total_ms("estimate")
             );
@@ -114,7 +114,7 @@ fn accuracy() {
             let (v, rep) = run(&mut ms, &scene, &rec).unwrap();
             println!(
                 "| {name} | multi-sample S={s} (opaque) | {:.4} | {:.1} | {:.1} |",
-                rmse(&v, &vref, &rec.active),
+                rmse(&v, &vref, rec.active()),
                 rep.total_ms("build"),
                 rep.total_ms("estimate")
             );
@@ -365,7 +365,7 @@ fn extra() {
             let worst = max_abs_diff(&va, &vb);
             println!(
                 "| {name} | {filter:?}: truncation eps=1e-3 vs none: max abs dV, RMS dV, fragments truncated of all | {worst:.2e}, {:.2e}, {} of {} |",
-                rmse(&va, &vb, &rec.active),
+                rmse(&va, &vb, rec.active()),
                 note(&ra, "truncated"),
                 note(&ra, "fragments")
             );
@@ -380,7 +380,7 @@ fn extra() {
             let (v, _) = run(&mut cpu_ds(&[&kv]), &scene, &rec).unwrap();
             println!(
                 "| {name} | EDSM 5, c = {c}: RMSE | {:.4} |",
-                rmse(&v, &vref, &rec.active)
+                rmse(&v, &vref, rec.active())
             );
         }
     }

@@ -21,7 +21,7 @@ pub fn sublight_points(scene: &Scene, s: u32) -> Vec<Vec2> {
     if s <= 1 {
         vec![Vec2::ZERO]
     } else {
-        scene.light.stratified_points(s, |_| Vec2::splat(0.5))
+        scene.light().stratified_points(s, |_| Vec2::splat(0.5))
     }
 }
 
@@ -74,7 +74,7 @@ pub fn sublight_view_reaching(
     margin: u32,
     opts: &ViewOptions,
 ) -> Result<(LightView, FitReport)> {
-    let frame = shadow_map_core::light_space::point_frame(&scene.light, y)?;
+    let frame = shadow_map_core::light_space::point_frame(scene.light(), y)?;
     let (mut view, mut fit) = LightView::fit_with(scene, receivers, frame, half, r, opts)?;
     if margin == 0 || r <= 2 * margin {
         return Ok((view, fit));
@@ -119,8 +119,8 @@ pub fn stable_margin(view: &LightView, receivers: &Receivers, margin: u32) -> Op
     // The receivers' bounds in x/z units.
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
-    for (k, pw) in receivers.position.iter().enumerate() {
-        if !receivers.active[k] {
+    for (k, pw) in receivers.position().iter().enumerate() {
+        if !receivers.active()[k] {
             continue;
         }
         let p = view.frame.to_light(*pw);
@@ -274,10 +274,14 @@ pub fn mark_outside(
     outside: &mut [bool],
 ) {
     outside.par_iter_mut().enumerate().for_each(|(k, o)| {
-        if receivers.active[k] && !*o {
-            if let Query::Look { uv, .. } =
-                query(view, light, receivers.position[k], receivers.normal[k], s)
-            {
+        if receivers.active()[k] && !*o {
+            if let Query::Look { uv, .. } = query(
+                view,
+                light,
+                receivers.position()[k],
+                receivers.normal()[k],
+                s,
+            ) {
                 *o = !view.contains(uv);
             }
         }
@@ -302,7 +306,7 @@ pub fn settle_outside(
     let settler = shadow_map_core::settle::Settler::new(scene);
     let proven: Vec<bool> = idx
         .par_iter()
-        .map(|&k| settler.unshadowed(receivers.position[k], receivers.normal[k]))
+        .map(|&k| settler.unshadowed(receivers.position()[k], receivers.normal()[k]))
         .collect();
     let unproven = proven.iter().filter(|p| !**p).count();
     if unproven > 0 {
@@ -313,8 +317,8 @@ pub fn settle_outside(
     }
     for &k in &idx {
         v[k] = scene
-            .light
-            .front_fraction_world(receivers.position[k], receivers.normal[k]);
+            .light()
+            .front_fraction_world(receivers.position()[k], receivers.normal()[k]);
     }
     Ok(idx.len())
 }
@@ -502,11 +506,11 @@ impl CpuDeepShadow {
                 )
             } else {
                 let dsm = build_deep_map_timed(scene, &view, &s, &mut t_stages)?;
-                tally.fragments += dsm.stats.fragments;
-                tally.kept += dsm.stats.kept;
-                tally.capacity = tally.capacity.max(dsm.stats.capacity);
-                tally.passes += dsm.stats.passes;
-                tally.max_len = tally.max_len.max(dsm.stats.max_len);
+                tally.fragments += dsm.stats().fragments;
+                tally.kept += dsm.stats().kept;
+                tally.capacity = tally.capacity.max(dsm.stats().capacity);
+                tally.passes += dsm.stats().passes;
+                tally.max_len = tally.max_len.max(dsm.stats().max_len);
                 Source::Deep(dsm)
             };
             tally.peak = tally.peak.max(match &map {
@@ -515,19 +519,19 @@ impl CpuDeepShadow {
             });
             t_build += t.elapsed().as_secs_f64() * 1e3;
             let t = Instant::now();
-            let ls = lookup_settings(&view, &scene.light, &s);
-            mark_outside(&view, &scene.light, receivers, &s, &mut outside);
+            let ls = lookup_settings(&view, scene.light(), &s);
+            mark_outside(&view, scene.light(), receivers, &s, &mut outside);
             let (lookups, steps) = self.cancel.par_map_reduce(
                 &mut acc,
                 |k, a| {
-                    if !receivers.active[k] {
+                    if !receivers.active()[k] {
                         return (0u64, 0u64);
                     }
                     match query(
                         &view,
-                        &scene.light,
-                        receivers.position[k],
-                        receivers.normal[k],
+                        scene.light(),
+                        receivers.position()[k],
+                        receivers.normal()[k],
                         &s,
                     ) {
                         Query::Fixed(x) => {
@@ -574,6 +578,8 @@ impl CpuDeepShadow {
         self.report.stages.push(("estimate".into(), t_est));
         tally.note(&mut self.report, scene, opaque, views.len());
         self.report.note("non_finite", bad);
+        self.report
+            .warn(shadow_map_core::Warning::NonFiniteV { receivers: bad });
         if settled > 0 {
             self.report.note("settled_outside", settled);
         }
@@ -591,13 +597,13 @@ pub fn finish(
     v: &mut [f32],
 ) -> usize {
     let inv = 1.0 / views.max(1) as f32;
-    let frame = scene.light.frame();
-    let one_sided = scene.light.one_sided();
+    let frame = scene.light().frame();
+    let one_sided = scene.light().one_sided();
     let mut bad = 0;
     for (k, out) in v.iter_mut().enumerate() {
-        *out = if !receivers.active[k] {
+        *out = if !receivers.active()[k] {
             f32::NAN
-        } else if one_sided && frame.to_light(receivers.position[k]).z <= 0.0 {
+        } else if one_sided && frame.to_light(receivers.position()[k]).z <= 0.0 {
             0.0
         } else {
             let x = acc[k] * inv;
@@ -651,7 +657,7 @@ impl Tally {
         s: &Settings,
     ) -> Result<(LightView, FitReport)> {
         let half = if s.filter == Filter::Pcss {
-            0.5 * view_light_extent(&scene.light, s.sublights)
+            0.5 * view_light_extent(scene.light(), s.sublights)
         } else {
             Vec2::ZERO
         };
@@ -676,7 +682,7 @@ impl Tally {
     }
     /// Adds the notes to a report.
     pub fn note(&self, rep: &mut Report, scene: &Scene, opaque: bool, views: usize) {
-        if matches!(scene.light.shape, LightShape::Sphere { .. }) {
+        if matches!(scene.light().shape, LightShape::Sphere { .. }) {
             rep.note(
                 "approximation",
                 "sphere light sampled on the disk through its centre perpendicular to the light normal",

@@ -109,28 +109,28 @@ pub struct BuildStats {
 
 /// A deep shadow map: `head[j r + i]` is the first element of texel (i, j)'s list in `nodes`
 /// ([`NIL`] when empty).
+///
+/// Invariant (kept by every constructor, relied on by the parallel passes): `head` has `r * r`
+/// entries; every `head` entry and every link (`next`, `prev`, `right`, `upper`) of an element is
+/// [`NIL`] or an index into `nodes`; the lists reached from `head` through `next` are acyclic and
+/// pairwise disjoint. The fields are private so safe code cannot break it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeepShadowMap {
     /// Side r in texels.
-    pub r: u32,
+    r: u32,
     /// Head buffer.
-    pub head: Vec<u32>,
+    head: Vec<u32>,
     /// List element buffer (its length is the capacity).
-    pub nodes: Vec<Node>,
+    nodes: Vec<Node>,
     /// Build statistics.
-    pub stats: BuildStats,
+    stats: BuildStats,
 }
 
 /// One pass of §1.3.1 (Listing 1.2), sequential: for each fragment, `i = counter++`; if
 /// `i < capacity` the element is written and pushed at the head of its texel's list (the
 /// `InterlockedExchange`); otherwise only the counter moves, so an overflow is detected
 /// (`counter > capacity`) and never leaves a broken list. Returns the counter.
-pub fn insert_pass(
-    frags: &[Fragment],
-    head: &mut [u32],
-    nodes: &mut Vec<Node>,
-    capacity: u64,
-) -> u64 {
+fn insert_pass(frags: &[Fragment], head: &mut [u32], nodes: &mut Vec<Node>, capacity: u64) -> u64 {
     head.fill(NIL);
     nodes.clear();
     let mut counter: u64 = 0;
@@ -147,13 +147,26 @@ pub fn insert_pass(
     counter
 }
 
-/// Raw element-buffer pointer shared by the per-texel passes, which touch disjoint lists.
+/// Raw element-buffer pointer and length shared by the per-texel passes, which touch disjoint
+/// lists. Fields are read and written through the raw pointer (never through `&mut Node`), so
+/// two passes touching different fields of one element never alias.
 #[derive(Clone, Copy)]
-struct NodesPtr(*mut Node);
+struct NodesPtr(*mut Node, usize);
 // SAFETY: every per-texel pass below writes only the elements of its own texel's list (lists are
-// disjoint) and reads other lists only in fields no pass writes concurrently.
+// disjoint, a `DeepShadowMap` invariant) and reads other lists only in fields no pass writes
+// concurrently.
 unsafe impl Send for NodesPtr {}
 unsafe impl Sync for NodesPtr {}
+
+impl NodesPtr {
+    /// Pointer to element `i`; panics (never reads out of bounds) when `i` is past the buffer.
+    #[inline]
+    fn at(self, i: u32) -> *mut Node {
+        assert!((i as usize) < self.1, "list element {i} out of bounds");
+        // SAFETY: `i < len` of the buffer `self.0` points at.
+        unsafe { self.0.add(i as usize) }
+    }
+}
 
 impl DeepShadowMap {
     /// Builds the lists from fragments with the capacity rule of §1.3.1: a pass at
@@ -167,6 +180,12 @@ impl DeepShadowMap {
         max_capacity: u64,
     ) -> Result<Self> {
         let texels = r as usize * r as usize;
+        if let Some(f) = frags.iter().find(|f| f.texel as usize >= texels) {
+            return Err(Error::param(
+                "fragments",
+                format!("texel {} outside a {r}x{r} map", f.texel),
+            ));
+        }
         let mut capacity = if initial_capacity == 0 {
             (4 * texels as u64).max(1024)
         } else {
@@ -204,10 +223,73 @@ impl DeepShadowMap {
         }
     }
 
-    /// Indices of texel `t`'s list, in list order.
+    /// A map from raw buffers (e.g. a GPU map read back), checked against the invariant of
+    /// [`DeepShadowMap`]: fails with [`Error::Gpu`] on a wrong head length, an index out of range
+    /// or lists that cycle or share elements.
+    pub fn from_parts(r: u32, head: Vec<u32>, nodes: Vec<Node>, stats: BuildStats) -> Result<Self> {
+        let bad = |reason: String| Error::Gpu {
+            stage: "deep shadow map lists".into(),
+            reason,
+        };
+        if head.len() != r as usize * r as usize {
+            return Err(bad(format!("{} heads for a {r}x{r} map", head.len())));
+        }
+        if nodes.len() >= NIL as usize {
+            return Err(bad(format!("{} elements", nodes.len())));
+        }
+        let n = nodes.len() as u32;
+        let ok = |i: u32| i == NIL || i < n;
+        for (k, e) in nodes.iter().enumerate() {
+            if !(ok(e.next) && ok(e.prev) && ok(e.right) && ok(e.upper)) {
+                return Err(bad(format!("element {k} links past {n} elements")));
+            }
+        }
+        // Each element is reached from at most one head, at most once: disjoint and acyclic.
+        let mut seen = vec![false; nodes.len()];
+        for (t, &h) in head.iter().enumerate() {
+            let mut e = h;
+            while e != NIL {
+                if e >= n {
+                    return Err(bad(format!("head {t} points past {n} elements")));
+                }
+                if std::mem::replace(&mut seen[e as usize], true) {
+                    return Err(bad(format!("element {e} is reached twice (texel {t})")));
+                }
+                e = nodes[e as usize].next;
+            }
+        }
+        Ok(DeepShadowMap {
+            r,
+            head,
+            nodes,
+            stats,
+        })
+    }
+
+    /// Side r in texels.
+    pub fn r(&self) -> u32 {
+        self.r
+    }
+
+    /// Head buffer: the first element of each texel's list, [`NIL`] when empty.
+    pub fn head(&self) -> &[u32] {
+        &self.head
+    }
+
+    /// The element buffer.
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    /// Build statistics.
+    pub fn stats(&self) -> &BuildStats {
+        &self.stats
+    }
+
+    /// Indices of texel `t`'s list, in list order (empty for a texel past the map).
     pub fn list(&self, t: usize) -> Vec<u32> {
         let mut out = Vec::new();
-        let mut e = self.head[t];
+        let mut e = self.head.get(t).copied().unwrap_or(NIL);
         while e != NIL {
             out.push(e);
             e = self.nodes[e as usize].next;
@@ -233,16 +315,17 @@ impl DeepShadowMap {
     ///   so the truncated value is at most `tau_K <= epsilon` and at least the full one: the error
     ///   is again at most `epsilon`.
     pub fn process(&mut self, epsilon: f32, window: f32) {
-        let ptr = NodesPtr(self.nodes.as_mut_ptr());
+        let ptr = NodesPtr(self.nodes.as_mut_ptr(), self.nodes.len());
         let res: Vec<(u64, u32)> = self
             .head
             .par_iter()
             .map_init(
                 || (Vec::new(), Vec::new()),
                 |scratch, &h| {
-                    let p = ptr;
-                    // SAFETY: only the elements of this texel's list are touched.
-                    unsafe { process_list(p.0, h, (epsilon, window), scratch) }
+                    // SAFETY: the lists are disjoint and in bounds (the type's invariant, which
+                    // processing keeps: it only reorders payloads and cuts `next`), so only this
+                    // texel's elements are touched.
+                    unsafe { process_list(ptr, h, (epsilon, window), scratch) }
                 },
             )
             .collect();
@@ -256,18 +339,19 @@ impl DeepShadowMap {
     /// sorted lists together.
     pub fn link(&mut self) {
         let r = self.r as usize;
-        let ptr = NodesPtr(self.nodes.as_mut_ptr());
+        let ptr = NodesPtr(self.nodes.as_mut_ptr(), self.nodes.len());
         let head = &self.head;
         (0..head.len()).into_par_iter().for_each(|t| {
             let p = ptr;
             let (i, j) = (t % r, t / r);
             let right = if i + 1 < r { head[t + 1] } else { NIL };
             let upper = if j + 1 < r { head[t + r] } else { NIL };
-            // SAFETY: writes only `right`/`upper` of this texel's elements; reads only `depth`
-            // and `next` of the neighbours' elements, which this pass never writes.
+            // SAFETY: the lists are disjoint and in bounds (the type's invariant); this writes
+            // only `right`/`upper` of this texel's elements and reads only `depth` and `next` of
+            // the neighbours' elements, which this pass never writes.
             unsafe {
-                link_list(p.0, head[t], right, false);
-                link_list(p.0, head[t], upper, true);
+                link_list(p, head[t], right, false);
+                link_list(p, head[t], upper, true);
             }
         });
     }
@@ -485,9 +569,10 @@ pub fn soft_tau(nodes: &[Node], k: u32, d: f32, c_world: f32) -> f32 {
 /// Sorts, accumulates and truncates one list; returns (elements kept, length before truncation).
 ///
 /// # Safety
-/// `nodes` must point at the element buffer and no other thread may touch this list.
+/// `nodes` must describe the live element buffer, the list from `head` must be acyclic, and no
+/// other thread may touch this list's elements.
 unsafe fn process_list(
-    nodes: *mut Node,
+    nodes: NodesPtr,
     head: u32,
     (epsilon, window): (f32, f32),
     (idx, pay): &mut (Vec<u32>, Vec<(f32, f32)>),
@@ -495,7 +580,8 @@ unsafe fn process_list(
     if head == NIL {
         return (0, 0);
     }
-    let at = |i: u32| unsafe { &mut *nodes.add(i as usize) };
+    // SAFETY: in bounds (`NodesPtr::at` checks) and owned by this thread (the caller's contract).
+    let at = |i: u32| unsafe { &mut *nodes.at(i) };
     idx.clear();
     pay.clear();
     let mut e = head;
@@ -555,37 +641,45 @@ pub fn less(a: (f32, f32), b: (f32, f32)) -> bool {
 ///
 /// # Safety
 /// As [`DeepShadowMap::link`].
-unsafe fn link_list(nodes: *mut Node, a: u32, b: u32, upper: bool) {
-    let at = |i: u32| unsafe { &mut *nodes.add(i as usize) };
+unsafe fn link_list(nodes: NodesPtr, a: u32, b: u32, upper: bool) {
+    // SAFETY (both closures): in bounds (`NodesPtr::at` checks); fields are accessed through the raw
+    // pointer, never a reference, and no other thread writes `depth`/`next` during the pass or
+    // the `right`/`upper` of list `a`.
+    let depth = |i: u32| unsafe { (*nodes.at(i)).depth };
+    let next = |i: u32| unsafe { (*nodes.at(i)).next };
     let mut cur = b;
     let mut e = a;
     while e != NIL {
-        let z = at(e).depth;
+        let z = depth(e);
         let best = if cur == NIL {
             NIL
         } else {
             loop {
-                let nx = at(cur).next;
-                if nx != NIL && at(nx).depth <= z {
+                let nx = next(cur);
+                if nx != NIL && depth(nx) <= z {
                     cur = nx;
                 } else {
                     break;
                 }
             }
-            let zc = at(cur).depth;
-            let nx = at(cur).next;
-            if zc <= z && nx != NIL && at(nx).depth - z < z - zc {
+            let zc = depth(cur);
+            let nx = next(cur);
+            if zc <= z && nx != NIL && depth(nx) - z < z - zc {
                 nx
             } else {
                 cur
             }
         };
-        if upper {
-            at(e).upper = best;
-        } else {
-            at(e).right = best;
+        let p = nodes.at(e);
+        // SAFETY: `e` is this thread's own element (see above).
+        unsafe {
+            if upper {
+                (*p).upper = best;
+            } else {
+                (*p).right = best;
+            }
         }
-        e = at(e).next;
+        e = next(e);
     }
 }
 
@@ -636,4 +730,52 @@ pub fn transmittance_opaque_plane(
         }
     }
     (sum / (n * n) as f32).clamp(0.0, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frag(texel: u32, depth: f32) -> Fragment {
+        Fragment {
+            texel,
+            depth,
+            alpha: 0.5,
+        }
+    }
+
+    /// Bad buffers cannot become a map: a fragment past the map is a typed error, and a
+    /// read-back with a wrong head length, a dangling link, a cycle or a shared element is
+    /// refused, so `process` and `link` only ever see valid, disjoint lists.
+    #[test]
+    fn invalid_maps_are_refused() {
+        assert!(matches!(
+            DeepShadowMap::build(&[frag(4, 1.0)], 2, 0, 1 << 20),
+            Err(Error::Param { .. })
+        ));
+        let m = DeepShadowMap::build(&[frag(0, 2.0), frag(0, 1.0), frag(3, 1.0)], 2, 0, 1 << 20)
+            .unwrap();
+        let parts = |m: &DeepShadowMap| (m.head().to_vec(), m.nodes().to_vec());
+        let ok = |h: Vec<u32>, n: Vec<Node>| DeepShadowMap::from_parts(2, h, n, *m.stats());
+        let (h, n) = parts(&m);
+        let mut back = ok(h.clone(), n.clone()).unwrap();
+        back.process(0.0, 0.0);
+        back.link();
+        // What `m.nodes.clear(); m.process(..)` used to do.
+        assert!(ok(h.clone(), Vec::new()).is_err());
+        assert!(ok(h[..3].to_vec(), n.clone()).is_err());
+        let mut dangling = n.clone();
+        dangling[0].right = 7;
+        assert!(ok(h.clone(), dangling).is_err());
+        let mut cycle = n.clone();
+        let first = h[0] as usize;
+        let second = cycle[first].next as usize;
+        cycle[second].next = first as u32;
+        assert!(ok(h.clone(), cycle).is_err());
+        let mut shared = h.clone();
+        shared[1] = shared[0];
+        assert!(ok(shared, n).is_err());
+        // Out of range reads are empty, not a panic.
+        assert!(m.list(99).is_empty());
+    }
 }

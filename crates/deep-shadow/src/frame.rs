@@ -291,6 +291,11 @@ impl FrameEstimator for DeepShadowFrame {
         Some(&self.status)
     }
 
+    /// Semi-transparent scenes: the frame's casters are opaque, the twin models opacity.
+    fn refuses(&self, scene: &Scene) -> Option<String> {
+        shadow_map_core::gpu::frame::refuse_semi_transparent(scene)
+    }
+
     /// Per view: the raster pass, `frame_head`, `frame_lookup`; then `frame_finish`. Errors
     /// also for views missing or more than the sub-lights ([`Error::LightView`]) and more
     /// receivers than `max_receivers` ([`Error::Limit`]).
@@ -407,10 +412,7 @@ impl FrameEstimator for DeepShadowFrame {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let mut opaque = scene.clone();
-        for m in &mut opaque.meshes {
-            m.opacity = 1.0;
-        }
+        let opaque = scene.opaque();
         let views: Vec<LightView> = views.iter().flatten().copied().collect();
         let mut e = CpuDeepShadow::new()?;
         configure(&mut e, &self.params)?;
@@ -427,7 +429,7 @@ mod tests {
     #[test]
     fn frame_uniform_matches_the_wgsl_layout() {
         let src = shadow_map_core::gpu::kernel::shader_source(FRAME_SHADER_PARTS);
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             src,
             DsFrameUniform {
                 bias,

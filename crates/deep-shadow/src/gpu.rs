@@ -114,7 +114,7 @@ pub struct GpuDeepShadow {
     report: Report,
     pipes: Pipelines,
     /// The fragment counter's value before each raster pass: 0, except in tests that reach the
-    /// u32 wrap without 2^32 fragments ([`GpuDeepShadow::set_counter_start`]).
+    /// u32 wrap without 2^32 fragments (`set_counter_start`, in the unit tests).
     counter_start: u32,
     /// Checked between sub-light views.
     cancel: Cancel,
@@ -193,8 +193,8 @@ impl GpuDeepShadow {
 
     /// Tests only: start the list builds' fragment counter at `start` instead of 0, so that a
     /// small scene reaches the u32 wrap a scene of 2^32 fragments would.
-    #[doc(hidden)]
-    pub fn set_counter_start(&mut self, start: u32) {
+    #[cfg(test)]
+    fn set_counter_start(&mut self, start: u32) {
         self.counter_start = start;
     }
 
@@ -391,16 +391,16 @@ impl GpuDeepShadow {
         let ctx = &self.ctx;
         let dsm = crate::cpu::build_deep_map(scene, view, s)?;
         ctx.queue
-            .write_buffer(&map.head, 0, bytemuck::cast_slice(&dsm.head));
-        let nodes = self.element_buffer(dsm.nodes.len().max(1) as u64)?;
-        if !dsm.nodes.is_empty() {
+            .write_buffer(&map.head, 0, bytemuck::cast_slice(dsm.head()));
+        let nodes = self.element_buffer(dsm.nodes().len().max(1) as u64)?;
+        if !dsm.nodes().is_empty() {
             ctx.queue
-                .write_buffer(&nodes, 0, bytemuck::cast_slice(&dsm.nodes));
+                .write_buffer(&nodes, 0, bytemuck::cast_slice(dsm.nodes()));
         }
         map.nodes = nodes;
         map.stats = BuildStats {
             passes: map.stats.passes,
-            ..dsm.stats
+            ..*dsm.stats()
         };
         map.cut_texels = cut;
         Ok(())
@@ -648,17 +648,12 @@ impl GpuDeepShadow {
         Ok(n as f64 / best)
     }
 
-    /// Reads a GPU map back as the CPU twin's structure (for tests).
-    pub fn read_map(&self, map: &GpuMap) -> Result<DeepShadowMap> {
+    /// Reads a GPU map back as the CPU twin's structure (the loop-limit redo's lists).
+    fn read_map(&self, map: &GpuMap) -> Result<DeepShadowMap> {
         let head: Vec<u32> = self.ctx.read_buffer(&map.head, map.head.size())?;
         let mut nodes: Vec<Node> = self.ctx.read_buffer(&map.nodes, map.nodes.size())?;
         nodes.truncate(map.stats.fragments.min(map.stats.capacity) as usize);
-        Ok(DeepShadowMap {
-            r: map.r,
-            head,
-            nodes,
-            stats: map.stats,
-        })
+        DeepShadowMap::from_parts(map.r, head, nodes, map.stats)
     }
 
     /// Filtered transmittance for each packed query ([`pack_query`]; fixed >= 0: no lookup), the
@@ -930,12 +925,12 @@ impl SoftShadowEstimator for GpuDeepShadow {
             let t = Instant::now();
             let queries: Vec<PackedQuery> = (0..receivers.len())
                 .map(|k| {
-                    if receivers.active[k] {
+                    if receivers.active()[k] {
                         pack_query(query(
                             &view,
-                            &scene.light,
-                            receivers.position[k],
-                            receivers.normal[k],
+                            scene.light(),
+                            receivers.position()[k],
+                            receivers.normal()[k],
                             &s,
                         ))
                     } else {
@@ -943,8 +938,8 @@ impl SoftShadowEstimator for GpuDeepShadow {
                     }
                 })
                 .collect();
-            let ls = lookup_settings(&view, &scene.light, &s);
-            crate::cpu::mark_outside(&view, &scene.light, receivers, &s, &mut outside);
+            let ls = lookup_settings(&view, scene.light(), &s);
+            crate::cpu::mark_outside(&view, scene.light(), receivers, &s, &mut outside);
             let (tv, steps, redone) = self.lookup(&map, &ls, &queries)?;
             fallbacks += redone;
             cut_texels += map.cut_texels;
@@ -964,6 +959,8 @@ impl SoftShadowEstimator for GpuDeepShadow {
         self.report.stages.push(("estimate".into(), t_est));
         tally.note(&mut self.report, scene, opaque, points.len());
         self.report.note("non_finite", bad);
+        self.report
+            .warn(shadow_map_core::Warning::NonFiniteV { receivers: bad });
         if fallbacks > 0 || cut_texels > 0 {
             self.report.note("loop_limit_cpu_fallbacks", fallbacks);
             self.report.note("loop_limit_cpu_lists", cut_texels);
@@ -979,10 +976,85 @@ impl SoftShadowEstimator for GpuDeepShadow {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::shared::NIL;
+
+    /// Each texel's list, element by element: depth, alpha, tau and the ranks of `prev`, `right`
+    /// and `upper` in their texels' lists. Two builds of one map give the same lists whatever
+    /// order the device's atomics wrote the elements in.
+    type Lists = Vec<Vec<(f32, f32, f32, Option<usize>, Option<usize>, Option<usize>)>>;
+
+    fn lists(m: &DeepShadowMap) -> Lists {
+        let r = m.r() as usize;
+        let rank = |t: usize, e: u32| {
+            if e == NIL {
+                return None;
+            }
+            m.list(t).iter().position(|x| *x == e)
+        };
+        (0..m.head().len())
+            .map(|t| {
+                let (i, j) = (t % r, t / r);
+                let list = m.list(t);
+                for w in list.windows(2) {
+                    let (a, b) = (&m.nodes()[w[0] as usize], &m.nodes()[w[1] as usize]);
+                    assert!(a.depth() <= b.depth(), "texel {t}: list unsorted");
+                }
+                list.iter()
+                    .map(|&e| {
+                        let n = &m.nodes()[e as usize];
+                        (
+                            n.depth(),
+                            n.alpha(),
+                            n.tau(),
+                            rank(t, n.prev()),
+                            rank(t + 1, n.right()).filter(|_| i + 1 < r),
+                            rank(t + r, n.upper()).filter(|_| j + 1 < r),
+                        )
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The element counter is a u32: a pass past 2^32 fragments used to wrap, the wrapped
+    /// indices overwrote live elements and the wrapped count passed the capacity check. Started
+    /// just below the wrap (`set_counter_start`), the build is refused with the true need.
+    #[test]
+    fn gpu_counter_wrap_is_a_limit_error() {
+        let Some(ctx) = test_support::gpu("gpu_counter_wrap_is_a_limit_error") else {
+            return;
+        };
+        let (scene, rec) = test_support::fixtures::fixture("strands", 32, 24);
+        let mut g = GpuDeepShadow::new(ctx).unwrap();
+        let mut s = Settings::from_params(crate::CpuDeepShadow::new().unwrap().params()).unwrap();
+        s.resolution = 64;
+        let (v, _) = crate::cpu::sublight_view(&scene, &rec, Vec2::ZERO, 64, 0).unwrap();
+        let full = g.build_map(&scene, &v, &s).unwrap();
+        assert!(full.stats.fragments > 100, "{}", full.stats.fragments);
+        let start = u32::MAX - 10;
+        g.set_counter_start(start);
+        match g.build_map(&scene, &v, &s) {
+            Err(Error::Limit { requested, max, .. }) => {
+                assert_eq!(requested, start as u64 + full.stats.fragments);
+                assert!(max < u32::MAX as u64);
+            }
+            Err(e) => panic!("expected a limit error, got {e}"),
+            Ok(m) => panic!(
+                "a wrapped counter was taken for {} fragments",
+                m.stats.fragments
+            ),
+        }
+        // Below the wrap the same start is an ordinary need: grown, then built (from 0 again).
+        g.set_counter_start(0);
+        let again = g.build_map(&scene, &v, &s).unwrap();
+        let (full, again) = (g.read_map(&full).unwrap(), g.read_map(&again).unwrap());
+        assert_eq!(full.stats().fragments, again.stats().fragments);
+        assert!(lists(&full) == lists(&again), "the lists differ");
+    }
 
     #[test]
     fn shader_validates_with_naga() {
-        shadow_map_core::gpu::kernel::assert_shaders_valid(
+        test_support::wgsl::assert_shaders_valid(
             SHADERS
                 .iter()
                 .map(|(name, parts)| (*name, shadow_map_core::gpu::kernel::shader_source(parts))),
@@ -993,7 +1065,7 @@ mod tests {
     #[test]
     fn shared_structs_match_the_wgsl_layouts() {
         let src = shadow_map_core::gpu::kernel::shader_source(SHADER_PARTS);
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             src,
             Node {
                 depth,
@@ -1006,7 +1078,7 @@ mod tests {
                 _pad0,
             }
         );
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             src,
             Tri {
                 u0,
@@ -1023,7 +1095,7 @@ mod tests {
                 _pad1,
             }
         );
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             src,
             DsUniform {
                 r,

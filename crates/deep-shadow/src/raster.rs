@@ -39,8 +39,8 @@ pub struct Fragment {
 /// project with [`TexelProjection::clip_project`].
 pub fn prepare(scene: &Scene, view: &LightView) -> Vec<PreparedTri> {
     let proj = TexelProjection::new(view);
-    let mut out = Vec::with_capacity(scene.triangles.len());
-    for (t, tri) in scene.triangles.iter().enumerate() {
+    let mut out = Vec::with_capacity(scene.triangles().len());
+    for (t, tri) in scene.triangles().iter().enumerate() {
         let alpha = scene.triangle_opacity(t);
         if !(alpha > 0.0) {
             continue;

@@ -19,21 +19,21 @@ pub const NIL: u32 = u32::MAX;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Node {
     /// Linear light-space depth z.
-    pub depth: f32,
+    pub(crate) depth: f32,
     /// Opacity alpha.
-    pub alpha: f32,
+    pub(crate) alpha: f32,
     /// Cumulative transmittance `tau_k` (Eq. 1.1) after processing; 1 before.
-    pub tau: f32,
+    pub(crate) tau: f32,
     /// Next element (deeper after sorting), or [`NIL`].
-    pub next: u32,
+    pub(crate) next: u32,
     /// Previous element, or [`NIL`].
-    pub prev: u32,
+    pub(crate) prev: u32,
     /// Depth-nearest element in the right neighbour's list, or [`NIL`].
-    pub right: u32,
+    pub(crate) right: u32,
     /// Depth-nearest element in the upper neighbour's list, or [`NIL`].
-    pub upper: u32,
+    pub(crate) upper: u32,
     /// Padding to 32 bytes.
-    pub _pad0: u32,
+    pub(crate) _pad0: u32,
 }
 
 impl Node {
@@ -49,6 +49,34 @@ impl Node {
             upper: NIL,
             _pad0: 0,
         }
+    }
+    /// Linear light-space depth z.
+    pub fn depth(&self) -> f32 {
+        self.depth
+    }
+    /// Opacity alpha.
+    pub fn alpha(&self) -> f32 {
+        self.alpha
+    }
+    /// Cumulative transmittance `tau_k` (Eq. 1.1) after processing; 1 before.
+    pub fn tau(&self) -> f32 {
+        self.tau
+    }
+    /// Next element (deeper after sorting), or [`NIL`].
+    pub fn next(&self) -> u32 {
+        self.next
+    }
+    /// Previous element, or [`NIL`].
+    pub fn prev(&self) -> u32 {
+        self.prev
+    }
+    /// Depth-nearest element in the right neighbour's list, or [`NIL`].
+    pub fn right(&self) -> u32 {
+        self.right
+    }
+    /// Depth-nearest element in the upper neighbour's list, or [`NIL`].
+    pub fn upper(&self) -> u32 {
+        self.upper
     }
 }
 

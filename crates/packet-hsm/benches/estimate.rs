@@ -8,11 +8,11 @@ use test_support::fixtures::fixture;
 
 fn bench(c: &mut Criterion) {
     let (mut scene, rec) = fixture("bunny", 160, 120);
-    let base = scene.light;
+    let base = *scene.light();
     let mut g = c.benchmark_group("packet-hsm estimate");
     g.sample_size(10);
     for scale in [1.0f32, 2.0] {
-        scene.light = base.scaled(scale);
+        scene.set_light(base.scaled(scale)).unwrap();
         for (label, kv) in [
             (
                 "gbp07",

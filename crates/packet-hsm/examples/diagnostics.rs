@@ -30,9 +30,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (v, report) = run(&mut e, &scene, &rec)?;
     let d = e.diagnostics();
     let z = rec
-        .view_depth
-        .clone()
-        .unwrap_or_else(|| vec![f32::INFINITY; rec.len()]);
+        .view_depth()
+        .map_or_else(|| vec![f32::INFINITY; rec.len()], <[f32]>::to_vec);
     let chan =
         |n: &str, data: Vec<f32>| AnyChannel::new(Text::new_or_panic(n), FlatSamples::F32(data));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
@@ -41,7 +40,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     list.push(chan("kernel", d.iter().map(|p| p.kernel).collect()));
     list.push(chan("visited", d.iter().map(|p| p.visited).collect()));
     list.push(chan("packet", d.iter().map(|p| p.class as f32).collect()));
-    let size = (scene.camera.width as usize, scene.camera.height as usize);
+    let size = (
+        scene.camera().width as usize,
+        scene.camera().height as usize,
+    );
     let image = Image::from_channels(size, AnyChannels::sort(list));
     image.write().to_file(out)?;
     println!("wrote {out}; {:?}", report.notes);

@@ -165,12 +165,12 @@ fn speed() {
         runs,
     } = settings();
     let (mut scene, rec) = fixture(&name, w, h);
-    let base_light = scene.light;
+    let base_light = *scene.light();
     println!("\n## speed: {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}), one shadow map (S = 1), 3x3 packets");
     println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV | penumbra px | visited/px GBP07 | visited/px both | coherent packets |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
-        scene.light = base_light.scaled(scale);
+        scene.set_light(base_light.scaled(scale)).unwrap();
         let mut out = Vec::new();
         for kv in VARIANTS {
             let mut kv = kv.to_vec();
@@ -266,19 +266,19 @@ fn visits() {
     let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
     let res: u32 = envu("HSM_RES", 512);
     let (mut scene, rec) = fixture(&name, w, h);
-    let base_light = scene.light;
+    let base_light = *scene.light();
     println!(
         "\n## visited nodes per penumbra pixel: {name}, {w}x{h}, r = {res}, per pixel (no packets)"
     );
     println!("| light scale | penumbra px | kernel cells (flat scan) | MSSM hierarchy (Yang) | min/max mip from root (DU07) | flat / MSSM | mip / MSSM |");
     println!("|---|---|---|---|---|---|---|");
     for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
-        scene.light = base_light.scaled(scale);
+        scene.set_light(base_light.scaled(scale)).unwrap();
         let cfg = Config::from_params(hsm(&[]).params()).expect("cfg");
         let sv = SubView::build(
             &scene,
             &rec,
-            (res, glam::Vec2::ZERO, scene.light.half_extent()),
+            (res, glam::Vec2::ZERO, scene.light().half_extent()),
             &cfg,
             packet_hsm::cpu::OwnPlane::Auto,
         )
@@ -287,13 +287,18 @@ fn visits() {
         let pyr = CellPyramid::build(&sv);
         let (mut flat, mut hier, mut mip, mut pen) = (0u64, 0u64, 0u64, 0u64);
         for k in 0..rec.len() {
-            if !rec.active[k] {
+            if !rec.active()[k] {
                 continue;
             }
             let mut out = false;
-            if let Prep::Penumbra { rec: r, cr, .. } =
-                prepare(&sv, &grid, &cfg, rec.position[k], rec.normal[k], &mut out)
-            {
+            if let Prep::Penumbra { rec: r, cr, .. } = prepare(
+                &sv,
+                &grid,
+                &cfg,
+                rec.position()[k],
+                rec.normal()[k],
+                &mut out,
+            ) {
                 pen += 1;
                 flat += ((cr[2] - cr[0]) as u64) * ((cr[3] - cr[1]) as u64);
                 let mut n = 0;
@@ -368,7 +373,7 @@ fn tune() {
         runs,
     } = settings();
     let (mut scene, rec) = fixture(&name, w, h);
-    scene.light = scene.light.scaled(2.0);
+    scene.set_light(scene.light().scaled(2.0)).unwrap();
     let grid = ["0", "1", "2", "4", "8", "16"];
     println!("\n## Q_e, Q_v tuning (eq. 6, Q_n = 1): {name} under a 2x light, {w}x{h}, r = {res}, 3x3 packets, hierarchy on; estimate ms (median of {runs})");
     println!("| Q_e \\ Q_v | {} |", grid.join(" | "));
@@ -479,7 +484,7 @@ fn accuracy() {
                 continue;
             }
             let (_, frame, v, _) = time(e.as_mut(), &scene, &rec, runs);
-            let r = rmse(&v, &vref, &rec.active);
+            let r = rmse(&v, &vref, rec.active());
             println!("| {name} | {label} | {r:.4} | {frame:.1} |");
             if name == "overlapping" && (label.contains("S=2") || label.contains("4 layers")) {
                 fig11.push((label.to_string(), r, frame));
@@ -516,12 +521,12 @@ fn gpu() {
         runs,
     } = settings();
     let (mut scene, rec) = fixture(&name, w, h);
-    let base_light = scene.light;
+    let base_light = *scene.light();
     println!("\n## gpu twin ({}): {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}; maps built on the CPU and uploaded, not counted), S = 1, 3x3 packets", ctx.describe());
     println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV vs CPU | receivers redone on the CPU (loop limit), per variant |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
-        scene.light = base_light.scaled(scale);
+        scene.set_light(base_light.scaled(scale)).unwrap();
         let mut cpu = hsm(&[("resolution", &res)]);
         let (_, _, vc, _) = time(&mut cpu, &scene, &rec, 1);
         let mut out = Vec::new();

@@ -17,7 +17,7 @@ use shadow_map_core::{
     peeling::SelfShadowSettings,
     silhouette::Silhouette,
     Cancel, Error, Light, LightShape, ParamKind, ParamSpec, ParamValue, Params, RasterOptions,
-    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Warning,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -258,8 +258,8 @@ impl Config {
 /// casters, the meshes of at least its opacity) and weight.
 pub struct OpacityLevels<'a> {
     levels: Vec<(std::borrow::Cow<'a, Scene>, f32)>,
-    /// Levels the scene needed when more than allowed (treated as opaque).
-    needed: Option<usize>,
+    /// Levels the scene needed when more than allowed (treated as opaque), and the cap.
+    needed: Option<(usize, usize)>,
 }
 
 impl<'a> OpacityLevels<'a> {
@@ -285,21 +285,18 @@ impl<'a> OpacityLevels<'a> {
         };
         OpacityLevels {
             levels,
-            needed: too_many.then_some(needed),
+            needed: too_many.then_some((needed, max as usize)),
         }
     }
     /// Each level's scene and weight.
     pub fn iter(&self) -> impl Iterator<Item = (&Scene, f32)> + '_ {
         self.levels.iter().map(|(s, w)| (s.as_ref(), *w))
     }
-    /// Notes the level count when there is more than one, or that the scene was treated as
-    /// opaque because it needed more.
+    /// Notes the level count when there is more than one, or warns that the scene was treated
+    /// as opaque because it needed more.
     pub fn note(&self, rep: &mut Report) {
-        if let Some(n) = self.needed {
-            rep.note(
-                "opacity",
-                format!("treated as opaque: {n} levels needed, opacity_levels allows fewer"),
-            );
+        if let Some((needed, allowed)) = self.needed {
+            rep.warn(Warning::OpacityLevelsCapped { needed, allowed });
         } else if self.levels.len() > 1 {
             rep.note("opacity_levels_run", self.levels.len());
         }
@@ -356,8 +353,8 @@ impl SubLights {
     ) -> Result<SubView> {
         let t = std::time::Instant::now();
         let s = cfg.sublights;
-        let half = scene.light.half_extent() / s as f32;
-        let c = sublight_centre(scene.light.half_extent(), s, a, b);
+        let half = scene.light().half_extent() / s as f32;
+        let c = sublight_centre(scene.light().half_extent(), s, a, b);
         let sv = SubView::build(
             scene,
             receivers,
@@ -385,7 +382,7 @@ impl SubLights {
     ) {
         let mut nonfinite = 0usize;
         for (k, out) in v.iter_mut().enumerate() {
-            *out = if !receivers.active[k] {
+            *out = if !receivers.active()[k] {
                 f32::NAN
             } else if self.acc[k].is_finite() {
                 self.acc[k].clamp(0.0, 1.0)
@@ -406,9 +403,10 @@ impl SubLights {
         rep.note("near", self.near);
         rep.note("far", self.far);
         rep.note("window_scale", self.window_scale);
-        if nonfinite > 0 {
-            rep.note("nonfinite_replaced", nonfinite);
-        }
+        rep.warn(Warning::NonFiniteV {
+            receivers: nonfinite,
+        });
+        rep.warn(Warning::OutsideViews { receivers: outside });
     }
 }
 
@@ -489,7 +487,7 @@ impl SubView {
         (r, centre, half): (u32, Vec2, Vec2),
         cfg: &Config,
     ) -> Result<(LightView, FitReport)> {
-        let frame = shadow_map_core::light_space::point_frame(&scene.light, centre)?;
+        let frame = shadow_map_core::light_space::point_frame(scene.light(), centre)?;
         LightView::fit_with(scene, receivers, frame, half, r, &cfg.view)
     }
 
@@ -546,7 +544,7 @@ impl SubView {
             &l0.depth
         };
         let dual = PaddedDualMssm::build(class, l0.size, max_cells);
-        let (emitter, shape) = emitter_of(&scene.light, half);
+        let (emitter, shape) = emitter_of(scene.light(), half);
         let mut sv = SubView {
             ls,
             mssm,
@@ -555,7 +553,7 @@ impl SubView {
             half,
             emitter,
             shape,
-            light: scene.light,
+            light: *scene.light(),
         };
         // The own-plane bounds are affine bounds of 1/z, a perspective view's planar depth
         // term; an orthographic view (the sun) has planes affine in z itself: not built there.
@@ -590,7 +588,7 @@ impl SubView {
             .into_par_iter()
             .map(|i| {
                 let k = i * STEP;
-                if !receivers.active[k] {
+                if !receivers.active()[k] {
                     return 0;
                 }
                 let mut out = false;
@@ -598,8 +596,8 @@ impl SubView {
                     self,
                     &grid,
                     cfg,
-                    receivers.position[k],
-                    receivers.normal[k],
+                    receivers.position()[k],
+                    receivers.normal()[k],
                     &mut out,
                 ) {
                     Prep::Penumbra { cr, .. } => {
@@ -757,8 +755,8 @@ pub fn prepare_setup(sv: &SubView, cfg: &Config, receivers: &Receivers) -> Vec<R
     (0..receivers.len())
         .into_par_iter()
         .map(|k| {
-            if receivers.active[k] {
-                setup_receiver(sv, cfg, receivers.position[k], receivers.normal[k])
+            if receivers.active()[k] {
+                setup_receiver(sv, cfg, receivers.position()[k], receivers.normal()[k])
             } else {
                 ReceiverSetup::Settled(0.0)
             }
@@ -1026,11 +1024,11 @@ pub fn estimate_sublight(
     let k = Scale::of(&sv.ls.view);
     let em = &sv.emitter;
     let far = sv.ls.view.far;
-    let (pw, ph) = match receivers.layout {
+    let (pw, ph) = match receivers.layout() {
         Some(_) => cfg.packet.size(),
         None => (1, 1),
     };
-    let width = receivers.layout.map_or(256, |l| l.width as usize).max(1);
+    let width = receivers.layout().map_or(256, |l| l.width as usize).max(1);
     let chunk = width * ph as usize;
     acc.par_chunks_mut(chunk)
         .zip(diag.par_chunks_mut(chunk))
@@ -1058,7 +1056,7 @@ pub fn estimate_sublight(
                             continue;
                         }
                         let gi = base + li;
-                        if !receivers.active[gi] {
+                        if !receivers.active()[gi] {
                             continue;
                         }
                         let mut out = false;
@@ -1066,8 +1064,8 @@ pub fn estimate_sublight(
                             sv,
                             &grid,
                             cfg,
-                            receivers.position[gi],
-                            receivers.normal[gi],
+                            receivers.position()[gi],
+                            receivers.normal()[gi],
                             &mut out,
                         );
                         outside += out as u64;
@@ -1209,7 +1207,7 @@ impl CpuPacketHsm {
     /// Rect lights with any `sublights`; disk, sphere and directional lights with `sublights=1` only (they
     /// are not cut into S x S sub-lights: an [`Error::Param`] with key `sublights`; both twins).
     pub(crate) fn check_light(scene: &Scene, cfg: &Config) -> Result<()> {
-        match scene.light.shape {
+        match scene.light().shape {
             LightShape::Rect { .. } => Ok(()),
             _ if cfg.sublights == 1 => Ok(()),
             _ => Err(Error::param(

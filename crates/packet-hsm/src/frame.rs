@@ -419,7 +419,7 @@ impl FrameEstimator for PacketHsmFrame {
     /// The view [`SubView::fit`] fits for the whole light (`sublights=1`).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
         self.gpu.ctx.check_lost()?;
-        let half = scene.light.half_extent();
+        let half = scene.light().half_extent();
         let (view, _) = SubView::fit(
             scene,
             receivers,
@@ -434,9 +434,12 @@ impl FrameEstimator for PacketHsmFrame {
         Some(&self.status)
     }
 
-    /// `sublights` other than 1.
-    fn refuses(&self, _scene: &Scene) -> Option<String> {
-        self.refusal().map(|(key, why)| format!("{key}: {why}"))
+    /// `sublights` other than 1, or semi-transparent meshes (the frame's casters are opaque,
+    /// the twin models opacity).
+    fn refuses(&self, scene: &Scene) -> Option<String> {
+        self.refusal()
+            .map(|(key, why)| format!("{key}: {why}"))
+            .or_else(|| shadow_map_core::gpu::frame::refuse_semi_transparent(scene))
     }
 
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
@@ -568,12 +571,9 @@ impl FrameEstimator for PacketHsmFrame {
         if let Some((key, why)) = self.refusal() {
             return Err(Error::param(key, why));
         }
-        let mut opaque = scene.clone();
-        for m in &mut opaque.meshes {
-            m.opacity = 1.0;
-        }
+        let opaque = scene.opaque();
         let cfg = &self.cfg;
-        let half = opaque.light.half_extent();
+        let half = opaque.light().half_extent();
         let sv = SubView::build_in_view(
             &opaque,
             receivers,
@@ -585,10 +585,10 @@ impl FrameEstimator for PacketHsmFrame {
         )?;
         Ok((0..receivers.len())
             .map(|k| {
-                if !receivers.active[k] {
+                if !receivers.active()[k] {
                     return f32::NAN;
                 }
-                let (pw, nw) = (receivers.position[k], receivers.normal[k]);
+                let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
                 let x = match setup_receiver(&sv, cfg, pw, nw) {
                     ReceiverSetup::Settled(x) | ReceiverSetup::Outside(x) => x,
                     ReceiverSetup::Map { .. } => pixel_value(&sv, cfg, pw, nw),
@@ -610,7 +610,7 @@ mod tests {
     #[test]
     fn frame_structs_match_the_wgsl_layout() {
         let src = shadow_map_core::gpu::kernel::shader_source(FRAME_SHADER_PARTS);
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             src,
             HsmFrameUniform {
                 bias,
@@ -623,7 +623,7 @@ mod tests {
                 _pad1,
             }
         );
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             src,
             RecIn {
                 uv,
@@ -643,7 +643,7 @@ mod tests {
 
     #[test]
     fn frame_wgsl_validates_with_naga() {
-        shadow_map_core::gpu::kernel::assert_shaders_valid([(
+        test_support::wgsl::assert_shaders_valid([(
             "packet_hsm_frame",
             shadow_map_core::gpu::kernel::shader_source(FRAME_SHADER_PARTS),
         )]);

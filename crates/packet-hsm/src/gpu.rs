@@ -631,7 +631,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
                             }
                         })
                         .collect();
-                    let (out, c) = self.run_sublight(&sv, &cfg, &recs, receivers.layout)?;
+                    let (out, c) = self.run_sublight(&sv, &cfg, &recs, receivers.layout())?;
                     for (a, b) in counts.iter_mut().zip(c) {
                         *a += b as u64;
                     }
@@ -648,8 +648,8 @@ impl SoftShadowEstimator for GpuPacketHsm {
                                     pixel_value(
                                         &sv,
                                         &cfg,
-                                        receivers.position[k],
-                                        receivers.normal[k],
+                                        receivers.position()[k],
+                                        receivers.normal()[k],
                                     )
                                 } else {
                                     visited += out[k][1] as f64;
@@ -687,7 +687,7 @@ mod tests {
     /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.
     #[test]
     fn mirrored_structs_match_the_wgsl() {
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             SHADER_PARTS.concat(),
             HsmUniform {
                 r,
@@ -720,7 +720,7 @@ mod tests {
                 ortho,
             }
         );
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             SHADER_PARTS.concat(),
             PrepGpu {
                 cr,
@@ -729,7 +729,7 @@ mod tests {
                 centre,
             }
         );
-        shadow_map_core::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             SHADER_PARTS.concat(),
             RecIn {
                 uv,
@@ -750,6 +750,6 @@ mod tests {
     /// The kernel parses and validates with naga (no device needed).
     #[test]
     fn wgsl_validates_with_naga() {
-        shadow_map_core::gpu::kernel::assert_shaders_valid([("packet_hsm", SHADER_PARTS.concat())]);
+        test_support::wgsl::assert_shaders_valid([("packet_hsm", SHADER_PARTS.concat())]);
     }
 }

@@ -107,7 +107,7 @@ impl SoftShadowEstimator for ReferenceEstimator {
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let bvh = self.report.time("build", || SceneBvh::new(scene));
-        self.report.note("triangles", scene.triangles.len());
+        self.report.note("triangles", scene.triangles().len());
         self.bvh = Some(bvh);
         Ok(())
     }

@@ -139,16 +139,16 @@ pub fn visibility_cancellable(
 ) -> Result<()> {
     opts.validate()?;
     let n = receivers.len();
-    if v.len() != n || receivers.normal.len() != n || receivers.active.len() != n {
+    if v.len() != n || receivers.normal().len() != n || receivers.active().len() != n {
         return Err(Error::Receivers(format!(
             "{} positions, {} normals, {} activity flags and {} output slots must all be equal",
             n,
-            receivers.normal.len(),
-            receivers.active.len(),
+            receivers.normal().len(),
+            receivers.active().len(),
             v.len()
         )));
     }
-    let light = &scene.light;
+    let light = scene.light();
     let active = receivers.active_count();
     let bar = (progress && active >= PROGRESS_MIN_RECEIVERS).then(|| progress_bar(active as u64));
     v.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
@@ -159,13 +159,13 @@ pub fn visibility_cancellable(
                 return;
             }
             let i = base + k;
-            *slot = if receivers.active[i] {
+            *slot = if receivers.active()[i] {
                 done += 1;
                 receiver_visibility(
                     light,
                     bvh,
-                    receivers.position[i],
-                    receivers.normal[i],
+                    receivers.position()[i],
+                    receivers.normal()[i],
                     opts,
                     i as u64,
                 )

@@ -521,7 +521,7 @@ fn g_error_falls_with_sample_count() {
 fn inactive_receivers_get_nan_and_lengths_are_checked() {
     let scene = rect_scene(down_light(), &[], false);
     let mut r = Receivers::from_points(vec![Vec3::ZERO; 3], vec![Vec3::Y; 3]).expect("receivers");
-    r.active[1] = false;
+    r.active_mut()[1] = false;
     let v = trace(&scene, &r, spp(16));
     assert_eq!(v[0], 1.0);
     assert!(v[1].is_nan());
@@ -550,7 +550,7 @@ fn camera_receivers_are_finite_in_range_and_deterministic() {
     visibility(&scene, &bvh, &r, &opts, &mut b, false).expect("trace");
     for (k, (x, y)) in a.iter().zip(&b).enumerate() {
         assert_eq!(x.to_bits(), y.to_bits(), "slot {k}");
-        if r.active[k] {
+        if r.active()[k] {
             assert!((0.0..=1.0).contains(x), "slot {k}: {x}");
         } else {
             assert!(x.is_nan());
@@ -741,7 +741,7 @@ fn e_sun_over_a_half_plane_matches_the_circular_segment() {
     let v = trace(&scene, &rec, spp(1024));
     assert!((v[0] - 0.5).abs() <= 0.02, "{}", v[0]);
     assert!(
-        (scene.light.front_fraction_world(Vec3::ZERO, Vec3::X) - 0.5).abs() < 1e-6,
+        (scene.light().front_fraction_world(Vec3::ZERO, Vec3::X) - 0.5).abs() < 1e-6,
         "front fraction"
     );
 }

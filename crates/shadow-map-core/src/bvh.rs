@@ -33,7 +33,7 @@ impl SceneBvh {
     /// Builds the BVH (medium-quality PLOC preset).
     pub fn new(scene: &Scene) -> Self {
         let tris: Vec<Triangle> = scene
-            .triangles
+            .triangles()
             .iter()
             .map(|t| Triangle {
                 v0: t[0].into(),
@@ -46,7 +46,7 @@ impl SceneBvh {
             BvhBuildParams::medium_build(),
             &mut Default::default(),
         );
-        let opacity = (0..scene.triangles.len())
+        let opacity = (0..scene.triangles().len())
             .map(|i| scene.triangle_opacity(i))
             .collect();
         SceneBvh {

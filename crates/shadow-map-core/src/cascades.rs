@@ -206,12 +206,12 @@ pub fn camera_depths(camera: &Camera, receivers: &Receivers) -> Vec<Option<f32>>
     let fwd = camera.basis().forward;
     (0..receivers.len())
         .map(|k| {
-            if !receivers.active[k] {
+            if !receivers.active()[k] {
                 return None;
             }
-            let d = match &receivers.view_depth {
+            let d = match receivers.view_depth() {
                 Some(vd) if vd[k].is_finite() => vd[k],
-                _ => (receivers.position[k] - camera.eye).dot(fwd),
+                _ => (receivers.position()[k] - camera.eye).dot(fwd),
             };
             Some(d)
         })
@@ -231,10 +231,10 @@ pub fn texel_density(view: &LightView, camera: &Camera, receivers: &Receivers) -
     let t_tex = view.delta() / view.n;
     (0..receivers.len())
         .map(|k| {
-            if !receivers.active[k] {
+            if !receivers.active()[k] {
                 return f32::NAN;
             }
-            let (p, nrm) = (receivers.position[k], receivers.normal[k]);
+            let (p, nrm) = (receivers.position()[k], receivers.normal()[k]);
             let q = view.frame.to_light(p);
             if !(q.z > 0.0) || !view.contains(view.project(q)) {
                 return f32::NAN;
@@ -337,7 +337,7 @@ impl Plan {
     pub fn receivers(&self, receivers: &Receivers, c: usize, t: usize) -> Receivers {
         let mut sub = cascade_receivers(receivers, &self.weights, c);
         if let Some(tiles) = self.tiles.get(c) {
-            for (i, a) in sub.active.iter_mut().enumerate() {
+            for (i, a) in sub.active_mut().iter_mut().enumerate() {
                 *a &= tiles.of.get(i).is_some_and(|&x| x as usize == t);
             }
         }
@@ -375,14 +375,14 @@ pub fn direction_tiles(
     receivers: &Receivers,
     p95: impl FnOnce() -> Option<f32>,
 ) -> Tiles {
-    let frame = scene.light.frame();
+    let frame = scene.light().frame();
     let mut pts: Vec<(usize, [f32; 2])> = Vec::new();
     for i in 0..receivers.len() {
-        if !receivers.active[i] {
+        if !receivers.active()[i] {
             continue;
         }
-        let p = frame.to_light(receivers.position[i]);
-        if scene.light.is_directional() {
+        let p = frame.to_light(receivers.position()[i]);
+        if scene.light().is_directional() {
             // The sun: one direction; tiles split the receivers by position across it.
             pts.push((i, [p.x, p.y]));
             continue;
@@ -411,7 +411,7 @@ pub fn direction_tiles(
     };
     let (want, span) = match settings.tiles {
         // The sun's views are orthographic: no direction to tile, and cascades resolve depth.
-        0 if scene.light.is_directional() => return one,
+        0 if scene.light().is_directional() => return one,
         0 => {
             if pts.len() < 2 || !(extent(&pts).0 > settings.tile_span) {
                 return one;
@@ -478,7 +478,7 @@ pub fn plan(
     inner: &Params,
     cascade_p95: impl FnOnce() -> Option<f32>,
 ) -> Plan {
-    let depths = camera_depths(&scene.camera, receivers);
+    let depths = camera_depths(scene.camera(), receivers);
     let splits = plan_splits(settings, &depths, cascade_p95);
     let half = blend_half_widths(&splits, settings.cascade_blend);
     let weights: Vec<_> = depths
@@ -506,7 +506,7 @@ fn cascade_receivers(
 ) -> Receivers {
     let mut sub = receivers.clone();
     for (i, w) in weights.iter().enumerate() {
-        sub.active[i] = w.is_some_and(|w| w.iter().any(|(cc, x)| *cc == c && *x > 0.0));
+        sub.active_mut()[i] = w.is_some_and(|w| w.iter().any(|(cc, x)| *cc == c && *x > 0.0));
     }
     sub
 }
@@ -552,7 +552,7 @@ impl Settled {
     /// `receivers` without the settled ones (the receivers the views serve).
     pub fn unsettled(&self, receivers: &Receivers) -> Receivers {
         let mut sub = receivers.clone();
-        for (a, x) in sub.active.iter_mut().zip(&self.v) {
+        for (a, x) in sub.active_mut().iter_mut().zip(&self.v) {
             *a &= x.is_none();
         }
         sub
@@ -598,7 +598,7 @@ pub fn texel_density_of(scene: &Scene, receivers: &Receivers, params: &Params) -
         for t in 0..plan.tiles[c].count {
             let sub = plan.receivers(receivers, c, t);
             for (i, x) in view_density(scene, &sub, params)?.into_iter().enumerate() {
-                if sub.active[i] && x.is_finite() {
+                if sub.active()[i] && x.is_finite() {
                     out[i] = x;
                 }
             }
@@ -622,7 +622,7 @@ pub fn texel_density_summary(
 fn view_density(scene: &Scene, receivers: &Receivers, params: &Params) -> Option<Vec<f32>> {
     let r: u32 = params.typed(&RESOLUTION).ok()?;
     let opts = ViewOptions::from_params(params).ok()?;
-    let light = &scene.light;
+    let light = scene.light();
     let (view, _) = LightView::fit_with(
         scene,
         receivers,
@@ -632,7 +632,7 @@ fn view_density(scene: &Scene, receivers: &Receivers, params: &Params) -> Option
         &opts,
     )
     .ok()?;
-    Some(texel_density(&view, &scene.camera, receivers))
+    Some(texel_density(&view, scene.camera(), receivers))
 }
 
 /// Any estimator run once per camera-depth cascade (see the module documentation); with one
@@ -721,7 +721,7 @@ impl SoftShadowEstimator for Cascaded {
             return self.build_views(scene, receivers, p95);
         };
         let sub = settled.unsettled(receivers);
-        if !sub.active.iter().any(|a| *a) {
+        if !sub.active().iter().any(|a| *a) {
             return Ok(()); // every receiver settled: no view to build
         }
         self.build_views(scene, &sub, p95)
@@ -741,7 +741,7 @@ impl SoftShadowEstimator for Cascaded {
             )));
         }
         let sub = settled.unsettled(receivers);
-        let out = if sub.active.iter().any(|a| *a) {
+        let out = if sub.active().iter().any(|a| *a) {
             self.estimate_views(scene, &sub, v)
         } else {
             v.fill(f32::NAN);
@@ -826,12 +826,12 @@ impl Cascaded {
                 let sub = plan.receivers(receivers, c, tile);
                 let mut vt = vec![f32::NAN; receivers.len()];
                 self.cancel.check()?;
-                if sub.active.iter().any(|a| *a) {
+                if sub.active().iter().any(|a| *a) {
                     self.inner.build(scene, &sub)?;
                     self.inner.estimate(scene, &sub, &mut vt)?;
                 }
                 for (i, x) in vt.into_iter().enumerate() {
-                    if sub.active[i] {
+                    if sub.active()[i] {
                         vc[i] = x;
                     }
                 }
@@ -843,6 +843,7 @@ impl Cascaded {
                     }
                 }
                 report.light_space_bytes = report.light_space_bytes.max(r.light_space_bytes);
+                report.warn_all(r.warnings.iter().copied());
                 out_of_frustum += r
                     .notes
                     .iter()
@@ -871,7 +872,7 @@ impl Cascaded {
             prev = vc;
         }
         for (i, out) in v.iter_mut().enumerate() {
-            *out = if receivers.active[i] {
+            *out = if receivers.active()[i] {
                 acc[i].clamp(0.0, 1.0)
             } else {
                 f32::NAN
@@ -947,7 +948,7 @@ mod tests {
             vec![(vec![[Vec3::ZERO, Vec3::X, Vec3::Z]], 1.0)],
         )
         .unwrap();
-        scene.light = light;
+        scene.set_light(light).unwrap();
         let settings = |tiles: u32| CascadeSettings {
             cascades: 0,
             cascade_lambda: 0.75,

@@ -20,8 +20,135 @@ impl std::fmt::Display for Backend {
     }
 }
 
-/// What the last `build` + `estimate` did: stage times, light-space memory, and notes (which path
-/// was taken, how many receivers fell outside the light frustum, ...). Printed by `--stats`.
+/// Something an estimator could not model and approximated instead, with how many receivers
+/// (or meshes) it touched: V there is not what the method would give on a scene it models.
+/// Collected in [`Report::warnings`] (one entry per kind, counts merged) and printed by the CLI on
+/// every run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Warning {
+    /// Receivers whose V came out NaN or infinite and was written as 0 (fully shadowed).
+    NonFiniteV {
+        /// Receivers replaced.
+        receivers: usize,
+    },
+    /// Lit receivers outside every light view, given their facing fraction (lit, as if nothing
+    /// stood between them and the light).
+    OutsideViews {
+        /// Receivers outside.
+        receivers: usize,
+    },
+    /// Semi-transparent meshes (opacity below 1) cast shadows as if opaque: V too low behind them.
+    OpaqueCasters {
+        /// Meshes of opacity below 1.
+        meshes: usize,
+    },
+    /// The scene needs more opacity levels than the estimator's cap allows, so every mesh was
+    /// treated as opaque (packet-hsm's `opacity_levels`): V too low behind semi-transparent meshes.
+    OpacityLevelsCapped {
+        /// Levels the scene needs.
+        needed: usize,
+        /// Levels the setting allows.
+        allowed: usize,
+    },
+    /// A sphere light's kernel reaches beyond the light view's window and was clipped at its
+    /// edge: casters beyond it are missed, V too high.
+    KernelClipped {
+        /// Receivers whose kernel was clipped.
+        receivers: usize,
+    },
+    /// Receivers the engine path left NaN (cut by the device's loop budget): no V, which a
+    /// composite draws as fully lit.
+    FrameLeftNan {
+        /// Receivers left NaN.
+        receivers: usize,
+    },
+}
+
+impl Warning {
+    /// The number this warning counts (receivers, meshes or levels needed).
+    pub fn count(&self) -> usize {
+        match *self {
+            Warning::NonFiniteV { receivers }
+            | Warning::OutsideViews { receivers }
+            | Warning::KernelClipped { receivers }
+            | Warning::FrameLeftNan { receivers } => receivers,
+            Warning::OpaqueCasters { meshes } => meshes,
+            Warning::OpacityLevelsCapped { needed, .. } => needed,
+        }
+    }
+
+    /// The opaque-casters warning for `scene` (`None` when every mesh is opaque), for an
+    /// estimator that treats every caster as opaque.
+    pub fn opaque_casters(scene: &Scene) -> Option<Warning> {
+        let meshes = scene.semi_transparent_meshes();
+        (meshes > 0).then_some(Warning::OpaqueCasters { meshes })
+    }
+
+    /// The same warning with `other`'s count added (`None` when they are of different kinds).
+    fn merged(self, other: Warning) -> Option<Warning> {
+        use Warning::*;
+        Some(match (self, other) {
+            (NonFiniteV { receivers: a }, NonFiniteV { receivers: b }) => {
+                NonFiniteV { receivers: a + b }
+            }
+            (OutsideViews { receivers: a }, OutsideViews { receivers: b }) => {
+                OutsideViews { receivers: a + b }
+            }
+            (KernelClipped { receivers: a }, KernelClipped { receivers: b }) => {
+                KernelClipped { receivers: a + b }
+            }
+            (FrameLeftNan { receivers: a }, FrameLeftNan { receivers: b }) => {
+                FrameLeftNan { receivers: a + b }
+            }
+            // Per scene, not per receiver: the same meshes, counted once.
+            (OpaqueCasters { meshes: a }, OpaqueCasters { meshes: b }) => {
+                OpaqueCasters { meshes: a.max(b) }
+            }
+            (OpacityLevelsCapped { needed: a, allowed }, OpacityLevelsCapped { needed: b, .. }) => {
+                OpacityLevelsCapped {
+                    needed: a.max(b),
+                    allowed,
+                }
+            }
+            _ => return None,
+        })
+    }
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Warning::NonFiniteV { receivers } => write!(
+                f,
+                "{receivers} receivers had a non-finite V, written as 0 (fully shadowed)"
+            ),
+            Warning::OutsideViews { receivers } => write!(
+                f,
+                "{receivers} receivers lie outside every light view and were given their facing fraction (lit, casters ignored)"
+            ),
+            Warning::OpaqueCasters { meshes } => write!(
+                f,
+                "{meshes} semi-transparent meshes were treated as opaque (V too low behind them; backprojection, packet-hsm and deep-shadow model opacity)"
+            ),
+            Warning::OpacityLevelsCapped { needed, allowed } => write!(
+                f,
+                "the scene needs {needed} opacity levels, opacity_levels={allowed} allows fewer: every mesh treated as opaque (V too low behind semi-transparent meshes)"
+            ),
+            Warning::KernelClipped { receivers } => write!(
+                f,
+                "{receivers} receivers had their sphere-light kernel clipped at the light view's edge (casters beyond missed, V too high)"
+            ),
+            Warning::FrameLeftNan { receivers } => write!(
+                f,
+                "{receivers} receivers were left NaN by the engine path's loop budget (no V; drawn as fully lit unless redone)"
+            ),
+        }
+    }
+}
+
+/// What the last `build` + `estimate` did: stage times, light-space memory, notes (which path
+/// was taken, ...; printed by `--stats`) and warnings (what it could not model; printed always).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Report {
     /// `(stage, milliseconds)` in execution order.
@@ -30,6 +157,8 @@ pub struct Report {
     pub light_space_bytes: usize,
     /// `(key, value)` diagnostics.
     pub notes: Vec<(String, String)>,
+    /// What the estimator approximated, one entry per kind ([`warn`](Self::warn) merges counts).
+    pub warnings: Vec<Warning>,
 }
 
 impl Report {
@@ -54,6 +183,33 @@ impl Report {
             }
             _ => self.note(key, n),
         }
+    }
+    /// Adds a warning, merged into one of the same kind when there is one; a zero count adds
+    /// nothing.
+    pub fn warn(&mut self, w: Warning) {
+        if w.count() == 0 {
+            return;
+        }
+        for x in &mut self.warnings {
+            if let Some(m) = x.merged(w) {
+                *x = m;
+                return;
+            }
+        }
+        self.warnings.push(w);
+    }
+    /// Adds every warning of `ws` ([`warn`](Self::warn)).
+    pub fn warn_all(&mut self, ws: impl IntoIterator<Item = Warning>) {
+        for w in ws {
+            self.warn(w);
+        }
+    }
+    /// The warning of the same kind as `like` (its count ignored), when there is one.
+    pub fn warning(&self, like: Warning) -> Option<Warning> {
+        self.warnings
+            .iter()
+            .copied()
+            .find(|w| std::mem::discriminant(w) == std::mem::discriminant(&like))
     }
     /// Total milliseconds of the stages whose name starts with `prefix`.
     pub fn total_ms(&self, prefix: &str) -> f64 {
@@ -199,4 +355,36 @@ macro_rules! estimator_identity {
             self.$cpu.set_cancel(cancel)
         }
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Warnings of one kind merge (receiver counts add, per-scene counts do not), zero counts
+    /// add nothing, and each prints as one line.
+    #[test]
+    fn warnings_merge_by_kind() {
+        let mut r = Report::default();
+        r.warn(Warning::OutsideViews { receivers: 2 });
+        r.warn(Warning::OutsideViews { receivers: 3 });
+        r.warn(Warning::NonFiniteV { receivers: 0 });
+        r.warn(Warning::OpaqueCasters { meshes: 2 });
+        r.warn(Warning::OpaqueCasters { meshes: 2 });
+        assert_eq!(
+            r.warnings,
+            [
+                Warning::OutsideViews { receivers: 5 },
+                Warning::OpaqueCasters { meshes: 2 }
+            ]
+        );
+        assert_eq!(
+            r.warning(Warning::OutsideViews { receivers: 0 }),
+            Some(Warning::OutsideViews { receivers: 5 })
+        );
+        assert_eq!(r.warning(Warning::NonFiniteV { receivers: 0 }), None);
+        for w in &r.warnings {
+            assert!(!w.to_string().contains('\n'), "{w}");
+        }
+    }
 }

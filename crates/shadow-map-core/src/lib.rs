@@ -29,7 +29,7 @@ pub use bvh::SceneBvh;
 pub use camera::Camera;
 pub use cancel::Cancel;
 pub use error::{Error, Result};
-pub use estimator::{run, Backend, Report, SoftShadowEstimator};
+pub use estimator::{run, Backend, Report, SoftShadowEstimator, Warning};
 pub use light::{Light, LightFrame, LightShape};
 pub use light_space::{LightSpace, LightSpaceRequest};
 pub use light_view::LightView;

@@ -122,7 +122,7 @@ impl LightSpaceRequest {
         receivers: &Receivers,
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
-        let light = &scene.light;
+        let light = scene.light();
         LightView::fit_with(
             scene,
             receivers,
@@ -217,7 +217,7 @@ impl LightSpace {
         req: &LightSpaceRequest,
         opts: &ViewOptions,
     ) -> Result<Self> {
-        let frame = point_frame(&scene.light, at)?;
+        let frame = point_frame(scene.light(), at)?;
         let (view, fit) =
             LightView::fit_with(scene, receivers, frame, Vec2::ZERO, req.resolution, opts)?;
         Self::try_build_in_view(scene, view, fit, req)

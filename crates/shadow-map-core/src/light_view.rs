@@ -358,7 +358,7 @@ impl LightView {
         r: u32,
         opts: &ViewOptions,
     ) -> Result<(LightView, FitReport)> {
-        if scene.light.is_directional() {
+        if scene.light().is_directional() {
             // The sun: an orthographic view along the frame's e_z (light_half is the disk of
             // directions' half extent at unit distance).
             return ortho::fit(scene, receivers, frame, light_half, r, opts);
@@ -413,6 +413,26 @@ pub fn fit_half_extent(light: &crate::Light, receivers: &Receivers) -> Vec2 {
     fit_half_extent_capped(light, receivers, SPHERE_WINDOW_CAP)
 }
 
+/// Active receivers of `receivers` whose sphere-light kernel in `view` needs a window wider
+/// than [`SPHERE_WINDOW_CAP`] radii (their kernel is clipped at the window's edge); 0 for other
+/// lights.
+pub fn beyond_sphere_window(
+    view: &LightView,
+    light: &crate::Light,
+    receivers: &Receivers,
+) -> usize {
+    let crate::LightShape::Sphere { radius } = light.shape else {
+        return 0;
+    };
+    (0..receivers.len())
+        .filter(|&k| {
+            receivers.active()[k]
+                && sphere_window_factor(radius, view.frame.to_light(receivers.position()[k]))
+                    > SPHERE_WINDOW_CAP
+        })
+        .count()
+}
+
 /// The cap of [`fit_half_extent`]: a sphere light's window half extent is at most this many
 /// radii, so one grazing receiver does not spread every other receiver's texels over a window
 /// many times wider.
@@ -426,8 +446,8 @@ pub fn fit_half_extent_capped(light: &crate::Light, receivers: &Receivers, cap: 
     };
     let frame = light.frame();
     let mut f = 1.0f32;
-    for (k, pw) in receivers.position.iter().enumerate() {
-        if receivers.active[k] {
+    for (k, pw) in receivers.position().iter().enumerate() {
+        if receivers.active()[k] {
             f = f.max(sphere_window_factor(radius, frame.to_light(*pw)));
         }
     }
@@ -470,8 +490,8 @@ fn receivers_in_tan_space(
     rep: &mut FitReport,
 ) -> Vec<(DVec2, f64)> {
     let mut rec: Vec<(DVec2, f64)> = Vec::new();
-    for (k, p) in receivers.position.iter().enumerate() {
-        if !receivers.active[k] {
+    for (k, p) in receivers.position().iter().enumerate() {
+        if !receivers.active()[k] {
             continue;
         }
         let q = frame.to_light(*p);
@@ -711,7 +731,7 @@ impl FitGeometry {
         let n_floor = (1e-4 * zr_max).max(z_eps);
 
         let tris: Vec<[Vec3; 3]> = scene
-            .triangles
+            .triangles()
             .iter()
             .map(|t| t.map(|v| frame.to_light(v)))
             .collect();
@@ -837,7 +857,7 @@ use crate::scene::Aabb;
 /// [`LightView::fit_bounds`] takes when the receivers themselves stay on the GPU.
 pub fn receiver_bounds(receivers: &Receivers) -> Aabb {
     let mut b = Aabb::EMPTY;
-    for (p, &a) in receivers.position.iter().zip(&receivers.active) {
+    for (p, &a) in receivers.position().iter().zip(receivers.active()) {
         if a {
             b.grow(*p);
         }
@@ -918,7 +938,7 @@ fn box_corners(min: Vec3, max: Vec3) -> impl Iterator<Item = Vec3> {
 /// [`bounds_receivers`], or under the sun [`sun_bounds_receivers`] (an orthographic view has no
 /// light plane to cross and no frustum to leave).
 fn corner_receivers(scene: &Scene, bounds: &Aabb, frame: LightFrame) -> Result<Receivers> {
-    if scene.light.is_directional() {
+    if scene.light().is_directional() {
         sun_bounds_receivers(bounds)
     } else {
         bounds_receivers(scene, bounds, frame)
@@ -1032,7 +1052,7 @@ mod bounds_tests {
             "{what}: bounds window {lb}..{hb} misses receivers window {lr}..{hr}"
         );
         let mut checked = 0;
-        for (p, &a) in rec.position.iter().zip(&rec.active) {
+        for (p, &a) in rec.position().iter().zip(rec.active()) {
             if !a {
                 continue;
             }
@@ -1070,7 +1090,7 @@ mod bounds_tests {
             let scene = fixture(name);
             let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
             let b = receiver_bounds(&rec);
-            let light = &scene.light;
+            let light = scene.light();
             for fit in [FitMode::Receivers, FitMode::Scene, FitMode::Stable] {
                 for nearfar in [NearFar::Clipped, NearFar::Aabb, NearFar::Frustum] {
                     let opts = ViewOptions { fit, nearfar };
@@ -1100,8 +1120,10 @@ mod bounds_tests {
     #[test]
     fn bounds_window_holds_scattered_points() {
         let mut scene = fixture("parallel-squares");
-        scene.light.normal = Vec3::new(0.3, -1.0, 0.2).normalize();
-        scene.light.shape = crate::LightShape::Rect { size: [0.8, 0.5] };
+        let mut light = *scene.light();
+        light.normal = Vec3::new(0.3, -1.0, 0.2).normalize();
+        light.shape = crate::LightShape::Rect { size: [0.8, 0.5] };
+        scene.set_light(light).unwrap();
         let b = Aabb {
             min: Vec3::new(-1.5, 0.0, -1.2),
             max: Vec3::new(1.3, 1.2, 1.6),
@@ -1123,7 +1145,7 @@ mod bounds_tests {
         pts.extend((0..500).map(|_| b.min + (b.max - b.min) * Vec3::new(unit(), unit(), unit())));
         // Half of them only, so the receivers' window is strictly smaller than the box's.
         let inner: Vec<Vec3> = pts[8..258].to_vec();
-        let light = &scene.light;
+        let light = scene.light();
         let half = light.half_extent();
         for (set, label) in [(pts, "with corners"), (inner, "inside")] {
             let n = set.len();
@@ -1146,7 +1168,7 @@ mod bounds_tests {
     #[test]
     fn bad_bounds_are_typed_errors() {
         let scene = fixture("parallel-squares");
-        let light = &scene.light;
+        let light = scene.light();
         let fit = |min: Vec3, max: Vec3| {
             LightView::fit_bounds(
                 &scene,
@@ -1187,7 +1209,9 @@ mod bounds_tests {
         );
         // Finite in the world, past f32 in a tilted light's frame.
         let mut tilted = fixture("parallel-squares");
-        tilted.light.normal = Vec3::new(0.6, -0.8, 0.0);
+        let mut light = *tilted.light();
+        light.normal = Vec3::new(0.6, -0.8, 0.0);
+        tilted.set_light(light).unwrap();
         receivers_err(
             LightView::fit_bounds(
                 &tilted,
@@ -1195,8 +1219,8 @@ mod bounds_tests {
                     min: Vec3::new(3e38, -3e38, 0.0),
                     max: Vec3::new(3.1e38, -2.9e38, 1.0),
                 },
-                tilted.light.frame(),
-                tilted.light.half_extent(),
+                tilted.light().frame(),
+                tilted.light().half_extent(),
                 64,
                 &ViewOptions::default(),
             ),
@@ -1355,7 +1379,7 @@ mod near_tests {
         let scene = Scene::load(&path).unwrap();
         let bvh = crate::bvh::SceneBvh::new(&scene);
         let rec = Receivers::from_camera(&scene, &bvh);
-        let light = &scene.light;
+        let light = scene.light();
         let (view, _) =
             LightView::fit(&scene, &rec, light.frame(), light.half_extent(), 256).unwrap();
         // The ground crosses the light's plane: its nearest vertex in front of the light is a

@@ -195,9 +195,9 @@ pub struct PreparedScene {
 impl PreparedScene {
     /// Transforms, culls, clips (z >= n) and projects the scene's triangles.
     pub fn new(scene: &Scene, view: &LightView, cull: Cull) -> Self {
-        let mut tris = Vec::with_capacity(scene.triangles.len());
+        let mut tris = Vec::with_capacity(scene.triangles().len());
         let proj = TexelProjection::new(view);
-        for (ti, t) in scene.triangles.iter().enumerate() {
+        for (ti, t) in scene.triangles().iter().enumerate() {
             let alpha = scene.triangle_opacity(ti);
             let l: [Vec3; 3] = t.map(|v| view.frame.to_light(v));
             let l = l.map(|v| v.as_dvec3());

@@ -33,7 +33,7 @@
 //!   towards the light within a kernel (concave tessellation) when that must not count;
 //! - 16-bit maps: the decoded depth is `z + half step` (the nearest code can be half a step
 //!   nearer than the surface), and `z_p` is lowered by half a step for the same reason, so the
-//!   receiver's own surface just behind it never reads as in front (`tests/stability.rs`,
+//!   receiver's own surface just behind it never reads as in front (`tests/workspace/stability.rs`,
 //!   grazing receivers under `depth=unorm16`).
 //!
 //! **Bound.** A receiver on a planar surface is never shadowed by that surface's own samples, for

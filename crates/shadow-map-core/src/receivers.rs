@@ -19,20 +19,24 @@ pub struct ImageLayout {
 
 /// A set of receivers. Inactive receivers (background pixels) keep their slot so the image layout
 /// is preserved; every estimator writes NaN for them (the contract's background V).
+///
+/// The fields are private so the constructors' checks hold for every value: one normal, active
+/// flag and view depth per position, a layout of exactly `len()` pixels, finite positions and
+/// unit normals for active receivers.
 #[derive(Debug, Clone, Default)]
 pub struct Receivers {
     /// World positions.
-    pub position: Vec<Vec3>,
+    position: Vec<Vec3>,
     /// Unit geometric normals, on the side the receiver is seen from (the contract: light behind
     /// this tangent plane is blocked).
-    pub normal: Vec<Vec3>,
+    normal: Vec<Vec3>,
     /// Whether each slot holds a receiver (a camera hit).
-    pub active: Vec<bool>,
+    active: Vec<bool>,
     /// View depth per receiver (distance along the camera's view axis; +inf for background),
     /// present for G-buffer receivers.
-    pub view_depth: Option<Vec<f32>>,
+    view_depth: Option<Vec<f32>>,
     /// Image layout, when the receivers are pixels.
-    pub layout: Option<ImageLayout>,
+    layout: Option<ImageLayout>,
 }
 
 impl Receivers {
@@ -65,6 +69,88 @@ impl Receivers {
         })
     }
 
+    /// Receivers read from a G-buffer: one slot per pixel of `layout`, `active` marking the camera
+    /// hits and `view_depth` (when given) one depth per slot. Every length must match; active
+    /// slots need a finite position and a finite unit normal (kept bit for bit, as the twins
+    /// compare them), inactive slots are kept as given; view depths must not be NaN.
+    pub fn from_gbuffer(
+        position: Vec<Vec3>,
+        normal: Vec<Vec3>,
+        active: Vec<bool>,
+        view_depth: Option<Vec<f32>>,
+        layout: Option<ImageLayout>,
+    ) -> Result<Self> {
+        let len = position.len();
+        for (what, n) in [
+            ("normals", normal.len()),
+            ("active flags", active.len()),
+            ("view depths", view_depth.as_ref().map_or(len, Vec::len)),
+        ] {
+            if n != len {
+                return Err(Error::Receivers(format!("{len} positions but {n} {what}")));
+            }
+        }
+        for (k, ((p, n), &a)) in position.iter().zip(&normal).zip(&active).enumerate() {
+            if !a {
+                continue;
+            }
+            if !p.is_finite() {
+                return Err(Error::Receivers(format!("position {k} is not finite: {p}")));
+            }
+            if !(n.is_finite() && (n.length() - 1.0).abs() <= 1e-3) {
+                return Err(Error::Receivers(format!(
+                    "normal {k} is not a unit vector: {n}"
+                )));
+            }
+        }
+        if let Some(k) = view_depth
+            .as_ref()
+            .and_then(|z| z.iter().position(|z| z.is_nan()))
+        {
+            return Err(Error::Receivers(format!("view depth {k} is NaN")));
+        }
+        let r = Receivers {
+            position,
+            normal,
+            active,
+            view_depth,
+            layout: None,
+        };
+        match layout {
+            Some(l) => r.with_layout(l),
+            None => Ok(r),
+        }
+    }
+
+    /// Replaces the active mask (one flag per slot).
+    pub fn with_active(mut self, active: Vec<bool>) -> Result<Self> {
+        if active.len() != self.len() {
+            return Err(Error::Receivers(format!(
+                "{} active flags for {} receivers",
+                active.len(),
+                self.len()
+            )));
+        }
+        self.active = active;
+        Ok(self)
+    }
+
+    /// Attaches view depths (one per slot, none NaN; +inf marks background).
+    pub fn with_view_depth(mut self, view_depth: Vec<f32>) -> Result<Self> {
+        if view_depth.len() != self.len() {
+            return Err(Error::Receivers(format!(
+                "{} view depths for {} receivers",
+                view_depth.len(),
+                self.len()
+            )));
+        }
+        if let Some(k) = view_depth.iter().position(|z| z.is_nan()) {
+            return Err(Error::Receivers(format!("view depth {k} is NaN")));
+        }
+        self.view_depth = Some(view_depth);
+        Ok(self)
+    }
+
     /// Attaches an image layout (`width * height` must equal the receiver count).
     pub fn with_layout(mut self, layout: ImageLayout) -> Result<Self> {
         if layout.width as usize * layout.height as usize != self.len() {
@@ -82,7 +168,7 @@ impl Receivers {
     /// The camera's G-buffer: one ray per pixel exactly as the contract defines it, closest hit
     /// through the BVH; normals face the camera.
     pub fn from_camera(scene: &Scene, bvh: &SceneBvh) -> Self {
-        let cam = &scene.camera;
+        let cam = scene.camera();
         let basis = cam.basis();
         let (w, h) = (cam.width, cam.height);
         let px: Vec<(Vec3, Vec3, bool, f32)> = (0..w * h)
@@ -124,6 +210,33 @@ impl Receivers {
         r
     }
 
+    /// World positions.
+    pub fn position(&self) -> &[Vec3] {
+        &self.position
+    }
+    /// Unit geometric normals, on the side the receiver is seen from (the contract: light behind
+    /// this tangent plane is blocked).
+    pub fn normal(&self) -> &[Vec3] {
+        &self.normal
+    }
+    /// Whether each slot holds a receiver (a camera hit).
+    pub fn active(&self) -> &[bool] {
+        &self.active
+    }
+    /// The active mask, to switch receivers on or off (the slot count cannot change).
+    pub fn active_mut(&mut self) -> &mut [bool] {
+        &mut self.active
+    }
+    /// View depth per receiver (distance along the camera's view axis; +inf for background),
+    /// present for G-buffer receivers.
+    pub fn view_depth(&self) -> Option<&[f32]> {
+        self.view_depth.as_deref()
+    }
+    /// Image layout, when the receivers are pixels.
+    pub fn layout(&self) -> Option<ImageLayout> {
+        self.layout
+    }
+
     /// Number of slots.
     pub fn len(&self) -> usize {
         self.position.len()
@@ -146,5 +259,76 @@ impl Receivers {
             )));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every way to build or change receivers keeps one normal, flag and depth per slot, a
+    /// layout of `len()` pixels and finite active geometry; what used to be settable field by
+    /// field (and then indexed out of range by the estimators) is a typed error.
+    #[test]
+    fn checked_constructors_reject_inconsistent_receivers() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let n = vec![Vec3::Y * 2.0; 4];
+        let bad = |r: Result<Receivers>| matches!(r, Err(Error::Receivers(_)));
+        assert!(bad(Receivers::from_points(p.clone(), n[..3].to_vec())));
+        assert!(bad(Receivers::from_points(vec![Vec3::NAN], vec![Vec3::Y])));
+        let r = Receivers::from_points(p.clone(), n.clone()).unwrap();
+        assert_eq!(r.normal()[0], Vec3::Y);
+        assert!(bad(r.clone().with_active(vec![true; 3])));
+        assert!(bad(r.clone().with_view_depth(vec![1.0; 5])));
+        assert!(bad(r.clone().with_view_depth(vec![f32::NAN; 4])));
+        let layout = |width, height| ImageLayout { width, height };
+        assert!(bad(r.clone().with_layout(layout(3, 1))));
+        let mut r = r
+            .with_active(vec![true, false, true, true])
+            .unwrap()
+            .with_view_depth(vec![1.0, f32::INFINITY, 2.0, 3.0])
+            .unwrap()
+            .with_layout(layout(2, 2))
+            .unwrap();
+        assert_eq!(r.active_count(), 3);
+        assert_eq!(r.view_depth().map(<[f32]>::len), Some(4));
+        assert_eq!(r.layout(), Some(layout(2, 2)));
+        r.active_mut()[0] = false;
+        assert_eq!(r.active_count(), 2);
+        // G-buffer parts: lengths, layout, active geometry, depths.
+        let a = vec![true, false, true, true];
+        let unit = vec![Vec3::Y; 4];
+        let gb = |p: Vec<Vec3>, n: Vec<Vec3>, a: Vec<bool>, z: Option<Vec<f32>>, l| {
+            Receivers::from_gbuffer(p, n, a, z, l)
+        };
+        assert!(gb(p.clone(), unit.clone(), a.clone(), None, Some(layout(2, 2))).is_ok());
+        assert!(bad(gb(
+            p.clone(),
+            unit.clone(),
+            a[..2].to_vec(),
+            None,
+            None
+        )));
+        assert!(bad(gb(
+            p.clone(),
+            unit.clone(),
+            a.clone(),
+            Some(vec![0.0]),
+            None
+        )));
+        assert!(bad(gb(
+            p.clone(),
+            unit.clone(),
+            a.clone(),
+            None,
+            Some(layout(4, 4))
+        )));
+        assert!(bad(gb(p.clone(), n, a.clone(), None, None)));
+        let mut far = p.clone();
+        far[0] = Vec3::INFINITY;
+        assert!(bad(gb(far.clone(), unit.clone(), a.clone(), None, None)));
+        // An inactive slot may hold anything.
+        far.swap(0, 1);
+        assert!(gb(far, unit, a, None, None).is_ok());
     }
 }

@@ -40,7 +40,7 @@ impl Settler {
         let b = scene.bounds();
         Settler {
             bvh: SceneBvh::new(scene),
-            light: scene.light,
+            light: *scene.light(),
             centre: 0.5 * (b.min + b.max),
         }
     }
@@ -77,8 +77,8 @@ impl Settler {
         (0..receivers.len())
             .into_par_iter()
             .map(|i| {
-                let (p, n) = (receivers.position[i], receivers.normal[i]);
-                (receivers.active[i] && self.unshadowed(p, n))
+                let (p, n) = (receivers.position()[i], receivers.normal()[i]);
+                (receivers.active()[i] && self.unshadowed(p, n))
                     .then(|| self.light.front_fraction_world(p, n))
             })
             .collect()

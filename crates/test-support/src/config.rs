@@ -5,6 +5,10 @@ use proptest::test_runner::{Config, FileFailurePersistence};
 /// The environment variable that overrides every random test's number of cases.
 pub const CASES_ENV: &str = "SOFTSHADOW_PROPTEST_CASES";
 
+/// The environment variable that turns a missing adapter in GPU tests from a loud skip into a
+/// failure (`1`).
+pub const REQUIRE_GPU_ENV: &str = "SOFTSHADOW_REQUIRE_GPU";
+
 /// The extension of the files that keep failing cases, beside their test file
 /// (`tests/gpu_twin.rs` keeps them in `tests/gpu_twin.proptest-regressions`).
 pub const REGRESSIONS_EXT: &str = "proptest-regressions";

@@ -265,7 +265,7 @@ macro_rules! twin_constructors {
                 ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
             ) -> ::std::option::Option<$crate::conformance::BoxedEstimator> {
                 let mut g = <$gpu>::new(ctx.clone()).expect("gpu twin");
-                g.set_max_chunk($chunk);
+                g.set_max_chunk($chunk).expect("chunk cap");
                 ::std::option::Option::Some(::std::boxed::Box::new(g))
             }
         )?
@@ -340,7 +340,7 @@ pub fn inactive_receivers_are_nan(
 ) {
     let rec = &case.receivers;
     assert!(
-        rec.active.iter().any(|a| !a),
+        rec.active().iter().any(|a| !a),
         "{label}: the fixed case has no inactive receiver"
     );
     if let Err(e) = set_params(gpu, &case.params) {
@@ -350,7 +350,7 @@ pub fn inactive_receivers_are_nan(
         Ok(x) => x,
         Err(e) => panic!("{label}: {e}"),
     };
-    for (k, (x, a)) in v.iter().zip(&rec.active).enumerate() {
+    for (k, (x, a)) in v.iter().zip(rec.active()).enumerate() {
         if *a {
             assert!((0.0..=1.0).contains(x), "{label} #{k}: {x}");
         } else {
@@ -454,7 +454,7 @@ impl CliRun {
         let (mut se, mut n, mut max) = (0.0f64, 0usize, 0.0f32);
         for k in 0..rec.len() {
             let (a, b) = (self.cpu[k], self.gpu[k]);
-            if !rec.active[k] {
+            if !rec.active()[k] {
                 assert!(a.is_nan() && b.is_nan(), "{label} #{k}");
                 continue;
             }
@@ -502,8 +502,8 @@ pub struct FrameComparison {
     /// Root mean square of dV over the active receivers (what `frame_loop`'s `rmse_vs_cpu`
     /// bounds).
     pub rmse: f64,
-    /// The estimator's status words after the last frame (empty when it keeps none).
-    pub status: Vec<u32>,
+    /// The estimator's status after the last frame, decoded (zeros when it keeps none).
+    pub status: shadow_map_core::gpu::frame::FrameStatus,
     /// Active receivers the frame left NaN as cut short by the device's loop budget (only with
     /// [`frames_match_the_cpu_twin_with_cuts`]; excluded from the figures above).
     pub cut: usize,
@@ -613,7 +613,7 @@ fn frames_compared(
     let inputs = FrameInputs {
         casters: &casters,
         views: &views,
-        light: &scene.light,
+        light: scene.light(),
         receivers: &rec.buffer,
         count: rec.count,
         v: &v_buf,
@@ -630,12 +630,13 @@ fn frames_compared(
         .read_buffer(&v_buf, 4 * n)
         .unwrap_or_else(|e| panic!("{label}: {e}"));
     timestamped_frame_matches(label, ctx, frame, &inputs, &bits);
-    let status: Vec<u32> = match frame.status() {
+    let words: Vec<u32> = match frame.status() {
         Some(b) => ctx
             .read_buffer(b, b.size())
             .unwrap_or_else(|e| panic!("{label}: {e}")),
         None => Vec::new(),
     };
+    let status = frame.decode_status(&words);
     let cpu = frame
         .cpu_twin(scene, receivers, &views)
         .unwrap_or_else(|e| panic!("{label}: CPU twin: {e}"));
@@ -643,7 +644,7 @@ fn frames_compared(
     let mut cut = 0usize;
     for (k, (&b, &c)) in bits.iter().zip(&cpu).enumerate() {
         let g = f32::from_bits(b);
-        if !receivers.active[k] {
+        if !receivers.active()[k] {
             assert!(
                 g.is_nan() && c.is_nan(),
                 "{label}: inactive receiver {k}: {g} / {c}"
@@ -666,11 +667,12 @@ fn frames_compared(
     }
     if let Some(w) = cut_word {
         assert_eq!(
-            status.get(w).copied().unwrap_or(0) as usize,
+            words.get(w).copied().unwrap_or(0) as usize,
             cut,
             "{label}: active receivers left NaN against the status' cut count (word {w})"
         );
     }
+    assert!(active > 0, "{label}: no active receiver compared");
     let rmse = (sq / active.max(1) as f64).sqrt();
     println!(
         "{label}: frame API vs CPU twin, max |dV| {max_dv:.2e}, rmse {rmse:.2e}, {beyond} of {active} beyond {:.0e}, {cut} cut, status {status:?}",

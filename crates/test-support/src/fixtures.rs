@@ -180,8 +180,7 @@ pub fn fixture_names() -> Vec<String> {
 /// The scene fixture `name` with its camera set to `w x h` pixels, and the camera's receivers.
 pub fn fixture(name: &str, w: u32, h: u32) -> (Scene, Receivers) {
     let mut scene = fixture_scene(name);
-    scene.camera.width = w;
-    scene.camera.height = h;
+    scene.set_resolution(w, h).unwrap();
     with_camera_receivers(scene)
 }
 
@@ -208,12 +207,12 @@ pub fn bunny_under_three_lights(w: u32, h: u32) -> Vec<(&'static str, Scene, Rec
     let (bunny, rec) = fixture("bunny", w, h);
     let lit = |light: Light| {
         let mut s = bunny.clone();
-        s.light = light;
+        s.set_light(light).unwrap();
         with_camera_receivers(s)
     };
-    let mut disk = bunny.light;
+    let mut disk = *bunny.light();
     disk.shape = LightShape::Disk {
-        radius: bunny.light.half_extent().max_element(),
+        radius: bunny.light().half_extent().max_element(),
     };
     let (disk, disk_rec) = lit(disk);
     let (sun, sun_rec) = lit(Light::directional(Vec3::new(0.6, -0.5, 0.3), 3.0));
@@ -319,7 +318,7 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 /// The estimator contract on an output: every active V finite in [0, 1], every inactive one NaN.
 pub fn check_contract(v: &[f32], r: &Receivers) {
     for (k, x) in v.iter().enumerate() {
-        if r.active[k] {
+        if r.active()[k] {
             assert!(
                 x.is_finite() && (0.0..=1.0).contains(x),
                 "receiver {k}: V = {x}"
@@ -359,7 +358,7 @@ pub fn traced(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f64> {
 pub fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
     use glam::Vec2;
     use reference::oracle::{rect_occluder_visibility, RectOccluder};
-    let f = scene.light.frame();
+    let f = scene.light().frame();
     let occs: Vec<RectOccluder> = occ
         .iter()
         .map(|o| {
@@ -372,9 +371,9 @@ pub fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
             }
         })
         .collect();
-    r.position
+    r.position()
         .iter()
-        .map(|p| rect_occluder_visibility(scene.light.half_extent(), &occs, f.to_light(*p)))
+        .map(|p| rect_occluder_visibility(scene.light().half_extent(), &occs, f.to_light(*p)))
         .collect()
 }
 
@@ -383,7 +382,7 @@ pub fn oracle(scene: &Scene, occ: &[Occ], r: &Receivers) -> Vec<f64> {
 #[cfg(feature = "oracle")]
 pub fn oracle_disk(scene: &Scene, occ: Occ, r: &Receivers) -> Vec<f64> {
     use glam::Vec2;
-    let f = scene.light.frame();
+    let f = scene.light().frame();
     let corners = [
         (occ.0, occ.1),
         (occ.2, occ.1),
@@ -398,8 +397,8 @@ pub fn oracle_disk(scene: &Scene, occ: Occ, r: &Receivers) -> Vec<f64> {
         })
         .collect();
     let z = f.to_light(Vec3::new(occ.0, occ.4, occ.1)).z;
-    let radius = scene.light.half_extent().x;
-    r.position
+    let radius = scene.light().half_extent().x;
+    r.position()
         .iter()
         .map(|p| {
             reference::oracle::polygon_occluder_disk_visibility(radius, &poly, z, f.to_light(*p))

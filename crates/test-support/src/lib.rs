@@ -11,6 +11,8 @@
 //!   square occluders, a line of receivers) and the scene fixtures under `fixtures/`.
 //! - `gate` (feature `gpu`): the shared Vulkan context, a loud skip without an adapter, a
 //!   failure instead under `SOFTSHADOW_REQUIRE_GPU=1`.
+//! - [`wgsl`]: naga's checks of WGSL without a device (shaders parse and validate, `#[repr(C)]`
+//!   mirrors match their WGSL structs: [`assert_wgsl_layout!`]), for every crate's shader tests.
 //! - `conformance` (feature `gpu`): the CPU-vs-GPU conformance suite every method's twins pass:
 //!   random scenes, empty and inactive receivers, chunking invariance, one name and parameter
 //!   table, the CLI path and the loop-limit redo; the macro `twin_suite!` instantiates it per
@@ -25,8 +27,9 @@ pub mod fixtures;
 pub mod gate;
 pub mod scenes;
 pub mod tolerance;
+pub mod wgsl;
 
-pub use config::{cases, proptest_config};
+pub use config::{cases, proptest_config, REQUIRE_GPU_ENV};
 #[cfg(feature = "gpu")]
 pub use gate::gpu;
 pub use tolerance::{CaseStats, Comparison, RunStats, Tie, Tolerance, Verdict};

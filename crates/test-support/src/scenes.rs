@@ -182,7 +182,7 @@ impl SceneSpec {
     /// The scene and its receivers ([`SceneSpec::scene`], [`SceneSpec::receivers`]).
     pub fn scene_and_receivers(&self) -> (Scene, Receivers) {
         let scene = self.scene();
-        let receivers = self.receivers(&scene.light);
+        let receivers = self.receivers(scene.light());
         (scene, receivers)
     }
 
@@ -245,7 +245,7 @@ impl SceneSpec {
             Err(e) => panic!("receivers: {e}"),
         };
         if let Some(m) = self.inactive_every {
-            for (k, a) in r.active.iter_mut().enumerate() {
+            for (k, a) in r.active_mut().iter_mut().enumerate() {
                 // Keep the first receiver (a ground point) active so the light view can be fitted.
                 if k > 0 && k % m == m - 1 {
                     *a = false;

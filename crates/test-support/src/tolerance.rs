@@ -106,8 +106,9 @@ impl Tolerance {
         Ok(cmp)
     }
 
-    /// [`Tolerance::compare`], then the fraction within [`Tolerance::abs`] must be at least
-    /// [`Tolerance::min_within`] on this output alone; panics naming `what` otherwise. Returns
+    /// [`Tolerance::compare`], then at least one active receiver compared and the fraction within
+    /// [`Tolerance::abs`] at least [`Tolerance::min_within`] on this output alone; panics naming
+    /// `what` otherwise. Returns
     /// that fraction and the largest `|dV|`.
     pub fn assert_twins(
         &self,
@@ -120,6 +121,7 @@ impl Tolerance {
             Ok(c) => c,
             Err(e) => panic!("{e}"),
         };
+        assert!(cmp.receivers > 0, "{what}: no active receiver compared");
         let f = cmp.fraction_within();
         assert!(f >= self.min_within, "{what}: only {f} within {}", self.abs);
         (f, cmp.max_dv)
@@ -177,8 +179,8 @@ impl Tolerance {
             if lines.len() < 12 {
                 lines.push(format!(
                     "  #{k}: p {:?} n {:?} cpu {} gpu {} |dV| {:.3e}{}{} -> {}",
-                    rec.position[k],
-                    rec.normal[k],
+                    rec.position()[k],
+                    rec.normal()[k],
                     cpu[k],
                     gpu[k],
                     dv(k),
@@ -365,15 +367,23 @@ impl RunStats {
         )
     }
 
-    /// Panics unless at least [`Tolerance::min_within`] of the receivers over the run are
-    /// within the tolerance.
-    pub fn assert_within(&self, label: &str, tol: &Tolerance) {
+    /// Panics unless the run compared at least one receiver and at least
+    /// [`Tolerance::min_within`] of them are within the tolerance (a run that compared nothing
+    /// proves nothing). Returns how many it compared, for the caller's own minimum.
+    pub fn assert_within(&self, label: &str, tol: &Tolerance) -> usize {
+        assert!(
+            self.receivers > 0,
+            "{label}: no receiver compared ({} cases, {} refused alike)",
+            self.cases,
+            self.refused
+        );
         let frac = self.fraction_beyond();
         assert!(
             1.0 - frac >= tol.min_within,
             "{label}: {:.5}% beyond",
             100.0 * frac
         );
+        self.receivers
     }
 
     /// Panics unless the run compared umbra (CPU V = 0), penumbra (0 < V < 1) and lit (V = 1)
@@ -437,11 +447,33 @@ mod tests {
     }
 
     #[test]
+    #[should_panic(expected = "no receiver compared")]
+    fn an_empty_run_fails() {
+        RunStats::default().assert_within("empty", &Tolerance::TWIN);
+    }
+
+    #[test]
+    #[should_panic(expected = "no active receiver compared")]
+    fn an_empty_comparison_fails() {
+        Tolerance::TWIN.assert_twins("empty", &[false], &[f32::NAN], &[f32::NAN]);
+    }
+
+    #[test]
+    fn a_run_reports_how_many_it_compared() {
+        let mut st = RunStats::default();
+        st.add(&CaseStats {
+            receivers: 5,
+            ..CaseStats::default()
+        });
+        assert_eq!(st.assert_within("five", &Tolerance::TWIN), 5);
+    }
+
+    #[test]
     fn judge_needs_ties_and_the_allowance() {
         let t = Tolerance::TWIN;
         let rec = receivers(2);
         let (c, g) = ([0.0, 0.5], [0.0, 0.6]);
-        let cmp = t.compare("x", &rec.active, &c, &g).unwrap();
+        let cmp = t.compare("x", rec.active(), &c, &g).unwrap();
         // One of two beyond: allowed (ceil(0.001 * 2) = 1), when it is a tie.
         let st = t
             .judge("x", &cmp, &rec, &c, &g, |b| {

@@ -285,7 +285,7 @@ impl FrameEstimator for MultiSampleFrame {
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
         self.ctx.check_lost()?;
         let MultiSampleParams { sublights, seed } = self.own;
-        let light = &scene.light;
+        let light = scene.light();
         light
             .stratified_points(sublights, |k| jitter(seed, k))
             .into_iter()

@@ -3,7 +3,7 @@
 //! share.
 pub use shadow_map_core::gpu::kernel::{
     compute_pipeline, max_chunk, read_v, shader_module, shader_source, uniform, upload_receivers,
-    validate_wgsl, ReceiverChunk,
+    ReceiverChunk,
 };
 use shadow_map_core::{
     gpu::{kernel, kernel::Binding, GpuContext},

@@ -18,9 +18,8 @@ use shadow_map_core::{
         GpuContext, GpuScene,
     },
     Cancel, DepthPrecision, Error, Light, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    SoftShadowEstimator, Warning,
 };
-#[cfg(feature = "testing")]
 use shadow_map_core::{light_space::LightSpace, Unorm16Map};
 use std::{marker::PhantomData, sync::Arc, time::Instant};
 
@@ -130,11 +129,15 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         })
     }
 
-    /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
-    /// small caps to exercise the chunked path that large receiver counts take.
-    #[cfg(feature = "testing")]
-    pub fn set_max_chunk(&mut self, receivers: usize) {
-        self.chunk_cap = receivers.max(1);
+    /// Caps the receivers of one dispatch at `receivers` (default: as many as the device's limits
+    /// allow). Smaller dispatches bound the run time of each, e.g. under a display driver's
+    /// watchdog; V is the same for any cap. Errors: 0 ([`Error::Param`]).
+    pub fn set_max_chunk(&mut self, receivers: usize) -> Result<()> {
+        if receivers == 0 {
+            return Err(Error::param("max_chunk", "must be at least 1 receiver"));
+        }
+        self.chunk_cap = receivers;
+        Ok(())
     }
 
     /// The light-space data of the last build.
@@ -142,10 +145,10 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         self.maps.as_ref()
     }
 
-    /// Estimates V from given light-space data (its view and layer 0, uploaded here and encoded
-    /// on the GPU under `depth=unorm16`), so a test can feed the CPU and GPU twins identical
-    /// data. Replaces the report.
-    #[cfg(feature = "testing")]
+    /// Estimates V from light-space data the caller made (e.g. [`LightSpace::build`] with the
+    /// CPU twin's request, or the CPU twin's own maps): its view and layer 0 are uploaded (and
+    /// encoded on the GPU under `depth=unorm16`) instead of built, so both twins can see identical
+    /// data. Replaces the report. Errors: `v` not one per receiver, an upload the device refuses.
     pub fn estimate_with(
         &mut self,
         ls: &LightSpace,
@@ -159,10 +162,9 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         })
     }
 
-    /// Estimates V from the view of `ls` and CPU 16-bit codes uploaded as they are (the CPU
-    /// twin's [`unorm16`](crate::map_estimator::MapEstimator::unorm16) map), so a test can feed
-    /// both twins identical codes. Replaces the report.
-    #[cfg(feature = "testing")]
+    /// Estimates V from the view of `ls` and CPU 16-bit codes uploaded as they are (e.g. the CPU
+    /// twin's [`unorm16`](crate::map_estimator::MapEstimator::unorm16) map), so both twins can
+    /// see identical codes. Replaces the report. Errors: as [`estimate_with`](Self::estimate_with).
     pub fn estimate_with_unorm16(
         &mut self,
         ls: &LightSpace,
@@ -177,7 +179,6 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
     }
 
     /// The common part of `estimate_with*`: a fresh report, the upload timed, then [`run`](Self::run).
-    #[cfg(feature = "testing")]
     fn run_uploaded(
         &mut self,
         light: &Light,
@@ -239,9 +240,12 @@ impl<F: GpuFilter> GpuMapEstimator<F> {
         if let MapDepth::Unorm16(m) = &maps.depth {
             self.report.note("depth_step", m.step);
         }
-        if stats.nonfinite > 0 {
-            self.report.note("nonfinite_replaced", stats.nonfinite);
-        }
+        self.report.warn(Warning::NonFiniteV {
+            receivers: stats.nonfinite,
+        });
+        self.report.warn(Warning::OutsideViews {
+            receivers: stats.outside,
+        });
         Ok(())
     }
 
@@ -416,9 +420,11 @@ impl<F: GpuFilter> SoftShadowEstimator for GpuMapEstimator<F> {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
         let maps = shadow_map_core::estimator::built(self.maps.take())?;
-        let out = self.run(&maps, &scene.light, receivers, v);
+        let out = self.run(&maps, scene.light(), receivers, v);
         self.maps = Some(maps);
-        out
+        out?;
+        self.report.warn_all(Warning::opaque_casters(scene));
+        Ok(())
     }
     fn report(&self) -> Report {
         self.report.clone()

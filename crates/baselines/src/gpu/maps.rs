@@ -255,7 +255,7 @@ impl MapBuilder {
         opts: &ViewOptions,
         depth: DepthPrecision,
     ) -> Result<GpuMaps> {
-        let light = &scene.light;
+        let light = scene.light();
         let (frame, half) = match origin {
             MapOrigin::LightCentre => (light.frame(), light.half_extent()),
             MapOrigin::Point(at) => (

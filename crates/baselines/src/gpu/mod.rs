@@ -9,9 +9,8 @@
 //!
 //! Each implements [`SoftShadowEstimator`](shadow_map_core::SoftShadowEstimator) with
 //! `backend() == Backend::Gpu` and the CPU twin's name, description and parameter table, and
-//! offers `estimate_with` (with `set_max_chunk`, test-only hooks behind the `testing` feature,
-//! which the workspace's tests enable through test-support), which takes the light-space data as
-//! input so a test can give both twins identical data. The per-receiver stage is a compute kernel (one invocation per receiver,
+//! offers `estimate_with`, which takes the light-space data as input (so both twins can see
+//! identical data), and `set_max_chunk`, a cap on the receivers of one dispatch. The per-receiver stage is a compute kernel (one invocation per receiver,
 //! [`WORKGROUP_SIZE`](shadow_map_core::gpu::estimate::WORKGROUP_SIZE) per workgroup, receivers in chunks that fit the device's limits) reading
 //! receivers as the core's `ReceiverGpu`, the shadow map as an R32Float texture, and writing V
 //! to a storage buffer that is read back.
@@ -24,7 +23,7 @@
 //! comparison that is a tie to within f32 rounding.
 //!
 //! Light-space data come from [`MapBuilder`]: the view fitted on the CPU, the map rasterised on the
-//! GPU by the core's `GpuShadowMapper` (tests feed CPU maps through `estimate_with` instead).
+//! GPU by the core's `GpuShadowMapper` (or CPU maps given to `estimate_with`).
 pub mod frame;
 pub mod hard;
 pub mod kernel;
@@ -65,7 +64,7 @@ mod tests {
 
     #[test]
     fn every_shader_validates_with_naga() {
-        shadow_map_core::gpu::kernel::assert_shaders_valid(
+        test_support::wgsl::assert_shaders_valid(
             SHADERS
                 .iter()
                 .map(|(name, parts)| (*name, kernel::shader_source(parts))),

@@ -128,11 +128,15 @@ impl GpuMultiSample {
         Ok(k)
     }
 
-    /// Caps the receivers per dispatch below what the device allows (default: no cap). Tests use
-    /// small caps to exercise the chunked path that large receiver counts take.
-    #[cfg(feature = "testing")]
-    pub fn set_max_chunk(&mut self, receivers: usize) {
-        self.chunk_cap = receivers.max(1);
+    /// Caps the receivers of one dispatch at `receivers` (default: as many as the device's limits
+    /// allow). Smaller dispatches bound the run time of each, e.g. under a display driver's
+    /// watchdog; V is the same for any cap. Errors: 0 ([`Error::Param`]).
+    pub fn set_max_chunk(&mut self, receivers: usize) -> Result<()> {
+        if receivers == 0 {
+            return Err(Error::param("max_chunk", "must be at least 1 receiver"));
+        }
+        self.chunk_cap = receivers;
+        Ok(())
     }
 
     /// The shadow-map request of every sub-light (resolution and culling from the parameters).
@@ -147,11 +151,10 @@ impl GpuMultiSample {
     }
 
     /// Estimates V from given light-space data, one item per sub-light, consumed one at a time
-    /// (so a test can feed the CPU twin's own maps: `LightSpace::build_point` at each of
+    /// (e.g. the CPU twin's own maps: `LightSpace::build_point` at each of
     /// [`sub_light_points`](Self::sub_light_points) with [`request`](Self::request)). An item
     /// `Err(Error::LightView(_))` is a sub-light no receiver is in front of: it lights nothing but
     /// counts in N, as on the CPU; any other error is returned. Replaces the report.
-    #[cfg(feature = "testing")]
     pub fn estimate_with(
         &mut self,
         sub_lights: impl IntoIterator<Item = Result<shadow_map_core::LightSpace>>,
@@ -322,7 +325,7 @@ impl SoftShadowEstimator for GpuMultiSample {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         let req = self.request();
-        let points = self.sub_light_points(&scene.light);
+        let points = self.sub_light_points(scene.light());
         let (opts, depth) = (self.map.view, self.map.depth);
         let ctx = self.ctx.clone();
         let gpu_scene = GpuScene::upload(&ctx, scene)?;
@@ -339,7 +342,10 @@ impl SoftShadowEstimator for GpuMultiSample {
                 depth,
             )
         });
-        self.run(maps, &scene.light, receivers, v)
+        self.run(maps, scene.light(), receivers, v)?;
+        self.report
+            .warn_all(shadow_map_core::Warning::opaque_casters(scene));
+        Ok(())
     }
     fn report(&self) -> Report {
         self.report.clone()

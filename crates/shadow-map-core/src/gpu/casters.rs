@@ -391,7 +391,7 @@ mod tests {
 
     #[test]
     fn params_layout_matches_wgsl() {
-        crate::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             CASTERS_WGSL,
             CasterParams {
                 vertex_stride_words,

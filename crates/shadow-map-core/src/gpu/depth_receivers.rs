@@ -474,7 +474,7 @@ mod tests {
 
     #[test]
     fn params_layout_matches_wgsl() {
-        crate::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             DEPTH_RECEIVERS_SOURCE,
             DepthReceiversParams {
                 inv_view_proj,

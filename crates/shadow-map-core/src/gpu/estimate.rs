@@ -160,7 +160,7 @@ mod tests {
 
     #[test]
     fn estimate_uniform_layout_matches_wgsl() {
-        crate::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             [super::super::shared::SHARED_WGSL, ESTIMATE_WGSL].concat(),
             EstimateUniform {
                 light_frame,

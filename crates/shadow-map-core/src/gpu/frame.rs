@@ -13,7 +13,7 @@
 //! }
 //! ```
 use super::{estimate::WORKGROUP_SIZE, receivers::RECEIVER_BYTES, GpuContext, GpuScene};
-use crate::{light_view::LightView, Error, Light, Receivers, Result, Scene};
+use crate::{light_view::LightView, Error, Light, Receivers, Result, Scene, Warning};
 use std::num::NonZeroU64;
 
 /// An estimator's engine path: prepared once, then [`encode`](Self::encode) records each frame
@@ -49,8 +49,29 @@ pub trait FrameEstimator: Send + Sync {
 
     /// The counters of the last submitted frame (u32s, each estimator's own: receivers outside
     /// the frustum, non-finite results replaced, ...), for the caller to copy out when it likes;
-    /// `None` when the estimator keeps none.
+    /// `None` when the estimator keeps none. [`decode_status`](Self::decode_status) names them.
     fn status(&self) -> Option<&wgpu::Buffer>;
+
+    /// The words of [`status`](Self::status) as named counts. The default reads the layout most
+    /// estimators write: `[outside, nonfinite, left_nan]` (missing words count 0).
+    fn decode_status(&self, words: &[u32]) -> FrameStatus {
+        let w = |k: usize| words.get(k).copied().unwrap_or(0);
+        FrameStatus {
+            outside: w(0),
+            nonfinite: w(1),
+            left_nan: w(2),
+        }
+    }
+
+    /// Reads the status buffer back (a blocking readback, for tools and tests, not per frame)
+    /// and decodes it; `None` when the estimator keeps none.
+    fn read_status(&self, ctx: &GpuContext) -> Result<Option<FrameStatus>> {
+        let Some(b) = self.status() else {
+            return Ok(None);
+        };
+        let words: Vec<u32> = ctx.read_buffer(b, b.size())?;
+        Ok(Some(self.decode_status(&words)))
+    }
 
     /// Render passes over the casters one frame records in `views` (peeled layers, sub-lights):
     /// what a frame's raster work is, in units of the casters' triangles.
@@ -71,6 +92,51 @@ pub trait FrameEstimator: Send + Sync {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>>;
+}
+
+/// What the last submitted frame counted ([`FrameEstimator::decode_status`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FrameStatus {
+    /// Receivers outside the light view, given their facing fraction (summed over views).
+    pub outside: u32,
+    /// Receivers whose V came out non-finite, written as 0.
+    pub nonfinite: u32,
+    /// Active receivers left NaN for the caller to redo (cut by the device's loop budget, or
+    /// outside the one view accumulation uses): a composite that does not redo them draws them
+    /// fully lit.
+    pub left_nan: u32,
+}
+
+impl FrameStatus {
+    /// The counts as [`Warning`]s (none for zero counts).
+    pub fn warnings(&self) -> Vec<Warning> {
+        [
+            Warning::OutsideViews {
+                receivers: self.outside as usize,
+            },
+            Warning::NonFiniteV {
+                receivers: self.nonfinite as usize,
+            },
+            Warning::FrameLeftNan {
+                receivers: self.left_nan as usize,
+            },
+        ]
+        .into_iter()
+        .filter(|w| w.count() > 0)
+        .collect()
+    }
+}
+
+/// The refusal of an engine path whose estimator models opacity on its twin path
+/// ([`FrameEstimator::refuses`]): a frame's casters are positions only, so semi-transparent
+/// meshes would cast opaque shadows there; `None` for an opaque scene.
+pub fn refuse_semi_transparent(scene: &Scene) -> Option<String> {
+    let n = scene.semi_transparent_meshes();
+    (n > 0).then(|| {
+        format!(
+            "{n} semi-transparent meshes: the engine path's casters are opaque; the estimator's twin path models opacity"
+        )
+    })
 }
 
 /// The one view of a single-view method's frame: `views` must hold exactly one, present

@@ -226,19 +226,16 @@ pub fn read_back(
     } else {
         ctx.read_buffer(depth, n * 4)?
     };
-    let mut r = Receivers {
-        position: Vec::with_capacity(packed.len()),
-        normal: Vec::with_capacity(packed.len()),
-        active: Vec::with_capacity(packed.len()),
-        view_depth: Some(z),
-        layout: Some(layout),
-    };
-    for p in &packed {
-        r.position.push(Vec3::from_array(p.position));
-        r.normal.push(Vec3::from_array(p.normal));
-        r.active.push(p.active != 0);
-    }
-    Ok(r)
+    Receivers::from_gbuffer(
+        packed
+            .iter()
+            .map(|p| Vec3::from_array(p.position))
+            .collect(),
+        packed.iter().map(|p| Vec3::from_array(p.normal)).collect(),
+        packed.iter().map(|p| p.active != 0).collect(),
+        Some(z),
+        Some(layout),
+    )
 }
 
 /// The G-buffer pipelines of one context (the render pipeline and the resolve compute pipeline,

@@ -204,7 +204,7 @@ mod tests {
 
     #[test]
     fn plane_copy_matches_the_wgsl() {
-        crate::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             PLANE_TO_LAYER_WGSL,
             PlaneCopy {
                 size,

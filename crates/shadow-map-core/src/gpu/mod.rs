@@ -18,8 +18,9 @@
 //! | [`gbuffer`] (`gbuffer.wgsl`) | [`GpuGBuffer`]: camera G-buffer | [`crate::Receivers::from_camera`] |
 //! | [`shared`] (`shared.wgsl`) | structs both sides read | |
 //! | [`estimate`] (`estimate.wgsl`, `math.wgsl`) | [`EstimateUniform`]: the light and bias every estimate kernel reads, f32 light math | [`crate::light`], [`crate::LightView::receiver_bias`] |
-//! | [`kernel`] | [`Kernel`]: layouts from a binding list, pipelines, chunked receivers, readback, naga checks | |
+//! | [`kernel`] | [`Kernel`]: layouts from a binding list, pipelines, chunked receivers, readback | |
 use crate::{Error, Result};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 pub mod casters;
@@ -96,8 +97,8 @@ pub fn redo_cut_receivers(
         return Ok(0);
     }
     let sub = crate::Receivers::from_points(
-        cut.iter().map(|&k| receivers.position[k]).collect(),
-        cut.iter().map(|&k| receivers.normal[k]).collect(),
+        cut.iter().map(|&k| receivers.position()[k]).collect(),
+        cut.iter().map(|&k| receivers.normal()[k]).collect(),
     )?;
     let mut vs = vec![0.0f32; cut.len()];
     cpu(&sub, &mut vs)?;
@@ -118,10 +119,10 @@ pub struct GpuContext {
     pub adapter: Option<wgpu::AdapterInfo>,
     /// Set by the device-lost callback; checked by [`GpuContext::check_lost`].
     lost: Arc<Mutex<Option<String>>>,
+    /// Buffers mapped for reading through [`GpuContext::read_buffer`] (every readback the
+    /// library makes goes through it).
+    readbacks: Arc<AtomicU64>,
 }
-
-/// Environment variable that turns a missing adapter in GPU tests from a loud skip into a failure.
-pub const REQUIRE_GPU_ENV: &str = "SOFTSHADOW_REQUIRE_GPU";
 
 impl GpuContext {
     /// Creates a headless device on the first Vulkan adapter, with the adapter's own limits (so the
@@ -171,6 +172,7 @@ impl GpuContext {
             queue,
             adapter: None,
             lost: Arc::new(Mutex::new(None)),
+            readbacks: Arc::new(AtomicU64::new(0)),
         }
     }
 
@@ -340,12 +342,19 @@ impl GpuContext {
         self.check_lost()
     }
 
+    /// How many buffers this context has mapped back to the CPU so far ([`read_buffer`](Self::read_buffer),
+    /// the library's one readback path): a frame loop that reads nothing back leaves it unchanged.
+    pub fn readbacks(&self) -> u64 {
+        self.readbacks.load(Ordering::Relaxed)
+    }
+
     /// Copies a buffer back to the CPU as `T`s (a staging buffer, one submit, one wait).
     pub fn read_buffer<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {
         let gpu = |reason: String| Error::Gpu {
             stage: "readback".into(),
             reason,
         };
+        self.readbacks.fetch_add(1, Ordering::Relaxed);
         // Scoped: on a lost device the staging buffer is invalid and mapping it is a validation
         // error, which would otherwise reach wgpu's default handler (a panic).
         let (staging, rx) = self.scoped("readback", || {
@@ -380,27 +389,6 @@ impl GpuContext {
         drop(data);
         staging.unmap();
         Ok(out)
-    }
-}
-
-/// For GPU tests: the shared context, or `None` after printing a loud skip message. With
-/// `SOFTSHADOW_REQUIRE_GPU=1` a missing adapter is a failure (an `Err`), never a skip. A test
-/// hook (feature `testing`, which the workspace's tests enable), not a public API.
-#[cfg(feature = "testing")]
-pub fn context_for_tests(test: &str) -> Result<Option<Arc<GpuContext>>> {
-    match GpuContext::shared() {
-        Ok(c) => Ok(Some(c)),
-        Err(e) => {
-            if std::env::var(REQUIRE_GPU_ENV)
-                .map(|v| v == "1")
-                .unwrap_or(false)
-            {
-                Err(e)
-            } else {
-                eprintln!("SKIPPED (no Vulkan adapter): {test}: {e}");
-                Ok(None)
-            }
-        }
     }
 }
 

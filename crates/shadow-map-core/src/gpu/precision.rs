@@ -332,7 +332,7 @@ mod tests {
 
     #[test]
     fn encode_params_match_the_wgsl() {
-        crate::assert_wgsl_layout!(
+        test_support::assert_wgsl_layout!(
             PRECISION_WGSL,
             EncodeParams {
                 size,

@@ -156,14 +156,14 @@ impl GpuScene {
     /// Uploads `scene.triangles`. Fails with [`Error::Limit`] when the buffer would exceed the
     /// device's `max_buffer_size` or the vertex count `u32`.
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<Self> {
-        let n = scene.triangles.len() as u64;
+        let n = scene.triangles().len() as u64;
         check_triangles(
             ctx,
             n,
             "scene triangles on the GPU (max_buffer_size / 48 bytes)",
         )?;
         let mut verts: Vec<[f32; 4]> = Vec::with_capacity(3 * n as usize);
-        for t in &scene.triangles {
+        for t in scene.triangles() {
             for v in t {
                 verts.push([v.x, v.y, v.z, 1.0]);
             }

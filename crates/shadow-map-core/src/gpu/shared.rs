@@ -124,9 +124,9 @@ pub struct ReceiverGpu {
 pub fn pack_receivers(r: &Receivers) -> Vec<ReceiverGpu> {
     (0..r.len())
         .map(|k| ReceiverGpu {
-            position: r.position[k].to_array(),
-            active: r.active[k] as u32,
-            normal: r.normal[k].to_array(),
+            position: r.position()[k].to_array(),
+            active: r.active()[k] as u32,
+            normal: r.normal()[k].to_array(),
             _pad0: 0.0,
         })
         .collect()

@@ -56,9 +56,9 @@ pub(super) fn fit(
     };
     let active = || {
         receivers
-            .position
+            .position()
             .iter()
-            .zip(&receivers.active)
+            .zip(receivers.active())
             .filter(|(p, &a)| a && p.is_finite())
             .map(|(p, _)| *p)
     };
@@ -71,16 +71,16 @@ pub(super) fn fit(
     let z_eps = 1e-6 * radius;
     let h = tan_half.as_dvec2();
     let rec: Vec<(DVec2, f64)> = receivers
-        .position
+        .position()
         .iter()
-        .zip(&receivers.active)
+        .zip(receivers.active())
         .filter(|(_, &a)| a)
         .filter_map(|(p, _)| {
             let q = frame.to_light(*p);
             (q.z > z_eps).then(|| (DVec2::new(q.x as f64, q.y as f64), q.z as f64))
         })
         .collect();
-    rep.behind = receivers.active.iter().filter(|&&a| a).count() - rec.len();
+    rep.behind = receivers.active().iter().filter(|&&a| a).count() - rec.len();
     if rec.is_empty() {
         let n = radius;
         let view = LightView {
@@ -95,7 +95,7 @@ pub(super) fn fit(
         return Ok((view, rep));
     }
     let tris: Vec<[Vec3; 3]> = scene
-        .triangles
+        .triangles()
         .iter()
         .map(|t| t.map(|v| frame.to_light(v)))
         .collect();
@@ -275,7 +275,7 @@ mod tests {
     }
 
     fn fit(s: &Scene, r: &Receivers, opts: &ViewOptions) -> LightView {
-        let l = &s.light;
+        let l = s.light();
         LightView::fit_with(s, r, l.frame(), l.half_extent(), 512, opts)
             .unwrap()
             .0
@@ -290,10 +290,10 @@ mod tests {
         let rec = ground(-1.0, -1.0);
         let v = fit(&s, &rec, &ViewOptions::default());
         assert_eq!(v.projection, Projection::Orthographic);
-        let t = s.light.shape.tan_half();
+        let t = s.light().shape.tan_half();
         let box_top = v.frame.to_light(Vec3::new(0.0, 1.0, 0.0)).z;
         assert!(v.n > 0.0 && v.n <= box_top, "n {} box {box_top}", v.n);
-        for p in &rec.position {
+        for p in rec.position() {
             let q = v.frame.to_light(*p);
             assert!(q.z > v.n && q.z <= v.far, "{q} n {} far {}", v.n, v.far);
             let reach = Vec2::splat(t * (q.z - v.n));

@@ -5,7 +5,10 @@ mod gltf;
 mod obj;
 mod toml;
 
-use crate::{camera::Camera, light::Light};
+use crate::{
+    camera::Camera,
+    light::{Light, LightShape},
+};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -24,22 +27,27 @@ pub struct MeshInfo {
 }
 
 /// A loaded scene.
+///
+/// The fields are private so every scene passes the constructors' checks: one mesh index per
+/// triangle, each naming a mesh, mesh ranges inside the triangles, finite vertices, opacities in
+/// [0, 1], a valid camera and light. Read them through the accessors; change the camera, light
+/// or opacities through the checked setters.
 #[derive(Debug, Clone)]
 pub struct Scene {
     /// The scene file, for messages (or a name for scenes built in code).
-    pub path: PathBuf,
+    path: PathBuf,
     /// The camera.
-    pub camera: Camera,
+    camera: Camera,
     /// The light.
-    pub light: Light,
+    light: Light,
     /// World-space triangles of all meshes, mesh after mesh.
-    pub triangles: Vec<[Vec3; 3]>,
+    triangles: Vec<[Vec3; 3]>,
     /// Index into [`Scene::meshes`] per triangle.
-    pub triangle_mesh: Vec<u32>,
+    triangle_mesh: Vec<u32>,
     /// The meshes.
-    pub meshes: Vec<MeshInfo>,
+    meshes: Vec<MeshInfo>,
     /// Zero-area (or non-finite) triangles dropped while loading.
-    pub skipped_degenerate: usize,
+    skipped_degenerate: usize,
 }
 
 /// Axis-aligned bounds.
@@ -89,6 +97,159 @@ impl Scene {
         }
     }
 
+    /// A scene from its parts, checked: `triangle_mesh` has one entry per triangle, each an index
+    /// into `meshes`; every mesh's range lies inside `triangles` and holds only its own
+    /// triangles; vertices are finite, opacities in [0, 1]; the camera and light pass
+    /// [`Scene::set_camera`] and [`Scene::set_light`]. An empty scene is allowed (a level with no
+    /// casters); [`Scene::from_meshes`] refuses one.
+    pub fn from_parts(
+        path: PathBuf,
+        camera: Camera,
+        light: Light,
+        triangles: Vec<[Vec3; 3]>,
+        triangle_mesh: Vec<u32>,
+        meshes: Vec<MeshInfo>,
+        skipped_degenerate: usize,
+    ) -> crate::Result<Scene> {
+        let err = |key: String, reason: String| crate::Error::Scene {
+            path: path.clone(),
+            key: Some(key),
+            reason,
+        };
+        if triangle_mesh.len() != triangles.len() {
+            return Err(err(
+                "triangle_mesh".into(),
+                format!(
+                    "{} entries for {} triangles",
+                    triangle_mesh.len(),
+                    triangles.len()
+                ),
+            ));
+        }
+        if let Some(t) = triangles
+            .iter()
+            .position(|t| !t.iter().all(|v| v.is_finite()))
+        {
+            return Err(err(format!("triangles[{t}]"), "not finite".into()));
+        }
+        if let Some(t) = triangle_mesh
+            .iter()
+            .position(|&m| m as usize >= meshes.len())
+        {
+            return Err(err(
+                format!("triangle_mesh[{t}]"),
+                format!("mesh {} of {} meshes", triangle_mesh[t], meshes.len()),
+            ));
+        }
+        for (k, m) in meshes.iter().enumerate() {
+            check_opacity(&path, k, m.opacity)?;
+            let r = &m.triangles;
+            if r.start > r.end
+                || r.end > triangles.len()
+                || triangle_mesh[r.clone()].iter().any(|&x| x as usize != k)
+            {
+                return Err(err(
+                    format!("mesh[{k}].triangles"),
+                    format!(
+                        "range {r:?} is not this mesh's triangles (of {})",
+                        triangles.len()
+                    ),
+                ));
+            }
+        }
+        check_camera(&path, &camera)?;
+        check_light(&path, &light)?;
+        Ok(Scene {
+            path,
+            camera,
+            light,
+            triangles,
+            triangle_mesh,
+            meshes,
+            skipped_degenerate,
+        })
+    }
+
+    /// The scene file, for messages (or a name for scenes built in code).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+    /// The camera.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+    /// The light.
+    pub fn light(&self) -> &Light {
+        &self.light
+    }
+    /// World-space triangles of all meshes, mesh after mesh.
+    pub fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+    /// Index into [`Scene::meshes`] per triangle.
+    pub fn triangle_mesh(&self) -> &[u32] {
+        &self.triangle_mesh
+    }
+    /// The meshes.
+    pub fn meshes(&self) -> &[MeshInfo] {
+        &self.meshes
+    }
+    /// Zero-area (or non-finite) triangles dropped while loading.
+    pub fn skipped_degenerate(&self) -> usize {
+        self.skipped_degenerate
+    }
+
+    /// Replaces the camera. Fails with [`crate::Error::Scene`] (the scene unchanged) unless eye,
+    /// target and up are finite, the target differs from the eye, up is not parallel to the view,
+    /// the field of view is in (0, 180) degrees and the image sides in 1..=`MAX_IMAGE_SIDE`.
+    pub fn set_camera(&mut self, camera: Camera) -> crate::Result<()> {
+        check_camera(&self.path, &camera)?;
+        self.camera = camera;
+        Ok(())
+    }
+
+    /// Sets the camera's image size (as [`Scene::set_camera`]).
+    pub fn set_resolution(&mut self, width: u32, height: u32) -> crate::Result<()> {
+        self.set_camera(Camera {
+            width,
+            height,
+            ..self.camera
+        })
+    }
+
+    /// Replaces the light. Fails with [`crate::Error::Scene`] (the scene unchanged) unless its
+    /// centre is finite, its normal and tangent finite unit vectors and its size finite and
+    /// non-negative (a directional light's angle below 90 degrees).
+    pub fn set_light(&mut self, light: Light) -> crate::Result<()> {
+        check_light(&self.path, &light)?;
+        self.light = light;
+        Ok(())
+    }
+
+    /// Sets mesh `k`'s opacity. Fails with [`crate::Error::Scene`] for a mesh index past
+    /// [`Scene::meshes`] or an opacity outside [0, 1].
+    pub fn set_mesh_opacity(&mut self, k: usize, opacity: f32) -> crate::Result<()> {
+        if k >= self.meshes.len() {
+            return Err(crate::Error::Scene {
+                path: self.path.clone(),
+                key: Some(format!("mesh[{k}]")),
+                reason: format!("no such mesh (the scene has {})", self.meshes.len()),
+            });
+        }
+        check_opacity(&self.path, k, opacity)?;
+        self.meshes[k].opacity = opacity;
+        Ok(())
+    }
+
+    /// This scene with every mesh fully opaque (opacity 1).
+    pub fn opaque(&self) -> Scene {
+        let mut s = self.clone();
+        for m in &mut s.meshes {
+            m.opacity = 1.0;
+        }
+        s
+    }
+
     /// Loads a scene file exactly as the contract defines it (docs/methods.md §11, "Scene file").
     /// Every error names the file and the key or line; nothing is written.
     pub fn load(path: impl AsRef<Path>) -> crate::Result<Scene> {
@@ -103,15 +264,12 @@ impl Scene {
         light: Light,
         meshes: Vec<(Vec<[Vec3; 3]>, f32)>,
     ) -> crate::Result<Scene> {
-        let mut scene = Scene::empty(PathBuf::from(name), camera, light);
+        let path = PathBuf::from(name);
+        check_camera(&path, &camera)?;
+        check_light(&path, &light)?;
+        let mut scene = Scene::empty(path, camera, light);
         for (k, (tris, opacity)) in meshes.into_iter().enumerate() {
-            if !(0.0..=1.0).contains(&opacity) {
-                return Err(crate::Error::Scene {
-                    path: scene.path.clone(),
-                    key: Some(format!("mesh[{k}].opacity")),
-                    reason: format!("must be in [0, 1], got {opacity}"),
-                });
-            }
+            check_opacity(&scene.path, k, opacity)?;
             scene.push_mesh(PathBuf::from(format!("{name}#mesh{k}")), opacity, tris);
         }
         if scene.triangles.is_empty() {
@@ -167,6 +325,11 @@ impl Scene {
     #[inline]
     pub fn triangle_opacity(&self, t: usize) -> f32 {
         self.meshes[self.triangle_mesh[t] as usize].opacity
+    }
+
+    /// How many meshes are semi-transparent (opacity below 1).
+    pub fn semi_transparent_meshes(&self) -> usize {
+        self.meshes.iter().filter(|m| m.opacity < 1.0).count()
     }
 
     /// True when every mesh is fully opaque (opacity 1): estimators then need no transmittance.
@@ -237,6 +400,89 @@ impl Scene {
     }
 }
 
+/// Fails unless `opacity` (of mesh `k`) is in [0, 1].
+fn check_opacity(path: &Path, k: usize, opacity: f32) -> crate::Result<()> {
+    if (0.0..=1.0).contains(&opacity) {
+        return Ok(());
+    }
+    Err(crate::Error::Scene {
+        path: path.to_path_buf(),
+        key: Some(format!("mesh[{k}].opacity")),
+        reason: format!("must be in [0, 1], got {opacity}"),
+    })
+}
+
+/// The camera checks of the scene file, for cameras given in code.
+fn check_camera(path: &Path, c: &Camera) -> crate::Result<()> {
+    let err = |key: &str, reason: String| {
+        Err(crate::Error::Scene {
+            path: path.to_path_buf(),
+            key: Some(format!("camera.{key}")),
+            reason,
+        })
+    };
+    for (key, v) in [("eye", c.eye), ("target", c.target), ("up", c.up)] {
+        if !v.is_finite() {
+            return err(key, format!("every number must be finite, got {v}"));
+        }
+    }
+    let forward = (c.target - c.eye).normalize_or_zero();
+    if forward == Vec3::ZERO {
+        return err("target", "must differ from camera.eye".into());
+    }
+    if forward.cross(c.up).length() < 1e-6 * c.up.length() || c.up == Vec3::ZERO {
+        return err("up", "must not be parallel to the view direction".into());
+    }
+    if !(c.fov_y_deg.is_finite() && c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+        return err(
+            "fov_y_deg",
+            format!("must be in (0, 180), got {}", c.fov_y_deg),
+        );
+    }
+    for (key, v) in [("width", c.width), ("height", c.height)] {
+        if v == 0 || v > toml::MAX_IMAGE_SIDE {
+            return err(
+                key,
+                format!("must be in 1..={}, got {v}", toml::MAX_IMAGE_SIDE),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Finite light geometry: the centre, unit normal and tangent, a finite non-negative size.
+fn check_light(path: &Path, l: &Light) -> crate::Result<()> {
+    let err = |key: &str, reason: String| {
+        Err(crate::Error::Scene {
+            path: path.to_path_buf(),
+            key: Some(format!("light.{key}")),
+            reason,
+        })
+    };
+    if !l.center.is_finite() {
+        return err("center", format!("must be finite, got {}", l.center));
+    }
+    for (key, v) in [("normal", l.normal), ("tangent", l.tangent)] {
+        if !(v.is_finite() && (v.length() - 1.0).abs() <= 1e-3) {
+            return err(key, format!("must be a finite unit vector, got {v}"));
+        }
+    }
+    let (key, sizes, max) = match l.shape {
+        LightShape::Rect { size } => ("size", size.to_vec(), f32::INFINITY),
+        LightShape::Disk { radius } | LightShape::Sphere { radius } => {
+            ("radius", vec![radius], f32::INFINITY)
+        }
+        LightShape::Directional { angle_deg } => ("angle_deg", vec![angle_deg], 90.0),
+    };
+    if !sizes.iter().all(|&x| x.is_finite() && x >= 0.0 && x < max) {
+        return err(
+            key,
+            format!("must be finite, >= 0 and < {max}, got {sizes:?}"),
+        );
+    }
+    Ok(())
+}
+
 /// One level of [`Scene::opacity_levels`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OpacityLevel {
@@ -280,6 +526,76 @@ mod tests {
             tangent: Vec3::X,
         };
         Scene::from_meshes("levels", camera, light, meshes).unwrap()
+    }
+
+    /// Scenes cannot be put in a state the estimators would index out of range or divide by:
+    /// `from_parts` and every setter refuse what the public fields used to allow.
+    #[test]
+    fn from_parts_and_setters_reject_invalid_scenes() {
+        let s = scene(&[1.0, 0.5]);
+        let parts = |tris: Vec<[Vec3; 3]>, ids: Vec<u32>, meshes: Vec<MeshInfo>| {
+            Scene::from_parts(
+                s.path().to_path_buf(),
+                *s.camera(),
+                *s.light(),
+                tris,
+                ids,
+                meshes,
+                0,
+            )
+        };
+        let (tris, ids, meshes) = (
+            s.triangles().to_vec(),
+            s.triangle_mesh().to_vec(),
+            s.meshes().to_vec(),
+        );
+        let ok = parts(tris.clone(), ids.clone(), meshes.clone()).unwrap();
+        assert_eq!(ok.triangles(), s.triangles());
+        let invalid = |r: crate::Result<Scene>| matches!(r, Err(crate::Error::Scene { .. }));
+        // Mismatched lengths, a mesh index out of range, a range past the triangles or over
+        // another mesh's triangles, a non-finite vertex, an opacity outside [0, 1].
+        assert!(invalid(parts(
+            tris.clone(),
+            ids[..1].to_vec(),
+            meshes.clone()
+        )));
+        assert!(invalid(parts(tris.clone(), vec![0, 2], meshes.clone())));
+        let mut m = meshes.clone();
+        m[1].triangles = 1..3;
+        assert!(invalid(parts(tris.clone(), ids.clone(), m)));
+        let mut m = meshes.clone();
+        m[1].triangles = 0..2;
+        assert!(invalid(parts(tris.clone(), ids.clone(), m)));
+        let mut t = tris.clone();
+        t[0][1] = Vec3::NAN;
+        assert!(invalid(parts(t, ids.clone(), meshes.clone())));
+        let mut m = meshes.clone();
+        m[0].opacity = 1.5;
+        assert!(invalid(parts(tris, ids, m)));
+        // Setters leave the scene unchanged on error.
+        let mut s2 = s.clone();
+        assert!(s2.set_mesh_opacity(2, 0.5).is_err());
+        assert!(s2.set_mesh_opacity(0, f32::NAN).is_err());
+        s2.set_mesh_opacity(0, 0.25).unwrap();
+        assert_eq!(s2.meshes()[0].opacity, 0.25);
+        assert!(s2.set_resolution(0, 4).is_err());
+        assert_eq!(s2.camera(), s.camera());
+        s2.set_resolution(8, 2).unwrap();
+        assert_eq!((s2.camera().width, s2.camera().height), (8, 2));
+        let mut cam = *s.camera();
+        cam.target = cam.eye;
+        assert!(s2.set_camera(cam).is_err());
+        let mut light = *s.light();
+        light.center = Vec3::INFINITY;
+        assert!(s2.set_light(light).is_err());
+        light = *s.light();
+        light.normal = Vec3::ZERO;
+        assert!(s2.set_light(light).is_err());
+        light = *s.light();
+        light.shape = crate::light::LightShape::Disk { radius: -1.0 };
+        assert!(s2.set_light(light).is_err());
+        assert_eq!(s2.light(), s.light());
+        assert!(s.opaque().is_opaque());
     }
 
     #[test]

@@ -1,0 +1,209 @@
+//! The engine path of hard, PCF, PCSS ([`baselines::gpu::MapFrame`]) and multi-sample
+//! ([`baselines::gpu::MultiSampleFrame`]) through the conformance suite's
+//! [`frames_match_the_cpu_twin`]: frames recorded into the caller's command encoder from the
+//! caller's casters and receiver buffer, V into the caller's buffer, read back once after the
+//! last frame, against the CPU twin in the same views: perspective views (the bunny under its rect
+//! light and a disk light) and an orthographic one (under a low sun).
+//!
+//! GPU tests run on the shared Vulkan context; with no adapter they print a loud skip, or fail
+//! under `SOFTSHADOW_REQUIRE_GPU=1`.
+#![cfg(feature = "gpu")]
+
+use baselines::{
+    gpu::{FrameEstimator, FrameInputs, GpuFilter, MapFrame, MultiSampleFrame},
+    hard::Hard,
+    map_estimator::Filter,
+    pcf::Pcf,
+    pcss::Pcss,
+};
+use shadow_map_core::{
+    gpu::{receivers::GpuReceivers, GpuContext, GpuScene},
+    run, Params, SoftShadowEstimator,
+};
+use std::sync::Arc;
+use test_support::gate::context_for_tests;
+use test_support::{
+    conformance::frames_match_the_cpu_twin,
+    fixtures::{bunny_under_three_lights, fixture},
+};
+
+/// Hard, PCF or PCSS: the twins' tolerance (|dV| <= 1e-4 on 99.9% of the receivers, PCSS's
+/// compensated sums differing in their last bits, and no |dV| above 1e-3); the status counts no
+/// receiver cut by the loop budget.
+fn map_frames_match<F: GpuFilter>(ctx: &Arc<GpuContext>) {
+    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
+        let frame = MapFrame::<F>::prepare(ctx.clone(), &Params::new(F::SPECS).unwrap()).unwrap();
+        let label = format!("{} {name}", F::NAME);
+        let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
+        assert_eq!(
+            c.status.left_nan, 0,
+            "{label}: cut receivers {:?}",
+            c.status
+        );
+        assert!(
+            c.max_dv <= 1e-3 && c.beyond * 1000 <= c.active,
+            "{label}: max |dV| {}, {} of {} beyond 1e-4",
+            c.max_dv,
+            c.beyond,
+            c.active
+        );
+    }
+}
+
+#[test]
+fn hard_pcf_and_pcss_frames_match_their_cpu_twins() {
+    let Some(ctx) = context_for_tests("hard_pcf_and_pcss_frames_match_their_cpu_twins").unwrap()
+    else {
+        return;
+    };
+    map_frames_match::<Hard>(&ctx);
+    map_frames_match::<Pcf>(&ctx);
+    map_frames_match::<Pcss>(&ctx);
+}
+
+/// Multi-sample's S x S sub-light maps rendered in turn into one layer within each frame: bit for
+/// bit the GPU twin's V, and the CPU twin's on the same views but for depth ties (at most 0.1% of
+/// the receivers, one sub-light's test each).
+#[test]
+fn multi_sample_frames_match_the_cpu_twin() {
+    let Some(ctx) = context_for_tests("multi_sample_frames_match_the_cpu_twin").unwrap() else {
+        return;
+    };
+    multi_sample_frames_match(&ctx, "f32");
+}
+
+/// Bad frames are refused with a typed error before anything is recorded: a view of another
+/// resolution, two views for a single-view method, a V buffer too small for the count.
+#[test]
+fn bad_frames_are_refused() {
+    let Some(ctx) = context_for_tests("bad_frames_are_refused").unwrap() else {
+        return;
+    };
+    let (scene, rec) = fixture("bunny", 16, 12);
+    let params = Params::new(<Pcss as Filter>::SPECS).unwrap();
+    let frame = MapFrame::<Pcss>::prepare(ctx.clone(), &params).unwrap();
+    let views = frame.fit_views(&scene, &rec).unwrap();
+    let casters = GpuScene::upload(&ctx, &scene).unwrap();
+    let receivers = GpuReceivers::upload(&ctx, &rec).unwrap();
+    let buffer = |size| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("V"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    };
+    let small = buffer(4);
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let inputs = FrameInputs {
+        casters: &casters,
+        views: &views,
+        light: scene.light(),
+        receivers: &receivers.buffer,
+        count: receivers.count,
+        v: &small,
+        timestamps: None,
+    };
+    let err = frame.encode(&mut enc, &inputs).unwrap_err().to_string();
+    assert!(err.contains("V buffer"), "{err}");
+    let big = buffer(4 * rec.len() as u64);
+    let mut half = views.clone();
+    if let Some(v) = half[0].as_mut() {
+        v.r /= 2;
+    }
+    let err = frame
+        .encode(
+            &mut enc,
+            &FrameInputs {
+                views: &half,
+                v: &big,
+                ..inputs
+            },
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("resolution"), "{err}");
+    let two = [views[0], views[0]];
+    let err = frame
+        .encode(
+            &mut enc,
+            &FrameInputs {
+                views: &two,
+                v: &big,
+                ..inputs
+            },
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("one light view"), "{err}");
+}
+
+/// `depth=unorm16` on the engine path: each layer encoded into 16-bit codes within the frame
+/// ([`shadow_map_core::gpu::GpuUnorm16Frame`]). V is bit for bit the GPU twin's (whose build
+/// encodes the same GPU raster with the one-shot encoder) and within the twins' tolerance of the
+/// CPU twin's own 16-bit map, for hard, PCF, PCSS and multi-sample (whose S x S sub-light views
+/// each get their own code step) under the rect, disk and sun lights.
+#[test]
+fn unorm16_frames_match_their_twins() {
+    let Some(ctx) = context_for_tests("unorm16_frames_match_their_twins").unwrap() else {
+        return;
+    };
+    fn map<F: GpuFilter>(ctx: &Arc<GpuContext>, mut gpu: impl SoftShadowEstimator) {
+        for (name, scene, rec) in bunny_under_three_lights(64, 48) {
+            let mut params = Params::new(F::SPECS).unwrap();
+            params.set("depth", "unorm16").unwrap();
+            let frame = MapFrame::<F>::prepare(ctx.clone(), &params).unwrap();
+            let label = format!("{} unorm16 {name}", F::NAME);
+            let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
+            assert!(
+                c.max_dv <= 1e-3 && c.beyond * 1000 <= c.active,
+                "{label}: max |dV| {}, {} of {} beyond 1e-4",
+                c.max_dv,
+                c.beyond,
+                c.active
+            );
+            gpu.set_param("depth", "unorm16").unwrap();
+            let (v_gpu, report) = run(&mut gpu, &scene, &rec).unwrap();
+            assert!(
+                report.notes.iter().any(|(k, _)| k == "depth_step"),
+                "{label}"
+            );
+            let differ = (0..rec.len())
+                .filter(|&k| rec.active()[k] && c.v[k].to_bits() != v_gpu[k].to_bits())
+                .count();
+            assert_eq!(differ, 0, "{label}: differs from the GPU twin");
+        }
+    }
+    map::<Hard>(&ctx, baselines::GpuHardShadow::new(ctx.clone()).unwrap());
+    map::<Pcf>(&ctx, baselines::GpuPcfShadow::new(ctx.clone()).unwrap());
+    map::<Pcss>(&ctx, baselines::GpuPcssShadow::new(ctx.clone()).unwrap());
+    multi_sample_frames_match(&ctx, "unorm16");
+}
+
+/// Multi-sample's engine path with shadow-map depth `depth` against both twins: bit for bit the
+/// GPU twin's V, and the CPU twin's but for depth ties (at most 0.1% of the receivers, one
+/// sub-light's test each), on the bunny under rect, disk and sun.
+fn multi_sample_frames_match(ctx: &Arc<GpuContext>, depth: &str) {
+    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
+        let mut params = Params::new(baselines::multi_sample::SPECS).unwrap();
+        params.set("depth", depth).unwrap();
+        let frame = MultiSampleFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
+        assert_eq!(frame.fit_views(&scene, &rec).unwrap().len(), 16);
+        let label = format!("multi-sample depth={depth} {name}");
+        let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
+        let mut gpu = baselines::GpuMultiSample::new(ctx.clone()).unwrap();
+        gpu.set_param("depth", depth).unwrap();
+        let (v_gpu, _) = run(&mut gpu, &scene, &rec).unwrap();
+        let differ_gpu = (0..rec.len())
+            .filter(|&k| rec.active()[k] && c.v[k] != v_gpu[k])
+            .count();
+        assert_eq!(differ_gpu, 0, "{label}: differs from the GPU twin");
+        assert!(
+            c.beyond * 1000 <= c.active && c.max_dv <= 1.0 / 16.0 + 1e-6,
+            "{label}: {} of {} differ from the CPU twin, max |dV| {}",
+            c.beyond,
+            c.active,
+            c.max_dv
+        );
+    }
+}

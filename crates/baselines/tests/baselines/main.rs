@@ -1,0 +1,4 @@
+//! baselines' integration tests, linked as one binary (one module per former test binary).
+mod accuracy;
+mod frame;
+mod gpu_twins;

@@ -1,0 +1,7 @@
+//! packet-hsm's integration tests, linked as one binary (one module per former test binary).
+mod common;
+
+mod accuracy;
+mod exactness;
+mod frame;
+mod gpu_twin;

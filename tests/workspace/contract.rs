@@ -1,0 +1,84 @@
+//! The contract every estimator keeps (docs/methods.md §11): V in [0, 1] for every camera hit,
+//! NaN for background, never inf; the registry lists every estimator with parameters whose
+//! defaults parse.
+use shadow_map_core::{run, Error, LightShape, Receivers, Scene, SceneBvh};
+use softshadow::{registry, Backend, ALGOS};
+
+#[test]
+fn registry_is_complete_and_defaults_parse() {
+    let all = registry().expect("every default parses");
+    let names: Vec<&str> = all.iter().map(|e| e.name()).collect();
+    assert_eq!(names, ALGOS);
+    for e in &all {
+        assert_eq!(e.backend(), Backend::Cpu);
+        assert!(!e.description().is_empty());
+        for s in e.params().specs() {
+            assert!(
+                s.parse(s.default).is_ok(),
+                "{}: default of {} does not parse",
+                e.name(),
+                s.key
+            );
+            assert!(!s.help.is_empty());
+        }
+    }
+}
+
+#[test]
+fn every_estimator_keeps_the_contract_on_every_fixture() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures");
+    let mut scenes: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|d| {
+            let d = d.ok()?.path();
+            let name = d.file_name()?.to_str()?.to_string();
+            let toml = d.join(format!("{name}.toml"));
+            toml.exists().then_some(toml)
+        })
+        .collect();
+    scenes.sort();
+    assert!(scenes.len() >= 5, "fixtures missing: {scenes:?}");
+    for path in scenes {
+        let mut scene = Scene::load(&path).unwrap();
+        // Small images keep this fast; the contract does not depend on size.
+        scene.set_resolution(40, 30).unwrap();
+        let bvh = SceneBvh::new(&scene);
+        let rec = Receivers::from_camera(&scene, &bvh);
+        assert!(
+            rec.active_count() > 0,
+            "{}: camera sees nothing",
+            path.display()
+        );
+        for mut e in registry().unwrap() {
+            for (k, v) in [("resolution", "128"), ("spp", "16")] {
+                if e.params().get(k).is_some() {
+                    e.set_param(k, v).unwrap();
+                }
+            }
+            let rect = matches!(scene.light().shape, LightShape::Rect { .. });
+            let v = match run(e.as_mut(), &scene, &rec) {
+                Ok((v, _)) => v,
+                // Rect-only estimators may refuse other lights, naming the light, and nothing else.
+                Err(Error::Param { key, .. }) if !rect && key == "light" => continue,
+                Err(err) => panic!("{} on {}: {err}", e.name(), path.display()),
+            };
+            for (k, x) in v.iter().enumerate() {
+                if rec.active()[k] {
+                    assert!(
+                        (0.0..=1.0).contains(x),
+                        "{} on {}: V[{k}] = {x}",
+                        e.name(),
+                        path.display()
+                    );
+                } else {
+                    assert!(
+                        x.is_nan(),
+                        "{} on {}: background V[{k}] = {x}",
+                        e.name(),
+                        path.display()
+                    );
+                }
+            }
+        }
+    }
+}
