@@ -7,7 +7,7 @@
 //! cascades over the blend bands at most 0.01). With one cascade the wrapper is the estimator
 //! itself, bit for bit.
 //!
-//! `cargo test --test cascades -- --nocapture` prints the figures.
+//! `cargo test --test workspace cascades:: -- --nocapture` prints the figures.
 // `!(a <= b)` is deliberate: it is true for NaN, which must fail.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 use crate::support;

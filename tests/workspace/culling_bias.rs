@@ -6,7 +6,7 @@
 //! backprojection crate beside them (a 1e-3 light, so its V is the hard shadow classified by
 //! midpoints, no bias); then every estimator at its defaults, receiver-plane rejection included
 //! (docs/methods.md §2 "Receiver plane"). Ground truth is a ray from the receiver to the light
-//! centre through the BVH. `cargo test --test culling_bias -- --nocapture` prints the table.
+//! centre through the BVH. `cargo test --test workspace culling_bias:: -- --nocapture` prints the table.
 use glam::{Mat3, Vec3};
 use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
 use softshadow::{estimator, Backend, ALGOS};

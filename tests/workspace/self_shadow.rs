@@ -12,7 +12,7 @@
 //! V (the facing fraction) may exceed the hard shadow map's on the same case, resolution and
 //! backend by at most 0.005 (issue 16's bar for soft estimators).
 //!
-//! `cargo test --test self_shadow -- --nocapture` prints the worst darkening and the worst RMSE
+//! `cargo test --test workspace self_shadow:: -- --nocapture` prints the worst darkening and the worst RMSE
 //! excess over the hard map per estimator.
 use crate::support;
 use glam::Vec3;

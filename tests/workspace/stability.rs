@@ -5,7 +5,7 @@
 //! exists (light size to 0, resolution up), that the error against the limit shrinks along the
 //! sequence. A failing case is fixed in the estimator, not removed.
 //!
-//! `cargo test --test stability -- --nocapture` prints a line per case and estimator.
+//! `cargo test --test workspace stability:: -- --nocapture` prints a line per case and estimator.
 use crate::support;
 use glam::{Mat3, Vec3};
 use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
@@ -417,7 +417,7 @@ fn shrinking_light_converges_to_the_hard_shadow() {
 
 /// `depth=unorm16` through the whole catalogue, on every estimator that offers it (both
 /// backends): V stays in [0, 1] with NaN only for inactive receivers, and the table printed
-/// (`cargo test --release --test stability unorm16 -- --nocapture`) gives, per case, the fraction
+/// (`cargo test --release --test workspace stability::unorm16 -- --nocapture`) gives, per case, the fraction
 /// of receivers whose V moves by more than 0.1 against `depth=f32` and the fraction newly darkened
 /// (acne the 16-bit codes would add). The bias grows by half a code step, so quantisation adds no
 /// acne: asserted, newly darkened receivers at most 1% (edge texels whose stored depth moved).

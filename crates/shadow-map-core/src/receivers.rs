@@ -211,37 +211,45 @@ impl Receivers {
     }
 
     /// World positions.
+    #[inline]
     pub fn position(&self) -> &[Vec3] {
         &self.position
     }
     /// Unit geometric normals, on the side the receiver is seen from (the contract: light behind
     /// this tangent plane is blocked).
+    #[inline]
     pub fn normal(&self) -> &[Vec3] {
         &self.normal
     }
     /// Whether each slot holds a receiver (a camera hit).
+    #[inline]
     pub fn active(&self) -> &[bool] {
         &self.active
     }
     /// The active mask, to switch receivers on or off (the slot count cannot change).
+    #[inline]
     pub fn active_mut(&mut self) -> &mut [bool] {
         &mut self.active
     }
     /// View depth per receiver (distance along the camera's view axis; +inf for background),
     /// present for G-buffer receivers.
+    #[inline]
     pub fn view_depth(&self) -> Option<&[f32]> {
         self.view_depth.as_deref()
     }
     /// Image layout, when the receivers are pixels.
+    #[inline]
     pub fn layout(&self) -> Option<ImageLayout> {
         self.layout
     }
 
     /// Number of slots.
+    #[inline]
     pub fn len(&self) -> usize {
         self.position.len()
     }
     /// No slots.
+    #[inline]
     pub fn is_empty(&self) -> bool {
         self.position.is_empty()
     }

@@ -171,30 +171,37 @@ impl Scene {
     }
 
     /// The scene file, for messages (or a name for scenes built in code).
+    #[inline]
     pub fn path(&self) -> &Path {
         &self.path
     }
     /// The camera.
+    #[inline]
     pub fn camera(&self) -> &Camera {
         &self.camera
     }
     /// The light.
+    #[inline]
     pub fn light(&self) -> &Light {
         &self.light
     }
     /// World-space triangles of all meshes, mesh after mesh.
+    #[inline]
     pub fn triangles(&self) -> &[[Vec3; 3]] {
         &self.triangles
     }
     /// Index into [`Scene::meshes`] per triangle.
+    #[inline]
     pub fn triangle_mesh(&self) -> &[u32] {
         &self.triangle_mesh
     }
     /// The meshes.
+    #[inline]
     pub fn meshes(&self) -> &[MeshInfo] {
         &self.meshes
     }
     /// Zero-area (or non-finite) triangles dropped while loading.
+    #[inline]
     pub fn skipped_degenerate(&self) -> usize {
         self.skipped_degenerate
     }
