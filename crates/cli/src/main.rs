@@ -549,6 +549,7 @@ enum Engine {
 /// (`frame_cpu_redo` in the notes). Every other case (a scene with semi-transparent meshes among
 /// them: the frame API's casters are opaque) ray casts the receivers ([`camera_receivers`])
 /// and leaves the estimator to its twin path.
+#[cfg_attr(not(feature = "gpu"), allow(unused_variables))]
 fn engine_frame(
     scene: &Scene,
     est: &dyn shadow_map_core::SoftShadowEstimator,
@@ -565,7 +566,7 @@ fn engine_frame(
         // The frame's receivers: rasterised, and left on the device.
         let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, scene.camera())?;
         // The CPU's: the view fit, Z and the background mask (no G-buffer readback).
-        let receivers = Receivers::from_camera(scene, &SceneBvh::new(scene));
+        let receivers = camera_receivers(scene);
         let gbuffer_ms = ms(t);
         let inner = softshadow::own_params(est.name(), est.params())?;
         if !shadow_map_core::cascades::is_one_view(est.params(), scene, &receivers, &inner)? {
@@ -650,16 +651,15 @@ fn engine_frame(
         report.note("views", views.iter().flatten().count());
         return Ok(Engine::Done(receivers, v, report));
     }
-    let receivers = camera_receivers(scene)?;
-    Ok(Engine::Twin(receivers, ms(t)))
+    Ok(Engine::Twin(camera_receivers(scene), ms(t)))
 }
 
 /// The camera's G-buffer, ray cast through the BVH for either backend: both backends render the
 /// same receivers, which the scoring tools compare pixel by pixel (a rasterised G-buffer differs
 /// from the ray cast one on silhouette and sub-pixel-thin geometry, which would make a pixel
 /// background on one backend and ground on the other).
-fn camera_receivers(scene: &Scene) -> shadow_map_core::Result<Receivers> {
-    Ok(Receivers::from_camera(scene, &SceneBvh::new(scene)))
+fn camera_receivers(scene: &Scene) -> Receivers {
+    Receivers::from_camera(scene, &SceneBvh::new(scene))
 }
 
 fn ms(t: Instant) -> f64 {
