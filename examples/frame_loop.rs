@@ -11,7 +11,7 @@
 //! thread's CPU clock (`CLOCK_THREAD_CPUTIME_ID` through the `cpu-time` crate), which the
 //! device's own threads do not inflate when a CPU adapter (lavapipe) shares the cores with it;
 //! the wall time of the same calls is `host_wall_ms_per_frame_*`. After the
-//! readback, [`TIMED_FRAMES`] more frames on the last receivers are submitted back to back and
+//! readback, `--timed-frames` more frames (10 unless told) on the last receivers are submitted back to back and
 //! waited for once (`gpu_ms_per_frame_*`: the frame's wall time on the device), then
 //! [`IDLE_ENCODES`] encodes each with the device idle and the host's caches swept by a [`SWEEP_BYTES`] write
 //! (`host_ms_idle_*`, thread CPU time: on a CPU adapter the device's own work runs on the host's
@@ -26,7 +26,7 @@
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release --example frame_loop -- [--json] [--frames N]
-//!     [--size WxH] [--resolution R] [--algo NAME] [SCENE.toml]
+//!     [--timed-frames N] [--size WxH] [--resolution R] [--algo NAME] [SCENE.toml]
 //!
 //! `--size` sets the camera's image (the receivers), `--resolution` every estimator's shadow-map
 //! resolution, `--algo` runs one estimator only.
@@ -124,7 +124,7 @@ struct Measured {
     active: usize,
     /// Buffers the library mapped back to the CPU during the frames ([`GpuContext::readbacks`]).
     readbacks: u64,
-    /// Wall ms per frame of [`TIMED_FRAMES`] frames on the last frame's receivers, submitted
+    /// Wall ms per frame of `--timed-frames` frames on the last frame's receivers, submitted
     /// back to back and waited for once: encode, submit and the device's work (on lavapipe the
     /// device is this machine's CPU cores).
     gpu_ms: f64,
@@ -156,7 +156,8 @@ fn stages_json(stages: &[(&'static str, f64)]) -> String {
 /// swapchain gives a renderer); nothing is read back.
 const FRAMES_IN_FLIGHT: usize = 2;
 
-/// Frames timed after the readback-free run (the wait that ends them is the only stall).
+/// Frames timed after the readback-free run unless `--timed-frames` says (the wait that ends
+/// them is the only stall).
 const TIMED_FRAMES: u32 = 10;
 
 /// Encodes of the idle, cold-cache measurement ([`Measured::host_idle_ms`]).
@@ -176,8 +177,14 @@ const SWEEP_BYTES: usize = 64 << 20;
 const WARM_ENCODES: u32 = 2000;
 
 /// Runs `frames` frames of `path` over `scene`, reads V and the receivers back once after the
-/// last, compares with the CPU twin, then times [`TIMED_FRAMES`] more frames.
-fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -> Result<Measured> {
+/// last, compares with the CPU twin, then times `timed` more frames.
+fn run(
+    ctx: &Arc<GpuContext>,
+    (path, views): Path,
+    scene: &Scene,
+    frames: u32,
+    timed: u32,
+) -> Result<Measured> {
     let casters = GpuScene::upload(ctx, scene)?;
     let gbuffer = GpuGBuffer::new(ctx)?;
     let pixels = (scene.camera().width * scene.camera().height) as u64;
@@ -265,13 +272,13 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
     };
     ctx.wait()?;
     let t = Instant::now();
-    for _ in 0..TIMED_FRAMES {
+    for _ in 0..timed {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         path.encode(&mut enc, &inputs)?;
         ctx.queue.submit([enc.finish()]);
     }
     ctx.wait()?;
-    let gpu_ms = t.elapsed().as_secs_f64() * 1e3 / TIMED_FRAMES as f64;
+    let gpu_ms = t.elapsed().as_secs_f64() * 1e3 / timed as f64;
     ctx.wait()?;
     let t = Instant::now();
     for _ in 0..WARM_ENCODES {
@@ -335,6 +342,7 @@ fn run(ctx: &Arc<GpuContext>, (path, views): Path, scene: &Scene, frames: u32) -
 fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
     let mut json = false;
     let mut frames = 60u32;
+    let mut timed = TIMED_FRAMES;
     let mut path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny/bunny.toml").to_string();
     let (mut size, mut resolution, mut only) = (None, None, None);
     let mut args = std::env::args().skip(1);
@@ -343,6 +351,12 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         match a.as_str() {
             "--json" => json = true,
             "--frames" => frames = value()?.parse()?,
+            "--timed-frames" => {
+                timed = value()?.parse()?;
+                if timed == 0 {
+                    return Err("--timed-frames: at least 1".into());
+                }
+            }
             "--resolution" => resolution = Some(value()?.parse::<u32>()?),
             "--algo" => only = Some(value()?),
             "--size" => {
@@ -381,12 +395,14 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
             frame_path(&ctx, algo, &small, resolution)?,
             &small,
             frames,
+            timed,
         )?;
         let lg = run(
             &ctx,
             frame_path(&ctx, algo, &large, resolution)?,
             &large,
             frames,
+            timed,
         )?;
         let (ts, tl) = (small.triangles().len(), large.triangles().len());
         if json {

@@ -2,7 +2,8 @@
 """Checks the Bevy plugin's headless example (`--json`, stdin): every method of the frame API
 listed, none refused on the fixture, each method's V within RMSE 0.01 of its CPU twin on the
 receivers Bevy's prepass gave (issue 23's bound), shadows present, at most 10% of receivers left
-NaN by the device's loop budget. Times are printed, not asserted.
+NaN by the device's loop budget, and those counted by the view's status (read back without
+waiting). Times are printed, not asserted.
 
     cd crates/bevy-softshadow && cargo run --example headless -- --json --frames 3 | python3 ../../scripts/check-bevy-headless.py
 """
@@ -26,6 +27,9 @@ for r in rows:
         bad.append("%s: no shadow (mean V %g)" % (a, r["mean_v"]))
     if r["nan"] > 0.1 * r["receivers"]:
         bad.append("%s: %d of %d receivers NaN" % (a, r["nan"], r["receivers"]))
+    counted = r.get("status_left_nan") if r.get("keeps_status") else 0
+    if counted != r["nan"]:
+        bad.append("%s: %d receivers NaN, the frame status says %s" % (a, r["nan"], r.get("status_left_nan")))
     g = r["prepass_vs_raytraced"]
     print("%-14s %d frames %dx%d, %.1f ms/frame, rmse_vs_cpu %.2e (max %.2e, NaN %d), "
           "vs render --backend cpu %.4f; prepass vs ray-traced: %d pixels covered by one, "

@@ -117,6 +117,8 @@ fn run() -> Result<(), String> {
                 "max_abs_vs_cpu": c.max_abs_vs_cpu,
                 "receivers": c.receivers,
                 "nan": c.nan,
+                "status_left_nan": c.status_left_nan,
+                "keeps_status": c.keeps_status,
                 "views": c.views,
                 "mean_v": c.mean_v,
                 "frac_below_half": c.frac_below_half,

@@ -10,7 +10,10 @@
 //!    when the light or the box moves);
 //! 4. V into the view-sized `R32Float` texture ([`ViewFrame::v_texture`]).
 //!
-//! Nothing is read back and nothing waits; errors (a missing prepass, a light the method does
+//! Nothing waits: the only readback is the frame's status words (a few bytes, mapped when the
+//! device is done, [`StatusReadback`]), whose warnings (receivers left NaN, outside every view,
+//! non-finite V) are logged once per kind and kept in [`ViewFrame::status`]. Errors (a missing
+//! prepass, a light the method does
 //! not model, device limits) are kept per view ([`ViewFrame::error`]) and printed once.
 use crate::{
     extract::{ExtractedCasters, ExtractedSoftLight},
@@ -33,7 +36,7 @@ use shadow_map_core::{
         casters::{CasterIndices, CasterInstance, CasterMesh, GpuCasterBuilder},
         depth_map,
         depth_receivers::{DepthCamera, DepthConvention, GpuDepthReceivers, NormalEncoding},
-        frame::{FrameEstimator, FrameInputs},
+        frame::{FrameEstimator, FrameInputs, FrameStatus, StatusReadback},
         GpuContext, GpuScene,
     },
     light_view::bounds_stand_in,
@@ -121,6 +124,10 @@ pub struct ViewFrame {
     pub frames: u64,
     /// The last frame's error (the frame was not recorded), if any.
     pub error: Option<String>,
+    /// The counts of the latest frame whose status has come back (a few frames behind: read
+    /// without waiting, [`StatusReadback`]); each kind that appears is logged once as a warning.
+    pub status: Option<FrameStatus>,
+    status_readback: Option<StatusReadback>,
     /// The composite pass's strength for this view.
     pub(crate) composite: f32,
 }
@@ -187,6 +194,8 @@ impl ViewFrame {
             light: None,
             frames: 0,
             error: None,
+            status: None,
+            status_readback: None,
             composite: settings.composite,
         })
     }
@@ -344,6 +353,7 @@ fn record(
         }
     };
     vf.composite = 0.0;
+    take_status(vf);
     let camera = depth_camera(extracted, width, height)?;
 
     // Casters: one entry per distinct mesh, one instance per mesh entity.
@@ -432,6 +442,11 @@ fn record(
             },
         )
         .map_err(|e| e.to_string())?;
+    if let Some(status) = vf.frame.status() {
+        vf.status_readback
+            .get_or_insert_with(|| StatusReadback::new(ctx, status.size()))
+            .copy(enc, status);
+    }
     let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("softshadow V texture"),
         layout: &shared.v_pipeline.get_bind_group_layout(0),
@@ -464,6 +479,40 @@ fn record(
     vf.error = None;
     vf.composite = settings.composite;
     Ok(())
+}
+
+/// Takes the view's status if one has come back; logs each warning kind the previous status did
+/// not have (so a lasting condition is logged once, not every frame).
+fn take_status(vf: &mut ViewFrame) {
+    let Some(words) = vf.status_readback.as_ref().and_then(StatusReadback::take) else {
+        return;
+    };
+    let status = vf.frame.decode_status(&words);
+    let before = vf.status.unwrap_or_default();
+    let had = |w: &shadow_map_core::Warning| {
+        before
+            .warnings()
+            .iter()
+            .any(|b| std::mem::discriminant(b) == std::mem::discriminant(w))
+    };
+    for w in status.warnings().iter().filter(|w| !had(w)) {
+        bevy::log::warn!("bevy-softshadow: {}: {w}", vf.key.method.name());
+    }
+    vf.status = Some(status);
+}
+
+/// Starts mapping the status copies this frame recorded, once Bevy has submitted them, and
+/// polls the device without waiting. In `Render`, in the cleanup set.
+pub fn map_status(state: Res<SoftShadowViews>) {
+    let Some(shared) = &state.shared else {
+        return;
+    };
+    for vf in state.views.values() {
+        if let Some(rb) = &vf.status_readback {
+            rb.submitted(&shared.ctx);
+        }
+    }
+    let _ = shared.ctx.device.poll(wgpu::PollType::Poll);
 }
 
 /// The part of `bounds` the camera sees within `distance` of its eye (along its view axis): the

@@ -6,8 +6,9 @@
 //! Each frame, for each such camera, the plugin records the frame API of the chosen method
 //! (the casters straight from Bevy's mesh buffers, the receivers from the camera's prepass) into
 //! Bevy's command encoder and writes V into a view-sized texture, which its composite pass
-//! multiplies into the view's colour (see [`composite`] for when that is exact). Nothing is read
-//! back, nothing waits, and the CPU work per frame is a matrix and a box per mesh instance.
+//! multiplies into the view's colour (see [`composite`] for when that is exact). Nothing waits, the
+//! only readback is the frame's few status words (its warnings are logged), and the CPU work per
+//! frame is a matrix and a box per mesh instance.
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -80,7 +81,10 @@ impl Plugin for SoftShadowPlugin {
             .add_systems(ExtractSchedule, extract::extract)
             .add_systems(
                 Render,
-                frame::drop_stale_views.in_set(RenderSystems::PrepareResources),
+                (
+                    frame::drop_stale_views.in_set(RenderSystems::PrepareResources),
+                    frame::map_status.in_set(RenderSystems::Cleanup),
+                ),
             )
             .add_systems(
                 Core3d,

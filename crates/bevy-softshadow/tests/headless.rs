@@ -68,6 +68,19 @@ fn check(scene: &Scene, methods: &[Method]) {
         if c.nan * 10 > c.receivers {
             failures.push(format!("{name}: {} of {} NaN", c.nan, c.receivers));
         }
+        // ... and the view's status, read back without waiting, counted them (the frames are
+        // alike, so the status a frame behind counts the same receivers).
+        let counted = if c.keeps_status {
+            c.status_left_nan
+        } else {
+            Some(0)
+        };
+        if counted != Some(c.nan as u32) {
+            failures.push(format!(
+                "{name}: {} NaN, the status says {:?}",
+                c.nan, c.status_left_nan
+            ));
+        }
         // The prepass is the ray-traced G-buffer but for silhouette pixels.
         if c.pixels_covered_by_one + c.pixels_apart > c.receivers / 50 {
             failures.push(format!("{name}: prepass far from the G-buffer ({c:?})"));

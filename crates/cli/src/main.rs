@@ -79,7 +79,8 @@ enum Cmd {
         /// Backends to run.
         #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu", "both"])]
         backend: String,
-        /// The CI subset: half-size images, 256-sample references, quick sweeps, 3-frame pans.
+        /// The CI subset: half-size images, 256-sample references, quick sweeps, 3-frame pans of
+        /// the CPU backend only.
         #[arg(long)]
         quick: bool,
     },

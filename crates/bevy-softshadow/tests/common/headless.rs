@@ -66,6 +66,11 @@ pub struct Comparison {
     /// RMSE against `softshadow render --backend cpu` (the ray-traced G-buffer, the CPU's own
     /// view fit to the receivers) over the pixels both cover within 1e-3.
     pub rmse_vs_cpu_render: f64,
+    /// Active receivers left NaN as the view's status (read back without waiting) counted them;
+    /// `None` when no status had come back.
+    pub status_left_nan: Option<u32>,
+    /// Whether the method's frame keeps a status buffer (multi-sample keeps none).
+    pub keeps_status: bool,
 }
 
 /// What [`run`] gives.
@@ -295,6 +300,8 @@ fn compare(
         pixels_apart: apart,
         max_position_rel: worst as f64,
         rmse_vs_cpu_render: per(se_r, count_r).sqrt(),
+        status_left_nan: vf.status.map(|s| s.left_nan),
+        keeps_status: vf.frame.status().is_some(),
     })
 }
 

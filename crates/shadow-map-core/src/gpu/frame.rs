@@ -385,6 +385,96 @@ pub fn status_buffer(ctx: &GpuContext, label: &str, words: u64) -> wgpu::Buffer 
     })
 }
 
+/// A frame's status read back without waiting, for an engine's render loop: each frame,
+/// [`copy`](Self::copy) records a copy of the status buffer after the frame's passes (when no
+/// earlier copy is still on its way), [`submitted`](Self::submitted) starts mapping it once the
+/// caller has submitted, and [`take`](Self::take) returns the words once the device has
+/// finished (the engine polls the device as it always does). Each map counts as a readback of
+/// its [`GpuContext`] ([`GpuContext::readbacks`]).
+pub struct StatusReadback {
+    staging: wgpu::Buffer,
+    state: std::sync::Arc<std::sync::atomic::AtomicU8>,
+}
+
+impl StatusReadback {
+    const IDLE: u8 = 0;
+    const COPIED: u8 = 1;
+    const MAPPING: u8 = 2;
+    const MAPPED: u8 = 3;
+
+    /// A readback for status buffers of `bytes` bytes (a [`FrameEstimator::status`]'s size).
+    pub fn new(ctx: &GpuContext, bytes: u64) -> StatusReadback {
+        StatusReadback {
+            staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("frame status readback"),
+                size: bytes.max(4),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            }),
+            state: Default::default(),
+        }
+    }
+
+    /// Records a copy of `status` into the readback when the last one has been taken; whether
+    /// it recorded one. Record it after the frame's passes, into the same encoder.
+    pub fn copy(&self, enc: &mut wgpu::CommandEncoder, status: &wgpu::Buffer) -> bool {
+        use std::sync::atomic::Ordering;
+        if self.state.load(Ordering::Acquire) != Self::IDLE {
+            return false;
+        }
+        let bytes = status.size().min(self.staging.size());
+        enc.copy_buffer_to_buffer(status, 0, &self.staging, 0, bytes);
+        self.state.store(Self::COPIED, Ordering::Release);
+        true
+    }
+
+    /// Starts mapping a copy recorded since the last call, once the encoder holding it has been
+    /// submitted (before that, mapping would make the submit invalid). Does not wait.
+    pub fn submitted(&self, ctx: &GpuContext) {
+        use std::sync::atomic::Ordering;
+        if self
+            .state
+            .compare_exchange(
+                Self::COPIED,
+                Self::MAPPING,
+                Ordering::AcqRel,
+                Ordering::Acquire,
+            )
+            .is_err()
+        {
+            return;
+        }
+        ctx.count_readback();
+        let state = self.state.clone();
+        self.staging
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                // A failed map (a lost device) leaves it mapping: nothing more is copied.
+                if r.is_ok() {
+                    state.store(Self::MAPPED, Ordering::Release);
+                }
+            });
+    }
+
+    /// The words of the last copy once the device has mapped them (the readback is then free
+    /// for the next [`copy`](Self::copy)); `None` while none is ready.
+    pub fn take(&self) -> Option<Vec<u32>> {
+        use std::sync::atomic::Ordering;
+        if self.state.load(Ordering::Acquire) != Self::MAPPED {
+            return None;
+        }
+        let words = self
+            .staging
+            .slice(..)
+            .get_mapped_range()
+            .ok()
+            .map(|data| bytemuck::pod_collect_to_vec::<u8, u32>(&data));
+        self.staging.unmap();
+        self.state.store(Self::IDLE, Ordering::Release);
+        words
+    }
+}
+
 /// The first `bytes` of `b` as a binding.
 pub fn buffer_range(b: &wgpu::Buffer, bytes: u64) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::Buffer(wgpu::BufferBinding {

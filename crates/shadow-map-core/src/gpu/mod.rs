@@ -343,9 +343,14 @@ impl GpuContext {
     }
 
     /// How many buffers this context has mapped back to the CPU so far ([`read_buffer`](Self::read_buffer),
-    /// the library's one readback path): a frame loop that reads nothing back leaves it unchanged.
+    /// and [`frame::StatusReadback`]'s maps): a frame loop that reads nothing back leaves it unchanged.
     pub fn readbacks(&self) -> u64 {
         self.readbacks.load(Ordering::Relaxed)
+    }
+
+    /// Counts a readback made outside [`read_buffer`](Self::read_buffer) (a non-blocking one).
+    pub(crate) fn count_readback(&self) {
+        self.readbacks.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Copies a buffer back to the CPU as `T`s (a staging buffer, one submit, one wait).

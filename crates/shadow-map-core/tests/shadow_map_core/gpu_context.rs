@@ -74,3 +74,43 @@ fn readbacks_are_counted() {
     let _: Vec<u32> = ctx.read_buffer(&buf, 16).unwrap();
     assert_eq!(ctx.readbacks(), 2);
 }
+
+/// The non-blocking status readback: one copy in flight at a time, the words of the copied
+/// frame (not of later writes), each map counted as a readback.
+#[test]
+fn status_readback_takes_the_copied_words_without_waiting() {
+    use shadow_map_core::gpu::frame::{status_buffer, StatusReadback};
+    let Some(ctx) =
+        context_for_tests("status_readback_takes_the_copied_words_without_waiting").unwrap()
+    else {
+        return;
+    };
+    let ctx = GpuContext::from_device(ctx.device.clone(), ctx.queue.clone());
+    let status = status_buffer(&ctx, "status", 3);
+    let rb = StatusReadback::new(&ctx, status.size());
+    assert_eq!(rb.take(), None, "nothing copied yet");
+    ctx.queue
+        .write_buffer(&status, 0, bytemuck::cast_slice(&[7u32, 0, 55]));
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    assert!(rb.copy(&mut enc, &status));
+    assert!(
+        !rb.copy(&mut enc, &status),
+        "a second copy while one is on its way"
+    );
+    ctx.queue.submit([enc.finish()]);
+    rb.submitted(&ctx);
+    assert_eq!(ctx.readbacks(), 1);
+    // A later frame's counts do not reach the copy already made.
+    ctx.queue
+        .write_buffer(&status, 0, bytemuck::cast_slice(&[1u32, 1, 1]));
+    ctx.wait().unwrap();
+    assert_eq!(rb.take(), Some(vec![7, 0, 55]));
+    assert_eq!(rb.take(), None, "taken once");
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    assert!(rb.copy(&mut enc, &status), "free again after the take");
+    ctx.queue.submit([enc.finish()]);
+    rb.submitted(&ctx);
+    ctx.wait().unwrap();
+    assert_eq!(rb.take(), Some(vec![1, 1, 1]));
+    assert_eq!(ctx.readbacks(), 2);
+}
