@@ -2,7 +2,8 @@
 """Checks a `softshadow report` output directory (what CI runs after `softshadow report --quick`):
 results.csv/json parse and agree, every registered estimator and fixture appears, every scored
 run has finite metrics and no non-finite V, every plot and grid image referenced by index.md
-exists, and, with --expect, every row against the committed expectation: a row missing, a row
+exists, every run of a method that casts opaque shadows on a fixture with semi-transparent
+meshes carries its `opaque_casters` warning, and, with --expect, every row against the committed expectation: a row missing, a row
 the expectation does not list, a row that newly fails, or a row whose RMSE rises by more than
 max(0.002, 10%) fails the check.
 
@@ -13,7 +14,7 @@ max(0.002, 10%) fails the check.
 The expectation (scripts/expected/report-quick.csv) holds, per fixture, method, setting and
 backend, the status and the RMSE.
 """
-import csv, json, math, os, re, sys
+import csv, json, math, os, re, sys, tomllib
 
 KEY = ("fixture", "algo", "setting", "backend")
 # A row's RMSE may rise by this much before the check fails: max(ABS, REL * expected).
@@ -56,6 +57,22 @@ def against_expectation(rows, expected):
     return fail
 
 
+# Methods that treat every caster as opaque (the others model opacity) and so must warn.
+OPAQUE_ONLY = {"hard", "pcf", "pcss", "multi-sample", "accumulation"}
+
+
+def semi_transparent_fixtures(fixtures_dir="fixtures"):
+    """Fixtures (NAME/NAME.toml) with a mesh of opacity below 1."""
+    out = set()
+    for name in sorted(os.listdir(fixtures_dir)) if os.path.isdir(fixtures_dir) else []:
+        p = os.path.join(fixtures_dir, name, name + ".toml")
+        if os.path.exists(p):
+            meshes = tomllib.load(open(p, "rb")).get("mesh", [])
+            if any(float(m.get("opacity", 1.0)) < 1.0 for m in meshes):
+                out.add(name)
+    return out
+
+
 def read_rows(out):
     return list(csv.DictReader(open(os.path.join(out, "results.csv"))))
 
@@ -86,6 +103,13 @@ def check(out, backends, expected):
                 fail.append(f"{r['fixture']} {r['algo']} {r['backend']}: rmse {r['rmse']} nonfinite {r['nonfinite']}")
         elif not r["status"].startswith("rejected: "):
             fail.append(f"bad status {r['status']!r}")
+    semi = semi_transparent_fixtures() & fixtures
+    for r in rows:
+        if r["fixture"] in semi and r["algo"] in OPAQUE_ONLY and r["status"] == "ok":
+            if "opaque_casters=" not in r.get("warnings", ""):
+                fail.append(f"{r['fixture']} {r['algo']} {r['backend']} {r['setting']}: no opaque_casters warning ({r.get('warnings')!r})")
+    if not semi:
+        fail.append("no fixture with semi-transparent meshes: the opaque-casters check checked nothing")
     if expected is not None:
         fail.extend(against_expectation(rows, expected))
     flick = list(csv.DictReader(open(os.path.join(out, "flicker.csv"))))
@@ -136,7 +160,8 @@ def write_expect(path, out):
 
 def self_test(out, backends, expected):
     """The checker must reject a copy of the report with one scored row's RMSE raised by 0.05,
-    one with a scored row turned into a failure, and one with a row removed."""
+    one with a scored row turned into a failure, one with a row removed, and one with an
+    opaque-caster run's warning dropped."""
     import shutil, tempfile
     if expected is None:
         return ["--self-test needs --expect"]
@@ -183,6 +208,23 @@ def self_test(out, backends, expected):
             bad.append(f"self-test: the checker accepted {what} ({name}); it reported {fails[:3]}")
         else:
             print(f"self-test: {what} ({name}) rejected: {[f for f in fails if name in f][0]}")
+    # A semi-transparent fixture's opaque-caster run with its warning dropped.
+    semi = semi_transparent_fixtures()
+    warned = [j for j, r in enumerate(rows) if r["fixture"] in semi and r["algo"] in OPAQUE_ONLY and r["status"] == "ok"]
+    if not warned:
+        return bad + ["--self-test: no opaque-caster run on a semi-transparent fixture to alter"]
+    j = warned[0]
+    wname = f"{rows[j]['fixture']} {rows[j]['algo']} {rows[j]['backend']} {rows[j]['setting']}"
+
+    def unwarn(rs):
+        rs[j]["warnings"] = ""
+        return rs
+
+    fails = check_quiet(altered, unwarn)
+    if not any(wname in f and "opaque_casters" in f for f in fails):
+        bad.append(f"self-test: the checker accepted a dropped opaque_casters warning ({wname})")
+    else:
+        print(f"self-test: a dropped opaque_casters warning ({wname}) rejected")
     return bad
 
 

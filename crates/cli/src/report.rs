@@ -86,6 +86,8 @@ pub struct Row {
     /// Median and 95th percentile of the texel density (camera pixels per texel side,
     /// docs/methods.md §1) of the light-centre views the estimator fits; NaN without a map.
     pub texel_density: (f64, f64),
+    /// The run's warnings as `kind=count`, `;`-separated (empty when none).
+    pub warnings: String,
 }
 
 /// One flicker measurement.
@@ -383,6 +385,7 @@ fn run_one(
         nonfinite: 0,
         light_space_bytes: 0,
         texel_density: (f64::NAN, f64::NAN),
+        warnings: String::new(),
     };
     let t = Instant::now();
     let mut v = vec![f32::NAN; rec.len()];
@@ -399,6 +402,12 @@ fn run_one(
     row.estimate_ms = rep.total_ms("estimate") + rep.total_ms("readback");
     row.frame_ms = frame_ms;
     row.light_space_bytes = rep.light_space_bytes;
+    row.warnings = rep
+        .warnings
+        .iter()
+        .map(|w| format!("{}={}", w.kind(), w.count()))
+        .collect::<Vec<_>>()
+        .join(";");
     if let Some((m, p95)) = shadow_map_core::cascades::texel_density_summary(scene, rec, e.params())
     {
         row.texel_density = (m as f64, p95 as f64);
@@ -691,12 +700,12 @@ fn write_file(p: PathBuf, s: String) -> Result<(), String> {
 
 /// `results.csv`: one line per run.
 fn results_csv(rows: &[Row]) -> String {
-    let mut csv = String::from("fixture,algo,backend,setting,params,status,build_ms,estimate_ms,frame_ms,rmse,mae,p99,frac_gt_0_1,nonfinite,light_space_bytes,texel_density_median,texel_density_p95\n");
+    let mut csv = String::from("fixture,algo,backend,setting,params,status,build_ms,estimate_ms,frame_ms,rmse,mae,p99,frac_gt_0_1,nonfinite,light_space_bytes,texel_density_median,texel_density_p95,warnings\n");
     for r in rows {
         let params: Vec<String> = r.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             csv_field(&r.fixture),
             csv_field(&r.algo),
             r.backend,
@@ -713,7 +722,8 @@ fn results_csv(rows: &[Row]) -> String {
             r.nonfinite,
             r.light_space_bytes,
             num(r.texel_density.0),
-            num(r.texel_density.1)
+            num(r.texel_density.1),
+            csv_field(&r.warnings)
         );
     }
     csv
@@ -748,6 +758,7 @@ fn results_json(
                 "nonfinite": r.nonfinite, "light_space_bytes": r.light_space_bytes,
                 "texel_density_median": jnum(r.texel_density.0),
                 "texel_density_p95": jnum(r.texel_density.1),
+                "warnings": r.warnings,
             })
         })
         .collect();
@@ -863,6 +874,14 @@ fn fixture_section(md: &mut String, fx: &str, svg: &str, mem: &str, fr: &[&Row])
         .collect();
     if !rejected.is_empty() {
         let _ = writeln!(md, "\nNot run: {}", rejected.join("; "));
+    }
+    let warned: Vec<String> = fr
+        .iter()
+        .filter(|r| !r.warnings.is_empty())
+        .map(|r| format!("{} {} `{}`: {}", r.algo, r.backend, r.setting, r.warnings))
+        .collect();
+    if !warned.is_empty() {
+        let _ = writeln!(md, "\nWarnings (kind=count): {}", warned.join("; "));
     }
     let _ = writeln!(md, "\nMost accurate setting of each algorithm (V, then error: blue too dark, red too bright):\n");
     let _ = writeln!(

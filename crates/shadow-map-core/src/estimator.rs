@@ -66,6 +66,18 @@ pub enum Warning {
 }
 
 impl Warning {
+    /// A short snake-case name of the warning's kind (`frame_left_nan`, ...), for tables.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Warning::NonFiniteV { .. } => "non_finite_v",
+            Warning::OutsideViews { .. } => "outside_views",
+            Warning::OpaqueCasters { .. } => "opaque_casters",
+            Warning::OpacityLevelsCapped { .. } => "opacity_levels_capped",
+            Warning::KernelClipped { .. } => "kernel_clipped",
+            Warning::FrameLeftNan { .. } => "frame_left_nan",
+        }
+    }
+
     /// The number this warning counts (receivers, meshes or levels needed).
     pub fn count(&self) -> usize {
         match *self {
