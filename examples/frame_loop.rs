@@ -93,7 +93,7 @@ fn frame_path(
     scene: &Scene,
     resolution: Option<u32>,
 ) -> Result<Path> {
-    let mut params = (softshadow::method(algo)?.cpu)()?.params().clone();
+    let mut params = softshadow::method(algo)?.cpu()?.params().clone();
     if let Some(r) = resolution {
         params.set("resolution", &r.to_string())?;
     }

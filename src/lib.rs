@@ -21,56 +21,58 @@ pub use reference;
 pub use shadow_map_core as core;
 pub use shadow_map_core::{Backend, Error, Result, SoftShadowEstimator};
 
-/// A GPU twin's constructor: the estimator on a given device.
-#[cfg(feature = "gpu")]
-pub type GpuConstructor =
-    fn(std::sync::Arc<core::gpu::GpuContext>) -> Result<Box<dyn SoftShadowEstimator>>;
+pub use shadow_map_core::method::{MethodDescriptor, Setting};
 
-/// One registered method: its name, its CPU twin and, in builds with the `gpu` feature, its GPU
-/// twin (`None` for the CPU-only reference).
-pub struct Method {
-    /// Registry name (`--algo NAME`).
-    pub name: &'static str,
-    /// A fresh CPU estimator with default parameters.
-    pub cpu: fn() -> Result<Box<dyn SoftShadowEstimator>>,
-    /// A fresh GPU estimator on a device, with default parameters.
-    #[cfg(feature = "gpu")]
-    pub gpu: Option<GpuConstructor>,
+/// Every registered method, in listing order: the one registry. [`ALGOS`], [`FRAME_ALGOS`],
+/// the CLI, the report's sweeps and the engines' constructors all come from it, so a method is
+/// added here, once, with its crate's descriptor.
+pub const METHODS: &[MethodDescriptor] = &[
+    reference::DESCRIPTOR,
+    baselines::HARD,
+    baselines::PCF,
+    baselines::PCSS,
+    baselines::MULTI_SAMPLE,
+    backprojection::DESCRIPTOR,
+    accumulation::DESCRIPTOR,
+    packet_hsm::DESCRIPTOR,
+    deep_shadow::DESCRIPTOR,
+];
+
+/// Names of every registered estimator, in listing order.
+pub const ALGOS: &[&str] = &names::<{ METHODS.len() }>(false);
+
+/// The estimators with an engine path in this build ([`frame_estimator`]), in listing order.
+pub const FRAME_ALGOS: &[&str] = &names::<{ frame_count() }>(true);
+
+/// How many methods have an engine path in this build.
+const fn frame_count() -> usize {
+    let (mut i, mut n) = (0, 0);
+    while i < METHODS.len() {
+        if METHODS[i].has_frame() {
+            n += 1;
+        }
+        i += 1;
+    }
+    n
 }
 
-/// The one list of methods: [`METHODS`] and [`ALGOS`] are both made from it, so a method is
-/// added in one place.
-macro_rules! methods {
-    ($($name:literal => $cpu:path $(, gpu $gpu:path)?;)*) => {
-        /// Every registered method, in listing order.
-        pub const METHODS: &[Method] = &[$(Method {
-            name: $name,
-            cpu: || Ok(Box::new(<$cpu>::new()?)),
-            #[cfg(feature = "gpu")]
-            gpu: methods!(@gpu $($gpu)?),
-        }),*];
-        /// Names of every registered estimator, in listing order.
-        pub const ALGOS: &[&str] = &[$($name),*];
-    };
-    (@gpu $gpu:path) => { Some(|ctx| Ok(Box::new(<$gpu>::new(ctx)?))) };
-    (@gpu) => { None };
-}
-
-methods! {
-    "reference" => reference::ReferenceEstimator;
-    "hard" => baselines::HardShadow, gpu baselines::gpu::GpuHardShadow;
-    "pcf" => baselines::PcfShadow, gpu baselines::gpu::GpuPcfShadow;
-    "pcss" => baselines::PcssShadow, gpu baselines::gpu::GpuPcssShadow;
-    "multi-sample" => baselines::MultiSample, gpu baselines::gpu::GpuMultiSample;
-    "backprojection" => backprojection::CpuBackprojection, gpu backprojection::GpuBackprojection;
-    "accumulation" => accumulation::CpuAccumulation, gpu accumulation::GpuAccumulation;
-    "packet-hsm" => packet_hsm::CpuPacketHsm, gpu packet_hsm::GpuPacketHsm;
-    "deep-shadow" => deep_shadow::CpuDeepShadow, gpu deep_shadow::GpuDeepShadow;
+/// The names of [`METHODS`] (only those with an engine path when `frames_only`), in order.
+const fn names<const N: usize>(frames_only: bool) -> [&'static str; N] {
+    let mut out = [""; N];
+    let (mut i, mut k) = (0, 0);
+    while i < METHODS.len() {
+        if !frames_only || METHODS[i].has_frame() {
+            out[k] = METHODS[i].name();
+            k += 1;
+        }
+        i += 1;
+    }
+    out
 }
 
 /// The registered method called `name`, or a one-line error listing the known names.
-pub fn method(name: &str) -> Result<&'static Method> {
-    METHODS.iter().find(|m| m.name == name).ok_or_else(|| {
+pub fn method(name: &str) -> Result<&'static MethodDescriptor> {
+    METHODS.iter().find(|m| m.name() == name).ok_or_else(|| {
         Error::param(
             "algo",
             format!("unknown estimator {name:?} (known: {})", ALGOS.join(", ")),
@@ -91,7 +93,7 @@ pub fn method(name: &str) -> Result<&'static Method> {
 pub fn estimator(name: &str, backend: Backend) -> Result<Box<dyn SoftShadowEstimator>> {
     let m = method(name)?;
     with_cascades(match backend {
-        Backend::Cpu => (m.cpu)()?,
+        Backend::Cpu => m.cpu()?,
         Backend::Gpu => gpu_estimator(m)?,
     })
 }
@@ -105,41 +107,34 @@ fn with_cascades(e: Box<dyn SoftShadowEstimator>) -> Result<Box<dyn SoftShadowEs
 }
 
 #[cfg(feature = "gpu")]
-fn gpu_estimator(m: &Method) -> Result<Box<dyn SoftShadowEstimator>> {
-    let Some(gpu) = m.gpu else {
-        return Err(Error::param(
+fn gpu_estimator(m: &MethodDescriptor) -> Result<Box<dyn SoftShadowEstimator>> {
+    let cpu_only = || {
+        Error::param(
             "backend",
             format!(
                 "`{}` runs on the CPU only (the ray-traced reference); use --backend cpu",
-                m.name
+                m.name()
             ),
-        ));
+        )
     };
-    gpu(core::gpu::GpuContext::shared()?)
+    // Checked before the device is made: a CPU-only method needs none.
+    if !m.has_gpu() {
+        return Err(cpu_only());
+    }
+    m.gpu(core::gpu::GpuContext::shared()?)
+        .unwrap_or_else(|| Err(cpu_only()))
 }
 
 #[cfg(not(feature = "gpu"))]
-fn gpu_estimator(m: &Method) -> Result<Box<dyn SoftShadowEstimator>> {
+fn gpu_estimator(m: &MethodDescriptor) -> Result<Box<dyn SoftShadowEstimator>> {
     Err(Error::param(
         "backend",
         format!(
             "`{}`: this build has no GPU backend (cargo feature `gpu` is off)",
-            m.name
+            m.name()
         ),
     ))
 }
-
-/// The estimators with an engine path ([`frame_estimator`]), in listing order.
-pub const FRAME_ALGOS: &[&str] = &[
-    "hard",
-    "pcf",
-    "pcss",
-    "multi-sample",
-    "backprojection",
-    "accumulation",
-    "deep-shadow",
-    "packet-hsm",
-];
 
 /// The engine path of the estimator `name` on `ctx` ([`core::gpu::frame::FrameEstimator`]),
 /// prepared with the parameters `params` (a table of the method's own specs, without the cascade
@@ -152,33 +147,13 @@ pub fn frame_estimator(
     params: &core::Params,
     max_receivers: u32,
 ) -> Result<Option<Box<dyn core::gpu::frame::FrameEstimator>>> {
-    use baselines::gpu::{MapFrame, MultiSampleFrame};
-    method(name)?;
-    Ok(Some(match name {
-        "hard" => Box::new(MapFrame::<baselines::hard::Hard>::prepare(ctx, params)?),
-        "pcf" => Box::new(MapFrame::<baselines::pcf::Pcf>::prepare(ctx, params)?),
-        "pcss" => Box::new(MapFrame::<baselines::pcss::Pcss>::prepare(ctx, params)?),
-        "multi-sample" => Box::new(MultiSampleFrame::prepare(ctx, params, max_receivers)?),
-        "backprojection" => Box::new(backprojection::BackprojectionFrame::prepare(ctx, params)?),
-        "accumulation" => Box::new(accumulation::AccumulationFrame::prepare(ctx, params)?),
-        "deep-shadow" => Box::new(deep_shadow::DeepShadowFrame::prepare(
-            ctx,
-            params,
-            max_receivers,
-        )?),
-        "packet-hsm" => Box::new(packet_hsm::PacketHsmFrame::prepare(
-            ctx,
-            params,
-            max_receivers,
-        )?),
-        _ => return Ok(None),
-    }))
+    method(name)?.frame(ctx, params, max_receivers).transpose()
 }
 
 /// The parameter table of `name`'s own estimator (without the cascade keys) holding every value
 /// of `params` it declares: what [`frame_estimator`] takes from an [`estimator`]'s table.
 pub fn own_params(name: &str, params: &core::Params) -> Result<core::Params> {
-    let own = (method(name)?.cpu)()?;
+    let own = method(name)?.cpu()?;
     let mut p = own.params().clone();
     for s in p.clone().specs() {
         if let Some(v) = params.get(s.key) {
@@ -191,8 +166,7 @@ pub fn own_params(name: &str, params: &core::Params) -> Result<core::Params> {
 /// The backends each registered estimator has (none for an unknown name).
 pub fn backends(name: &str) -> &'static [&'static str] {
     match method(name) {
-        #[cfg(feature = "gpu")]
-        Ok(m) if m.gpu.is_some() => &["cpu", "gpu"],
+        Ok(m) if m.has_gpu() => &["cpu", "gpu"],
         Ok(_) => &["cpu"],
         Err(_) => &[],
     }
@@ -200,7 +174,7 @@ pub fn backends(name: &str) -> &'static [&'static str] {
 
 /// Every registered CPU estimator with default parameters.
 pub fn registry() -> Result<Vec<Box<dyn SoftShadowEstimator>>> {
-    METHODS.iter().map(|m| with_cascades((m.cpu)()?)).collect()
+    METHODS.iter().map(|m| with_cascades(m.cpu()?)).collect()
 }
 
 #[cfg(test)]
@@ -218,11 +192,59 @@ mod tests {
         assert!(backends("nope").is_empty());
     }
 
+    /// Every key a report setting names is in the method's table and its value parses, so a
+    /// renamed parameter fails here and not halfway through a report.
+    #[test]
+    fn every_setting_is_a_valid_assignment() {
+        for m in METHODS {
+            let e = estimator(m.name(), Backend::Cpu).expect("estimator");
+            for quick in [true, false] {
+                let sweep = m.sweep(quick);
+                if m.name() != "reference" {
+                    assert!(!sweep.is_empty(), "{}: no settings to sweep", m.name());
+                }
+                for s in sweep {
+                    let mut p = e.params().clone();
+                    for (k, v) in &s {
+                        if let Err(err) = p.set(k, v) {
+                            panic!("{}: {k}={v}: {err}", m.name());
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The lists derived from the registry: every name once, the engine paths a subset in the
+    /// same order, and (in a GPU build) every method but the reference with both GPU paths.
+    #[test]
+    fn the_derived_lists_follow_the_registry() {
+        let names: Vec<&str> = METHODS.iter().map(|m| m.name()).collect();
+        assert_eq!(names, ALGOS);
+        let mut unique = names.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), names.len(), "a name registered twice");
+        let frames: Vec<&str> = METHODS
+            .iter()
+            .filter(|m| m.has_frame())
+            .map(|m| m.name())
+            .collect();
+        assert_eq!(frames, FRAME_ALGOS);
+        #[cfg(feature = "gpu")]
+        {
+            assert_eq!(FRAME_ALGOS.len(), ALGOS.len() - 1);
+            for m in METHODS.iter().filter(|m| m.name() != "reference") {
+                assert!(m.has_gpu() && m.has_frame(), "{}", m.name());
+            }
+        }
+    }
+
     #[test]
     fn every_method_makes_its_own_cpu_twin() {
         for m in METHODS {
-            let e = (m.cpu)().expect("defaults parse");
-            assert_eq!(e.name(), m.name);
+            let e = m.cpu().expect("defaults parse");
+            assert_eq!(e.name(), m.name());
             assert_eq!(e.backend(), Backend::Cpu);
         }
     }

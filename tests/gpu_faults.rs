@@ -37,7 +37,9 @@ fn scene() -> (Scene, Receivers) {
 
 /// `algo`'s own parameter table with `resolution` set.
 fn params(algo: &str, resolution: u32) -> Params {
-    let mut p = (softshadow::method(algo).unwrap().cpu)()
+    let mut p = softshadow::method(algo)
+        .unwrap()
+        .cpu()
         .unwrap()
         .params()
         .clone();
@@ -211,58 +213,60 @@ fn device_loss_is_a_typed_error_and_a_new_device_works_in_every_gpu_twin() {
         return;
     };
     let (scene, rec) = scene();
-    let twin = |ctx: &Arc<GpuContext>, gpu: softshadow::GpuConstructor| {
-        let mut e = gpu(ctx.clone()).unwrap();
+    let twin = |ctx: &Arc<GpuContext>, m: &softshadow::MethodDescriptor| {
+        let mut e = m.gpu(ctx.clone()).unwrap().unwrap();
         e.set_param("resolution", "128").unwrap();
         e
     };
     for m in METHODS {
-        let Some(gpu) = m.gpu else { continue };
+        if !m.has_gpu() {
+            continue;
+        }
         let ctx = Arc::new(GpuContext::new().unwrap());
-        let mut e = twin(&ctx, gpu);
-        run(e.as_mut(), &scene, &rec).unwrap_or_else(|err| panic!("{}: {err}", m.name));
+        let mut e = twin(&ctx, m);
+        run(e.as_mut(), &scene, &rec).unwrap_or_else(|err| panic!("{}: {err}", m.name()));
         // Built on the device, then lost before the estimate.
         e.build(&scene, &rec)
-            .unwrap_or_else(|err| panic!("{}: {err}", m.name));
+            .unwrap_or_else(|err| panic!("{}: {err}", m.name()));
         lose(&ctx);
-        no_panic(m.name, || {
+        no_panic(m.name(), || {
             let mut v = vec![0.0; rec.len()];
             assert_lost(
-                &format!("{}: estimate", m.name),
+                &format!("{}: estimate", m.name()),
                 e.estimate(&scene, &rec, &mut v),
             );
             assert_lost(
-                &format!("{}: build", m.name),
+                &format!("{}: build", m.name()),
                 run(e.as_mut(), &scene, &rec).map(|_| ()),
             );
             assert_lost(
-                &format!("{}: a new twin on the lost device", m.name),
-                gpu(ctx.clone()).and_then(|mut fresh| {
+                &format!("{}: a new twin on the lost device", m.name()),
+                m.gpu(ctx.clone()).unwrap().and_then(|mut fresh| {
                     fresh.set_param("resolution", "128")?;
                     run(fresh.as_mut(), &scene, &rec).map(|_| ())
                 }),
             );
         });
         let new = Arc::new(GpuContext::new().unwrap());
-        let after = run(twin(&new, gpu).as_mut(), &scene, &rec).unwrap().0;
-        let never_lost = run(twin(&shared, gpu).as_mut(), &scene, &rec).unwrap().0;
+        let after = run(twin(&new, m).as_mut(), &scene, &rec).unwrap().0;
+        let never_lost = run(twin(&shared, m).as_mut(), &scene, &rec).unwrap().0;
         let mut worst = 0.0f32;
         for (k, (a, b)) in after.iter().zip(&never_lost).enumerate() {
             assert_eq!(
                 a.is_nan(),
                 b.is_nan(),
                 "{}: receiver {k}: {a} / {b}",
-                m.name
+                m.name()
             );
             if a.is_finite() {
                 worst = worst.max((a - b).abs());
             }
         }
         // Within 1e-5, as tests/workspace/threads.rs: the twins' atomics may order ties differently.
-        assert!(worst <= 1e-5, "{}: {worst}", m.name);
+        assert!(worst <= 1e-5, "{}: {worst}", m.name());
         println!(
             "{}: twin DeviceLost after the loss; on a new device max |dV| {worst:.1e} against a device never lost",
-            m.name
+            m.name()
         );
     }
 }
@@ -329,13 +333,15 @@ fn resolution_past_max_texture_dimension_2d_is_a_limit_error() {
         });
     }
     for m in METHODS {
-        let Some(gpu) = m.gpu else { continue };
-        let what = format!("{}: twin at resolution {r}", m.name);
+        if !m.has_gpu() {
+            continue;
+        }
+        let what = format!("{}: twin at resolution {r}", m.name());
         no_panic(&what, || {
-            let mut e = gpu(ctx.clone()).unwrap();
+            let mut e = m.gpu(ctx.clone()).unwrap().unwrap();
             e.set_param("resolution", &r.to_string()).unwrap();
             let out = run(e.as_mut(), &scene, &rec).map(|_| ());
-            if STORAGE_MAPS.contains(&m.name) {
+            if STORAGE_MAPS.contains(&m.name()) {
                 // Maps in storage buffers, no texture of side r: the resolution is within this
                 // device's limits (the binding test refuses a larger one).
                 out.unwrap_or_else(|e| panic!("{what}: {e}"));
@@ -407,7 +413,11 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
     for (algo, r) in [("packet-hsm", 256), ("deep-shadow", 513)] {
         let what = format!("{algo} twin at resolution {r}");
         no_panic(&what, || {
-            let mut e = (softshadow::method(algo).unwrap().gpu.unwrap())(ctx.clone()).unwrap();
+            let mut e = softshadow::method(algo)
+                .unwrap()
+                .gpu(ctx.clone())
+                .unwrap()
+                .unwrap();
             e.set_param("resolution", &r.to_string()).unwrap();
             assert_limit(&what, limit, run(e.as_mut(), &scene, &rec).map(|_| ()));
         });
@@ -424,8 +434,11 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
     .unwrap();
     let what = "deep-shadow twin: list elements past the binding";
     no_panic(what, || {
-        let mut e =
-            (softshadow::method("deep-shadow").unwrap().gpu.unwrap())(tiny.clone()).unwrap();
+        let mut e = softshadow::method("deep-shadow")
+            .unwrap()
+            .gpu(tiny.clone())
+            .unwrap()
+            .unwrap();
         e.set_param("resolution", "32").unwrap();
         assert_limit(what, limit, run(e.as_mut(), &translucent, &rec).map(|_| ()));
     });
@@ -457,7 +470,11 @@ fn layers_past_max_texture_array_layers_are_a_limit_error() {
         });
         let what = format!("{algo}: twin with 3 layers");
         no_panic(&what, || {
-            let mut e = (softshadow::method(algo).unwrap().gpu.unwrap())(ctx.clone()).unwrap();
+            let mut e = softshadow::method(algo)
+                .unwrap()
+                .gpu(ctx.clone())
+                .unwrap()
+                .unwrap();
             e.set_param("resolution", "64").unwrap();
             for (k, v) in extra {
                 e.set_param(k, v).unwrap();

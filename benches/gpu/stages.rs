@@ -275,7 +275,7 @@ pub fn frame_stages(env: &StageEnv, cpu: bool) -> BenchResult<Vec<Row>> {
     });
     let mut frames = Vec::new();
     for algo in softshadow::FRAME_ALGOS {
-        let mut p = (softshadow::method(algo)?.cpu)()?.params().clone();
+        let mut p = softshadow::method(algo)?.cpu()?.params().clone();
         p.set("resolution", &r.to_string())?;
         if let Some(f) = softshadow::frame_estimator(algo, ctx.clone(), &p, n as u32)? {
             frames.push((algo, f));

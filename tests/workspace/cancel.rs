@@ -66,8 +66,8 @@ fn every_cpu_estimator_honours_a_cancelled_token_and_stays_usable() {
     let (scene, rec) = scene(40, 30);
     // Bare: the estimator's own loops (not a wrapper's check) must stop.
     for m in METHODS {
-        let mut e = (m.cpu)().unwrap();
-        honours_cancel(m.name, e.as_mut(), &scene, &rec);
+        let mut e = m.cpu().unwrap();
+        honours_cancel(m.name(), e.as_mut(), &scene, &rec);
     }
     // As the registry hands them out (`Cascaded` forwards the token and checks it too).
     let all = registry().unwrap();

@@ -155,8 +155,8 @@ fn cascade_parameters_are_checked() {
     }
     e.set_param("cascades", "2").unwrap();
     e.set_param("max_taps", "8").unwrap();
-    assert_eq!(e.params().int("cascades"), 2);
-    assert_eq!(e.params().int("max_taps"), 8);
+    assert_eq!(e.params().int("cascades").unwrap(), 2);
+    assert_eq!(e.params().int("max_taps").unwrap(), 8);
     assert!(e.set_param("max_tapz", "8").is_err());
     // The reference has no map and no cascades.
     let r = estimator("reference", Backend::Cpu).unwrap();

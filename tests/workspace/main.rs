@@ -15,4 +15,5 @@ mod shaders;
 mod stability;
 mod sun;
 mod threads;
+mod toy_method;
 mod twins;

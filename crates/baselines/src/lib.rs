@@ -20,3 +20,63 @@ pub use multi_sample::MultiSample;
 pub use pcf::PcfShadow;
 pub use pcss::PcssShadow;
 pub use shadow_map_core::SoftShadowEstimator;
+
+use shadow_map_core::method::{resolution_sweep, MethodDescriptor};
+
+/// Hard shadow mapping in the registry: `hard`.
+pub const HARD: MethodDescriptor = {
+    let d = MethodDescriptor::new(
+        "hard",
+        || Ok(Box::new(HardShadow::new()?)),
+        resolution_sweep,
+    );
+    #[cfg(feature = "gpu")]
+    let d = d
+        .with_gpu(|ctx| Ok(Box::new(GpuHardShadow::new(ctx)?)))
+        .with_frame(|ctx, params, _| {
+            Ok(Box::new(gpu::MapFrame::<hard::Hard>::prepare(ctx, params)?))
+        });
+    d
+};
+
+/// Percentage-closer filtering in the registry: `pcf`.
+pub const PCF: MethodDescriptor = {
+    let d = MethodDescriptor::new("pcf", || Ok(Box::new(PcfShadow::new()?)), resolution_sweep);
+    #[cfg(feature = "gpu")]
+    let d = d
+        .with_gpu(|ctx| Ok(Box::new(GpuPcfShadow::new(ctx)?)))
+        .with_frame(|ctx, params, _| {
+            Ok(Box::new(gpu::MapFrame::<pcf::Pcf>::prepare(ctx, params)?))
+        });
+    d
+};
+
+/// Percentage-closer soft shadows in the registry: `pcss`.
+pub const PCSS: MethodDescriptor = {
+    let d = MethodDescriptor::new(
+        "pcss",
+        || Ok(Box::new(PcssShadow::new()?)),
+        resolution_sweep,
+    );
+    #[cfg(feature = "gpu")]
+    let d = d
+        .with_gpu(|ctx| Ok(Box::new(GpuPcssShadow::new(ctx)?)))
+        .with_frame(|ctx, params, _| {
+            Ok(Box::new(gpu::MapFrame::<pcss::Pcss>::prepare(ctx, params)?))
+        });
+    d
+};
+
+/// Hard shadow maps from points on the light, averaged, in the registry: `multi-sample`.
+pub const MULTI_SAMPLE: MethodDescriptor = {
+    let d = MethodDescriptor::new(
+        "multi-sample",
+        || Ok(Box::new(MultiSample::new()?)),
+        resolution_sweep,
+    );
+    #[cfg(feature = "gpu")]
+    let d = d
+        .with_gpu(|ctx| Ok(Box::new(GpuMultiSample::new(ctx)?)))
+        .with_frame(|ctx, params, n| Ok(Box::new(gpu::MultiSampleFrame::prepare(ctx, params, n)?)));
+    d
+};

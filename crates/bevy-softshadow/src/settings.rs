@@ -35,8 +35,8 @@ impl Method {
         Method::MultiSample,
         Method::Backprojection,
         Method::Accumulation,
-        Method::DeepShadow,
         Method::PacketHsm,
+        Method::DeepShadow,
     ];
 
     /// The registry name (`softshadow render --algo NAME`, `docs/report/results.csv`'s `algo`).
@@ -131,7 +131,7 @@ impl SoftShadowSettings {
     /// The method's parameter table with these settings applied (what the frame estimator is
     /// prepared with). Errors: a resolution the method does not take.
     pub fn params_table(&self) -> softshadow::Result<softshadow::core::Params> {
-        let cpu = (softshadow::method(self.method.name())?.cpu)()?;
+        let cpu = softshadow::method(self.method.name())?.cpu()?;
         let mut p = softshadow::own_params(self.method.name(), cpu.params())?;
         if let Some(r) = self.params.resolution {
             p.set(softshadow::core::light_view::RESOLUTION.key, &r.to_string())?;

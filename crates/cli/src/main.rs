@@ -4,7 +4,6 @@ mod exr_io;
 mod path;
 mod report;
 mod score;
-mod sweep;
 
 use clap::{Parser, Subcommand};
 use serde_json::{json, Map, Value};

@@ -1,5 +1,5 @@
 //! `softshadow report`: every registered estimator over the parameter sweep it declares
-//! ([`SoftShadowEstimator::sweep`]), on every fixture, on the chosen backends; each image scored
+//! (its descriptor's [`sweep`](softshadow::MethodDescriptor::sweep)), on every fixture, on the chosen backends; each image scored
 //! against the ray-traced reference; the speed-versus-error picture written out.
 //!
 //! **Reference.** Rendered by the `reference` crate (never by the code under test) and cached in
@@ -25,13 +25,11 @@ use crate::{exr_io, path, score};
 use serde::Serialize;
 use serde_json::json;
 use shadow_map_core::{Backend, Receivers, Scene, SceneBvh, SoftShadowEstimator};
-use softshadow::{backends, estimator, ALGOS};
+use softshadow::{backends, estimator, Setting, ALGOS, METHODS};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-use crate::sweep::Setting;
 
 /// The baselines, marked as such in plots and tables.
 pub const BASELINES: &[&str] = &["hard", "pcf", "pcss", "multi-sample"];
@@ -233,14 +231,14 @@ pub fn report(args: &ReportArgs) -> Result<(), String> {
     std::fs::create_dir_all(&img_dir).map_err(|e| format!("{}: {e}", img_dir.display()))?;
     // The plan: (algo, backend, settings), counted for the progress bar.
     let mut plan: Vec<(&'static str, Backend, Vec<Setting>)> = Vec::new();
-    for name in ALGOS.iter().copied().filter(|n| *n != "reference") {
+    for m in METHODS.iter().filter(|m| m.name() != "reference") {
+        let name = m.name();
         for b in &args.backends {
             if !backends(name).contains(&backend_name(*b)) {
                 continue;
             }
-            let e = estimator(name, *b).map_err(|e| format!("{name} {b}: {e}"))?;
             let mut settings = vec![Vec::new()];
-            settings.extend(crate::sweep::settings(name, e.params(), args.quick));
+            settings.extend(m.sweep(args.quick));
             plan.push((name, *b, settings));
         }
     }

@@ -19,3 +19,37 @@ pub use frame::DeepShadowFrame;
 #[cfg(feature = "gpu")]
 pub use gpu::GpuDeepShadow;
 pub use shadow_map_core::SoftShadowEstimator;
+
+use shadow_map_core::method::{setting, MethodDescriptor, Setting};
+
+/// Deep shadow maps in the registry: `deep-shadow`, its CPU twin, GPU twin and engine path.
+pub const DESCRIPTOR: MethodDescriptor = {
+    let d = MethodDescriptor::new("deep-shadow", || Ok(Box::new(CpuDeepShadow::new()?)), sweep);
+    #[cfg(feature = "gpu")]
+    let d = d
+        .with_gpu(|ctx| Ok(Box::new(GpuDeepShadow::new(ctx)?)))
+        .with_frame(|ctx, params, n| Ok(Box::new(DeepShadowFrame::prepare(ctx, params, n)?)));
+    d
+};
+
+/// The report's settings: the filters (none, PCF, EDSM; Fuerst's lookups), the tap cap,
+/// sub-lights and the resolution.
+fn sweep(quick: bool) -> Vec<Setting> {
+    if quick {
+        return vec![
+            setting(&[("resolution", "256")]),
+            setting(&[("sublights", "2")]),
+        ];
+    }
+    vec![
+        setting(&[("filter", "none")]),
+        setting(&[("max_taps", "16")]),
+        setting(&[("filter", "pcf"), ("kernel", "5")]),
+        setting(&[("filter", "edsm"), ("kernel", "5")]),
+        setting(&[("sublights", "2")]),
+        setting(&[("sublights", "3")]),
+        setting(&[("sublights", "2"), ("filter", "pcf"), ("kernel", "3")]),
+        setting(&[("resolution", "256")]),
+        setting(&[("resolution", "512")]),
+    ]
+}

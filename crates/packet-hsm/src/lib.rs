@@ -17,3 +17,35 @@ pub use frame::PacketHsmFrame;
 #[cfg(feature = "gpu")]
 pub use gpu::GpuPacketHsm;
 pub use shadow_map_core::SoftShadowEstimator;
+
+use shadow_map_core::method::{setting, MethodDescriptor, Setting};
+
+/// Packet-based hierarchical soft shadow mapping in the registry: `packet-hsm`, its CPU twin,
+/// GPU twin and engine path.
+pub const DESCRIPTOR: MethodDescriptor = {
+    let d = MethodDescriptor::new("packet-hsm", || Ok(Box::new(CpuPacketHsm::new()?)), sweep);
+    #[cfg(feature = "gpu")]
+    let d = d
+        .with_gpu(|ctx| Ok(Box::new(GpuPacketHsm::new(ctx)?)))
+        .with_frame(|ctx, params, n| Ok(Box::new(PacketHsmFrame::prepare(ctx, params, n)?)));
+    d
+};
+
+/// The report's settings: sub-lights (Yang section 5), packet sizes (Algorithm 2) and the
+/// resolution; hierarchy and coherence change only the time, so the report runs their defaults.
+fn sweep(quick: bool) -> Vec<Setting> {
+    if quick {
+        return vec![
+            setting(&[("resolution", "256")]),
+            setting(&[("sublights", "2")]),
+        ];
+    }
+    vec![
+        setting(&[("sublights", "2")]),
+        setting(&[("sublights", "4")]),
+        setting(&[("packet", "1x1")]),
+        setting(&[("packet", "4x4")]),
+        setting(&[("resolution", "256")]),
+        setting(&[("resolution", "512")]),
+    ]
+}

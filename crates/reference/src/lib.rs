@@ -7,6 +7,13 @@ pub mod trace;
 
 pub use estimator::ReferenceEstimator;
 
+/// The ray-traced reference in the registry: `reference`, CPU only, no report sweep.
+pub const DESCRIPTOR: shadow_map_core::MethodDescriptor = shadow_map_core::MethodDescriptor::new(
+    "reference",
+    || Ok(Box::new(ReferenceEstimator::new()?)),
+    shadow_map_core::method::no_sweep,
+);
+
 /// This crate's version, part of the key under which `softshadow report` caches reference
 /// images (with [`REVISION`]).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -132,19 +132,19 @@ impl Params {
     }
     /// Sets `key` from a string.
     pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
-        let k = self
-            .specs
-            .iter()
-            .position(|s| s.key == key)
-            .ok_or_else(|| {
-                let known: Vec<&str> = self.specs.iter().map(|s| s.key).collect();
-                Error::param(
-                    key,
-                    format!("unknown parameter (known: {})", known.join(", ")),
-                )
-            })?;
+        let k = self.position(key)?;
         self.values[k] = self.specs[k].parse(value)?;
         Ok(())
+    }
+    /// Where `key` is declared; an error listing the known keys when it is not.
+    fn position(&self, key: &str) -> Result<usize> {
+        self.specs.iter().position(|s| s.key == key).ok_or_else(|| {
+            let known: Vec<&str> = self.specs.iter().map(|s| s.key).collect();
+            Error::param(
+                key,
+                format!("unknown parameter (known: {})", known.join(", ")),
+            )
+        })
     }
     /// Sets from `KEY=VALUE`.
     pub fn set_assignment(&mut self, kv: &str) -> Result<()> {
@@ -158,31 +158,42 @@ impl Params {
             .position(|s| s.key == key)
             .map(|k| self.values[k])
     }
-    /// Integer value of `key` (0 if undeclared or not an integer).
-    pub fn int(&self, key: &str) -> i64 {
-        match self.get(key) {
-            Some(ParamValue::Int(v)) => v,
-            _ => 0,
+    /// The value of `key`, or an error naming it when the table does not declare it (a
+    /// misspelled key is an error, never a default).
+    pub fn value(&self, key: &str) -> Result<ParamValue> {
+        Ok(self.values[self.position(key)?])
+    }
+    /// Integer value of `key`; an error when undeclared or not an integer.
+    pub fn int(&self, key: &str) -> Result<i64> {
+        match self.value(key)? {
+            ParamValue::Int(v) => Ok(v),
+            v => Err(Error::param(key, format!("{v} is not an integer"))),
         }
     }
-    /// Float value of `key` (integers convert; 0 if undeclared).
-    pub fn float(&self, key: &str) -> f64 {
-        match self.get(key) {
-            Some(ParamValue::Float(v)) => v,
-            Some(ParamValue::Int(v)) => v as f64,
-            _ => 0.0,
+    /// Float value of `key` (integers convert); an error when undeclared or not a number.
+    pub fn float(&self, key: &str) -> Result<f64> {
+        match self.value(key)? {
+            ParamValue::Float(v) => Ok(v),
+            ParamValue::Int(v) => Ok(v as f64),
+            v => Err(Error::param(key, format!("{v} is not a number"))),
         }
     }
-    /// Word value of `key` ("" if undeclared).
-    pub fn choice(&self, key: &str) -> &'static str {
-        match self.get(key) {
-            Some(ParamValue::Choice(v)) => v,
-            _ => "",
+    /// Word value of `key`; an error when undeclared or not a choice.
+    pub fn choice(&self, key: &str) -> Result<&'static str> {
+        match self.value(key)? {
+            ParamValue::Choice(v) => Ok(v),
+            v => Err(Error::param(
+                key,
+                format!("{v} is not one of a set of words"),
+            )),
         }
     }
-    /// Boolean value of `key` (false if undeclared).
-    pub fn flag(&self, key: &str) -> bool {
-        matches!(self.get(key), Some(ParamValue::Bool(true)))
+    /// Boolean value of `key`; an error when undeclared or not a boolean.
+    pub fn flag(&self, key: &str) -> Result<bool> {
+        match self.value(key)? {
+            ParamValue::Bool(v) => Ok(v),
+            v => Err(Error::param(key, format!("{v} is not true or false"))),
+        }
     }
     /// `(key, value)` pairs in declaration order.
     pub fn iter(&self) -> impl Iterator<Item = (&'static str, ParamValue)> + '_ {
@@ -507,4 +518,38 @@ macro_rules! typed_params {
             let _ = k;
         };
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SPECS: &[ParamSpec] = &[
+        ParamSpec {
+            key: "k",
+            kind: ParamKind::Int { min: 1, max: 9 },
+            default: "3",
+            help: "",
+        },
+        ParamSpec {
+            key: "mode",
+            kind: ParamKind::Choice(&["a", "b"]),
+            default: "a",
+            help: "",
+        },
+    ];
+
+    /// A misspelled or mistyped key is an error naming it, never 0 or "".
+    #[test]
+    fn typed_getters_refuse_unknown_and_mistyped_keys() {
+        let p = Params::new(SPECS).unwrap();
+        assert_eq!(p.int("k").unwrap(), 3);
+        assert_eq!(p.float("k").unwrap(), 3.0);
+        assert_eq!(p.choice("mode").unwrap(), "a");
+        let e = p.int("kk").unwrap_err().to_string();
+        assert!(e.contains("kk") && e.contains("known: k, mode"), "{e}");
+        assert!(p.choice("k").unwrap_err().to_string().contains("k"));
+        assert!(p.flag("mode").is_err());
+        assert!(p.int("mode").is_err());
+    }
 }

@@ -32,7 +32,7 @@ fn accumulation_frames_match_the_twins() {
             .map(move |s| (p, s))
     }) {
         let frame = AccumulationFrame::prepare(ctx.clone(), params).unwrap();
-        let name = format!("{name} variant={}", params.choice("variant"));
+        let name = format!("{name} variant={}", params.choice("variant").unwrap());
         let label = format!("accumulation {name}");
         let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
         let mut gpu = GpuAccumulation::new(ctx.clone()).unwrap();

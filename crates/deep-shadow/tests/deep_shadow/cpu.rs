@@ -415,7 +415,7 @@ fn parameters_are_checked() {
         );
     }
     e.set_param("kernel", "7").unwrap();
-    assert_eq!(e.params().int("kernel"), 7);
+    assert_eq!(e.params().int("kernel").unwrap(), 7);
     assert_eq!(e.settings().kernel, 7);
     assert!(e.set_param("kernel", "4").is_err());
     assert_eq!(e.settings().kernel, 7);

@@ -1,0 +1,162 @@
+//! One method as the rest of the workspace sees it: a [`MethodDescriptor`] holds its registry
+//! name, its CPU constructor, its GPU twin's and its engine path's constructors (in builds with
+//! the `gpu` feature) and the settings `softshadow report` sweeps. Each method crate exports its
+//! descriptor(s); the umbrella crate's list of descriptors is the one registry the CLI, the
+//! report, the engines and the tests read (adding a method is its crate and one line there).
+use crate::{Result, SoftShadowEstimator};
+
+/// One report setting: `(key, value)` overrides of a method's defaults.
+pub type Setting = Vec<(&'static str, String)>;
+
+/// A fresh CPU estimator with default parameters.
+pub type CpuConstructor = fn() -> Result<Box<dyn SoftShadowEstimator>>;
+
+/// A fresh GPU twin with default parameters, on a device.
+#[cfg(feature = "gpu")]
+pub type GpuConstructor =
+    fn(std::sync::Arc<crate::gpu::GpuContext>) -> Result<Box<dyn SoftShadowEstimator>>;
+
+/// The engine path prepared on a device with the method's own parameters (a table of its own
+/// specs, without the cascade keys) for at most `max_receivers` receivers a frame.
+#[cfg(feature = "gpu")]
+pub type FrameConstructor = fn(
+    std::sync::Arc<crate::gpu::GpuContext>,
+    &crate::Params,
+    u32,
+) -> Result<Box<dyn crate::gpu::frame::FrameEstimator>>;
+
+/// What the registry knows of one method (see the module's documentation). Made in a `const`:
+/// [`new`](Self::new), then [`with_gpu`](Self::with_gpu) and [`with_frame`](Self::with_frame)
+/// under the method crate's own `gpu` feature.
+#[derive(Clone, Copy)]
+pub struct MethodDescriptor {
+    name: &'static str,
+    cpu: CpuConstructor,
+    sweep: fn(bool) -> Vec<Setting>,
+    #[cfg(feature = "gpu")]
+    gpu: Option<GpuConstructor>,
+    #[cfg(feature = "gpu")]
+    frame: Option<FrameConstructor>,
+}
+
+impl std::fmt::Debug for MethodDescriptor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MethodDescriptor")
+            .field("name", &self.name)
+            .field("gpu", &self.has_gpu())
+            .field("frame", &self.has_frame())
+            .finish()
+    }
+}
+
+impl MethodDescriptor {
+    /// A CPU-only method called `name` (`--algo NAME`) whose report runs `sweep(quick)` besides
+    /// its defaults (`quick`: the small set CI runs).
+    pub const fn new(
+        name: &'static str,
+        cpu: CpuConstructor,
+        sweep: fn(bool) -> Vec<Setting>,
+    ) -> MethodDescriptor {
+        MethodDescriptor {
+            name,
+            cpu,
+            sweep,
+            #[cfg(feature = "gpu")]
+            gpu: None,
+            #[cfg(feature = "gpu")]
+            frame: None,
+        }
+    }
+
+    /// The same with a GPU twin.
+    #[cfg(feature = "gpu")]
+    pub const fn with_gpu(mut self, gpu: GpuConstructor) -> MethodDescriptor {
+        self.gpu = Some(gpu);
+        self
+    }
+
+    /// The same with an engine path.
+    #[cfg(feature = "gpu")]
+    pub const fn with_frame(mut self, frame: FrameConstructor) -> MethodDescriptor {
+        self.frame = Some(frame);
+        self
+    }
+
+    /// The registry name.
+    pub const fn name(&self) -> &'static str {
+        self.name
+    }
+
+    /// A fresh CPU estimator with default parameters.
+    pub fn cpu(&self) -> Result<Box<dyn SoftShadowEstimator>> {
+        (self.cpu)()
+    }
+
+    /// The settings the report runs besides the defaults (`quick`: CI's small set).
+    pub fn sweep(&self, quick: bool) -> Vec<Setting> {
+        (self.sweep)(quick)
+    }
+
+    /// Whether this build has the method's GPU twin.
+    pub const fn has_gpu(&self) -> bool {
+        #[cfg(feature = "gpu")]
+        {
+            self.gpu.is_some()
+        }
+        #[cfg(not(feature = "gpu"))]
+        {
+            false
+        }
+    }
+
+    /// Whether this build has the method's engine path.
+    pub const fn has_frame(&self) -> bool {
+        #[cfg(feature = "gpu")]
+        {
+            self.frame.is_some()
+        }
+        #[cfg(not(feature = "gpu"))]
+        {
+            false
+        }
+    }
+
+    /// The GPU twin on `ctx`; `None` for a method without one.
+    #[cfg(feature = "gpu")]
+    pub fn gpu(
+        &self,
+        ctx: std::sync::Arc<crate::gpu::GpuContext>,
+    ) -> Option<Result<Box<dyn SoftShadowEstimator>>> {
+        self.gpu.map(|g| g(ctx))
+    }
+
+    /// The engine path on `ctx` with the method's own `params`, for at most `max_receivers`
+    /// receivers a frame; `None` for a method without one.
+    #[cfg(feature = "gpu")]
+    pub fn frame(
+        &self,
+        ctx: std::sync::Arc<crate::gpu::GpuContext>,
+        params: &crate::Params,
+        max_receivers: u32,
+    ) -> Option<Result<Box<dyn crate::gpu::frame::FrameEstimator>>> {
+        self.frame.map(|f| f(ctx, params, max_receivers))
+    }
+}
+
+/// The shadow-map resolutions a report sweeps: 256 (quick), or 256, 512 and 2048 (full).
+pub fn resolution_sweep(quick: bool) -> Vec<Setting> {
+    let rs: &[u32] = if quick { &[256] } else { &[256, 512, 2048] };
+    rs.iter()
+        .map(|r| vec![(crate::light_view::RESOLUTION.key, r.to_string())])
+        .collect()
+}
+
+/// No settings besides the defaults (a method without a sweep: the reference).
+pub fn no_sweep(_quick: bool) -> Vec<Setting> {
+    Vec::new()
+}
+
+/// `(key, value)` pairs as one [`Setting`].
+pub fn setting(pairs: &[(&'static str, &str)]) -> Setting {
+    pairs.iter().map(|(k, v)| (*k, v.to_string())).collect()
+}
