@@ -260,39 +260,7 @@ pub fn lit<M: DepthLookup>(map: &M, i: i32, j: i32, r: &ReceiverSample) -> f32 {
     }
 }
 
-/// Splits `[a, b)` (texel coordinates) into at most `max` cells: whole texels clipped to the
-/// interval when it spans at most `max` texels, equal cells otherwise. Yields
-/// `(texel index sampled, weight = cell length)`.
-pub fn cells(a: f32, b: f32, max: u32, mut f: impl FnMut(i32, f32)) {
-    // A window past 2^24 texels (an absurd light size: the fuzz met one 1e30 wide) is cut there:
-    // f32 texel coordinates are exact up to 2^24, every map is far smaller, and the cells stay
-    // finite.
-    const LIM: f32 = 16_777_216.0;
-    let (a, b) = (a.clamp(-LIM, LIM), b.clamp(-LIM, LIM));
-    let len = b - a;
-    if !(len > 0.0) {
-        f(a.floor() as i32, 1.0);
-        return;
-    }
-    // Saturating casts: a kernel grown past i64 (an absurd light size) still splits into cells.
-    let first = a.floor() as i64;
-    let last = (b.ceil() as i64).saturating_sub(1).max(first);
-    if (last as i128 - first as i128 + 1) <= max as i128 {
-        for i in first..=last {
-            let lo = (i as f32).max(a);
-            let hi = ((i + 1) as f32).min(b);
-            if hi > lo {
-                f(i as i32, hi - lo);
-            }
-        }
-    } else {
-        let step = len / max as f32;
-        for k in 0..max {
-            let c = a + (k as f32 + 0.5) * step;
-            f(c.floor() as i32, step);
-        }
-    }
-}
+pub use shadow_map_core::soft_transmittance::cells;
 
 #[cfg(test)]
 mod tests {

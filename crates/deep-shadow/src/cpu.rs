@@ -3,9 +3,9 @@
 use crate::dsm::{transmittance_opaque_plane, DeepShadowMap, Filter, LookupSettings, SoftLookup};
 use crate::params::{self, Settings, DESCRIPTION, NAME, SPECS};
 use crate::raster::{fragments, prepare};
-use baselines::pcss::is_disk;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use shadow_map_core::soft_transmittance::is_disk;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitMode, FitReport, ViewOptions, MAX_TAN},

@@ -4,9 +4,11 @@
 //! or exponential filtering, with link-guided or naive traversal (§1.3.4, §1.3.5).
 use crate::raster::Fragment;
 use crate::shared::{Node, NIL};
-pub use baselines::pcss::{soft_transmittance, DepthTaps, SoftLookup, SoftTaps};
 use glam::Vec2;
 use rayon::prelude::*;
+pub use shadow_map_core::soft_transmittance::{
+    soft_transmittance, DepthTaps, SoftLookup, SoftTaps,
+};
 use shadow_map_core::{DepthMap, Error, ReceiverPlane, Result};
 
 /// How a lookup filters the transmittance over the shadow-map plane.

@@ -37,8 +37,8 @@ use crate::dsm::Filter;
 use crate::gpu::{dispatch, lookup_uniform, OWN_OVERRIDES};
 use crate::params::{Settings, NAME};
 use crate::shared::DsUniform;
-use baselines::gpu::map_estimator::CELLS_WGSL;
 use bytemuck::{Pod, Zeroable};
+use shadow_map_core::gpu::estimate::CELLS_WGSL;
 use shadow_map_core::{
     estimator::configure,
     gpu::{
@@ -61,7 +61,7 @@ use std::sync::Arc;
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
 /// The engine path's module, in order: the core's shared structs, estimate uniform and math,
-/// the baselines' cells, [`crate::gpu::DEEP_SHADOW_WGSL`], then [`FRAME_WGSL`].
+/// the core's cells, [`crate::gpu::DEEP_SHADOW_WGSL`], then [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
     SHARED_WGSL,
     ESTIMATE_WGSL,

@@ -26,8 +26,8 @@ use crate::dsm::{BuildStats, DeepShadowMap, Filter, LookupSettings, Traversal};
 use crate::params::{self, Settings, SPECS};
 use crate::raster::prepare;
 use crate::shared::{DsUniform, Node, Tri};
-use baselines::gpu::map_estimator::CELLS_WGSL;
 use glam::Vec2;
+use shadow_map_core::gpu::estimate::CELLS_WGSL;
 use shadow_map_core::gpu::kernel::BufferInitExt;
 use shadow_map_core::{
     gpu::{
@@ -51,7 +51,7 @@ pub const SHADERS: &[(&str, &[&str])] = &[
 ];
 
 /// The WGSL parts of the module, in order: the workgroup size's declaration ([`WG_WGSL`]), the
-/// core's shared structs and loop-budget probe ([`SHARED_WGSL`]), the baselines' `cells` and Kahan `Sum` (the PCSS sampling `filter=pcss` shares), then
+/// core's shared structs and loop-budget probe ([`SHARED_WGSL`]), the core's `cells` and Kahan `Sum` (the PCSS sampling `filter=pcss` shares), then
 /// [`DEEP_SHADOW_WGSL`].
 pub const SHADER_PARTS: &[&str] = &[WG_WGSL, SHARED_WGSL, CELLS_WGSL, DEEP_SHADOW_WGSL];
 

@@ -25,6 +25,7 @@ pub mod receivers;
 pub mod scene;
 pub mod settle;
 pub mod silhouette;
+pub mod soft_transmittance;
 
 pub use bvh::SceneBvh;
 pub use camera::Camera;

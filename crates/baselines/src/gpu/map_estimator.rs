@@ -26,10 +26,7 @@ use std::{marker::PhantomData, sync::Arc, time::Instant};
 /// WGSL of the frame shared by hard, PCF and PCSS (bindings, `estimate` entry point).
 pub const MAP_ESTIMATOR_WGSL: &str = include_str!("map_estimator.wgsl");
 
-/// WGSL twins of [`crate::map_estimator::cells`] (`Cells`, `cells_new`, `cell`) and of
-/// [`crate::pcss::Kahan`] (`Sum`, `sum_add`): no bindings, so any module may include it (the
-/// map estimator's kernels, deep-shadow's `filter=pcss`).
-pub const CELLS_WGSL: &str = include_str!("cells.wgsl");
+pub use shadow_map_core::gpu::estimate::CELLS_WGSL;
 
 /// The GPU side of a [`Filter`]: WGSL defining `fn facing(p_world, n_world) -> f32` and
 /// `fn visibility(r: ReceiverSample) -> f32` exactly as the CPU filter computes them, and the

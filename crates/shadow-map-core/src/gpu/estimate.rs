@@ -20,6 +20,10 @@ pub const MATH_WGSL: &str = include_str!("math.wgsl");
 /// WGSL twins of [`crate::overlap::disk_wedge`] and [`crate::overlap::edge_disk_area`],
 /// self-contained (builtins only): kernels without the estimate head prepend it alone.
 pub const DISK_EDGE_WGSL: &str = include_str!("disk_edge.wgsl");
+/// WGSL twins of [`crate::soft_transmittance::cells`] (`Cells`, `cells_new`, `cell`) and of
+/// [`crate::soft_transmittance::Kahan`] (`Sum`, `sum_add`): no bindings, so any kernel may include
+/// it (the baselines' map estimator, deep-shadow's `filter=pcss`).
+pub const CELLS_WGSL: &str = include_str!("cells.wgsl");
 /// WGSL twin of [`crate::silhouette::Silhouette::carry`], self-contained like
 /// [`DISK_EDGE_WGSL`].
 pub const SILHOUETTE_WGSL: &str = include_str!("silhouette.wgsl");

@@ -63,6 +63,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("precision", precision::PRECISION_WGSL),
     ("estimate", estimate::ESTIMATE_HEAD_WGSL),
     ("bitmask", estimate::BITMASK_WGSL),
+    ("cells", estimate::CELLS_WGSL),
     ("silhouette_setup", estimate::SILHOUETTE_SETUP_CHECK_WGSL),
     ("depth_receivers", depth_receivers::DEPTH_RECEIVERS_SOURCE),
     ("casters", casters::CASTERS_WGSL),
