@@ -31,11 +31,9 @@ pub const HARD: MethodDescriptor = {
         resolution_sweep,
     );
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuHardShadow::new(ctx)?)))
-        .with_frame(|ctx, params, _| {
-            Ok(Box::new(gpu::MapFrame::<hard::Hard>::prepare(ctx, params)?))
-        });
+    let d = d.with_frame(|ctx, params, _| {
+        Ok(Box::new(gpu::MapFrame::<hard::Hard>::prepare(ctx, params)?))
+    });
     d
 };
 
@@ -43,11 +41,9 @@ pub const HARD: MethodDescriptor = {
 pub const PCF: MethodDescriptor = {
     let d = MethodDescriptor::new("pcf", || Ok(Box::new(PcfShadow::new()?)), resolution_sweep);
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuPcfShadow::new(ctx)?)))
-        .with_frame(|ctx, params, _| {
-            Ok(Box::new(gpu::MapFrame::<pcf::Pcf>::prepare(ctx, params)?))
-        });
+    let d = d.with_frame(|ctx, params, _| {
+        Ok(Box::new(gpu::MapFrame::<pcf::Pcf>::prepare(ctx, params)?))
+    });
     d
 };
 
@@ -59,11 +55,9 @@ pub const PCSS: MethodDescriptor = {
         resolution_sweep,
     );
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuPcssShadow::new(ctx)?)))
-        .with_frame(|ctx, params, _| {
-            Ok(Box::new(gpu::MapFrame::<pcss::Pcss>::prepare(ctx, params)?))
-        });
+    let d = d.with_frame(|ctx, params, _| {
+        Ok(Box::new(gpu::MapFrame::<pcss::Pcss>::prepare(ctx, params)?))
+    });
     d
 };
 
@@ -76,7 +70,6 @@ pub const MULTI_SAMPLE: MethodDescriptor = {
     );
     #[cfg(feature = "gpu")]
     let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuMultiSample::new(ctx)?)))
         .with_frame(|ctx, params, n| Ok(Box::new(gpu::MultiSampleFrame::prepare(ctx, params, n)?)));
     d
 };

@@ -282,8 +282,9 @@ fn camera_path_writes_numbered_frames_and_flicker() {
 /// encode, one submit, V read back; the `engine_path` note), never leaves an active pixel
 /// without a finite V (receivers the device's loop budget cuts are redone by the CPU twin: the
 /// exact variant of accumulation on lavapipe), and matches the CPU backend's image but for the
-/// G-buffer's pixels (rasterised on the GPU, ray cast on the CPU); with `cascades=3` it takes the
-/// twin's path (no `engine_path` note).
+/// G-buffer's pixels (rasterised on the GPU, ray cast on the CPU); with `cascades=3` or a
+/// semi-transparent scene the registry's GPU estimator runs: the frame twin for the baselines
+/// (`engine_path` "frame twin"), a method's own twin otherwise (no `engine_path` note).
 #[cfg(feature = "gpu")]
 #[test]
 fn render_gpu_takes_the_frame_api() {
@@ -303,29 +304,48 @@ fn render_gpu_takes_the_frame_api() {
     // Sub-pixel strands over a ground (and hair, the same kind): a rasterised G-buffer saw
     // background where the ray-cast one sees ground; both backends must render the same pixels.
     let hair = fixture("hair/hair.toml");
-    let cases: [(&str, &[&str], bool, &std::path::Path); 13] = [
-        ("pcss", &["resolution=256"], true, &squares),
+    // The path `--backend gpu` takes: the CLI's own frame (the G-buffer's receivers on the
+    // device), the registry's GPU estimator when that is the frame twin (hard, PCF, PCSS and
+    // multi-sample: cascades, semi-transparent scenes), or a method's own GPU twin.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    enum Path {
+        Frame,
+        FrameTwin,
+        Twin,
+    }
+    let cases: [(&str, &[&str], Path, &std::path::Path); 13] = [
+        ("pcss", &["resolution=256"], Path::Frame, &squares),
         // 16-bit maps: encoded within the frame (the engine path used to refuse them).
-        ("hard", &["resolution=256", "depth=unorm16"], true, &squares),
-        ("backprojection", &["resolution=256"], true, &squares),
+        (
+            "hard",
+            &["resolution=256", "depth=unorm16"],
+            Path::Frame,
+            &squares,
+        ),
+        ("backprojection", &["resolution=256"], Path::Frame, &squares),
         (
             "accumulation",
             &["resolution=256", "variant=exact"],
-            true,
+            Path::Frame,
             &squares,
         ),
-        ("deep-shadow", &["resolution=256"], true, &squares),
-        ("pcss", &["resolution=256", "cascades=3"], false, &squares),
-        ("backprojection", &["resolution=256"], false, &strands),
-        ("deep-shadow", &["resolution=256"], false, &strands),
-        ("hard", &["resolution=256"], false, &strands),
-        ("hard", &["resolution=256"], false, &hair),
-        ("packet-hsm", &["resolution=256"], true, &squares),
-        ("packet-hsm", &["resolution=256"], true, &sphere),
+        ("deep-shadow", &["resolution=256"], Path::Frame, &squares),
+        (
+            "pcss",
+            &["resolution=256", "cascades=3"],
+            Path::FrameTwin,
+            &squares,
+        ),
+        ("backprojection", &["resolution=256"], Path::Twin, &strands),
+        ("deep-shadow", &["resolution=256"], Path::Twin, &strands),
+        ("hard", &["resolution=256"], Path::FrameTwin, &strands),
+        ("hard", &["resolution=256"], Path::FrameTwin, &hair),
+        ("packet-hsm", &["resolution=256"], Path::Frame, &squares),
+        ("packet-hsm", &["resolution=256"], Path::Frame, &sphere),
         (
             "packet-hsm",
             &["resolution=256", "sublights=2"],
-            false,
+            Path::Twin,
             &squares,
         ),
     ];
@@ -333,7 +353,7 @@ fn render_gpu_takes_the_frame_api() {
         let sc = scene.to_str().unwrap();
         let mut imgs = Vec::new();
         for backend in ["cpu", "gpu"] {
-            let out = dir.path().join(format!("{algo}-{engine}-{backend}.exr"));
+            let out = dir.path().join(format!("{algo}-{engine:?}-{backend}.exr"));
             let stats = run_ok(&render(
                 sc,
                 algo,
@@ -348,11 +368,12 @@ fn render_gpu_takes_the_frame_api() {
             ));
             let j: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
             if backend == "gpu" {
-                assert_eq!(
-                    j["notes"].get("engine_path").is_some(),
-                    engine,
-                    "{algo} {params:?}: {j}"
-                );
+                let path = match j["notes"].get("engine_path").and_then(|p| p.as_str()) {
+                    Some("frame twin") => Path::FrameTwin,
+                    Some(_) => Path::Frame,
+                    None => Path::Twin,
+                };
+                assert_eq!(path, engine, "{algo} {params:?}: {j}");
             }
             imgs.push(out);
         }

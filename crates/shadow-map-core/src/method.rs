@@ -68,7 +68,8 @@ impl MethodDescriptor {
         }
     }
 
-    /// The same with a GPU twin.
+    /// The same with a GPU twin of its own (without one, a method with an engine path runs on
+    /// the GPU through it: [`gpu`](Self::gpu)).
     #[cfg(feature = "gpu")]
     pub const fn with_gpu(mut self, gpu: GpuConstructor) -> MethodDescriptor {
         self.gpu = Some(gpu);
@@ -97,11 +98,12 @@ impl MethodDescriptor {
         (self.sweep)(quick)
     }
 
-    /// Whether this build has the method's GPU twin.
+    /// Whether this build has the method on the GPU (its own twin, or its engine path run by
+    /// [`FrameTwin`](crate::gpu::frame_twin::FrameTwin)).
     pub const fn has_gpu(&self) -> bool {
         #[cfg(feature = "gpu")]
         {
-            self.gpu.is_some()
+            self.gpu.is_some() || self.frame.is_some()
         }
         #[cfg(not(feature = "gpu"))]
         {
@@ -121,13 +123,22 @@ impl MethodDescriptor {
         }
     }
 
-    /// The GPU twin on `ctx`; `None` for a method without one.
+    /// The method's GPU estimator on `ctx`: its own twin where it declares one, else its engine
+    /// path as an estimator ([`FrameTwin`](crate::gpu::frame_twin::FrameTwin)); `None` for a
+    /// CPU-only method.
     #[cfg(feature = "gpu")]
     pub fn gpu(
         &self,
         ctx: std::sync::Arc<crate::gpu::GpuContext>,
     ) -> Option<Result<Box<dyn SoftShadowEstimator>>> {
-        self.gpu.map(|g| g(ctx))
+        match (self.gpu, self.frame) {
+            (Some(g), _) => Some(g(ctx)),
+            (None, Some(f)) => Some(self.cpu().map(|cpu| {
+                Box::new(crate::gpu::frame_twin::FrameTwin::new(ctx, cpu, f))
+                    as Box<dyn SoftShadowEstimator>
+            })),
+            (None, None) => None,
+        }
     }
 
     /// The engine path on `ctx` with the method's own `params`, for at most `max_receivers`

@@ -28,6 +28,7 @@ pub mod depth_map;
 pub mod depth_receivers;
 pub mod estimate;
 pub mod frame;
+pub mod frame_twin;
 pub mod gbuffer;
 pub mod kernel;
 pub mod layout;
