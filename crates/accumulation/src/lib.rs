@@ -24,7 +24,6 @@ pub const DESCRIPTOR: MethodDescriptor = {
     );
     #[cfg(feature = "gpu")]
     let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuAccumulation::new(ctx)?)))
         .with_frame(|ctx, params, _| Ok(Box::new(AccumulationFrame::prepare(ctx, params)?)));
     d
 };
