@@ -23,8 +23,7 @@ pub const DESCRIPTOR: MethodDescriptor = {
         sweep,
     );
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_frame(|ctx, params, _| Ok(Box::new(AccumulationFrame::prepare(ctx, params)?)));
+    let d = d.with_frame(|ctx, params, _| Ok(Box::new(AccumulationFrame::prepare(ctx, params)?)));
     d
 };
 
