@@ -1,4 +1,4 @@
-//! A headless renderer of its own driving the engine path (issue 20): every frame it renders a
+//! A headless renderer of its own driving the engine path: every frame it renders a
 //! G-buffer of a camera orbiting a fixture on the GPU, then records each estimator that has the
 //! frame API ([`softshadow::FRAME_ALGOS`]: hard, PCF, PCSS, multi-sample, backprojection,
 //! accumulation, deep-shadow, packet-hsm; [`softshadow::frame_estimator`] makes them) into its own command encoder

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Checks the Bevy plugin's headless example (`--json`, stdin): every method of the frame API
 listed, none refused on the fixture, each method's V within RMSE 0.01 of its CPU twin on the
-receivers Bevy's prepass gave (issue 23's bound), shadows present, at most 10% of receivers left
+receivers Bevy's prepass gave, shadows present, at most 10% of receivers left
 NaN by the device's loop budget, and those counted by the view's status (read back without
 waiting). Times are printed, not asserted.
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Two builds of the CLI side by side at their defaults: RMSE against the references in REF_DIR
 # (NAME-reference.exr, e.g. rendered by scripts/defaults-table.sh) and build+estimate ms, best of
-# three, per fixture and estimator. The before/after tables of issue 18 come from it.
+# three, per fixture and estimator. Before/after tables of a change come from it.
 #   scripts/compare-binaries.sh OLD_BIN NEW_BIN REF_DIR "ALGOS" SCENE.toml...
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -2,7 +2,7 @@
 # Every estimator at its defaults on every fixture (or the scenes given), one backend: RMSE and
 # lit MAE (mean |V - Vr| over pixels whose reference is fully lit: false shadow) against the
 # ray-traced reference (1024 spp, rendered once and kept in OUT_DIR), and the estimator's own
-# stage time (--stats). Prints a markdown table; the before/after tables of issue 16 come from it.
+# stage time (--stats). Prints a markdown table; before/after tables of a change come from it.
 #   scripts/defaults-table.sh [OUT_DIR] [BACKEND] [SCENE.toml...]
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Instructions executed inside each engine path's `encode` (issue 20's host-cost goal), counted
+# Instructions executed inside each engine path's `encode` (the host-cost goal), counted
 # by callgrind, for the small and the large (64x the triangles) scene of examples/frame_loop.rs:
 # counts repeat from run to run where this 2-core machine's seconds do not, and a device that
 # runs on the same cores (lavapipe) cannot inflate them. Prints one line per estimator:

@@ -1,4 +1,4 @@
-//! Faults a renderer meets (issue 21), over every GPU estimator: the eight engine paths
+//! Faults a renderer meets, over every GPU estimator: the eight engine paths
 //! (`FRAME_ALGOS`, made by `frame_estimator`) and the eight GPU twins (`METHODS`' `gpu`).
 //!
 //! * **Device loss**: a private device (`GpuContext::new`, never the shared one) is destroyed

@@ -1,4 +1,4 @@
-//! `GpuContext::shared` after its device is lost (issue 21, "faults a renderer meets"): the
+//! `GpuContext::shared` after its device is lost (one of the faults a renderer meets): the
 //! next `shared()` hands out a fresh context, so the registry's GPU twins (and the CLI) work
 //! again, while estimators made on the lost one give `Error::DeviceLost`. Its own test binary:
 //! it destroys the process-wide device, which every other test of a binary would share.

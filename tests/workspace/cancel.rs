@@ -1,4 +1,4 @@
-//! Cancellation of a CPU render (issue 21): every CPU estimator of the registry, bare and as the
+//! Cancellation of a CPU render: every CPU estimator of the registry, bare and as the
 //! registry hands it out (wrapped in `Cascaded` when it has a map), returns `Err(Cancelled)` under
 //! a cancelled token, never a V, and renders again, bit for bit as before, under a fresh one; a
 //! long render cancelled from another thread while it runs stops with `Err(Cancelled)`. The GPU

@@ -1,4 +1,4 @@
-//! Cascades along the camera's depth (issue 17; docs/methods.md §1 "Cascades and texel density").
+//! Cascades along the camera's depth (docs/methods.md §1 "Cascades and texel density").
 //!
 //! On `long-ground` (a 200 m ground seen from 0.7 m up, a depth ratio of about 60), with
 //! caster-aware fitting off, three cascades at r = 512 must at least halve the RMSE of one view for every soft estimator with a
@@ -200,7 +200,7 @@ fn tiles_help_the_backlit_scenes() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Receivers no view holds (issue 17; docs/methods.md §1 "Receivers outside every view"): on
+/// Receivers no view holds (docs/methods.md §1 "Receivers outside every view"): on
 /// `backlit-stone` and `backlit-pair` the ground runs past the light's plane, so some lit
 /// receivers lie beyond 87 degrees off its axis, outside accumulation's one view. Accumulation
 /// now renders both on every backend, settling those receivers without a map
@@ -278,7 +278,7 @@ fn accumulation_settles_receivers_beyond_its_view() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Caster-aware fitting (issue 17; docs/methods.md §1 "Caster-aware fitting"): on the long
+/// Caster-aware fitting (docs/methods.md §1 "Caster-aware fitting"): on the long
 /// grounds most receivers see the light past every caster. `casters=on` settles them without a
 /// map, exactly (mean |V - reference| over them at most 0.005, none off by more than 0.05: the
 /// reference's 256 stratified samples of the facing fraction), fits the views to the rest, lowers

@@ -1,4 +1,4 @@
-//! Light-view fit modes (issue: common techniques). `fit=stable` promises that when the camera
+//! Light-view fit modes. `fit=stable` promises that when the camera
 //! moves and the scene does not, a world point that stays in view keeps the same V, up to float
 //! rounding; `fit=receivers` (the tightest window, the default) does not. Frames here: the ground
 //! points a camera looking straight down sees, on a grid of pitch `STEP`; the second frame is the

@@ -1,4 +1,4 @@
-//! Self-shadowing at any angle (issue 16, docs/methods.md §2 "Receiver plane"): a receiver plane
+//! Self-shadowing at any angle (docs/methods.md §2 "Receiver plane"): a receiver plane
 //! lit from 60, 75, 85 and 89 degrees off its normal, one-sided (a quad) or the top of a closed
 //! slab, with and without a thin post standing on it, at shadow-map resolutions 256 to 4096.
 //! Every registered estimator, at its defaults otherwise, on every backend it has: no receiver
@@ -10,7 +10,7 @@
 //!
 //! Where the truth has no shadow on the plane (no post), each estimator's RMSE against the exact
 //! V (the facing fraction) may exceed the hard shadow map's on the same case, resolution and
-//! backend by at most 0.005 (issue 16's bar for soft estimators).
+//! backend by at most 0.005 (the bar for soft estimators).
 //!
 //! `cargo test --test workspace self_shadow:: -- --nocapture` prints the worst darkening and the worst RMSE
 //! excess over the hard map per estimator.

@@ -1,4 +1,4 @@
-//! The sun (issue 19; the contract's directional light): scenes load it, the ray-traced
+//! The sun (the contract's directional light): scenes load it, the ray-traced
 //! reference renders it (checked against a closed form in `crates/reference`), and every
 //! estimator renders it through an orthographic light view on both backends (docs/methods.md
 //! §14), checked against the closed form of a half plane under an overhead sun.
@@ -129,8 +129,8 @@ fn half_plane_truth(scene: &Scene, rec: &Receivers) -> Vec<(usize, f64)> {
 }
 
 /// Every sun form on both backends against the closed form of an opaque half plane 1 m over
-/// the ground under an overhead 5-degree sun (fixtures/sun-half-plane), at defaults. Bounds of
-/// issue 19: PCSS, backprojection, accumulation and packet-hsm within RMSE 0.02, multi-sample
+/// the ground under an overhead 5-degree sun (fixtures/sun-half-plane), at defaults. Bounds:
+/// PCSS, backprojection, accumulation and packet-hsm within RMSE 0.02, multi-sample
 /// within 0.03 (and deep-shadow's soft default within 0.02); the hard map and PCF (no
 /// penumbra model) are measured and must be worse than PCSS.
 #[test]

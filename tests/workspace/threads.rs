@@ -1,4 +1,4 @@
-//! Two GPU estimators used from two threads on one device (issue 21, "faults a renderer meets"):
+//! Two GPU estimators used from two threads on one device (one of the faults a renderer meets):
 //! every GPU estimator (`FRAME_ALGOS`: all eight), two instances on the shared context, each in its own thread, each
 //! rendering the same scene three times while the other does; every run must succeed and give
 //! what one instance gives alone (within 1e-5: the twins' atomics may order ties differently).

@@ -1,4 +1,4 @@
-//! Estimate-stage speed of the accumulation twins, and taps per second: the speed case
+//! Estimate-stage speed of the accumulation twins, and taps per second: the speed case
 //! (the bunny fixture with its light replaced by a sphere of the same size, K = 10) at a chosen
 //! receiver count and map resolution.
 //!

@@ -1,4 +1,4 @@
-//! The K x resolution sweep of issue 6: RMSE against the ray-traced reference and estimate time,
+//! Accumulation's K x resolution sweep: RMSE against the ray-traced reference and estimate time,
 //! for both variants and both kernel modes, on every fixture with a sphere or disk light
 //! (sphere-light, strands), with PCSS and multi-sample (baselines) beside them.
 //!

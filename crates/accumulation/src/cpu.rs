@@ -750,7 +750,7 @@ impl CpuAccumulation {
 /// the map's edge. The part clipped holds casters within a few radii of the light's own plane,
 /// which a perspective view from the light's centre cannot hold at any window size (their
 /// projection runs to infinity as their depth goes to 0): a wider window does not bring them
-/// back (issue 21: a second view at 64 radii was tried and measured no better, see
+/// back (a second view at 64 radii was tried and measured no better, see
 /// `tests/accuracy.rs::sphere_receivers_beyond_the_window_are_counted`). Reported as the note
 /// `beyond_sphere_window`, so no loss is silent. 0 for other lights, the paper's model and the
 /// fixed lexel kernel.

@@ -22,7 +22,7 @@ pub const LAYER_RULE: ParamSpec = ParamSpec {
 
 /// Which occluding layer of a texel is backprojected ([`LAYER_RULE`]).
 ///
-/// Measured (issue 16, CPU, defaults otherwise, RMSE against the ray-traced reference):
+/// Measured (CPU, defaults otherwise, RMSE against the ray-traced reference):
 /// `first_nonzero` / `deepest` = 0.1085 / 0.1115 on `fixtures/stacked`, 0.0270 / 0.0271 on
 /// `grazing-posts`, 0.0414 / 0.0286 on `hover-boxes`, 0.0457 / 0.0359 on `bunny`; on the
 /// stacked plates of `tests/accuracy.rs` 0.123 / 0.051, with V at most 0.000 / 0.250 above the
@@ -30,7 +30,7 @@ pub const LAYER_RULE: ParamSpec = ParamSpec {
 /// which adds the near occluder's micropatch where the far one misses the light, removes the
 /// light leak but overshadows more elsewhere: `deepest` under additive occlusion. With
 /// `occlusion=bitmask` (overlaps counted once) `first_nonzero` wins: 0.0501 on `stacked`, 0.0238
-/// on `bunny` (issue 18; docs/methods.md §2 "Bitmask occlusion"). The default `auto` picks by
+/// on `bunny` (docs/methods.md §2 "Bitmask occlusion"). The default `auto` picks by
 /// occlusion (docs/methods.md §2 "Defaults").
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum LayerRule {

@@ -1,4 +1,4 @@
-//! softshadow's measured soft-shadow methods in Bevy 0.20 (issue 23).
+//! softshadow's measured soft-shadow methods in Bevy 0.20.
 //!
 //! Add [`SoftShadowPlugin`] after Bevy's `DefaultPlugins`, put [`SoftShadowSettings`] on one
 //! light (a `DirectionalLight`, a `RectLight` or a `PointLight` with a radius), and give each

@@ -1,6 +1,6 @@
 //! The plugin in a real Bevy app on the GPU (lavapipe in CI): a fixture rendered headless with
 //! methods switched between frames; each method's V, read back once, against its CPU twin on
-//! the receivers Bevy's prepass gave, in the same views (the bound: RMSE 0.01), and
+//! the receivers Bevy's prepass gave, in the same views (within RMSE 0.01), and
 //! against `softshadow render --backend cpu` end to end. Small images keep it quick.
 // `!(x <= bound)` on purpose: a NaN figure fails.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -1,4 +1,4 @@
-//! End-to-end fuzz of `softshadow render` (issue 21): mutated scene TOMLs, OBJs and glTFs (and
+//! End-to-end fuzz of `softshadow render`: mutated scene TOMLs, OBJs and glTFs (and
 //! now and then a mutated command line) rendered with random estimators, random parameters and
 //! both backends. Every run must either exit 0 having written a valid EXR (channels V and Z, V in
 //! [0, 1] on every hit pixel, V = NaN exactly where Z = +inf, the five provenance attributes) and

@@ -1,4 +1,4 @@
-//! Measurements for issue 8: RMSE against the ray-traced reference (DSM, PCF 3/5/7, EDSM 3/5/7,
+//! Deep-shadow's measurements: RMSE against the ray-traced reference (DSM, PCF 3/5/7, EDSM 3/5/7,
 //! S = 2, 3 soft transmittance, the multi-sample baseline) on the strands and hair fixtures, a
 //! Table 1.1-shaped speed table, and the two speed-ups (neighbour links vs naive at 7x7;
 //! truncation vs none) as fractions of an in-run ceiling.

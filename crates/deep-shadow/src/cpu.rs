@@ -288,7 +288,7 @@ pub fn mark_outside(
     });
 }
 
-/// The receivers [`mark_outside`] found (issue 21): each one the core's
+/// The receivers [`mark_outside`] found: each one the core's
 /// [`Settler`](shadow_map_core::settle::Settler) proves unshadowed (no scene triangle in its light
 /// pyramid) gets its facing fraction, exactly; any other fails the estimate with
 /// [`shadow_map_core::Error::Receivers`] naming the count (a map-less transmittance of 1 would be

@@ -1,4 +1,4 @@
-//! Measurements for issue 7, each section in one run on one machine:
+//! Packet-hsm's measurements, each section in one run on one machine:
 //!
 //! - `speed`: packets + hierarchy vs per-pixel GBP07, hierarchy alone, packets alone, for light
 //!   sizes from small to large on the same scene (Yang Fig. 13: up to 20x; hierarchy 1.5-4x), with

@@ -671,7 +671,7 @@ proptest! {
     }
 }
 
-/// The sun (issue 19; the contract's directional light) over a half plane: an opaque half plane
+/// The sun (the contract's directional light) over a half plane: an opaque half plane
 /// `x < 0` at height h = 1 over a ground, the sun overhead with a 3-degree disk, receivers across
 /// the penumbra (`|x| <= 1.5 h tan(angle/2)`) and beyond. At 1024 samples per receiver the ray
 /// tracer matches the circular-segment closed form to RMSE <= 0.002 (and every receiver within

@@ -66,7 +66,7 @@ pub const TILE_SPAN: ParamSpec = ParamSpec {
 /// Most tiles `tiles=0` (auto) picks.
 pub const MAX_AUTO_TILES: usize = 8;
 
-/// Caster-aware fitting (`--param casters=...`; issue 17, docs/methods.md §1 "Caster-aware
+/// Caster-aware fitting (`--param casters=...`; docs/methods.md §1 "Caster-aware
 /// fitting"): which receivers the views are fitted to.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Casters {
@@ -126,7 +126,7 @@ pub const AUTO_MAX_DENSITY: f32 = 2.0;
 /// The number of cascades `cascades=0` picks for receivers between camera depths `near` and
 /// `far` whose one view has a texel-density 95th percentile `p95` (computed only when needed):
 /// one view while the depth ratio is at most [`AUTO_MIN_RATIO`] or the one view already gives
-/// a texel per [`AUTO_MAX_DENSITY`] pixels or less (measured, issue 17: on `overlapping` and
+/// a texel per [`AUTO_MAX_DENSITY`] pixels or less (measured: on `overlapping` and
 /// `stacked`, depth ratio 5.3 and p95 1.3 and 0.9, two cascades cost 1.5 to 2.8x the time for no
 /// gain); else `clamp(ceil(log4(far / near)), 2, 4)`, a depth ratio of about 4 per view.
 pub fn auto_count(near: f32, far: f32, p95: impl FnOnce() -> Option<f32>) -> u32 {
@@ -356,7 +356,7 @@ pub struct Tiles {
 }
 
 /// Splits the active `receivers` by their direction from the light centre (several views where
-/// one cannot serve, issue 17). In the light frame a receiver at `p` (in front, `p_z > 0`) has
+/// one cannot serve). In the light frame a receiver at `p` (in front, `p_z > 0`) has
 /// the tan-space position `t = p_xy / p_z`; a tile is a box of `t`, and each tile's view is the
 /// estimator's own light-centre view fitted to that tile's receivers only, so every formula that
 /// assumes the map plane parallel to the light plane holds, while texels go where the tile's

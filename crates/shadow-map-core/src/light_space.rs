@@ -47,7 +47,7 @@ pub fn host_memory_available() -> Option<u64> {
 /// Refuses (`Error::Limit` naming the bytes, before anything is allocated) a build whose planes
 /// need more than half the host memory available ([`host_memory_available`]; the other half is
 /// left to the estimator's own structures, the rasteriser's working sets and the rest of the
-/// process). Issue 21: at `resolution=16384` backprojection and packet-hsm were killed by the
+/// process). Without it, at `resolution=16384` backprojection and packet-hsm were killed by the
 /// OOM killer at 24 GB on a 23 GB machine.
 pub fn check_host_bytes(what: &'static str, bytes: u64) -> Result<()> {
     match host_memory_available() {
@@ -311,7 +311,7 @@ impl LightSpace {
 mod host_memory_tests {
     use super::*;
 
-    /// The planes a request holds, and the refusal before allocation (issue 21).
+    /// The planes a request holds, and the refusal before allocation.
     #[test]
     fn host_bytes_count_the_planes_and_huge_builds_are_refused() {
         let mut req = LightSpaceRequest::single(1024);

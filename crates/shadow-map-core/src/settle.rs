@@ -1,4 +1,4 @@
-//! Receivers settled without a map (issue 17; docs/methods.md §1 "Receivers outside every view").
+//! Receivers settled without a map (docs/methods.md §1 "Receivers outside every view").
 //!
 //! A receiver p sees the light through its *light pyramid*: the convex hull of p and the light
 //! (for a disk, the regular octagon circumscribing it; for a sphere, the octagon circumscribing

@@ -410,7 +410,7 @@ pub fn oracle_disk(scene: &Scene, occ: Occ, r: &Receivers) -> Vec<f64> {
 /// (towards +x), of opacity `opacity`, under [`rect_light`]`(1, 3)`, with `n x n` receivers on
 /// it at in-plane coordinates `start + step k` (plus a small jitter off the texel grid): the
 /// scene, the receivers and each receiver's facing fraction (its exact V). The self-shadowing
-/// case of issue 16: at grazing angles a kernel's far texels of the receiver's own surface lie
+/// case: at grazing angles a kernel's far texels of the receiver's own surface lie
 /// nearer the light than the receiver.
 pub fn tilted_plane(
     deg: f32,
@@ -456,7 +456,7 @@ pub fn most_below(v: &[f32], facing: &[f32]) -> f32 {
         .fold(f32::NEG_INFINITY, f32::max)
 }
 
-/// Issue 16's check for an estimator with `self_shadow` modes (midpoint, bias): on the
+/// The grazing-plane check for an estimator with `self_shadow` modes (midpoint, bias): on the
 /// [`tilted_plane`] lit at 85 degrees, at the defaults (receiver-plane rejection on), V stays
 /// within 0.02 of the facing fraction in both modes. `make` builds the estimator with the given
 /// parameters; the classic test's shortfall (`receiver_plane=false`) is printed beside it.

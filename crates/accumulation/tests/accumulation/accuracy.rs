@@ -1,5 +1,5 @@
 //! The accumulation estimator against closed forms, the ray-traced reference and its limits
-//! (issue 6: half occluder, light radius -> 0, the hard cases, RMSE on the fixtures).
+//! (half occluder, light radius -> 0, the hard cases, RMSE on the fixtures).
 use accumulation::CpuAccumulation;
 use baselines::HardShadow;
 use glam::Vec3;
@@ -406,7 +406,7 @@ fn sphere_models_off_axis() {
     }
 }
 
-/// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal
+/// Receiver-plane rejection: an unoccluded plane lit at 85 degrees from its normal
 /// is never shadowed by its own samples at the defaults (and in every mode): every receiver keeps
 /// V >= facing - 0.02. Under `receiver_plane=false` the kernel's texels of the receiver's own
 /// surface beyond the slope bias's cap (tan 85 > 10) lie nearer the light and shadow it.
@@ -431,7 +431,7 @@ fn grazing_plane_is_not_self_shadowed() {
     }
 }
 
-/// The facing fix (issue 16): a receiver lit at a grazing angle (a disk light whose centre lies
+/// The facing fix: a receiver lit at a grazing angle (a disk light whose centre lies
 /// in the receivers' ground plane, so half of it is below their horizon: facing = 1/2) with an
 /// occluder hiding the upper part of the front half. From a ground receiver the occluder's lower
 /// edge (height 0.1, halfway to the light) hides the light above `y_e = 0.1 (3 - x) / (1.5 - x)`,
@@ -495,7 +495,7 @@ fn grazing_receiver_under_an_occluder_loses_the_front_light() {
 }
 
 /// A sphere light's window is capped at 4 radii (`fit_half_extent`): receivers far off its axis
-/// (here 63 to 77 degrees) need more, and their kernel is clipped at the map's edge (issue 21).
+/// (here 63 to 77 degrees) need more, and their kernel is clipped at the map's edge.
 /// They are counted (`beyond_sphere_window`), never silent. A second view fitted to them alone
 /// with the cap raised to 64 radii was tried and measured (RMSE against the reference, main
 /// window / wider window): far plate at 1.95 0.0956 / 0.0956, at 1.7 0.0286 / 0.0250, near

@@ -1,4 +1,4 @@
-//! Accumulation's engine path ([`accumulation::AccumulationFrame`], issue 20) through the
+//! Accumulation's engine path ([`accumulation::AccumulationFrame`]) through the
 //! conformance suite's [`frames_match_the_cpu_twin`]: depth peeling, the MSSM, the layout copies
 //! and the kernel recorded into the caller's command encoder three frames running, V read back
 //! once, against the CPU twin in the same view and on the frame's own maps, on a rect light

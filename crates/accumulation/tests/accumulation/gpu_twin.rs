@@ -462,7 +462,7 @@ fn every_fit_and_nearfar_match_on_both_twins() {
     }
 }
 
-/// Issue 16 on both twins: receivers whose tangent plane cuts the light (a disk light centred in
+/// On both twins, receivers whose tangent plane cuts the light (a disk light centred in
 /// their ground plane, a wall hiding the upper part of its front half; a rect light over a plane
 /// tilted 85 degrees), so the front clipping of the casters' images, the exact variant's bits
 /// behind the plane and the receiver-plane test all run; every variant and kernel, and

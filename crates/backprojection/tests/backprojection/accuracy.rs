@@ -289,7 +289,7 @@ fn midpoints_remove_acne() {
     assert!(fp >= 0.99, "receiver plane, bias=0: {fp}");
 }
 
-/// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal,
+/// Receiver-plane rejection: an unoccluded plane lit at 85 degrees from its normal,
 /// at the defaults, is never shadowed by its own samples: every receiver keeps V >= facing - 0.02
 /// (both `self_shadow` modes). Without the plane test (`receiver_plane=false`) the kernel's far
 /// texels of the receiver's own surface lie nearer the light than the receiver and shadow it.
@@ -361,7 +361,7 @@ fn hard_cases_stay_finite() {
 /// is the area of the square's projection inside the disk (`polygon_occluder_disk_visibility`).
 /// As for the rect light, the only error is the rasterised edge: moving one edge by the strip
 /// width S changes the occluded area by at most `S 2R`, so `|dV| <= step S 2R / (pi R^2)`, asserted
-/// with 1e-4 slack, and RMSE <= 0.02 (issue 18's bound for the closed-form disk scene).
+/// with 1e-4 slack, and RMSE <= 0.02 (the bound for the closed-form disk scene).
 #[test]
 fn disk_light_matches_the_closed_form() {
     let mut light = rect_light(1.0, 3.0);
@@ -370,8 +370,8 @@ fn disk_light_matches_the_closed_form() {
     let r = line_receivers();
     let o = test_support::fixtures::oracle_disk(&s, SQUARE, &r);
     for res in [256u32, 512] {
-        // Default occlusion (bitmask on this opaque scene), 4096 samples: RMSE <= 0.02 (issue
-        // 18). At max_nspp=121 the adaptive step's blocks give 0.025 (bitmask) and 0.025
+        // Default occlusion (bitmask on this opaque scene), 4096 samples: RMSE <= 0.02.
+        // At max_nspp=121 the adaptive step's blocks give 0.025 (bitmask) and 0.025
         // (additive) at r = 256.
         let kv = [("resolution", res.to_string()), ("max_nspp", "4096".into())];
         let kv: Vec<(&str, &str)> = kv.iter().map(|(k, v)| (*k, v.as_str())).collect();

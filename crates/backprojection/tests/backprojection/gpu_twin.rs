@@ -254,8 +254,8 @@ impl TwinPair for Backprojection {
     /// The fixed case through the CLI path, with the light space rendered on the GPU (the
     /// default) and with the CPU's uploaded: each within the tolerance of the CPU twin at every
     /// receiver, NaN at inactive ones, and some umbra or penumbra.
-    /// A kernel heavy enough to spend llvmpipe's loop budget (65535 iterations per invocation,
-    /// issue 21): up to 4096 samples per receiver (`max_nspp`) over 4 layers with 8 x 8
+    /// A kernel heavy enough to spend llvmpipe's loop budget (65535 iterations per invocation):
+    /// up to 4096 samples per receiver (`max_nspp`) over 4 layers with 8 x 8
     /// occlusion bits, on the stacked fixture at r = 1024. Flagged receivers are redone with the
     /// CPU twin: on the CPU's light-space data (`set_light_space_on_cpu`) V must equal the CPU
     /// twin's exactly on any device, and on the GPU-rendered maps no active receiver may be left
@@ -353,7 +353,7 @@ impl TwinPair for Backprojection {
     }
 }
 
-/// The GPU twin of `accuracy.rs`'s `grazing_plane_is_not_self_shadowed` (issue 16): an
+/// The GPU twin of `accuracy.rs`'s `grazing_plane_is_not_self_shadowed`: an
 /// unoccluded plane lit at 85 degrees from its normal, at the defaults (receiver-plane
 /// rejection on), keeps V >= facing - 0.02 at every receiver, with midpoints and with the bias.
 #[test]

@@ -630,7 +630,7 @@ fn stable_fit_keeps_v_with_filter_kernels_when_the_camera_pans() {
     }
 }
 
-/// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal
+/// Receiver-plane rejection: an unoccluded plane lit at 85 degrees from its normal
 /// (opaque: the shadow-map path; alpha 0.5: the lists) is never shadowed by its own fragments,
 /// at the defaults and with every filter: V >= facing - 0.02 everywhere (one sub-light, the
 /// light centre, in front of every receiver: V = 1). Under `receiver_plane=false` the 3 x 3 and
@@ -780,7 +780,7 @@ fn pcss_penumbra_widens_with_the_light() {
     assert!(widths.windows(2).all(|w| w[1] > w[0]), "{widths:?}");
 }
 
-/// EDSM and list truncation (issue 21): truncating right after the first element with
+/// EDSM and list truncation: truncating right after the first element with
 /// `tau <= epsilon` is exact for the hard lookups but not for EDSM's soft product, which weights a
 /// fragment just in front of the receiver lightly. On lists of coincident opaque fragments, a run
 /// of half-transparent ones and an opaque fragment followed by a dense run, the old rule (window
@@ -854,7 +854,7 @@ fn edsm_truncation_error_is_at_most_epsilon() {
     );
 }
 
-/// Receivers beyond the light view's reach (issue 21): deep-shadow used to give them T = 1 with
+/// Receivers beyond the light view's reach: deep-shadow used to give them T = 1 with
 /// only an `out_of_frustum` note, V = 1 behind a wall. Now one the scene's BVH proves unshadowed
 /// gets its facing fraction exactly (`settled_outside`), and one with geometry between it and
 /// the light fails the estimate with a one-line error naming the count.

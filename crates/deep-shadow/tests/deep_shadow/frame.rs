@@ -1,4 +1,4 @@
-//! Deep-shadow's engine path ([`deep_shadow::DeepShadowFrame`], issue 20) through the
+//! Deep-shadow's engine path ([`deep_shadow::DeepShadowFrame`]) through the
 //! conformance suite's [`frames_match_the_cpu_twin`]: the core's raster pass, the head copy, the
 //! per-receiver queries and lookups recorded into the caller's command encoder three frames
 //! running, V read back once, against the CPU twin in the same views, on a rect light (bunny),
@@ -49,7 +49,7 @@ fn deep_shadow_frames_match_the_cpu_twin() {
             // the CPU twin's the core's CPU raster (1/z in f64): PCSS's blocker average moves by
             // that rounding, and V with it, by up to a few 1e-4 in sharp penumbrae; a tap whose
             // depth ties the caster test moves V by its weight. Bounds: 1% of the receivers
-            // beyond 1e-4, RMSE a tenth of the issue's 2e-3.
+            // beyond 1e-4, RMSE a tenth of the engine path's 2e-3.
             assert!(
                 c.beyond * 100 <= c.active && c.rmse <= 2e-4,
                 "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",

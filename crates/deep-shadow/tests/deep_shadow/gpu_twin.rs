@@ -388,8 +388,8 @@ impl TwinPair for DeepShadow {
     /// Both estimators on the fixtures `hair`, `strands` and `bunny` through the CLI path, every
     /// filter mode: the same name, description and path, fragment counts within coverage ties,
     /// V within 1e-4 at 99.5% of the receivers.
-    /// Lists long enough to spend llvmpipe's loop budget (65535 iterations per invocation, issue
-    /// 21): 1500 stacked sheets of opacity 0.002 over a ground, no truncation (`epsilon=0`), so
+    /// Lists long enough to spend llvmpipe's loop budget (65535 iterations per invocation):
+    /// 1500 stacked sheets of opacity 0.002 over a ground, no truncation (`epsilon=0`), so
     /// every covered texel holds a list of 1500 elements, sorted by selection (past 64) in
     /// `process`, and the receivers on the ground under them walk whole lists at each of the
     /// 7 x 7 PCF taps (`traversal=naive`). Cut texels make the twin build that view's lists with
@@ -486,7 +486,7 @@ impl TwinPair for DeepShadow {
                     (fc - fg).abs() <= 2 + fc / 10_000,
                     "{name} {kv:?}: fragments {fc} vs {fg}"
                 );
-                // The truncation's notes (issue 21: the GPU twin used to drop them): elements
+                // The truncation's notes (the GPU twin used to drop them): elements
                 // kept and the longest list, up to the same ties.
                 let num = |r: &shadow_map_core::Report, key| -> i64 {
                     note(r, key).map_or(-1, |f| f.parse().unwrap())
@@ -595,7 +595,7 @@ fn every_fit_and_nearfar_match_on_both_estimators() {
 }
 
 /// The GPU twin settles or refuses receivers beyond the light view's reach as the CPU twin does
-/// (issue 21; `tests/cpu.rs` `receivers_beyond_the_view_are_settled_or_refused`).
+/// (`tests/cpu.rs` `receivers_beyond_the_view_are_settled_or_refused`).
 #[test]
 fn gpu_receivers_beyond_the_view_are_settled_or_refused() {
     let Some(ctx) = test_support::gpu("gpu_receivers_beyond_the_view_are_settled_or_refused")

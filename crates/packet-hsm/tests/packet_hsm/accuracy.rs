@@ -1,5 +1,5 @@
 //! The contour estimator against closed forms (docs/methods.md §10), the micropatch estimator on
-//! flat occluders, and the hard cases of issue 7.
+//! flat occluders, and the hard cases (touching occluders, the map border, stacked squares).
 use crate::common;
 use backprojection::CpuBackprojection;
 use baselines::HardShadow;
@@ -50,7 +50,7 @@ fn flat_occluder_matches_the_closed_form() {
 /// (`reference::oracle::polygon_occluder_disk_visibility`, via `oracle_disk`). As for the rect
 /// light the contour lies within half a texel strip `S / 2` of the true edge, and moving an edge
 /// by `S / 2` changes the occluded area of the disk by at most `S / 2 * 2R`: `|dV| <= S / (pi R)`,
-/// asserted with 1e-4 slack, and RMSE <= 0.02 (issue 18's bound). Packets and per pixel alike.
+/// asserted with 1e-4 slack, and RMSE <= 0.02. Packets and per pixel alike.
 #[test]
 fn disk_light_matches_the_closed_form() {
     let mut light = rect_light(1.0, 3.0);
@@ -379,7 +379,7 @@ fn bad_input() {
     assert!(e.estimate(&s, &line_receivers(), &mut v).is_err());
 }
 
-/// Receiver-plane rejection (issue 16): an unoccluded plane lit at 85 degrees from its normal,
+/// Receiver-plane rejection: an unoccluded plane lit at 85 degrees from its normal,
 /// at the defaults, is never shadowed by its own samples: every receiver keeps V >= facing - 0.02,
 /// with midpoints and with the bias. Without the plane test (`receiver_plane=false`) the
 /// kernel's texels of the receiver's own surface nearer the light shadow it.

@@ -1,4 +1,4 @@
-//! Packet-hsm's engine path ([`packet_hsm::PacketHsmFrame`], issue 20) through the conformance
+//! Packet-hsm's engine path ([`packet_hsm::PacketHsmFrame`]) through the conformance
 //! suite's [`frames_match_the_cpu_twin`]: the core's raster, midpoint and MSSM passes, the padded
 //! dual-grid MSSM, the per-receiver set-up and the kernel's `prepare` and `pixels` passes
 //! recorded into the caller's command encoder three frames running, V read back once, against
@@ -46,7 +46,7 @@ fn packet_hsm_frames_match_the_cpu_twin() {
             // Receivers the device's loop budget cuts short are left NaN and counted (the
             // caller redoes them; on lavapipe 15 to 23 of ~2580 at the defaults, 229 with the
             // flat traversal); the rest must agree: 1% beyond 1e-4 (hardware raster ties), RMSE
-            // a tenth of the issue's 2e-3. Under the sphere light half of it: its silhouette
+            // a tenth of the engine path's 2e-3. Under the sphere light half of it: its silhouette
             // kernels span more texels of the device-rastered maps (the set-up on the device is
             // bit for bit the CPU's: read back and compared while porting it; the twin path,
             // which uploads CPU-built maps, agrees to 1.5e-5). On lavapipe: 18 of 2570 beyond

@@ -362,7 +362,7 @@ fn every_fit_and_nearfar_match_on_both_twins() {
     }
 }
 
-/// The GPU twin of `accuracy.rs`'s `grazing_plane_is_not_self_shadowed` (issue 16): an
+/// The GPU twin of `accuracy.rs`'s `grazing_plane_is_not_self_shadowed`: an
 /// unoccluded plane lit at 85 degrees from its normal, at the defaults (receiver-plane
 /// rejection on), keeps V >= facing - 0.02 at every receiver, with midpoints and with the bias.
 #[test]

@@ -1,5 +1,5 @@
-//! Receivers from the caller's depth and normal textures (issue 20, "receivers from the caller's
-//! depth texture + normal texture + camera matrices"): a renderer that already has a depth
+//! Receivers from the caller's depth texture, normal texture and camera matrices: a renderer
+//! that already has a depth
 //! prepass and a normal target records [`GpuDepthReceivers::encode`] into its frame, then passes
 //! the receiver buffer it wrote to any estimator's `encode`
 //! ([`FrameInputs::receivers`](super::frame::FrameInputs)). One compute pass, no readback, no

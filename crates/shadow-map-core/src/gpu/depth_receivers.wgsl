@@ -1,4 +1,4 @@
-// Receivers from a caller's depth and normal textures (depth_receivers.rs, issue 20): one
+// Receivers from a caller's depth and normal textures (depth_receivers.rs): one
 // ReceiverGpu per pixel, receiver j * width + i for pixel (i, j), row 0 at the top. Appended
 // after shared.wgsl (ReceiverGpu).
 

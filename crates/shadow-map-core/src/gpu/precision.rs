@@ -244,7 +244,7 @@ fn code_buffer(ctx: &GpuContext, size: u32) -> wgpu::Buffer {
     })
 }
 
-/// 16-bit encoding on the engine path (issue 20): the codes of one f32 layer, recorded into the
+/// 16-bit encoding on the engine path: the codes of one f32 layer, recorded into the
 /// caller's command encoder after each raster of that layer. Allocated once: one code buffer
 /// (each encoding overwrites it, so a kernel reads it before the next raster into the layer)
 /// and one encoder uniform per view slot (a frame's `queue.write_buffer`s all land before its

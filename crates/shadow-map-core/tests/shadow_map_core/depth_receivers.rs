@@ -1,4 +1,4 @@
-//! Receivers from a caller's depth and normal textures (`gpu::depth_receivers`, issue 20) against
+//! Receivers from a caller's depth and normal textures (`gpu::depth_receivers`) against
 //! the CPU's ray-traced [`Receivers::from_camera`] on the bunny and on sun-street (camera depths
 //! from 0.5 m to 150 m), under both depth conventions and both normal encodings.
 //!

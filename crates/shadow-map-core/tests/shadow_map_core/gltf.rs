@@ -1,4 +1,4 @@
-//! glTF 2.0 meshes as the scene contract defines them (issue 22): the `.glb` bunny is the OBJ
+//! glTF 2.0 meshes as the scene contract defines them: the `.glb` bunny is the OBJ
 //! bunny, node transforms compose, `data:` and file buffers load, and every malformed file gets
 //! one line naming the file and what is wrong.
 use base64::Engine as _;

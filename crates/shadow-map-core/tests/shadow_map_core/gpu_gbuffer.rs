@@ -551,7 +551,7 @@ fn hit_mismatches(
 /// pixel (lavapipe, NVIDIA), so an edge moves by at most about that much.
 const HIT_MISMATCH_EDGE_PX: f32 = 1.0 / 64.0;
 
-/// No receiver is lost (issue 21): on every fixture at three sizes and on 96 scenes of thin
+/// No receiver is lost: on every fixture at three sizes and on 96 scenes of thin
 /// strands and star-shaped rods over a ground quad (the kind of the held-back scenes where a
 /// ground pixel came back as background), every pixel whose hit status differs lies within
 /// [`HIT_MISMATCH_EDGE_PX`] of an edge of the triangle seen, so a receiver the CPU sees in the

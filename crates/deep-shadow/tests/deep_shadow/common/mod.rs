@@ -38,7 +38,7 @@ pub fn grid(h: f32, y: f32, n: usize) -> Receivers {
     Receivers::from_points(pos.clone(), vec![Vec3::Y; pos.len()]).unwrap()
 }
 
-/// Beyond the light view's reach (issue 21): a 0.5 x 0.5 rect light at height 1 pointing down,
+/// Beyond the light view's reach: a 0.5 x 0.5 rect light at height 1 pointing down,
 /// a ground `[-100, 100]^2`, a semi-transparent sheet under the light and a wall (opacity 0.8)
 /// at x = 20, 2 high. Receivers: one under the light, and one on the ground 40 away, 88.6
 /// degrees off the light's axis (beyond `MAX_TAN`), on the wall's side (`walled`, shadowed) or
