@@ -2,7 +2,8 @@
 //! device and queue (here headless, as a renderer would before creating its surface), wraps them
 //! in a `GpuContext` without giving up ownership of anything else, and runs the PCSS and
 //! backprojection twins on it. Receivers come from the CPU here and V is read back; for receivers
-//! already resident in the user's GPU buffers, with V left there, see `examples/gpu_resident.rs`.
+//! already in the user's GPU buffers, with V left there, see the frame API in
+//! `examples/frame_loop.rs`.
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release --example gpu_own_device

@@ -471,7 +471,7 @@ impl GpuAccumulation {
     }
 }
 
-/// Accumulation on the engine path (issue 20): per frame, recorded into the caller's command
+/// Accumulation on the engine path: per frame, recorded into the caller's command
 /// encoder from the caller's casters and receiver buffer, V into the caller's buffer, with no
 /// submit, no wait and no readback ([`FrameEstimator`]).
 ///
@@ -523,6 +523,7 @@ impl AccumulationFrame {
             "accumulation",
             r,
             layers.layers(),
+            &[],
             &[],
             layers.min_max().mssm.as_ref(),
         )?;
@@ -613,7 +614,7 @@ impl FrameEstimator for AccumulationFrame {
         inputs.mark(enc, "start");
         self.layers.encode(queue, enc, inputs.casters, view, 0.0)?;
         inputs.mark(enc, "layers");
-        self.km.record(enc);
+        self.km.record(enc, false);
         inputs.mark(enc, "layout");
         let s = self.gpu.cpu.settings();
         let mssm = self.km.mssm_levels.map(|l| (l, self.km.mssm.size));

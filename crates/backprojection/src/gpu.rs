@@ -12,12 +12,10 @@
 //! **Estimate.** One compute dispatch per chunk of receivers (`backprojection.wgsl`, one
 //! invocation per receiver), modelled on the baselines' GPU twins (`baselines::gpu`).
 //!
-//! **Resident receivers.** Inside a user's renderer the receivers may already be in a GPU buffer
-//! (their G-buffer pass) and V may be wanted there too:
-//! [`GpuBackprojection::build_resident`] fits the light view to a world-space box holding the
-//! receivers ([`LightView::fit_bounds`]) and [`GpuBackprojection::estimate_resident`] runs the
-//! same dispatch on a [`GpuReceivers`] into the caller's V buffer, with no readback (the
-//! `gpu_resident` example of the workspace root).
+//! **Receivers on the GPU.** Inside a user's renderer the receivers are already in a GPU buffer
+//! (their G-buffer pass) and V is wanted there too: that is the engine path,
+//! [`BackprojectionFrame`] (the frame API), which records everything into the caller's command
+//! encoder and reads nothing back.
 //!
 //! The WGSL follows `cpu.rs` and [`crate::math`] step by step in f32. Known differences: the CPU
 //! sums the overlap areas in f64, the kernel in Kahan-compensated f32 (about 1e-7 of the light
@@ -41,16 +39,15 @@ use shadow_map_core::{
         light_space::GpuLightSpace,
         raster::{GpuLayersFrame, GpuScene, GpuShadowMapper},
         receivers::RECEIVERS_WGSL,
-        receivers::{GpuReceivers, RECEIVER_BYTES},
+        receivers::RECEIVER_BYTES,
         shared::{pack_receivers, LightViewUniform},
         GpuContext,
     },
     light_space::LightSpace,
-    light_view::{bounds_receivers, LightView},
-    scene::Aabb,
+    light_view::LightView,
     Error, Light, Receivers, Report, Result, Scene, SoftShadowEstimator, Warning,
 };
-use std::{num::NonZeroU64, sync::Arc, time::Instant};
+use std::{sync::Arc, time::Instant};
 
 /// The estimator's own WGSL (appended after the parts in [`SHADER_PARTS`]' head).
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
@@ -215,7 +212,7 @@ struct Dispatched {
 /// layers, up to 64 occlusion bits each). The kernel ends with the core's two-trip probe
 /// (`loop_limit_hit`): a cut receiver is written as `CUT_BITS` and counted, and
 /// [`GpuBackprojection`] redoes it with the CPU twin (`loop_limit_cpu_fallbacks` in the report);
-/// the resident and engine paths leave it NaN and count it in their counters / status.
+/// the engine path leaves it NaN and counts it in its status.
 pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 
 /// The GPU twin of [`CpuBackprojection`].
@@ -229,13 +226,9 @@ pub struct GpuBackprojection {
     light_space_on_cpu: bool,
     report: Report,
     chunk_cap: usize,
-    resident_counters: Option<wgpu::Buffer>,
     /// Whether the last `build` made the light-space data on the CPU (the loop-limit redo then
     /// reuses them).
     maps_on_cpu: bool,
-    /// Stages and notes of the report after the last build: each `estimate_resident` keeps
-    /// these and replaces the rest, so a report does not grow frame after frame.
-    built: (usize, usize),
 }
 
 const LABEL: &str = "backprojection estimate";
@@ -272,9 +265,7 @@ impl GpuBackprojection {
             light_space_on_cpu: false,
             report: Report::default(),
             chunk_cap: usize::MAX,
-            resident_counters: None,
             maps_on_cpu: false,
-            built: (0, 0),
         })
     }
 
@@ -317,6 +308,7 @@ impl GpuBackprojection {
             gls.view.r,
             &gls.layers,
             &gls.midpoints,
+            &[],
             gls.mssm.as_ref(),
         )?;
         ctx.scoped("backprojection layout", || {
@@ -325,7 +317,7 @@ impl GpuBackprojection {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("backprojection layout"),
                 });
-            km.record(&mut enc);
+            km.record(&mut enc, false);
             ctx.queue.submit([enc.finish()]);
         })?;
         Ok(DeviceMaps::laid_out(&km, gls.view))
@@ -333,8 +325,7 @@ impl GpuBackprojection {
 
     /// Caps the receivers of one dispatch at `receivers` (default: as many as the device's limits
     /// allow). Smaller dispatches bound the run time of each, e.g. under a display driver's
-    /// watchdog; V is the same for any cap. The resident path rounds the cap up to its chunk
-    /// alignment ([`estimate_resident`](Self::estimate_resident)). Errors: 0 ([`Error::Param`]).
+    /// watchdog; V is the same for any cap. Errors: 0 ([`Error::Param`]).
     pub fn set_max_chunk(&mut self, receivers: usize) -> Result<()> {
         if receivers == 0 {
             return Err(Error::param("max_chunk", "must be at least 1 receiver"));
@@ -634,163 +625,6 @@ impl GpuBackprojection {
             );
         }
     }
-
-    /// Builds the light-space data for receivers that stay on the GPU, known to the CPU only by
-    /// a world-space box `bounds` that holds every one of them (e.g. from the user's G-buffer
-    /// pass, or [`receiver_bounds`](shadow_map_core::light_view::receiver_bounds)): the light view
-    /// is fitted as [`build`](SoftShadowEstimator::build) fits it, over the box's 8 corners
-    /// ([`LightView::fit_bounds`]; conservative, so the window, and the texel pitch, are usually
-    /// larger than with the receivers themselves). The rest is `build`: rendered on the GPU (or on
-    /// the CPU after `set_light_space_on_cpu`), nothing read back.
-    ///
-    /// Errors: [`Error::Receivers`] for an inverted, empty or non-finite box,
-    /// [`Error::LightView`] for a box crossing the light plane or leaving the frustum (see
-    /// [`bounds_receivers`]), and `build`'s errors.
-    pub fn build_resident(&mut self, scene: &Scene, bounds: &Aabb) -> Result<()> {
-        let corners = bounds_receivers(scene, bounds, scene.light().frame())?;
-        self.build(scene, &corners)?;
-        self.report
-            .note("fit_bounds", format!("{}..{}", bounds.min, bounds.max));
-        self.built = (self.report.stages.len(), self.report.notes.len());
-        Ok(())
-    }
-
-    /// Estimates V for receivers already in a GPU buffer (`receivers`, e.g.
-    /// [`GpuReceivers::from_buffer`] around the user's own buffer of
-    /// [`ReceiverGpu`](shadow_map_core::gpu::shared::ReceiverGpu)) into the caller's `v_out`: a
-    /// `STORAGE` buffer of at least `receivers.count` f32 (V of receiver k at byte `4 k`; NaN for
-    /// inactive receivers, as every estimator writes). The work is submitted to the context's
-    /// queue and not waited for; nothing is read back, so the caller's later passes on the same
-    /// queue read V in order, and the caller reads it back only if and when they want to. The
-    /// counters the CPU path reports (receivers outside the light frustum, non-finite results
-    /// replaced by 0) stay on the GPU too: [`resident_counters`](Self::resident_counters).
-    ///
-    /// Light-space data come from [`build_resident`](Self::build_resident) (or
-    /// [`build`](SoftShadowEstimator::build)). Receivers beyond one storage binding are processed
-    /// in chunks ([`GpuReceivers::chunks`]) whose first receiver is a multiple of
-    /// `min_storage_buffer_offset_alignment / 4`, so both the receiver binding (32 bytes per
-    /// receiver) and the V binding (4 bytes) start on aligned offsets; a cap from
-    /// [`set_max_chunk`](Self::set_max_chunk) is rounded up to that multiple.
-    ///
-    /// Errors, never a panic: [`Error::Receivers`] when either buffer lacks the `STORAGE` usage or
-    /// is too small, [`Error::Param`] before a build or for a non-rect light, [`Error::Gpu`] for
-    /// what wgpu's validation refuses (e.g. buffers of another device, or `v_out` being the
-    /// receiver buffer). The report keeps the build's part and replaces the rest with this call's:
-    /// an `estimate` stage of the encoding and submission (not of the GPU's work, which is not
-    /// waited for) and notes.
-    pub fn estimate_resident(
-        &mut self,
-        scene: &Scene,
-        receivers: &GpuReceivers,
-        v_out: &wgpu::Buffer,
-    ) -> Result<()> {
-        let light = scene.light();
-        let count = receivers.count as u64;
-        if !receivers
-            .buffer
-            .usage()
-            .contains(wgpu::BufferUsages::STORAGE)
-        {
-            return Err(Error::Receivers(
-                "the receiver buffer needs the STORAGE usage".into(),
-            ));
-        }
-        if receivers.buffer.size() < count * RECEIVER_BYTES {
-            return Err(Error::Receivers(format!(
-                "receiver buffer of {} bytes is too small for {count} receivers ({} bytes)",
-                receivers.buffer.size(),
-                count * RECEIVER_BYTES
-            )));
-        }
-        if !v_out.usage().contains(wgpu::BufferUsages::STORAGE) {
-            return Err(Error::Receivers(
-                "the V output buffer needs the STORAGE usage".into(),
-            ));
-        }
-        if v_out.size() < count * 4 {
-            return Err(Error::Receivers(format!(
-                "V output buffer of {} bytes is too small for {count} receivers ({} bytes, one \
-                 f32 each)",
-                v_out.size(),
-                count * 4
-            )));
-        }
-        let maps = self.maps.take().ok_or_else(|| {
-            Error::param(
-                "build",
-                "estimate_resident called before build_resident (or build)",
-            )
-        })?;
-        let out = self.estimate_resident_maps(&maps, light, receivers, v_out);
-        self.maps = Some(maps);
-        out
-    }
-
-    fn estimate_resident_maps(
-        &mut self,
-        maps: &DeviceMaps,
-        light: &Light,
-        receivers: &GpuReceivers,
-        v_out: &wgpu::Buffer,
-    ) -> Result<()> {
-        let ctx = self.ctx.clone();
-        let ctx = &*ctx;
-        let t = Instant::now();
-        self.report.stages.truncate(self.built.0);
-        self.report.notes.truncate(self.built.1);
-        let (eu, bpu, table) = self.uniforms(maps, light);
-        let counters = ctx.scoped(LABEL, || counters_buffer(ctx))?;
-        if receivers.count > 0 {
-            let align = ctx.limits().min_storage_buffer_offset_alignment.max(4);
-            let max_bytes = max_chunk(ctx, WORKGROUP_SIZE, self.chunk_cap) as u64 * RECEIVER_BYTES;
-            // Offsets of receivers (32 bytes) aligned to 8 x align: the V offsets (4 bytes per
-            // receiver) are then aligned to align.
-            let ranges = receivers.chunks(max_bytes, align.saturating_mul(8));
-            let mut chunks = Vec::with_capacity(ranges.len());
-            for range in ranges {
-                let v_offset = range.start as u64 * 4;
-                if !v_offset.is_multiple_of(align as u64) {
-                    return Err(Error::Limit {
-                        what: "V binding offset (min_storage_buffer_offset_alignment)",
-                        requested: v_offset,
-                        max: align as u64,
-                    });
-                }
-                let len = range.end - range.start;
-                chunks.push(KernelChunk {
-                    receivers: receivers.binding(range),
-                    v: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: v_out,
-                        offset: v_offset,
-                        size: NonZeroU64::new(len.max(1) as u64 * 4),
-                    }),
-                    len,
-                });
-            }
-            self.submit_kernel(maps, &eu, &bpu, &table, &chunks, &counters)?;
-        }
-        self.resident_counters = Some(counters);
-        self.report
-            .stages
-            .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
-        self.note_estimate(maps);
-        self.report.note("window_scale", maps.window_scale);
-        self.report.note(
-            "resident",
-            "V left in the caller's buffer, not read back; counters (out_of_frustum, \
-             nonfinite_replaced) left on the GPU in resident_counters()",
-        );
-        Ok(())
-    }
-
-    /// The counters of the last [`estimate_resident`](Self::estimate_resident), left on the GPU
-    /// for the caller to read when they want (e.g. [`GpuContext::read_buffer`]): three `u32`,
-    /// receivers outside the light frustum, non-finite results replaced by 0, and receivers the
-    /// loop budget cut short, left as NaN in the caller's V ([`LOOP_LIMIT`]) (usages
-    /// `STORAGE | COPY_SRC`). `None` before the first call.
-    pub fn resident_counters(&self) -> Option<&wgpu::Buffer> {
-        self.resident_counters.as_ref()
-    }
 }
 
 /// The kernel's four uniforms: the light view, the estimate uniform, [`BpUniform`], the
@@ -820,7 +654,7 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
         })
 }
 
-/// Backprojection on the engine path (issue 20): per frame, recorded into the caller's command
+/// Backprojection on the engine path: per frame, recorded into the caller's command
 /// encoder from the caller's casters and receiver buffer, V into the caller's buffer, with no
 /// submit, no wait and no readback.
 ///
@@ -840,14 +674,22 @@ fn counters_buffer(ctx: &GpuContext) -> wgpu::Buffer {
 /// copies into the kernel's texture arrays, and the kernel over `count` receivers in one
 /// dispatch. The kernel's counters (receivers outside the light frustum, non-finite results
 /// replaced by 0, receivers cut short by the loop budget and left NaN, [`LOOP_LIMIT`]) go to
-/// [`FrameEstimator::status`]. Every caster is opaque on this path (a
-/// [`GpuScene`] holds no opacity; semi-transparent scenes take [`GpuBackprojection`]'s `build`).
-/// The light view is the caller's: [`FrameEstimator::fit_views`] fits one on the CPU as `build`
+/// [`FrameEstimator::status`]. Semi-transparent casters (a [`GpuScene`] whose casters are not all
+/// opaque) are modelled as on the CPU: the peeling passes also write each layer's opacity
+/// plane (the opacity of the caster each texel's depth came from), the layout copies them after
+/// the midpoints, and the kernel weights each backprojected micropatch by the opacity of its
+/// layers in front of the receiver with `auto` settings resolved as for a semi-transparent
+/// scene (additive occlusion, the deepest layer, no gap filling); an opaque frame writes and
+/// copies no opacity plane (the planes are allocated at `prepare`, one per depth layer). The
+/// light view is the caller's: [`FrameEstimator::fit_views`] fits one on the CPU as `build`
 /// does.
 pub struct BackprojectionFrame {
     gpu: GpuBackprojection,
     layers: GpuLayersFrame,
+    /// The laid-out maps as the kernel reads them for opaque casters.
     maps: DeviceMaps,
+    /// The same, with the opacity planes read (semi-transparent casters).
+    maps_semi: DeviceMaps,
     km: KernelMaps,
     bufs: KernelUniforms,
     status: wgpu::Buffer,
@@ -870,7 +712,7 @@ impl BackprojectionFrame {
             dual_mssm_levels: None,
             pyramid: false,
             raster: shadow_map_core::RasterOptions::default(),
-            opacity: false,
+            opacity: true,
         };
         let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
         let km = gpu.layout.prepare(
@@ -879,9 +721,14 @@ impl BackprojectionFrame {
             r,
             layers.layers(),
             layers.midpoints(),
+            layers.opacity(),
             layers.min_max().mssm.as_ref(),
         )?;
         let maps = DeviceMaps::laid_out(&km, LightView::placeholder(r));
+        let maps_semi = DeviceMaps {
+            opacity: true,
+            ..DeviceMaps::laid_out(&km, LightView::placeholder(r))
+        };
         let uniform = |label, size: usize| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -901,10 +748,20 @@ impl BackprojectionFrame {
             gpu,
             layers,
             maps,
+            maps_semi,
             km,
             bufs,
             status,
         })
+    }
+}
+
+impl BackprojectionFrame {
+    /// The maps the last submitted frame rendered, in `view` (the frame's), opacity planes
+    /// included for semi-transparent casters: what a test reads back
+    /// ([`GpuLightSpace::to_cpu`]) to run the CPU twin on the very maps the kernel read.
+    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
+        self.layers.light_space(view)
     }
 }
 
@@ -925,12 +782,20 @@ impl FrameEstimator for BackprojectionFrame {
         Some(&self.status)
     }
 
-    /// Semi-transparent scenes: the frame's casters are opaque, the twin models opacity.
-    fn refuses(&self, scene: &Scene) -> Option<String> {
-        shadow_map_core::gpu::frame::refuse_semi_transparent(scene)
+    /// Opacity planes per layer (see [`BackprojectionFrame`]).
+    fn models_opacity(&self) -> bool {
+        true
     }
 
-    /// The layers, midpoints and MSSM rendered in the one view, laid out, then the kernel.
+    /// `occlusion=bitmask` on a semi-transparent scene: the bits carry no opacity.
+    fn scene_warnings(&self, scene: &Scene) -> Vec<shadow_map_core::Warning> {
+        let mut report = Report::default();
+        crate::cpu::warn_bitmask_opacity(&mut report, self.gpu.cpu.settings(), scene);
+        report.warnings
+    }
+
+    /// The layers (with their opacity for semi-transparent casters), midpoints and MSSM
+    /// rendered in the one view, laid out, then the kernel.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
@@ -943,9 +808,11 @@ impl FrameEstimator for BackprojectionFrame {
         self.layers
             .encode(queue, enc, inputs.casters, view, clamp)?;
         inputs.mark(enc, "layers");
-        self.km.record(enc);
+        let semi = !inputs.casters.is_opaque();
+        self.km.record(enc, semi);
         inputs.mark(enc, "layout");
-        let (eu, bpu, table) = self.gpu.uniforms(&self.maps, inputs.light);
+        let maps = if semi { &self.maps_semi } else { &self.maps };
+        let (eu, bpu, table) = self.gpu.uniforms(maps, inputs.light);
         queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
         queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
         queue.write_buffer(&self.bufs.bits, 0, bytemuck::bytes_of(&table));
@@ -956,7 +823,7 @@ impl FrameEstimator for BackprojectionFrame {
             len: inputs.count,
         };
         self.gpu
-            .encode_kernel(enc, &self.bufs, &self.maps, &[chunk], &self.status);
+            .encode_kernel(enc, &self.bufs, maps, &[chunk], &self.status);
         inputs.mark(enc, "estimate");
         Ok(())
     }
@@ -1024,7 +891,6 @@ impl SoftShadowEstimator for GpuBackprojection {
         };
         self.report.light_space_bytes = maps.bytes();
         self.maps = Some(maps);
-        self.built = (self.report.stages.len(), self.report.notes.len());
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {

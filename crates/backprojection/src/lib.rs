@@ -15,7 +15,8 @@ pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{resolution_sweep, setting, MethodDescriptor, Setting};
 
-/// Backprojection in the registry: `backprojection`, its CPU twin, GPU twin and engine path.
+/// Backprojection in the registry: `backprojection`, its CPU twin and its engine path, which
+/// is also its GPU estimator (the core's `FrameTwin`).
 pub const DESCRIPTOR: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "backprojection",
@@ -23,9 +24,7 @@ pub const DESCRIPTOR: MethodDescriptor = {
         sweep,
     );
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuBackprojection::new(ctx)?)))
-        .with_frame(|ctx, params, _| Ok(Box::new(BackprojectionFrame::prepare(ctx, params)?)));
+    let d = d.with_frame(|ctx, params, _| Ok(Box::new(BackprojectionFrame::prepare(ctx, params)?)));
     d
 };
 

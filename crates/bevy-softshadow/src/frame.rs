@@ -1,5 +1,5 @@
 //! The per-view pass (a `Core3d` system after the prepass, before the main pass): the frame API
-//! (issue 20) recorded into Bevy's command encoder for each camera with a depth and a normal
+//! recorded into Bevy's command encoder for each camera with a depth and a normal
 //! prepass. Per frame it records, in order:
 //! 1. receivers from the view's prepass ([`GpuDepthReceivers`]: Bevy's reverse-Z `Depth32Float`
 //!    depth and `Rgb10a2Unorm` world-space normals);
@@ -590,6 +590,7 @@ fn caster_mesh<'a>(
         first_index,
         index_count,
         base_vertex,
+        opacity: 1.0,
     }))
 }
 

@@ -546,9 +546,9 @@ enum Engine {
 /// disagree (silhouette pixels), the ray-cast one decides: V is NaN where it sees background, and
 /// active receivers the frame leaves NaN (the rasterised pixel missed, the device's loop budget
 /// cut it, or accumulation's frustum left it lit) are redone by the CPU twin in the same views
-/// (`frame_cpu_redo` in the notes). Every other case (a scene with semi-transparent meshes among
-/// them: the frame API's casters are opaque) ray casts the receivers ([`camera_receivers`])
-/// and leaves the estimator to its twin path.
+/// (`frame_cpu_redo` in the notes). Every other case (among them a semi-transparent scene for a
+/// frame that casts every caster opaque, `FrameEstimator::models_opacity`) ray casts the
+/// receivers ([`camera_receivers`]) and leaves the estimator to its twin path.
 #[cfg_attr(not(feature = "gpu"), allow(unused_variables))]
 fn engine_frame(
     scene: &Scene,
@@ -556,10 +556,7 @@ fn engine_frame(
 ) -> shadow_map_core::Result<Engine> {
     let t = Instant::now();
     #[cfg(feature = "gpu")]
-    if est.backend() == Backend::Gpu
-        && softshadow::FRAME_ALGOS.contains(&est.name())
-        && scene.is_opaque()
-    {
+    if est.backend() == Backend::Gpu && softshadow::FRAME_ALGOS.contains(&est.name()) {
         use shadow_map_core::gpu::{frame::FrameInputs, raster::GpuScene, GpuContext, GpuGBuffer};
         let ctx = GpuContext::shared()?;
         let casters = GpuScene::upload(&ctx, scene)?;
@@ -578,11 +575,12 @@ fn engine_frame(
             return Ok(Engine::Twin(receivers, gbuffer_ms));
         };
         // A light or setting the engine path does not model (packet-hsm: sphere lights,
-        // sub-lights): the twin path.
-        if frame.refuses(scene).is_some() {
+        // sub-lights), or semi-transparent casters a frame would cast opaque: the twin path.
+        if frame.refuses(scene).is_some() || !(scene.is_opaque() || frame.models_opacity()) {
             return Ok(Engine::Twin(receivers, gbuffer_ms));
         }
         let mut report = shadow_map_core::Report::default();
+        report.warn_all(frame.scene_warnings(scene));
         report.stages.push(("gbuffer".into(), gbuffer_ms));
         let t = Instant::now();
         let views = frame.fit_views(scene, &receivers)?;
@@ -612,38 +610,17 @@ fn engine_frame(
         let t = Instant::now();
         let mut v: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n as u64)?;
         report.stages.push(("frame".into(), ms(t)));
-        // Background where the ray-cast G-buffer sees none (a rasterised silhouette pixel).
-        for (x, &a) in v.iter_mut().zip(receivers.active()) {
-            if !a {
-                *x = f32::NAN;
-            }
-        }
-        if let Some(status) = frame.read_status(&ctx)? {
-            report.note("frame_status", format!("{status:?}"));
-            // Receivers left NaN are redone below: no loss here.
-            report.warn_all(
-                status
-                    .warnings()
-                    .into_iter()
-                    .filter(|w| !matches!(w, shadow_map_core::Warning::FrameLeftNan { .. })),
-            );
-        }
-        let redo: Vec<usize> = (0..n)
-            .filter(|&k| receivers.active()[k] && !v[k].is_finite())
-            .collect();
-        if !redo.is_empty() {
-            let t = Instant::now();
-            let sub = Receivers::from_points(
-                redo.iter().map(|&k| receivers.position()[k]).collect(),
-                redo.iter().map(|&k| receivers.normal()[k]).collect(),
-            )?;
-            let vs = frame.cpu_twin(scene, &sub, &views)?;
-            for (&k, x) in redo.iter().zip(vs) {
-                v[k] = x;
-            }
-            report.stages.push(("frame: CPU redo".into(), ms(t)));
-            report.note("frame_cpu_redo", redo.len());
-        }
+        // Background where the ray-cast G-buffer sees none (a rasterised silhouette pixel);
+        // active receivers the frame left NaN redone by its CPU twin.
+        shadow_map_core::gpu::frame::finish_on_cpu(
+            &*frame,
+            &ctx,
+            scene,
+            &receivers,
+            &views,
+            &mut v,
+            &mut report,
+        )?;
         report.note(
             "engine_path",
             "frame API: one encode into one command encoder, one submit, only V read back (views, Z and background from the ray-cast G-buffer)",

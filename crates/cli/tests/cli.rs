@@ -296,7 +296,8 @@ fn render_gpu_takes_the_frame_api() {
     }
     let dir = tempfile::tempdir().unwrap();
     let squares = fixture("parallel-squares/parallel-squares.toml");
-    // Semi-transparent strands: the frame API's casters are opaque, so the twin's path.
+    // Semi-transparent strands: backprojection's frame models the casters' opacity; deep-shadow's
+    // casts them opaque, so its twin's path; hard's frame twin casts them opaque and warns.
     let strands = fixture("strands/strands.toml");
     // A sphere light: packet-hsm's engine path sets its silhouette up on the device; sub-lights
     // it refuses (FrameEstimator::refuses): the twin's path.
@@ -313,7 +314,7 @@ fn render_gpu_takes_the_frame_api() {
         FrameTwin,
         Twin,
     }
-    let cases: [(&str, &[&str], Path, &std::path::Path); 13] = [
+    let cases: [(&str, &[&str], Path, &std::path::Path); 14] = [
         ("pcss", &["resolution=256"], Path::Frame, &squares),
         // 16-bit maps: encoded within the frame (the engine path used to refuse them).
         (
@@ -336,7 +337,8 @@ fn render_gpu_takes_the_frame_api() {
             Path::FrameTwin,
             &squares,
         ),
-        ("backprojection", &["resolution=256"], Path::Twin, &strands),
+        ("backprojection", &["resolution=256"], Path::Frame, &strands),
+        ("backprojection", &["resolution=256"], Path::Frame, &hair),
         ("deep-shadow", &["resolution=256"], Path::Twin, &strands),
         ("hard", &["resolution=256"], Path::FrameTwin, &strands),
         ("hard", &["resolution=256"], Path::FrameTwin, &hair),
@@ -422,7 +424,7 @@ fn read_vz(path: &Path) -> (Vec<f32>, Vec<f32>) {
     (get("V"), get("Z"))
 }
 
-/// The `.glb` bunny renders the V of the OBJ bunny (issue 22: max |dV| <= 1e-5) on both
+/// The `.glb` bunny renders the V of the OBJ bunny (max |dV| <= 1e-5) on both
 /// backends, through the engine path (backprojection on the GPU) and the twin path alike.
 #[test]
 fn glb_bunny_renders_the_obj_bunny() {

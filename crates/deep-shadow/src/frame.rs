@@ -1,4 +1,4 @@
-//! Deep shadow maps on the engine path (issue 20): [`DeepShadowFrame`], prepared once, then each
+//! Deep shadow maps on the engine path: [`DeepShadowFrame`], prepared once, then each
 //! frame recorded into the caller's command encoder from the caller's casters and receiver buffer,
 //! V written into the caller's buffer; nothing submitted, waited for or read back.
 //!
@@ -397,11 +397,6 @@ impl FrameEstimator for DeepShadowFrame {
         );
         inputs.mark(enc, "finish");
         Ok(())
-    }
-
-    /// One per sub-light.
-    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
-        views.iter().flatten().count() as u32
     }
 
     /// The CPU twin in the same views, on the scene with every mesh opaque (the casters the

@@ -1,4 +1,4 @@
-//! Packet-hsm on the engine path (issue 20): [`PacketHsmFrame`], prepared once, then each frame
+//! Packet-hsm on the engine path: [`PacketHsmFrame`], prepared once, then each frame
 //! recorded into the caller's command encoder from the caller's casters and receiver buffer, V
 //! written into the caller's buffer; nothing submitted, waited for or read back.
 //!
@@ -551,11 +551,6 @@ impl FrameEstimator for PacketHsmFrame {
         run(enc, "packet-hsm frame finish", &self.finish_pipe, &group, n);
         inputs.mark(enc, "finish");
         Ok(())
-    }
-
-    /// One: the casters are drawn once per frame.
-    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
-        views.iter().flatten().count() as u32
     }
 
     /// The CPU twin's per-pixel path in the same view, on the scene with every mesh opaque: each

@@ -1,5 +1,4 @@
 //! backprojection's integration tests, linked as one binary (one module per former test binary).
 mod accuracy;
 mod frame;
-mod gpu_resident;
 mod gpu_twin;

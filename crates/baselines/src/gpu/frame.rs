@@ -1,5 +1,5 @@
 //! The engine path ([`FrameEstimator`]) of hard, PCF, PCSS ([`MapFrame`]) and multi-sample
-//! ([`MultiSampleFrame`]) (issue 20): shadow maps and their filter recorded every frame into the
+//! ([`MultiSampleFrame`]): shadow maps and their filter recorded every frame into the
 //! caller's command encoder, from the caller's casters and receiver buffer, V written into the
 //! caller's buffer. Nothing is submitted, nothing waits, nothing is read back: the loop-budget
 //! and frustum counters go to a status buffer the caller may read when it likes
@@ -413,10 +413,6 @@ impl FrameEstimator for MultiSampleFrame {
         drop(pass);
         inputs.mark(enc, "finalize");
         Ok(())
-    }
-    /// One per sub-light with a view.
-    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
-        views.iter().flatten().count() as u32
     }
 
     fn cpu_twin(

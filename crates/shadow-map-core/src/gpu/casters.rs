@@ -1,10 +1,11 @@
-//! Casters from the caller's own vertex and index buffers with per-instance transforms (issue
-//! 20, "`GpuCasters`"): a renderer keeps its meshes where they are and, each frame, records
+//! Casters from the caller's own vertex and index buffers with per-instance transforms: a
+//! renderer keeps its meshes where they are and, each frame, records
 //! [`GpuCasterBuilder::encode`], which writes the world-space triangles of every instance into a
-//! [`GpuScene`] (three `vec4` positions per triangle, the layout every raster pass of the frame
-//! API reads). One compute dispatch per mesh, no readback; the CPU work is per mesh and per
-//! instance (a uniform and a transform each), never per triangle. Uploading a [`crate::Scene`]
-//! with [`GpuScene::upload`] is the other way to make casters.
+//! [`GpuScene`] (three `vec4` per triangle, the position and the mesh's
+//! [`CasterMesh::opacity`]: the layout every raster pass of the frame API reads). One compute
+//! dispatch per mesh, no readback; the CPU work is per mesh and per instance (a uniform and a
+//! transform each), never per triangle. Uploading a [`crate::Scene`] with [`GpuScene::upload`]
+//! is the other way to make casters.
 //!
 //! The caller's buffers need `STORAGE` usage (the pass reads them as `array<u32>`). Positions are
 //! three `f32` at `position_offset` bytes into each `vertex_stride`-byte vertex; indices `u16` or
@@ -54,6 +55,9 @@ pub struct CasterMesh<'a> {
     pub index_count: u32,
     /// Added to every index.
     pub base_vertex: i32,
+    /// The mesh's opacity in [0, 1] (1: opaque), written into each of its triangles (the
+    /// caster buffer's w) for the frames that model semi-transparent casters.
+    pub opacity: f32,
 }
 
 /// One instance: a mesh (an index into the meshes passed with it) and its model-to-world
@@ -88,8 +92,10 @@ pub struct CasterParams {
     pub instances: u32,
     /// Invocations per row of the 2D dispatch.
     pub row: u32,
+    /// The mesh's opacity, written as each output vertex's w.
+    pub opacity: f32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 
 /// The pass, prepared once for at most `max_meshes` meshes and `max_instances` instances per
@@ -252,6 +258,10 @@ impl GpuCasterBuilder {
         for inst in instances {
             by_mesh[inst.mesh].push(inst.transform.to_cols_array());
         }
+        out.semi_transparent = meshes
+            .iter()
+            .zip(&by_mesh)
+            .any(|(m, mats)| m.opacity < 1.0 && !mats.is_empty() && m.index_count >= 3);
         let mut slot = 0u64; // next transform slot
         let mut first = 0u32; // next output triangle
         for (k, (m, mats)) in meshes.iter().zip(&by_mesh).enumerate() {
@@ -278,7 +288,8 @@ impl GpuCasterBuilder {
                 out_first_triangle: first,
                 instances: mats.len() as u32,
                 row: gx * WG,
-                _pad: [0; 3],
+                opacity: m.opacity,
+                _pad: [0; 2],
             };
             let p_off = self.params_stride * k as u64;
             ctx.queue
@@ -345,6 +356,9 @@ fn check_mesh(k: usize, m: &CasterMesh<'_>) -> Result<()> {
             m.position_offset, m.vertex_stride
         ));
     }
+    if !(0.0..=1.0).contains(&m.opacity) {
+        return bad(format!("opacity {} is not in [0, 1]", m.opacity));
+    }
     if !m.index_count.is_multiple_of(3) {
         return bad(format!("{} indices are not whole triangles", m.index_count));
     }
@@ -402,9 +416,10 @@ mod tests {
                 index_kind,
                 out_first_triangle,
                 instances,
-                row
+                row,
+                opacity
             },
-            pad _pad: 3
+            pad _pad: 2
         );
     }
 }

@@ -1,6 +1,6 @@
-// Casters from a caller's vertex and index buffers with per-instance transforms (casters.rs,
-// issue 20): one invocation per output triangle, written as the GpuScene layout every raster pass
-// reads (three vec4 positions per triangle, w = 1, non-indexed).
+// Casters from a caller's vertex and index buffers with per-instance transforms (casters.rs):
+// one invocation per output triangle, written as the GpuScene layout every raster pass
+// reads (three vec4 per triangle, non-indexed: the position, and the mesh's opacity in w).
 
 // Mirrors casters.rs CasterParams (checked by naga there).
 struct CasterParams {
@@ -20,9 +20,10 @@ struct CasterParams {
     instances: u32,
     // Invocations per row of the 2D dispatch (workgroups in x times the workgroup size).
     row: u32,
+    // The mesh's opacity, each output vertex's w.
+    opacity: f32,
     _pad0: u32,
     _pad1: u32,
-    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> P: CasterParams;
@@ -65,6 +66,6 @@ fn build_casters(@builtin(global_invocation_id) gid: vec3<u32>) {
         );
         // An affine transform (the last row is not applied).
         let w = m * vec4<f32>(p, 1.0);
-        out_vertices[3u * (P.out_first_triangle + t) + c] = vec4<f32>(w.xyz, 1.0);
+        out_vertices[3u * (P.out_first_triangle + t) + c] = vec4<f32>(w.xyz, P.opacity);
     }
 }

@@ -1,4 +1,4 @@
-//! What every estimator's engine path shares (issue 20): the trait each estimator's frame type
+//! What every estimator's engine path shares: the trait each estimator's frame type
 //! implements ([`FrameEstimator`]), the inputs of one frame, all the caller's
 //! ([`FrameInputs`]), the checks made before anything is recorded ([`check_buffers`]), and the
 //! status buffer that replaces a readback ([`status_buffer`]).
@@ -13,7 +13,7 @@
 //! }
 //! ```
 use super::{estimate::WORKGROUP_SIZE, receivers::RECEIVER_BYTES, GpuContext, GpuScene};
-use crate::{light_view::LightView, Error, Light, Receivers, Result, Scene, Warning};
+use crate::{light_view::LightView, Error, Light, Receivers, Report, Result, Scene, Warning};
 use std::num::NonZeroU64;
 
 /// An estimator's engine path: prepared once, then [`encode`](Self::encode) records each frame
@@ -74,14 +74,33 @@ pub trait FrameEstimator: Send + Sync {
     }
 
     /// Render passes over the casters one frame records in `views` (peeled layers, sub-lights):
-    /// what a frame's raster work is, in units of the casters' triangles.
-    fn caster_passes(&self, views: &[Option<LightView>]) -> u32;
+    /// what a frame's raster work is, in units of the casters' triangles. The default: one per
+    /// view present.
+    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
+        views.iter().flatten().count() as u32
+    }
 
     /// Why this engine path does not take `scene` (a light or a setting it does not model), for
     /// the caller to use the estimator's twin instead; `None` (the default) when it does.
     /// [`encode`](Self::encode) fails with the same reason.
     fn refuses(&self, _scene: &Scene) -> Option<String> {
         None
+    }
+
+    /// Whether the frame models semi-transparent casters (each caster's opacity, the caster
+    /// buffer's w): `false` (the default) when it casts every caster opaque.
+    fn models_opacity(&self) -> bool {
+        false
+    }
+
+    /// The warnings a frame of `scene` owes its caller before it runs (what it models less
+    /// than the scene asks): by default [`Warning::OpaqueCasters`] for a semi-transparent scene
+    /// when the frame casts every caster opaque ([`models_opacity`](Self::models_opacity)).
+    fn scene_warnings(&self, scene: &Scene) -> Vec<Warning> {
+        if self.models_opacity() {
+            return Vec::new();
+        }
+        Warning::opaque_casters(scene).into_iter().collect()
     }
 
     /// The CPU twin's V for `receivers` in the same `views` (what the conformance check and
@@ -127,9 +146,9 @@ impl FrameStatus {
     }
 }
 
-/// The refusal of an engine path whose estimator models opacity on its twin path
-/// ([`FrameEstimator::refuses`]): a frame's casters are positions only, so semi-transparent
-/// meshes would cast opaque shadows there; `None` for an opaque scene.
+/// The refusal of an engine path whose frame casts every caster opaque while its estimator
+/// models opacity on its twin path ([`FrameEstimator::refuses`]): semi-transparent meshes would
+/// cast opaque shadows there; `None` for an opaque scene.
 pub fn refuse_semi_transparent(scene: &Scene) -> Option<String> {
     let n = scene.semi_transparent_meshes();
     (n > 0).then(|| {
@@ -137,6 +156,56 @@ pub fn refuse_semi_transparent(scene: &Scene) -> Option<String> {
             "{n} semi-transparent meshes: the engine path's casters are opaque; the estimator's twin path models opacity"
         )
     })
+}
+
+/// What a caller that reads a frame's V back does with it, as `softshadow render` and
+/// [`FrameTwin`](super::frame_twin::FrameTwin) do: V of the inactive receivers set to NaN; the
+/// frame's status (a readback) noted as `frame_status` and its warnings added to `report`, but
+/// for [`Warning::FrameLeftNan`]: the active receivers left non-finite (a loop-budget cut, a
+/// rasterised miss) are redone here by the frame's CPU twin in the same `views` (the stage
+/// `frame: CPU redo`, the note `frame_cpu_redo`), so none is lost.
+pub fn finish_on_cpu(
+    frame: &dyn FrameEstimator,
+    ctx: &GpuContext,
+    scene: &Scene,
+    receivers: &Receivers,
+    views: &[Option<LightView>],
+    v: &mut [f32],
+    report: &mut Report,
+) -> Result<()> {
+    for (x, &a) in v.iter_mut().zip(receivers.active()) {
+        if !a {
+            *x = f32::NAN;
+        }
+    }
+    if let Some(status) = frame.read_status(ctx)? {
+        report.note("frame_status", format!("{status:?}"));
+        report.warn_all(
+            status
+                .warnings()
+                .into_iter()
+                .filter(|w| !matches!(w, Warning::FrameLeftNan { .. })),
+        );
+    }
+    let redo: Vec<usize> = (0..v.len().min(receivers.len()))
+        .filter(|&k| receivers.active()[k] && !v[k].is_finite())
+        .collect();
+    if !redo.is_empty() {
+        let t = std::time::Instant::now();
+        let sub = Receivers::from_points(
+            redo.iter().map(|&k| receivers.position()[k]).collect(),
+            redo.iter().map(|&k| receivers.normal()[k]).collect(),
+        )?;
+        let vs = frame.cpu_twin(scene, &sub, views)?;
+        for (&k, x) in redo.iter().zip(vs) {
+            v[k] = x;
+        }
+        report
+            .stages
+            .push(("frame: CPU redo".into(), t.elapsed().as_secs_f64() * 1e3));
+        report.note("frame_cpu_redo", redo.len());
+    }
+    Ok(())
 }
 
 /// The one view of a single-view method's frame: `views` must hold exactly one, present
@@ -155,7 +224,8 @@ pub fn single_view(views: &[Option<LightView>]) -> Result<&LightView> {
 /// What one frame reads and writes, all the caller's.
 #[derive(Debug, Clone, Copy)]
 pub struct FrameInputs<'a> {
-    /// The casters' triangles (a [`GpuScene`]: `vec4` positions, three per triangle).
+    /// The casters' triangles (a [`GpuScene`]: three `vec4` per triangle, the position and the
+    /// caster's opacity).
     pub casters: &'a GpuScene,
     /// The frame's light views ([`FrameEstimator::fit_views`]), at the resolution the frame
     /// was prepared with.
@@ -184,7 +254,7 @@ impl FrameInputs<'_> {
     }
 }
 
-/// GPU time per stage of a frame (issue 20), from a timestamp query set the caller owns: each
+/// GPU time per stage of a frame, from a timestamp query set the caller owns: each
 /// estimator's `encode` writes a timestamp when it starts and after each of its stages
 /// ([`FrameInputs::mark`], `CommandEncoder::write_timestamp` between passes), the caller
 /// resolves them into the same encoder after the frame ([`resolve`](Self::resolve)) and, when it

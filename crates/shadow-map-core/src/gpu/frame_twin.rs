@@ -5,14 +5,14 @@
 //! direction tiles and settled receivers come from the registry's [`crate::cascades::Cascaded`]
 //! around it, which builds and estimates once per view set on the receivers that set serves.
 use super::{
-    frame::{FrameEstimator, FrameInputs},
+    frame::{finish_on_cpu, FrameEstimator, FrameInputs},
     raster::GpuScene,
     receivers::GpuReceivers,
     GpuContext,
 };
 use crate::{
     method::FrameConstructor, Backend, Cancel, LightView, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator, Warning,
+    SoftShadowEstimator,
 };
 use std::{sync::Arc, time::Instant};
 
@@ -176,41 +176,10 @@ impl SoftShadowEstimator for FrameTwin {
         let out: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n as u64)?;
         report.stages.push(("estimate".into(), ms(t)));
         v.copy_from_slice(&out[..n]);
-        if let Some(status) = frame.read_status(&ctx)? {
-            // Receivers left NaN are redone below: no loss.
-            report.warn_all(
-                status
-                    .warnings()
-                    .into_iter()
-                    .filter(|w| !matches!(w, Warning::FrameLeftNan { .. })),
-            );
-        }
-        // The frame's casters are opaque: a method whose frame takes a semi-transparent scene
-        // casts it opaque (the ones that model opacity refuse it at build).
-        if let Some(w) = Warning::opaque_casters(scene) {
-            report.warn(w);
-        }
-        for (x, &a) in v.iter_mut().zip(receivers.active()) {
-            if !a {
-                *x = f32::NAN;
-            }
-        }
-        let redo: Vec<usize> = (0..n)
-            .filter(|&k| receivers.active()[k] && !v[k].is_finite())
-            .collect();
-        if !redo.is_empty() {
-            let t = Instant::now();
-            let sub = Receivers::from_points(
-                redo.iter().map(|&k| receivers.position()[k]).collect(),
-                redo.iter().map(|&k| receivers.normal()[k]).collect(),
-            )?;
-            let vs = frame.cpu_twin(scene, &sub, &views)?;
-            for (&k, x) in redo.iter().zip(vs) {
-                v[k] = x;
-            }
-            report.stages.push(("frame: CPU redo".into(), ms(t)));
-            report.note("frame_cpu_redo", redo.len());
-        }
+        // What the frame models less than the scene asks (a frame that casts every caster
+        // opaque, on a semi-transparent scene).
+        report.warn_all(frame.scene_warnings(scene));
+        finish_on_cpu(frame, &ctx, scene, receivers, &views, v, &mut report)?;
         report.note("engine_path", "frame twin");
         report.note("views", views.iter().flatten().count());
         self.report = report;

@@ -1,5 +1,5 @@
 //! Rendered light-space data laid out for an estimate kernel: the depth layers (then the
-//! midpoint layers) in one `R32Float` texture array, the anchored MSSM's levels in another (a
+//! midpoint layers, then any opacity planes) in one `R32Float` texture array, the anchored MSSM's levels in another (a
 //! 1 x 1 plane holding +inf when there is none), the layout `backprojection.wgsl` and
 //! `accumulation.wgsl` read. [`GpuLayout::prepare`] allocates the arrays and the copies once;
 //! [`KernelMaps::record`] records the copies (textures to texture, MSSM planes by
@@ -41,7 +41,7 @@ pub struct GpuLayout {
 /// The kernel's texture arrays and the copies that fill them from rendered maps.
 #[derive(Debug)]
 pub struct KernelMaps {
-    /// Depth layers, then midpoint layers (at least one plane).
+    /// Depth layers, then midpoint layers, then opacity planes (at least one plane).
     pub maps: PlaneArray,
     /// The MSSM's levels, or one 1 x 1 plane holding +inf.
     pub mssm: PlaneArray,
@@ -49,6 +49,8 @@ pub struct KernelMaps {
     pub layers: u32,
     /// Midpoint layers in `maps`, after the depth layers.
     pub midpoints: u32,
+    /// Opacity planes in `maps`, after the midpoint layers (one per depth layer, or none).
+    pub opacity: u32,
     /// MSSM levels in `mssm` (`None`: no MSSM).
     pub mssm_levels: Option<u32>,
     r: u32,
@@ -75,9 +77,11 @@ impl GpuLayout {
         Ok(GpuLayout { copy })
     }
 
-    /// Allocates the texture arrays (labels `{label} layers`, `{label} mssm`) for `layers` and
-    /// `midpoints` of side `r` and the MSSM `mssm`, and prepares the copies into them. Errors:
-    /// device limits ([`Error::Limit`]), e.g. an MSSM plane beyond one storage binding.
+    /// Allocates the texture arrays (labels `{label} layers`, `{label} mssm`) for `layers`,
+    /// `midpoints` and `opacity` planes of side `r` and the MSSM `mssm`, and prepares the copies
+    /// into them. Errors: device limits ([`Error::Limit`]), e.g. an MSSM plane beyond one storage
+    /// binding.
+    #[allow(clippy::too_many_arguments)]
     pub fn prepare(
         &self,
         ctx: &GpuContext,
@@ -85,11 +89,13 @@ impl GpuLayout {
         r: u32,
         layers: &[GpuDepthMap],
         midpoints: &[GpuDepthMap],
+        opacity: &[GpuDepthMap],
         mssm: Option<&GpuMssm>,
     ) -> Result<KernelMaps> {
         let planes: Vec<wgpu::Texture> = layers
             .iter()
             .chain(midpoints)
+            .chain(opacity)
             .map(|d| d.texture.clone())
             .collect();
         let maps = plane_array(
@@ -150,6 +156,7 @@ impl GpuLayout {
             mssm: mssm_array,
             layers: layers.len() as u32,
             midpoints: midpoints.len() as u32,
+            opacity: opacity.len() as u32,
             mssm_levels: mssm.map(|m| m.levels()),
             r,
             planes,
@@ -160,9 +167,11 @@ impl GpuLayout {
 }
 
 impl KernelMaps {
-    /// Records the copies into `enc`.
-    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
-        for (i, tex) in self.planes.iter().enumerate() {
+    /// Records the copies into `enc`: every plane, the opacity planes only when `opacity`
+    /// (semi-transparent casters; an opaque frame's kernel does not read them).
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder, opacity: bool) {
+        let skip = if opacity { 0 } else { self.opacity as usize };
+        for (i, tex) in self.planes[..self.planes.len() - skip].iter().enumerate() {
             enc.copy_texture_to_texture(
                 tex.as_image_copy(),
                 wgpu::TexelCopyTextureInfo {

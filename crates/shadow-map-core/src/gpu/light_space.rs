@@ -25,6 +25,9 @@ pub struct GpuLightSpace {
     pub view_uniform: wgpu::Buffer,
     /// Peeled layers, nearest first (`layers[0]` is the ordinary shadow map).
     pub layers: Vec<GpuDepthMap>,
+    /// Per layer, each texel's opacity, when requested and the casters were semi-transparent
+    /// (see [`GpuLayersFrame::opacity`](super::GpuLayersFrame::opacity)); empty otherwise.
+    pub opacity: Vec<GpuDepthMap>,
     /// Midpoint layers, when requested.
     pub midpoints: Vec<GpuDepthMap>,
     /// Anchored MSSM of layer 0, when requested.
@@ -43,6 +46,7 @@ impl GpuLightSpace {
         self.layers
             .iter()
             .chain(&self.midpoints)
+            .chain(&self.opacity)
             .map(GpuDepthMap::bytes)
             .sum::<usize>()
             + self.mssm.as_ref().map_or(0, GpuMssm::bytes)
@@ -50,7 +54,8 @@ impl GpuLightSpace {
             + self.pyramid.as_ref().map_or(0, GpuMinMaxPyramid::bytes)
     }
 
-    /// Reads everything back into a [`LightSpace`]: layers and midpoints bit for bit. The MSSM
+    /// Reads everything back into a [`LightSpace`]: layers, opacity planes and midpoints bit for
+    /// bit. The MSSM
     /// family is rebuilt on the CPU from the read-back layer 0 with the same number of levels,
     /// because [`crate::mssm`] has no constructor from planes; the GPU planes are bit-identical
     /// to that rebuild (`tests/gpu_maps.rs` checks it with `read_levels`).
@@ -83,8 +88,11 @@ impl GpuLightSpace {
             view: self.view,
             fit: self.fit,
             layers,
-            // The GPU raster writes depths only (semi-transparent occluders: CPU maps).
-            opacity: Vec::new(),
+            opacity: self
+                .opacity
+                .iter()
+                .map(|l| read_depth_map(ctx, l).map(|m| m.depth))
+                .collect::<Result<Vec<_>>>()?,
             midpoints,
             mssm,
             dual_mssm,

@@ -98,13 +98,18 @@ impl From<DepthBias> for RasterParams {
 }
 
 /// A scene's world-space triangles on the GPU, uploaded once and rendered in any light view: a
-/// vertex buffer of `vec4<f32>` positions (w = 1), three per triangle, non-indexed.
+/// vertex buffer of `vec4<f32>`, three per triangle, non-indexed, each the vertex's position in
+/// xyz and its triangle's opacity in w (the mesh's `opacity`, 1 for an opaque caster): the
+/// caster buffer every engine path reads. Raster passes take the position; passes that model
+/// semi-transparent casters also write the opacity ([`GpuLayersFrame`] with opacity planes).
 #[derive(Debug, Clone)]
 pub struct GpuScene {
     /// The vertex buffer (label `raster.scene`, usages `VERTEX | STORAGE | COPY_DST | COPY_SRC`).
     pub vertices: wgpu::Buffer,
     /// Number of triangles.
     pub triangles: u32,
+    /// Some caster has an opacity below 1.
+    pub(crate) semi_transparent: bool,
 }
 
 /// Usages of [`GpuScene::vertices`].
@@ -145,6 +150,7 @@ impl GpuScene {
                 mapped_at_creation: false,
             }),
             triangles: 0,
+            semi_transparent: false,
         })
     }
 
@@ -163,9 +169,10 @@ impl GpuScene {
             "scene triangles on the GPU (max_buffer_size / 48 bytes)",
         )?;
         let mut verts: Vec<[f32; 4]> = Vec::with_capacity(3 * n as usize);
-        for t in scene.triangles() {
+        for (ti, t) in scene.triangles().iter().enumerate() {
+            let opacity = scene.triangle_opacity(ti);
             for v in t {
-                verts.push([v.x, v.y, v.z, 1.0]);
+                verts.push([v.x, v.y, v.z, opacity]);
             }
         }
         if verts.is_empty() {
@@ -179,7 +186,14 @@ impl GpuScene {
                 SCENE_USAGE,
             ),
             triangles: n as u32,
+            semi_transparent: !scene.is_opaque(),
         })
+    }
+
+    /// Whether every caster is opaque (opacity 1): what passes that model opacity need not
+    /// write or read.
+    pub fn is_opaque(&self) -> bool {
+        !self.semi_transparent
     }
 
     /// Bytes of the vertex buffer.
@@ -188,8 +202,8 @@ impl GpuScene {
     }
 }
 
-/// Pipeline variant: culling, peeling pass (m >= 1), bias.
-type PipelineKey = (u8, bool, bool);
+/// Pipeline variant: culling, peeling pass (m >= 1), bias, opacity target.
+type PipelineKey = (u8, bool, bool, bool);
 
 /// The GPU shadow-map core of one context: raster pipelines (created on first use per variant
 /// and cached), the midpoint pipeline and the MSSM builder.
@@ -281,13 +295,20 @@ impl GpuShadowMapper {
         if let Some(p) = cache.get(&key) {
             return Ok(p.clone());
         }
-        let (cull, peel, biased) = key;
+        let (cull, peel, biased, opacity) = key;
         let label = format!(
-            "raster.{}{}{}",
+            "raster.{}{}{}{}",
             ["cull_none", "cull_back", "cull_front"][cull as usize % 3],
             if peel { ".peel" } else { ".first" },
-            if biased { ".biased" } else { "" }
+            if biased { ".biased" } else { "" },
+            if opacity { ".opacity" } else { "" }
         );
+        let target = Some(wgpu::ColorTargetState {
+            format: DEPTH_MAP_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let targets = [target.clone(), target];
         let constants = [
             ("PEEL_EPS_REL", PEEL_EPS_REL as f64),
             ("PEEL", if peel { 1.0 } else { 0.0 }),
@@ -320,20 +341,17 @@ impl GpuShadowMapper {
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &self.module,
-                        entry_point: Some(if biased {
-                            "fs_layer_biased"
-                        } else {
-                            "fs_layer"
+                        entry_point: Some(match (biased, opacity) {
+                            (false, false) => "fs_layer",
+                            (true, false) => "fs_layer_biased",
+                            (false, true) => "fs_layer_opacity",
+                            (true, true) => "fs_layer_biased_opacity",
                         }),
                         compilation_options: wgpu::PipelineCompilationOptions {
                             constants: &constants,
                             ..Default::default()
                         },
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format: DEPTH_MAP_FORMAT,
-                            blend: None,
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })],
+                        targets: &targets[..1 + usize::from(opacity)],
                     }),
                     multiview_mask: None,
                     cache: None,
@@ -412,20 +430,31 @@ impl GpuShadowMapper {
         let cull = cull_key(req.raster.cull);
         let bias = req.raster.bias;
         let biased = bias.constant != 0.0 || bias.slope != 0.0;
-        let first = self.pipeline(ctx, (cull, false, biased))?;
-        let peel = if k > 1 {
-            Some(self.pipeline(ctx, (cull, true, biased))?)
-        } else {
-            None
+        // Per pass: the depth-only pipeline, and the one that also writes opacity when asked.
+        let pipelines = |peel: bool| -> Result<LayerPipelines> {
+            Ok(LayerPipelines {
+                opaque: self.pipeline(ctx, (cull, peel, biased, false))?,
+                opacity: if req.opacity {
+                    Some(self.pipeline(ctx, (cull, peel, biased, true))?)
+                } else {
+                    None
+                },
+            })
         };
+        let first = pipelines(false)?;
+        let peel = if k > 1 { Some(pipelines(true)?) } else { None };
         ctx.scoped("raster", || -> Result<GpuLayersFrame> {
             let device = &ctx.device;
             let (view_uniform, params) =
                 create_raster_uniforms(device, &LightView::placeholder(r), bias);
             let depth_test = create_depth_test(device, r);
             let mut layers = Vec::with_capacity(k as usize);
+            let mut opacity = Vec::new();
             for m in 0..k {
                 layers.push(GpuDepthMap::new(ctx, r, &format!("raster.layer{m}"))?);
+                if req.opacity {
+                    opacity.push(GpuDepthMap::new(ctx, r, &format!("raster.opacity{m}"))?);
+                }
             }
             let groups = (0..k as usize)
                 .map(|m| {
@@ -464,6 +493,8 @@ impl GpuShadowMapper {
                 layers_out: layers_out as usize,
                 view_uniform,
                 layers,
+                opacity,
+                wrote_opacity: Default::default(),
                 midpoints,
                 set,
                 depth_test,
@@ -488,7 +519,7 @@ impl GpuShadowMapper {
         check_size(ctx, r)?;
         let bias = raster.bias;
         let biased = bias.constant != 0.0 || bias.slope != 0.0;
-        let pipeline = self.pipeline(ctx, (cull_key(raster.cull), false, biased))?;
+        let pipeline = self.pipeline(ctx, (cull_key(raster.cull), false, biased, false))?;
         ctx.scoped("raster.frame", || -> Result<GpuMapFrame> {
             let device = &ctx.device;
             let placeholder = LightView::placeholder(r);
@@ -599,7 +630,7 @@ impl GpuMapFrame {
             0,
             bytemuck::bytes_of(&LightViewUniform::from(view)),
         );
-        let mut pass = begin_layer_pass(enc, 0, &self.layer.view, &self.depth_test);
+        let mut pass = begin_layer_pass(enc, 0, &self.layer.view, None, &self.depth_test);
         if casters.triangles > 0 {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, group, &[]);
@@ -624,11 +655,15 @@ pub struct GpuLayersFrame {
     view_uniform: wgpu::Buffer,
     /// Every peeled layer, the extra one the midpoints read included.
     layers: Vec<GpuDepthMap>,
+    /// Per peeled layer, the opacity of its texels' casters (when prepared with opacity).
+    opacity: Vec<GpuDepthMap>,
+    /// Whether the last `encode` wrote the opacity planes (semi-transparent casters).
+    wrote_opacity: std::sync::atomic::AtomicBool,
     midpoints: Vec<GpuDepthMap>,
     set: super::mssm::GpuMinMaxSet,
     depth_test: wgpu::TextureView,
-    /// Per peeling pass: its pipeline and bind group.
-    groups: Vec<(wgpu::RenderPipeline, wgpu::BindGroup)>,
+    /// Per peeling pass: its pipelines and bind group.
+    groups: Vec<(LayerPipelines, wgpu::BindGroup)>,
     midpoint_pass: Option<super::midpoint::GpuMidpointPass>,
     mssm_pass: super::mssm::GpuMinMaxPass,
 }
@@ -648,6 +683,14 @@ impl GpuLayersFrame {
     /// The peeled layers the request asked for, nearest first.
     pub fn layers(&self) -> &[GpuDepthMap] {
         &self.layers[..self.layers_out]
+    }
+
+    /// Per layer of [`layers`](Self::layers), each texel's opacity (the mesh opacity of the
+    /// caster its depth came from, 0 where empty: the CPU's [`crate::LightSpace::opacity`]);
+    /// empty unless prepared with `opacity`. Written by frames whose casters are
+    /// semi-transparent ([`GpuScene::is_opaque`] false), left as they were otherwise.
+    pub fn opacity(&self) -> &[GpuDepthMap] {
+        &self.opacity[..self.opacity.len().min(self.layers_out)]
     }
 
     /// The midpoint layers (empty unless requested).
@@ -681,8 +724,16 @@ impl GpuLayersFrame {
             0,
             bytemuck::bytes_of(&LightViewUniform::from(view)),
         );
-        for (m, (pipeline, group)) in self.groups.iter().enumerate() {
-            let mut pass = begin_layer_pass(enc, m, &self.layers[m].view, &self.depth_test);
+        let with_opacity = !casters.is_opaque() && !self.opacity.is_empty();
+        self.wrote_opacity
+            .store(with_opacity, std::sync::atomic::Ordering::Relaxed);
+        for (m, (pipelines, group)) in self.groups.iter().enumerate() {
+            let (pipeline, opacity) = match (&pipelines.opacity, with_opacity) {
+                (Some(p), true) => (p, Some(&self.opacity[m].view)),
+                _ => (&pipelines.opaque, None),
+            };
+            let mut pass =
+                begin_layer_pass(enc, m, &self.layers[m].view, opacity, &self.depth_test);
             if casters.triangles > 0 {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, group, &[]);
@@ -697,13 +748,22 @@ impl GpuLayersFrame {
         Ok(())
     }
 
-    /// The maps as a [`GpuLightSpace`] in `view` (sharing this frame's textures and buffers).
+    /// The maps as a [`GpuLightSpace`] in `view` (sharing this frame's textures and buffers),
+    /// the opacity planes included when the last `encode` wrote them.
     pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
+        let wrote = self
+            .wrote_opacity
+            .load(std::sync::atomic::Ordering::Relaxed);
         GpuLightSpace {
             view: *view,
             fit: FitReport::default(),
             view_uniform: self.view_uniform.clone(),
             layers: self.layers().to_vec(),
+            opacity: if wrote {
+                self.opacity().to_vec()
+            } else {
+                Vec::new()
+            },
             midpoints: self.midpoints.clone(),
             mssm: self.set.mssm.clone(),
             dual_mssm: self.set.dual_mssm.clone(),
@@ -747,11 +807,20 @@ fn create_depth_test(device: &wgpu::Device, r: u32) -> wgpu::TextureView {
         .create_view(&Default::default())
 }
 
-/// Begins layer `m`'s render pass (`raster.layer{m}`): colour cleared to +inf, depth to 0.
+/// A peeling pass's pipelines: depth only, and depth with opacity (when prepared with opacity).
+#[derive(Debug, Clone)]
+struct LayerPipelines {
+    opaque: wgpu::RenderPipeline,
+    opacity: Option<wgpu::RenderPipeline>,
+}
+
+/// Begins layer `m`'s render pass (`raster.layer{m}`): colour cleared to +inf, the opacity
+/// target (if any) to 0, depth to 0.
 fn begin_layer_pass<'e>(
     enc: &'e mut wgpu::CommandEncoder,
     m: usize,
     target: &wgpu::TextureView,
+    opacity: Option<&wgpu::TextureView>,
     depth_test: &wgpu::TextureView,
 ) -> wgpu::RenderPass<'e> {
     let inf = wgpu::Color {
@@ -760,12 +829,9 @@ fn begin_layer_pass<'e>(
         b: 0.0,
         a: 0.0,
     };
-    begin_depth_tested_pass(
-        enc,
-        &format!("raster.layer{m}"),
-        &[(target, inf)],
-        depth_test,
-    )
+    let mut targets = vec![(target, inf)];
+    targets.extend(opacity.map(|o| (o, wgpu::Color::TRANSPARENT)));
+    begin_depth_tested_pass(enc, &format!("raster.layer{m}"), &targets, depth_test)
 }
 
 /// The nearest-surface test of the raster pipelines: reversed z on a [`DEPTH_TEST_FORMAT`]

@@ -23,6 +23,8 @@ struct VsOut {
     @builtin(position) clip: vec4<f32>,
     // Linear light-space z, interpolated perspective-correctly (clip.w = z).
     @location(0) z: f32,
+    // The caster's opacity (the vertex's w in the GpuScene layout; 1 for an opaque caster).
+    @location(1) @interpolate(flat) opacity: f32,
 }
 
 // World vertex -> light space -> clip space of the light view, with
@@ -45,6 +47,7 @@ fn vs_main(@location(0) world: vec4<f32>) -> VsOut {
         var out: VsOut;
         out.clip = vec4<f32>(2.0 * u / r - 1.0, 1.0 - 2.0 * v / r, ortho_depth(l.z), 1.0);
         out.z = l.z;
+        out.opacity = world.w;
         return out;
     }
     let uz = (view.n * l.x - view.window_min.x * l.z) / view.delta;
@@ -52,6 +55,7 @@ fn vs_main(@location(0) world: vec4<f32>) -> VsOut {
     var out: VsOut;
     out.clip = vec4<f32>(2.0 * uz / r - l.z, l.z - 2.0 * vz / r, view.n, l.z);
     out.z = l.z;
+    out.opacity = world.w;
     return out;
 }
 
@@ -109,19 +113,49 @@ struct BiasedOut {
 }
 
 // With bias: the depth test compares the biased depth (n / zs), so the nearest *stored* value
-// wins, as on the CPU (min over biased depths).
-@fragment
-fn fs_layer_biased(in: VsOut) -> BiasedOut {
+// wins, as on the CPU (min over biased depths). Returns (stored depth, depth-test value).
+fn biased_layer(in: VsOut) -> vec2<f32> {
     let zs = stored_depth(in.clip, in.z);
     if !behind_previous(in.clip, zs) {
         discard;
     }
-    var out: BiasedOut;
-    out.depth = zs;
     if view.ortho != 0u {
-        out.frag_depth = clamp(ortho_depth(zs), 0.0, 1.0);
-    } else {
-        out.frag_depth = clamp(view.n / zs, 0.0, 1.0);
+        return vec2<f32>(zs, clamp(ortho_depth(zs), 0.0, 1.0));
     }
-    return out;
+    return vec2<f32>(zs, clamp(view.n / zs, 0.0, 1.0));
+}
+
+@fragment
+fn fs_layer_biased(in: VsOut) -> BiasedOut {
+    let b = biased_layer(in);
+    return BiasedOut(b.x, b.y);
+}
+
+// Semi-transparent casters: the layer's depth as above and, in a second target, the opacity of
+// the fragment the depth test keeps (the CPU's `rasterize_with_opacity`: the nearest stored
+// fragment's mesh opacity; the target is cleared to 0 where no fragment lands).
+struct OpacityOut {
+    @location(0) depth: f32,
+    @location(1) opacity: f32,
+}
+
+@fragment
+fn fs_layer_opacity(in: VsOut) -> OpacityOut {
+    let zs = stored_depth(in.clip, in.z);
+    if !behind_previous(in.clip, zs) {
+        discard;
+    }
+    return OpacityOut(zs, in.opacity);
+}
+
+struct BiasedOpacityOut {
+    @location(0) depth: f32,
+    @location(1) opacity: f32,
+    @builtin(frag_depth) frag_depth: f32,
+}
+
+@fragment
+fn fs_layer_biased_opacity(in: VsOut) -> BiasedOpacityOut {
+    let b = biased_layer(in);
+    return BiasedOpacityOut(b.x, in.opacity, b.y);
 }

@@ -1,4 +1,4 @@
-//! Casters from the caller's vertex and index buffers (`gpu::casters`, issue 20): the bunny
+//! Casters from the caller's vertex and index buffers (`gpu::casters`): the bunny
 //! fixture's triangles split into three meshes stored three ways (interleaved vertices with
 //! `u32` indices, a shifted vertex range with `u16` indices and a `base_vertex`, plain
 //! non-indexed positions), drawn as five instances. With identity transforms the built buffer is
@@ -89,6 +89,7 @@ impl Meshes {
                 first_index: 0,
                 index_count: self.counts[0],
                 base_vertex: 0,
+                opacity: 1.0,
             },
             CasterMesh {
                 vertices: &self.b_vertices,
@@ -98,6 +99,7 @@ impl Meshes {
                 first_index: 5,
                 index_count: self.counts[1],
                 base_vertex: 7,
+                opacity: 1.0,
             },
             CasterMesh {
                 vertices: &self.c_vertices,
@@ -107,6 +109,7 @@ impl Meshes {
                 first_index: 0,
                 index_count: self.counts[2],
                 base_vertex: 0,
+                opacity: 1.0,
             },
         ]
     }
@@ -125,7 +128,7 @@ fn caller_meshes_and_instances_build_the_casters() -> Result<(), Error> {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/bunny/bunny.toml");
     let scene = Scene::load(&path)?;
     let meshes = Meshes::new(&ctx, scene.triangles());
-    let list = meshes.list();
+    let mut list = meshes.list();
     let builder = GpuCasterBuilder::new(&ctx, 4, 8)?;
 
     // Identity instances in mesh order: the scene's own triangles, bit for bit.
@@ -148,6 +151,17 @@ fn caller_meshes_and_instances_build_the_casters() -> Result<(), Error> {
         .filter(|(a, b)| bytemuck::bytes_of(*a) == bytemuck::bytes_of(*b))
         .count();
     assert_eq!(same, want.len(), "identity casters differ from the upload");
+    assert!(out.is_opaque() && uploaded.is_opaque());
+
+    // An opacity outside [0, 1] is refused before anything is recorded.
+    list[1].opacity = 1.5;
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let err = builder
+        .encode(&ctx, &mut enc, &list, &id, &mut out)
+        .expect_err("opacity 1.5");
+    assert!(err.to_string().contains("opacity 1.5"), "{err}");
+    // Mesh 1 semi-transparent from here on: its opacity is each of its vertices' w.
+    list[1].opacity = 0.25;
 
     // Moved instances: mesh 0 twice (the second turned and shifted), mesh 2 scaled, mesh 1
     // shifted; the output lists mesh 0's instances, then mesh 1's, then mesh 2's.
@@ -175,6 +189,7 @@ fn caller_meshes_and_instances_build_the_casters() -> Result<(), Error> {
     builder.encode(&ctx, &mut enc, &list, &instances, &mut out)?;
     ctx.queue.submit([enc.finish()]);
     let mut expect: Vec<Vec3> = Vec::new();
+    let mut expect_w: Vec<f32> = Vec::new();
     let ranges = [
         0..list[0].index_count as usize / 3,
         list[0].index_count as usize / 3..(list[0].index_count + list[1].index_count) as usize / 3,
@@ -184,6 +199,7 @@ fn caller_meshes_and_instances_build_the_casters() -> Result<(), Error> {
         for inst in instances.iter().filter(|i| i.mesh == mesh) {
             for t in &scene.triangles()[r.clone()] {
                 expect.extend(t.iter().map(|p| inst.transform.transform_point3(*p)));
+                expect_w.extend([list[mesh].opacity; 3]);
             }
         }
     }
@@ -192,11 +208,15 @@ fn caller_meshes_and_instances_build_the_casters() -> Result<(), Error> {
     let diag = scene.bounds().diagonal();
     let mut worst = 0.0f32;
     for (k, (g, e)) in got.iter().zip(&expect).enumerate() {
-        assert_eq!(g[3], 1.0, "vertex {k}: w");
+        assert_eq!(g[3], expect_w[k], "vertex {k}: w (its mesh's opacity)");
         let d = (Vec3::new(g[0], g[1], g[2]) - *e).abs().max_element();
         worst = worst.max(d);
         assert!(d <= 1e-5 * diag, "vertex {k}: {g:?} vs {e}");
     }
+    assert!(
+        !out.is_opaque(),
+        "a mesh of opacity 0.25 makes the casters semi-transparent"
+    );
     println!(
         "{} triangles from 4 instances of 3 meshes, largest error {worst:.1e} (scene diagonal {diag:.2})",
         out.triangles

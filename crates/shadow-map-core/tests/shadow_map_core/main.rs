@@ -8,6 +8,7 @@ mod gpu_casters;
 mod gpu_context;
 mod gpu_gbuffer;
 mod gpu_maps;
+mod gpu_opacity;
 mod gpu_precision;
 mod layouts;
 mod raster;

@@ -1,0 +1,99 @@
+//! The engine path's opacity planes ([`GpuLayersFrame::opacity`]) against the CPU's
+//! `peel_with_opacity` ([`LightSpace::opacity`]): the peeling passes of a frame prepared with
+//! opacity write, for semi-transparent casters, the opacity of the caster each layer texel's depth
+//! came from (the caster buffer's w) and 0 where a layer is empty.
+//!
+//! On the strands (one mesh of opacity 0.4 over an opaque ground) and the hair (four meshes of
+//! opacity 0.2 to 0.5), per layer: every texel both rasterisers leave empty has opacity 0 on the
+//! GPU, and every texel where both hold the same surface (depths within 1e-4 relative) has the
+//! CPU's opacity, but for texels where two meshes meet at one depth (the rasterisers may keep
+//! either), at most 0.5% of them plus 2.
+#![cfg(feature = "gpu")]
+
+use crate::common;
+
+use shadow_map_core::{
+    gpu::{read_depth_map, GpuScene, GpuShadowMapper},
+    light_view::ViewOptions,
+    Error, LightSpace, LightSpaceRequest, RasterOptions, Receivers, Scene, SceneBvh,
+};
+use std::path::PathBuf;
+
+fn fixture(name: &str, w: u32, h: u32) -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("../../fixtures/{name}/{name}.toml"));
+    let mut s = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    s.set_resolution(w, h).unwrap();
+    s
+}
+
+#[test]
+fn layer_opacity_planes_match_the_cpu() -> Result<(), Error> {
+    let Some(ctx) = common::context_for_tests("layer_opacity_planes_match_the_cpu")? else {
+        return Ok(());
+    };
+    let mapper = GpuShadowMapper::new(&ctx)?;
+    let req = LightSpaceRequest {
+        resolution: 128,
+        layers: 3,
+        midpoints: None,
+        mssm_levels: None,
+        dual_mssm_levels: None,
+        pyramid: false,
+        raster: RasterOptions::default(),
+        opacity: true,
+    };
+    for name in ["strands", "hair"] {
+        let scene = fixture(name, 64, 48);
+        assert!(!scene.is_opaque(), "{name}: a semi-transparent fixture");
+        let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+        let (view, fit) = req.fit_view(&scene, &rec, &ViewOptions::default())?;
+        let cpu = LightSpace::build_in_view(&scene, view, fit, &req);
+        assert_eq!(
+            cpu.opacity.len(),
+            cpu.layers.len(),
+            "{name}: CPU opacity planes"
+        );
+
+        let frame = mapper.layers_frame(&ctx, view.r, &req)?;
+        let casters = GpuScene::upload(&ctx, &scene)?;
+        assert!(!casters.is_opaque(), "{name}: the upload keeps the opacity");
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        frame.encode(&ctx.queue, &mut enc, &casters, &view, 0.0)?;
+        ctx.queue.submit([enc.finish()]);
+        assert_eq!(frame.opacity().len(), frame.layers().len(), "{name}");
+
+        let (mut same, mut tied, mut empty, mut translucent) = (0usize, 0usize, 0usize, 0usize);
+        for (m, (cpu_depth, cpu_alpha)) in cpu.layers.iter().zip(&cpu.opacity).enumerate() {
+            let depth = read_depth_map(&ctx, &frame.layers()[m])?.depth;
+            let alpha = read_depth_map(&ctx, &frame.opacity()[m])?.depth;
+            for t in 0..depth.len() {
+                let (g, c) = (depth[t], cpu_depth.depth[t]);
+                if g.is_infinite() && c.is_infinite() {
+                    assert_eq!(alpha[t], 0.0, "{name}: layer {m} texel {t}: empty, opacity");
+                    empty += 1;
+                } else if (g - c).abs() <= 1e-4 * c.abs() {
+                    if alpha[t] == cpu_alpha[t] {
+                        same += 1;
+                        translucent += usize::from(alpha[t] < 1.0);
+                    } else {
+                        tied += 1;
+                    }
+                }
+            }
+        }
+        println!(
+            "{name}: {same} texels with the CPU's opacity ({translucent} below 1), {tied} at a \
+             tie between meshes, {empty} empty"
+        );
+        assert!(
+            same > 0 && translucent > 0,
+            "{name}: nothing translucent compared"
+        );
+        assert!(
+            tied <= same / 200 + 2,
+            "{name}: {tied} texels with another opacity than the CPU's, of {same}"
+        );
+    }
+    Ok(())
+}
