@@ -581,24 +581,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     return facing * (1.0 - s);
 }
 
-@compute @workgroup_size(WG)
-fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = gid.x;
-    if !active_receiver(k) {
-        return;
-    }
-    let x = estimate_receiver(receivers[k].position, receivers[k].normal);
-    // Out of the device's loop budget (shared.wgsl): flagged, redone on the CPU.
-    if loop_limit_hit(acc.probe) {
-        v_out[k] = CUT_BITS;
-        atomicAdd(&counters[2], 1u);
-        return;
-    }
-    // -1 marks a lit receiver outside the frustum (counted in counters[0]), left NaN for the
-    // host's settle pass; a NaN test here could be folded away by a finite-math compiler.
-    if x < 0.0 {
-        v_out[k] = NAN_BITS;
-    } else {
-        store_v(k, x);
-    }
+// The entry point is the core's (receivers.wgsl); its loop-budget probe is this uniform's.
+fn receiver_probe() -> u32 {
+    return acc.probe;
 }

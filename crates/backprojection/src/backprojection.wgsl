@@ -559,18 +559,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     return facing * visibility(p, n, uv, sil);
 }
 
-@compute @workgroup_size(WG)
-fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = gid.x;
-    if !active_receiver(k) {
-        return;
-    }
-    let x = estimate_receiver(receivers[k].position, receivers[k].normal);
-    // Out of the device's loop budget (shared.wgsl): flagged, redone on the CPU.
-    if loop_limit_hit(bp.probe) {
-        v_out[k] = CUT_BITS;
-        atomicAdd(&counters[2], 1u);
-        return;
-    }
-    store_v(k, x);
+// The entry point is the core's (receivers.wgsl); its loop-budget probe is this uniform's.
+fn receiver_probe() -> u32 {
+    return bp.probe;
 }

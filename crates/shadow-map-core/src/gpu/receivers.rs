@@ -8,9 +8,11 @@ use super::{
 use crate::{receivers::Receivers, Error, Result};
 use std::num::NonZeroU64;
 
-/// The head and tail of a per-receiver estimate entry point, `active_receiver(k)` (inactive
-/// receivers get V = NaN) and `store_v(k, x)` (V clamped to [0, 1], non-finite results written as
-/// 0 and counted), for kernels that declare `receivers`, `v_out` and `counters` (see the file).
+/// The per-receiver estimate entry point (`estimate`) every per-receiver kernel shares, with its
+/// head `active_receiver(k)` (inactive receivers get V = NaN) and tail `store_v(k, x)` (V clamped
+/// to [0, 1], non-finite results written as 0 and counted), and the loop-budget probe (a cut
+/// receiver flagged and counted): for kernels that declare `receivers`, `v_out`, `counters`,
+/// `estimate_receiver` and `receiver_probe` (see the file).
 pub const RECEIVERS_WGSL: &str = include_str!("receivers.wgsl");
 
 /// [`RECEIVERS_WGSL`] after the estimate head and the bindings it expects, as [`super::SHADERS`]
@@ -21,7 +23,9 @@ pub const RECEIVERS_CHECK_WGSL: &str = concat!(
     include_str!("math.wgsl"),
     "@group(0) @binding(0) var<storage, read> receivers: array<ReceiverGpu>;\n",
     "@group(0) @binding(1) var<storage, read_write> v_out: array<u32>;\n",
-    "@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>, 2>;\n",
+    "@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>, 3>;\n",
+    "fn estimate_receiver(p: vec3<f32>, n: vec3<f32>) -> f32 { return dot(p, n); }\n",
+    "fn receiver_probe() -> u32 { return 0u; }\n",
     include_str!("receivers.wgsl")
 );
 

@@ -1,7 +1,10 @@
-// The head and tail every per-receiver estimate entry point shares (the CPU's
-// `for_each_receiver`). The including shader declares `receivers: array<ReceiverGpu>`,
-// `v_out: array<u32>` (V as f32 bits) and `counters: array<atomic<u32>, N>` with N >= 2
-// (`counters[1]`: non-finite results).
+// The per-receiver estimate entry point every such kernel shares (the CPU's
+// `for_each_receiver`), with its head and tail. The including shader declares
+// `receivers: array<ReceiverGpu>`, `v_out: array<u32>` (V as f32 bits),
+// `counters: array<atomic<u32>, N>` with N >= 3 (`counters[1]`: non-finite results,
+// `counters[2]`: receivers cut by the loop budget), `fn estimate_receiver(p: vec3<f32>,
+// n: vec3<f32>) -> f32` (V of one receiver; -1: a lit receiver left NaN for the host, counted by the
+// method) and `fn receiver_probe() -> u32` (its uniform's loop-budget probe).
 
 // Whether slot k holds an active receiver; an inactive one is given V = NaN.
 fn active_receiver(k: u32) -> bool {
@@ -22,5 +25,29 @@ fn store_v(k: u32, x: f32) {
     } else {
         v_out[k] = 0u;
         atomicAdd(&counters[1], 1u);
+    }
+}
+
+// One invocation per receiver: inactive receivers NaN, V stored (clamped, non-finite as 0), V of
+// -1 or less (a lit receiver the method leaves to the host) NaN, and a receiver whose work ran
+// out of the device's loop budget (shared.wgsl's two-trip probe) flagged CUT_BITS and counted
+// in counters[2], for the host to redo.
+@compute @workgroup_size(WG)
+fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if !active_receiver(k) {
+        return;
+    }
+    let x = estimate_receiver(receivers[k].position, receivers[k].normal);
+    if loop_limit_hit(receiver_probe()) {
+        v_out[k] = CUT_BITS;
+        atomicAdd(&counters[2], 1u);
+        return;
+    }
+    // A NaN test here could be folded away by a finite-math compiler: hence the sentinel.
+    if x <= -1.0 {
+        v_out[k] = NAN_BITS;
+    } else {
+        store_v(k, x);
     }
 }
