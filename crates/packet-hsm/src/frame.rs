@@ -62,13 +62,14 @@ use std::sync::Arc;
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
 /// The engine path's set-up module, in order: the core's shared structs, estimate uniform, math
-/// and a sphere light's silhouette set-up, then [`FRAME_WGSL`].
+/// and a sphere light's silhouette set-up, the kernel's `RecIn`, then [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
     SHARED_WGSL,
     ESTIMATE_WGSL,
     MATH_WGSL,
     SILHOUETTE_WGSL,
     SILHOUETTE_SETUP_WGSL,
+    crate::gpu::REC_IN_WGSL,
     FRAME_WGSL,
 ];
 

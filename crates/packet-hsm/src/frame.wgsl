@@ -7,21 +7,6 @@
 // sum and cpu.rs SubLights::finish. Appended after the core's shared.wgsl, estimate.wgsl,
 // math.wgsl, silhouette.wgsl and silhouette_setup.wgsl.
 
-// Mirrors gpu.rs RecIn (checked by naga in frame.rs).
-struct RecIn {
-    uv: vec2<f32>,
-    zp: f32,
-    t: f32,
-    g0: f32,
-    gu: f32,
-    gv: f32,
-    c: f32,
-    sil_a: vec4<f32>,
-    sil_e1: vec4<f32>,
-    sil_e2: vec4<f32>,
-    sil_clip: vec4<f32>,
-}
-
 // Mirrors frame.rs HsmFrameUniform.
 struct HsmFrameUniform {
     bias: f32,

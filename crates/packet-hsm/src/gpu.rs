@@ -42,13 +42,16 @@ use std::sync::Arc;
 
 /// The kernel's own WGSL.
 pub const PACKET_HSM_WGSL: &str = include_str!("packet_hsm.wgsl");
+/// [`RecIn`] in WGSL, which the kernel reads and the frame's set-up pass writes.
+pub const REC_IN_WGSL: &str = include_str!("rec_in.wgsl");
 /// The WGSL parts of the kernel, in order: the core's disk edge term
 /// ([`DISK_EDGE_WGSL`](shadow_map_core::gpu::estimate::DISK_EDGE_WGSL)) and silhouette carry
-/// ([`SILHOUETTE_WGSL`](shadow_map_core::gpu::estimate::SILHOUETTE_WGSL)), then
+/// ([`SILHOUETTE_WGSL`](shadow_map_core::gpu::estimate::SILHOUETTE_WGSL)), [`REC_IN_WGSL`], then
 /// [`PACKET_HSM_WGSL`].
-pub const SHADER_PARTS: [&str; 3] = [
+pub const SHADER_PARTS: [&str; 4] = [
     shadow_map_core::gpu::estimate::DISK_EDGE_WGSL,
     shadow_map_core::gpu::estimate::SILHOUETTE_WGSL,
+    REC_IN_WGSL,
     PACKET_HSM_WGSL,
 ];
 
