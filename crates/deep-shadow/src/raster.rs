@@ -66,25 +66,9 @@ pub fn prepare(scene: &Scene, view: &LightView) -> Vec<PreparedTri> {
     out
 }
 
-/// The top-left rule (as Vulkan and D3D): with the triangle's signed area positive, an edge
-/// `(du, dv)` owns the texel centres exactly on it when it is a left edge (`dv < 0`) or a top edge
-/// (`dv == 0 && du > 0`).
-#[inline]
-pub fn owns_ties(du: f64, dv: f64) -> bool {
-    dv < 0.0 || (dv == 0.0 && du > 0.0)
-}
-
-/// The edge function `(e - s) x (p - s)`, evaluated from the lexicographically smaller endpoint
-/// and negated when needed, so the two triangles sharing an edge get exactly opposite values
-/// (watertight: a texel centre on a shared edge is covered exactly once, by the top-left rule).
-#[inline]
-pub fn edge_function(s: DVec2, e: DVec2, p: DVec2) -> f64 {
-    if (s.x, s.y) <= (e.x, e.y) {
-        (e - s).perp_dot(p - s)
-    } else {
-        -(s - e).perp_dot(p - e)
-    }
-}
+/// The core raster's fill rule (one definition): the top-left rule and the watertight edge
+/// function.
+pub use shadow_map_core::raster::{edge_function, owns_ties};
 
 /// Calls `emit(i, j, z)` for every texel centre of the `r x r` map in rows `rows.0..rows.1` inside
 /// `t` (top-left rule), with the perspective-correct linear depth z there.

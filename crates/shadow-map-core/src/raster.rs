@@ -317,7 +317,7 @@ impl PreparedScene {
 /// whatever the rounding. Evaluating from each triangle's own start vertex is not: measured, it
 /// left a row of uncovered texels along the diagonal of a quad whose centres lie on it exactly.
 #[inline]
-fn edge_function(s: DVec2, e: DVec2, p: DVec2) -> f64 {
+pub fn edge_function(s: DVec2, e: DVec2, p: DVec2) -> f64 {
     if (s.x, s.y) <= (e.x, e.y) {
         (e - s).perp_dot(p - s)
     } else {
@@ -325,8 +325,11 @@ fn edge_function(s: DVec2, e: DVec2, p: DVec2) -> f64 {
     }
 }
 
+/// The top-left rule (as Vulkan and D3D): with the triangle's signed area positive, an edge
+/// `(du, dv)` owns the texel centres exactly on it when it is a left edge (`dv < 0`) or a top edge
+/// (`dv == 0 && du > 0`).
 #[inline]
-fn owns_ties(du: f64, dv: f64) -> bool {
+pub fn owns_ties(du: f64, dv: f64) -> bool {
     dv < 0.0 || (dv == 0.0 && du > 0.0)
 }
 
