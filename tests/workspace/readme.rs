@@ -210,7 +210,7 @@ fn an_unmapped_command_fails_by_name() {
     // A mapping to a test that does not exist is a failure too.
     let bad = [Mapped {
         command: "softshadow frobnicate",
-        file: "crates/cli/tests/cli.rs",
+        file: "crates/cli/tests/cli/commands.rs",
         test: "no_such_test",
         evidence: &[],
     }];

@@ -11,7 +11,7 @@
 //!
 //! ```text
 //! SOFTSHADOW_FUZZ_RUNS=100000 SOFTSHADOW_FUZZ_SEED=7 \
-//!   cargo test --release -p softshadow-cli --test fuzz -- --nocapture
+//!   cargo test --release -p softshadow-cli --test cli fuzz -- --nocapture
 //! ```
 //!
 //! Environment: `SOFTSHADOW_FUZZ_RUNS` (runs), `SOFTSHADOW_FUZZ_SEED` (the seed of run 0; run k
