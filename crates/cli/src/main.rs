@@ -559,26 +559,29 @@ fn engine_frame(
     if est.backend() == Backend::Gpu && softshadow::FRAME_ALGOS.contains(&est.name()) {
         use shadow_map_core::gpu::{frame::FrameInputs, raster::GpuScene, GpuContext, GpuGBuffer};
         let ctx = GpuContext::shared()?;
-        let casters = GpuScene::upload(&ctx, scene)?;
-        // The frame's receivers: rasterised, and left on the device.
-        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, scene.camera())?;
-        // The CPU's: the view fit, Z and the background mask (no G-buffer readback).
+        // The CPU's receivers: the view fit, Z and the background mask (no G-buffer readback).
         let receivers = camera_receivers(scene);
-        let gbuffer_ms = ms(t);
+        let cpu_receivers_ms = ms(t);
         let inner = softshadow::own_params(est.name(), est.params())?;
         if !shadow_map_core::cascades::is_one_view(est.params(), scene, &receivers, &inner)? {
-            return Ok(Engine::Twin(receivers, gbuffer_ms));
+            return Ok(Engine::Twin(receivers, ms(t)));
         }
         let n = receivers.len();
         let Some(frame) = softshadow::frame_estimator(est.name(), ctx.clone(), &inner, n as u32)?
         else {
-            return Ok(Engine::Twin(receivers, gbuffer_ms));
+            return Ok(Engine::Twin(receivers, ms(t)));
         };
         // A light or setting the engine path does not model (packet-hsm: sphere lights,
-        // sub-lights), or semi-transparent casters a frame would cast opaque: the twin path.
+        // sub-lights), or semi-transparent casters a frame would cast opaque: the twin path,
+        // decided before anything is uploaded or rasterised.
         if frame.refuses(scene).is_some() || !(scene.is_opaque() || frame.models_opacity()) {
-            return Ok(Engine::Twin(receivers, gbuffer_ms));
+            return Ok(Engine::Twin(receivers, ms(t)));
         }
+        // The frame's receivers: rasterised, and left on the device.
+        let t_gbuffer = Instant::now();
+        let casters = GpuScene::upload(&ctx, scene)?;
+        let image = GpuGBuffer::new(&ctx)?.render(&ctx, &casters, scene.camera())?;
+        let gbuffer_ms = cpu_receivers_ms + ms(t_gbuffer);
         let mut report = shadow_map_core::Report::default();
         report.warn_all(frame.scene_warnings(scene));
         report.stages.push(("gbuffer".into(), gbuffer_ms));
