@@ -11,6 +11,7 @@
 #![cfg(feature = "gpu")]
 
 use crate::common;
+use common::fixture;
 
 use glam::Vec3;
 use shadow_map_core::{
@@ -21,20 +22,11 @@ use shadow_map_core::{
         },
         shared::ReceiverGpu,
     },
-    Error, Receivers, Scene, SceneBvh,
+    Error, Receivers, SceneBvh,
 };
-use std::path::PathBuf;
 
 /// Position tolerance relative to the receiver's distance from the eye.
 const POS_TOL: f32 = 2e-4;
-
-fn fixture(name: &str, w: u32, h: u32) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(format!("../../fixtures/{name}/{name}.toml"));
-    let mut s = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    s.set_resolution(w, h).unwrap();
-    s
-}
 
 #[test]
 fn depth_and_normal_textures_give_the_camera_receivers() -> Result<(), Error> {

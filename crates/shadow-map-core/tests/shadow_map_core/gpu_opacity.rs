@@ -11,21 +11,13 @@
 #![cfg(feature = "gpu")]
 
 use crate::common;
+use common::fixture;
 
 use shadow_map_core::{
     gpu::{read_depth_map, GpuScene, GpuShadowMapper},
     light_view::ViewOptions,
-    Error, LightSpace, LightSpaceRequest, RasterOptions, Receivers, Scene, SceneBvh,
+    Error, LightSpace, LightSpaceRequest, RasterOptions, Receivers, SceneBvh,
 };
-use std::path::PathBuf;
-
-fn fixture(name: &str, w: u32, h: u32) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(format!("../../fixtures/{name}/{name}.toml"));
-    let mut s = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    s.set_resolution(w, h).unwrap();
-    s
-}
 
 #[test]
 fn layer_opacity_planes_match_the_cpu() -> Result<(), Error> {

@@ -43,6 +43,17 @@ pub fn quad_uv(u0: f32, v0: f32, u1: f32, v1: f32, z: f32) -> Vec<[Vec3; 3]> {
     vec![[a, c, b], [a, d, c]]
 }
 
+/// The fixture scene `fixtures/<name>/<name>.toml` at `w` x `h` pixels; panics naming the file
+/// it could not load (a test's bug).
+pub fn fixture(name: &str, w: u32, h: u32) -> shadow_map_core::Scene {
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("../../fixtures/{name}/{name}.toml"));
+    let mut s =
+        shadow_map_core::Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    s.set_resolution(w, h).unwrap();
+    s
+}
+
 /// An OBJ quad of two triangles in the y = 0 plane.
 pub const QUAD: &str = "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nf 1 2 3\nf 1 3 4\n";
 
