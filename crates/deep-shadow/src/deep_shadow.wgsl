@@ -492,14 +492,18 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
           @builtin(local_invocation_id) lid: vec3<u32>) {
     let q_id = linear_id(wid, nwg, lid);
     if (q_id >= P.n_queries) { return; }
-    let q = queries[2u * q_id];
-    let q1 = queries[2u * q_id + 1u];
-    if (q.w >= 0.0) { out_t[q_id] = q.w; return; }
+    out_t[q_id] = lookup_result(list_transmittance(queries[2u * q_id], queries[2u * q_id + 1u]));
+}
+
+// The transmittance of one query (q = (u, v, z_p, fixed), q1 the caster test; gpu.rs
+// PackedQuery) in the lists, its list steps added to counters.steps. `lookup` and the engine
+// path's `frame_lookup` both call it.
+fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
+    if (q.w >= 0.0) { return q.w; }
     if (P.filter_mode == FILTER_PCSS) {
         let tt = soft_transmittance(q, q1, false);
         atomicAdd(&counters.steps, tt.steps);
-        out_t[q_id] = lookup_result(-q.w * tt.t);
-        return;
+        return -q.w * tt.t;
     }
     let r = i32(P.r);
     let ci = i32(floor(q.x));
@@ -565,7 +569,7 @@ fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         }
     }
     atomicAdd(&counters.steps, steps);
-    out_t[q_id] = lookup_result(-q.w * clamp(sum / f32(n * n), 0.0, 1.0));
+    return -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
 // A lookup's result, or CUT_BITS (counted) when the device's loop budget cut the invocation

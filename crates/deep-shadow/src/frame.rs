@@ -2,15 +2,13 @@
 //! frame recorded into the caller's command encoder from the caller's casters and receiver buffer,
 //! V written into the caller's buffer; nothing submitted, waited for or read back.
 //!
-//! Per sub-light view, in turn (one view for the default S = 1):
+//! Per sub-light view, in turn (one view for the default S = 1), for **opaque casters**:
 //! 1. the core's raster pass renders the casters into one R32Float layer
 //!    ([`GpuMapFrame`]: the hardware rasteriser, as every other engine path; the CPU twin's
 //!    opaque path reads the core's CPU raster of the same view). The hardware rasteriser snaps
 //!    vertices to sub-texel steps (8 bits on lavapipe), so a texel centre within about 1/256
 //!    texel of an edge can be covered here and not on the CPU, or the reverse: on thin strands
-//!    at 5 x 5 PCF, 4 of 659 receivers differ by one tap (`tests/gpu_twin.rs`). The twin's own
-//!    compute rasteriser follows the CPU's fill rule exactly, but takes triangles set up on the
-//!    CPU; moving that set-up and binning into a compute pass is not done;
+//!    at 5 x 5 PCF, 4 of 659 receivers differ by one tap (`tests/deep_shadow/gpu_twin.rs`);
 //! 2. `frame_head` turns the layer into the opaque path's head buffer (the nearest depth's bits,
 //!    `NIL` where empty);
 //! 3. `frame_lookup` makes each receiver's query on the GPU (the twin of [`crate::cpu::query`]:
@@ -18,14 +16,19 @@
 //!    (`opaque_transmittance` in `deep_shadow.wgsl`, the twin's own lookup) into a per-receiver
 //!    sum.
 //!
-//! Then `frame_finish` writes `V = sum / views` ([`crate::cpu::finish`]).
+//! For **semi-transparent casters** (the caster buffer's w, each mesh's opacity), steps 1 and 2
+//! build lists instead, as the paper does (§1.3.1 to §1.3.3): `clear` (heads to `NIL`), the
+//! insert pass (`insert.wgsl`: the core's vertex stage, and a fragment stage that appends each
+//! fragment's (z, opacity) to its texel's list with `atomicAdd` and `atomicExchange`; fully
+//! transparent casters are skipped, as [`crate::raster::prepare`] drops them), `process` (sort,
+//! tau, truncation) and `link`, then `frame_lookup` walks the lists (`list_transmittance`). The
+//! element buffer is allocated at the first semi-transparent frame (`capacity` elements, 0: four
+//! per texel, at most `max_capacity` and the device's binding limit); a frame whose fragments
+//! overflow it, or whose `process` or `link` the loop budget cut, leaves every active receiver
+//! NaN and counted as cut (status word 2): nothing is lost silently, and the callers that read
+//! V back (the CLI, the GPU estimator) redo them with the CPU twin in the same views.
 //!
-//! **Casters are opaque on this path**, as on every engine path (a [`GpuScene`](shadow_map_core::gpu::GpuScene) holds
-//! positions only): the frame is deep-shadow's opaque path, an ordinary shadow map per view read by the
-//! same filters (pcss, pcf, edsm, none, first). [`FrameEstimator::cpu_twin`] compares with the
-//! CPU twin on the scene made opaque. Lists of semi-transparent fragments on the frame path would
-//! need an opacity per caster beside the positions, and the twin's compute rasteriser with its
-//! triangle set-up and binning moved into a compute pass; not built.
+//! Then `frame_finish` writes `V = sum / views` ([`crate::cpu::finish`]).
 //!
 //! The status buffer (three u32, cleared by each `encode`): `[0]` receivers looked up at a texel
 //! outside their view's map (summed over views), `[1]` non-finite V written as 0, `[2]`
@@ -34,7 +37,7 @@
 //! for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same views).
 use crate::cpu::{lookup_settings, sublight_points, view_light, CpuDeepShadow, Tally};
 use crate::dsm::Filter;
-use crate::gpu::{dispatch, lookup_uniform, OWN_OVERRIDES};
+use crate::gpu::{dispatch, lookup_uniform, GpuDeepShadow, COUNTER_BYTES, OWN_OVERRIDES};
 use crate::params::{Settings, NAME};
 use crate::shared::DsUniform;
 use bytemuck::{Pod, Zeroable};
@@ -42,20 +45,22 @@ use shadow_map_core::gpu::estimate::CELLS_WGSL;
 use shadow_map_core::{
     estimator::configure,
     gpu::{
+        depth_map::DEPTH_MAP_FORMAT,
         estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, WORKGROUP_SIZE},
         frame::{
             buffer_range, check_buffers, check_per_receiver, status_buffer, FrameEstimator,
             FrameInputs,
         },
         kernel::{compute_pipeline, shader_module, Binding},
+        raster::{RASTER_WGSL, VERTEX_BUFFERS},
         receivers::RECEIVER_BYTES,
-        shared::SHARED_WGSL,
-        GpuContext, GpuMapFrame, GpuShadowMapper,
+        shared::{LightViewUniform, SHARED_WGSL},
+        GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
-    raster::RasterOptions,
+    raster::{RasterOptions, PEEL_EPS_REL},
     Error, LightView, Params, Receivers, Result, Scene,
 };
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// The engine path's own WGSL (appended to [`FRAME_SHADER_PARTS`]' others).
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
@@ -90,8 +95,8 @@ pub struct DsFrameUniform {
     pub count: u32,
     /// `1 / views`.
     pub inv_views: f32,
-    /// Padding.
-    pub _pad0: u32,
+    /// 1: semi-transparent casters, looked up in the lists (`insert.wgsl`); 0: the opaque path.
+    pub lists: u32,
     /// Padding.
     pub _pad1: u32,
 }
@@ -102,6 +107,7 @@ const BINDINGS: &[(u32, Binding)] = &[
     (0, Binding::Uniform),
     (3, Binding::StorageRw),
     (4, Binding::StorageRw),
+    (5, Binding::StorageRw),
     (8, Binding::Uniform),
     (9, Binding::Uniform),
     (10, Binding::Texture2d),
@@ -111,6 +117,196 @@ const BINDINGS: &[(u32, Binding)] = &[
     (14, Binding::StorageRw),
     (15, Binding::Uniform),
 ];
+
+/// The list path (semi-transparent casters): the insert pass, `clear`, `process` and `link`,
+/// the element buffer (allocated at the first semi-transparent frame, `capacity` elements) and
+/// the counters.
+struct Lists {
+    insert: wgpu::RenderPipeline,
+    /// Per view slot: the insert pass's group 0 (the slot's view uniform).
+    view_groups: Vec<wgpu::BindGroup>,
+    /// Group 1 of the insert pass: head, elements, counters.
+    layout: wgpu::BindGroupLayout,
+    clear: wgpu::ComputePipeline,
+    process: wgpu::ComputePipeline,
+    link: wgpu::ComputePipeline,
+    capacity: u64,
+    nodes: Mutex<wgpu::Buffer>,
+    counters: wgpu::Buffer,
+}
+
+/// The insert pass's WGSL, after the core's [`RASTER_WGSL`] (its `vs_main`).
+pub const INSERT_WGSL: &str = include_str!("insert.wgsl");
+
+/// The insert pass's module, in order: the core's rasteriser ([`RASTER_WGSL`]), then
+/// [`INSERT_WGSL`].
+pub const INSERT_SHADER_PARTS: &[&str] = &[RASTER_WGSL, INSERT_WGSL];
+
+impl Lists {
+    fn prepare(
+        ctx: &GpuContext,
+        s: &Settings,
+        map: &GpuMapFrame,
+        mk: &dyn Fn(&str) -> Result<wgpu::ComputePipeline>,
+    ) -> Result<Lists> {
+        let texels = s.resolution as u64 * s.resolution as u64;
+        let node = std::mem::size_of::<crate::shared::Node>() as u64;
+        let l = ctx.limits();
+        let device = l.max_storage_buffer_binding_size.min(l.max_buffer_size) / node;
+        let max_cap = s.max_capacity.min(device).min(u32::MAX as u64 - 1);
+        let capacity = GpuDeepShadow::initial_capacity(s, false, texels, max_cap);
+        let module = shader_module(ctx, "deep-shadow insert", INSERT_SHADER_PARTS)?;
+        let view_layout = ctx.scoped("deep-shadow insert layout", || {
+            ctx.device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("deep-shadow insert view"),
+                    entries: &[Binding::Uniform.entry_in(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
+                })
+        })?;
+        let layout = ctx.scoped("deep-shadow insert layout", || {
+            let rw = |k| Binding::StorageRw.entry_in(k, wgpu::ShaderStages::FRAGMENT);
+            ctx.device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("deep-shadow insert lists"),
+                    entries: &[rw(0), rw(1), rw(2)],
+                })
+        })?;
+        let constants = [
+            ("PEEL_EPS_REL", PEEL_EPS_REL as f64),
+            ("PEEL", 0.0),
+            ("NIL", crate::shared::NIL as f64),
+        ];
+        let options = || wgpu::PipelineCompilationOptions {
+            constants: &constants,
+            ..Default::default()
+        };
+        let insert = ctx.scoped("deep-shadow insert", || {
+            let pl = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("deep-shadow insert"),
+                    bind_group_layouts: &[Some(&view_layout), Some(&layout)],
+                    immediate_size: 0,
+                });
+            ctx.device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("deep-shadow insert"),
+                    layout: Some(&pl),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: options(),
+                        buffers: VERTEX_BUFFERS,
+                    },
+                    primitive: wgpu::PrimitiveState::default(),
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_insert"),
+                        compilation_options: options(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: DEPTH_MAP_FORMAT,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::empty(),
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+        })?;
+        let view_groups = (0..map.slots())
+            .map(|slot| {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("deep-shadow insert view"),
+                    layout: &view_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: map.view_uniform(slot).as_entire_binding(),
+                    }],
+                })
+            })
+            .collect();
+        Ok(Lists {
+            insert,
+            view_groups,
+            layout,
+            clear: mk("clear")?,
+            process: mk("process")?,
+            link: mk("link")?,
+            capacity,
+            nodes: Mutex::new(storage_buffer(
+                ctx,
+                "deep-shadow frame elements (none yet)",
+                32,
+            )),
+            counters: storage_buffer(ctx, "deep-shadow frame counters", COUNTER_BYTES),
+        })
+    }
+
+    /// The element buffer; allocated at `capacity` elements on the first call that `grow`s.
+    fn nodes(&self, ctx: &GpuContext, grow: bool) -> Result<wgpu::Buffer> {
+        let mut nodes = self.nodes.lock().map_err(|_| Error::Gpu {
+            stage: "deep-shadow frame".into(),
+            reason: "element buffer lock poisoned".into(),
+        })?;
+        let bytes = self.capacity * std::mem::size_of::<crate::shared::Node>() as u64;
+        if grow && nodes.size() < bytes {
+            ctx.check_storage_bytes("deep-shadow list element bytes", bytes)?;
+            *nodes = storage_buffer(ctx, "deep-shadow frame elements", bytes);
+        }
+        Ok(nodes.clone())
+    }
+
+    /// Records one view's lists: counters cleared, heads cleared, the insert pass (through
+    /// `lists`, the insert pass's group 1) into `target`, then `process` and `link` (through
+    /// `group`, the frame's bindings).
+    fn encode(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        (group, lists): (&wgpu::BindGroup, &wgpu::BindGroup),
+        slot: usize,
+        casters: &GpuScene,
+        target: &wgpu::TextureView,
+        texels: u64,
+    ) {
+        enc.clear_buffer(&self.counters, 0, None);
+        run(enc, "deep-shadow frame clear", &self.clear, group, texels);
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("deep-shadow frame insert"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if casters.triangles > 0 {
+                pass.set_pipeline(&self.insert);
+                pass.set_bind_group(0, &self.view_groups[slot], &[]);
+                pass.set_bind_group(1, lists, &[]);
+                pass.set_vertex_buffer(0, casters.vertices.slice(..));
+                pass.draw(0..3 * casters.triangles, 0..1);
+            }
+        }
+        run(
+            enc,
+            "deep-shadow frame process",
+            &self.process,
+            group,
+            texels,
+        );
+        run(enc, "deep-shadow frame link", &self.link, group, texels);
+    }
+}
 
 /// Per view slot: the lookup uniform and the view's light.
 struct Slot {
@@ -128,8 +324,8 @@ pub struct DeepShadowFrame {
     head_pipe: wgpu::ComputePipeline,
     lookup_pipe: wgpu::ComputePipeline,
     finish_pipe: wgpu::ComputePipeline,
+    lists: Lists,
     head: wgpu::Buffer,
-    nodes: wgpu::Buffer,
     slots: Vec<Slot>,
     light: wgpu::Buffer,
     frame: wgpu::Buffer,
@@ -191,6 +387,7 @@ impl DeepShadowFrame {
         let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, &overrides);
         let (head_pipe, lookup_pipe, finish_pipe) =
             (mk("frame_head")?, mk("frame_lookup")?, mk("frame_finish")?);
+        let lists = Lists::prepare(&ctx, &settings, &map, &mk)?;
         let ds_bytes = std::mem::size_of::<DsUniform>() as u64;
         let est_bytes = std::mem::size_of::<EstimateUniform>() as u64;
         let slots = (0..views)
@@ -201,7 +398,6 @@ impl DeepShadowFrame {
             .collect();
         Ok(DeepShadowFrame {
             head: storage_buffer(&ctx, "deep-shadow frame head", head_bytes),
-            nodes: storage_buffer(&ctx, "deep-shadow frame elements (unused)", 32),
             light: uniform_buffer(&ctx, "deep-shadow frame light", est_bytes),
             frame: uniform_buffer(
                 &ctx,
@@ -217,6 +413,7 @@ impl DeepShadowFrame {
             head_pipe,
             lookup_pipe,
             finish_pipe,
+            lists,
             slots,
             max_receivers,
             ctx,
@@ -228,6 +425,7 @@ impl DeepShadowFrame {
         ds: &wgpu::Buffer,
         view: &wgpu::Buffer,
         light: &wgpu::Buffer,
+        nodes: &wgpu::Buffer,
         inputs: &FrameInputs<'_>,
     ) -> wgpu::BindGroup {
         let n = inputs.count.max(1) as u64;
@@ -240,7 +438,8 @@ impl DeepShadowFrame {
                 entries: &[
                     e(0, ds.as_entire_binding()),
                     e(3, self.head.as_entire_binding()),
-                    e(4, self.nodes.as_entire_binding()),
+                    e(4, nodes.as_entire_binding()),
+                    e(5, self.lists.counters.as_entire_binding()),
                     e(8, view.as_entire_binding()),
                     e(9, light.as_entire_binding()),
                     e(10, wgpu::BindingResource::TextureView(&self.map.layer.view)),
@@ -291,9 +490,9 @@ impl FrameEstimator for DeepShadowFrame {
         Some(&self.status)
     }
 
-    /// Semi-transparent scenes: the frame's casters are opaque, the twin models opacity.
-    fn refuses(&self, scene: &Scene) -> Option<String> {
-        shadow_map_core::gpu::frame::refuse_semi_transparent(scene)
+    /// Semi-transparent casters are modelled: their fragments go into lists.
+    fn models_opacity(&self) -> bool {
+        true
     }
 
     /// Per view: the raster pass, `frame_head`, `frame_lookup`; then `frame_finish`. Errors
@@ -339,6 +538,7 @@ impl FrameEstimator for DeepShadowFrame {
             pcss: u32::from(s.filter == Filter::Pcss),
             count: inputs.count,
             inv_views: 1.0 / views.len().max(1) as f32,
+            lists: u32::from(!inputs.casters.is_opaque()),
             ..Default::default()
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&fu));
@@ -348,31 +548,76 @@ impl FrameEstimator for DeepShadowFrame {
             return Ok(());
         }
         let texels = self.map.r as u64 * self.map.r as u64;
+        let lists = !inputs.casters.is_opaque();
+        let nodes = self.lists.nodes(&self.ctx, lists)?;
+        let list_group = lists.then(|| {
+            let entries: Vec<_> = [&self.head, &nodes, &self.lists.counters]
+                .into_iter()
+                .enumerate()
+                .map(|(k, b)| wgpu::BindGroupEntry {
+                    binding: k as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            self.ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("deep-shadow insert lists"),
+                    layout: &self.lists.layout,
+                    entries: &entries,
+                })
+        });
         inputs.mark(enc, "start");
         for (slot, (view, bufs)) in views.iter().zip(&self.slots).enumerate() {
             let ls = lookup_settings(view, light, s);
-            queue.write_buffer(
-                &bufs.ds,
-                0,
-                bytemuck::bytes_of(&lookup_uniform(view.r, 0, inputs.count, &ls)),
-            );
+            let mut u = lookup_uniform(view.r, 0, inputs.count, &ls);
+            if lists {
+                // What `process` reads besides (the twin's build uniform).
+                u.capacity = self.lists.capacity as u32;
+                u.epsilon = s.epsilon;
+                u.trunc_window = crate::cpu::truncation_window(view, s);
+            }
+            queue.write_buffer(&bufs.ds, 0, bytemuck::bytes_of(&u));
             let vl = view_light(light, view, s.sublights);
             queue.write_buffer(
                 &bufs.light,
                 0,
                 bytemuck::bytes_of(&EstimateUniform::new(&vl, s.bias, s.slope_bias)),
             );
-            self.map.encode(queue, enc, inputs.casters, view, slot)?;
-            inputs.mark(enc, "raster");
-            let group = self.group(&bufs.ds, self.map.view_uniform(slot), &bufs.light, inputs);
-            run(
-                enc,
-                "deep-shadow frame head",
-                &self.head_pipe,
-                &group,
-                texels,
+            let group = self.group(
+                &bufs.ds,
+                self.map.view_uniform(slot),
+                &bufs.light,
+                &nodes,
+                inputs,
             );
-            inputs.mark(enc, "heads");
+            if let Some(list_group) = &list_group {
+                queue.write_buffer(
+                    self.map.view_uniform(slot),
+                    0,
+                    bytemuck::bytes_of(&LightViewUniform::from(*view)),
+                );
+                self.lists.encode(
+                    enc,
+                    (&group, list_group),
+                    slot,
+                    inputs.casters,
+                    &self.map.layer.view,
+                    texels,
+                );
+                inputs.mark(enc, "lists");
+            } else {
+                self.map.encode(queue, enc, inputs.casters, view, slot)?;
+                inputs.mark(enc, "raster");
+                run(
+                    enc,
+                    "deep-shadow frame head",
+                    &self.head_pipe,
+                    &group,
+                    texels,
+                );
+                inputs.mark(enc, "heads");
+            }
             run(
                 enc,
                 "deep-shadow frame lookup",
@@ -386,6 +631,7 @@ impl FrameEstimator for DeepShadowFrame {
             &self.slots[0].ds,
             self.map.view_uniform(0),
             &self.light,
+            &nodes,
             inputs,
         );
         run(
@@ -399,20 +645,18 @@ impl FrameEstimator for DeepShadowFrame {
         Ok(())
     }
 
-    /// The CPU twin in the same views, on the scene with every mesh opaque (the casters the
-    /// frame sees).
+    /// The CPU twin in the same views.
     fn cpu_twin(
         &self,
         scene: &Scene,
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let opaque = scene.opaque();
         let views: Vec<LightView> = views.iter().flatten().copied().collect();
         let mut e = CpuDeepShadow::new()?;
         configure(&mut e, &self.params)?;
         let mut v = vec![0.0; receivers.len()];
-        e.estimate_in_views(&opaque, receivers, &views, &mut v)?;
+        e.estimate_in_views(scene, receivers, &views, &mut v)?;
         Ok(v)
     }
 }
@@ -433,7 +677,7 @@ mod tests {
                 pcss,
                 count,
                 inv_views,
-                _pad0,
+                lists,
                 _pad1,
             }
         );

@@ -1,11 +1,13 @@
-// Deep shadow maps on the engine path (frame.rs, DeepShadowFrame): the caster map of each
-// sub-light view comes from the core's raster pass (an R32Float layer, +inf where empty); its
-// depths go into head[] as the opaque path's bits (`frame_head`); each receiver's query is made
+// Deep shadow maps on the engine path (frame.rs, DeepShadowFrame). Opaque casters: the caster
+// map of each sub-light view comes from the core's raster pass (an R32Float layer, +inf where
+// empty); its depths go into head[] as the opaque path's bits (`frame_head`). Semi-transparent
+// casters (F.lists): insert.wgsl builds the lists, deep_shadow.wgsl's `clear`, `process` and
+// `link` finish them, and the lookup walks them (`list_transmittance`). each receiver's query is made
 // here from the caller's receiver buffer, the twin of cpu.rs `query` and gpu.rs `pack_query`
 // (`frame_lookup`, which adds the view's transmittance into acc); `frame_finish` writes V, the
 // twin of cpu.rs `finish`. Appended after the core's shared.wgsl, estimate.wgsl and math.wgsl,
-// the baselines' cells.wgsl and deep_shadow.wgsl (bindings 0 to 7; the engine path binds 0, 3
-// and 4).
+// the baselines' cells.wgsl and deep_shadow.wgsl (bindings 0 to 7; the engine path binds 0, 3,
+// 4 and 5).
 
 // Mirrors frame.rs DsFrameUniform field for field.
 struct DsFrameUniform {
@@ -15,7 +17,7 @@ struct DsFrameUniform {
     pcss: u32,
     count: u32,
     inv_views: f32,
-    _pad0: u32,
+    lists: u32,
     _pad1: u32,
 }
 
@@ -86,7 +88,21 @@ fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
     // Cut short in an earlier view: stays cut.
     if (bitcast<u32>(acc[k]) == CUT_BITS) { return; }
     let q = frame_query(receivers[k].position, receivers[k].normal);
-    let t = opaque_transmittance(q[0], q[1]);
+    var t: f32;
+    if (F.lists != 0u) {
+        // Lists short of fragments (the element buffer full, the counter wrapped) or left
+        // unsorted (process or link cut by the loop budget): V left NaN and counted, for the
+        // caller to redo.
+        if (atomicLoad(&counters.count) > P.capacity || atomicLoad(&counters.wraps) != 0u
+            || atomicLoad(&counters.cut) != 0u) {
+            acc[k] = bitcast<f32>(CUT_BITS);
+            atomicAdd(&status[2], 1u);
+            return;
+        }
+        t = list_transmittance(q[0], q[1]);
+    } else {
+        t = opaque_transmittance(q[0], q[1]);
+    }
     // Out of the device's loop budget (shared.wgsl): marked, counted, V left NaN by frame_finish.
     if (loop_limit_hit(P.probe)) {
         acc[k] = bitcast<f32>(CUT_BITS);

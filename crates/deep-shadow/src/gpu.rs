@@ -48,6 +48,7 @@ pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
 pub const SHADERS: &[(&str, &[&str])] = &[
     ("deep_shadow", SHADER_PARTS),
     ("deep_shadow_frame", crate::frame::FRAME_SHADER_PARTS),
+    ("deep_shadow_insert", crate::frame::INSERT_SHADER_PARTS),
 ];
 
 /// The WGSL parts of the module, in order: the workgroup size's declaration ([`WG_WGSL`]), the
@@ -572,7 +573,7 @@ impl GpuDeepShadow {
 
     /// The first build's element capacity: 1 for an opaque map, else the setting (0: four per
     /// texel, at least 1024), within `1..=max_cap`.
-    fn initial_capacity(s: &Settings, opaque: bool, texels: u64, max_cap: u64) -> u64 {
+    pub(crate) fn initial_capacity(s: &Settings, opaque: bool, texels: u64, max_cap: u64) -> u64 {
         if opaque {
             1
         } else if s.capacity == 0 {

@@ -22,13 +22,12 @@ pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{setting, MethodDescriptor, Setting};
 
-/// Deep shadow maps in the registry: `deep-shadow`, its CPU twin, GPU twin and engine path.
+/// Deep shadow maps in the registry: `deep-shadow`, its CPU twin and engine path (which is also
+/// its GPU estimator, the core's `FrameTwin`).
 pub const DESCRIPTOR: MethodDescriptor = {
     let d = MethodDescriptor::new("deep-shadow", || Ok(Box::new(CpuDeepShadow::new()?)), sweep);
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuDeepShadow::new(ctx)?)))
-        .with_frame(|ctx, params, n| Ok(Box::new(DeepShadowFrame::prepare(ctx, params, n)?)));
+    let d = d.with_frame(|ctx, params, n| Ok(Box::new(DeepShadowFrame::prepare(ctx, params, n)?)));
     d
 };
 

@@ -296,8 +296,8 @@ fn render_gpu_takes_the_frame_api() {
     }
     let dir = tempfile::tempdir().unwrap();
     let squares = fixture("parallel-squares/parallel-squares.toml");
-    // Semi-transparent strands: backprojection's frame models the casters' opacity; deep-shadow's
-    // casts them opaque, so its twin's path; hard's frame twin casts them opaque and warns.
+    // Semi-transparent strands: backprojection's and deep-shadow's frames model the casters'
+    // opacity (opacity planes, lists); hard's frame twin casts them opaque and warns.
     let strands = fixture("strands/strands.toml");
     // A sphere light: packet-hsm's engine path sets its silhouette up on the device; sub-lights
     // it refuses (FrameEstimator::refuses): the twin's path.
@@ -314,7 +314,7 @@ fn render_gpu_takes_the_frame_api() {
         FrameTwin,
         Twin,
     }
-    let cases: [(&str, &[&str], Path, &std::path::Path); 14] = [
+    let cases: [(&str, &[&str], Path, &std::path::Path); 15] = [
         ("pcss", &["resolution=256"], Path::Frame, &squares),
         // 16-bit maps: encoded within the frame (the engine path used to refuse them).
         (
@@ -339,7 +339,8 @@ fn render_gpu_takes_the_frame_api() {
         ),
         ("backprojection", &["resolution=256"], Path::Frame, &strands),
         ("backprojection", &["resolution=256"], Path::Frame, &hair),
-        ("deep-shadow", &["resolution=256"], Path::Twin, &strands),
+        ("deep-shadow", &["resolution=256"], Path::Frame, &strands),
+        ("deep-shadow", &["resolution=256"], Path::Frame, &hair),
         ("hard", &["resolution=256"], Path::FrameTwin, &strands),
         ("hard", &["resolution=256"], Path::FrameTwin, &hair),
         ("packet-hsm", &["resolution=256"], Path::Frame, &squares),

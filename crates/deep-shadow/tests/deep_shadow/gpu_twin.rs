@@ -255,8 +255,8 @@ struct DeepShadow;
 impl TwinPair for DeepShadow {
     test_support::twin_constructors!(CpuDeepShadow, GpuDeepShadow, fixed = strands_case());
 
-    /// The engine path on the strands (semi-transparent: the frame sees them opaque, and so
-    /// does its CPU twin, `DeepShadowFrame::cpu_twin`).
+    /// The engine path on the strands (semi-transparent: the frame builds lists, as the CPU
+    /// twin does).
     fn frame(
         &self,
         ctx: &Arc<GpuContext>,
@@ -268,16 +268,17 @@ impl TwinPair for DeepShadow {
         ))
     }
 
-    /// The engine path renders its maps with the hardware rasteriser (the core's raster pass),
-    /// whose sub-pixel vertex snapping (8 bits on lavapipe) can cover a texel centre within
-    /// 1/256 texel of a strand's edge that the CPU's exact fill rule does not, or the reverse: on
-    /// the strands (filter=pcf, 5 x 5) a receiver then moves by whole taps, `k / 25`. Checked:
-    /// every receiver beyond 1e-4 of the CPU twin differs by a whole number of taps (to 1e-5),
-    /// and at most 1% of them do (measured: 4 of 659, one tap each; RMSE 3.1e-3 on these 659
-    /// receivers of thin strands, where each texel of coverage is a whole tap).
+    /// The engine path renders its lists with the hardware rasteriser (fragments inserted by a
+    /// fragment shader), whose sub-pixel vertex snapping (8 bits on lavapipe) can cover a texel
+    /// centre within 1/256 texel of a strand's edge that the CPU's exact fill rule does not, or
+    /// the reverse: on the strands (filter=pcf, 5 x 5) a receiver then moves by a tap's
+    /// transmittance over 25. Checked: at most 1% of the receivers beyond 1e-4, none beyond
+    /// 2 / 25 (two taps), RMSE within 3e-3; and V is the semi-transparent scene's, far from the
+    /// CPU twin's on the scene made opaque.
     fn frame_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
         let case = strands_case();
         let frame = self.frame(ctx, &case.params).expect("engine path");
+        assert!(frame.models_opacity());
         let c = test_support::conformance::frames_match_the_cpu_twin(
             "deep-shadow strands",
             ctx,
@@ -285,35 +286,31 @@ impl TwinPair for DeepShadow {
             &case.scene,
             &case.receivers,
         );
-        let cpu = frame
-            .cpu_twin(
-                &case.scene,
-                &case.receivers,
-                &frame.fit_views(&case.scene, &case.receivers).unwrap(),
-            )
-            .unwrap();
-        let mut whole_taps = 0;
-        for (k, (&gpu, &cpu)) in c.v.iter().zip(&cpu).enumerate() {
-            if !case.receivers.active()[k] {
-                continue;
-            }
-            let taps = (gpu - cpu) * 25.0;
-            if (gpu - cpu).abs() > 1e-4 {
-                assert!(
-                    (taps - taps.round()).abs() <= 25.0 * 1e-5,
-                    "receiver {k}: dV {} is not a whole number of taps",
-                    gpu - cpu
-                );
-                whole_taps += 1;
-            }
-        }
-        assert_eq!(whole_taps, c.beyond);
+        assert_eq!(c.status.left_nan, 0, "{:?}", c.status);
         assert!(
-            c.active > 0 && c.beyond * 100 <= c.active,
-            "{} of {} beyond 1e-4, rmse {}",
+            c.active > 0 && c.beyond * 100 <= c.active && c.max_dv <= 2.0 / 25.0 && c.rmse <= 3e-3,
+            "{} of {} beyond 1e-4, max |dV| {}, rmse {}",
             c.beyond,
             c.active,
+            c.max_dv,
             c.rmse
+        );
+        let views = frame.fit_views(&case.scene, &case.receivers).unwrap();
+        let opaque = frame
+            .cpu_twin(&case.scene.opaque(), &case.receivers, &views)
+            .unwrap();
+        let active: Vec<usize> = (0..c.v.len())
+            .filter(|&k| case.receivers.active()[k])
+            .collect();
+        let sq: f64 = active
+            .iter()
+            .map(|&k| ((c.v[k] - opaque[k]) as f64).powi(2))
+            .sum();
+        let apart = (sq / active.len() as f64).sqrt();
+        println!("deep-shadow strands: frame RMSE to the opaque scene's CPU twin {apart:.3}");
+        assert!(
+            apart > 10.0 * c.rmse.max(1e-3),
+            "V is the opaque scene's: {apart}"
         );
     }
 
