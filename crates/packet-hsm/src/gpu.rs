@@ -40,19 +40,22 @@ use shadow_map_core::{
 };
 use std::sync::Arc;
 
-/// The kernel's own WGSL.
+/// The kernel's own WGSL: bindings, helpers, contour cells and radial integration.
 pub const PACKET_HSM_WGSL: &str = include_str!("packet_hsm.wgsl");
+/// The kernel's three entry points (`prepare`, `pixels`, `packets`), after [`PACKET_HSM_WGSL`].
+pub const PACKET_HSM_PASSES_WGSL: &str = include_str!("packet_hsm_passes.wgsl");
 /// [`RecIn`] in WGSL, which the kernel reads and the frame's set-up pass writes.
 pub const REC_IN_WGSL: &str = include_str!("rec_in.wgsl");
 /// The WGSL parts of the kernel, in order: the core's disk edge term
 /// ([`DISK_EDGE_WGSL`](shadow_map_core::gpu::estimate::DISK_EDGE_WGSL)) and silhouette carry
 /// ([`SILHOUETTE_WGSL`](shadow_map_core::gpu::estimate::SILHOUETTE_WGSL)), [`REC_IN_WGSL`], then
-/// [`PACKET_HSM_WGSL`].
-pub const SHADER_PARTS: [&str; 4] = [
+/// [`PACKET_HSM_WGSL`] and [`PACKET_HSM_PASSES_WGSL`].
+pub const SHADER_PARTS: [&str; 5] = [
     shadow_map_core::gpu::estimate::DISK_EDGE_WGSL,
     shadow_map_core::gpu::estimate::SILHOUETTE_WGSL,
     REC_IN_WGSL,
     PACKET_HSM_WGSL,
+    PACKET_HSM_PASSES_WGSL,
 ];
 
 /// [`HsmUniform::shape`] of a rect (sub-)light.
