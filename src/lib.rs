@@ -23,20 +23,49 @@ pub use shadow_map_core::{Backend, Error, Result, SoftShadowEstimator};
 
 pub use shadow_map_core::method::{MethodDescriptor, Setting};
 
-/// Every registered method, in listing order: the one registry. [`ALGOS`], [`FRAME_ALGOS`],
-/// the CLI, the report's sweeps and the engines' constructors all come from it, so a method is
-/// added here, once, with its crate's descriptor.
-pub const METHODS: &[MethodDescriptor] = &[
-    reference::DESCRIPTOR,
-    baselines::HARD,
-    baselines::PCF,
-    baselines::PCSS,
-    baselines::MULTI_SAMPLE,
-    backprojection::DESCRIPTOR,
-    accumulation::DESCRIPTOR,
-    packet_hsm::DESCRIPTOR,
-    deep_shadow::DESCRIPTOR,
-];
+/// Calls the macro `$callback` with every registered method in listing order, as
+/// `$(#[doc] ...)* Variant = DESCRIPTOR, frame = bool;` (`frame`: whether the method has an
+/// engine path on the GPU), so that typed lists elsewhere are generated from this one list: the
+/// registry [`METHODS`] here, Bevy's `Method` enum in `bevy-softshadow`. Adding a method is one
+/// entry here, with its crate's descriptor.
+#[macro_export]
+macro_rules! for_each_method {
+    ($callback:ident) => {
+        $callback! {
+            /// The ray-traced ground truth (`reference`; CPU only).
+            Reference = $crate::reference::DESCRIPTOR, frame = false;
+            /// A hard shadow map, one tap (`hard`).
+            Hard = $crate::baselines::HARD, frame = true;
+            /// Percentage-closer filtering with a fixed kernel (`pcf`).
+            Pcf = $crate::baselines::PCF, frame = true;
+            /// Percentage-closer soft shadows (`pcss`): blocker search, then a filter of the
+            /// width the light's size and the blockers' depth give.
+            Pcss = $crate::baselines::PCSS, frame = true;
+            /// Many hard shadow maps from points on the light, averaged (`multi-sample`).
+            MultiSample = $crate::baselines::MULTI_SAMPLE, frame = true;
+            /// Backprojection of shadow-map micropatches onto the light (Bavoil 2008;
+            /// `backprojection`).
+            Backprojection = $crate::backprojection::DESCRIPTOR, frame = true;
+            /// Shadow accumulation (Aszodi 2006; `accumulation`).
+            Accumulation = $crate::accumulation::DESCRIPTOR, frame = true;
+            /// Packet-based hierarchical shadow maps with MSSM (Yang 2009; `packet-hsm`).
+            PacketHsm = $crate::packet_hsm::DESCRIPTOR, frame = true;
+            /// Deep shadow maps with per-texel lists (Fuerst; `deep-shadow`).
+            DeepShadow = $crate::deep_shadow::DESCRIPTOR, frame = true;
+        }
+    };
+}
+
+/// [`METHODS`] from [`for_each_method!`]'s list.
+macro_rules! registry {
+    ($($(#[$doc:meta])* $variant:ident = $descriptor:path, frame = $frame:literal;)*) => {
+        /// Every registered method, in listing order: the one registry ([`for_each_method!`]'s
+        /// list). [`ALGOS`], [`FRAME_ALGOS`], the CLI, the report's sweeps and the engines'
+        /// constructors all come from it.
+        pub const METHODS: &[MethodDescriptor] = &[$($descriptor),*];
+    };
+}
+for_each_method!(registry);
 
 /// Names of every registered estimator, in listing order.
 pub const ALGOS: &[&str] = &names::<{ METHODS.len() }>(false);
@@ -236,6 +265,15 @@ mod tests {
             assert_eq!(FRAME_ALGOS.len(), ALGOS.len() - 1);
             for m in METHODS.iter().filter(|m| m.name() != "reference") {
                 assert!(m.has_gpu() && m.has_frame(), "{}", m.name());
+            }
+            // for_each_method!'s `frame` flags say which have an engine path.
+            macro_rules! frame_flags {
+                ($($(#[$doc:meta])* $v:ident = $d:path, frame = $f:literal;)*) => {
+                    [$(($d.name(), $f)),*]
+                };
+            }
+            for (name, frame) in crate::for_each_method!(frame_flags) {
+                assert_eq!(frame, FRAME_ALGOS.contains(&name), "{name}");
             }
         }
     }

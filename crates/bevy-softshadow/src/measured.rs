@@ -91,7 +91,7 @@ mod tests {
 
     #[test]
     fn every_method_has_its_defaults_measured_on_every_fixture() {
-        for m in Method::ALL {
+        for &m in Method::ALL {
             let runs = measured(&SoftShadowSettings::new(m));
             assert!(runs.len() >= 25, "{}: {} runs", m.name(), runs.len());
             assert!(runs.iter().all(|r| r.rmse.is_finite() && r.rmse >= 0.0));

@@ -2,60 +2,63 @@
 //! typed [`MethodParams`].
 use bevy::prelude::*;
 
-/// The estimators this plugin runs each frame: every method with an engine path
-/// ([`softshadow::FRAME_ALGOS`]), by the registry's names ([`Method::name`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
-pub enum Method {
-    /// A hard shadow map, one tap (`hard`).
-    Hard,
-    /// Percentage-closer filtering with a fixed kernel (`pcf`).
-    Pcf,
-    /// Percentage-closer soft shadows (`pcss`): blocker search, then a filter of the width the
-    /// light's size and the blockers' depth give.
-    #[default]
-    Pcss,
-    /// Many hard shadow maps from points on the light, averaged (`multi-sample`).
-    MultiSample,
-    /// Backprojection of shadow-map micropatches onto the light (Bavoil 2008; `backprojection`).
-    Backprojection,
-    /// Shadow accumulation (Aszodi 2006; `accumulation`).
-    Accumulation,
-    /// Packet-based hierarchical shadow maps with MSSM (Yang 2009; `packet-hsm`).
-    PacketHsm,
-    /// Deep shadow maps with per-texel lists (Fuerst; `deep-shadow`).
-    DeepShadow,
+/// `Method` and its tables from [`softshadow::for_each_method!`]'s list: a variant per method
+/// with an engine path (`frame = true`), in the registry's order, with the registry's docs.
+macro_rules! frame_methods {
+    ($($(#[$doc:meta])* $variant:ident = $descriptor:path, frame = $frame:literal;)*) => {
+        /// The estimators this plugin runs each frame: every method with an engine path
+        /// ([`softshadow::FRAME_ALGOS`]), generated from the registry's list
+        /// ([`softshadow::for_each_method!`]), named as the registry names them
+        /// ([`Method::name`]).
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
+        pub enum Method {
+            $($(#[$doc])* $variant,)*
+        }
+
+        impl Method {
+            /// Every method, in the registry's order.
+            pub const ALL: &'static [Method] = &[$(Method::$variant),*];
+
+            /// The method's registry entry: its name, CPU twin, engine path and report sweep.
+            pub fn descriptor(self) -> &'static softshadow::MethodDescriptor {
+                match self {
+                    $(Method::$variant => &$descriptor,)*
+                }
+            }
+        }
+    };
+}
+
+/// Keeps the methods with an engine path (`frame = true`) and hands them to [`frame_methods`].
+macro_rules! only_frames {
+    (@keep [$($kept:tt)*]) => { frame_methods! { $($kept)* } };
+    (@keep [$($kept:tt)*] $(#[$doc:meta])* $v:ident = $d:path, frame = true; $($rest:tt)*) => {
+        only_frames! { @keep [$($kept)* $(#[$doc])* $v = $d, frame = true;] $($rest)* }
+    };
+    (@keep [$($kept:tt)*] $(#[$doc:meta])* $v:ident = $d:path, frame = false; $($rest:tt)*) => {
+        only_frames! { @keep [$($kept)*] $($rest)* }
+    };
+    ($($all:tt)*) => { only_frames! { @keep [] $($all)* } };
+}
+
+softshadow::for_each_method!(only_frames);
+
+/// PCSS: the baseline every method is measured against.
+impl Default for Method {
+    fn default() -> Self {
+        Method::Pcss
+    }
 }
 
 impl Method {
-    /// Every method, in the registry's order.
-    pub const ALL: [Method; 8] = [
-        Method::Hard,
-        Method::Pcf,
-        Method::Pcss,
-        Method::MultiSample,
-        Method::Backprojection,
-        Method::Accumulation,
-        Method::PacketHsm,
-        Method::DeepShadow,
-    ];
-
     /// The registry name (`softshadow render --algo NAME`, `docs/report/results.csv`'s `algo`).
     pub fn name(self) -> &'static str {
-        match self {
-            Method::Hard => "hard",
-            Method::Pcf => "pcf",
-            Method::Pcss => "pcss",
-            Method::MultiSample => "multi-sample",
-            Method::Backprojection => "backprojection",
-            Method::Accumulation => "accumulation",
-            Method::PacketHsm => "packet-hsm",
-            Method::DeepShadow => "deep-shadow",
-        }
+        self.descriptor().name()
     }
 
     /// The method called `name` in the registry, if it is one of these.
     pub fn from_name(name: &str) -> Option<Method> {
-        Method::ALL.into_iter().find(|m| m.name() == name)
+        Method::ALL.iter().copied().find(|m| m.name() == name)
     }
 }
 
@@ -148,9 +151,11 @@ mod tests {
     fn every_method_is_a_frame_estimator() {
         let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
         assert_eq!(names, softshadow::FRAME_ALGOS);
-        for m in Method::ALL {
+        for &m in Method::ALL {
             assert_eq!(Method::from_name(m.name()), Some(m));
+            assert!(m.descriptor().has_frame(), "{}", m.name());
         }
+        assert_eq!(Method::default(), Method::Pcss);
     }
 
     #[test]
