@@ -4,12 +4,12 @@
 // opaque path (no lists): raster_opaque (atomicMin of the depth bits) and lookup_opaque.
 // `Cells`, `cells_new`, `cell`, `Sum`, `sum_add` come from the baselines' cells.wgsl, the part
 // before this one.
-// Structs mirror shared.rs field for field.
+// Structs mirror shared.rs field for field (Node: node.wgsl).
 
-// Set from Rust as pipeline overrides (shared::NIL, dsm::EDSM_CUTOFF; the workgroup size WG,
+// Set from Rust as a pipeline override (dsm::EDSM_CUTOFF; NIL and Node come from node.wgsl, the
+// part before this one; the workgroup size WG,
 // gpu::WORKGROUP_SIZE, is declared by the part before this one: gpu.rs WG_WGSL for the twin's
 // module, the core's estimate.wgsl for the engine path's).
-override NIL: u32;
 override EDSM_CUTOFF: f32;
 const SORT_LOCAL: u32 = 64u;
 const FILTER_FIRST: u32 = 0u;
@@ -17,17 +17,6 @@ const FILTER_NONE: u32 = 1u;
 const FILTER_PCF: u32 = 2u;
 const FILTER_EDSM: u32 = 3u;
 const FILTER_PCSS: u32 = 4u;
-
-struct Node {
-    depth: f32,
-    alpha: f32,
-    tau: f32,
-    next: u32,
-    prev: u32,
-    right: u32,
-    upper: u32,
-    _pad0: u32,
-}
 
 struct Tri {
     u0: f32, v0: f32, u1: f32, v1: f32, u2: f32, v2: f32,

@@ -66,12 +66,14 @@ use std::sync::{Arc, Mutex};
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
 /// The engine path's module, in order: the core's shared structs, estimate uniform and math,
-/// the core's cells, [`crate::gpu::DEEP_SHADOW_WGSL`], then [`FRAME_WGSL`].
+/// the core's cells, the list element ([`crate::gpu::NODE_WGSL`]),
+/// [`crate::gpu::DEEP_SHADOW_WGSL`], then [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
     SHARED_WGSL,
     ESTIMATE_WGSL,
     MATH_WGSL,
     CELLS_WGSL,
+    crate::gpu::NODE_WGSL,
     crate::gpu::DEEP_SHADOW_WGSL,
     FRAME_WGSL,
 ];
@@ -138,9 +140,9 @@ struct Lists {
 /// The insert pass's WGSL, after the core's [`RASTER_WGSL`] (its `vs_main`).
 pub const INSERT_WGSL: &str = include_str!("insert.wgsl");
 
-/// The insert pass's module, in order: the core's rasteriser ([`RASTER_WGSL`]), then
-/// [`INSERT_WGSL`].
-pub const INSERT_SHADER_PARTS: &[&str] = &[RASTER_WGSL, INSERT_WGSL];
+/// The insert pass's module, in order: the core's rasteriser ([`RASTER_WGSL`]), the list
+/// element ([`crate::gpu::NODE_WGSL`]), then [`INSERT_WGSL`].
+pub const INSERT_SHADER_PARTS: &[&str] = &[RASTER_WGSL, crate::gpu::NODE_WGSL, INSERT_WGSL];
 
 impl Lists {
     fn prepare(

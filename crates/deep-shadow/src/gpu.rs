@@ -51,6 +51,10 @@ pub use query::{pack_depth_query, pack_query, unpack_look, PackedQuery};
 /// The WGSL of every stage.
 pub const DEEP_SHADOW_WGSL: &str = include_str!("deep_shadow.wgsl");
 
+/// The list element `Node` and the empty index `NIL`, the part before [`DEEP_SHADOW_WGSL`] and
+/// before the insert pass's WGSL.
+pub const NODE_WGSL: &str = include_str!("node.wgsl");
+
 /// Every shader of the crate as `(name, source)` (validated with naga by a unit test).
 pub const SHADERS: &[(&str, &[&str])] = &[
     ("deep_shadow", SHADER_PARTS),
@@ -59,9 +63,16 @@ pub const SHADERS: &[(&str, &[&str])] = &[
 ];
 
 /// The WGSL parts of the module, in order: the workgroup size's declaration ([`WG_WGSL`]), the
-/// core's shared structs and loop-budget probe ([`SHARED_WGSL`]), the core's `cells` and Kahan `Sum` (the PCSS sampling `filter=pcss` shares), then
+/// core's shared structs and loop-budget probe ([`SHARED_WGSL`]), the core's `cells` and Kahan
+/// `Sum` (the PCSS sampling `filter=pcss` shares), the list element ([`NODE_WGSL`]), then
 /// [`DEEP_SHADOW_WGSL`].
-pub const SHADER_PARTS: &[&str] = &[WG_WGSL, SHARED_WGSL, CELLS_WGSL, DEEP_SHADOW_WGSL];
+pub const SHADER_PARTS: &[&str] = &[
+    WG_WGSL,
+    SHARED_WGSL,
+    CELLS_WGSL,
+    NODE_WGSL,
+    DEEP_SHADOW_WGSL,
+];
 
 /// The workgroup size's declaration, `override WG` ([`WORKGROUP_SIZE`]): its own part, since the
 /// engine path's module takes it from the core's `estimate.wgsl` instead.

@@ -5,20 +5,7 @@
 // buffer only the counter moves, and frame.wgsl then marks the frame's receivers cut for the
 // caller to redo). Helper invocations write nothing (their stores and atomics have no effect).
 // The colour target is the frame's map layer with an empty write mask (a render pass needs one).
-// Structs mirror shared.rs field for field.
-
-override NIL: u32;
-
-struct Node {
-    depth: f32,
-    alpha: f32,
-    tau: f32,
-    next: u32,
-    prev: u32,
-    right: u32,
-    upper: u32,
-    _pad0: u32,
-}
+// Node and NIL come from node.wgsl, the part before this one.
 
 // The first three words of deep_shadow.wgsl's Counters: elements asked for, lookup steps,
 // wraps of the element counter past u32::MAX.

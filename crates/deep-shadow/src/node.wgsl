@@ -1,0 +1,15 @@
+// A list element of the deep shadow map (mirrors shared.rs Node field for field) and the
+// empty-list index NIL (shared::NIL, set from Rust as a pipeline override): the part every
+// deep-shadow module (the twin's, the engine path's, the insert pass's) takes before its own.
+override NIL: u32;
+
+struct Node {
+    depth: f32,
+    alpha: f32,
+    tau: f32,
+    next: u32,
+    prev: u32,
+    right: u32,
+    upper: u32,
+    _pad0: u32,
+}
