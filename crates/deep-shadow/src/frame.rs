@@ -37,7 +37,7 @@
 //! for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same views).
 use crate::cpu::{lookup_settings, sublight_points, view_light, CpuDeepShadow, Tally};
 use crate::dsm::Filter;
-use crate::gpu::{dispatch, lookup_uniform, GpuDeepShadow, COUNTER_BYTES, OWN_OVERRIDES};
+use crate::gpu::{lookup_uniform, workgroups, GpuDeepShadow, COUNTER_BYTES, OWN_OVERRIDES};
 use crate::params::{Settings, NAME};
 use crate::shared::DsUniform;
 use bytemuck::{Pod, Zeroable};
@@ -48,8 +48,8 @@ use shadow_map_core::{
         depth_map::DEPTH_MAP_FORMAT,
         estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, WORKGROUP_SIZE},
         frame::{
-            buffer_range, check_buffers, check_per_receiver, status_buffer, FrameEstimator,
-            FrameInputs,
+            buffer_range, check_per_receiver, check_prepared_inputs, compute_pass, status_buffer,
+            FrameEstimator, FrameInputs,
         },
         kernel::{compute_pipeline, shader_module, Binding},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
@@ -455,6 +455,8 @@ impl DeepShadowFrame {
     }
 }
 
+/// One compute pass over `threads` invocations (`dispatch`'s 2-D grid past 65535 workgroups,
+/// which the entry points' `linear_id` reads).
 fn run(
     enc: &mut wgpu::CommandEncoder,
     label: &str,
@@ -462,13 +464,7 @@ fn run(
     group: &wgpu::BindGroup,
     threads: u64,
 ) {
-    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(pipe);
-    pass.set_bind_group(0, group, &[]);
-    dispatch(&mut pass, threads);
+    compute_pass(enc, label, pipe, group, workgroups(threads));
 }
 
 impl FrameEstimator for DeepShadowFrame {
@@ -501,15 +497,12 @@ impl FrameEstimator for DeepShadowFrame {
     /// also for views missing or more than the sub-lights ([`Error::LightView`]) and more
     /// receivers than `max_receivers` ([`Error::Limit`]).
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
-        let n = inputs.count as u64;
-        check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
-        if inputs.count > self.max_receivers {
-            return Err(Error::Limit {
-                what: "receivers per deep-shadow frame (max_receivers at prepare)",
-                requested: n,
-                max: self.max_receivers as u64,
-            });
-        }
+        let n = check_prepared_inputs(
+            &self.ctx,
+            inputs,
+            self.max_receivers,
+            "receivers per deep-shadow frame (max_receivers at prepare)",
+        )?;
         let views: Vec<&LightView> = inputs.views.iter().flatten().collect();
         if views.len() != inputs.views.len() || views.len() != self.slots.len() {
             return Err(Error::LightView(format!(

@@ -155,10 +155,16 @@ pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 pub const COUNTER_BYTES: u64 = 24;
 
 pub(crate) fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
+    let [x, y, z] = workgroups(threads);
+    pass.dispatch_workgroups(x, y, z);
+}
+
+/// Workgroups covering `threads` invocations: one row up to 65535 workgroups, then rows of 65535.
+pub(crate) fn workgroups(threads: u64) -> [u32; 3] {
     let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
     let x = groups.min(65535);
     let y = groups.div_ceil(x);
-    pass.dispatch_workgroups(x as u32, y as u32, 1);
+    [x as u32, y as u32, 1]
 }
 
 impl GpuDeepShadow {

@@ -45,7 +45,8 @@ use shadow_map_core::{
             SILHOUETTE_WGSL, WORKGROUP_SIZE,
         },
         frame::{
-            buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
+            buffer_range, check_prepared_inputs, compute_pass, single_view, status_buffer,
+            FrameEstimator, FrameInputs,
         },
         kernel::{compute_pipeline, shader_module, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
@@ -396,6 +397,8 @@ impl PacketHsmFrame {
     }
 }
 
+/// One compute pass over `threads` invocations in one row of workgroups (the kernel's entry
+/// points index by `global_invocation_id.x` alone).
 fn run(
     enc: &mut wgpu::CommandEncoder,
     label: &str,
@@ -403,13 +406,8 @@ fn run(
     group: &wgpu::BindGroup,
     threads: u64,
 ) {
-    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(pipe);
-    pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups(threads.div_ceil(WORKGROUP as u64).max(1) as u32, 1, 1);
+    let x = threads.div_ceil(WORKGROUP as u64).max(1) as u32;
+    compute_pass(enc, label, pipe, group, [x, 1, 1]);
 }
 
 impl FrameEstimator for PacketHsmFrame {
@@ -445,15 +443,12 @@ impl FrameEstimator for PacketHsmFrame {
 
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
-        let n = inputs.count as u64;
-        check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
-        if inputs.count > self.max_receivers {
-            return Err(Error::Limit {
-                what: "receivers per frame (packet-hsm frame prepared for fewer)",
-                requested: n,
-                max: self.max_receivers as u64,
-            });
-        }
+        let n = check_prepared_inputs(
+            &self.gpu.ctx,
+            inputs,
+            self.max_receivers,
+            "receivers per frame (packet-hsm frame prepared for fewer)",
+        )?;
         let shape = self.shape(view, inputs.light)?;
         let ctx = &*self.gpu.ctx;
         let queue = &ctx.queue;

@@ -25,7 +25,10 @@ use shadow_map_core::{
     estimator::configure,
     gpu::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
-        frame::{buffer_range, check_buffers, check_per_receiver, single_view, status_buffer},
+        frame::{
+            buffer_range, check_buffers, check_per_receiver, check_prepared_inputs, single_view,
+            status_buffer,
+        },
         receivers::RECEIVER_BYTES,
         GpuContext, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
@@ -316,15 +319,12 @@ impl FrameEstimator for MultiSampleFrame {
     /// `finalize`. Errors also for more views than sub-lights ([`Error::LightView`]) and more
     /// receivers than `max_receivers` ([`Error::Limit`]).
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
-        let n = inputs.count as u64;
-        check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
-        if inputs.count > self.max_receivers {
-            return Err(Error::Limit {
-                what: "receivers per multi-sample frame (max_receivers at prepare)",
-                requested: n,
-                max: self.max_receivers as u64,
-            });
-        }
+        let n = check_prepared_inputs(
+            &self.ctx,
+            inputs,
+            self.max_receivers,
+            "receivers per multi-sample frame (max_receivers at prepare)",
+        )?;
         if inputs.views.len() > self.map.slots() {
             return Err(Error::LightView(format!(
                 "{} views for {} sub-lights",

@@ -442,6 +442,45 @@ pub fn check_per_receiver(ctx: &GpuContext, what: &'static str, max_receivers: u
     ctx.check_storage_bytes(what, 4 * max_receivers as u64)
 }
 
+/// [`check_buffers`] for `inputs`, then its receiver count against the `max_receivers` the frame
+/// was prepared for ([`Error::Limit`] with `what`): the checks a frame with per-receiver buffers
+/// of its own makes first in `encode`. Returns the count.
+pub fn check_prepared_inputs(
+    ctx: &GpuContext,
+    inputs: &FrameInputs<'_>,
+    max_receivers: u32,
+    what: &'static str,
+) -> Result<u64> {
+    let n = inputs.count as u64;
+    check_buffers(ctx, inputs.receivers, inputs.v, n)?;
+    if inputs.count > max_receivers {
+        return Err(Error::Limit {
+            what,
+            requested: n,
+            max: max_receivers as u64,
+        });
+    }
+    Ok(n)
+}
+
+/// Records one compute pass `label`: `pipe` with `group` at index 0, `workgroups` dispatched.
+pub fn compute_pass(
+    enc: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipe: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    workgroups: [u32; 3],
+) {
+    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipe);
+    pass.set_bind_group(0, group, &[]);
+    let [x, y, z] = workgroups;
+    pass.dispatch_workgroups(x, y, z);
+}
+
 /// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame
 /// writes for the caller to read when it likes (cleared by each `encode`).
 pub fn status_buffer(ctx: &GpuContext, label: &str, words: u64) -> wgpu::Buffer {
