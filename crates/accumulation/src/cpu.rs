@@ -5,12 +5,15 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitMode, FitReport, LightView, ViewOptions, BIAS, RESOLUTION, SLOPE_BIAS},
+    light_view::{FitReport, LightView, ViewOptions, BIAS, RESOLUTION, SLOPE_BIAS},
     receiver_plane::RECEIVER_PLANE,
     Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers,
     Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+
+mod rings;
+pub use rings::{for_each_ring_cell, ring_phase, ring_width, Kernel};
 
 /// Largest bit-grid side of the exact variant (16 x 16 = 256 bits, 8 u32 words on the GPU), and
 /// the words of the occlusion-bit mask: the core's [`shadow_map_core::bitmask`].
@@ -248,132 +251,6 @@ fn bounds_rect(b: [f32; 4], r: u32) -> [i32; 4] {
         hi(b[2]) as i32,
         hi(b[3]) as i32,
     ]
-}
-
-/// A receiver's kernel: the cells whose centre texels are read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kernel {
-    /// `step x step` blocks tiling `rect` (`[x0, y0, x1, y1)`, the last ones clipped).
-    Uniform {
-        /// The texel rectangle.
-        rect: [i32; 4],
-        /// Block side in texels.
-        step: u32,
-    },
-    /// Multi-resolution rings ([`for_each_ring_cell`]) around `centre`, clipped to `bound`.
-    Rings {
-        /// The texel rectangle the cells are clipped to.
-        bound: [i32; 4],
-        /// The texel corner nearest the receiver's projection.
-        centre: [i32; 2],
-        /// Ring width in cells.
-        m: i32,
-        /// Lattice index of texel 0 the cells align to ([`ring_phase`]).
-        phase: [i32; 2],
-    },
-}
-
-/// Ring width of the adaptive kernel for kernel size K: `ceil(K / 4)` cells, so each level's
-/// square is about K cells wide.
-pub fn ring_width(k: u32) -> i32 {
-    k.div_ceil(4).max(1) as i32
-}
-
-/// Lattice index of the map's texel 0 (modulo 2^20), where the adaptive kernel's cells of side
-/// `2^l` align: `round(x0 / delta)` per axis under `fit=stable`, whose window corner is a whole
-/// number of texels on a fixed lattice, so a receiver's cells, and its V, do not change when the
-/// camera pans and the corner moves by an odd number of texels; `[0, 0]` (cells aligned to the
-/// map) otherwise. Cells never reach 2^20 texels (r <= 16384), so the modulus changes nothing.
-pub fn ring_phase(view: &LightView, fit: FitMode) -> [i32; 2] {
-    if fit != FitMode::Stable {
-        return [0, 0];
-    }
-    let delta = view.w as f64 / view.r as f64;
-    let k = |x0: f32| {
-        let k = (x0 as f64 / delta).round();
-        if k.is_finite() {
-            (k.rem_euclid((1u32 << 20) as f64)) as i32
-        } else {
-            0
-        }
-    };
-    [k(view.window_min.x), k(view.window_min.y)]
-}
-
-fn floor_to(x: i32, a: i32) -> i32 {
-    x.div_euclid(a) * a
-}
-
-fn ceil_to(x: i32, a: i32) -> i32 {
-    -((-x).div_euclid(a) * a)
-}
-
-/// The adaptive kernel's cells: level 0 is single texels in `[c - m, c + m)^2`; level l has cells
-/// of side `s = 2^l` aligned to multiples of s (in lattice indices: texel i is `i + phase`,
-/// [`ring_phase`]), filling the ring between the previous level's
-/// square (extended to multiples of s) and that square grown by `m s` on every side; levels stop
-/// once a square covers `bound`. The cells tile the square exactly (no overlap, no gap), fine near
-/// the receiver's projection, where a caster close to the receiver is magnified most (its image
-/// scale `size` grows as `1 / (z_p - c_z)`), and coarse further out, where only casters near the
-/// light (small `size`) can reach the footprint. Every cell is clipped to `bound`. `f` returns
-/// true to stop.
-pub fn for_each_ring_cell(
-    bound: [i32; 4],
-    c: [i32; 2],
-    m: i32,
-    phase: [i32; 2],
-    mut f: impl FnMut(i32, i32, i32, i32) -> bool,
-) {
-    // In lattice indices; the cells are handed back in map indices.
-    let [px, py] = phase;
-    let bound = [bound[0] + px, bound[1] + py, bound[2] + px, bound[3] + py];
-    let c = [c[0] + px, c[1] + py];
-    let mut f = |i0: i32, i1: i32, j0: i32, j1: i32| f(i0 - px, i1 - px, j0 - py, j1 - py);
-    let covers =
-        |r: &[i32; 4]| r[0] <= bound[0] && r[1] <= bound[1] && r[2] >= bound[2] && r[3] >= bound[3];
-    let mut raw = [c[0] - m, c[1] - m, c[0] + m, c[1] + m];
-    let mut inner = [c[0], c[1], c[0], c[1]];
-    let mut s = 1i32;
-    for _ in 0..32 {
-        let last = covers(&raw);
-        let a = if last { s } else { 2 * s };
-        let outer = [
-            floor_to(raw[0], a),
-            floor_to(raw[1], a),
-            ceil_to(raw[2], a),
-            ceil_to(raw[3], a),
-        ];
-        let (x0, x1) = (outer[0].max(floor_to(bound[0], s)), outer[2].min(bound[2]));
-        let (y0, y1) = (outer[1].max(floor_to(bound[1], s)), outer[3].min(bound[3]));
-        let mut y = y0;
-        while y < y1 {
-            let mut x = x0;
-            while x < x1 {
-                let in_inner =
-                    x >= inner[0] && x + s <= inner[2] && y >= inner[1] && y + s <= inner[3];
-                if !in_inner {
-                    let (i0, i1) = (x.max(bound[0]), (x + s).min(bound[2]));
-                    let (j0, j1) = (y.max(bound[1]), (y + s).min(bound[3]));
-                    if i0 < i1 && j0 < j1 && f(i0, i1, j0, j1) {
-                        return;
-                    }
-                }
-                x += s;
-            }
-            y += s;
-        }
-        if last || covers(&outer) {
-            return;
-        }
-        inner = outer;
-        s *= 2;
-        raw = [
-            outer[0] - m * s,
-            outer[1] - m * s,
-            outer[2] + m * s,
-            outer[3] + m * s,
-        ];
-    }
 }
 
 /// What one receiver's estimate cost (summed into the report).
@@ -935,93 +812,4 @@ pub fn note_settings(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The rings tile their bound exactly: every texel in exactly one cell, single texels next
-    /// to the centre, unclipped cells aligned to their side in lattice indices (map index plus
-    /// phase).
-    #[test]
-    fn ring_cells_tile_the_bound_once() {
-        for phase in [[0, 0], [1, 3], [5, (1 << 20) - 1]] {
-            for (bound, c, m) in [
-                ([0, 0, 37, 29], [11, 13], 3),
-                ([5, 7, 300, 90], [200, 40], 1),
-                ([0, 0, 8, 8], [4, 4], 3),
-                ([10, 10, 200, 200], [10, 199], 2),
-            ] {
-                let (w, h) = (
-                    (bound[2] - bound[0]) as usize,
-                    (bound[3] - bound[1]) as usize,
-                );
-                let mut hits = vec![0u32; w * h];
-                let mut cells = 0;
-                let mut aligned = 0;
-                for_each_ring_cell(bound, c, m, phase, |i0, i1, j0, j1| {
-                    cells += 1;
-                    for j in j0..j1 {
-                        for i in i0..i1 {
-                            hits[(j - bound[1]) as usize * w + (i - bound[0]) as usize] += 1;
-                        }
-                    }
-                    if (c[0] - m..c[0] + m).contains(&i0) && (c[1] - m..c[1] + m).contains(&j0) {
-                        assert_eq!(
-                            (i1 - i0, j1 - j0),
-                            (1, 1),
-                            "cell near the centre is a texel"
-                        );
-                    }
-                    let side = i1 - i0;
-                    if side > 1 && i0 > bound[0] && i1 < bound[2] {
-                        assert_eq!((i0 + phase[0]) % side, 0, "{phase:?}: cell at {i0}");
-                        aligned += 1;
-                    }
-                    false
-                });
-                assert!(
-                    hits.iter().all(|&h| h == 1),
-                    "{bound:?} {c:?} {m} {phase:?}"
-                );
-                assert!(cells <= w * h, "{cells} cells for {} texels", w * h);
-                assert!(aligned > 0 || w <= 8, "{bound:?}: no coarse cell checked");
-            }
-        }
-    }
-
-    /// Moving the map's corner by t texels on a fixed lattice (bound and centre by -t in map
-    /// indices, the phase by +t) gives the same cells, moved by -t: the `fit=stable` property.
-    #[test]
-    fn ring_cells_follow_the_lattice_not_the_map() {
-        let cells = |bound: [i32; 4], c: [i32; 2], phase: [i32; 2]| {
-            let mut v = Vec::new();
-            for_each_ring_cell(bound, c, 2, phase, |i0, i1, j0, j1| {
-                v.push([i0, i1, j0, j1]);
-                false
-            });
-            v
-        };
-        let (bound, c) = ([20, 30, 220, 200], [90, 120]);
-        let base = cells(bound, c, [7, 12]);
-        for t in [1, 3, 5, 17] {
-            let moved = cells(
-                [bound[0] - t, bound[1] - t, bound[2] - t, bound[3] - t],
-                [c[0] - t, c[1] - t],
-                [7 + t, 12 + t],
-            );
-            let back: Vec<[i32; 4]> = moved
-                .iter()
-                .map(|q| [q[0] + t, q[1] + t, q[2] + t, q[3] + t])
-                .collect();
-            assert_eq!(back, base, "shift {t}");
-            // Without the phase the cells would change (odd shifts re-align the coarse cells).
-            if t % 2 == 1 {
-                let unphased = cells(
-                    [bound[0] - t, bound[1] - t, bound[2] - t, bound[3] - t],
-                    [c[0] - t, c[1] - t],
-                    [7, 12],
-                );
-                assert_ne!(unphased, moved, "shift {t}");
-            }
-        }
-    }
-}
+mod tests;

@@ -1,0 +1,216 @@
+//! The engine path: [`BackprojectionFrame`], recorded into the caller's command encoder.
+
+use super::{BitTable, BpUniform, DeviceMaps, GpuBackprojection, KernelChunk, KernelUniforms};
+use crate::cpu::{plan, CpuBackprojection};
+use shadow_map_core::{
+    gpu::{
+        estimate::EstimateUniform,
+        frame::{
+            buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
+        },
+        layout::KernelMaps,
+        light_space::GpuLightSpace,
+        raster::{GpuLayersFrame, GpuShadowMapper},
+        receivers::RECEIVER_BYTES,
+        GpuContext,
+    },
+    light_view::LightView,
+    Receivers, Report, Result, Scene, SoftShadowEstimator,
+};
+use std::sync::Arc;
+
+/// Backprojection on the engine path: per frame, recorded into the caller's command
+/// encoder from the caller's casters and receiver buffer, V into the caller's buffer, with no
+/// submit, no wait and no readback.
+///
+/// ```text
+/// let frame = BackprojectionFrame::prepare(ctx, &params)?;   // once: pipelines, maps, uniforms
+/// loop {
+///     let mut enc = device.create_command_encoder(&Default::default());
+///     frame.encode(&mut enc, &FrameInputs { casters, views, light, receivers, count, v })?;
+///     queue.submit([enc.finish()]);                          // the caller's submit
+/// }
+/// ```
+///
+/// A frame records the depth-peeling passes, the midpoint pass (clamped for the frame's view as
+/// [`request`](crate::cpu::request) clamps it), the anchored MSSM of layer 0 (every level up to
+/// `ceil(log2 r)`, at most 10, allocated once: the kernel's minimum query is exact whatever the
+/// number of levels, so V equals the twins' which build only the levels the view needs), the
+/// copies into the kernel's texture arrays, and the kernel over `count` receivers in one
+/// dispatch. The kernel's counters (receivers outside the light frustum, non-finite results
+/// replaced by 0, receivers cut short by the loop budget and left NaN,
+/// [`LOOP_LIMIT`](super::LOOP_LIMIT)) go to [`FrameEstimator::status`]. Semi-transparent casters
+/// (a [`GpuScene`](shadow_map_core::gpu::raster::GpuScene) whose casters are not all
+/// opaque) are modelled as on the CPU: the peeling passes also write each layer's opacity
+/// plane (the opacity of the caster each texel's depth came from), the layout copies them after
+/// the midpoints, and the kernel weights each backprojected micropatch by the opacity of its
+/// layers in front of the receiver with `auto` settings resolved as for a semi-transparent
+/// scene (additive occlusion, the deepest layer, no gap filling); an opaque frame writes and
+/// copies no opacity plane (the planes are allocated at `prepare`, one per depth layer). The
+/// light view is the caller's: [`FrameEstimator::fit_views`] fits one on the CPU as `build`
+/// does.
+pub struct BackprojectionFrame {
+    gpu: GpuBackprojection,
+    layers: GpuLayersFrame,
+    /// The laid-out maps as the kernel reads them for opaque casters.
+    maps: DeviceMaps,
+    /// The same, with the opacity planes read (semi-transparent casters).
+    maps_semi: DeviceMaps,
+    km: KernelMaps,
+    bufs: KernelUniforms,
+    status: wgpu::Buffer,
+}
+
+impl BackprojectionFrame {
+    /// Compiles the pipelines and allocates the layers, the kernel's texture arrays, the
+    /// uniforms and the status buffer for the parameters `params` (a table of backprojection's
+    /// specs). Errors: the parameters' own; device limits as
+    /// [`Error::Limit`](shadow_map_core::Error::Limit).
+    pub fn prepare(ctx: Arc<GpuContext>, params: &shadow_map_core::Params) -> Result<Self> {
+        let mut gpu = GpuBackprojection::new(ctx.clone())?;
+        shadow_map_core::estimator::configure(&mut gpu, params)?;
+        let s = gpu.cpu.settings();
+        let r = s.resolution;
+        let req = shadow_map_core::LightSpaceRequest {
+            resolution: r,
+            layers: s.layers,
+            midpoints: s.shadow.midpoint().then_some(0.0),
+            mssm_levels: Some((r as f32).log2().ceil().clamp(1.0, 10.0) as u32),
+            dual_mssm_levels: None,
+            pyramid: false,
+            raster: shadow_map_core::RasterOptions::default(),
+            opacity: true,
+        };
+        let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
+        let km = gpu.layout.prepare(
+            &ctx,
+            "backprojection",
+            r,
+            layers.layers(),
+            layers.midpoints(),
+            layers.opacity(),
+            layers.min_max().mssm.as_ref(),
+        )?;
+        let maps = DeviceMaps::laid_out(&km, LightView::placeholder(r));
+        let maps_semi = DeviceMaps {
+            opacity: true,
+            ..DeviceMaps::laid_out(&km, LightView::placeholder(r))
+        };
+        let uniform = |label, size: usize| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let bufs = KernelUniforms {
+            view: layers.view_uniform().clone(),
+            est: uniform("estimate uniform", std::mem::size_of::<EstimateUniform>()),
+            bp: uniform("backprojection uniform", std::mem::size_of::<BpUniform>()),
+            bits: uniform("backprojection bit table", std::mem::size_of::<BitTable>()),
+        };
+        let status = status_buffer(&ctx, "backprojection frame status", 3);
+        Ok(BackprojectionFrame {
+            gpu,
+            layers,
+            maps,
+            maps_semi,
+            km,
+            bufs,
+            status,
+        })
+    }
+}
+
+impl BackprojectionFrame {
+    /// The maps the last submitted frame rendered, in `view` (the frame's), opacity planes
+    /// included for semi-transparent casters: what a test reads back
+    /// ([`GpuLightSpace::to_cpu`]) to run the CPU twin on the very maps the kernel read.
+    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
+        self.layers.light_space(view)
+    }
+}
+
+impl FrameEstimator for BackprojectionFrame {
+    fn name(&self) -> &'static str {
+        "backprojection"
+    }
+
+    /// The view the estimator's own `build` fits for `receivers` ([`plan`]).
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.gpu.ctx.check_lost()?;
+        let (view, _, _) = plan(self.gpu.cpu.settings(), scene, receivers)?;
+        Ok(vec![Some(view)])
+    }
+
+    /// Two u32: receivers outside the light frustum, non-finite results (written as 0).
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.status)
+    }
+
+    /// Opacity planes per layer (see [`BackprojectionFrame`]).
+    fn models_opacity(&self) -> bool {
+        true
+    }
+
+    /// `occlusion=bitmask` on a semi-transparent scene: the bits carry no opacity.
+    fn scene_warnings(&self, scene: &Scene) -> Vec<shadow_map_core::Warning> {
+        let mut report = Report::default();
+        crate::cpu::warn_bitmask_opacity(&mut report, self.gpu.cpu.settings(), scene);
+        report.warnings
+    }
+
+    /// The layers (with their opacity for semi-transparent casters), midpoints and MSSM
+    /// rendered in the one view, laid out, then the kernel.
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+        let view = single_view(inputs.views)?;
+        let n = inputs.count as u64;
+        check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
+        let ctx = &*self.gpu.ctx;
+        let queue = &ctx.queue;
+        let settings = self.gpu.cpu.settings();
+        let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
+        inputs.mark(enc, "start");
+        self.layers
+            .encode(queue, enc, inputs.casters, view, clamp)?;
+        inputs.mark(enc, "layers");
+        let semi = !inputs.casters.is_opaque();
+        self.km.record(enc, semi);
+        inputs.mark(enc, "layout");
+        let maps = if semi { &self.maps_semi } else { &self.maps };
+        let (eu, bpu, table) = self.gpu.uniforms(maps, inputs.light);
+        queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
+        queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
+        queue.write_buffer(&self.bufs.bits, 0, bytemuck::bytes_of(&table));
+        enc.clear_buffer(&self.status, 0, None);
+        let chunk = KernelChunk {
+            receivers: buffer_range(inputs.receivers, n.max(1) * RECEIVER_BYTES),
+            v: buffer_range(inputs.v, n.max(1) * 4),
+            len: inputs.count,
+        };
+        self.gpu
+            .encode_kernel(enc, &self.bufs, maps, &[chunk], &self.status);
+        inputs.mark(enc, "estimate");
+        Ok(())
+    }
+
+    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+        self.layers.passes()
+    }
+
+    /// [`CpuBackprojection::build_in_view`], then its estimate.
+    fn cpu_twin(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: &[Option<LightView>],
+    ) -> Result<Vec<f32>> {
+        let mut cpu = CpuBackprojection::new()?;
+        shadow_map_core::estimator::configure(&mut cpu, self.gpu.cpu.params())?;
+        cpu.build_in_view(scene, receivers, *single_view(views)?)?;
+        let mut v = vec![0.0; receivers.len()];
+        cpu.estimate(scene, receivers, &mut v)?;
+        Ok(v)
+    }
+}
