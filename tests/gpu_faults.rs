@@ -449,12 +449,8 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
         let (v, report) =
             run(e.as_mut(), &translucent, &few).unwrap_or_else(|e| panic!("{what}: {e}"));
         let active = few.active().iter().filter(|a| **a).count();
-        let redone = report
-            .notes
-            .iter()
-            .find(|(k, _)| k == "frame_cpu_redo")
-            .map(|(_, v)| v.clone());
-        assert_eq!(redone, Some(active.to_string()), "{what}: {report:?}");
+        let redone: usize = test_support::fixtures::note_as(&report, "frame_cpu_redo");
+        assert_eq!(redone, active, "{what}: {report:?}");
         assert!(
             v.iter().zip(few.active()).all(|(x, a)| !a || x.is_finite()),
             "{what}: an active receiver left non-finite"

@@ -37,7 +37,9 @@
 //! for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same views).
 use crate::cpu::{lookup_settings, sublight_points, view_light, CpuDeepShadow, Tally};
 use crate::dsm::Filter;
-use crate::gpu::{lookup_uniform, workgroups, GpuDeepShadow, COUNTER_BYTES, OWN_OVERRIDES};
+use crate::gpu::{
+    capacity_cap, lookup_uniform, workgroups, GpuDeepShadow, COUNTER_BYTES, OWN_OVERRIDES,
+};
 use crate::params::{Settings, NAME};
 use crate::shared::DsUniform;
 use bytemuck::{Pod, Zeroable};
@@ -152,11 +154,7 @@ impl Lists {
         mk: &dyn Fn(&str) -> Result<wgpu::ComputePipeline>,
     ) -> Result<Lists> {
         let texels = s.resolution as u64 * s.resolution as u64;
-        let node = std::mem::size_of::<crate::shared::Node>() as u64;
-        let l = ctx.limits();
-        let device = l.max_storage_buffer_binding_size.min(l.max_buffer_size) / node;
-        let max_cap = s.max_capacity.min(device).min(u32::MAX as u64 - 1);
-        let capacity = GpuDeepShadow::initial_capacity(s, false, texels, max_cap);
+        let capacity = GpuDeepShadow::initial_capacity(s, false, texels, capacity_cap(ctx, s));
         let module = shader_module(ctx, "deep-shadow insert", INSERT_SHADER_PARTS)?;
         let view_layout = ctx.scoped("deep-shadow insert layout", || {
             ctx.device
@@ -521,6 +519,8 @@ impl FrameEstimator for DeepShadowFrame {
         let queue = &self.ctx.queue;
         let s = &self.settings;
         let light = inputs.light;
+        // Semi-transparent casters: lists (the insert pass), else the opaque path's heads.
+        let lists = !inputs.casters.is_opaque();
         queue.write_buffer(
             &self.light,
             0,
@@ -533,7 +533,7 @@ impl FrameEstimator for DeepShadowFrame {
             pcss: u32::from(s.filter == Filter::Pcss),
             count: inputs.count,
             inv_views: 1.0 / views.len().max(1) as f32,
-            lists: u32::from(!inputs.casters.is_opaque()),
+            lists: u32::from(lists),
             ..Default::default()
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&fu));
@@ -543,7 +543,6 @@ impl FrameEstimator for DeepShadowFrame {
             return Ok(());
         }
         let texels = self.map.r as u64 * self.map.r as u64;
-        let lists = !inputs.casters.is_opaque();
         let nodes = self.lists.nodes(&self.ctx, lists)?;
         let list_group = lists.then(|| {
             let entries: Vec<_> = [&self.head, &nodes, &self.lists.counters]

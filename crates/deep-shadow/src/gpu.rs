@@ -159,6 +159,20 @@ pub(crate) fn dispatch(pass: &mut wgpu::ComputePass<'_>, threads: u64) {
     pass.dispatch_workgroups(x, y, z);
 }
 
+/// The largest element capacity `ctx`'s device can bind.
+fn device_capacity(ctx: &GpuContext) -> u64 {
+    let l = ctx.limits();
+    l.max_storage_buffer_binding_size.min(l.max_buffer_size) / std::mem::size_of::<Node>() as u64
+}
+
+/// The most list elements a map may take under `s`: `max_capacity`, the device's binding and the
+/// u32 element index (below `NIL`), whichever is least.
+pub(crate) fn capacity_cap(ctx: &GpuContext, s: &Settings) -> u64 {
+    s.max_capacity
+        .min(device_capacity(ctx))
+        .min(u32::MAX as u64 - 1)
+}
+
 /// Workgroups covering `threads` invocations: one row up to 65535 workgroups, then rows of 65535.
 pub(crate) fn workgroups(threads: u64) -> [u32; 3] {
     let groups = threads.div_ceil(WORKGROUP_SIZE as u64).max(1);
@@ -291,9 +305,7 @@ impl GpuDeepShadow {
 
     /// The largest element capacity the device can bind.
     pub fn device_capacity(&self) -> u64 {
-        let l = self.ctx.limits();
-        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
-            / std::mem::size_of::<Node>() as u64
+        device_capacity(&self.ctx)
     }
 
     /// Builds, processes and links the deep shadow map of `scene` in `view` on the GPU (or, for an
@@ -322,8 +334,7 @@ impl GpuDeepShadow {
         let prepared = prepare(scene, view);
         let tris = Self::gpu_triangles(&prepared);
         let items = Self::raster_items(&prepared, r);
-        let dev_cap = self.device_capacity();
-        let max_cap = s.max_capacity.min(dev_cap).min(u32::MAX as u64 - 1);
+        let max_cap = capacity_cap(ctx, s);
         let mut capacity = Self::initial_capacity(s, opaque, texels, max_cap);
         let tri_buf = self.storage("deep-shadow triangles", bytemuck::cast_slice(&tris));
         let item_buf = self.storage("deep-shadow raster items", bytemuck::cast_slice(&items));

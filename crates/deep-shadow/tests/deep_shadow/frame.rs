@@ -11,7 +11,7 @@ use deep_shadow::DeepShadowFrame;
 use shadow_map_core::{gpu::frame::FrameEstimator, run, Params};
 use test_support::{
     conformance::frames_match_the_cpu_twin,
-    fixtures::{bunny_under_three_lights, fixture},
+    fixtures::{bunny_under_three_lights, fixture, note_as, rmse},
     gate::context_for_tests,
 };
 
@@ -105,12 +105,7 @@ fn deep_shadow_frames_build_lists_for_semi_transparent_casters() {
             );
             let views = frame.fit_views(&scene, &rec).unwrap();
             let opaque = frame.cpu_twin(&scene.opaque(), &rec, &views).unwrap();
-            let n = rec.active().iter().filter(|a| **a).count();
-            let sq: f64 = (0..rec.len())
-                .filter(|&k| rec.active()[k])
-                .map(|k| ((c.v[k] - opaque[k]) as f64).powi(2))
-                .sum();
-            let apart = (sq / n as f64).sqrt();
+            let apart = rmse(&c.v, &opaque, rec.active());
             println!("{label}: RMSE to the opaque scene's CPU twin {apart:.3}");
             assert!(
                 apart > 10.0 * c.rmse.max(1e-3),
@@ -135,17 +130,10 @@ fn a_full_element_buffer_cuts_the_frame_for_a_redo() {
     let mut gpu = deep_shadow::DESCRIPTOR.gpu(ctx.clone()).unwrap().unwrap();
     gpu.set_param("capacity", "64").unwrap();
     let (v, report) = run(&mut *gpu, &scene, &rec).unwrap();
-    let note = |key: &str| {
-        report
-            .notes
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.clone())
-    };
-    assert_eq!(note("engine_path").as_deref(), Some("frame twin"));
+    assert_eq!(note_as::<String>(&report, "engine_path"), "frame twin");
     assert_eq!(
-        note("frame_cpu_redo"),
-        Some(active.to_string()),
+        note_as::<usize>(&report, "frame_cpu_redo"),
+        active,
         "{report:?}"
     );
     let mut cpu = deep_shadow::DESCRIPTOR.cpu().unwrap();

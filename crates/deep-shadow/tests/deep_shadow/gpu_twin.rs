@@ -299,14 +299,7 @@ impl TwinPair for DeepShadow {
         let opaque = frame
             .cpu_twin(&case.scene.opaque(), &case.receivers, &views)
             .unwrap();
-        let active: Vec<usize> = (0..c.v.len())
-            .filter(|&k| case.receivers.active()[k])
-            .collect();
-        let sq: f64 = active
-            .iter()
-            .map(|&k| ((c.v[k] - opaque[k]) as f64).powi(2))
-            .sum();
-        let apart = (sq / active.len() as f64).sqrt();
+        let apart = test_support::fixtures::rmse(&c.v, &opaque, case.receivers.active());
         println!("deep-shadow strands: frame RMSE to the opaque scene's CPU twin {apart:.3}");
         assert!(
             apart > 10.0 * c.rmse.max(1e-3),
