@@ -58,7 +58,7 @@ impl GpuLightSpace {
     /// bit. The MSSM
     /// family is rebuilt on the CPU from the read-back layer 0 with the same number of levels,
     /// because [`crate::mssm`] has no constructor from planes; the GPU planes are bit-identical
-    /// to that rebuild (`tests/gpu_maps.rs` checks it with `read_levels`).
+    /// to that rebuild (`tests/shadow_map_core/gpu_maps/transfers.rs` checks it with `read_levels`).
     pub fn to_cpu(&self, ctx: &GpuContext) -> Result<LightSpace> {
         let layers = self
             .layers
