@@ -306,10 +306,6 @@ fn assert_limit<T: std::fmt::Debug>(what: &str, limit: &str, r: Result<T>) {
     }
 }
 
-/// The GPU twins that keep their maps in storage buffers, not textures (their resolution is
-/// bounded by `max_storage_buffer_binding_size`).
-const STORAGE_MAPS: &[&str] = &["packet-hsm"];
-
 #[test]
 fn resolution_past_max_texture_dimension_2d_is_a_limit_error() {
     if context_for_tests("resolution_past_max_texture_dimension_2d_is_a_limit_error")
@@ -341,13 +337,7 @@ fn resolution_past_max_texture_dimension_2d_is_a_limit_error() {
             let mut e = m.gpu(ctx.clone()).unwrap().unwrap();
             e.set_param("resolution", &r.to_string()).unwrap();
             let out = run(e.as_mut(), &scene, &rec).map(|_| ());
-            if STORAGE_MAPS.contains(&m.name()) {
-                // Maps in storage buffers, no texture of side r: the resolution is within this
-                // device's limits (the binding test refuses a larger one).
-                out.unwrap_or_else(|e| panic!("{what}: {e}"));
-            } else {
-                assert_limit(&what, "max_texture_dimension_2d", out);
-            }
+            assert_limit(&what, "max_texture_dimension_2d", out);
         });
     }
     assert!(ctx.check_lost().is_ok());
@@ -407,8 +397,8 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
             });
         }
     }
-    // The twins chunk their receivers by the binding; packet-hsm's and deep-shadow's maps are
-    // storage buffers, refused past the binding: packet-hsm's MSSM of a 256 x 256 map (2.4 MB),
+    // Packet-hsm's and deep-shadow's maps are storage buffers too, refused past the binding:
+    // packet-hsm's MSSM of a 256 x 256 map (2.4 MB),
     // deep-shadow's head buffer of a 513 x 513 map (1.05 MB).
     for (algo, r) in [("packet-hsm", 256), ("deep-shadow", 513)] {
         let what = format!("{algo} twin at resolution {r}");

@@ -589,6 +589,10 @@ impl FrameEstimator for AccumulationFrame {
 
     /// Three u32: lit receivers outside the light frustum (left NaN), non-finite results
     /// (written as 0), receivers cut by the device's loop budget (`CUT_BITS` in V).
+    fn light_space_bytes(&self) -> usize {
+        self.layers.bytes()
+    }
+
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }

@@ -571,8 +571,8 @@ fn engine_frame(
         else {
             return Ok(Engine::Twin(receivers, ms(t)));
         };
-        // A light or setting the engine path does not model (packet-hsm: sphere lights,
-        // sub-lights), or semi-transparent casters a frame would cast opaque: the twin path,
+        // A light or setting the engine path does not model (packet-hsm: sub-lights of a light
+        // that is not a rect, which its CPU twin refuses too), or semi-transparent casters a frame would cast opaque: the twin path,
         // decided before anything is uploaded or rasterised.
         if frame.refuses(scene).is_some() || !(scene.is_opaque() || frame.models_opacity()) {
             return Ok(Engine::Twin(receivers, ms(t)));
@@ -584,6 +584,7 @@ fn engine_frame(
         let gbuffer_ms = cpu_receivers_ms + ms(t_gbuffer);
         let mut report = shadow_map_core::Report::default();
         report.warn_all(frame.scene_warnings(scene));
+        report.light_space_bytes = frame.light_space_bytes();
         report.stages.push(("gbuffer".into(), gbuffer_ms));
         let t = Instant::now();
         let views = frame.fit_views(scene, &receivers)?;

@@ -482,6 +482,12 @@ impl FrameEstimator for DeepShadowFrame {
             .collect()
     }
 
+    /// The map, the list heads and the element buffer as allocated now.
+    fn light_space_bytes(&self) -> usize {
+        let nodes = self.lists.nodes.lock().map_or(0, |b| b.size());
+        self.map.layer.bytes() + (self.head.size() + nodes) as usize
+    }
+
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }

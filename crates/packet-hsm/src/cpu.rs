@@ -23,7 +23,8 @@ pub use setup::{
     ReceiverSetup,
 };
 pub use sublights::{
-    emitter_of, sublight_centre, OpacityLevels, OwnPlane, SubLights, SubView, OWN_PLANE_WORTH,
+    emitter_of, levels_run, sublight_centre, OpacityLevels, OwnPlane, SubLights, SubView,
+    OWN_PLANE_WORTH,
 };
 
 /// Registry name (shared with the GPU twin).
@@ -556,8 +557,8 @@ pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
 impl CpuPacketHsm {
     /// Rect lights with any `sublights`; disk, sphere and directional lights with `sublights=1` only (they
     /// are not cut into S x S sub-lights: an [`Error::Param`] with key `sublights`; both twins).
-    pub(crate) fn check_light(scene: &Scene, cfg: &Config) -> Result<()> {
-        match scene.light().shape {
+    pub(crate) fn check_light(light: &shadow_map_core::Light, cfg: &Config) -> Result<()> {
+        match light.shape {
             LightShape::Rect { .. } => Ok(()),
             _ if cfg.sublights == 1 => Ok(()),
             _ => Err(Error::param(
@@ -579,12 +580,12 @@ impl SoftShadowEstimator for CpuPacketHsm {
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
         self.report = Report::default();
-        Self::check_light(scene, &Config::from_params(&self.params)?)
+        Self::check_light(scene.light(), &Config::from_params(&self.params)?)
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
         let cfg = Config::from_params(&self.params)?;
-        Self::check_light(scene, &cfg)?;
+        Self::check_light(scene.light(), &cfg)?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());
         let mut diag = vec![PixelDiag::default(); receivers.len()];

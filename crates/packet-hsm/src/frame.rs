@@ -2,11 +2,13 @@
 //! recorded into the caller's command encoder from the caller's casters and receiver buffer, V
 //! written into the caller's buffer; nothing submitted, waited for or read back.
 //!
-//! One frame, in one light view (`sublights=1`; the frame's view fitted by
-//! [`FrameEstimator::fit_views`] as [`SubView::fit`] fits it):
-//! 1. the core's raster, midpoint and MSSM passes ([`GpuLayersFrame`]): layer 0, its midpoints
-//!    when the classification takes them, the anchored MSSM of layer 0 (every level the map
-//!    allows, allocated once);
+//! One frame renders one view per sub-light and opacity level (Yang §5; docs/methods.md §3
+//! "Semi-transparent occluders"), in the CPU twin's order (sub-light rows, sub-lights, levels),
+//! each fitted by [`FrameEstimator::fit_views`] as [`SubView::fit`] fits it. Per view, its
+//! uniforms staged in the view's slot ([`UniformStage`]):
+//! 1. the core's raster, midpoint and MSSM passes ([`GpuLayersFrame::encode_slot`]): layer 0
+//!    of the casters of at least the level's opacity (the caster buffer's w), its midpoints when
+//!    the classification takes them, the anchored MSSM of layer 0;
 //! 2. the classification layer copied into the interior of an `(r + 2)^2` map whose one-texel
 //!    ring holds +inf (written once at `prepare`), and the core's dual-grid MSSM pass over it:
 //!    the padded dual-grid MSSM of [`crate::contour::PaddedDualMssm`], on the GPU;
@@ -14,25 +16,27 @@
 //!    `packet_hsm.wgsl` reads; the MSSM levels the view needs ([`SubView::levels`]) copied level
 //!    after level into one buffer each (the layout [`GpuPacketHsm`]'s upload has);
 //! 4. `frame_setup`: each receiver's set-up on the GPU, the twin of
-//!    [`crate::cpu::setup_receiver`] (light-space transform, facing fraction, a sphere light's
-//!    silhouette disk, projection, bias or receiver plane);
+//!    [`crate::cpu::setup_receiver`] (light-space transform, the sub-light's facing fraction, a
+//!    sphere light's silhouette disk, projection, bias or receiver plane);
 //! 5. `packet_hsm.wgsl`'s `prepare` and `pixels` passes, unchanged (the per-pixel GBP07 with
 //!    Yang's hierarchy: receivers in a buffer carry no image layout, so no packets);
-//! 6. `frame_finish`: V = facing x the kernel's V, or what the set-up settled.
+//! 6. `frame_finish`: the view's V (facing x the kernel's V, or what the set-up settled) times
+//!    the view's weight (`1 / S^2` times the level's) added to each receiver's sum; after the
+//!    last view, V = the sum clamped to [0, 1], as [`crate::cpu::SubLights::finish`] does.
 //!
-//! **What this path does not take.** Casters are opaque (a
-//! [`GpuScene`](shadow_map_core::gpu::GpuScene) holds positions only; the opacity levels need
-//! one pass per level). One view: rect lights with `sublights=1` (S x S sub-lights would need one
-//! layer set per sub-light). Every light shape: a sphere light's silhouette disk is set up per
-//! receiver by the core's `silhouette_setup.wgsl` (the twin of
-//! [`Silhouette::new`](shadow_map_core::silhouette::Silhouette::new)).
+//! The views a frame may render are bounded at `prepare` (`sublights^2 x opacity_levels`
+//! slots); casters needing more levels than `opacity_levels` are cast opaque in one level, with
+//! [`Warning::OpacityLevelsCapped`], as on the CPU. Rect lights take any `sublights`; disk,
+//! sphere and directional lights `sublights=1` ([`FrameEstimator::refuses`], as the CPU twin).
 //!
 //! The status buffer (three u32, cleared by each `encode`): `[0]` receivers projecting outside
-//! the map (V = facing), `[1]` non-finite V written as 0, `[2]` receivers the device's loop
-//! budget cut short ([`crate::gpu::LOOP_LIMIT`]): V left NaN for the caller to redo (the CLI
-//! redoes NaN actives with the CPU twin in the same view).
+//! a view (summed over views; V = facing there), `[1]` non-finite V written as 0, `[2]`
+//! receivers the device's loop budget cut short in some view ([`crate::gpu::LOOP_LIMIT`]): V
+//! left NaN for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same
+//! views).
 use crate::cpu::{
-    emitter_of, pixel_value, setup_receiver, Config, OwnPlane, ReceiverSetup, SubView,
+    emitter_of, levels_run, pixel_value, setup_receiver, sublight_centre, Config, CpuPacketHsm,
+    OpacityLevels, OwnPlane, ReceiverSetup, SubView,
 };
 use crate::gpu::{
     hsm_uniform_of, GpuPacketHsm, HsmUniform, PacketPlan, PrepGpu, RecIn, SubLightShape, WORKGROUP,
@@ -45,17 +49,18 @@ use shadow_map_core::{
             SILHOUETTE_WGSL, WORKGROUP_SIZE,
         },
         frame::{
-            buffer_range, check_prepared_inputs, compute_pass, single_view, status_buffer,
-            FrameEstimator, FrameInputs,
+            buffer_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
+            FrameInputs,
         },
         kernel::{compute_pipeline, shader_module, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         receivers::RECEIVER_BYTES,
         shared::SHARED_WGSL,
-        GpuContext, GpuDepthMap, GpuLayersFrame, GpuShadowMapper,
+        GpuContext, GpuDepthMap, GpuLayersFrame, GpuShadowMapper, LayersSlot, UniformStage,
     },
     light_view::FitReport,
-    Error, LightSpaceRequest, LightView, Params, RasterOptions, Receivers, Result, Scene,
+    Error, Light, LightShape, LightSpaceRequest, LightView, OpacityLevel, Params, RasterOptions,
+    Receivers, Result, Scene, Warning,
 };
 use std::sync::Arc;
 
@@ -93,14 +98,19 @@ pub struct HsmFrameUniform {
     pub count: u32,
     /// Map side r.
     pub r: u32,
-    /// Padding.
-    pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
+    /// This view's weight in V: `1 / S^2` times its opacity level's.
+    pub weight: f32,
+    /// [`FIRST_VIEW`] and [`LAST_VIEW`] of the frame's views.
+    pub flags: u32,
 }
 
+/// [`HsmFrameUniform::flags`]: the frame's first view (the sums start at 0).
+pub const FIRST_VIEW: u32 = 1;
+/// [`HsmFrameUniform::flags`]: the frame's last view (V written from the sums).
+pub const LAST_VIEW: u32 = 2;
+
 /// `frame.wgsl`'s bindings.
-const BINDINGS: [(u32, Binding); 13] = [
+const BINDINGS: [(u32, Binding); 14] = [
     (0, Binding::Uniform),
     (1, Binding::Uniform),
     (2, Binding::Uniform),
@@ -114,6 +124,7 @@ const BINDINGS: [(u32, Binding); 13] = [
     (10, Binding::Texture2d),
     (11, Binding::StorageRw),
     (12, Binding::StorageRw),
+    (13, Binding::StorageRw),
 ];
 
 /// Packet-hsm recorded into the caller's frame (module docs).
@@ -138,11 +149,21 @@ pub struct PacketHsmFrame {
     light: wgpu::Buffer,
     frame: wgpu::Buffer,
     status: wgpu::Buffer,
+    /// Per receiver: V summed over the views so far, and 1 once a view was cut.
+    acc: wgpu::Buffer,
+    stage: SlotStages,
     layout: wgpu::BindGroupLayout,
     maps_pipe: wgpu::ComputePipeline,
     setup_pipe: wgpu::ComputePipeline,
     finish_pipe: wgpu::ComputePipeline,
     max_receivers: u32,
+}
+
+/// The kernel's, the light's and the frame's uniforms, one slot per view.
+struct SlotStages {
+    hsm: UniformStage<HsmUniform>,
+    light: UniformStage<EstimateUniform>,
+    frame: UniformStage<HsmFrameUniform>,
 }
 
 fn buffer(ctx: &GpuContext, label: &str, bytes: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -162,9 +183,11 @@ impl PacketHsmFrame {
     /// Compiles the pipelines and allocates the layers, the MSSMs, the kernel's buffers for
     /// `max_receivers` receivers and the uniforms, for `params` (a table of packet-hsm's specs).
     /// Errors: the parameters' own, device limits ([`Error::Limit`]). `sublights` other than 1
-    /// and sphere lights are [`FrameEstimator::refuses`]'s (and `encode`'s) to report.
+    /// with a light that is not a rect is [`FrameEstimator::refuses`]'s (and `encode`'s) to
+    /// report.
     pub fn prepare(ctx: Arc<GpuContext>, params: &Params, max_receivers: u32) -> Result<Self> {
         let cfg = Config::from_params(params)?;
+        let slots = cfg.sublights * cfg.sublights * cfg.opacity_levels.max(1);
         let r = cfg.resolution;
         let p = r + 2;
         let mut gpu = GpuPacketHsm::new(ctx.clone())?;
@@ -179,7 +202,7 @@ impl PacketHsmFrame {
             raster: RasterOptions::default(),
             opacity: false,
         };
-        let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
+        let layers = GpuShadowMapper::new(&ctx)?.layers_frame_slots(&ctx, r, &req, slots)?;
         let padded = GpuDepthMap::new(&ctx, p, "packet-hsm padded classification")?;
         // The ring stays +inf: only the interior is copied each frame.
         let inf = vec![f32::INFINITY; (p * p) as usize];
@@ -226,7 +249,7 @@ impl PacketHsmFrame {
                 n * std::mem::size_of::<PrepGpu>() as u64,
             ),
             (
-                "packet-hsm frame kernel V bytes (max_storage_buffer_binding_size)",
+                "packet-hsm frame kernel V and sum bytes (max_storage_buffer_binding_size)",
                 8 * n,
             ),
         ] {
@@ -286,6 +309,12 @@ impl PacketHsmFrame {
                 wgpu::BufferUsages::UNIFORM,
             ),
             status: status_buffer(&ctx, "packet-hsm frame status", 3),
+            acc: buffer(&ctx, "packet-hsm frame sums", 8 * n, storage),
+            stage: SlotStages {
+                hsm: UniformStage::new(&ctx, "packet-hsm frame kernel uniform stage", slots),
+                light: UniformStage::new(&ctx, "packet-hsm frame light stage", slots),
+                frame: UniformStage::new(&ctx, "packet-hsm frame uniform stage", slots),
+            },
             gpu,
             cfg,
             layers,
@@ -300,20 +329,17 @@ impl PacketHsmFrame {
         })
     }
 
-    /// What the kernel's uniform takes from the frame's view ([`SubView::levels`], the padded
-    /// dual-grid MSSM's levels as [`crate::contour::PaddedDualMssm::build`] chooses them).
-    fn shape(&self, view: &LightView, light: &shadow_map_core::Light) -> Result<SubLightShape> {
-        if let Some((key, why)) = self.refusal() {
-            return Err(Error::param(key, why));
-        }
-        let half = light.half_extent();
+    /// What the kernel's uniform takes from one view of the sub-light of half extents `half`
+    /// ([`SubView::levels`], the padded dual-grid MSSM's levels as
+    /// [`crate::contour::PaddedDualMssm::build`] chooses them).
+    fn shape(&self, view: &LightView, light: &Light, half: glam::Vec2) -> SubLightShape {
         let (emitter, _) = emitter_of(light, half);
         let r = view.r;
         let p = r + 2;
         let (levels, max_cells) = SubView::levels(view, half);
         let need = 32 - (max_cells.max(1) - 1).leading_zeros();
         let dual_max = floor_log2(p).min(need);
-        Ok(SubLightShape {
+        SubLightShape {
             view: *view,
             half,
             emitter,
@@ -321,15 +347,19 @@ impl PacketHsmFrame {
             mssm_levels: levels.min(floor_log2(r)) + 1,
             dual_levels: dual_max.min(floor_log2(p)) + 1,
             class_is_depth: !self.cfg.shadow.midpoint(),
-        })
+        }
     }
 
-    /// What this path does not model (module docs): `(parameter, reason)`.
-    fn refusal(&self) -> Option<(&'static str, &'static str)> {
-        (self.cfg.sublights != 1).then_some((
-            "sublights",
-            "packet-hsm's engine path renders one light view per frame: sublights=1",
-        ))
+    /// The sub-lights' half extents (`1 / S` of the light's; [`SubLights::build`]).
+    ///
+    /// [`SubLights::build`]: crate::cpu::SubLights::build
+    fn sub_half(&self, light: &Light) -> glam::Vec2 {
+        light.half_extent() / self.cfg.sublights as f32
+    }
+
+    /// The levels a frame of `casters` renders, and `(needed, allowed)` when they were capped.
+    fn levels(&self, casters: &[OpacityLevel]) -> (Vec<OpacityLevel>, Option<(usize, usize)>) {
+        levels_run(casters, self.cfg.opacity_levels)
     }
 
     fn group(&self, inputs: &FrameInputs<'_>, n: u64) -> wgpu::BindGroup {
@@ -361,6 +391,7 @@ impl PacketHsmFrame {
                     e(10, wgpu::BindingResource::TextureView(class)),
                     e(11, self.depth.as_entire_binding()),
                     e(12, self.class.as_entire_binding()),
+                    e(13, self.acc.as_entire_binding()),
                 ],
             })
     }
@@ -410,54 +441,29 @@ fn run(
     compute_pass(enc, label, pipe, group, [x, 1, 1]);
 }
 
-impl FrameEstimator for PacketHsmFrame {
-    fn name(&self) -> &'static str {
-        "packet-hsm"
-    }
-
-    /// The view [`SubView::fit`] fits for the whole light (`sublights=1`).
-    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
-        self.gpu.ctx.check_lost()?;
-        let half = scene.light().half_extent();
-        let (view, _) = SubView::fit(
-            scene,
-            receivers,
-            (self.cfg.resolution, glam::Vec2::ZERO, half),
-            &self.cfg,
-        )?;
-        Ok(vec![Some(view)])
-    }
-
-    /// Three u32 (module docs).
-    fn status(&self) -> Option<&wgpu::Buffer> {
-        Some(&self.status)
-    }
-
-    /// `sublights` other than 1, or semi-transparent meshes (the frame's casters are opaque,
-    /// the twin models opacity).
-    fn refuses(&self, scene: &Scene) -> Option<String> {
-        self.refusal()
-            .map(|(key, why)| format!("{key}: {why}"))
-            .or_else(|| shadow_map_core::gpu::frame::refuse_semi_transparent(scene))
-    }
-
-    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
-        let view = single_view(inputs.views)?;
-        let n = check_prepared_inputs(
-            &self.gpu.ctx,
-            inputs,
-            self.max_receivers,
-            "receivers per frame (packet-hsm frame prepared for fewer)",
-        )?;
-        let shape = self.shape(view, inputs.light)?;
+impl PacketHsmFrame {
+    /// Records view `slot` of `views`: its maps, set-up, kernel and its share of V.
+    fn encode_view(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        (group, kernel): (&wgpu::BindGroup, &wgpu::BindGroup),
+        (slot, views, view): (usize, usize, &LightView),
+        level: &OpacityLevel,
+    ) -> Result<()> {
         let ctx = &*self.gpu.ctx;
         let queue = &ctx.queue;
         let cfg = &self.cfg;
-        let clamp = cfg.shadow.midpoint_clamp(view).unwrap_or(0.0);
-        inputs.mark(enc, "start");
+        let half = self.sub_half(inputs.light);
+        let shape = self.shape(view, inputs.light, half);
+        let layers = LayersSlot {
+            view,
+            max_bias: cfg.shadow.midpoint_clamp(view).unwrap_or(0.0),
+            min_opacity: level.min_opacity,
+            slot,
+        };
         self.layers
-            .encode(queue, enc, inputs.casters, view, clamp)?;
-        inputs.mark(enc, "layers");
+            .encode_slot(queue, enc, inputs.casters, &layers)?;
         // The classification layer into the padded map's interior, then its dual-grid MSSM.
         let class = match self.layers.midpoints().first() {
             Some(m) if cfg.shadow.midpoint() => m,
@@ -509,9 +515,15 @@ impl FrameEstimator for PacketHsmFrame {
         }
         let plan = PacketPlan::new(cfg, None, usize::MAX)?;
         let hu = hsm_uniform_of(&shape, cfg, r, &plan, inputs.count as usize, 0);
-        queue.write_buffer(&self.hsm, 0, bytemuck::bytes_of(&hu));
-        let eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
-        queue.write_buffer(&self.light, 0, bytemuck::bytes_of(&eu));
+        self.stage.hsm.stage(queue, enc, slot, &hu, &self.hsm)?;
+        let mut eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
+        if let LightShape::Rect { .. } = inputs.light.shape {
+            // The sub-light's rectangle, for its facing fraction (SubView::shape).
+            eu.light_size_x = 2.0 * half.x;
+            eu.light_size_y = 2.0 * half.y;
+        }
+        self.stage.light.stage(queue, enc, slot, &eu, &self.light)?;
+        let s2 = (cfg.sublights * cfg.sublights) as f32;
         let fu = HsmFrameUniform {
             bias: cfg.shadow.bias,
             slope_bias: cfg.shadow.slope_bias,
@@ -519,72 +531,188 @@ impl FrameEstimator for PacketHsmFrame {
             receiver_plane: u32::from(cfg.shadow.receiver_plane),
             count: inputs.count,
             r,
-            ..Default::default()
+            weight: (1.0 / s2) * level.weight,
+            flags: if slot == 0 { FIRST_VIEW } else { 0 }
+                | if slot + 1 == views { LAST_VIEW } else { 0 },
         };
-        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&fu));
-        enc.clear_buffer(&self.status, 0, None);
+        self.stage.frame.stage(queue, enc, slot, &fu, &self.frame)?;
         enc.clear_buffer(&self.counters, 0, None);
-        // No stale kernel state from the last frame for receivers the set-up settles.
+        // No stale kernel state from the last view for receivers the set-up settles.
         enc.clear_buffer(&self.prep, 0, None);
-        let group = self.group(inputs, n.max(1));
-        run(
-            enc,
-            "packet-hsm frame maps",
-            &self.maps_pipe,
-            &group,
-            r as u64 * r as u64,
-        );
+        let texels = r as u64 * r as u64;
+        run(enc, "packet-hsm frame maps", &self.maps_pipe, group, texels);
+        // Two marks a view (a frame may render many): the maps, then the rest.
+        inputs.mark(enc, "maps");
+        let n = inputs.count as u64;
         if n == 0 {
             return Ok(());
         }
-        inputs.mark(enc, "mssm");
-        run(enc, "packet-hsm frame set-up", &self.setup_pipe, &group, n);
-        let kernel = self.kernel_group();
-        run(enc, "packet-hsm prepare", &self.gpu.prepare, &kernel, n);
-        inputs.mark(enc, "set-up");
-        run(enc, "packet-hsm pixels", &self.gpu.pixels, &kernel, n);
+        run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
+        run(enc, "packet-hsm prepare", &self.gpu.prepare, kernel, n);
+        run(enc, "packet-hsm pixels", &self.gpu.pixels, kernel, n);
+        run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         inputs.mark(enc, "estimate");
-        run(enc, "packet-hsm frame finish", &self.finish_pipe, &group, n);
-        inputs.mark(enc, "finish");
+        Ok(())
+    }
+}
+
+impl FrameEstimator for PacketHsmFrame {
+    fn name(&self) -> &'static str {
+        "packet-hsm"
+    }
+
+    /// One view per sub-light and opacity level, in the CPU twin's order, each fitted by
+    /// [`SubView::fit`] on the level's casters.
+    fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
+        self.gpu.ctx.check_lost()?;
+        CpuPacketHsm::check_light(scene.light(), &self.cfg)?;
+        let s = self.cfg.sublights;
+        let half = self.sub_half(scene.light());
+        let levels = OpacityLevels::new(scene, self.cfg.opacity_levels);
+        let mut views = Vec::with_capacity((s * s) as usize);
+        for b in 0..s {
+            for a in 0..s {
+                let c = sublight_centre(scene.light().half_extent(), s, a, b);
+                for (level, _) in levels.iter() {
+                    let (view, _) =
+                        SubView::fit(level, receivers, (self.cfg.resolution, c, half), &self.cfg)?;
+                    views.push(Some(view));
+                }
+            }
+        }
+        Ok(views)
+    }
+
+    /// Three u32 (module docs).
+    /// The layers and their MSSM, the padded classification map and its dual-grid MSSM.
+    fn light_space_bytes(&self) -> usize {
+        self.layers.bytes() + self.padded.bytes() + self.dual.bytes()
+    }
+
+    fn status(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.status)
+    }
+
+    /// `sublights` other than 1 with a light that is not a rect (as the CPU twin).
+    fn refuses(&self, scene: &Scene) -> Option<String> {
+        CpuPacketHsm::check_light(scene.light(), &self.cfg)
+            .err()
+            .map(|e| e.to_string())
+    }
+
+    /// One pass per opacity level (module docs).
+    fn models_opacity(&self) -> bool {
+        true
+    }
+
+    /// [`Warning::OpacityLevelsCapped`] when the scene needs more levels than `opacity_levels`.
+    fn scene_warnings(&self, scene: &Scene) -> Vec<Warning> {
+        let all = if scene.is_opaque() {
+            Vec::new()
+        } else {
+            scene.opacity_levels()
+        };
+        self.levels(&all)
+            .1
+            .map(|(needed, allowed)| Warning::OpacityLevelsCapped { needed, allowed })
+            .into_iter()
+            .collect()
+    }
+
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
+        let n = check_prepared_inputs(
+            &self.gpu.ctx,
+            inputs,
+            self.max_receivers,
+            "receivers per frame (packet-hsm frame prepared for fewer)",
+        )?;
+        CpuPacketHsm::check_light(inputs.light, &self.cfg)?;
+        let (levels, _) = self.levels(inputs.casters.opacity_levels());
+        let s = self.cfg.sublights as usize;
+        let views = inputs.views;
+        if views.len() != s * s * levels.len() {
+            return Err(Error::LightView(format!(
+                "{} views for {} sub-lights x {} opacity levels",
+                views.len(),
+                s * s,
+                levels.len()
+            )));
+        }
+        if views.iter().any(Option::is_none) {
+            return Err(Error::LightView(
+                "packet-hsm's frame needs every sub-light's view".into(),
+            ));
+        }
+        inputs.mark(enc, "start");
+        enc.clear_buffer(&self.status, 0, None);
+        let group = self.group(inputs, n.max(1));
+        let kernel = self.kernel_group();
+        for (slot, view) in views.iter().flatten().enumerate() {
+            let level = &levels[slot % levels.len()];
+            let at = (slot, views.len(), view);
+            self.encode_view(enc, inputs, (&group, &kernel), at, level)?;
+        }
         Ok(())
     }
 
-    /// The CPU twin's per-pixel path in the same view, on the scene with every mesh opaque: each
+    /// The CPU twin's per-pixel path in the same views, on each view's opacity level: each
     /// receiver's [`setup_receiver`], then [`pixel_value`] (the per-pixel GBP07 with the
-    /// configured traversal, what the GPU twin's kernel computes without packets).
+    /// configured traversal, what the kernel computes without packets), weighted and summed as
+    /// [`crate::cpu::SubLights`] sums them.
     fn cpu_twin(
         &self,
         scene: &Scene,
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let view = *single_view(views)?;
-        if let Some((key, why)) = self.refusal() {
-            return Err(Error::param(key, why));
-        }
-        let opaque = scene.opaque();
+        CpuPacketHsm::check_light(scene.light(), &self.cfg)?;
         let cfg = &self.cfg;
-        let half = opaque.light().half_extent();
-        let sv = SubView::build_in_view(
-            &opaque,
-            receivers,
-            view,
-            FitReport::default(),
-            half,
-            cfg,
-            OwnPlane::Off,
-        )?;
-        Ok((0..receivers.len())
-            .map(|k| {
+        let levels = OpacityLevels::new(scene, cfg.opacity_levels);
+        let levels: Vec<(&Scene, f32)> = levels.iter().collect();
+        let s2 = (cfg.sublights * cfg.sublights) as usize;
+        if views.len() != s2 * levels.len() {
+            return Err(Error::LightView(format!(
+                "{} views for {s2} sub-lights x {} opacity levels",
+                views.len(),
+                levels.len()
+            )));
+        }
+        let half = self.sub_half(scene.light());
+        let mut acc = vec![0.0f32; receivers.len()];
+        for (slot, view) in views.iter().enumerate() {
+            let view = view.ok_or_else(|| {
+                Error::LightView("packet-hsm's frame needs every sub-light's view".into())
+            })?;
+            let (level, lw) = levels[slot % levels.len()];
+            let sv = SubView::build_in_view(
+                level,
+                receivers,
+                view,
+                FitReport::default(),
+                half,
+                cfg,
+                OwnPlane::Off,
+            )?;
+            let w = (1.0 / s2 as f32) * lw;
+            for (k, a) in acc.iter_mut().enumerate() {
                 if !receivers.active()[k] {
-                    return f32::NAN;
+                    continue;
                 }
                 let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
                 let x = match setup_receiver(&sv, cfg, pw, nw) {
                     ReceiverSetup::Settled(x) | ReceiverSetup::Outside(x) => x,
                     ReceiverSetup::Map { .. } => pixel_value(&sv, cfg, pw, nw),
                 };
-                if x.is_finite() {
+                *a += w * x;
+            }
+        }
+        Ok(acc
+            .iter()
+            .enumerate()
+            .map(|(k, &x)| {
+                if !receivers.active()[k] {
+                    f32::NAN
+                } else if x.is_finite() {
                     x.clamp(0.0, 1.0)
                 } else {
                     0.0
@@ -610,8 +738,8 @@ mod tests {
                 receiver_plane,
                 count,
                 r,
-                _pad0,
-                _pad1,
+                weight,
+                flags,
             }
         );
         test_support::assert_wgsl_layout!(

@@ -4,7 +4,7 @@
 // light shape; a sphere's silhouette from the core's silhouette_setup.wgsl), writing each
 // receiver's RecIn for the kernel's `prepare` and `pixels` passes and what the CPU would have
 // settled; `frame_finish` combines them into V, the twin of gpu.rs `GpuPacketHsm::estimate`'s
-// sum and cpu.rs SubLights::finish. Appended after the core's shared.wgsl, estimate.wgsl,
+// sum and cpu.rs SubLights::finish, one view (sub-light, opacity level) at a time. Appended after the core's shared.wgsl, estimate.wgsl,
 // math.wgsl, silhouette.wgsl and silhouette_setup.wgsl.
 
 // Mirrors frame.rs HsmFrameUniform.
@@ -17,9 +17,14 @@ struct HsmFrameUniform {
     receiver_plane: u32,
     count: u32,
     r: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // This view's weight in V (1 / S^2 times its opacity level's).
+    weight: f32,
+    // FIRST_VIEW | LAST_VIEW of the frame's views.
+    flags: u32,
 }
+
+const FIRST_VIEW: u32 = 1u;
+const LAST_VIEW: u32 = 2u;
 
 // What frame_setup decided per receiver (x: SETUP_*, y: V for SETUP_SETTLED, else the facing
 // fraction).
@@ -43,6 +48,8 @@ const SETUP_MAP: f32 = 2.0;
 @group(0) @binding(10) var class_tex: texture_2d<f32>;
 @group(0) @binding(11) var<storage, read_write> depth_buf: array<f32>;
 @group(0) @binding(12) var<storage, read_write> class_buf: array<f32>;
+// Per receiver: V summed over the views so far, and 1 once a view was cut.
+@group(0) @binding(13) var<storage, read_write> acc: array<vec2<f32>>;
 
 // mssm::sanitize: NaN is an empty texel (+inf), tested on the bits.
 fn sanitized(d: f32) -> f32 {
@@ -162,32 +169,50 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
     setup[k] = vec2<f32>(SETUP_MAP, facing);
 }
 
-// V per receiver: the settled value, the facing fraction outside the map, or facing times the
-// kernel's V; cut receivers left NaN (counted); cpu.rs SubLights::finish's clamp and non-finite
-// rule.
+// Each receiver's share of this view added to its sum: the settled value, the facing fraction
+// outside the map, or facing times the kernel's V, times the view's weight. After the last
+// view V is written: cut receivers left NaN (counted), else cpu.rs SubLights::finish's clamp
+// and non-finite rule.
 @compute @workgroup_size(WG)
 fn frame_finish(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= F.count {
         return;
     }
+    let last = (F.flags & LAST_VIEW) != 0u;
     if receivers[k].is_active == 0u {
-        v_out[k] = NAN_BITS;
+        if last {
+            v_out[k] = NAN_BITS;
+        }
         return;
+    }
+    var a = vec2<f32>(0.0, 0.0);
+    if (F.flags & FIRST_VIEW) == 0u {
+        a = acc[k];
     }
     let s = setup[k];
     var x = s.y;
     if s.x == SETUP_MAP {
         let o = hsm_out[k];
         if o.y < 0.0 {
-            v_out[k] = NAN_BITS;
-            atomicAdd(&status[2], 1u);
-            return;
+            a.y = 1.0;
+            x = 0.0;
+        } else {
+            x = s.y * o.x;
         }
-        x = s.y * o.x;
     }
-    if is_finite(x) {
-        v_out[k] = bitcast<u32>(clamp(x, 0.0, 1.0));
+    a.x = a.x + F.weight * x;
+    if !last {
+        acc[k] = a;
+        return;
+    }
+    if a.y != 0.0 {
+        v_out[k] = NAN_BITS;
+        atomicAdd(&status[2], 1u);
+        return;
+    }
+    if is_finite(a.x) {
+        v_out[k] = bitcast<u32>(clamp(a.x, 0.0, 1.0));
     } else {
         v_out[k] = 0u;
         atomicAdd(&status[1], 1u);

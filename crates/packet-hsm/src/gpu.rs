@@ -572,7 +572,7 @@ impl SoftShadowEstimator for GpuPacketHsm {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
         let cfg = Config::from_params(self.cpu.params())?;
-        CpuPacketHsm::check_light(scene, &cfg)?;
+        CpuPacketHsm::check_light(scene.light(), &cfg)?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());
         subs.own_plane = OwnPlane::Off;

@@ -20,14 +20,12 @@ pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{setting, MethodDescriptor, Setting};
 
-/// Packet-based hierarchical soft shadow mapping in the registry: `packet-hsm`, its CPU twin,
-/// GPU twin and engine path.
+/// Packet-based hierarchical soft shadow mapping in the registry: `packet-hsm`, its CPU twin
+/// and its engine path (also its GPU estimator, through the core's frame twin).
 pub const DESCRIPTOR: MethodDescriptor = {
     let d = MethodDescriptor::new("packet-hsm", || Ok(Box::new(CpuPacketHsm::new()?)), sweep);
     #[cfg(feature = "gpu")]
-    let d = d
-        .with_gpu(|ctx| Ok(Box::new(GpuPacketHsm::new(ctx)?)))
-        .with_frame(|ctx, params, n| Ok(Box::new(PacketHsmFrame::prepare(ctx, params, n)?)));
+    let d = d.with_frame(|ctx, params, n| Ok(Box::new(PacketHsmFrame::prepare(ctx, params, n)?)));
     d
 };
 

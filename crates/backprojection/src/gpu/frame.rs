@@ -145,6 +145,10 @@ impl FrameEstimator for BackprojectionFrame {
     }
 
     /// Two u32: receivers outside the light frustum, non-finite results (written as 0).
+    fn light_space_bytes(&self) -> usize {
+        self.layers.bytes()
+    }
+
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }

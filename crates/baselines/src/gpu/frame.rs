@@ -113,6 +113,11 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
 
     /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
     /// receivers cut by the device's loop budget (`CUT_BITS` in V).
+    /// The map and, under `depth=unorm16`, its 16-bit codes.
+    fn light_space_bytes(&self) -> usize {
+        self.map.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
+    }
+
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }
@@ -311,6 +316,11 @@ impl FrameEstimator for MultiSampleFrame {
     }
 
     /// Keeps no counters.
+    /// The map and, under `depth=unorm16`, its 16-bit codes.
+    fn light_space_bytes(&self) -> usize {
+        self.map.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
+    }
+
     fn status(&self) -> Option<&wgpu::Buffer> {
         None
     }

@@ -299,8 +299,7 @@ fn render_gpu_takes_the_frame_api() {
     // Semi-transparent strands: backprojection's and deep-shadow's frames model the casters'
     // opacity (opacity planes, lists); hard's frame twin casts them opaque and warns.
     let strands = fixture("strands/strands.toml");
-    // A sphere light: packet-hsm's engine path sets its silhouette up on the device; sub-lights
-    // it refuses (FrameEstimator::refuses): the twin's path.
+    // A sphere light: packet-hsm's engine path sets its silhouette up on the device.
     let sphere = fixture("sphere-light/sphere-light.toml");
     // Sub-pixel strands over a ground (and hair, the same kind): a rasterised G-buffer saw
     // background where the ray-cast one sees ground; both backends must render the same pixels.
@@ -314,7 +313,7 @@ fn render_gpu_takes_the_frame_api() {
         FrameTwin,
         Twin,
     }
-    let cases: [(&str, &[&str], Path, &std::path::Path); 15] = [
+    let cases: [(&str, &[&str], Path, &std::path::Path); 16] = [
         ("pcss", &["resolution=256"], Path::Frame, &squares),
         // 16-bit maps: encoded within the frame (the engine path used to refuse them).
         (
@@ -345,12 +344,14 @@ fn render_gpu_takes_the_frame_api() {
         ("hard", &["resolution=256"], Path::FrameTwin, &hair),
         ("packet-hsm", &["resolution=256"], Path::Frame, &squares),
         ("packet-hsm", &["resolution=256"], Path::Frame, &sphere),
+        // Sub-lights and opacity levels: one view each within the frame.
         (
             "packet-hsm",
             &["resolution=256", "sublights=2"],
-            Path::Twin,
+            Path::Frame,
             &squares,
         ),
+        ("packet-hsm", &["resolution=256"], Path::Frame, &hair),
     ];
     for (algo, params, engine, scene) in cases {
         let sc = scene.to_str().unwrap();

@@ -9,7 +9,7 @@ use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView},
     mssm::Mssm,
-    Light, LightShape, RasterOptions, Receivers, Report, Result, Scene, Warning,
+    Light, LightShape, OpacityLevel, RasterOptions, Receivers, Report, Result, Scene, Warning,
 };
 
 /// The opacity levels both twins run ([`Scene::opacity_levels`]): each level's scene (its
@@ -29,22 +29,19 @@ impl<'a> OpacityLevels<'a> {
         } else {
             scene.opacity_levels()
         };
-        let needed = all.len();
-        let too_many = needed > max as usize;
-        let levels = if all.is_empty() || too_many {
-            vec![(std::borrow::Cow::Borrowed(scene), 1.0)]
-        } else {
-            all.into_iter()
-                .map(|l| {
-                    let s = scene.with_opacity_at_least(l.min_opacity);
-                    (std::borrow::Cow::Owned(s), l.weight)
-                })
-                .collect()
-        };
-        OpacityLevels {
-            levels,
-            needed: too_many.then_some((needed, max as usize)),
-        }
+        let (run, needed) = levels_run(&all, max);
+        let levels = run
+            .into_iter()
+            .map(|l| {
+                let s = if l.min_opacity > 0.0 {
+                    std::borrow::Cow::Owned(scene.with_opacity_at_least(l.min_opacity))
+                } else {
+                    std::borrow::Cow::Borrowed(scene)
+                };
+                (s, l.weight)
+            })
+            .collect();
+        OpacityLevels { levels, needed }
     }
     /// Each level's scene and weight.
     pub fn iter(&self) -> impl Iterator<Item = (&Scene, f32)> + '_ {
@@ -58,6 +55,22 @@ impl<'a> OpacityLevels<'a> {
         } else if self.levels.len() > 1 {
             rep.note("opacity_levels_run", self.levels.len());
         }
+    }
+}
+
+/// The levels run for casters whose opacity levels are `all` ([`Scene::opacity_levels`], empty
+/// when opaque), at most `max` of them: `all`, or one level of weight 1 casting every caster
+/// (`min_opacity` 0) when opaque or when `all` has more than `max` (then also `(needed, max)`).
+pub fn levels_run(all: &[OpacityLevel], max: u32) -> (Vec<OpacityLevel>, Option<(usize, usize)>) {
+    let too_many = all.len() > max as usize;
+    if all.is_empty() || too_many {
+        let every = OpacityLevel {
+            min_opacity: 0.0,
+            weight: 1.0,
+        };
+        (vec![every], too_many.then_some((all.len(), max as usize)))
+    } else {
+        (all.to_vec(), None)
     }
 }
 

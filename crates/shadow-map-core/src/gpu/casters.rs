@@ -258,10 +258,18 @@ impl GpuCasterBuilder {
         for inst in instances {
             by_mesh[inst.mesh].push(inst.transform.to_cols_array());
         }
-        out.semi_transparent = meshes
-            .iter()
-            .zip(&by_mesh)
-            .any(|(m, mats)| m.opacity < 1.0 && !mats.is_empty() && m.index_count >= 3);
+        let cast = || {
+            meshes
+                .iter()
+                .zip(&by_mesh)
+                .filter(|(m, mats)| !mats.is_empty() && m.index_count >= 3)
+        };
+        out.semi_transparent = cast().any(|(m, _)| m.opacity < 1.0);
+        out.levels = if out.semi_transparent {
+            crate::OpacityLevel::of(cast().map(|(m, _)| m.opacity))
+        } else {
+            Vec::new()
+        };
         let mut slot = 0u64; // next transform slot
         let mut first = 0u32; // next output triangle
         for (k, (m, mats)) in meshes.iter().zip(&by_mesh).enumerate() {

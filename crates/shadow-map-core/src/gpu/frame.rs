@@ -47,6 +47,12 @@ pub trait FrameEstimator: Send + Sync {
     /// an estimator on a device that never saw a loss gives.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()>;
 
+    /// Device bytes of the light-space data the frame allocated (maps, peeled layers,
+    /// midpoints, opacity planes, MSSMs, lists; not per-receiver buffers, uniforms or a
+    /// kernel's copies of the maps), counted as the CPU twin counts its own: the report's
+    /// `light_space_bytes` for the GPU backend.
+    fn light_space_bytes(&self) -> usize;
+
     /// The counters of the last submitted frame (u32s, each estimator's own: receivers outside
     /// the frustum, non-finite results replaced, ...), for the caller to copy out when it likes;
     /// `None` when the estimator keeps none. [`decode_status`](Self::decode_status) names them.

@@ -180,6 +180,7 @@ impl SoftShadowEstimator for FrameTwin {
         // opaque, on a semi-transparent scene).
         report.warn_all(frame.scene_warnings(scene));
         finish_on_cpu(frame, &ctx, scene, receivers, &views, v, &mut report)?;
+        report.light_space_bytes = frame.light_space_bytes();
         report.note("engine_path", "frame twin");
         report.note("views", views.iter().flatten().count());
         self.report = report;

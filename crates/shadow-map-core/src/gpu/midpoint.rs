@@ -5,6 +5,7 @@
 use super::{
     depth_map::GpuDepthMap,
     kernel::{buffer_init, Binding, Kernel},
+    stage::UniformStage,
     GpuContext,
 };
 use crate::Result;
@@ -142,13 +143,44 @@ pub struct GpuMidpointPass {
 impl GpuMidpointPass {
     /// Stages `max_bias` (it takes effect at the next submit) and records the pass.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, max_bias: f32) {
-        let p = MidpointParams {
+        queue.write_buffer(
+            &self.params,
+            0,
+            bytemuck::bytes_of(&self.params_of(max_bias)),
+        );
+        self.dispatch(encoder);
+    }
+
+    /// [`record`](Self::record) with the clamp staged in a slot of `stage`, for frames that
+    /// record the dispatches in several views within one encoder.
+    pub fn record_staged(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        max_bias: f32,
+        (stage, slot): (&UniformStage<MidpointParams>, usize),
+    ) -> Result<()> {
+        stage.stage(
+            queue,
+            encoder,
+            slot,
+            &self.params_of(max_bias),
+            &self.params,
+        )?;
+        self.dispatch(encoder);
+        Ok(())
+    }
+
+    fn params_of(&self, max_bias: f32) -> MidpointParams {
+        MidpointParams {
             size: self.size,
             max_bias,
             _pad0: 0,
             _pad1: 0,
-        };
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+        }
+    }
+
+    fn dispatch(&self, encoder: &mut wgpu::CommandEncoder) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("midpoint"),
             timestamp_writes: None,

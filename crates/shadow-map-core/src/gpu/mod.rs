@@ -19,6 +19,7 @@
 //! | [`shared`] (`shared.wgsl`) | structs both sides read | |
 //! | [`estimate`] (`estimate.wgsl`, `math.wgsl`) | [`EstimateUniform`]: the light and bias every estimate kernel reads, f32 light math | [`crate::light`], [`crate::LightView::receiver_bias`] |
 //! | [`kernel`] | [`Kernel`]: layouts from a binding list, pipelines, chunked receivers, readback | |
+//! | [`stage`] | [`UniformStage`]: a uniform per view within one encoder | |
 use crate::{Error, Result};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -39,6 +40,7 @@ pub mod precision;
 pub mod raster;
 pub mod receivers;
 pub mod shared;
+pub mod stage;
 
 pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
 pub use estimate::EstimateUniform;
@@ -50,8 +52,9 @@ pub use mssm::{
     GpuDualMssm, GpuMinMaxLevel, GpuMinMaxPass, GpuMinMaxPyramid, GpuMssm, GpuMssmBuilder,
 };
 pub use precision::{GpuUnorm16Encoder, GpuUnorm16Frame, GpuUnorm16Map};
-pub use raster::{GpuLayersFrame, GpuMapFrame, GpuScene, GpuShadowMapper};
+pub use raster::{GpuLayersFrame, GpuMapFrame, GpuScene, GpuShadowMapper, LayersSlot};
 pub use receivers::GpuReceivers;
+pub use stage::UniformStage;
 
 /// Every WGSL shader of the crate as `(name, complete source)`, shared structs prepended where a
 /// stage uses them. A unit test validates each with naga, so a WGSL error fails CPU-only CI.

@@ -40,10 +40,11 @@ use super::{
     midpoint::GpuMidpoints,
     mssm::{GpuMssmBuilder, MinMaxRequest},
     shared::LightViewUniform,
+    stage::UniformStage,
     GpuContext,
 };
 use crate::{
-    light_view::{FitReport, LightView, ViewOptions},
+    light_view::{LightView, ViewOptions},
     raster::{Cull, DepthBias, RasterOptions, PEEL_EPS_REL},
     receivers::Receivers,
     scene::Scene,
@@ -52,6 +53,10 @@ use crate::{
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
 use std::sync::Mutex;
+
+mod frames;
+use frames::LayersStage;
+pub use frames::{GpuLayersFrame, GpuMapFrame, LayersSlot};
 
 /// WGSL source of the rasteriser: `shared.wgsl` followed by `raster.wgsl`.
 pub const RASTER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("raster.wgsl"));
@@ -80,8 +85,9 @@ pub struct RasterParams {
     pub bias_constant: f32,
     /// [`DepthBias::slope`].
     pub bias_slope: f32,
-    /// Padding.
-    pub _pad0: f32,
+    /// Casters of a smaller opacity (the vertex's w) are dropped: one opacity level of
+    /// [`crate::Scene::opacity_levels`] (0: every caster; +inf: none).
+    pub min_opacity: f32,
     /// Padding.
     pub _pad1: f32,
 }
@@ -91,7 +97,7 @@ impl From<DepthBias> for RasterParams {
         RasterParams {
             bias_constant: b.constant,
             bias_slope: b.slope,
-            _pad0: 0.0,
+            min_opacity: 0.0,
             _pad1: 0.0,
         }
     }
@@ -110,6 +116,8 @@ pub struct GpuScene {
     pub triangles: u32,
     /// Some caster has an opacity below 1.
     pub(crate) semi_transparent: bool,
+    /// The casters' opacity levels ([`crate::Scene::opacity_levels`]), empty when opaque.
+    pub(crate) levels: Vec<crate::OpacityLevel>,
 }
 
 /// Usages of [`GpuScene::vertices`].
@@ -151,6 +159,7 @@ impl GpuScene {
             }),
             triangles: 0,
             semi_transparent: false,
+            levels: Vec::new(),
         })
     }
 
@@ -187,6 +196,11 @@ impl GpuScene {
             ),
             triangles: n as u32,
             semi_transparent: !scene.is_opaque(),
+            levels: if scene.is_opaque() {
+                Vec::new()
+            } else {
+                scene.opacity_levels()
+            },
         })
     }
 
@@ -194,6 +208,12 @@ impl GpuScene {
     /// write or read.
     pub fn is_opaque(&self) -> bool {
         !self.semi_transparent
+    }
+
+    /// The casters' opacity levels ([`crate::Scene::opacity_levels`]), empty when every caster
+    /// is opaque: what a frame renders one pass per level for ([`RasterParams::min_opacity`]).
+    pub fn opacity_levels(&self) -> &[crate::OpacityLevel] {
+        &self.levels
     }
 
     /// Bytes of the vertex buffer.
@@ -320,7 +340,7 @@ impl GpuShadowMapper {
                     layout: Some(&self.pipeline_layout),
                     vertex: wgpu::VertexState {
                         module: &self.module,
-                        entry_point: Some("vs_main"),
+                        entry_point: Some("vs_layer"),
                         compilation_options: wgpu::PipelineCompilationOptions {
                             constants: &constants,
                             ..Default::default()
@@ -424,6 +444,18 @@ impl GpuShadowMapper {
         r: u32,
         req: &LightSpaceRequest,
     ) -> Result<GpuLayersFrame> {
+        self.layers_frame_slots(ctx, r, req, 1)
+    }
+
+    /// [`layers_frame`](Self::layers_frame) for frames that render the layers in up to `slots`
+    /// views in turn within one encoder ([`GpuLayersFrame::encode_slot`]).
+    pub fn layers_frame_slots(
+        &self,
+        ctx: &GpuContext,
+        r: u32,
+        req: &LightSpaceRequest,
+        slots: u32,
+    ) -> Result<GpuLayersFrame> {
         check_size(ctx, r)?;
         let layers_out = req.layers.max(1);
         let k = layers_out + u32::from(req.midpoints.is_some());
@@ -491,6 +523,13 @@ impl GpuShadowMapper {
             Ok(GpuLayersFrame {
                 r,
                 layers_out: layers_out as usize,
+                stage: LayersStage {
+                    view: UniformStage::new(ctx, "raster.view stage", slots),
+                    params: UniformStage::new(ctx, "raster.params stage", slots),
+                    midpoint: UniformStage::new(ctx, "midpoint stage", slots),
+                    base: RasterParams::from(bias),
+                },
+                params,
                 view_uniform,
                 layers,
                 opacity,
@@ -570,208 +609,6 @@ impl GpuShadowMapper {
     }
 }
 
-/// A shadow map rendered every frame into the caller's command encoder (the engine path,
-/// [`GpuShadowMapper::map_frame`]): [`encode`](Self::encode) stages a view in one of its view
-/// slots with `queue.write_buffer` and records one render pass into the layer; nothing is
-/// submitted, nothing waits, and no CPU work grows with the triangles. Staged views take effect
-/// at the caller's next `queue.submit`, so a frame renders each slot at most once per submit
-/// (multi-view methods render their views in turn into the one layer, each followed by the pass
-/// that reads it).
-#[derive(Debug)]
-pub struct GpuMapFrame {
-    /// Side in texels.
-    pub r: u32,
-    /// The map the pass renders (layer 0: nearest linear depth, +inf where empty).
-    pub layer: GpuDepthMap,
-    depth_test: wgpu::TextureView,
-    /// Per view slot: the view uniform ([`LightViewUniform`]) and the raster bind group.
-    slots: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
-    pipeline: wgpu::RenderPipeline,
-}
-
-impl GpuMapFrame {
-    /// The view uniform of `slot` ([`LightViewUniform`]), for estimate kernels to bind.
-    /// Panics on a slot beyond those prepared (a caller's bug, never input data).
-    pub fn view_uniform(&self, slot: usize) -> &wgpu::Buffer {
-        &self.slots[slot].0
-    }
-
-    /// Number of view slots.
-    pub fn slots(&self) -> usize {
-        self.slots.len()
-    }
-
-    /// Stages `view` (its resolution must be this map's) in `slot` and records the pass
-    /// rendering `casters` into [`layer`](Self::layer). Errors: [`Error::LightView`] for a view
-    /// of another resolution, [`Error::Limit`] for a slot beyond those prepared.
-    pub fn encode(
-        &self,
-        queue: &wgpu::Queue,
-        enc: &mut wgpu::CommandEncoder,
-        casters: &GpuScene,
-        view: &LightView,
-        slot: usize,
-    ) -> Result<()> {
-        let Some((uniform, group)) = self.slots.get(slot) else {
-            return Err(Error::Limit {
-                what: "view slot of a frame's shadow map",
-                requested: slot as u64,
-                max: self.slots.len().saturating_sub(1) as u64,
-            });
-        };
-        if view.r != self.r {
-            return Err(Error::LightView(format!(
-                "the frame's view has resolution {} but the map was prepared at {}",
-                view.r, self.r
-            )));
-        }
-        queue.write_buffer(
-            uniform,
-            0,
-            bytemuck::bytes_of(&LightViewUniform::from(view)),
-        );
-        let mut pass = begin_layer_pass(enc, 0, &self.layer.view, None, &self.depth_test);
-        if casters.triangles > 0 {
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, group, &[]);
-            pass.set_vertex_buffer(0, casters.vertices.slice(..));
-            pass.draw(0..3 * casters.triangles, 0..1);
-        }
-        Ok(())
-    }
-}
-
-/// The depth-peeled layers, midpoint layers and MSSM family of one view, rendered every frame
-/// into the caller's command encoder (the engine path, [`GpuShadowMapper::layers_frame`]): the
-/// resources and bind groups of [`GpuShadowMapper::render_layers`], allocated once;
-/// [`encode`](Self::encode) stages the view and the midpoint clamp with `queue.write_buffer` and
-/// records the peeling passes, the midpoint pass and the MSSM pass. Nothing is submitted, nothing
-/// waits, no CPU work grows with the triangles or texels; one `encode` per submit.
-#[derive(Debug)]
-pub struct GpuLayersFrame {
-    /// Side in texels.
-    pub r: u32,
-    layers_out: usize,
-    view_uniform: wgpu::Buffer,
-    /// Every peeled layer, the extra one the midpoints read included.
-    layers: Vec<GpuDepthMap>,
-    /// Per peeled layer, the opacity of its texels' casters (when prepared with opacity).
-    opacity: Vec<GpuDepthMap>,
-    /// Whether the last `encode` wrote the opacity planes (semi-transparent casters).
-    wrote_opacity: std::sync::atomic::AtomicBool,
-    midpoints: Vec<GpuDepthMap>,
-    set: super::mssm::GpuMinMaxSet,
-    depth_test: wgpu::TextureView,
-    /// Per peeling pass: its pipelines and bind group.
-    groups: Vec<(LayerPipelines, wgpu::BindGroup)>,
-    midpoint_pass: Option<super::midpoint::GpuMidpointPass>,
-    mssm_pass: super::mssm::GpuMinMaxPass,
-}
-
-impl GpuLayersFrame {
-    /// The view uniform ([`LightViewUniform`]) the passes read, for estimate kernels to bind.
-    pub fn view_uniform(&self) -> &wgpu::Buffer {
-        &self.view_uniform
-    }
-
-    /// Render passes over the casters per `encode` (the peeled layers, the midpoints' extra one
-    /// included).
-    pub fn passes(&self) -> u32 {
-        self.groups.len() as u32
-    }
-
-    /// The peeled layers the request asked for, nearest first.
-    pub fn layers(&self) -> &[GpuDepthMap] {
-        &self.layers[..self.layers_out]
-    }
-
-    /// Per layer of [`layers`](Self::layers), each texel's opacity (the mesh opacity of the
-    /// caster its depth came from, 0 where empty: the CPU's [`crate::LightSpace::opacity`]);
-    /// empty unless prepared with `opacity`. Written by frames whose casters are
-    /// semi-transparent ([`GpuScene::is_opaque`] false), left as they were otherwise.
-    pub fn opacity(&self) -> &[GpuDepthMap] {
-        &self.opacity[..self.opacity.len().min(self.layers_out)]
-    }
-
-    /// The midpoint layers (empty unless requested).
-    pub fn midpoints(&self) -> &[GpuDepthMap] {
-        &self.midpoints
-    }
-
-    /// The MSSM family of layer 0 as requested.
-    pub fn min_max(&self) -> &super::mssm::GpuMinMaxSet {
-        &self.set
-    }
-
-    /// Stages `view` and the midpoint clamp `max_bias` (world units; unused without midpoints)
-    /// and records every pass. Errors: [`Error::LightView`] for a view of another resolution.
-    pub fn encode(
-        &self,
-        queue: &wgpu::Queue,
-        enc: &mut wgpu::CommandEncoder,
-        casters: &GpuScene,
-        view: &LightView,
-        max_bias: f32,
-    ) -> Result<()> {
-        if view.r != self.r {
-            return Err(Error::LightView(format!(
-                "the frame's view has resolution {} but the layers were prepared at {}",
-                view.r, self.r
-            )));
-        }
-        queue.write_buffer(
-            &self.view_uniform,
-            0,
-            bytemuck::bytes_of(&LightViewUniform::from(view)),
-        );
-        let with_opacity = !casters.is_opaque() && !self.opacity.is_empty();
-        self.wrote_opacity
-            .store(with_opacity, std::sync::atomic::Ordering::Relaxed);
-        for (m, (pipelines, group)) in self.groups.iter().enumerate() {
-            let (pipeline, opacity) = match (&pipelines.opacity, with_opacity) {
-                (Some(p), true) => (p, Some(&self.opacity[m].view)),
-                _ => (&pipelines.opaque, None),
-            };
-            let mut pass =
-                begin_layer_pass(enc, m, &self.layers[m].view, opacity, &self.depth_test);
-            if casters.triangles > 0 {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                pass.set_vertex_buffer(0, casters.vertices.slice(..));
-                pass.draw(0..3 * casters.triangles, 0..1);
-            }
-        }
-        if let Some(p) = &self.midpoint_pass {
-            p.record(queue, enc, max_bias);
-        }
-        self.mssm_pass.record(enc);
-        Ok(())
-    }
-
-    /// The maps as a [`GpuLightSpace`] in `view` (sharing this frame's textures and buffers),
-    /// the opacity planes included when the last `encode` wrote them.
-    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
-        let wrote = self
-            .wrote_opacity
-            .load(std::sync::atomic::Ordering::Relaxed);
-        GpuLightSpace {
-            view: *view,
-            fit: FitReport::default(),
-            view_uniform: self.view_uniform.clone(),
-            layers: self.layers().to_vec(),
-            opacity: if wrote {
-                self.opacity().to_vec()
-            } else {
-                Vec::new()
-            },
-            midpoints: self.midpoints.clone(),
-            mssm: self.set.mssm.clone(),
-            dual_mssm: self.set.dual_mssm.clone(),
-            pyramid: self.set.pyramid.clone(),
-        }
-    }
-}
-
 /// Creates the view uniform (`raster.view`), then the bias parameters (`raster.params`).
 fn create_raster_uniforms(
     device: &wgpu::Device,
@@ -788,7 +625,7 @@ fn create_raster_uniforms(
         device,
         "raster.params",
         bytemuck::bytes_of(&RasterParams::from(bias)),
-        wgpu::BufferUsages::UNIFORM,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     );
     (view_uniform, params)
 }

@@ -10,7 +10,8 @@ override PEEL: bool;
 struct RasterParams {
     bias_constant: f32,
     bias_slope: f32,
-    _pad0: f32,
+    // Casters below this opacity (the vertex's w) are dropped: one opacity level.
+    min_opacity: f32,
     _pad1: f32,
 }
 
@@ -39,6 +40,25 @@ struct VsOut {
 // as the CPU's orthographic raster interpolates z itself.
 @vertex
 fn vs_main(@location(0) world: vec4<f32>) -> VsOut {
+    return light_clip(world);
+}
+
+// The layer passes' vertex stage: vs_main, except that a caster below params.min_opacity (all
+// three vertices share the mesh's opacity) is put behind the near plane (clip.z < 0) and
+// clipped whole, so no fragment stage runs for it (one opacity level).
+@vertex
+fn vs_layer(@location(0) world: vec4<f32>) -> VsOut {
+    if world.w < params.min_opacity {
+        var out: VsOut;
+        out.clip = vec4<f32>(0.0, 0.0, -1.0, 1.0);
+        out.z = 0.0;
+        out.opacity = world.w;
+        return out;
+    }
+    return light_clip(world);
+}
+
+fn light_clip(world: vec4<f32>) -> VsOut {
     let l = to_light(view, world.xyz);
     let r = f32(view.r);
     if view.ortho != 0u {

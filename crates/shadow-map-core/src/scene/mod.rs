@@ -352,31 +352,12 @@ impl Scene {
     /// exact for one semi-transparent surface per ray (the reference multiplies transmittances
     /// where several overlap). An opaque scene is one level of weight 1.
     pub fn opacity_levels(&self) -> Vec<OpacityLevel> {
-        let mut a: Vec<f32> = self
-            .meshes
-            .iter()
-            .filter(|m| !m.triangles.is_empty())
-            .map(|m| m.opacity.min(1.0))
-            .filter(|&o| o > 0.0)
-            .collect();
-        a.sort_by(f32::total_cmp);
-        a.dedup();
-        let mut levels = Vec::with_capacity(a.len() + 1);
-        let mut prev = 0.0f32;
-        for &ak in &a {
-            levels.push(OpacityLevel {
-                min_opacity: ak,
-                weight: ak - prev,
-            });
-            prev = ak;
-        }
-        if prev < 1.0 {
-            levels.push(OpacityLevel {
-                min_opacity: f32::INFINITY,
-                weight: 1.0 - prev,
-            });
-        }
-        levels
+        OpacityLevel::of(
+            self.meshes
+                .iter()
+                .filter(|m| !m.triangles.is_empty())
+                .map(|m| m.opacity),
+        )
     }
 
     /// This scene with only the meshes of opacity `>= min_opacity` (mesh indices renumbered,
@@ -497,6 +478,36 @@ pub struct OpacityLevel {
     pub min_opacity: f32,
     /// The level's weight in V.
     pub weight: f32,
+}
+
+impl OpacityLevel {
+    /// The levels of casters with these `opacities` ([`Scene::opacity_levels`]; opacities
+    /// above 1 count as 1, those at or below 0 cast nothing).
+    pub fn of(opacities: impl IntoIterator<Item = f32>) -> Vec<OpacityLevel> {
+        let mut a: Vec<f32> = opacities
+            .into_iter()
+            .map(|o| o.min(1.0))
+            .filter(|&o| o > 0.0)
+            .collect();
+        a.sort_by(f32::total_cmp);
+        a.dedup();
+        let mut levels = Vec::with_capacity(a.len() + 1);
+        let mut prev = 0.0f32;
+        for &ak in &a {
+            levels.push(OpacityLevel {
+                min_opacity: ak,
+                weight: ak - prev,
+            });
+            prev = ak;
+        }
+        if prev < 1.0 {
+            levels.push(OpacityLevel {
+                min_opacity: f32::INFINITY,
+                weight: 1.0 - prev,
+            });
+        }
+        levels
+    }
 }
 
 #[cfg(test)]

@@ -89,3 +89,99 @@ fn layer_opacity_planes_match_the_cpu() -> Result<(), Error> {
     }
     Ok(())
 }
+
+/// One opacity level per view slot, all recorded into one encoder
+/// ([`GpuLayersFrame::encode_slot`](shadow_map_core::gpu::GpuLayersFrame::encode_slot)): after
+/// each slot's layers a copy of layer 0 is recorded, and each copy must be the CPU's layer 0 of
+/// the level's scene ([`Scene::with_opacity_at_least`](shadow_map_core::Scene)) in that
+/// slot's view, not the last slot's (its view and `min_opacity` are staged per slot). On the
+/// hair: a view shifted per slot, and the level with no caster (min_opacity +inf) empty.
+#[test]
+fn layer_slots_render_each_opacity_level_in_its_own_view() -> Result<(), Error> {
+    let Some(ctx) =
+        common::context_for_tests("layer_slots_render_each_opacity_level_in_its_own_view")?
+    else {
+        return Ok(());
+    };
+    use shadow_map_core::gpu::{GpuDepthMap, LayersSlot};
+    let mapper = GpuShadowMapper::new(&ctx)?;
+    let req = LightSpaceRequest {
+        resolution: 64,
+        layers: 1,
+        midpoints: None,
+        mssm_levels: None,
+        dual_mssm_levels: None,
+        pyramid: false,
+        raster: RasterOptions::default(),
+        opacity: false,
+    };
+    let scene = fixture("hair", 32, 24);
+    let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
+    let (view, _) = req.fit_view(&scene, &rec, &ViewOptions::default())?;
+    let levels = scene.opacity_levels();
+    assert!(levels.len() >= 3, "hair: {levels:?}");
+    let slots = levels.len();
+    let frame = mapper.layers_frame_slots(&ctx, view.r, &req, slots as u32)?;
+    let casters = GpuScene::upload(&ctx, &scene)?;
+    assert_eq!(casters.opacity_levels(), levels.as_slice());
+    // Each slot's view shifted by a few texels, so a slot rendered in another's view shows.
+    let views: Vec<_> = (0..slots)
+        .map(|k| {
+            let mut v = view;
+            v.window_min.x += 3.0 * k as f32 * v.delta();
+            v
+        })
+        .collect();
+    let copies: Vec<GpuDepthMap> = (0..slots)
+        .map(|k| GpuDepthMap::new(&ctx, view.r, &format!("slot {k}")))
+        .collect::<Result<_, _>>()?;
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    for (k, level) in levels.iter().enumerate() {
+        let slot = LayersSlot {
+            view: &views[k],
+            max_bias: 0.0,
+            min_opacity: level.min_opacity,
+            slot: k,
+        };
+        frame.encode_slot(&ctx.queue, &mut enc, &casters, &slot)?;
+        enc.copy_texture_to_texture(
+            frame.layers()[0].texture.as_image_copy(),
+            copies[k].texture.as_image_copy(),
+            wgpu::Extent3d {
+                width: view.r,
+                height: view.r,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    ctx.queue.submit([enc.finish()]);
+    for (k, level) in levels.iter().enumerate() {
+        let level_scene = scene.with_opacity_at_least(level.min_opacity);
+        let cpu = LightSpace::build_in_view(&level_scene, views[k], Default::default(), &req);
+        let cpu = &cpu.layers[0].depth;
+        let gpu = read_depth_map(&ctx, &copies[k])?.depth;
+        let filled = cpu.iter().filter(|d| d.is_finite()).count();
+        let differ = cpu
+            .iter()
+            .zip(&gpu)
+            .filter(|(c, g)| {
+                c.is_finite() != g.is_finite()
+                    || (c.is_finite() && (*c - *g).abs() > 1e-4 * c.abs())
+            })
+            .count();
+        println!(
+            "hair slot {k} (min opacity {}): {filled} texels filled on the CPU, {differ} differ",
+            level.min_opacity
+        );
+        if level.min_opacity.is_infinite() {
+            assert_eq!(filled, 0, "slot {k}: the level without casters");
+        }
+        assert!(filled == 0 || filled > 20, "slot {k}: {filled} texels");
+        // Thin strands: the hardware's fill rule differs from the CPU's at sub-texel ties.
+        assert!(
+            differ <= filled / 20 + 2,
+            "slot {k}: {differ} of {filled} texels differ from the CPU's level"
+        );
+    }
+    Ok(())
+}

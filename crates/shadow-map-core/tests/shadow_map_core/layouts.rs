@@ -62,7 +62,7 @@ fn receiver_gpu_matches_wgsl() {
 fn raster_params_match_wgsl() {
     check_layout!("raster", "RasterParams", RasterParams, [
         "bias_constant" => bias_constant, "bias_slope" => bias_slope,
-        "_pad0" => _pad0, "_pad1" => _pad1,
+        "min_opacity" => min_opacity, "_pad1" => _pad1,
     ]);
 }
 
