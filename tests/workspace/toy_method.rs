@@ -59,7 +59,7 @@ impl SoftShadowEstimator for Unshadowed {
 }
 
 /// The toy's descriptor, as its crate's `lib.rs` would export it (a GPU method adds
-/// `.with_gpu(..)` and `.with_frame(..)` under its `gpu` feature).
+/// `.with_frame(..)`, its frame, under its `gpu` feature).
 const UNSHADOWED: MethodDescriptor = MethodDescriptor::new(
     "unshadowed",
     || Ok(Box::new(Unshadowed::new()?)),

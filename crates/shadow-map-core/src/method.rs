@@ -1,6 +1,7 @@
 //! One method as the rest of the workspace sees it: a [`MethodDescriptor`] holds its registry
-//! name, its CPU constructor, its GPU twin's and its engine path's constructors (in builds with
-//! the `gpu` feature) and the settings `softshadow report` sweeps. Each method crate exports its
+//! name, its CPU constructor, its engine path's constructor (in builds with the `gpu` feature:
+//! the method's one GPU implementation, also its GPU estimator through
+//! [`FrameTwin`](crate::gpu::frame_twin::FrameTwin)) and the settings `softshadow report` sweeps. Each method crate exports its
 //! descriptor(s); the umbrella crate's list of descriptors is the one registry the CLI, the
 //! report, the engines and the tests read (adding a method is its crate and one line there).
 use crate::{Result, SoftShadowEstimator};
@@ -10,11 +11,6 @@ pub type Setting = Vec<(&'static str, String)>;
 
 /// A fresh CPU estimator with default parameters.
 pub type CpuConstructor = fn() -> Result<Box<dyn SoftShadowEstimator>>;
-
-/// A fresh GPU twin with default parameters, on a device.
-#[cfg(feature = "gpu")]
-pub type GpuConstructor =
-    fn(std::sync::Arc<crate::gpu::GpuContext>) -> Result<Box<dyn SoftShadowEstimator>>;
 
 /// The engine path prepared on a device with the method's own parameters (a table of its own
 /// specs, without the cascade keys) for at most `max_receivers` receivers a frame.
@@ -26,15 +22,13 @@ pub type FrameConstructor = fn(
 ) -> Result<Box<dyn crate::gpu::frame::FrameEstimator>>;
 
 /// What the registry knows of one method (see the module's documentation). Made in a `const`:
-/// [`new`](Self::new), then [`with_gpu`](Self::with_gpu) and [`with_frame`](Self::with_frame)
-/// under the method crate's own `gpu` feature.
+/// [`new`](Self::new), then [`with_frame`](Self::with_frame) under the method crate's own `gpu`
+/// feature.
 #[derive(Clone, Copy)]
 pub struct MethodDescriptor {
     name: &'static str,
     cpu: CpuConstructor,
     sweep: fn(bool) -> Vec<Setting>,
-    #[cfg(feature = "gpu")]
-    gpu: Option<GpuConstructor>,
     #[cfg(feature = "gpu")]
     frame: Option<FrameConstructor>,
 }
@@ -62,18 +56,8 @@ impl MethodDescriptor {
             cpu,
             sweep,
             #[cfg(feature = "gpu")]
-            gpu: None,
-            #[cfg(feature = "gpu")]
             frame: None,
         }
-    }
-
-    /// The same with a GPU twin of its own (without one, a method with an engine path runs on
-    /// the GPU through it: [`gpu`](Self::gpu)).
-    #[cfg(feature = "gpu")]
-    pub const fn with_gpu(mut self, gpu: GpuConstructor) -> MethodDescriptor {
-        self.gpu = Some(gpu);
-        self
     }
 
     /// The same with an engine path.
@@ -98,17 +82,10 @@ impl MethodDescriptor {
         (self.sweep)(quick)
     }
 
-    /// Whether this build has the method on the GPU (its own twin, or its engine path run by
+    /// Whether this build has the method on the GPU (its engine path, run as an estimator by
     /// [`FrameTwin`](crate::gpu::frame_twin::FrameTwin)).
     pub const fn has_gpu(&self) -> bool {
-        #[cfg(feature = "gpu")]
-        {
-            self.gpu.is_some() || self.frame.is_some()
-        }
-        #[cfg(not(feature = "gpu"))]
-        {
-            false
-        }
+        self.has_frame()
     }
 
     /// Whether this build has the method's engine path.
@@ -123,22 +100,19 @@ impl MethodDescriptor {
         }
     }
 
-    /// The method's GPU estimator on `ctx`: its own twin where it declares one, else its engine
-    /// path as an estimator ([`FrameTwin`](crate::gpu::frame_twin::FrameTwin)); `None` for a
-    /// CPU-only method.
+    /// The method's GPU estimator on `ctx`: its engine path as an estimator
+    /// ([`FrameTwin`](crate::gpu::frame_twin::FrameTwin)); `None` for a CPU-only method.
     #[cfg(feature = "gpu")]
     pub fn gpu(
         &self,
         ctx: std::sync::Arc<crate::gpu::GpuContext>,
     ) -> Option<Result<Box<dyn SoftShadowEstimator>>> {
-        match (self.gpu, self.frame) {
-            (Some(g), _) => Some(g(ctx)),
-            (None, Some(f)) => Some(self.cpu().map(|cpu| {
+        self.frame.map(|f| {
+            self.cpu().map(|cpu| {
                 Box::new(crate::gpu::frame_twin::FrameTwin::new(ctx, cpu, f))
                     as Box<dyn SoftShadowEstimator>
-            })),
-            (None, None) => None,
-        }
+            })
+        })
     }
 
     /// The engine path on `ctx` with the method's own `params`, for at most `max_receivers`
