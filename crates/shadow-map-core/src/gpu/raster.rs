@@ -401,7 +401,7 @@ impl GpuShadowMapper {
     /// `req.layers` peeled layers (at least 1), plus one more when midpoints are requested, the
     /// midpoint layers (compute pass), and the MSSM family over layer 0 as requested. All work is
     /// recorded in one command encoder and submitted; nothing waits. The result's `fit` is
-    /// [`FitReport::default`].
+    /// [`FitReport::default`](crate::light_view::FitReport::default).
     ///
     /// Errors: [`Error::Limit`] when `view.r` is 0 or beyond the device's
     /// `max_texture_dimension_2d` (or an MSSM plane is beyond `max_buffer_size`); GPU validation
