@@ -38,20 +38,38 @@ pub struct GpuLightSpace {
     pub pyramid: Option<GpuMinMaxPyramid>,
 }
 
+/// Bytes of `maps` and an MSSM family `(mssm, dual-grid MSSM, pyramid)`, counted as
+/// [`LightSpace::bytes`] counts them: [`GpuLightSpace::bytes`] and the engine path's layers.
+pub(crate) fn maps_bytes<'a>(
+    maps: impl IntoIterator<Item = &'a GpuDepthMap>,
+    (mssm, dual, pyramid): (
+        Option<&GpuMssm>,
+        Option<&GpuDualMssm>,
+        Option<&GpuMinMaxPyramid>,
+    ),
+) -> usize {
+    maps.into_iter().map(GpuDepthMap::bytes).sum::<usize>()
+        + mssm.map_or(0, GpuMssm::bytes)
+        + dual.map_or(0, GpuDualMssm::bytes)
+        + pyramid.map_or(0, GpuMinMaxPyramid::bytes)
+}
+
 impl GpuLightSpace {
     /// Bytes held by the maps, counted as [`LightSpace::bytes`] counts them (each structure's
     /// depth-map level counted in it, although on the GPU the MSSM and the pyramid share one
     /// buffer for it).
     pub fn bytes(&self) -> usize {
-        self.layers
+        let maps = self
+            .layers
             .iter()
             .chain(&self.midpoints)
-            .chain(&self.opacity)
-            .map(GpuDepthMap::bytes)
-            .sum::<usize>()
-            + self.mssm.as_ref().map_or(0, GpuMssm::bytes)
-            + self.dual_mssm.as_ref().map_or(0, GpuDualMssm::bytes)
-            + self.pyramid.as_ref().map_or(0, GpuMinMaxPyramid::bytes)
+            .chain(&self.opacity);
+        let family = (
+            self.mssm.as_ref(),
+            self.dual_mssm.as_ref(),
+            self.pyramid.as_ref(),
+        );
+        maps_bytes(maps, family)
     }
 
     /// Reads everything back into a [`LightSpace`]: layers, opacity planes and midpoints bit for

@@ -19,9 +19,13 @@ pub struct UniformStage<T: Pod> {
 }
 
 impl<T: Pod> UniformStage<T> {
-    /// Bytes per slot: `T`'s size rounded up to the copy alignment.
-    const STRIDE: u64 = (std::mem::size_of::<T>() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT)
-        * wgpu::COPY_BUFFER_ALIGNMENT;
+    /// Bytes per slot: `T`'s size, a multiple of the copy alignment (as every uniform is;
+    /// checked when the stage is instantiated), so a value is written and copied as it is.
+    const STRIDE: u64 = {
+        let size = std::mem::size_of::<T>() as u64;
+        assert!(size > 0 && size.is_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT));
+        size
+    };
 
     /// Room for `slots` values (at least 1).
     pub fn new(ctx: &GpuContext, label: &str, slots: u32) -> Self {
@@ -61,9 +65,7 @@ impl<T: Pod> UniformStage<T> {
             )));
         }
         let at = Self::STRIDE * slot as u64;
-        let mut bytes = bytemuck::bytes_of(value).to_vec();
-        bytes.resize(Self::STRIDE as usize, 0);
-        queue.write_buffer(&self.buffer, at, &bytes);
+        queue.write_buffer(&self.buffer, at, bytemuck::bytes_of(value));
         enc.copy_buffer_to_buffer(&self.buffer, at, dst, 0, Self::STRIDE);
         Ok(())
     }

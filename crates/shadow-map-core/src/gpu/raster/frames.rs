@@ -144,22 +144,18 @@ impl GpuLayersFrame {
     /// Bytes of the layers, opacity planes, midpoints and MSSM family, counted as
     /// [`GpuLightSpace::bytes`] counts them.
     pub fn bytes(&self) -> usize {
-        let set = &self.set;
-        self.layers
+        let maps = self
+            .layers
             .iter()
             .chain(&self.midpoints)
-            .chain(&self.opacity)
-            .map(GpuDepthMap::bytes)
-            .sum::<usize>()
-            + set.mssm.as_ref().map_or(0, crate::gpu::GpuMssm::bytes)
-            + set
-                .dual_mssm
-                .as_ref()
-                .map_or(0, crate::gpu::GpuDualMssm::bytes)
-            + set
-                .pyramid
-                .as_ref()
-                .map_or(0, crate::gpu::GpuMinMaxPyramid::bytes)
+            .chain(&self.opacity);
+        let set = &self.set;
+        let family = (
+            set.mssm.as_ref(),
+            set.dual_mssm.as_ref(),
+            set.pyramid.as_ref(),
+        );
+        crate::gpu::light_space::maps_bytes(maps, family)
     }
 
     /// Render passes over the casters per `encode` (the peeled layers, the midpoints' extra one
