@@ -1,14 +1,14 @@
 //! A GPU estimator inside a user's own wgpu device: the user creates the instance, adapter,
 //! device and queue (here headless, as a renderer would before creating its surface), wraps them
-//! in a `GpuContext` without giving up ownership of anything else, and runs the PCSS and
-//! backprojection twins on it. Receivers come from the CPU here and V is read back; for receivers
-//! already in the user's GPU buffers, with V left there, see the frame API in
-//! `examples/frame_loop.rs`.
+//! in a `GpuContext` without giving up ownership of anything else, and runs the GPU estimators of
+//! PCSS and backprojection on it (the registry's: each method's engine path run by the core's
+//! `FrameTwin`). Receivers come from the CPU here and V is read back; for receivers already in
+//! the user's GPU buffers, with V left there, see the frame API in `examples/frame_loop.rs`.
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release --example gpu_own_device
 //! ```
-use shadow_map_core::{gpu::GpuContext, run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
+use shadow_map_core::{gpu::GpuContext, run, Receivers, Scene, SceneBvh};
 use std::sync::Arc;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -44,18 +44,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let scene = Scene::load(path)?;
     let receivers = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
-    let mut estimators: Vec<Box<dyn SoftShadowEstimator>> = vec![
-        Box::new(softshadow::baselines::gpu::GpuPcssShadow::new(ctx.clone())?),
-        Box::new(softshadow::backprojection::GpuBackprojection::new(ctx)?),
+    let methods = [
+        softshadow::baselines::PCSS,
+        softshadow::backprojection::DESCRIPTOR,
     ];
-    for e in &mut estimators {
+    for method in methods {
+        let Some(e) = method.gpu(ctx.clone()) else {
+            println!("{}: no GPU estimator in this build", method.name());
+            continue;
+        };
+        let mut e = e?;
         let (v, report) = run(e.as_mut(), &scene, &receivers)?;
         let lit: Vec<f32> = v.into_iter().filter(|x| !x.is_nan()).collect();
         println!(
-            "{} on the user's device: mean V {:.4}, build {:.1} ms, estimate {:.1} ms",
+            "{} on the user's device: mean V {:.4}, prepare {:.1} ms (once: pipelines, maps), \
+             frame {:.1} ms (receivers up, V back)",
             e.name(),
             lit.iter().sum::<f32>() / lit.len().max(1) as f32,
-            report.total_ms("build"),
+            report.total_ms("prepare"),
             report.total_ms("estimate")
         );
     }

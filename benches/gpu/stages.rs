@@ -199,40 +199,25 @@ pub fn cpu_stages(env: &StageEnv) -> Vec<Row> {
     rows
 }
 
-/// HOOK for the GPU estimate stages (the lead adds the GPU PCSS of `crates/baselines` here once
-/// it lands; see `benches/README.md`, "Adding the estimate stage").
-///
-/// Everything an estimator needs is in `env`, built outside the timed regions: the scene, the
-/// receivers (`env.receivers`, upload them once with `GpuReceivers::upload`), the view, the GPU
-/// scene and mapper, and layer 0. Time with `env.g.time_encoded(StampAt::Pass, bytes, ..)` when
-/// the estimator can record into a caller's encoder (preferred: one submit, timestamps), or with
-/// `env.g.time_calls(bytes, ..)` when it only offers a call that submits by itself. Return one
-/// [`Row`] per stage with id `pcss/gpu/<stage>/<r>@<fixture>`, unit `"taps"` and
-/// `bound: Some(Bound::GpuTaps)`, counting per active receiver the taps actually issued (PCSS:
-/// blocker search `w_s^2` plus filter `w_f^2`, from the kernel widths the estimator computed; or a
-/// fixed upper bound, named in the README), so the row reads as a fraction of the tap ceiling.
-/// The CPU twin goes in the same place with `Bound::CpuTaps`.
+/// The PCSS estimate of `crates/baselines` on both backends through the estimator trait, in the
+/// bench's scene and receivers: `pcss/gpu/estimate` is the registry's GPU estimator (its frame
+/// run by `FrameTwin`: receiver upload, the frame's raster and kernel, V readback) after one
+/// `build`, `pcss/cpu/estimate` the CPU twin's estimate after its `build`. Unit: receivers.
 pub fn estimate_stages(env: &StageEnv) -> BenchResult<Vec<Row>> {
-    use baselines::{gpu::GpuPcssShadow, PcssShadow};
+    use baselines::PcssShadow;
     use shadow_map_core::SoftShadowEstimator;
     let r = env.cfg.res;
     let name = &env.cfg.name;
     let n = env.receivers.active_count() as f64;
-    // Identical light-space data for both twins: the CPU map in the bench's view.
-    let ls = LightSpace::build_in_view(
-        env.scene,
-        env.view,
-        Default::default(),
-        &LightSpaceRequest::single(r),
-    );
     let mut v = vec![0.0f32; env.receivers.len()];
-    let mut gpu = GpuPcssShadow::new(std::sync::Arc::new(env.g.ctx.clone()))?;
+    let mut gpu = baselines::PCSS
+        .gpu(std::sync::Arc::new(env.g.ctx.clone()))
+        .expect("PCSS has a frame")?;
     gpu.set_param("resolution", &r.to_string())?;
-    let mut t = try_time_cpu(2000.0, || {
-        gpu.estimate_with(&ls, env.scene.light(), env.receivers, &mut v)
-    })?;
+    gpu.build(env.scene, env.receivers)?;
+    let mut t = try_time_cpu(2000.0, || gpu.estimate(env.scene, env.receivers, &mut v))?;
     t.method = Method::WallCalls;
-    t.note = Some("whole estimate call: receiver upload, dispatch and V readback".into());
+    t.note = Some("whole estimate call: receiver upload, raster, kernel and V readback".into());
     let mut rows = vec![Row::new(
         format!("pcss/gpu/estimate/{r}@{name}"),
         t,

@@ -1,7 +1,8 @@
 //! Criterion benches of the accumulation estimator on the sphere-light fixture (160x120 receivers,
-//! r = 1024, K = 10): the light-space build and the estimate for additive/exact x fixed/adaptive,
-//! on the CPU and (feature `gpu`, when an adapter exists) the GPU, where the estimate is timed as
-//! dispatches between one submit and one wait (no upload, no readback). Ids:
+//! r = 1024, K = 10): the light-space build and the estimate for additive/exact x fixed/adaptive
+//! on the CPU, and (feature `gpu`, when an adapter exists) one frame of the engine path on the
+//! GPU: the layers (and MSSM) rasterised, laid out and the kernel run, recorded into one encoder,
+//! submitted and waited for (casters and receivers uploaded once, no readback). Ids:
 //! `accumulation/<backend>/<stage>/<variant>-<kernel>`. Run: `cargo bench -p accumulation`.
 use accumulation::CpuAccumulation;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -39,27 +40,57 @@ fn bench(c: &mut Criterion) {
     }
     #[cfg(feature = "gpu")]
     match shadow_map_core::gpu::GpuContext::shared() {
-        Ok(ctx) => {
-            let mut gpu = accumulation::GpuAccumulation::new(ctx).expect("gpu");
-            for (variant, kernel) in MODES {
-                gpu.set_param("variant", variant).expect("variant");
-                gpu.set_param("kernel", kernel).expect("kernel");
-                gpu.build(&scene, &receivers).expect("build");
-                let ls = gpu.cpu().light_space().expect("light space").clone();
-                let prep = gpu
-                    .prepare(&ls, scene.light(), &receivers)
-                    .expect("prepare");
-                g.bench_function(format!("gpu/estimate/{variant}-{kernel}"), |b| {
-                    b.iter_custom(|iters| {
-                        let ms = gpu.dispatch(&prep, iters as u32).expect("dispatch");
-                        std::time::Duration::from_secs_f64(ms * 1e-3)
-                    })
-                });
-            }
-        }
+        Ok(ctx) => gpu_frames(&mut g, &ctx, &scene, &receivers),
         Err(e) => eprintln!("accumulation bench: GPU rows SKIPPED, no adapter: {e}"),
     }
     g.finish();
+}
+
+/// One frame of the engine path per iteration (encode, submit, wait), for each mode.
+#[cfg(feature = "gpu")]
+fn gpu_frames(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    ctx: &std::sync::Arc<shadow_map_core::gpu::GpuContext>,
+    scene: &shadow_map_core::Scene,
+    receivers: &shadow_map_core::Receivers,
+) {
+    use accumulation::AccumulationFrame;
+    use shadow_map_core::gpu::{
+        frame::{FrameEstimator, FrameInputs},
+        GpuReceivers, GpuScene,
+    };
+    let casters = GpuScene::upload(ctx, scene).expect("casters");
+    let rec = GpuReceivers::upload(ctx, receivers).expect("receivers");
+    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bench V"),
+        size: 4 * rec.count.max(1) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    for (variant, kernel) in MODES {
+        let mut params = shadow_map_core::Params::new(accumulation::cpu::SPECS).expect("params");
+        params.set("variant", variant).expect("variant");
+        params.set("kernel", kernel).expect("kernel");
+        let frame = AccumulationFrame::prepare(ctx.clone(), &params).expect("frame");
+        let views = frame.fit_views(scene, receivers).expect("view");
+        let inputs = FrameInputs {
+            casters: &casters,
+            views: &views,
+            light: scene.light(),
+            receivers: &rec.buffer,
+            count: rec.count,
+            v: &v,
+            timestamps: None,
+        };
+        g.bench_function(format!("gpu/frame/{variant}-{kernel}"), |b| {
+            b.iter(|| {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                frame.encode(&mut enc, &inputs).expect("encode");
+                ctx.queue.submit([enc.finish()]);
+                ctx.wait().expect("wait");
+            })
+        });
+    }
 }
 
 criterion_group!(benches, bench);

@@ -1,18 +1,26 @@
-//! Estimate-stage speed of the accumulation twins, and taps per second: the speed case
-//! (the bunny fixture with its light replaced by a sphere of the same size, K = 10) at a chosen
-//! receiver count and map resolution.
+//! Speed of accumulation's engine path against the CPU twin's estimate, and taps per second:
+//! the speed case (the bunny fixture with its light replaced by a sphere of the same size,
+//! K = 10) at a chosen receiver count and map resolution.
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release -p accumulation --example speed -- \
 //!     [--size 1920x1080] [--res 2048] [--reps 20] [--cpu]
 //! ```
 //!
-//! GPU time: `reps` dispatches between one submit and one wait, divided by `reps` (no upload, no
-//! readback). Taps: lexel fetches per receiver as the CPU twin counts them (same kernel), so
-//! taps/s = taps / GPU time; compare with the texture-fetch ceiling in docs/methods.md §12.
-use accumulation::{CpuAccumulation, GpuAccumulation};
+//! Frame ms: `reps` frames of [`AccumulationFrame`] (layers, MSSM, layout copies and kernel),
+//! each recorded and submitted, one wait after the last, divided by `reps` (casters and
+//! receivers uploaded once, no readback). Maps ms: the same frames over no receivers (the
+//! kernel is not dispatched). Kernel ms: their difference, wall-clock on any adapter (lavapipe's
+//! timestamps do not time its compute work). Taps: lexel fetches per receiver as the CPU twin
+//! counts them (same kernel), so taps/s = taps / kernel time; compare with the texture-fetch
+//! ceiling in docs/methods.md §12.
+use accumulation::{AccumulationFrame, CpuAccumulation};
 use shadow_map_core::{
-    gpu::GpuContext, run, LightShape, Receivers, Scene, SceneBvh, SoftShadowEstimator,
+    gpu::{
+        frame::{FrameEstimator, FrameInputs},
+        GpuContext, GpuReceivers, GpuScene,
+    },
+    run, LightShape, Params, Receivers, Scene, SceneBvh, SoftShadowEstimator,
 };
 use std::time::Instant;
 use test_support::fixtures::note;
@@ -63,8 +71,18 @@ fn main() {
     );
     let ctx = GpuContext::shared().expect("a Vulkan adapter");
     println!("device: {}", ctx.describe());
-    println!("| variant | kernel | res | taps/receiver | GPU ms | G taps/s | CPU ms |");
-    println!("|---|---|---|---|---|---|---|");
+    let casters = GpuScene::upload(&ctx, &scene).expect("casters");
+    let gpu_rec = GpuReceivers::upload(&ctx, &rec).expect("receivers");
+    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("speed V"),
+        size: 4 * gpu_rec.count.max(1) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    println!(
+        "| variant | kernel | res | taps/receiver | frame ms | maps ms | kernel ms | G taps/s | CPU ms |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
     for (variant, kernel) in [
         ("additive", "fixed"),
         ("additive", "adaptive"),
@@ -78,8 +96,10 @@ fn main() {
             ("kernel", kernel.to_string()),
         ];
         let mut cpu = CpuAccumulation::new().unwrap();
+        let mut params = Params::new(accumulation::cpu::SPECS).unwrap();
         for (k, v) in &kv {
             cpu.set_param(k, v).unwrap();
+            params.set(k, v).unwrap();
         }
         let (_, report) = run(&mut cpu, &scene, &rec).expect("cpu run");
         let taps: f64 = note(&report, "taps_per_receiver")
@@ -90,15 +110,36 @@ fn main() {
         } else {
             "-".into()
         };
-        let mut gpu = GpuAccumulation::new(ctx.clone()).unwrap();
-        for (k, v) in &kv {
-            gpu.set_param(k, v).unwrap();
-        }
-        let ls = cpu.light_space().unwrap().clone();
-        let prep = gpu.prepare(&ls, scene.light(), &rec).expect("prepare");
-        gpu.dispatch(&prep, 1).expect("warm-up");
-        let ms = gpu.dispatch(&prep, reps).expect("dispatch") / reps as f64;
-        let gtaps = taps * rec.active_count() as f64 / (ms * 1e-3) / 1e9;
-        println!("| {variant} | {kernel} | {res} | {taps:.1} | {ms:.3} | {gtaps:.2} | {cpu_ms} |");
+        let frame = AccumulationFrame::prepare(ctx.clone(), &params).expect("frame");
+        let views = frame.fit_views(&scene, &rec).expect("view");
+        let inputs = FrameInputs {
+            casters: &casters,
+            views: &views,
+            light: scene.light(),
+            receivers: &gpu_rec.buffer,
+            count: gpu_rec.count,
+            v: &v,
+            timestamps: None,
+        };
+        let frames = |n: u32, count: u32| {
+            let t = Instant::now();
+            for _ in 0..n {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                let inputs = FrameInputs { count, ..inputs };
+                frame.encode(&mut enc, &inputs).expect("encode");
+                ctx.queue.submit([enc.finish()]);
+            }
+            ctx.wait().expect("wait");
+            t.elapsed().as_secs_f64() * 1e3 / n as f64
+        };
+        frames(1, gpu_rec.count);
+        let frame_ms = frames(reps.max(1), gpu_rec.count);
+        let maps_ms = frames(reps.max(1), 0);
+        let kernel_ms = (frame_ms - maps_ms).max(f64::MIN_POSITIVE);
+        let gtaps = taps * rec.active_count() as f64 / (kernel_ms * 1e-3) / 1e9;
+        println!(
+            "| {variant} | {kernel} | {res} | {taps:.1} | {frame_ms:.3} | {maps_ms:.3} | \
+             {kernel_ms:.3} | {gtaps:.3} | {cpu_ms} |"
+        );
     }
 }

@@ -57,9 +57,8 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 @group(0) @binding(5) var<storage, read> tables: array<vec2<f32>>;
 @group(0) @binding(6) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(7) var<storage, read_write> v_out: array<u32>;
-// [0]: lit receivers outside the frustum, [1]: non-finite results.
 // [0]: lit receivers outside the frustum, [1]: non-finite V, [2]: receivers cut short by the
-// device's loop limit (flagged with CUT_BITS, redone on the CPU).
+// device's loop limit (flagged with CUT_BITS, for the caller to redo on the CPU).
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 3>;
 
 

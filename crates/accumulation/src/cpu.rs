@@ -71,7 +71,7 @@ pub enum Coverage {
 shadow_map_core::param_words!(Coverage { Overlap = "overlap", Centre = "centre" });
 
 shadow_map_core::typed_params! {
-    /// The parameters, typed; read by both twins.
+    /// The parameters, typed; read by the CPU twin and the engine path.
     pub struct Settings {
         /// Shadow-map resolution r.
         resolution: u32 = RESOLUTION,
@@ -142,7 +142,7 @@ shadow_map_core::typed_params! {
     }
 }
 
-/// Parameters of [`CpuAccumulation`] (and of its GPU twin).
+/// Parameters of [`CpuAccumulation`] (and of the engine path, `gpu::AccumulationFrame`).
 pub const SPECS: &[ParamSpec] = Settings::SPECS;
 
 impl Settings {
@@ -173,9 +173,10 @@ impl Settings {
     }
 }
 
-/// The light view and the request both twins build (one shadow map at the light centre, fitted
-/// to the receivers with the `fit` and `nearfar` choices of `s.view` ([`LightView::fit_with`]);
-/// peeled layers for the exact variant; the anchored MSSM for the adaptive kernel).
+/// The light view and the request the CPU twin and the engine path build (one shadow map at the
+/// light centre, fitted to the receivers with the `fit` and `nearfar` choices of `s.view`
+/// ([`LightView::fit_with`]); peeled layers for the exact variant; the anchored MSSM for the
+/// adaptive kernel).
 ///
 /// The window is fitted to [`shadow_map_core::light_view::fit_half_extent`] (for the paper's
 /// sphere model, to the light's bounding half extent).
@@ -517,11 +518,6 @@ impl CpuAccumulation {
             cancel: shadow_map_core::Cancel::new(),
         })
     }
-    /// The cancellation token `estimate` checks ([`SoftShadowEstimator::set_cancel`]), shared
-    /// with the GPU twin.
-    pub fn cancel(&self) -> &shadow_map_core::Cancel {
-        &self.cancel
-    }
     /// The light-space data of the last build.
     pub fn light_space(&self) -> Option<&LightSpace> {
         self.ls.as_ref()
@@ -772,7 +768,7 @@ impl SoftShadowEstimator for CpuAccumulation {
     }
 }
 
-/// The notes both twins add to their report.
+/// The notes the estimator adds to its report.
 pub fn note_settings(
     report: &mut Report,
     s: &Settings,

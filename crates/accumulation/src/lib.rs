@@ -10,12 +10,13 @@ pub mod math;
 
 pub use cpu::CpuAccumulation;
 #[cfg(feature = "gpu")]
-pub use gpu::{AccumulationFrame, GpuAccumulation};
+pub use gpu::AccumulationFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{setting, MethodDescriptor, Setting};
 
-/// Shadow accumulation in the registry: `accumulation`, its CPU twin, GPU twin and engine path.
+/// Shadow accumulation in the registry: `accumulation`, its CPU twin and its engine path (also its
+/// GPU estimator, run by the core's `FrameTwin`).
 pub const DESCRIPTOR: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "accumulation",

@@ -221,7 +221,7 @@ impl LightPatch {
 /// `r = (0, 0, L)` and that disk lies in the plane z = 0 around the axis, with L = 2 far (every
 /// caster, at view depth `n <= c_z < p_z`, then lies in `(0, L)`) and the footprint's own plane
 /// at `L / 2`. Every term below then applies unchanged, with one disk for every receiver (the GPU
-/// twin's uniform patch). What differs is the caster: an orthographic lexel at plane point l and
+/// kernel's uniform patch). What differs is the caster: an orthographic lexel at plane point l and
 /// depth c_z is the world point `(l, c_z)` ([`Footprint::caster`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Footprint {

@@ -1,7 +1,11 @@
 //! Criterion benches of the backprojection estimator at fixture settings (the bunny under its rect
-//! light, 320x240 receivers, r = 1024): the light-space build and the estimate, 1 and 3 layers, on
-//! the CPU and (feature `gpu`, when an adapter exists) the GPU. Ids:
-//! `backprojection/<backend>/<stage>/layers-<k>`. Run: `cargo bench -p backprojection`.
+//! light, 320x240 receivers, r = 1024), 1 and 3 layers. On the CPU: the light-space build and the
+//! estimate. On the GPU (feature `gpu`, when an adapter exists): the registry's GPU estimator
+//! (the engine path run by the core's `FrameTwin`: `build` fits the view, `estimate` uploads the
+//! receivers, records one frame, submits it and reads V back), and the frame alone as a
+//! renderer runs it (`frame`: encode, submit, wait; casters and receivers already on the
+//! device, nothing read back). Ids: `backprojection/<backend>/<stage>/layers-<k>`. Run:
+//! `cargo bench -p backprojection`.
 use backprojection::CpuBackprojection;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use shadow_map_core::SoftShadowEstimator;
@@ -16,12 +20,21 @@ fn bench(c: &mut Criterion) {
     let mut estimators: Vec<Box<dyn SoftShadowEstimator>> =
         vec![Box::new(CpuBackprojection::new().expect("cpu"))];
     #[cfg(feature = "gpu")]
-    match shadow_map_core::gpu::GpuContext::shared() {
-        Ok(ctx) => estimators.push(Box::new(
-            backprojection::GpuBackprojection::new(ctx).expect("gpu"),
-        )),
-        Err(e) => eprintln!("backprojection bench: GPU rows SKIPPED, no adapter: {e}"),
-    }
+    let ctx = match shadow_map_core::gpu::GpuContext::shared() {
+        Ok(ctx) => {
+            estimators.push(
+                backprojection::DESCRIPTOR
+                    .gpu(ctx.clone())
+                    .expect("a GPU estimator")
+                    .expect("gpu"),
+            );
+            Some(ctx)
+        }
+        Err(e) => {
+            eprintln!("backprojection bench: GPU rows SKIPPED, no adapter: {e}");
+            None
+        }
+    };
     let mut v = vec![0.0f32; receivers.len()];
     for e in &mut estimators {
         let backend = e.backend();
@@ -39,7 +52,57 @@ fn bench(c: &mut Criterion) {
             });
         }
     }
+    #[cfg(feature = "gpu")]
+    if let Some(ctx) = ctx {
+        frame_rows(&mut g, &ctx, &scene, &receivers);
+    }
     g.finish();
+}
+
+/// `gpu/frame/layers-<k>`: one frame recorded, submitted and waited for.
+#[cfg(feature = "gpu")]
+fn frame_rows(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    ctx: &std::sync::Arc<shadow_map_core::gpu::GpuContext>,
+    scene: &shadow_map_core::Scene,
+    receivers: &shadow_map_core::Receivers,
+) {
+    use shadow_map_core::gpu::{
+        frame::{FrameEstimator, FrameInputs},
+        GpuReceivers, GpuScene,
+    };
+    let casters = GpuScene::upload(ctx, scene).expect("casters");
+    let rec = GpuReceivers::upload(ctx, receivers).expect("receivers");
+    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bench V"),
+        size: 4 * receivers.len().max(1) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    for k in [1, 3] {
+        let mut params = shadow_map_core::Params::new(backprojection::cpu::SPECS).expect("params");
+        params.set("layers", &k.to_string()).expect("layers");
+        let frame =
+            backprojection::BackprojectionFrame::prepare(ctx.clone(), &params).expect("frame");
+        let views = frame.fit_views(scene, receivers).expect("views");
+        let inputs = FrameInputs {
+            casters: &casters,
+            views: &views,
+            light: scene.light(),
+            receivers: &rec.buffer,
+            count: rec.count,
+            v: &v,
+            timestamps: None,
+        };
+        g.bench_function(format!("gpu/frame/layers-{k}"), |b| {
+            b.iter(|| {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                frame.encode(&mut enc, black_box(&inputs)).expect("encode");
+                ctx.queue.submit([enc.finish()]);
+                ctx.wait().expect("wait");
+            })
+        });
+    }
 }
 
 criterion_group!(benches, bench);

@@ -1,6 +1,9 @@
 //! Cost of depth layers, in one run: frame time (build + estimate) of the backprojection
 //! estimator with k = 1..=4 layers on both backends, and the 3-layer / 1-layer ratio beside
-//! Bavoil 2008 Fig. 6 (Buddha: 10.8 fps with 1 layer, 7.6 fps with 3, a ratio of 1.42).
+//! Bavoil 2008 Fig. 6 (Buddha: 10.8 fps with 1 layer, 7.6 fps with 3, a ratio of 1.42). The GPU
+//! row is the registry's GPU estimator (the engine path run by the core's `FrameTwin`): its
+//! `build` fits the light view, its `estimate` records the whole frame (layers, midpoints, MSSM,
+//! kernel), submits it and reads V back.
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release -p backprojection --example layers [SCENE] [WxH] [RES] [RUNS]
@@ -47,7 +50,9 @@ fn main() -> shadow_map_core::Result<()> {
     match shadow_map_core::gpu::GpuContext::shared() {
         Ok(ctx) => {
             println!("GPU: {}", ctx.describe());
-            estimators.push(Box::new(backprojection::GpuBackprojection::new(ctx)?));
+            if let Some(gpu) = backprojection::DESCRIPTOR.gpu(ctx) {
+                estimators.push(gpu?);
+            }
         }
         Err(e) => println!("GPU: none ({e})"),
     }

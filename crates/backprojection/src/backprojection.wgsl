@@ -46,9 +46,8 @@ struct BitTable {
 @group(0) @binding(4) var mssm: texture_2d_array<f32>;
 @group(0) @binding(5) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(6) var<storage, read_write> v_out: array<u32>;
-// [0]: receivers outside the light frustum, [1]: non-finite results.
 // [0] outside the light frustum, [1] non-finite V replaced by 0, [2] cut short by the loop
-// budget (gpu.rs LOOP_LIMIT).
+// budget and left NaN (gpu/frame.rs, BackprojectionFrame).
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 3>;
 @group(0) @binding(8) var<uniform> bits: BitTable;
 

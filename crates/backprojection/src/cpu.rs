@@ -99,8 +99,8 @@ shadow_map_core::param_words!(Occlusion {
 });
 
 /// The report notes of the resolved choices (`occlusion`, `layer_rule`, `gap_filling`, and
-/// `bits` under bitmask), both twins.
-pub fn note_resolved(report: &mut Report, s: &Settings, res: Resolved) {
+/// `bits` under bitmask).
+fn note_resolved(report: &mut Report, s: &Settings, res: Resolved) {
     let rule = if res.first_nonzero {
         LayerRule::FirstNonzero
     } else {
@@ -115,7 +115,8 @@ pub fn note_resolved(report: &mut Report, s: &Settings, res: Resolved) {
 }
 
 /// Warns that `scene`'s semi-transparent meshes were cast opaque when `occlusion=bitmask` was
-/// asked for (the bits carry no opacity; `auto` takes additive occlusion there), both twins.
+/// asked for (the bits carry no opacity; `auto` takes additive occlusion there): the CPU
+/// estimator's report and the engine path's scene warnings.
 pub fn warn_bitmask_opacity(report: &mut Report, s: &Settings, scene: &Scene) {
     if s.occlusion == Occlusion::Bitmask {
         report.warn_all(Warning::opaque_casters(scene));
@@ -160,7 +161,7 @@ impl Settings {
 }
 
 shadow_map_core::typed_params! {
-    /// Settings of [`CpuBackprojection`] (and its GPU twin), one field a parameter.
+    /// Settings of [`CpuBackprojection`] (and of its engine path), one field a parameter.
     pub struct Settings {
         /// Shadow-map resolution r.
         resolution: u32 = RESOLUTION,
@@ -260,11 +261,6 @@ impl CpuBackprojection {
             cancel: Cancel::new(),
         })
     }
-    /// The cancellation token `estimate` checks ([`SoftShadowEstimator::set_cancel`]), for the
-    /// GPU twin's CPU redo on a fresh estimator.
-    pub fn cancel(&self) -> &Cancel {
-        &self.cancel
-    }
     /// The light-space data of the last build.
     pub fn light_space(&self) -> Option<&LightSpace> {
         self.ls.as_ref()
@@ -273,8 +269,9 @@ impl CpuBackprojection {
     pub fn settings(&self) -> &Settings {
         &self.settings
     }
-    /// Takes given light-space data as the last build's (the GPU twin's loop-limit redo: the CPU
-    /// estimate on the data the GPU read).
+    /// Takes given light-space data as the last build's: the CPU estimate on maps made elsewhere
+    /// (say the engine path's, read back with
+    /// `BackprojectionFrame::light_space(view).to_cpu(ctx)`).
     pub fn set_light_space(&mut self, ls: LightSpace) {
         self.ls = Some(ls);
     }
@@ -706,7 +703,9 @@ impl Setup<'_> {
     }
 }
 
-/// The light view and the light-space request both twins build for `params`: the view fitted to
+/// The light view and the light-space request the CPU estimator builds for `params` (the engine
+/// path fits the same view, `BackprojectionFrame`'s `fit_views`, and
+/// renders the same request but for the MSSM's level count): the view fitted to
 /// the receivers at the light centre; `layers` peeled layers; midpoints clamped at `max_bias`
 /// texel footprints at the far plane (the largest footprint any receiver has, so the clamp never
 /// binds tighter than `max_bias` footprints at the receiver); an anchored MSSM with enough levels

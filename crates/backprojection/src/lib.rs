@@ -10,7 +10,7 @@ pub mod math;
 
 pub use cpu::CpuBackprojection;
 #[cfg(feature = "gpu")]
-pub use gpu::{BackprojectionFrame, GpuBackprojection};
+pub use gpu::BackprojectionFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{resolution_sweep, setting, MethodDescriptor, Setting};

@@ -41,7 +41,8 @@ shadow_map_core::typed_params! {
 
 impl MapSettings {
     /// The light-space request every baseline makes: one shadow map at `resolution`, rasterised
-    /// with [`raster`](Self::raster). Shared by the CPU and GPU twins so both ask for the same map.
+    /// with [`raster`](Self::raster). Shared by the CPU twins and the frames so both ask for the
+    /// same map.
     pub fn request(&self) -> LightSpaceRequest {
         let mut req = LightSpaceRequest::single(self.resolution);
         req.raster = self.raster();

@@ -12,8 +12,6 @@ pub mod pcss;
 
 #[cfg(feature = "gpu")]
 pub mod gpu;
-#[cfg(feature = "gpu")]
-pub use gpu::{GpuHardShadow, GpuMultiSample, GpuPcfShadow, GpuPcssShadow};
 
 pub use hard::HardShadow;
 pub use multi_sample::MultiSample;

@@ -84,8 +84,8 @@ impl<F: Filter> MapEstimator<F> {
             _f: Default::default(),
         })
     }
-    /// The light-space data of the last build (for tests and the GPU twin). Under
-    /// `depth=unorm16` its layer 0 is empty (freed); the map is [`unorm16`](Self::unorm16).
+    /// The light-space data of the last build (for tests). Under `depth=unorm16` its layer 0 is
+    /// empty (freed); the map is [`unorm16`](Self::unorm16).
     pub fn light_space(&self) -> Option<&LightSpace> {
         self.ls.as_ref()
     }
@@ -98,12 +98,18 @@ impl<F: Filter> MapEstimator<F> {
     /// instead of one fitted to the receivers: the CPU twin of the frame path's
     /// [`MapFrame`](crate::gpu::MapFrame), whose view the caller fits.
     pub fn build_in_view(&mut self, scene: &Scene, view: LightView) -> Result<()> {
-        self.report = Report::default();
-        let settings = MapSettings::from_params(&self.params)?;
-        let mut req = settings.request();
+        let mut req = MapSettings::from_params(&self.params)?.request();
         req.resolution = view.r;
-        let mut ls = LightSpace::try_build_in_view(scene, view, Default::default(), &req)?;
-        let q16 = encode_layer0(&mut ls, settings.depth);
+        let ls = LightSpace::try_build_in_view(scene, view, Default::default(), &req)?;
+        self.set_light_space(ls)
+    }
+
+    /// Takes `ls` as the light-space data of the following estimates instead of a build (layer
+    /// 0 encoded to 16-bit codes under `depth=unorm16`, as `build` does): e.g. the map a GPU
+    /// frame rendered, read back, so the filter runs on the very map the kernel read.
+    pub fn set_light_space(&mut self, mut ls: LightSpace) -> Result<()> {
+        self.report = Report::default();
+        let q16 = encode_layer0(&mut ls, MapSettings::from_params(&self.params)?.depth);
         self.report.light_space_bytes = ls.bytes() + q16.as_ref().map_or(0, Unorm16Map::bytes);
         self.ls = Some(ls);
         self.q16 = q16;

@@ -9,9 +9,9 @@ use shadow_map_core::{
     ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map, Warning,
 };
 
-/// Registry name of multi-sample shadows (shared with the GPU twin).
+/// Registry name of multi-sample shadows.
 pub const NAME: &str = "multi-sample";
-/// One-line description (shared with the GPU twin).
+/// One-line description.
 pub const DESCRIPTION: &str =
     "average of S x S hard shadow maps from jittered points on the light (Heckbert & Herf 1997)";
 
@@ -38,14 +38,14 @@ shadow_map_core::typed_params! {
     }
 }
 
-/// The parameters of multi-sample shadows (shared with the GPU twin): [`MapSettings::SPECS`],
+/// The parameters of multi-sample shadows (also its frame's): [`MapSettings::SPECS`],
 /// then [`MultiSampleParams::SPECS`].
 pub const SPECS: &[ParamSpec] =
     shadow_map_core::concat_specs!(MapSettings::SPECS, MultiSampleParams::SPECS);
 
-/// The report of one multi-sample run (both twins): build and estimate stage times (ms), peak
-/// light-space bytes, the `S x S` sub-lights, receivers behind every sub-light's frustum, and
-/// the sphere-light approximation when it applies.
+/// The report of one multi-sample run: build and estimate stage times (ms), peak light-space
+/// bytes, the `S x S` sub-lights, receivers behind every sub-light's frustum, and the
+/// sphere-light approximation when it applies.
 pub(crate) fn note_run(
     report: &mut Report,
     (t_build, t_est): (f64, f64),
@@ -158,6 +158,25 @@ impl MultiSample {
             None => Err(Error::LightView(
                 "no receiver in front of this sub-light".into(),
             )),
+        });
+        self.accumulate(scene, receivers, v, maps)
+    }
+
+    /// [`estimate`](SoftShadowEstimator::estimate) on the caller's light-space data, one per
+    /// stratum in the order of [`estimate_in_views`](Self::estimate_in_views) (`None`: a
+    /// sub-light no receiver is in front of, counted in N; layer 0 encoded to 16-bit codes under
+    /// `depth=unorm16`): e.g. the maps a GPU frame rendered, read back, so the per-sample test
+    /// runs on the very maps the kernel read.
+    pub fn estimate_in_light_spaces(
+        &mut self,
+        scene: &Scene,
+        receivers: &Receivers,
+        light_spaces: Vec<Option<LightSpace>>,
+        v: &mut [f32],
+    ) -> Result<()> {
+        self.report = Report::default();
+        let maps = light_spaces.into_iter().map(|ls| {
+            ls.ok_or_else(|| Error::LightView("no receiver in front of this sub-light".into()))
         });
         self.accumulate(scene, receivers, v, maps)
     }

@@ -1,6 +1,7 @@
 //! Criterion benchmarks of the deep shadow map stages on the hair fixture (320x240 receivers,
 //! resolution 512): fragment rasterisation, list build, processing, linking, lookups with each
-//! filter and traversal on the CPU, and the whole estimator on the GPU when an adapter exists.
+//! filter and traversal on the CPU, and on the GPU when an adapter exists one frame of the engine
+//! path (encode, submit, wait; the casters and receivers uploaded once, nothing read back).
 //! Ids: `deep-shadow/<backend>/<stage>`. Run: `cargo bench -p deep-shadow --bench deep_shadow`.
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use deep_shadow::{
@@ -90,18 +91,60 @@ fn bench(c: &mut Criterion) {
     }
     #[cfg(feature = "gpu")]
     if let Ok(ctx) = shadow_map_core::gpu::GpuContext::shared() {
-        let mut e = deep_shadow::GpuDeepShadow::new(ctx).unwrap();
-        for (k, v) in [("resolution", "512"), ("filter", "edsm"), ("kernel", "7")] {
-            e.set_param(k, v).unwrap();
-        }
-        let mut v = vec![0.0f32; rec.len()];
-        g.bench_function("gpu/estimate/edsm7", |b| {
-            b.iter(|| e.estimate(&scene, &rec, black_box(&mut v)).unwrap())
-        });
+        g.throughput(Throughput::Elements(rec.active_count() as u64));
+        gpu_frame(&mut g, &ctx, &scene, &rec);
     } else {
         eprintln!("deep-shadow bench: no GPU adapter, GPU benchmark skipped");
     }
     g.finish();
+}
+
+/// `gpu/frame/edsm7`: one frame of the engine path at `edsm` 7 x 7 (lists: the hair is
+/// semi-transparent), encoded into its own encoder, submitted and waited for.
+#[cfg(feature = "gpu")]
+fn gpu_frame(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    ctx: &std::sync::Arc<shadow_map_core::gpu::GpuContext>,
+    scene: &Scene,
+    rec: &Receivers,
+) {
+    use deep_shadow::DeepShadowFrame;
+    use shadow_map_core::gpu::{
+        frame::{FrameEstimator, FrameInputs},
+        receivers::GpuReceivers,
+        GpuScene,
+    };
+    let mut params = shadow_map_core::Params::new(deep_shadow::params::SPECS).unwrap();
+    for (k, v) in [("resolution", "512"), ("filter", "edsm"), ("kernel", "7")] {
+        params.set(k, v).unwrap();
+    }
+    let frame = DeepShadowFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
+    let views = frame.fit_views(scene, rec).unwrap();
+    let casters = GpuScene::upload(ctx, scene).unwrap();
+    let receivers = GpuReceivers::upload(ctx, rec).unwrap();
+    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bench V"),
+        size: 4 * rec.len().max(1) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let inputs = FrameInputs {
+        casters: &casters,
+        views: &views,
+        light: scene.light(),
+        receivers: &receivers.buffer,
+        count: receivers.count,
+        v: &v,
+        timestamps: None,
+    };
+    g.bench_function("gpu/frame/edsm7", |b| {
+        b.iter(|| {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            frame.encode(&mut enc, black_box(&inputs)).unwrap();
+            ctx.queue.submit([enc.finish()]);
+            ctx.wait().unwrap();
+        })
+    });
 }
 
 criterion_group!(benches, bench);

@@ -1,7 +1,9 @@
 //! Deep-shadow's measurements: RMSE against the ray-traced reference (DSM, PCF 3/5/7, EDSM 3/5/7,
 //! S = 2, 3 soft transmittance, the multi-sample baseline) on the strands and hair fixtures, a
 //! Table 1.1-shaped speed table, and the two speed-ups (neighbour links vs naive at 7x7;
-//! truncation vs none) as fractions of an in-run ceiling.
+//! truncation vs none), on the CPU as fractions of an in-run ceiling. `--gpu` times the
+//! registry's GPU estimator (the engine path, one frame per run, V read back) instead; its
+//! report has no list counts, so its ceiling columns are `-`.
 //!
 //! `cargo run --release -p deep-shadow --example table -- [accuracy|extra|speed|speedups|all] [--gpu]`
 //! (`speedups`: only the two speed-up ratios, no Table 1.1).
@@ -37,26 +39,21 @@ fn cpu_ds(kvs: &[&[(&str, &str)]]) -> CpuDeepShadow {
     e
 }
 
+/// The registry's GPU estimator: the engine path run by the core's `FrameTwin`.
 #[cfg(feature = "gpu")]
 fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
     let ctx = shadow_map_core::gpu::GpuContext::shared().ok()?;
-    Some(Box::new(deep_shadow::GpuDeepShadow::new(ctx).ok()?))
+    deep_shadow::DESCRIPTOR.gpu(ctx)?.ok()
 }
 #[cfg(not(feature = "gpu"))]
 fn gpu_est() -> Option<Box<dyn SoftShadowEstimator>> {
     None
 }
 
-/// The GPU's in-run insert ceiling (inserts/s): 4 M bare list inserts into a 1024^2 head buffer.
-#[cfg(feature = "gpu")]
-fn gpu_insert_ceiling() -> Option<f64> {
-    let ctx = shadow_map_core::gpu::GpuContext::shared().ok()?;
-    let g = deep_shadow::GpuDeepShadow::new(ctx).ok()?;
-    g.insert_ceiling(1024, 1 << 22, 5).ok()
-}
-#[cfg(not(feature = "gpu"))]
-fn gpu_insert_ceiling() -> Option<f64> {
-    None
+/// Milliseconds of a run's build: the CPU twin's `build` stages, the GPU estimator's `upload`
+/// and `fit` (its one-time `prepare`, pipelines and maps, left out).
+fn build_ms(rep: &shadow_map_core::Report) -> f64 {
+    rep.total_ms("build") + rep.total_ms("upload") + rep.total_ms("fit")
 }
 
 fn accuracy() {
@@ -134,7 +131,7 @@ fn time(
     let mut last = None;
     for _ in 0..reps {
         let (_, rep) = run(est, scene, rec).unwrap();
-        b.push(rep.total_ms("build"));
+        b.push(build_ms(&rep));
         e.push(rep.total_ms("estimate"));
         last = Some(rep);
     }
@@ -195,10 +192,10 @@ struct SpeedRun<'a> {
     resolutions: Vec<String>,
     backend: &'static str,
     mk: &'a dyn Fn() -> Box<dyn SoftShadowEstimator>,
-    /// List inserts per second (the GPU's when on the GPU).
-    ins: f64,
-    /// CPU element reads per second.
-    taps: f64,
+    /// List inserts per second on the CPU (`None` on the GPU: no in-run ceiling there).
+    ins: Option<f64>,
+    /// CPU element reads per second (`None` on the GPU).
+    taps: Option<f64>,
 }
 
 impl SpeedRun<'_> {
@@ -228,20 +225,18 @@ fn speed(use_gpu: bool, table: bool) {
             Box::new(CpuDeepShadow::new().unwrap())
         }
     };
-    let (mut ins, taps) = ceilings();
     println!("## Speed ({backend}), hair fixture, {w}x{h} receivers ({} active); median of 3; ms = build + estimate", rec.active_count());
-    println!(
-        "in-run ceilings (CPU): {:.1} M list inserts/s (1 thread), {:.1} M element reads/s (streaming, all cores)",
-        ins / 1e6,
-        taps / 1e6
-    );
-    if use_gpu {
-        ins = gpu_insert_ceiling().expect("GPU insert ceiling");
+    let (ins, taps) = if use_gpu {
+        (None, None)
+    } else {
+        let (ins, taps) = ceilings();
         println!(
-            "in-run ceiling (GPU, ceiling_insert kernel): {:.1} M list inserts/s",
-            ins / 1e6
+            "in-run ceilings (CPU): {:.1} M list inserts/s (1 thread), {:.1} M element reads/s (streaming, all cores)",
+            ins / 1e6,
+            taps / 1e6
         );
-    }
+        (Some(ins), Some(taps))
+    };
     let run = SpeedRun {
         scene,
         rec,
@@ -294,13 +289,21 @@ fn speed_table(run: &SpeedRun) {
                 .collect::<Vec<_>>()
                 .join(", "),
         ));
-        let frags: f64 = note(&rep, "fragments").parse().unwrap_or(0.0);
-        let visits: f64 = note(&rep, "elements_per_lookup").parse().unwrap_or(0.0)
-            * run.rec.active_count() as f64;
+        let frags: Option<f64> = note(&rep, "fragments").parse().ok();
+        let visits: Option<f64> = note(&rep, "elements_per_lookup")
+            .parse()
+            .ok()
+            .map(|e: f64| e * run.rec.active_count() as f64);
+        let fraction = |x: Option<f64>, ms: f64, ceiling: Option<f64>| {
+            x.zip(ceiling).map_or("-".to_string(), |(x, c)| {
+                format!("{:.3}", x / (ms / 1e3) / c)
+            })
+        };
         println!(
-            " {frags} | {b:.1} | {:.3} | {:.3} |",
-            frags / (b / 1e3) / run.ins,
-            visits / (est / 1e3) / run.taps
+            " {} | {b:.1} | {} | {} |",
+            frags.map_or("-".to_string(), |f| f.to_string()),
+            fraction(frags, b, run.ins),
+            fraction(visits, est, run.taps)
         );
     }
     println!();

@@ -1,15 +1,18 @@
-// Deep shadow maps on the GPU (Fürst et al.), the twin of dsm.rs and raster.rs, stage for stage:
-// clear, raster (compute rasteriser: §1.3.1 with atomics), process (§1.3.2: sort, tau, prev,
-// truncation), link (§1.3.3), lookup (§1.3.4, §1.3.5; filter=pcss: soft_transmittance). The
-// opaque path (no lists): raster_opaque (atomicMin of the depth bits) and lookup_opaque.
-// `Cells`, `cells_new`, `cell`, `Sum`, `sum_add` come from the baselines' cells.wgsl, the part
-// before this one.
+// Deep shadow maps on the GPU (Fürst et al.), the twin of dsm.rs stage for stage, for the engine
+// path (frame.rs): clear, process (§1.3.2: sort, tau, prev, truncation), link (§1.3.3), and the
+// per-query transmittance of the lists (§1.3.4, §1.3.5; filter=pcss: soft_transmittance) or of
+// the opaque path's nearest depths, which frame.wgsl's `frame_lookup` calls. The lists
+// themselves are inserted by insert.wgsl.
+// `Cells`, `cells_new`, `cell`, `Sum`, `sum_add` come from the core's cells.wgsl, the part
+// before this one; the workgroup size WG from the core's estimate.wgsl.
 // Structs mirror shared.rs field for field (Node: node.wgsl).
+//
+// A query (frame.wgsl `frame_query`, the twin of cpu.rs `query`) is two vec4: q0 = (u, v, z_p,
+// fixed), fixed >= 0 the transmittance without a lookup, fixed < 0 a lookup whose result is
+// multiplied by -fixed (the facing factor); then q1, the caster test of
+// shadow_map_core::ReceiverPlane (hs = 0; see q_slope_height).
 
-// Set from Rust as a pipeline override (dsm::EDSM_CUTOFF; NIL and Node come from node.wgsl, the
-// part before this one; the workgroup size WG,
-// gpu::WORKGROUP_SIZE, is declared by the part before this one: gpu.rs WG_WGSL for the twin's
-// module, the core's estimate.wgsl for the engine path's).
+// Set from Rust as a pipeline override (dsm::EDSM_CUTOFF; NIL and Node come from node.wgsl).
 override EDSM_CUTOFF: f32;
 const SORT_LOCAL: u32 = 64u;
 const FILTER_FIRST: u32 = 0u;
@@ -18,19 +21,9 @@ const FILTER_PCF: u32 = 2u;
 const FILTER_EDSM: u32 = 3u;
 const FILTER_PCSS: u32 = 4u;
 
-struct Tri {
-    u0: f32, v0: f32, u1: f32, v1: f32, u2: f32, v2: f32,
-    iz0: f32, iz1: f32, iz2: f32,
-    alpha: f32,
-    _pad0: u32,
-    _pad1: u32,
-}
-
 struct DsUniform {
     r: u32,
     capacity: u32,
-    n_items: u32,
-    n_queries: u32,
     epsilon: f32,
     filter_mode: u32,
     kernel: u32,
@@ -45,14 +38,12 @@ struct DsUniform {
     ortho: u32,
     probe: u32,
     trunc_window: f32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
-// gpu.rs COUNTER_BYTES. `wraps` counts the element counter's wraps past u32::MAX (gpu.rs turns
-// any into Error::Limit); `cut` the invocations the device's loop budget cut short (shared.wgsl
-// loop_limit_hit): texels of process/link (gpu.rs then builds the map with the CPU twin) or
-// lookups (written as CUT_BITS, redone on the CPU).
+// frame.rs COUNTER_BYTES. `count` the elements asked for, `wraps` the element counter's wraps
+// past u32::MAX (insert.wgsl), `cut` the texels whose process or link the device's loop budget
+// cut short (shared.wgsl loop_limit_hit): frame.wgsl then leaves the frame's receivers for the
+// caller to redo.
 struct Counters {
     count: atomic<u32>,
     steps: atomic<u32>,
@@ -65,16 +56,10 @@ struct Counters {
 }
 
 @group(0) @binding(0) var<uniform> P: DsUniform;
-@group(0) @binding(1) var<storage, read> tris: array<Tri>;
-// (triangle, first texel column, first texel row, unused) per work item: a 16 x 16 tile.
-@group(0) @binding(2) var<storage, read> items: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> head: array<atomic<u32>>;
 @group(0) @binding(4) var<storage, read_write> nodes: array<Node>;
 @group(0) @binding(5) var<storage, read_write> counters: Counters;
-// Two per query (gpu.rs PackedQuery): (u, v, z_p, fixed), fixed >= 0 the transmittance without a
-// lookup, fixed < 0 a lookup whose result is multiplied by -fixed (the facing factor); then the caster test (g0, gu, gv, c) of shadow_map_core::ReceiverPlane (hs = 0).
-@group(0) @binding(6) var<storage, read> queries: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> out_t: array<f32>;
+// frame.wgsl's bindings follow from 8 on.
 
 fn linear_id(wid: vec3<u32>, nwg: vec3<u32>, lid: vec3<u32>) -> u32 {
     return (wid.y * nwg.x + wid.x) * WG + lid.x;
@@ -86,96 +71,6 @@ fn clear(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
     let t = linear_id(wid, nwg, lid);
     if (t >= P.r * P.r) { return; }
     atomicStore(&head[t], NIL);
-}
-
-fn owns_ties(du: f32, dv: f32) -> bool {
-    return dv < 0.0 || (dv == 0.0 && du > 0.0);
-}
-
-fn perp(a: vec2<f32>, b: vec2<f32>) -> f32 {
-    return a.x * b.y - a.y * b.x;
-}
-
-// As raster.rs edge_function: from the lexicographically smaller endpoint, so shared edges give
-// exactly opposite values (watertight).
-fn edge(s: vec2<f32>, e: vec2<f32>, p: vec2<f32>) -> f32 {
-    if (s.x < e.x || (s.x == e.x && s.y <= e.y)) {
-        return perp(e - s, p - s);
-    }
-    return -perp(s - e, p - e);
-}
-
-// Rasterises one work item; `mode` 0 inserts list elements, 1 keeps the nearest depth.
-fn raster_item(k: u32, mode: u32) {
-    if (k >= P.n_items) { return; }
-    let it = items[k];
-    let t = tris[it.x];
-    let a = vec2<f32>(t.u0, t.v0);
-    let b = vec2<f32>(t.u1, t.v1);
-    let c = vec2<f32>(t.u2, t.v2);
-    let area = edge(a, b, c);
-    if (!(area > 0.0)) { return; }
-    let e1 = b - a;
-    let e2 = c - a;
-    let gu = ((t.iz1 - t.iz0) * e2.y - (t.iz2 - t.iz0) * e1.y) / area;
-    let gv = ((t.iz2 - t.iz0) * e1.x - (t.iz1 - t.iz0) * e2.x) / area;
-    let rf = f32(P.r);
-    let lo = min(min(a, b), c);
-    let hi = max(max(a, b), c);
-    let i0 = max(u32(clamp(ceil(lo.x - 0.5), 0.0, rf)), it.y);
-    let i1 = min(u32(clamp(floor(hi.x - 0.5) + 1.0, 0.0, rf)), it.y + 16u);
-    let j0 = max(u32(clamp(ceil(lo.y - 0.5), 0.0, rf)), it.z);
-    let j1 = min(u32(clamp(floor(hi.y - 0.5) + 1.0, 0.0, rf)), it.z + 16u);
-    let own0 = owns_ties(b.x - a.x, b.y - a.y);
-    let own1 = owns_ties(c.x - b.x, c.y - b.y);
-    let own2 = owns_ties(a.x - c.x, a.y - c.y);
-    for (var j = j0; j < j1; j++) {
-        for (var i = i0; i < i1; i++) {
-            let p = vec2<f32>(f32(i) + 0.5, f32(j) + 0.5);
-            let f0 = edge(a, b, p);
-            let f1 = edge(b, c, p);
-            let f2 = edge(c, a, p);
-            let in0 = f0 > 0.0 || (f0 == 0.0 && own0);
-            let in1 = f1 > 0.0 || (f1 == 0.0 && own1);
-            let in2 = f2 > 0.0 || (f2 == 0.0 && own2);
-            if (!(in0 && in1 && in2)) { continue; }
-            let iz = t.iz0 + gu * (p.x - a.x) + gv * (p.y - a.y);
-            if (!(iz > 0.0)) { continue; }
-            // An orthographic view (the sun) interpolates z itself (raster.rs raster_tri).
-            var z = 1.0 / iz;
-            if (P.ortho != 0u) {
-                z = iz;
-            }
-            let texel = j * P.r + i;
-            if (mode == 1u) {
-                atomicMin(&head[texel], bitcast<u32>(z));
-                continue;
-            }
-            // Listing 1.2: allocate with the counter, write, exchange the head.
-            let e = atomicAdd(&counters.count, 1u);
-            if (e == 0xffffffffu) { atomicAdd(&counters.wraps, 1u); }
-            if (e >= P.capacity) { continue; } // overflow: counted, never linked
-            nodes[e].depth = z;
-            nodes[e].alpha = t.alpha;
-            nodes[e].tau = 1.0;
-            nodes[e].prev = NIL;
-            nodes[e].right = NIL;
-            nodes[e].upper = NIL;
-            nodes[e].next = atomicExchange(&head[texel], e);
-        }
-    }
-}
-
-@compute @workgroup_size(WG)
-fn raster(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-          @builtin(local_invocation_id) lid: vec3<u32>) {
-    raster_item(linear_id(wid, nwg, lid), 0u);
-}
-
-@compute @workgroup_size(WG)
-fn raster_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-                 @builtin(local_invocation_id) lid: vec3<u32>) {
-    raster_item(linear_id(wid, nwg, lid), 1u);
 }
 
 fn less(za: f32, aa: f32, zb: f32, ab: f32) -> bool {
@@ -267,8 +162,8 @@ fn process(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         e = nodes[e].next;
     }
     atomicAdd(&counters.kept, kept);
-    // Out of the device's loop budget (a long list's selection sort): counted; gpu.rs replaces
-    // the whole map by the CPU twin's.
+    // Out of the device's loop budget (a long list's selection sort): counted; frame.wgsl then
+    // leaves the frame's receivers NaN for the caller to redo.
     if (loop_limit_hit(P.probe)) { atomicAdd(&counters.cut, 1u); }
 }
 
@@ -314,8 +209,7 @@ fn link(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
 }
 
 // The slope g and height c of the caster test at the centre of texel (i, j): q1 = (g0, gu, gv, c)
-// in perspective; in an orthographic view (the sun, gu = gv = 0) q1 = (g0, cu, cv, c)
-// (gpu.rs pack_query).
+// in perspective; in an orthographic view (the sun, gu = gv = 0) q1 = (g0, cu, cv, c).
 fn q_slope_height(q1: vec4<f32>, i: i32, j: i32) -> vec2<f32> {
     let lin = q1.y * (f32(i) + 0.5) + q1.z * (f32(j) + 0.5);
     if (P.ortho != 0u) {
@@ -475,18 +369,8 @@ fn kernel_side() -> i32 {
     return 1;
 }
 
-// §1.3.4, §1.3.5: one query per invocation, as DeepShadowMap::transmittance.
-@compute @workgroup_size(WG)
-fn lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-          @builtin(local_invocation_id) lid: vec3<u32>) {
-    let q_id = linear_id(wid, nwg, lid);
-    if (q_id >= P.n_queries) { return; }
-    out_t[q_id] = lookup_result(list_transmittance(queries[2u * q_id], queries[2u * q_id + 1u]));
-}
-
-// The transmittance of one query (q = (u, v, z_p, fixed), q1 the caster test; gpu.rs
-// PackedQuery) in the lists, its list steps added to counters.steps. `lookup` and the engine
-// path's `frame_lookup` both call it.
+// The transmittance of one query (q = (u, v, z_p, fixed), q1 the caster test) in the lists, as
+// DeepShadowMap::transmittance_plane; its list steps added to counters.steps.
 fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
     if (q.w >= 0.0) { return q.w; }
     if (P.filter_mode == FILTER_PCSS) {
@@ -561,19 +445,8 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
     return -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
 }
 
-// A lookup's result, or CUT_BITS (counted) when the device's loop budget cut the invocation
-// short (long lists under the naive walk, large kernels): gpu.rs redoes it on the CPU.
-fn lookup_result(t: f32) -> f32 {
-    if (loop_limit_hit(P.probe)) {
-        atomicAdd(&counters.cut, 1u);
-        return bitcast<f32>(CUT_BITS);
-    }
-    return t;
-}
-
-// The opaque path's transmittance of one query (q0 = (u, v, z_p, fixed), q1 the caster test;
-// gpu.rs PackedQuery): head[] holds the nearest depth's bits (NIL: empty), no lists. `lookup_opaque`
-// and the engine path's `frame_lookup` both call it.
+// The opaque path's transmittance of one query (q0 = (u, v, z_p, fixed), q1 the caster test), as
+// dsm::transmittance_opaque_plane: head[] holds the nearest depth's bits (NIL: empty), no lists.
 fn opaque_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
     if (q.w >= 0.0) { return q.w; }
     if (P.filter_mode == FILTER_PCSS) {
@@ -607,28 +480,4 @@ fn opaque_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
         }
     }
     return -q.w * clamp(sum / f32(n * n), 0.0, 1.0);
-}
-
-@compute @workgroup_size(WG)
-fn lookup_opaque(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-                 @builtin(local_invocation_id) lid: vec3<u32>) {
-    let q_id = linear_id(wid, nwg, lid);
-    if (q_id >= P.n_queries) { return; }
-    out_t[q_id] = lookup_result(opaque_transmittance(queries[2u * q_id], queries[2u * q_id + 1u]));
-}
-
-// The in-run ceiling of the build: P.n_items bare list inserts (counter + head exchange + one
-// element write) at hashed texels, nothing else. Measured by GpuDeepShadow::insert_ceiling.
-@compute @workgroup_size(WG)
-fn ceiling_insert(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-                  @builtin(local_invocation_id) lid: vec3<u32>) {
-    let k = linear_id(wid, nwg, lid);
-    if (k >= P.n_items) { return; }
-    var x = k * 747796405u + 2891336453u;
-    x = ((x >> ((x >> 28u) + 4u)) ^ x) * 277803737u;
-    x = (x >> 22u) ^ x;
-    let e = atomicAdd(&counters.count, 1u);
-    if (e >= P.capacity) { return; }
-    nodes[e].depth = f32(k);
-    nodes[e].next = atomicExchange(&head[x % (P.r * P.r)], e);
 }

@@ -633,7 +633,7 @@ unsafe fn process_list(
 }
 
 /// The sort order of list payloads: depth, then alpha (a total order on the values, so the
-/// CPU and GPU twins sort any insertion order to the same list).
+/// CPU twin and the engine path's `process` sort any insertion order to the same list).
 #[inline]
 pub fn less(a: (f32, f32), b: (f32, f32)) -> bool {
     a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)

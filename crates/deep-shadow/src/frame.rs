@@ -7,14 +7,13 @@
 //!    ([`GpuMapFrame`]: the hardware rasteriser, as every other engine path; the CPU twin's
 //!    opaque path reads the core's CPU raster of the same view). The hardware rasteriser snaps
 //!    vertices to sub-texel steps (8 bits on lavapipe), so a texel centre within about 1/256
-//!    texel of an edge can be covered here and not on the CPU, or the reverse: on thin strands
-//!    at 5 x 5 PCF, 4 of 659 receivers differ by one tap (`tests/deep_shadow/gpu_twin.rs`);
+//!    texel of an edge can be covered here and not on the CPU, or the reverse;
 //! 2. `frame_head` turns the layer into the opaque path's head buffer (the nearest depth's bits,
 //!    `NIL` where empty);
 //! 3. `frame_lookup` makes each receiver's query on the GPU (the twin of [`crate::cpu::query`]:
 //!    facing, light-space position, projection, caster test) and adds its filtered transmittance
-//!    (`opaque_transmittance` in `deep_shadow.wgsl`, the twin's own lookup) into a per-receiver
-//!    sum.
+//!    (`opaque_transmittance` in `deep_shadow.wgsl`, the twin of
+//!    [`crate::dsm::transmittance_opaque_plane`]) into a per-receiver sum.
 //!
 //! For **semi-transparent casters** (the caster buffer's w, each mesh's opacity), steps 1 and 2
 //! build lists instead, as the paper does (§1.3.1 to §1.3.3): `clear` (heads to `NIL`), the
@@ -24,9 +23,10 @@
 //! tau, truncation) and `link`, then `frame_lookup` walks the lists (`list_transmittance`). The
 //! element buffer is allocated at the first semi-transparent frame (`capacity` elements, 0: four
 //! per texel, at most `max_capacity` and the device's binding limit); a frame whose fragments
-//! overflow it, or whose `process` or `link` the loop budget cut, leaves every active receiver
-//! NaN and counted as cut (status word 2): nothing is lost silently, and the callers that read
-//! V back (the CLI, the GPU estimator) redo them with the CPU twin in the same views.
+//! overflow it (or wrap the u32 element counter), or whose `process` or `link` the loop budget
+//! cut, leaves every active receiver NaN and counted as cut (status word 2): nothing is lost
+//! silently, and the callers that read V back (the CLI, the GPU estimator) redo them with the
+//! CPU twin in the same views.
 //!
 //! Then `frame_finish` writes `V = sum / views` ([`crate::cpu::finish`]).
 //!
@@ -35,20 +35,21 @@
 //! receivers the device's loop budget cut short (`loop_limit_hit`, lavapipe's 65535 loop
 //! iterations per invocation: PCSS's blocker search and filter at large kernels): V left NaN,
 //! for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same views).
+//!
+//! The registry's GPU estimator is this frame run by the core's `FrameTwin` (receivers uploaded,
+//! one frame, V read back, the NaN actives redone by [`FrameEstimator::cpu_twin`]).
+//! [`DeepShadowFrame::read_map`] reads the last view's map back for tests and tools.
 use crate::cpu::{lookup_settings, sublight_points, view_light, CpuDeepShadow, Tally};
-use crate::dsm::Filter;
-use crate::gpu::{
-    capacity_cap, lookup_uniform, workgroups, GpuDeepShadow, COUNTER_BYTES, OWN_OVERRIDES,
-};
+use crate::dsm::{BuildStats, DeepShadowMap, Filter};
 use crate::params::{Settings, NAME};
-use crate::shared::DsUniform;
+use crate::shared::{DsUniform, Node, NIL};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::gpu::estimate::CELLS_WGSL;
 use shadow_map_core::{
     estimator::configure,
     gpu::{
         depth_map::DEPTH_MAP_FORMAT,
-        estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES},
         frame::{
             buffer_range, check_per_receiver, check_prepared_inputs, compute_pass, status_buffer,
             FrameEstimator, FrameInputs,
@@ -60,28 +61,41 @@ use shadow_map_core::{
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
     raster::{RasterOptions, PEEL_EPS_REL},
-    Error, LightView, Params, Receivers, Result, Scene,
+    DepthMap, Error, LightView, Params, Receivers, Result, Scene,
 };
-use std::sync::{Arc, Mutex};
+use std::sync::{
+    atomic::{AtomicBool, Ordering},
+    Arc, Mutex,
+};
+
+mod kernel;
+#[cfg(test)]
+mod tests;
+
+use kernel::{capacity_cap, initial_capacity, lookup_uniform, workgroups, OWN_OVERRIDES};
+pub use kernel::{COUNTER_BYTES, DEEP_SHADOW_WGSL, NODE_WGSL};
+
+/// Every shader module of the crate as `(name, parts)` (validated with naga by a unit test).
+pub const SHADERS: &[(&str, &[&str])] = &[
+    ("deep_shadow_frame", FRAME_SHADER_PARTS),
+    ("deep_shadow_insert", INSERT_SHADER_PARTS),
+];
 
 /// The engine path's own WGSL (appended to [`FRAME_SHADER_PARTS`]' others).
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
 /// The engine path's module, in order: the core's shared structs, estimate uniform and math,
-/// the core's cells, the list element ([`crate::gpu::NODE_WGSL`]),
-/// [`crate::gpu::DEEP_SHADOW_WGSL`], then [`FRAME_WGSL`].
+/// the core's cells, the list element ([`NODE_WGSL`]), [`DEEP_SHADOW_WGSL`], then
+/// [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
     SHARED_WGSL,
     ESTIMATE_WGSL,
     MATH_WGSL,
     CELLS_WGSL,
-    crate::gpu::NODE_WGSL,
-    crate::gpu::DEEP_SHADOW_WGSL,
+    NODE_WGSL,
+    DEEP_SHADOW_WGSL,
     FRAME_WGSL,
 ];
-
-// One workgroup size for the twin's `dispatch` and the core's `WG` override this module takes.
-const _: () = assert!(WORKGROUP_SIZE == crate::gpu::WORKGROUP_SIZE);
 
 /// The frame's settings as `frame.wgsl` reads them (`DsFrameUniform`), 32 bytes.
 #[repr(C)]
@@ -137,14 +151,18 @@ struct Lists {
     capacity: u64,
     nodes: Mutex<wgpu::Buffer>,
     counters: wgpu::Buffer,
+    /// Tests only: counter words copied over the cleared counters before each view's insert
+    /// pass, so that a small scene reaches the u32 wrap a scene of 2^32 fragments would.
+    #[cfg(test)]
+    counter_start: Mutex<Option<wgpu::Buffer>>,
 }
 
 /// The insert pass's WGSL, after the core's [`RASTER_WGSL`] (its `vs_main`).
 pub const INSERT_WGSL: &str = include_str!("insert.wgsl");
 
 /// The insert pass's module, in order: the core's rasteriser ([`RASTER_WGSL`]), the list
-/// element ([`crate::gpu::NODE_WGSL`]), then [`INSERT_WGSL`].
-pub const INSERT_SHADER_PARTS: &[&str] = &[RASTER_WGSL, crate::gpu::NODE_WGSL, INSERT_WGSL];
+/// element ([`NODE_WGSL`]), then [`INSERT_WGSL`].
+pub const INSERT_SHADER_PARTS: &[&str] = &[RASTER_WGSL, NODE_WGSL, INSERT_WGSL];
 
 impl Lists {
     fn prepare(
@@ -154,7 +172,7 @@ impl Lists {
         mk: &dyn Fn(&str) -> Result<wgpu::ComputePipeline>,
     ) -> Result<Lists> {
         let texels = s.resolution as u64 * s.resolution as u64;
-        let capacity = GpuDeepShadow::initial_capacity(s, false, texels, capacity_cap(ctx, s));
+        let capacity = initial_capacity(s, texels, capacity_cap(ctx, s));
         let module = shader_module(ctx, "deep-shadow insert", INSERT_SHADER_PARTS)?;
         let view_layout = ctx.scoped("deep-shadow insert layout", || {
             ctx.device
@@ -241,6 +259,8 @@ impl Lists {
                 32,
             )),
             counters: storage_buffer(ctx, "deep-shadow frame counters", COUNTER_BYTES),
+            #[cfg(test)]
+            counter_start: Mutex::new(None),
         })
     }
 
@@ -271,6 +291,10 @@ impl Lists {
         texels: u64,
     ) {
         enc.clear_buffer(&self.counters, 0, None);
+        #[cfg(test)]
+        if let Some(start) = &*self.counter_start.lock().expect("counter start") {
+            enc.copy_buffer_to_buffer(start, 0, &self.counters, 0, COUNTER_BYTES);
+        }
         run(enc, "deep-shadow frame clear", &self.clear, group, texels);
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -332,6 +356,17 @@ pub struct DeepShadowFrame {
     acc: wgpu::Buffer,
     status: wgpu::Buffer,
     max_receivers: u32,
+    /// Whether the last `encode` built lists (semi-transparent casters), for [`Self::read_map`].
+    last_lists: AtomicBool,
+}
+
+/// The map of one view as the frame's lookups read it ([`DeepShadowFrame::read_map`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FrameMap {
+    /// Semi-transparent casters: the processed and linked lists, as the CPU twin's structure.
+    Lists(DeepShadowMap),
+    /// Opaque casters: the nearest depth of each texel (+inf where empty).
+    Depths(DepthMap),
 }
 
 fn uniform_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
@@ -343,11 +378,15 @@ fn uniform_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
     })
 }
 
+/// A storage buffer the frame clears (`COPY_DST`) and [`DeepShadowFrame::read_map`] reads back
+/// (`COPY_SRC`).
 fn storage_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
     ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: bytes.max(16),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     })
 }
@@ -416,8 +455,67 @@ impl DeepShadowFrame {
             lists,
             slots,
             max_receivers,
+            last_lists: AtomicBool::new(false),
             ctx,
         })
+    }
+
+    /// The map of the last view the last submitted frame encoded, read back (blocking: for tests
+    /// and tools, not per frame): the lists (elements past the capacity dropped, `BuildStats`
+    /// from the counters: fragments, kept, longest list) or the opaque path's heads as depths.
+    /// Errors: lists that break the map's invariant ([`DeepShadowMap::from_parts`]), a failed
+    /// readback.
+    pub fn read_map(&self) -> Result<FrameMap> {
+        let ctx = &self.ctx;
+        let r = self.map.r;
+        let head: Vec<u32> = ctx.read_buffer(&self.head, 4 * r as u64 * r as u64)?;
+        if !self.last_lists.load(Ordering::Relaxed) {
+            let depth = head
+                .into_iter()
+                .map(|b| {
+                    if b == NIL {
+                        f32::INFINITY
+                    } else {
+                        f32::from_bits(b)
+                    }
+                })
+                .collect();
+            return Ok(FrameMap::Depths(DepthMap { size: r, depth }));
+        }
+        let c: Vec<u32> = ctx.read_buffer(&self.lists.counters, COUNTER_BYTES)?;
+        let nodes_buf = self.lists.nodes(ctx, false)?;
+        let mut nodes: Vec<Node> = ctx.read_buffer(&nodes_buf, nodes_buf.size())?;
+        let capacity = self.lists.capacity;
+        nodes.truncate((c[0] as u64).min(capacity) as usize);
+        let stats = BuildStats {
+            fragments: c[0] as u64,
+            capacity,
+            passes: 1,
+            kept: c[4] as u64,
+            max_len: c[5],
+            lists: head.iter().filter(|&&h| h != NIL).count() as u64,
+        };
+        Ok(FrameMap::Lists(DeepShadowMap::from_parts(
+            r, head, nodes, stats,
+        )?))
+    }
+
+    /// Tests only: start each view's element counter at `start` instead of 0.
+    #[cfg(test)]
+    fn set_counter_start(&self, start: u32) {
+        use shadow_map_core::gpu::kernel::BufferInitExt;
+        let mut words = [0u32; COUNTER_BYTES as usize / 4];
+        words[0] = start;
+        let b = (start != 0).then(|| {
+            self.ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("deep-shadow counter start"),
+                    contents: bytemuck::cast_slice(&words),
+                    usage: wgpu::BufferUsages::COPY_SRC,
+                })
+        });
+        *self.lists.counter_start.lock().expect("counter start") = b;
     }
 
     fn group(
@@ -527,6 +625,7 @@ impl FrameEstimator for DeepShadowFrame {
         let light = inputs.light;
         // Semi-transparent casters: lists (the insert pass), else the opaque path's heads.
         let lists = !inputs.casters.is_opaque();
+        self.last_lists.store(lists, Ordering::Relaxed);
         queue.write_buffer(
             &self.light,
             0,
@@ -570,9 +669,9 @@ impl FrameEstimator for DeepShadowFrame {
         inputs.mark(enc, "start");
         for (slot, (view, bufs)) in views.iter().zip(&self.slots).enumerate() {
             let ls = lookup_settings(view, light, s);
-            let mut u = lookup_uniform(view.r, 0, inputs.count, &ls);
+            let mut u = lookup_uniform(view.r, 0, &ls);
             if lists {
-                // What `process` reads besides (the twin's build uniform).
+                // What `process` reads besides.
                 u.capacity = self.lists.capacity as u32;
                 u.epsilon = s.epsilon;
                 u.trunc_window = crate::cpu::truncation_window(view, s);
@@ -658,28 +757,5 @@ impl FrameEstimator for DeepShadowFrame {
         let mut v = vec![0.0; receivers.len()];
         e.estimate_in_views(scene, receivers, &views, &mut v)?;
         Ok(v)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn frame_uniform_matches_the_wgsl_layout() {
-        let src = shadow_map_core::gpu::kernel::shader_source(FRAME_SHADER_PARTS);
-        test_support::assert_wgsl_layout!(
-            src,
-            DsFrameUniform {
-                bias,
-                slope_bias,
-                receiver_plane,
-                pcss,
-                count,
-                inv_views,
-                lists,
-                _pad1,
-            }
-        );
     }
 }

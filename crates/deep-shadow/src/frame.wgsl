@@ -2,12 +2,11 @@
 // map of each sub-light view comes from the core's raster pass (an R32Float layer, +inf where
 // empty); its depths go into head[] as the opaque path's bits (`frame_head`). Semi-transparent
 // casters (F.lists): insert.wgsl builds the lists, deep_shadow.wgsl's `clear`, `process` and
-// `link` finish them, and the lookup walks them (`list_transmittance`). each receiver's query is made
-// here from the caller's receiver buffer, the twin of cpu.rs `query` and gpu.rs `pack_query`
-// (`frame_lookup`, which adds the view's transmittance into acc); `frame_finish` writes V, the
-// twin of cpu.rs `finish`. Appended after the core's shared.wgsl, estimate.wgsl and math.wgsl,
-// the baselines' cells.wgsl and deep_shadow.wgsl (bindings 0 to 7; the engine path binds 0, 3,
-// 4 and 5).
+// `link` finish them, and the lookup walks them (`list_transmittance`). Each receiver's query is
+// made here from the caller's receiver buffer, the twin of cpu.rs `query` (`frame_lookup`, which
+// adds the view's transmittance into acc); `frame_finish` writes V, the twin of cpu.rs `finish`.
+// Appended after the core's shared.wgsl, estimate.wgsl, math.wgsl and cells.wgsl, node.wgsl and
+// deep_shadow.wgsl (bindings 0, 3, 4 and 5).
 
 // Mirrors frame.rs DsFrameUniform field for field.
 struct DsFrameUniform {
@@ -55,7 +54,7 @@ fn frame_facing(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     return select(0.0, 1.0, dot3(nw, towards) > 0.0);
 }
 
-// cpu.rs query, packed as gpu.rs pack_query: (u, v, z_p, fixed) and the caster test.
+// cpu.rs query, packed as deep_shadow.wgsl reads a query: (u, v, z_p, fixed) and the caster test.
 fn frame_query(pw: vec3<f32>, nw: vec3<f32>) -> array<vec4<f32>, 2> {
     var q = array<vec4<f32>, 2>(vec4<f32>(0.0), vec4<f32>(0.0));
     let facing = frame_facing(pw, nw);

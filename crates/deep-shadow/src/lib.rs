@@ -7,8 +7,6 @@ pub mod cpu;
 pub mod dsm;
 #[cfg(feature = "gpu")]
 pub mod frame;
-#[cfg(feature = "gpu")]
-pub mod gpu;
 pub mod params;
 pub mod raster;
 pub mod shared;
@@ -16,8 +14,6 @@ pub mod shared;
 pub use cpu::CpuDeepShadow;
 #[cfg(feature = "gpu")]
 pub use frame::DeepShadowFrame;
-#[cfg(feature = "gpu")]
-pub use gpu::GpuDeepShadow;
 pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{setting, MethodDescriptor, Setting};

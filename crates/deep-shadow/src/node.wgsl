@@ -1,6 +1,6 @@
 // A list element of the deep shadow map (mirrors shared.rs Node field for field) and the
-// empty-list index NIL (shared::NIL, set from Rust as a pipeline override): the part every
-// deep-shadow module (the twin's, the engine path's, the insert pass's) takes before its own.
+// empty-list index NIL (shared::NIL, set from Rust as a pipeline override): the part both
+// deep-shadow modules (the frame's and the insert pass's) take before their own.
 override NIL: u32;
 
 struct Node {

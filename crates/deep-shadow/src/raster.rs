@@ -1,8 +1,9 @@
 //! Fragment rasteriser for the deep shadow map: like the core's
 //! [`shadow_map_core::raster`] (texel centres, top-left rule, perspective-correct linear z,
 //! near-plane clipping), but it keeps *every* fragment with its opacity instead of the nearest
-//! depth. The GPU twin rasterises the same [`PreparedTri`]s with the same edge tests
-//! (`deep_shadow.wgsl`, `raster`), in f32 where this file uses f64.
+//! depth. The engine path (`crate::frame`, feature `gpu`) inserts its fragments from the
+//! hardware rasteriser instead, whose sub-pixel vertex snapping can decide a texel centre close
+//! to an edge differently.
 use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{raster::TexelProjection, LightView, Scene};

@@ -1,5 +1,6 @@
-//! The one `#[repr(C)]` layout both twins read: the list element of Fürst et al. Listing 1.1,
-//! mirrored field for field by `Node` in `deep_shadow.wgsl`.
+//! The `#[repr(C)]` layouts the CPU twin and the engine path share: the list element of Fürst et
+//! al. Listing 1.1, mirrored field for field by `Node` in `node.wgsl`, and the uniform of
+//! `deep_shadow.wgsl`'s stages.
 
 /// "No element": the end of a list, an empty head, a missing neighbour link.
 pub const NIL: u32 = u32::MAX;
@@ -80,51 +81,15 @@ impl Node {
     }
 }
 
-/// A prepared triangle as the GPU rasteriser reads it (`Tri` in `deep_shadow.wgsl`): texel
-/// coordinates of the vertices (signed area positive), 1/z at each, the mesh opacity. 48 bytes.
-#[repr(C)]
-#[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Tri {
-    /// u of vertex 0.
-    pub u0: f32,
-    /// v of vertex 0.
-    pub v0: f32,
-    /// u of vertex 1.
-    pub u1: f32,
-    /// v of vertex 1.
-    pub v1: f32,
-    /// u of vertex 2.
-    pub u2: f32,
-    /// v of vertex 2.
-    pub v2: f32,
-    /// 1/z at vertex 0.
-    pub iz0: f32,
-    /// 1/z at vertex 1.
-    pub iz1: f32,
-    /// 1/z at vertex 2.
-    pub iz2: f32,
-    /// Opacity.
-    pub alpha: f32,
-    /// Padding.
-    pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
-}
-
-/// The settings every GPU stage reads (`DsUniform` in `deep_shadow.wgsl`). 80 bytes.
+/// The settings `deep_shadow.wgsl`'s stages read (`DsUniform`), one per view. 64 bytes.
 #[repr(C)]
 #[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DsUniform {
     /// Resolution r.
     pub r: u32,
-    /// Element-buffer capacity.
+    /// Element-buffer capacity (`process` reads it; 0 on the opaque path).
     pub capacity: u32,
-    /// Raster work items (triangle x 16x16 tile).
-    pub n_items: u32,
-    /// Lookup queries.
-    pub n_queries: u32,
     /// Truncation epsilon.
     pub epsilon: f32,
     /// 0 first, 1 none, 2 pcf, 3 edsm, 4 pcss.
@@ -147,18 +112,15 @@ pub struct DsUniform {
     pub light_y: f32,
     /// pcss: 1 for a disk kernel, 0 for a box ([`crate::dsm::SoftLookup::disk`]).
     pub disk: u32,
-    /// 1 for an orthographic view (the sun): the raster's depth term is z, not 1/z, and pcss's
-    /// widths are world units ([`crate::dsm::SoftLookup::ortho`]).
+    /// 1 for an orthographic view (the sun): the caster test varies its height, not its slope,
+    /// and pcss's widths are world units ([`crate::dsm::SoftLookup::ortho`]).
     pub ortho: u32,
     /// The loop-budget probe's trip count, always `shadow_map_core::gpu::shared::LOOP_PROBE`
-    /// (2) on every stage that loops over lists (process, link, lookups); see
-    /// `crate::gpu::LOOP_LIMIT`.
+    /// (2) on every stage that loops over lists (process, link, lookups): some devices end a
+    /// shader invocation's loops after a budget (llvmpipe: 65535 iterations), and the probe
+    /// finds the invocations cut short.
     pub probe: u32,
     /// `process`: the depth window kept behind the truncation point
     /// ([`crate::dsm::truncation_window`]; 0: truncate right after it).
     pub trunc_window: f32,
-    /// Padding.
-    pub _pad1: u32,
-    /// Padding.
-    pub _pad2: u32,
 }

@@ -19,17 +19,16 @@ use std::sync::atomic::{AtomicU64, Ordering};
 mod setup;
 mod sublights;
 pub use setup::{
-    kernel_cells, kernel_light, kernel_side, prepare, prepare_setup, setup_receiver, trivial, Prep,
-    ReceiverSetup,
+    kernel_cells, kernel_light, kernel_side, prepare, setup_receiver, trivial, Prep, ReceiverSetup,
 };
 pub use sublights::{
     emitter_of, levels_run, sublight_centre, OpacityLevels, OwnPlane, SubLights, SubView,
     OWN_PLANE_WORTH,
 };
 
-/// Registry name (shared with the GPU twin).
+/// Registry name (shared with the engine path).
 pub const NAME: &str = "packet-hsm";
-/// One-line description (shared with the GPU twin).
+/// One-line description (shared with the registry's GPU estimator).
 pub const DESCRIPTION: &str = "packet-based hierarchical soft shadow mapping: contour backprojection over a dual-grid MSSM, pixel packets, coherence test, S x S sub-lights (Yang 2009, GBP07)";
 
 /// Every packet size from 1x1 to 8x8 (`WxH`).
@@ -41,7 +40,7 @@ pub const PACKETS: &[&str] = &[
     "7x5", "7x6", "7x7", "7x8", "8x1", "8x2", "8x3", "8x4", "8x5", "8x6", "8x7", "8x8",
 ];
 
-/// Parameters of [`CpuPacketHsm`] (shared with the GPU twin).
+/// Parameters of [`CpuPacketHsm`] (shared with the engine path, [`crate::frame`]).
 pub const SPECS: &[ParamSpec] = Config::SPECS;
 
 /// Per-receiver diagnostics of the last estimate (Yang Figs. 5 and 8): what the EXR channels of a
@@ -117,11 +116,6 @@ impl CpuPacketHsm {
             diagnostics: Vec::new(),
             cancel: Cancel::new(),
         })
-    }
-    /// The cancellation token `estimate` checks ([`SoftShadowEstimator::set_cancel`]), shared
-    /// with the GPU twin.
-    pub fn cancel(&self) -> &Cancel {
-        &self.cancel
     }
     /// Per-receiver diagnostics of the last estimate (kernel size, visited nodes, packet class).
     pub fn diagnostics(&self) -> &[PixelDiag] {
@@ -527,7 +521,8 @@ pub fn estimate_sublight(
 }
 
 /// V (with the facing factor) of one receiver on one sub-light, per pixel with the configured
-/// traversal (the GPU twin's fallback for receivers the device cut short).
+/// traversal (what the engine path's kernel computes; its CPU twin, which redoes the receivers
+/// the device cut short).
 pub fn pixel_value(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
     let grid = sv.grid(cfg);
     let mut out = false;
@@ -556,7 +551,7 @@ pub fn reference_pixel(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> f32 {
 
 impl CpuPacketHsm {
     /// Rect lights with any `sublights`; disk, sphere and directional lights with `sublights=1` only (they
-    /// are not cut into S x S sub-lights: an [`Error::Param`] with key `sublights`; both twins).
+    /// are not cut into S x S sub-lights: an [`Error::Param`] with key `sublights`; the engine path too).
     pub(crate) fn check_light(light: &shadow_map_core::Light, cfg: &Config) -> Result<()> {
         match light.shape {
             LightShape::Rect { .. } => Ok(()),

@@ -14,12 +14,12 @@
 //!    the padded dual-grid MSSM of [`crate::contour::PaddedDualMssm`], on the GPU;
 //! 3. `frame_maps` (`frame.wgsl`): the depth and classification layers as the row-major buffers
 //!    `packet_hsm.wgsl` reads; the MSSM levels the view needs ([`SubView::levels`]) copied level
-//!    after level into one buffer each (the layout [`GpuPacketHsm`]'s upload has);
+//!    after level into one buffer each;
 //! 4. `frame_setup`: each receiver's set-up on the GPU, the twin of
 //!    [`crate::cpu::setup_receiver`] (light-space transform, the sub-light's facing fraction, a
 //!    sphere light's silhouette disk, projection, bias or receiver plane);
-//! 5. `packet_hsm.wgsl`'s `prepare` and `pixels` passes, unchanged (the per-pixel GBP07 with
-//!    Yang's hierarchy: receivers in a buffer carry no image layout, so no packets);
+//! 5. the kernel's `prepare` and `pixels` passes ([`crate::kernel`]: the per-pixel GBP07 with
+//!    Yang's hierarchy; receivers in a buffer carry no image layout, so no packets);
 //! 6. `frame_finish`: the view's V (facing x the kernel's V, or what the set-up settled) times
 //!    the view's weight (`1 / S^2` times the level's) added to each receiver's sum; after the
 //!    last view, V = the sum clamped to [0, 1], as [`crate::cpu::SubLights::finish`] does.
@@ -31,16 +31,19 @@
 //!
 //! The status buffer (three u32, cleared by each `encode`): `[0]` receivers projecting outside
 //! a view (summed over views; V = facing there), `[1]` non-finite V written as 0, `[2]`
-//! receivers the device's loop budget cut short in some view ([`crate::gpu::LOOP_LIMIT`]): V
-//! left NaN for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same
-//! views).
+//! receivers the device's loop budget cut short in some view ([`crate::kernel::LOOP_LIMIT`]): V
+//! left NaN for the caller to redo (the CLI and the registry's estimator redo NaN actives with
+//! the CPU twin in the same views).
+//!
+//! For tests and tools, [`PacketHsmFrame::encode_view_maps`] records one view's maps alone and
+//! [`PacketHsmFrame::light_space`] hands them out to read back; [`PacketHsmFrame::cpu_twin_in_maps`]
+//! runs the CPU twin on maps read back, so the kernel can be compared with the CPU on the very
+//! maps it read.
 use crate::cpu::{
     emitter_of, levels_run, pixel_value, setup_receiver, sublight_centre, Config, CpuPacketHsm,
     OpacityLevels, OwnPlane, ReceiverSetup, SubView,
 };
-use crate::gpu::{
-    hsm_uniform_of, GpuPacketHsm, HsmUniform, PacketPlan, PrepGpu, RecIn, SubLightShape, WORKGROUP,
-};
+use crate::kernel::{hsm_uniform, HsmUniform, Kernel, PrepGpu, RecIn, SubLightShape, WORKGROUP};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
@@ -56,11 +59,12 @@ use shadow_map_core::{
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         receivers::RECEIVER_BYTES,
         shared::SHARED_WGSL,
-        GpuContext, GpuDepthMap, GpuLayersFrame, GpuShadowMapper, LayersSlot, UniformStage,
+        GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
+        UniformStage,
     },
     light_view::FitReport,
-    Error, Light, LightShape, LightSpaceRequest, LightView, OpacityLevel, Params, RasterOptions,
-    Receivers, Result, Scene, Warning,
+    Error, Light, LightShape, LightSpace, LightSpaceRequest, LightView, OpacityLevel, Params,
+    RasterOptions, Receivers, Result, Scene, Warning,
 };
 use std::sync::Arc;
 
@@ -75,7 +79,7 @@ pub const FRAME_SHADER_PARTS: &[&str] = &[
     MATH_WGSL,
     SILHOUETTE_WGSL,
     SILHOUETTE_SETUP_WGSL,
-    crate::gpu::REC_IN_WGSL,
+    crate::kernel::REC_IN_WGSL,
     FRAME_WGSL,
 ];
 
@@ -129,7 +133,7 @@ const BINDINGS: [(u32, Binding); 14] = [
 
 /// Packet-hsm recorded into the caller's frame (module docs).
 pub struct PacketHsmFrame {
-    gpu: GpuPacketHsm,
+    kernel: Kernel,
     cfg: Config,
     layers: GpuLayersFrame,
     padded: GpuDepthMap,
@@ -144,7 +148,6 @@ pub struct PacketHsmFrame {
     setup: wgpu::Buffer,
     out: wgpu::Buffer,
     prep: wgpu::Buffer,
-    counters: wgpu::Buffer,
     hsm: wgpu::Buffer,
     light: wgpu::Buffer,
     frame: wgpu::Buffer,
@@ -190,8 +193,7 @@ impl PacketHsmFrame {
         let slots = cfg.sublights * cfg.sublights * cfg.opacity_levels.max(1);
         let r = cfg.resolution;
         let p = r + 2;
-        let mut gpu = GpuPacketHsm::new(ctx.clone())?;
-        shadow_map_core::estimator::configure(&mut gpu, params)?;
+        let kernel = Kernel::new(ctx.clone())?;
         let req = LightSpaceRequest {
             resolution: r,
             layers: 1,
@@ -289,7 +291,6 @@ impl PacketHsmFrame {
                 n * std::mem::size_of::<PrepGpu>() as u64,
                 storage,
             ),
-            counters: buffer(&ctx, "packet-hsm frame counters", 20, storage),
             hsm: buffer(
                 &ctx,
                 "packet-hsm frame kernel uniform",
@@ -315,7 +316,7 @@ impl PacketHsmFrame {
                 light: UniformStage::new(&ctx, "packet-hsm frame light stage", slots),
                 frame: UniformStage::new(&ctx, "packet-hsm frame uniform stage", slots),
             },
-            gpu,
+            kernel,
             cfg,
             layers,
             padded,
@@ -368,7 +369,7 @@ impl PacketHsmFrame {
             Some(m) if self.cfg.shadow.midpoint() => &m.view,
             _ => &self.layers.layers()[0].view,
         };
-        self.gpu
+        self.kernel
             .ctx
             .device
             .create_bind_group(&wgpu::BindGroupDescriptor {
@@ -397,7 +398,7 @@ impl PacketHsmFrame {
     }
 
     fn kernel_group(&self) -> wgpu::BindGroup {
-        let bufs = [
+        self.kernel.group([
             &self.hsm,
             &self.depth,
             &self.class,
@@ -407,24 +408,7 @@ impl PacketHsmFrame {
             &self.recs,
             &self.out,
             &self.prep,
-            &self.counters,
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = bufs
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        self.gpu
-            .ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("packet-hsm frame kernel"),
-                layout: &self.gpu.layout,
-                entries: &entries,
-            })
+        ])
     }
 }
 
@@ -442,20 +426,17 @@ fn run(
 }
 
 impl PacketHsmFrame {
-    /// Records view `slot` of `views`: its maps, set-up, kernel and its share of V.
-    fn encode_view(
+    /// Records the maps of view `slot` (steps 1 and 2 of the module docs): the layers, their
+    /// midpoints and MSSM, and the padded dual-grid MSSM of the classification layer.
+    fn encode_maps(
         &self,
         enc: &mut wgpu::CommandEncoder,
         inputs: &FrameInputs<'_>,
-        (group, kernel): (&wgpu::BindGroup, &wgpu::BindGroup),
-        (slot, views, view): (usize, usize, &LightView),
+        (slot, view): (usize, &LightView),
         level: &OpacityLevel,
     ) -> Result<()> {
-        let ctx = &*self.gpu.ctx;
-        let queue = &ctx.queue;
+        let queue = &self.kernel.ctx.queue;
         let cfg = &self.cfg;
-        let half = self.sub_half(inputs.light);
-        let shape = self.shape(view, inputs.light, half);
         let layers = LayersSlot {
             view,
             max_bias: cfg.shadow.midpoint_clamp(view).unwrap_or(0.0),
@@ -485,7 +466,25 @@ impl PacketHsmFrame {
             },
         );
         self.dual_pass.record(enc);
-        // The levels the view needs, each after the last, as GpuPacketHsm uploads them.
+        Ok(())
+    }
+
+    /// Records view `slot` of `views`: its maps, set-up, kernel and its share of V.
+    fn encode_view(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        (group, kernel): (&wgpu::BindGroup, &wgpu::BindGroup),
+        (slot, views, view): (usize, usize, &LightView),
+        level: &OpacityLevel,
+    ) -> Result<()> {
+        let queue = &self.kernel.ctx.queue;
+        let cfg = &self.cfg;
+        let half = self.sub_half(inputs.light);
+        let shape = self.shape(view, inputs.light, half);
+        let r = view.r;
+        self.encode_maps(enc, inputs, (slot, view), level)?;
+        // The levels the view needs, each after the last, as packet_hsm.wgsl reads them.
         let mssm = self
             .layers
             .min_max()
@@ -513,8 +512,7 @@ impl PacketHsmFrame {
             enc.copy_buffer_to_buffer(&level.min, 0, &self.dual_min, at, pplane);
             enc.copy_buffer_to_buffer(&level.max, 0, &self.dual_max, at, pplane);
         }
-        let plan = PacketPlan::new(cfg, None, usize::MAX)?;
-        let hu = hsm_uniform_of(&shape, cfg, r, &plan, inputs.count as usize, 0);
+        let hu = hsm_uniform(&shape, cfg, inputs.count);
         self.stage.hsm.stage(queue, enc, slot, &hu, &self.hsm)?;
         let mut eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
         if let LightShape::Rect { .. } = inputs.light.shape {
@@ -536,7 +534,6 @@ impl PacketHsmFrame {
                 | if slot + 1 == views { LAST_VIEW } else { 0 },
         };
         self.stage.frame.stage(queue, enc, slot, &fu, &self.frame)?;
-        enc.clear_buffer(&self.counters, 0, None);
         // No stale kernel state from the last view for receivers the set-up settles.
         enc.clear_buffer(&self.prep, 0, None);
         let texels = r as u64 * r as u64;
@@ -548,11 +545,143 @@ impl PacketHsmFrame {
             return Ok(());
         }
         run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
-        run(enc, "packet-hsm prepare", &self.gpu.prepare, kernel, n);
-        run(enc, "packet-hsm pixels", &self.gpu.pixels, kernel, n);
+        run(enc, "packet-hsm prepare", &self.kernel.prepare, kernel, n);
+        run(enc, "packet-hsm pixels", &self.kernel.pixels, kernel, n);
         run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         inputs.mark(enc, "estimate");
         Ok(())
+    }
+}
+
+impl PacketHsmFrame {
+    /// [`FrameEstimator::encode`]'s checks of `inputs`: the receiver count (returned), the light,
+    /// one present view per sub-light and opacity level; and the levels the frame renders.
+    fn checked(&self, inputs: &FrameInputs<'_>) -> Result<(u64, Vec<OpacityLevel>)> {
+        let n = check_prepared_inputs(
+            &self.kernel.ctx,
+            inputs,
+            self.max_receivers,
+            "receivers per frame (packet-hsm frame prepared for fewer)",
+        )?;
+        CpuPacketHsm::check_light(inputs.light, &self.cfg)?;
+        let (levels, _) = self.levels(inputs.casters.opacity_levels());
+        let s = self.cfg.sublights as usize;
+        let views = inputs.views;
+        if views.len() != s * s * levels.len() {
+            return Err(Error::LightView(format!(
+                "{} views for {} sub-lights x {} opacity levels",
+                views.len(),
+                s * s,
+                levels.len()
+            )));
+        }
+        if views.iter().any(Option::is_none) {
+            return Err(Error::LightView(
+                "packet-hsm's frame needs every sub-light's view".into(),
+            ));
+        }
+        Ok((n, levels))
+    }
+
+    /// Records only the maps [`FrameEstimator::encode`] renders for view `slot` of
+    /// `inputs.views` (its layers, midpoints and MSSM, and the padded dual-grid MSSM), for
+    /// [`light_space`](Self::light_space) to hand out once submitted: a frame renders its views
+    /// in turn into the same maps, so only the last one's survive a whole frame. Errors as
+    /// `encode`'s, and [`Error::LightView`] for a slot beyond the views.
+    pub fn encode_view_maps(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        slot: usize,
+    ) -> Result<()> {
+        let (_, levels) = self.checked(inputs)?;
+        let view =
+            inputs.views.get(slot).copied().flatten().ok_or_else(|| {
+                Error::LightView(format!("no view {slot} of {}", inputs.views.len()))
+            })?;
+        self.encode_maps(enc, inputs, (slot, &view), &levels[slot % levels.len()])
+    }
+
+    /// The maps the last submitted [`encode`](FrameEstimator::encode) rendered for its last view
+    /// (or [`encode_view_maps`](Self::encode_view_maps) for its view), in `view`: what a test
+    /// reads back ([`GpuLightSpace::to_cpu`]) to run the CPU twin on the very maps the kernel
+    /// read ([`cpu_twin_in_maps`](Self::cpu_twin_in_maps)).
+    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
+        self.layers.light_space(view)
+    }
+
+    /// [`FrameEstimator::cpu_twin`] on given maps, one per view in the frame's order (each its
+    /// view and layer 0, with midpoints for `self_shadow=midpoint`; say the frame's own, read
+    /// back): the MSSM and padded dual-grid MSSM built from them, then each receiver's set-up
+    /// and per-pixel GBP07, weighted and summed as [`crate::cpu::SubLights`] sums them.
+    pub fn cpu_twin_in_maps(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        maps: Vec<LightSpace>,
+    ) -> Result<Vec<f32>> {
+        let half = self.sub_half(scene.light());
+        let cfg = &self.cfg;
+        let mut maps: Vec<Option<LightSpace>> = maps.into_iter().map(Some).collect();
+        self.cpu_sum(scene, receivers, maps.len(), |slot, _| {
+            let ls = maps[slot]
+                .take()
+                .ok_or_else(|| Error::LightView(format!("the maps of view {slot} were taken")))?;
+            Ok(SubView::in_maps(ls, scene.light(), half, cfg))
+        })
+    }
+
+    /// The CPU twin's V over `views` views, each on the [`SubView`] that `sub_view` gives for
+    /// (its slot, its opacity level's scene): each receiver's [`setup_receiver`], then
+    /// [`pixel_value`], weighted and summed as [`crate::cpu::SubLights`] sums them.
+    fn cpu_sum(
+        &self,
+        scene: &Scene,
+        receivers: &Receivers,
+        views: usize,
+        mut sub_view: impl FnMut(usize, &Scene) -> Result<SubView>,
+    ) -> Result<Vec<f32>> {
+        CpuPacketHsm::check_light(scene.light(), &self.cfg)?;
+        let cfg = &self.cfg;
+        let levels = OpacityLevels::new(scene, cfg.opacity_levels);
+        let levels: Vec<(&Scene, f32)> = levels.iter().collect();
+        let s2 = (cfg.sublights * cfg.sublights) as usize;
+        if views != s2 * levels.len() {
+            return Err(Error::LightView(format!(
+                "{views} views for {s2} sub-lights x {} opacity levels",
+                levels.len()
+            )));
+        }
+        let mut acc = vec![0.0f32; receivers.len()];
+        for slot in 0..views {
+            let (level, lw) = levels[slot % levels.len()];
+            let sv = sub_view(slot, level)?;
+            let w = (1.0 / s2 as f32) * lw;
+            for (k, a) in acc.iter_mut().enumerate() {
+                if !receivers.active()[k] {
+                    continue;
+                }
+                let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
+                let x = match setup_receiver(&sv, cfg, pw, nw) {
+                    ReceiverSetup::Settled(x) | ReceiverSetup::Outside(x) => x,
+                    ReceiverSetup::Map { .. } => pixel_value(&sv, cfg, pw, nw),
+                };
+                *a += w * x;
+            }
+        }
+        Ok(acc
+            .iter()
+            .enumerate()
+            .map(|(k, &x)| {
+                if !receivers.active()[k] {
+                    f32::NAN
+                } else if x.is_finite() {
+                    x.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
+            .collect())
     }
 }
 
@@ -564,7 +693,7 @@ impl FrameEstimator for PacketHsmFrame {
     /// One view per sub-light and opacity level, in the CPU twin's order, each fitted by
     /// [`SubView::fit`] on the level's casters.
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
-        self.gpu.ctx.check_lost()?;
+        self.kernel.ctx.check_lost()?;
         CpuPacketHsm::check_light(scene.light(), &self.cfg)?;
         let s = self.cfg.sublights;
         let half = self.sub_half(scene.light());
@@ -620,29 +749,8 @@ impl FrameEstimator for PacketHsmFrame {
     }
 
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
-        let n = check_prepared_inputs(
-            &self.gpu.ctx,
-            inputs,
-            self.max_receivers,
-            "receivers per frame (packet-hsm frame prepared for fewer)",
-        )?;
-        CpuPacketHsm::check_light(inputs.light, &self.cfg)?;
-        let (levels, _) = self.levels(inputs.casters.opacity_levels());
-        let s = self.cfg.sublights as usize;
+        let (n, levels) = self.checked(inputs)?;
         let views = inputs.views;
-        if views.len() != s * s * levels.len() {
-            return Err(Error::LightView(format!(
-                "{} views for {} sub-lights x {} opacity levels",
-                views.len(),
-                s * s,
-                levels.len()
-            )));
-        }
-        if views.iter().any(Option::is_none) {
-            return Err(Error::LightView(
-                "packet-hsm's frame needs every sub-light's view".into(),
-            ));
-        }
         inputs.mark(enc, "start");
         enc.clear_buffer(&self.status, 0, None);
         let group = self.group(inputs, n.max(1));
@@ -665,60 +773,15 @@ impl FrameEstimator for PacketHsmFrame {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        CpuPacketHsm::check_light(scene.light(), &self.cfg)?;
-        let cfg = &self.cfg;
-        let levels = OpacityLevels::new(scene, cfg.opacity_levels);
-        let levels: Vec<(&Scene, f32)> = levels.iter().collect();
-        let s2 = (cfg.sublights * cfg.sublights) as usize;
-        if views.len() != s2 * levels.len() {
-            return Err(Error::LightView(format!(
-                "{} views for {s2} sub-lights x {} opacity levels",
-                views.len(),
-                levels.len()
-            )));
-        }
         let half = self.sub_half(scene.light());
-        let mut acc = vec![0.0f32; receivers.len()];
-        for (slot, view) in views.iter().enumerate() {
-            let view = view.ok_or_else(|| {
+        let cfg = &self.cfg;
+        self.cpu_sum(scene, receivers, views.len(), |slot, level| {
+            let view = views[slot].ok_or_else(|| {
                 Error::LightView("packet-hsm's frame needs every sub-light's view".into())
             })?;
-            let (level, lw) = levels[slot % levels.len()];
-            let sv = SubView::build_in_view(
-                level,
-                receivers,
-                view,
-                FitReport::default(),
-                half,
-                cfg,
-                OwnPlane::Off,
-            )?;
-            let w = (1.0 / s2 as f32) * lw;
-            for (k, a) in acc.iter_mut().enumerate() {
-                if !receivers.active()[k] {
-                    continue;
-                }
-                let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
-                let x = match setup_receiver(&sv, cfg, pw, nw) {
-                    ReceiverSetup::Settled(x) | ReceiverSetup::Outside(x) => x,
-                    ReceiverSetup::Map { .. } => pixel_value(&sv, cfg, pw, nw),
-                };
-                *a += w * x;
-            }
-        }
-        Ok(acc
-            .iter()
-            .enumerate()
-            .map(|(k, &x)| {
-                if !receivers.active()[k] {
-                    f32::NAN
-                } else if x.is_finite() {
-                    x.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            })
-            .collect())
+            let fit = FitReport::default();
+            SubView::build_in_view(level, receivers, view, fit, half, cfg, OwnPlane::Off)
+        })
     }
 }
 
@@ -740,22 +803,6 @@ mod tests {
                 r,
                 weight,
                 flags,
-            }
-        );
-        test_support::assert_wgsl_layout!(
-            src,
-            RecIn {
-                uv,
-                zp,
-                t,
-                g0,
-                gu,
-                gv,
-                c,
-                sil_a,
-                sil_e1,
-                sil_e2,
-                sil_clip,
             }
         );
     }

@@ -3,9 +3,9 @@
 // buffers packet_hsm.wgsl reads; `frame_setup` is the twin of cpu.rs `setup_receiver` (every
 // light shape; a sphere's silhouette from the core's silhouette_setup.wgsl), writing each
 // receiver's RecIn for the kernel's `prepare` and `pixels` passes and what the CPU would have
-// settled; `frame_finish` combines them into V, the twin of gpu.rs `GpuPacketHsm::estimate`'s
-// sum and cpu.rs SubLights::finish, one view (sub-light, opacity level) at a time. Appended after the core's shared.wgsl, estimate.wgsl,
-// math.wgsl, silhouette.wgsl and silhouette_setup.wgsl.
+// settled; `frame_finish` combines them into V, the twin of cpu.rs's sum over the sub-lights
+// and SubLights::finish, one view (sub-light, opacity level) at a time. Appended after the
+// core's shared.wgsl, estimate.wgsl, math.wgsl, silhouette.wgsl and silhouette_setup.wgsl.
 
 // Mirrors frame.rs HsmFrameUniform.
 struct HsmFrameUniform {
@@ -146,7 +146,7 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
     r.zp = p.z;
     r.t = t;
     if sil.ok {
-        // gpu.rs RecIn: (a, dist), (e1, radius), (e2, 0), clip.
+        // kernel.rs RecIn: (a, dist), (e1, radius), (e2, 0), clip.
         r.sil_a = vec4<f32>(sil.a, sil.dist);
         r.sil_e1 = vec4<f32>(sil.e1, sil.radius);
         r.sil_e2 = vec4<f32>(sil.e2, 0.0);

@@ -9,13 +9,11 @@ pub mod fit;
 #[cfg(feature = "gpu")]
 pub mod frame;
 #[cfg(feature = "gpu")]
-pub mod gpu;
+pub mod kernel;
 
 pub use cpu::CpuPacketHsm;
 #[cfg(feature = "gpu")]
 pub use frame::PacketHsmFrame;
-#[cfg(feature = "gpu")]
-pub use gpu::GpuPacketHsm;
 pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{setting, MethodDescriptor, Setting};

@@ -1,10 +1,9 @@
 // Twin of crates/packet-hsm/src/contour.rs (per-pixel GBP07, hierarchical extraction with an
-// explicit stack, Yang 2009 Algorithm 3) and of cpu.rs's kernel_cells, trivial classification,
-// packets (Algorithm 2) and coherence test (section 4.3), in f32. Three entry points, dispatched in
-// order: `prepare` (one invocation per receiver: kernel, lit / umbra, centre status),
-// `packets` (one per packet of the image layout: extended kernel, coherence test, ternary
-// contour extraction, per-pixel integration; diverging packets leave their pixels to the next
-// pass), `pixels` (one per receiver: per-pixel GBP07 for every penumbra pixel not done yet).
+// explicit stack, Yang 2009 Algorithm 3) and of cpu.rs's kernel_cells and trivial
+// classification, in f32. Two entry points (packet_hsm_passes.wgsl), dispatched in order after
+// the frame's set-up pass (frame.wgsl `frame_setup`) wrote each receiver's RecIn: `prepare` (one
+// invocation per receiver: kernel, lit / umbra, centre status), `pixels` (one per receiver:
+// per-pixel GBP07 for every penumbra receiver).
 //
 // Prepended: the core's disk_edge.wgsl (edge_disk_area, disk_wedge) and silhouette.wgsl
 // (silhouette_carry).
@@ -13,8 +12,8 @@
 // the sum over edges are f32 here (f64 on the CPU); the backprojection gap is floored at 1e-7 z_p
 // (1e-12 z_p on the CPU); the nudge of a receiver on a cell boundary is added in f32.
 
-// Mirrors gpu.rs HsmUniform field for field.
-// Threads per workgroup, set from Rust (gpu::WORKGROUP) as a pipeline override.
+// Mirrors kernel.rs HsmUniform field for field.
+// Threads per workgroup, set from Rust (kernel::WORKGROUP) as a pipeline override.
 override WG: u32;
 
 struct HsmUniform {
@@ -29,32 +28,20 @@ struct HsmUniform {
     hx: f32,
     hy: f32,
     count: u32,
-    base: u32,
-    width: u32,
-    height: u32,
-    pw: u32,
-    ph: u32,
-    packets_x: u32,
-    packets: u32,
-    coherence: u32,
-    td: f32,
-    qe: f32,
-    qv: f32,
-    far: f32,
     // Always 2: the trip count of the loop-limit probe (a uniform, so it is not unrolled).
     probe: u32,
     // 1: receiver-plane rejection (RecIn's plane); 0: the classic test c_s < t_p.
     receiver_plane: u32,
     // 1: the classification depths are the true depths (self_shadow=bias).
     class_is_depth: u32,
-    // gpu.rs SHAPE_*: 0 rect, 1 disk of radius hx, 2 sphere of radius hx (RecIn's silhouette).
+    // kernel.rs SHAPE_*: 0 rect, 1 disk of radius hx, 2 sphere of radius hx (RecIn's silhouette).
     shape: u32,
     // 1: an orthographic view (the sun): k is the texel pitch, kernels the occluder prism's
     // width, and RecIn's (gu, gv) hold the plane's (cu, cv).
     ortho: u32,
 }
 
-// Per-receiver state between the passes (mirrors gpu.rs PrepGpu).
+// Per-receiver state between the passes (mirrors kernel.rs PrepGpu).
 struct PrepGpu {
     cr: vec4<i32>,
     q: vec2<f32>,
@@ -80,15 +67,12 @@ const STATE_PENUMBRA: u32 = 2u;
 // Per receiver: V before the facing factor, nodes visited.
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;
 @group(0) @binding(8) var<storage, read_write> prep: array<PrepGpu>;
-// [0]: packets with >= 2 penumbra pixels, [1]: coherent (done packet-wise), [2]: rejected by the
-// coherence test, [3]: diverged (null status), [4]: cut short by the device's loop limit.
-@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 5>;
 
 // Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
 // once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), which would
 // silently truncate long contour scans. `loop_limit_hit` runs a two-trip loop whose bound is a
-// uniform: it trips once only when that budget is spent. Work cut short is flagged (the CPU
-// twin redoes those receivers and reports how many), never returned as V.
+// uniform: it trips once only when that budget is spent. Work cut short is flagged (the frame
+// leaves those receivers NaN for its caller to redo), never returned as V.
 fn loop_limit_hit() -> bool {
     var trips = 0u;
     for (var i = 0u; i < u.probe; i++) {
@@ -298,7 +282,7 @@ fn occludes(rec: RecIn, i: i32, j: i32, s: vec2<f32>) -> bool {
 }
 
 // ReceiverPlane's slope and height at uv: (g0 + gu u + gv v, c) in perspective, (g0, c + cu u +
-// cv v) in an orthographic view (gpu.rs packs cu, cv where gu, gv go).
+// cv v) in an orthographic view (frame.wgsl's set-up packs cu, cv where gu, gv go).
 fn plane_gc(rec: RecIn, uv: vec2<f32>) -> vec2<f32> {
     let lin = rec.gu * uv.x + rec.gv * uv.y;
     if u.ortho != 0u {
@@ -350,8 +334,8 @@ fn true_min(class_min: f32, s: vec4<i32>) -> f32 {
     return mssm_query_min(s.x, s.y, s.z + 1, s.w + 1);
 }
 
-// contour::Planes::prunable's plane part, given the node's classification range mm, the packet
-// range [tmin, tmax], the threshold range th (widened) over the node's samples s.
+// contour::Planes::prunable's plane part, given the node's classification range mm, the
+// threshold range [tmin, tmax], the threshold range th (widened) over the node's samples s.
 fn plane_prunable(mm: vec2<f32>, tmin: f32, tmax: f32, th: vec2<f32>, s: vec4<i32>) -> bool {
     if !(mm.x < tmax) {
         return true;
@@ -550,7 +534,7 @@ fn sector_rect(a: vec2<f32>, b: vec2<f32>) -> f32 {
     return 0.5 * twice;
 }
 
-// gpu.rs SHAPE_*.
+// kernel.rs SHAPE_*.
 const SHAPE_RECT: u32 = 0u;
 const SHAPE_DISK: u32 = 1u;
 const SHAPE_SPHERE: u32 = 2u;

@@ -1,7 +1,7 @@
 @compute @workgroup_size(WG)
 fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let idx = u.base + gid.x;
-    if gid.x >= u.count {
+    let idx = gid.x;
+    if idx >= u.count {
         return;
     }
     var p: PrepGpu;
@@ -84,11 +84,11 @@ fn finish(sum: f32, centre: u32) -> f32 {
     return v;
 }
 
-// Per-pixel GBP07 for every penumbra receiver the packets pass left.
+// Per-pixel GBP07 for every penumbra receiver `prepare` left.
 @compute @workgroup_size(WG)
 fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let idx = u.base + gid.x;
-    if gid.x >= u.count {
+    let idx = gid.x;
+    if idx >= u.count {
         return;
     }
     let p = prep[idx];
@@ -208,208 +208,4 @@ fn push_children(stack: ptr<function, array<vec3<i32>, STACK>>, sp0: u32, nd: ve
         }
     }
     return sp;
-}
-
-const MAX_PACKET: u32 = 64u;
-
-// cpu.rs coherence (Yang eq. 4, 5, 6) in f32.
-fn packet_coherent(k: vec4<i32>, tmin: f32, tmax: f32, sides: ptr<function, array<u32, MAX_PACKET>>, n: u32) -> bool {
-    let mm = dual_query(k);
-    let zmin = min(mm.x, u.far);
-    let zmax = min(mm.y, u.far);
-    let inter = max(min(tmax, zmax) - max(tmin, zmin), 0.0);
-    let range = zmax - zmin;
-    var p_null = 0.0;
-    if range > 0.0 {
-        p_null = min(inter / range, 1.0);
-    } else if tmin <= zmin && zmin < tmax {
-        p_null = 1.0;
-    }
-    let wbar = f32(max(max(k.z - k.x, k.w - k.y), 1));
-    let p_d = 1.0 - pow(1.0 - p_null, wbar * wbar);
-    if p_d > u.td {
-        return false;
-    }
-    let packet = log2(wbar) * wbar + (u.qe + u.qv * f32(n)) * wbar;
-    var pixels = 0.0;
-    for (var i = 0u; i < n; i++) {
-        let w = f32(max((*sides)[i], 1u));
-        pixels += log2(w) * w + (u.qe + u.qv) * w;
-    }
-    return packet <= pixels;
-}
-
-// Yang Algorithm 2 for one packet (cpu.rs estimate_sublight, packet branch).
-@compute @workgroup_size(WG)
-fn packets(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let pk = gid.x;
-    if pk >= u.packets {
-        return;
-    }
-    let px = (pk % u.packets_x) * u.pw;
-    let py = (pk / u.packets_x) * u.ph;
-    var ids: array<u32, MAX_PACKET>;
-    var sides: array<u32, MAX_PACKET>;
-    var sums: array<f32, MAX_PACKET>;
-    var n = 0u;
-    var k = vec4<i32>(0);
-    var tmin = 0.0;
-    var tmax = 0.0;
-    for (var dy = 0u; dy < u.ph; dy++) {
-        for (var dx = 0u; dx < u.pw; dx++) {
-            let x = px + dx;
-            let y = py + dy;
-            if x >= u.width || y >= u.height {
-                continue;
-            }
-            let idx = y * u.width + x;
-            let p = prep[idx];
-            if p.state != STATE_PENUMBRA || n >= MAX_PACKET {
-                continue;
-            }
-            let t = recs[idx].t;
-            if n == 0u {
-                k = p.cr;
-                tmin = t;
-                tmax = t;
-            } else {
-                k = vec4<i32>(min(k.xy, p.cr.xy), max(k.zw, p.cr.zw));
-                tmin = min(tmin, t);
-                tmax = max(tmax, t);
-            }
-            ids[n] = idx;
-            sides[n] = u32(max(max(p.cr.z - p.cr.x, p.cr.w - p.cr.y), 0));
-            sums[n] = 0.0;
-            n += 1u;
-        }
-    }
-    if n < 2u {
-        return;
-    }
-    atomicAdd(&counters[0], 1u);
-    if u.coherence != 0u && !packet_coherent(k, tmin, tmax, &sides, n) {
-        atomicAdd(&counters[2], 1u);
-        return;
-    }
-    var visited = 0u;
-    var stack: array<vec3<i32>, STACK>;
-    var sp = 0u;
-    var fi = k.x;
-    var fj = k.y;
-    if u.hierarchy != 0u {
-        sp = push_roots(&stack, k);
-    }
-    let x1 = k.z + 1;
-    let y1 = k.w + 1;
-    loop {
-        // Next cell: flat scan, or the next level-0 node of the traversal.
-        var ci = 0;
-        var cj = 0;
-        if u.hierarchy == 0u {
-            if fj >= k.w {
-                break;
-            }
-            ci = fi;
-            cj = fj;
-            fi += 1;
-            if fi >= k.z {
-                fi = k.x;
-                fj += 1;
-            }
-            visited += 1u;
-        } else {
-            if sp == 0u {
-                break;
-            }
-            sp -= 1u;
-            let nd = stack[sp];
-            visited += 1u;
-            let mm = node(nd);
-            if u.receiver_plane == 0u {
-                if mm.y < tmin || !(mm.x < tmax) {
-                    continue;
-                }
-            } else {
-                let span = i32(1u << u32(nd.z));
-                let ns = vec4<i32>(nd.x - 1, nd.y - 1, nd.x - 1 + span, nd.y - 1 + span);
-                var th = vec2<f32>(pos_inf(), -pos_inf());
-                for (var i = 0u; i < n; i++) {
-                    let r = threshold_range(recs[ids[i]], ns);
-                    th = vec2<f32>(min(th.x, r.x), max(th.y, r.y));
-                }
-                if plane_prunable(mm, tmin, tmax, widen(th), ns) {
-                    continue;
-                }
-            }
-            if nd.z > 0 {
-                sp = push_children(&stack, sp, nd, x1, y1);
-                continue;
-            }
-            ci = nd.x - 1;
-            cj = nd.y - 1;
-        }
-        // Ternary status (Yang eq. 3, strict form).
-        var occ = 0u;
-        var z = vec4<f32>(0.0);
-        var null_status = false;
-        let offs = array<vec2<i32>, 4>(vec2<i32>(0, 0), vec2<i32>(1, 0), vec2<i32>(1, 1), vec2<i32>(0, 1));
-        for (var c = 0u; c < 4u; c++) {
-            let si = ci + offs[c].x;
-            let sj = cj + offs[c].y;
-            let s = sample(si, sj);
-            z[c] = s.x;
-            if u.receiver_plane == 0u {
-                if s.y < tmin {
-                    occ |= 1u << c;
-                } else if s.y < tmax {
-                    null_status = true;
-                }
-            } else if s.y < tmax {
-                // contour::Planes::status: every member, none, or some.
-                var any = false;
-                var all = true;
-                for (var i = 0u; i < n; i++) {
-                    let o = occludes(recs[ids[i]], si, sj, s);
-                    any = any || o;
-                    all = all && o;
-                }
-                if any && all {
-                    occ |= 1u << c;
-                } else if any {
-                    null_status = true;
-                }
-            }
-        }
-        if null_status {
-            atomicAdd(&counters[3], 1u);
-            return;
-        }
-        let cell = cell_edges(ci, cj, occ, z);
-        if cell.n == 0u {
-            continue;
-        }
-        for (var i = 0u; i < n; i++) {
-            let p = prep[ids[i]];
-            if ci >= p.cr.x && ci < p.cr.z && cj >= p.cr.y && cj < p.cr.w {
-                let r = recs[ids[i]];
-                sums[i] += edge_area(cell.e0, p.q, r);
-                if cell.n == 2u {
-                    sums[i] += edge_area(cell.e1, p.q, r);
-                }
-            }
-        }
-    }
-    let complete = select(sp == 0u, fj >= k.w, u.hierarchy == 0u);
-    if !complete || stack_overflow || loop_limit_hit() {
-        // Cut short: the pixels pass redoes these pixels.
-        atomicAdd(&counters[4], 1u);
-        return;
-    }
-    atomicAdd(&counters[1], 1u);
-    let share = f32(visited) / f32(n);
-    for (var i = 0u; i < n; i++) {
-        let idx = ids[i];
-        v_out[idx] = vec2<f32>(finish(sums[i], prep[idx].centre), share);
-        prep[idx].state = STATE_DONE;
-    }
 }

@@ -235,18 +235,40 @@ macro_rules! twin_suite {
 }
 
 /// The constructors of a [`TwinPair`] inside its `impl` block: [`TwinPair::cpu`] is
-/// `<$cpu>::new()`, [`TwinPair::gpu`] is `<$gpu>::new(ctx)` (default parameters, a failure to
-/// build panics), with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
+/// `<$cpu>::new()`, [`TwinPair::gpu`] is `<$gpu>::new(ctx)`, or with `descriptor = D` the
+/// registry's GPU estimator of `D` (its frame run by `FrameTwin`) (default parameters, a
+/// failure to build panics), with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
 /// `set_max_chunk(N)`, and with `fixed = EXPR` also [`TwinPair::fixed_case`]: `EXPR`.
 ///
 /// ```ignore
 /// impl TwinPair for Accumulation {
-///     test_support::twin_constructors!(CpuAccumulation, GpuAccumulation, chunk = 13);
+///     test_support::twin_constructors!(CpuAccumulation, descriptor = accumulation::DESCRIPTOR);
 ///     // random_scenes, ...
 /// }
 /// ```
 #[macro_export]
 macro_rules! twin_constructors {
+    ($cpu:ty, descriptor = $desc:expr $(, fixed = $fixed:expr)? $(,)?) => {
+        fn cpu(&self) -> $crate::conformance::BoxedEstimator {
+            ::std::boxed::Box::new(<$cpu>::new().expect("cpu twin"))
+        }
+
+        fn gpu(
+            &self,
+            ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
+        ) -> $crate::conformance::BoxedEstimator {
+            $desc
+                .gpu(ctx.clone())
+                .expect("the method has a frame")
+                .expect("gpu estimator")
+        }
+
+        $(
+            fn fixed_case(&self) -> $crate::conformance::FixedCase {
+                $fixed
+            }
+        )?
+    };
     ($cpu:ty, $gpu:ty $(, chunk = $chunk:expr)? $(, fixed = $fixed:expr)? $(,)?) => {
         fn cpu(&self) -> $crate::conformance::BoxedEstimator {
             ::std::boxed::Box::new(<$cpu>::new().expect("cpu twin"))

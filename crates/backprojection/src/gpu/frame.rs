@@ -1,6 +1,6 @@
 //! The engine path: [`BackprojectionFrame`], recorded into the caller's command encoder.
 
-use super::{BitTable, BpUniform, DeviceMaps, GpuBackprojection, KernelChunk, KernelUniforms};
+use super::{uniforms, BitTable, BpKernel, BpUniform, KernelUniforms};
 use crate::cpu::{plan, CpuBackprojection};
 use shadow_map_core::{
     gpu::{
@@ -8,7 +8,7 @@ use shadow_map_core::{
         frame::{
             buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
         },
-        layout::KernelMaps,
+        layout::{GpuLayout, KernelMaps},
         light_space::GpuLightSpace,
         raster::{GpuLayersFrame, GpuShadowMapper},
         receivers::RECEIVER_BYTES,
@@ -35,11 +35,16 @@ use std::sync::Arc;
 /// A frame records the depth-peeling passes, the midpoint pass (clamped for the frame's view as
 /// [`request`](crate::cpu::request) clamps it), the anchored MSSM of layer 0 (every level up to
 /// `ceil(log2 r)`, at most 10, allocated once: the kernel's minimum query is exact whatever the
-/// number of levels, so V equals the twins' which build only the levels the view needs), the
-/// copies into the kernel's texture arrays, and the kernel over `count` receivers in one
+/// number of levels, so V equals the CPU twin's which builds only the levels the view needs),
+/// the copies into the kernel's texture arrays, and the kernel over `count` receivers in one
 /// dispatch. The kernel's counters (receivers outside the light frustum, non-finite results
-/// replaced by 0, receivers cut short by the loop budget and left NaN,
-/// [`LOOP_LIMIT`](super::LOOP_LIMIT)) go to [`FrameEstimator::status`]. Semi-transparent casters
+/// replaced by 0, receivers cut short by the loop budget and left NaN) go to
+/// [`FrameEstimator::status`]. The loop budget: some devices bound the loop iterations of one
+/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run),
+/// which would silently truncate a large kernel's walk (`max_nspp` up to 4096 samples, up to 4
+/// layers, up to 256 occlusion bits each); the kernel ends with the core's two-trip probe and
+/// leaves a cut receiver NaN for the caller to redo (`FrameTwin` redoes it with the CPU twin in
+/// the same view, `shadow_map_core::gpu::frame::finish_on_cpu`). Semi-transparent casters
 /// (a [`GpuScene`](shadow_map_core::gpu::raster::GpuScene) whose casters are not all
 /// opaque) are modelled as on the CPU: the peeling passes also write each layer's opacity
 /// plane (the opacity of the caster each texel's depth came from), the layout copies them after
@@ -50,12 +55,13 @@ use std::sync::Arc;
 /// light view is the caller's: [`FrameEstimator::fit_views`] fits one on the CPU as `build`
 /// does.
 pub struct BackprojectionFrame {
-    gpu: GpuBackprojection,
+    ctx: Arc<GpuContext>,
+    /// The parameters (a CPU twin configured with them: its settings, and the template of
+    /// [`FrameEstimator::cpu_twin`]).
+    cpu: CpuBackprojection,
+    kernel: BpKernel,
     layers: GpuLayersFrame,
-    /// The laid-out maps as the kernel reads them for opaque casters.
-    maps: DeviceMaps,
-    /// The same, with the opacity planes read (semi-transparent casters).
-    maps_semi: DeviceMaps,
+    /// The kernel's texture arrays and the copies that fill them from `layers`.
     km: KernelMaps,
     bufs: KernelUniforms,
     status: wgpu::Buffer,
@@ -67,9 +73,10 @@ impl BackprojectionFrame {
     /// specs). Errors: the parameters' own; device limits as
     /// [`Error::Limit`](shadow_map_core::Error::Limit).
     pub fn prepare(ctx: Arc<GpuContext>, params: &shadow_map_core::Params) -> Result<Self> {
-        let mut gpu = GpuBackprojection::new(ctx.clone())?;
-        shadow_map_core::estimator::configure(&mut gpu, params)?;
-        let s = gpu.cpu.settings();
+        let mut cpu = CpuBackprojection::new()?;
+        shadow_map_core::estimator::configure(&mut cpu, params)?;
+        let kernel = BpKernel::new(&ctx)?;
+        let s = cpu.settings();
         let r = s.resolution;
         let req = shadow_map_core::LightSpaceRequest {
             resolution: r,
@@ -82,7 +89,7 @@ impl BackprojectionFrame {
             opacity: true,
         };
         let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
-        let km = gpu.layout.prepare(
+        let km = GpuLayout::new(&ctx)?.prepare(
             &ctx,
             "backprojection",
             r,
@@ -91,11 +98,6 @@ impl BackprojectionFrame {
             layers.opacity(),
             layers.min_max().mssm.as_ref(),
         )?;
-        let maps = DeviceMaps::laid_out(&km, LightView::placeholder(r));
-        let maps_semi = DeviceMaps {
-            opacity: true,
-            ..DeviceMaps::laid_out(&km, LightView::placeholder(r))
-        };
         let uniform = |label, size: usize| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -112,10 +114,10 @@ impl BackprojectionFrame {
         };
         let status = status_buffer(&ctx, "backprojection frame status", 3);
         Ok(BackprojectionFrame {
-            gpu,
+            ctx,
+            cpu,
+            kernel,
             layers,
-            maps,
-            maps_semi,
             km,
             bufs,
             status,
@@ -139,16 +141,17 @@ impl FrameEstimator for BackprojectionFrame {
 
     /// The view the estimator's own `build` fits for `receivers` ([`plan`]).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>> {
-        self.gpu.ctx.check_lost()?;
-        let (view, _, _) = plan(self.gpu.cpu.settings(), scene, receivers)?;
+        self.ctx.check_lost()?;
+        let (view, _, _) = plan(self.cpu.settings(), scene, receivers)?;
         Ok(vec![Some(view)])
     }
 
-    /// Two u32: receivers outside the light frustum, non-finite results (written as 0).
     fn light_space_bytes(&self) -> usize {
         self.layers.bytes()
     }
 
+    /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
+    /// receivers cut short by the loop budget (left NaN).
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }
@@ -161,7 +164,7 @@ impl FrameEstimator for BackprojectionFrame {
     /// `occlusion=bitmask` on a semi-transparent scene: the bits carry no opacity.
     fn scene_warnings(&self, scene: &Scene) -> Vec<shadow_map_core::Warning> {
         let mut report = Report::default();
-        crate::cpu::warn_bitmask_opacity(&mut report, self.gpu.cpu.settings(), scene);
+        crate::cpu::warn_bitmask_opacity(&mut report, self.cpu.settings(), scene);
         report.warnings
     }
 
@@ -170,10 +173,10 @@ impl FrameEstimator for BackprojectionFrame {
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
-        check_buffers(&self.gpu.ctx, inputs.receivers, inputs.v, n)?;
-        let ctx = &*self.gpu.ctx;
+        check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
+        let ctx = &*self.ctx;
         let queue = &ctx.queue;
-        let settings = self.gpu.cpu.settings();
+        let settings = self.cpu.settings();
         let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
         inputs.mark(enc, "start");
         self.layers
@@ -182,19 +185,21 @@ impl FrameEstimator for BackprojectionFrame {
         let semi = !inputs.casters.is_opaque();
         self.km.record(enc, semi);
         inputs.mark(enc, "layout");
-        let maps = if semi { &self.maps_semi } else { &self.maps };
-        let (eu, bpu, table) = self.gpu.uniforms(maps, inputs.light);
+        let (eu, bpu, table) = uniforms(settings, &self.km, semi, inputs.light);
         queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
         queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
         queue.write_buffer(&self.bufs.bits, 0, bytemuck::bytes_of(&table));
         enc.clear_buffer(&self.status, 0, None);
-        let chunk = KernelChunk {
-            receivers: buffer_range(inputs.receivers, n.max(1) * RECEIVER_BYTES),
-            v: buffer_range(inputs.v, n.max(1) * 4),
-            len: inputs.count,
-        };
-        self.gpu
-            .encode_kernel(enc, &self.bufs, maps, &[chunk], &self.status);
+        self.kernel.encode(
+            ctx,
+            enc,
+            &self.bufs,
+            &self.km,
+            buffer_range(inputs.receivers, n.max(1) * RECEIVER_BYTES),
+            buffer_range(inputs.v, n.max(1) * 4),
+            inputs.count,
+            &self.status,
+        );
         inputs.mark(enc, "estimate");
         Ok(())
     }
@@ -211,7 +216,7 @@ impl FrameEstimator for BackprojectionFrame {
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
         let mut cpu = CpuBackprojection::new()?;
-        shadow_map_core::estimator::configure(&mut cpu, self.gpu.cpu.params())?;
+        shadow_map_core::estimator::configure(&mut cpu, self.cpu.params())?;
         cpu.build_in_view(scene, receivers, *single_view(views)?)?;
         let mut v = vec![0.0; receivers.len()];
         cpu.estimate(scene, receivers, &mut v)?;

@@ -1,4 +1,4 @@
-//! Unit tests of the GPU twin's WGSL: naga validation and the uniforms' layout.
+//! Unit tests of the kernel's WGSL: naga validation and the uniforms' layout.
 use super::*;
 use shadow_map_core::gpu::kernel::shader_source;
 use test_support::wgsl::assert_shaders_valid;

@@ -2,11 +2,11 @@
 //! conformance suite's [`frames_match_the_cpu_twin`]: depth peeling, midpoints, the MSSM, the
 //! layout copies and the kernel recorded into the caller's command encoder three frames running,
 //! V read back once, against the CPU twin in the same view, on a rect light (bunny), a disk light
-//! and a low sun; and bit for bit the GPU twin's ordinary `build` + `estimate` (the same view and
-//! request but for the MSSM's level count, which the exact minimum query does not see).
+//! and a low sun; and bit for bit the registry's GPU estimator's `build` + `estimate` (the frame
+//! run by the core's `FrameTwin`: receivers uploaded, one frame, V read back).
 #![cfg(feature = "gpu")]
 
-use backprojection::{BackprojectionFrame, CpuBackprojection, GpuBackprojection};
+use backprojection::{BackprojectionFrame, CpuBackprojection};
 use shadow_map_core::{gpu::frame::FrameEstimator, run, Params, SoftShadowEstimator};
 use test_support::{
     conformance::frames_match_the_cpu_twin,
@@ -25,12 +25,15 @@ fn backprojection_frames_match_the_twins() {
     for (name, scene, rec) in bunny_under_three_lights(64, 48) {
         let label = format!("backprojection {name}");
         let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
-        let mut gpu = GpuBackprojection::new(ctx.clone()).unwrap();
-        let (v_gpu, _) = run(&mut gpu, &scene, &rec).unwrap();
+        let mut gpu = backprojection::DESCRIPTOR
+            .gpu(ctx.clone())
+            .expect("a GPU estimator")
+            .unwrap();
+        let (v_gpu, _) = run(&mut *gpu, &scene, &rec).unwrap();
         let differ_gpu = (0..rec.len())
-            .filter(|&k| rec.active()[k] && c.v[k] != v_gpu[k])
+            .filter(|&k| rec.active()[k] && c.v[k].to_bits() != v_gpu[k].to_bits())
             .count();
-        assert_eq!(differ_gpu, 0, "{label}: differs from the GPU twin's build");
+        assert_eq!(differ_gpu, 0, "{label}: differs from the GPU estimator's");
         assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
         assert!(
             c.beyond * 1000 <= c.active,

@@ -6,10 +6,12 @@
 //! ([`FrameEstimator::status`]).
 //!
 //! The light views are the caller's ([`FrameEstimator::fit_views`] fits them on the CPU, as the
-//! estimator's `build` does). Under `depth=unorm16` each rendered layer is encoded into 16-bit
-//! codes by the core's [`GpuUnorm16Frame`] within the frame, bit for bit the codes the GPU twin's
-//! build writes, and the filter reads the codes. Receivers the device's loop budget cuts short keep the `CUT_BITS` NaN payload in V and
-//! are counted in the status; the frame path does not redo them on the CPU.
+//! CPU twin's `build` does). Under `depth=unorm16` each rendered layer is encoded into 16-bit
+//! codes by the core's [`GpuUnorm16Frame`] within the frame (the codes the CPU's
+//! `Unorm16Map::encode` gives for the same layer), and the filter reads the codes. Receivers the
+//! device's loop budget cuts short keep the `CUT_BITS` NaN payload in V and are counted in the
+//! status, for the caller to redo (the registry's GPU estimator, the core's `FrameTwin`, redoes
+//! them with the CPU twin in the same views).
 use super::{
     kernel,
     map_estimator::{entry, shader_parts, GpuFilter},
@@ -30,10 +32,10 @@ use shadow_map_core::{
             status_buffer,
         },
         receivers::RECEIVER_BYTES,
-        GpuContext, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
+        GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
-    light_view::LightView,
+    light_view::{FitReport, LightView},
     DepthPrecision, Error, Params, Receivers, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
@@ -94,6 +96,14 @@ impl<F: GpuFilter> MapFrame<F> {
             status,
         })
     }
+
+    /// The map the last submitted frame rendered, in `view` (the frame's; the f32 layer, from
+    /// which the frame encodes its codes under `depth=unorm16`): what a test reads back
+    /// ([`GpuLightSpace::to_cpu`]) to run the CPU filter on the very map the kernel read
+    /// ([`MapEstimator::set_light_space`]).
+    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
+        map_light_space(&self.map, 0, view)
+    }
 }
 
 impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
@@ -111,13 +121,13 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         Ok(vec![Some(view)])
     }
 
-    /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
-    /// receivers cut by the device's loop budget (`CUT_BITS` in V).
     /// The map and, under `depth=unorm16`, its 16-bit codes.
     fn light_space_bytes(&self) -> usize {
         self.map.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
     }
 
+    /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
+    /// receivers cut by the device's loop budget (`CUT_BITS` in V).
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }
@@ -203,6 +213,22 @@ fn unorm16_frame(
     }
 }
 
+/// The layer of `map` as light-space data in `view` (sharing the frame's texture), with the view
+/// uniform of `slot`.
+fn map_light_space(map: &GpuMapFrame, slot: usize, view: &LightView) -> GpuLightSpace {
+    GpuLightSpace {
+        view: *view,
+        fit: FitReport::default(),
+        view_uniform: map.view_uniform(slot).clone(),
+        layers: vec![map.layer.clone()],
+        opacity: Vec::new(),
+        midpoints: Vec::new(),
+        mssm: None,
+        dual_mssm: None,
+        pyramid: None,
+    }
+}
+
 /// What the filter kernels bind as the map: the layer (f32) or its codes (`depth=unorm16`).
 fn map_binding<'a>(
     map: &'a GpuMapFrame,
@@ -280,6 +306,20 @@ impl MultiSampleFrame {
             max_receivers,
         })
     }
+
+    /// The map of the last view present in `views` (the frame renders its sub-lights in turn
+    /// into one layer), as the last submitted frame recorded with `views` left it; `None` with no
+    /// view present. Recorded with one sub-light's view present, that sub-light's map: what a
+    /// test reads back ([`GpuLightSpace::to_cpu`]) to run the CPU twin on
+    /// ([`MultiSample::estimate_in_light_spaces`]).
+    pub fn light_space(&self, views: &[Option<LightView>]) -> Option<GpuLightSpace> {
+        let (slot, view) = views
+            .iter()
+            .enumerate()
+            .rev()
+            .find_map(|(slot, v)| v.as_ref().map(|v| (slot, v)))?;
+        (slot < self.map.slots()).then(|| map_light_space(&self.map, slot, view))
+    }
 }
 
 impl FrameEstimator for MultiSampleFrame {
@@ -315,12 +355,12 @@ impl FrameEstimator for MultiSampleFrame {
             .collect()
     }
 
-    /// Keeps no counters.
     /// The map and, under `depth=unorm16`, its 16-bit codes.
     fn light_space_bytes(&self) -> usize {
         self.map.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
     }
 
+    /// Keeps no counters.
     fn status(&self) -> Option<&wgpu::Buffer> {
         None
     }

@@ -1,10 +1,7 @@
 //! What the baseline kernels add to the core's kernel layer ([`shadow_map_core::gpu::kernel`],
-//! re-exported here): the depth-access WGSL part per precision and the one bind-group layout they
-//! share.
-pub use shadow_map_core::gpu::kernel::{
-    compute_pipeline, max_chunk, read_v, shader_module, shader_source, uniform, upload_receivers,
-    ReceiverChunk,
-};
+//! whose shader and pipeline constructors are re-exported here): the depth-access WGSL part per
+//! precision and the one bind-group layout they share.
+pub use shadow_map_core::gpu::kernel::{compute_pipeline, shader_module, shader_source};
 use shadow_map_core::{
     gpu::{kernel, kernel::Binding, GpuContext},
     DepthPrecision,

@@ -2,7 +2,7 @@
 // receiver. The filter file appended after this one defines
 //   fn facing(p_world: vec3<f32>, n_world: vec3<f32>) -> f32      (Filter::facing)
 //   fn visibility(r: ReceiverSample) -> f32                        (Filter::visibility)
-// One invocation per receiver of the chunk bound at `receivers`.
+// One invocation per receiver bound at `receivers`.
 
 @group(0) @binding(0) var<uniform> view: LightViewUniform;
 @group(0) @binding(1) var<uniform> est: EstimateUniform;

@@ -1,45 +1,37 @@
-//! wgpu twins of the four baselines (cargo feature `gpu`, on by default).
+//! The engine path of the four baselines (cargo feature `gpu`, on by default): each method's one
+//! GPU implementation is its frame ([`FrameEstimator`]), recorded into the caller's command
+//! encoder; the registry runs it as the method's GPU estimator through the core's `FrameTwin`.
 //!
-//! | CPU twin | GPU twin | kernel |
+//! | CPU twin | frame | kernel |
 //! |---|---|---|
-//! | [`HardShadow`](crate::HardShadow) | [`GpuHardShadow`] | `map_estimator.wgsl` + `hard.wgsl` |
-//! | [`PcfShadow`](crate::PcfShadow) | [`GpuPcfShadow`] | `map_estimator.wgsl` + `pcf.wgsl` |
-//! | [`PcssShadow`](crate::PcssShadow) | [`GpuPcssShadow`] | `map_estimator.wgsl` + `pcss.wgsl` |
-//! | [`MultiSample`](crate::MultiSample) | [`GpuMultiSample`] | `multi_sample.wgsl` |
+//! | [`HardShadow`](crate::HardShadow) | [`MapFrame`]`<Hard>` | `map_estimator.wgsl` + `hard.wgsl` |
+//! | [`PcfShadow`](crate::PcfShadow) | [`MapFrame`]`<Pcf>` | `map_estimator.wgsl` + `pcf.wgsl` |
+//! | [`PcssShadow`](crate::PcssShadow) | [`MapFrame`]`<Pcss>` | `map_estimator.wgsl` + `pcss.wgsl` |
+//! | [`MultiSample`](crate::MultiSample) | [`MultiSampleFrame`] | `multi_sample.wgsl` |
 //!
-//! Each implements [`SoftShadowEstimator`](shadow_map_core::SoftShadowEstimator) with
-//! `backend() == Backend::Gpu` and the CPU twin's name, description and parameter table, and
-//! offers `estimate_with`, which takes the light-space data as input (so both twins can see
-//! identical data), and `set_max_chunk`, a cap on the receivers of one dispatch. The per-receiver stage is a compute kernel (one invocation per receiver,
-//! [`WORKGROUP_SIZE`](shadow_map_core::gpu::estimate::WORKGROUP_SIZE) per workgroup, receivers in chunks that fit the device's limits) reading
-//! receivers as the core's `ReceiverGpu`, the shadow map as an R32Float texture, and writing V
-//! to a storage buffer that is read back.
+//! A frame renders its maps with the core's raster (views fitted on the CPU, as the CPU twin
+//! fits them), encodes them to 16-bit codes under `depth=unorm16`, then runs compute kernels,
+//! one invocation per receiver
+//! ([`WORKGROUP_SIZE`](shadow_map_core::gpu::estimate::WORKGROUP_SIZE) per workgroup), reading
+//! receivers as the core's `ReceiverGpu` and the map as an R32Float texture (or packed codes),
+//! and writing V into the caller's buffer.
 //!
 //! The WGSL repeats the CPU math in f32 in the same operation order (glam's dot/cross order written
-//! out). Differences that remain, each far below the twin tolerance of `tests/gpu_twins.rs`:
-//! `front_fraction` clips and integrates in f64 on the CPU and in f32 here; PCSS sums its weights
-//! with the same compensated f32 sum on both sides; the driver may fuse a multiply and an add
-//! (WGSL does not forbid it), which moves a transform or a bias by an ulp and can flip a depth
-//! comparison that is a tie to within f32 rounding.
-//!
-//! Light-space data come from [`MapBuilder`]: the view fitted on the CPU, the map rasterised on the
-//! GPU by the core's `GpuShadowMapper` (or CPU maps given to `estimate_with`).
+//! out). Differences that remain on the same map, each far below the twin tolerance of
+//! `tests/baselines/gpu_twins.rs`: `front_fraction` clips and integrates in f64 on the CPU and in
+//! f32 here; PCSS sums its weights with the same compensated f32 sum on both sides; the driver may
+//! fuse a multiply and an add (WGSL does not forbid it), which moves a transform or a bias by an
+//! ulp and can flip a depth comparison that is a tie to within f32 rounding.
 pub mod frame;
 pub mod hard;
 pub mod kernel;
 pub mod map_estimator;
-pub mod maps;
 pub mod multi_sample;
 pub mod pcf;
 pub mod pcss;
 
 pub use frame::{FrameEstimator, FrameInputs, MapFrame, MultiSampleFrame};
-pub use hard::GpuHardShadow;
-pub use map_estimator::{GpuFilter, GpuMapEstimator};
-pub use maps::{DepthTexture, GpuMaps, MapBuilder, MapDepth, MapOrigin};
-pub use multi_sample::GpuMultiSample;
-pub use pcf::GpuPcfShadow;
-pub use pcss::GpuPcssShadow;
+pub use map_estimator::GpuFilter;
 
 use crate::{hard::Hard, pcf::Pcf, pcss::Pcss};
 

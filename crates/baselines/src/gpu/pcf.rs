@@ -1,13 +1,10 @@
-//! GPU twin of [`crate::pcf`]: the N x N percentage-closer block in `pcf.wgsl`.
-use super::map_estimator::{GpuFilter, GpuMapEstimator};
+//! The GPU side of [`crate::pcf`]: the N x N percentage-closer block in `pcf.wgsl`.
+use super::map_estimator::GpuFilter;
 use crate::pcf::Pcf;
 use shadow_map_core::gpu::EstimateUniform;
 
 /// WGSL of PCF (`facing`, `visibility`).
 pub const PCF_WGSL: &str = include_str!("pcf.wgsl");
-
-/// PCF on the GPU (twin of [`PcfShadow`](crate::PcfShadow)).
-pub type GpuPcfShadow = GpuMapEstimator<Pcf>;
 
 impl GpuFilter for Pcf {
     const WGSL: &'static str = PCF_WGSL;

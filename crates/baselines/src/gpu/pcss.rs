@@ -1,13 +1,11 @@
-//! GPU twin of [`crate::pcss`]: blocker search, penumbra estimate and weighted PCF in `pcss.wgsl`.
-use super::map_estimator::{GpuFilter, GpuMapEstimator};
+//! The GPU side of [`crate::pcss`]: blocker search, penumbra estimate and weighted PCF in
+//! `pcss.wgsl`.
+use super::map_estimator::GpuFilter;
 use crate::pcss::Pcss;
 use shadow_map_core::gpu::EstimateUniform;
 
 /// WGSL of PCSS (`facing`, `visibility`).
 pub const PCSS_WGSL: &str = include_str!("pcss.wgsl");
-
-/// PCSS on the GPU (twin of [`PcssShadow`](crate::PcssShadow)).
-pub type GpuPcssShadow = GpuMapEstimator<Pcss>;
 
 impl GpuFilter for Pcss {
     const WGSL: &'static str = PCSS_WGSL;

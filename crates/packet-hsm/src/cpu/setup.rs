@@ -5,10 +5,8 @@ use crate::contour::{
     plane_threshold_range, true_min, CellRect, Emitter, OccluderTest, Receiver, SampleGrid,
 };
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
 use shadow_map_core::{
-    light::front_fraction, light_view::LightView, mssm::Mssm, silhouette::Silhouette,
-    ReceiverPlane, Receivers,
+    light::front_fraction, light_view::LightView, mssm::Mssm, silhouette::Silhouette, ReceiverPlane,
 };
 
 /// The outcome of step 5 for one receiver and one sub-light.
@@ -27,7 +25,8 @@ pub enum Prep {
     },
 }
 
-/// The per-receiver setup that needs no map (shared by the CPU and GPU twins).
+/// The per-receiver setup that needs no map (the CPU twin's; `frame.wgsl`'s `frame_setup` is
+/// its twin on the GPU).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ReceiverSetup {
     /// V (with the facing factor) is known: behind the light, facing away, nearer than n.
@@ -108,20 +107,6 @@ pub fn setup_receiver(sv: &SubView, cfg: &Config, pw: Vec3, nw: Vec3) -> Receive
         plane,
         sil,
     }
-}
-
-/// [`setup_receiver`] for every receiver (inactive ones: `Settled(0)`), in parallel.
-pub fn prepare_setup(sv: &SubView, cfg: &Config, receivers: &Receivers) -> Vec<ReceiverSetup> {
-    (0..receivers.len())
-        .into_par_iter()
-        .map(|k| {
-            if receivers.active()[k] {
-                setup_receiver(sv, cfg, receivers.position()[k], receivers.normal()[k])
-            } else {
-                ReceiverSetup::Settled(0.0)
-            }
-        })
-        .collect()
 }
 
 /// Step 5 for one receiver: [`setup_receiver`], then the tight kernel from the MSSM and the

@@ -1,4 +1,4 @@
-//! The sub-light loop both twins run (Yang §5): opacity levels, the S x S sub-lights and each
+//! The CPU twin's sub-light loop (Yang §5): opacity levels, the S x S sub-lights and each
 //! sub-light's [`SubView`] (map, MSSM, padded dual-grid MSSM, own-plane bounds).
 use super::{prepare, Config, Prep};
 use crate::contour::{Emitter, PaddedDualMssm, SampleGrid};
@@ -12,7 +12,7 @@ use shadow_map_core::{
     Light, LightShape, OpacityLevel, RasterOptions, Receivers, Report, Result, Scene, Warning,
 };
 
-/// The opacity levels both twins run ([`Scene::opacity_levels`]): each level's scene (its
+/// The opacity levels the CPU twin and the engine path run ([`Scene::opacity_levels`]): each level's scene (its
 /// casters, the meshes of at least its opacity) and weight.
 pub struct OpacityLevels<'a> {
     levels: Vec<(std::borrow::Cow<'a, Scene>, f32)>,
@@ -74,7 +74,7 @@ pub fn levels_run(all: &[OpacityLevel], max: u32) -> (Vec<OpacityLevel>, Option<
     }
 }
 
-/// The sub-light loop both twins run (Yang §5): the S x S sub-lights' [`SubView`]s built one at a
+/// The CPU twin's sub-light loop (Yang §5): the S x S sub-lights' [`SubView`]s built one at a
 /// time, V summed over them with weight 1 / S^2, and what the report says about the fits.
 pub struct SubLights {
     /// V summed so far, per receiver.
@@ -83,12 +83,8 @@ pub struct SubLights {
     pub weight: f32,
     /// Build time over the sub-lights (ms).
     pub t_build: f64,
-    /// Estimate time over the sub-lights (ms), added by the twin.
+    /// Estimate time over the sub-lights (ms), added by the estimator.
     pub t_est: f64,
-    /// Whether each sub-view builds its own-plane bounds ([`SubView::fit`]; `Auto` by default).
-    /// The GPU twin turns them off: its traversal does not read them, and its CPU fallback does
-    /// without.
-    pub own_plane: OwnPlane,
     peak: usize,
     // Largest window side over the tightest one, smallest near and largest far plane, and the
     // largest out-of-frustum count, over the sub-lights' fits.
@@ -106,7 +102,6 @@ impl SubLights {
             weight: 1.0 / (cfg.sublights * cfg.sublights) as f32,
             t_build: 0.0,
             t_est: 0.0,
-            own_plane: OwnPlane::Auto,
             peak: 0,
             window_scale: 0.0,
             near: f32::INFINITY,
@@ -131,7 +126,7 @@ impl SubLights {
             receivers,
             (cfg.resolution, c, half),
             cfg,
-            self.own_plane,
+            OwnPlane::Auto,
         )?;
         self.t_build += t.elapsed().as_secs_f64() * 1e3;
         self.peak = self.peak.max(sv.bytes());
@@ -142,7 +137,7 @@ impl SubLights {
         Ok(sv)
     }
     /// Writes V (NaN for inactive receivers, the sum clamped to [0, 1], a non-finite sum as 0)
-    /// and the notes both twins give; `outside`: receivers the estimate found outside a view.
+    /// and the notes the CPU twin gives; `outside`: receivers the estimate found outside a view.
     pub fn finish(
         self,
         cfg: &Config,
@@ -285,7 +280,7 @@ impl SubView {
         own_plane: OwnPlane,
     ) -> Result<SubView> {
         let r = view.r;
-        let (levels, max_cells) = Self::levels(&view, half);
+        let (levels, _) = Self::levels(&view, half);
         let req = LightSpaceRequest {
             resolution: r,
             layers: 1,
@@ -307,25 +302,7 @@ impl SubView {
                 + 8 * p * p * dual_levels,
         )?;
         let ls = LightSpace::build_in_view(scene, view, fit, &req);
-        let l0 = &ls.layers[0];
-        let mssm = Mssm::build(&l0.depth, l0.size, levels);
-        let class = if cfg.shadow.midpoint() {
-            ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
-        } else {
-            &l0.depth
-        };
-        let dual = PaddedDualMssm::build(class, l0.size, max_cells);
-        let (emitter, shape) = emitter_of(scene.light(), half);
-        let mut sv = SubView {
-            ls,
-            mssm,
-            dual,
-            fit: None,
-            half,
-            emitter,
-            shape,
-            light: *scene.light(),
-        };
+        let mut sv = SubView::in_maps(ls, scene.light(), half, cfg);
         // The own-plane bounds are affine bounds of 1/z, a perspective view's planar depth
         // term; an orthographic view (the sun) has planes affine in z itself: not built there.
         let build = cfg.shadow.receiver_plane
@@ -349,6 +326,33 @@ impl SubView {
         }
         Ok(sv)
     }
+    /// The data of a sub-light of half extents `half` of `light` on maps already rendered in
+    /// their view (layer 0, and its midpoints for `self_shadow=midpoint`: the CPU raster's, or
+    /// the engine path's read back): the MSSM and the padded dual-grid MSSM built from them as
+    /// [`SubView::build_in_view`] builds them, without the own-plane bounds.
+    pub fn in_maps(ls: LightSpace, light: &Light, half: Vec2, cfg: &Config) -> SubView {
+        let (levels, max_cells) = Self::levels(&ls.view, half);
+        let l0 = &ls.layers[0];
+        let mssm = Mssm::build(&l0.depth, l0.size, levels);
+        let class = if cfg.shadow.midpoint() {
+            ls.midpoints.first().map_or(&l0.depth, |m| &m.depth)
+        } else {
+            &l0.depth
+        };
+        let dual = PaddedDualMssm::build(class, l0.size, max_cells);
+        let (emitter, shape) = emitter_of(light, half);
+        SubView {
+            ls,
+            mssm,
+            dual,
+            fit: None,
+            half,
+            emitter,
+            shape,
+            light: *light,
+        }
+    }
+
     /// The dual cells of the penumbra receivers' kernels summed, from every 8th receiver
     /// (times 8): the most cells the extraction could walk. Decides whether the own-plane bounds
     /// are worth building ([`OWN_PLANE_WORTH`]).
