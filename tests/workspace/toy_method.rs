@@ -6,7 +6,7 @@
 use shadow_map_core::{
     estimator_identity,
     light_view::RESOLUTION,
-    method::{resolution_sweep, MethodDescriptor},
+    method::{MethodDescriptor, Sweep},
     Cancel, ParamSpec, Params, Receivers, Report, Result, Scene, SceneBvh, SoftShadowEstimator,
 };
 
@@ -63,7 +63,7 @@ impl SoftShadowEstimator for Unshadowed {
 const UNSHADOWED: MethodDescriptor = MethodDescriptor::new(
     "unshadowed",
     || Ok(Box::new(Unshadowed::new()?)),
-    resolution_sweep,
+    Sweep::RESOLUTIONS,
 );
 
 #[test]

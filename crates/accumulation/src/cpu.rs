@@ -7,8 +7,8 @@ use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView, ViewOptions, BIAS, RESOLUTION, SLOPE_BIAS},
     receiver_plane::RECEIVER_PLANE,
-    Error, LightShape, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers,
-    Report, Result, Scene, SoftShadowEstimator,
+    Error, LightShape, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -75,58 +75,28 @@ shadow_map_core::typed_params! {
     pub struct Settings {
         /// Shadow-map resolution r.
         resolution: u32 = RESOLUTION,
-        /// Kernel size K (taps per side).
-        k: u32 = ParamSpec {
-            key: "k",
-            kind: ParamKind::Int { min: 1, max: 64 },
-            default: "10",
-            help: "kernel size K: taps per side (the paper: 5 for speed, 10 for quality)",
-        },
-        /// Additive or exact.
-        variant: Variant = ParamSpec {
-            key: "variant",
-            kind: ParamKind::Choice(Variant::WORDS),
-            default: "additive",
-            help: "additive: shadowing factors summed and clamped (paper eq. 2); exact: occlusion bits on the light, a union (eq. 1)",
-        },
-        /// Fixed, adaptive or lexels.
-        kernel: KernelMode = ParamSpec {
-            key: "kernel",
-            kind: ParamKind::Choice(KernelMode::WORDS),
-            default: "adaptive",
-            help: "fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest geometry); adaptive: multi-resolution rings (single lexels near the receiver, cells doubling outwards, ~K per side per level) over the lexels whose casters at the MSSM's minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at this map's resolution)",
-        },
-        /// Additive: overlap area or the paper's centre test ([`Settings::overlap`]).
-        coverage: Coverage = ParamSpec {
-            key: "coverage",
-            kind: ParamKind::Choice(Coverage::WORDS),
-            default: "overlap",
-            help: "variant=additive: a caster counts with its overlap area with the footprint, or in full when its centre is inside (the paper's test)",
-        },
-        /// Exact: bit-grid side B.
-        bits: u32 = ParamSpec {
-            key: "bits",
-            kind: ParamKind::Int {
-                min: 2,
-                max: MAX_BITS as i64,
-            },
-            default: "16",
-            help: "variant=exact: occlusion-bit grid side B (B x B equal-area bits on the light)",
-        },
-        /// Exact: depth-peeled layers, as set (the layers used are [`Settings::peeled_layers`]).
-        layers: u32 = ParamSpec {
-            key: "layers",
-            kind: ParamKind::Int { min: 1, max: 4 },
-            default: "1",
-            help: "variant=exact: depth-peeled layers whose casters set occlusion bits (additive uses layer 0, as the paper)",
-        },
-        /// Sphere model.
-        sphere: SphereModel = ParamSpec {
-            key: "sphere",
-            kind: ParamKind::Choice(SphereModel::WORDS),
-            default: "contract",
-            help: "sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the paper's disk perpendicular to the light normal",
-        },
+        /// kernel size K: taps per side (the paper: 5 for speed, 10 for quality)
+        k: u32 = ParamSpec::int(1, 64, "10"),
+        /// additive: shadowing factors summed and clamped (paper eq. 2); exact: occlusion bits on
+        /// the light, a union (eq. 1)
+        variant: Variant = ParamSpec::choice(Variant::WORDS, "additive"),
+        /// fixed: K x K taps over the light's footprint on the plane z = n (paper, n the nearest
+        /// geometry); adaptive: multi-resolution rings (single lexels near the receiver, cells
+        /// doubling outwards, ~K per side per level) over the lexels whose casters at the MSSM's
+        /// minimum depth can reach the light; lexels: K x K single lexels (the paper's kernel at
+        /// this map's resolution)
+        kernel: KernelMode = ParamSpec::choice(KernelMode::WORDS, "adaptive"),
+        /// variant=additive: a caster counts with its overlap area with the footprint, or in full
+        /// when its centre is inside (the paper's test)
+        coverage: Coverage = ParamSpec::choice(Coverage::WORDS, "overlap"),
+        /// variant=exact: occlusion-bit grid side B (B x B equal-area bits on the light)
+        bits: u32 = ParamSpec::int(2, MAX_BITS as i64, "16"),
+        /// variant=exact: depth-peeled layers whose casters set occlusion bits (additive uses layer
+        /// 0, as the paper)
+        layers: u32 = ParamSpec::int(1, 4, "1"),
+        /// sphere lights: the contract's silhouette disk (perpendicular to receiver->centre) or the
+        /// paper's disk perpendicular to the light normal
+        sphere: SphereModel = ParamSpec::choice(SphereModel::WORDS, "contract"),
         /// Constant receiver bias b0 (texel footprints).
         bias: f32 = BIAS,
         /// Slope-scaled receiver bias b1.

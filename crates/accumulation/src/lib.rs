@@ -13,7 +13,7 @@ pub use cpu::CpuAccumulation;
 pub use gpu::AccumulationFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
-use shadow_map_core::method::{setting, MethodDescriptor, Setting};
+use shadow_map_core::method::{MethodDescriptor, Sweep};
 
 /// Shadow accumulation in the registry: `accumulation`, its CPU twin and its engine path (also its
 /// GPU estimator, run by the core's `FrameTwin`).
@@ -21,7 +21,7 @@ pub const DESCRIPTOR: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "accumulation",
         || Ok(Box::new(CpuAccumulation::new()?)),
-        sweep,
+        SWEEP,
     );
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, _| Ok(Box::new(AccumulationFrame::prepare(ctx, params)?)));
@@ -30,22 +30,15 @@ pub const DESCRIPTOR: MethodDescriptor = {
 
 /// The report's settings: the kernel size K (Aszodi section 3), the exact variant, a fixed
 /// kernel, and the resolution.
-fn sweep(quick: bool) -> Vec<Setting> {
-    if quick {
-        return vec![
-            setting(&[("resolution", "256")]),
-            setting(&[("variant", "exact")]),
-        ];
-    }
-    let mut s: Vec<Setting> = ["3", "5", "15"]
-        .iter()
-        .map(|k| setting(&[("k", k)]))
-        .collect();
-    s.extend([
-        setting(&[("variant", "exact")]),
-        setting(&[("kernel", "fixed")]),
-        setting(&[("resolution", "256")]),
-        setting(&[("resolution", "2048")]),
-    ]);
-    s
-}
+const SWEEP: Sweep = Sweep {
+    quick: &[&[("resolution", "256")], &[("variant", "exact")]],
+    full: &[
+        &[("k", "3")],
+        &[("k", "5")],
+        &[("k", "15")],
+        &[("variant", "exact")],
+        &[("kernel", "fixed")],
+        &[("resolution", "256")],
+        &[("resolution", "2048")],
+    ],
+};

@@ -7,18 +7,13 @@ use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
     peeling::SelfShadowSettings,
-    Cancel, ParamKind, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result,
-    Scene, SoftShadowEstimator, Warning,
+    Cancel, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
+    SoftShadowEstimator, Warning,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
 /// `layer_rule`: which of a texel's occluding layers is backprojected (Bavoil 2008 §4.2).
-pub const LAYER_RULE: ParamSpec = ParamSpec {
-    key: "layer_rule",
-    kind: ParamKind::Choice(LayerRule::WORDS),
-    default: "auto",
-    help: "which occluding layer of a texel is backprojected: auto = first_nonzero under bitmask occlusion, deepest under additive; deepest = the deepest occluding layer, even when its micropatch misses the light; first_nonzero = from the deepest, the first whose micropatch covers part of the light (Bavoil §4.2's rule; never too bright on stacked occluders, but more overlapping micropatches: larger RMSE on most fixtures)",
-};
+pub const LAYER_RULE: ParamSpec = ParamSpec::choice(LayerRule::WORDS, "auto").named("layer_rule", "which occluding layer of a texel is backprojected: auto = first_nonzero under bitmask occlusion, deepest under additive; deepest = the deepest occluding layer, even when its micropatch misses the light; first_nonzero = from the deepest, the first whose micropatch covers part of the light (Bavoil §4.2's rule; never too bright on stacked occluders, but more overlapping micropatches: larger RMSE on most fixtures)");
 
 /// Which occluding layer of a texel is backprojected ([`LAYER_RULE`]).
 ///
@@ -70,12 +65,7 @@ shadow_map_core::param_words!(GapFilling { Auto = "auto", On = "true", Off = "fa
 
 /// `occlusion`: how the micropatches' coverage of the light is combined (docs/methods.md §2
 /// "Bitmask occlusion").
-pub const OCCLUSION: ParamSpec = ParamSpec {
-    key: "occlusion",
-    kind: ParamKind::Choice(Occlusion::WORDS),
-    default: "auto",
-    help: "auto: bitmask on a scene of opaque meshes, additive (opacity-weighted) when a mesh is semi-transparent (bits carry no opacity); additive: the light area each backprojected micropatch covers, summed and clamped (overlaps count twice); bitmask: a bits x bits grid of light samples, each set once by any micropatch covering it (Schwarz & Stamminger 2007)",
-};
+pub const OCCLUSION: ParamSpec = ParamSpec::choice(Occlusion::WORDS, "auto").named("occlusion", "auto: bitmask on a scene of opaque meshes, additive (opacity-weighted) when a mesh is semi-transparent (bits carry no opacity); additive: the light area each backprojected micropatch covers, summed and clamped (overlaps count twice); bitmask: a bits x bits grid of light samples, each set once by any micropatch covering it (Schwarz & Stamminger 2007)");
 
 /// How the micropatches' coverage of the light is combined ([`OCCLUSION`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -165,41 +155,22 @@ shadow_map_core::typed_params! {
     pub struct Settings {
         /// Shadow-map resolution r.
         resolution: u32 = RESOLUTION,
-        /// Depth-peeled layers k.
-        layers: u32 = ParamSpec {
-            key: "layers",
-            kind: ParamKind::Int { min: 1, max: 4 },
-            default: "3",
-            help: "depth-peeled layers k; per texel one occluding layer is backprojected (Bavoil §4.1; which one: layer_rule)",
-        },
+        /// depth-peeled layers k; per texel one occluding layer is backprojected (Bavoil §4.1;
+        /// which one: layer_rule)
+        layers: u32 = ParamSpec::int(1, 4, "3"),
         /// Which occluding layer of a texel is backprojected.
         layer_rule: LayerRule = LAYER_RULE,
-        /// Extend occluding micropatches to their +u and +v neighbours.
-        gap_filling: GapFilling = ParamSpec {
-            key: "gap_filling",
-            kind: ParamKind::Choice(GapFilling::WORDS),
-            default: "auto",
-            help: "extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md §2, reconstructed): auto = on under bitmask occlusion, off under additive",
-        },
+        /// extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md
+        /// §2, reconstructed): auto = on under bitmask occlusion, off under additive
+        gap_filling: GapFilling = ParamSpec::choice(GapFilling::WORDS, "auto"),
         /// Additive areas or occlusion bits.
         occlusion: Occlusion = OCCLUSION,
-        /// Bit-grid side B of `occlusion=bitmask`.
-        bits: u32 = ParamSpec {
-            key: "bits",
-            kind: ParamKind::Int {
-                min: 2,
-                max: shadow_map_core::bitmask::MAX_BITS as i64,
-            },
-            default: "8",
-            help: "occlusion=bitmask: bit-grid side B (B x B equal-area light samples: a grid on a rect light, concentric on a disk or a sphere's silhouette disk)",
-        },
-        /// Most samples per receiver.
-        max_nspp: u32 = ParamSpec {
-            key: "max_nspp",
-            kind: ParamKind::Int { min: 1, max: 4096 },
-            default: "121",
-            help: "most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp)) (Bavoil §5)",
-        },
+        /// occlusion=bitmask: bit-grid side B (B x B equal-area light samples: a grid on a rect
+        /// light, concentric on a disk or a sphere's silhouette disk)
+        bits: u32 = ParamSpec::int(2, shadow_map_core::bitmask::MAX_BITS as i64, "8"),
+        /// most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp))
+        /// (Bavoil §5)
+        max_nspp: u32 = ParamSpec::int(1, 4096, "121"),
         ;
         /// Midpoints or a receiver bias, and receiver-plane rejection.
         shadow: SelfShadowSettings,

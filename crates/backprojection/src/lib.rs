@@ -13,7 +13,7 @@ pub use cpu::CpuBackprojection;
 pub use gpu::BackprojectionFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
-use shadow_map_core::method::{resolution_sweep, setting, MethodDescriptor, Setting};
+use shadow_map_core::method::{MethodDescriptor, Sweep};
 
 /// Backprojection in the registry: `backprojection`, its CPU twin and its engine path, which
 /// is also its GPU estimator (the core's `FrameTwin`).
@@ -21,7 +21,7 @@ pub const DESCRIPTOR: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "backprojection",
         || Ok(Box::new(CpuBackprojection::new()?)),
-        sweep,
+        SWEEP,
     );
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, _| Ok(Box::new(BackprojectionFrame::prepare(ctx, params)?)));
@@ -30,22 +30,18 @@ pub const DESCRIPTOR: MethodDescriptor = {
 
 /// The report's settings: layers (Bavoil section 3), gap filling, occlusion, self-shadowing,
 /// the kernel's sample cap, and the resolution.
-fn sweep(quick: bool) -> Vec<Setting> {
-    if quick {
-        return vec![
-            setting(&[("resolution", "256")]),
-            setting(&[("layers", "1")]),
-        ];
-    }
-    let mut s = resolution_sweep(false);
-    s.extend([
-        setting(&[("layers", "1")]),
-        setting(&[("layers", "2")]),
-        setting(&[("gap_filling", "false")]),
-        setting(&[("occlusion", "additive")]),
-        setting(&[("self_shadow", "bias")]),
-        setting(&[("max_nspp", "25")]),
-        setting(&[("max_nspp", "49")]),
-    ]);
-    s
-}
+const SWEEP: Sweep = Sweep {
+    quick: &[&[("resolution", "256")], &[("layers", "1")]],
+    full: &[
+        &[("resolution", "256")],
+        &[("resolution", "512")],
+        &[("resolution", "2048")],
+        &[("layers", "1")],
+        &[("layers", "2")],
+        &[("gap_filling", "false")],
+        &[("occlusion", "additive")],
+        &[("self_shadow", "bias")],
+        &[("max_nspp", "25")],
+        &[("max_nspp", "49")],
+    ],
+};

@@ -3,19 +3,17 @@
 use glam::Vec3;
 use shadow_map_core::{
     light_space::LightSpaceRequest, light_view::ViewOptions, precision::DEPTH,
-    receiver_plane::RECEIVER_PLANE, Cancel, Cull, DepthBias, DepthPrecision, ParamKind, ParamSpec,
-    Params, RasterOptions, Receivers, Result,
+    receiver_plane::RECEIVER_PLANE, Cancel, Cull, DepthBias, DepthPrecision, ParamSpec, Params,
+    RasterOptions, Receivers, Result,
 };
 
 pub use shadow_map_core::light_view::{BIAS, RESOLUTION, SLOPE_BIAS};
 
 /// `cull`: face culling while rasterising the shadow map.
-pub const CULL: ParamSpec = ParamSpec {
-    key: "cull",
-    kind: ParamKind::Choice(Cull::WORDS),
-    default: "none",
-    help: "face culling in the shadow-map pass (winding-based, as seen from the light)",
-};
+pub const CULL: ParamSpec = ParamSpec::choice(Cull::WORDS, "none").named(
+    "cull",
+    "face culling in the shadow-map pass (winding-based, as seen from the light)",
+);
 
 shadow_map_core::typed_params! {
     /// The parameters every baseline shares, the head of each baseline's table (its own follow,

@@ -19,14 +19,14 @@ pub use pcf::PcfShadow;
 pub use pcss::PcssShadow;
 pub use shadow_map_core::SoftShadowEstimator;
 
-use shadow_map_core::method::{resolution_sweep, MethodDescriptor};
+use shadow_map_core::method::{MethodDescriptor, Sweep};
 
 /// Hard shadow mapping in the registry: `hard`.
 pub const HARD: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "hard",
         || Ok(Box::new(HardShadow::new()?)),
-        resolution_sweep,
+        Sweep::RESOLUTIONS,
     );
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, _| {
@@ -37,7 +37,11 @@ pub const HARD: MethodDescriptor = {
 
 /// Percentage-closer filtering in the registry: `pcf`.
 pub const PCF: MethodDescriptor = {
-    let d = MethodDescriptor::new("pcf", || Ok(Box::new(PcfShadow::new()?)), resolution_sweep);
+    let d = MethodDescriptor::new(
+        "pcf",
+        || Ok(Box::new(PcfShadow::new()?)),
+        Sweep::RESOLUTIONS,
+    );
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, _| {
         Ok(Box::new(gpu::MapFrame::<pcf::Pcf>::prepare(ctx, params)?))
@@ -50,7 +54,7 @@ pub const PCSS: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "pcss",
         || Ok(Box::new(PcssShadow::new()?)),
-        resolution_sweep,
+        Sweep::RESOLUTIONS,
     );
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, _| {
@@ -64,7 +68,7 @@ pub const MULTI_SAMPLE: MethodDescriptor = {
     let d = MethodDescriptor::new(
         "multi-sample",
         || Ok(Box::new(MultiSample::new()?)),
-        resolution_sweep,
+        Sweep::RESOLUTIONS,
     );
     #[cfg(feature = "gpu")]
     let d = d

@@ -5,7 +5,7 @@ use crate::common::MapSettings;
 use crate::map_estimator::encode_layer0;
 use glam::Vec2;
 use shadow_map_core::{
-    light_space::LightSpace, Cancel, DepthLookup, Error, LightShape, ParamKind, ParamSpec, Params,
+    light_space::LightSpace, Cancel, DepthLookup, Error, LightShape, ParamSpec, Params,
     ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map, Warning,
 };
 
@@ -18,23 +18,10 @@ pub const DESCRIPTION: &str =
 shadow_map_core::typed_params! {
     /// The own parameters of multi-sample shadows (after the shared [`MapSettings`]).
     pub struct MultiSampleParams {
-        /// S: S x S light samples.
-        sublights: u32 = ParamSpec {
-            key: "sublights",
-            kind: ParamKind::Int { min: 1, max: 64 },
-            default: "4",
-            help: "S: S x S light samples, one hard shadow map each",
-        },
-        /// Seed of the stratum jitter ([`jitter`]).
-        seed: u64 = ParamSpec {
-            key: "seed",
-            kind: ParamKind::Int {
-                min: 0,
-                max: 1 << 31,
-            },
-            default: "7",
-            help: "seed of the stratum jitter (fixed, so images are deterministic)",
-        },
+        /// S: S x S light samples, one hard shadow map each
+        sublights: u32 = ParamSpec::int(1, 64, "4"),
+        /// seed of the stratum jitter (fixed, so images are deterministic)
+        seed: u64 = ParamSpec::int(0, 1 << 31, "7"),
     }
 }
 

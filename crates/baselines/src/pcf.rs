@@ -3,19 +3,14 @@
 use crate::common::MapSettings;
 use crate::map_estimator::{lit, Filter, MapEstimator, ReceiverSample};
 use shadow_map_core::light_view::LightView;
-use shadow_map_core::{DepthLookup, Light, ParamKind, ParamSpec, Params, Result};
+use shadow_map_core::{DepthLookup, Light, ParamSpec, Params, Result};
 
 shadow_map_core::typed_params! {
     /// `V = (1/N^2) sum_{|di|,|dj| <= (N-1)/2} [z_p - eps <= D(i + di, j + dj)]`; PCF's own
     /// parameter (after the shared [`MapSettings`]).
     pub struct Pcf {
-        /// Filter size N.
-        kernel: i32 = ParamSpec {
-            key: "kernel",
-            kind: ParamKind::Int { min: 1, max: 63 },
-            default: "5",
-            help: "filter size N (texels per side; even N rounds up to N+1)",
-        },
+        /// filter size N (texels per side; even N rounds up to N+1)
+        kernel: i32 = ParamSpec::int(1, 63, "5"),
     }
 }
 

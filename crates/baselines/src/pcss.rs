@@ -3,7 +3,7 @@
 use crate::common::MapSettings;
 use crate::map_estimator::{Filter, MapEstimator, ReceiverSample};
 use shadow_map_core::light_view::LightView;
-use shadow_map_core::{DepthLookup, Light, ParamKind, ParamSpec, Params, Result};
+use shadow_map_core::{DepthLookup, Light, ParamSpec, Params, Result};
 
 shadow_map_core::typed_params! {
     /// PCSS, step by step (docs/methods.md §5):
@@ -20,13 +20,8 @@ shadow_map_core::typed_params! {
     ///
     /// PCSS's own parameter (after the shared [`MapSettings`]).
     pub struct Pcss {
-        /// Most samples per side in the blocker search and in the filter.
-        max_taps: u32 = ParamSpec {
-            key: "max_taps",
-            kind: ParamKind::Int { min: 1, max: 1024 },
-            default: "32",
-            help: "most samples per side in the blocker search and in the filter",
-        },
+        /// most samples per side in the blocker search and in the filter
+        max_taps: u32 = ParamSpec::int(1, 1024, "32"),
     }
 }
 

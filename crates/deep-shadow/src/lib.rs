@@ -16,12 +16,12 @@ pub use cpu::CpuDeepShadow;
 pub use frame::DeepShadowFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
-use shadow_map_core::method::{setting, MethodDescriptor, Setting};
+use shadow_map_core::method::{MethodDescriptor, Sweep};
 
 /// Deep shadow maps in the registry: `deep-shadow`, its CPU twin and engine path (which is also
 /// its GPU estimator, the core's `FrameTwin`).
 pub const DESCRIPTOR: MethodDescriptor = {
-    let d = MethodDescriptor::new("deep-shadow", || Ok(Box::new(CpuDeepShadow::new()?)), sweep);
+    let d = MethodDescriptor::new("deep-shadow", || Ok(Box::new(CpuDeepShadow::new()?)), SWEEP);
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, n| Ok(Box::new(DeepShadowFrame::prepare(ctx, params, n)?)));
     d
@@ -29,22 +29,17 @@ pub const DESCRIPTOR: MethodDescriptor = {
 
 /// The report's settings: the filters (none, PCF, EDSM; Fuerst's lookups), the tap cap,
 /// sub-lights and the resolution.
-fn sweep(quick: bool) -> Vec<Setting> {
-    if quick {
-        return vec![
-            setting(&[("resolution", "256")]),
-            setting(&[("sublights", "2")]),
-        ];
-    }
-    vec![
-        setting(&[("filter", "none")]),
-        setting(&[("max_taps", "16")]),
-        setting(&[("filter", "pcf"), ("kernel", "5")]),
-        setting(&[("filter", "edsm"), ("kernel", "5")]),
-        setting(&[("sublights", "2")]),
-        setting(&[("sublights", "3")]),
-        setting(&[("sublights", "2"), ("filter", "pcf"), ("kernel", "3")]),
-        setting(&[("resolution", "256")]),
-        setting(&[("resolution", "512")]),
-    ]
-}
+const SWEEP: Sweep = Sweep {
+    quick: &[&[("resolution", "256")], &[("sublights", "2")]],
+    full: &[
+        &[("filter", "none")],
+        &[("max_taps", "16")],
+        &[("filter", "pcf"), ("kernel", "5")],
+        &[("filter", "edsm"), ("kernel", "5")],
+        &[("sublights", "2")],
+        &[("sublights", "3")],
+        &[("sublights", "2"), ("filter", "pcf"), ("kernel", "3")],
+        &[("resolution", "256")],
+        &[("resolution", "512")],
+    ],
+};

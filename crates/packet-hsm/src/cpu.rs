@@ -11,8 +11,8 @@ use shadow_map_core::{
     light_view::{ViewOptions, RESOLUTION},
     params::FromParam,
     peeling::SelfShadowSettings,
-    Cancel, Error, LightShape, ParamKind, ParamSpec, ParamValue, Params, Receivers, Report, Result,
-    Scene, SoftShadowEstimator,
+    Cancel, Error, LightShape, ParamSpec, ParamValue, Params, Receivers, Report, Result, Scene,
+    SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -182,62 +182,31 @@ shadow_map_core::typed_params! {
             help: "shadow-map resolution r (texels per side) of each sub-light's map",
             ..RESOLUTION
         },
-        /// Packet size.
-        packet: Packet = ParamSpec {
-            key: "packet",
-            kind: ParamKind::Choice(PACKETS),
-            default: "3x3",
-            help: "packet of WxH neighbouring pixels (Yang §4.1; 1x1 = per pixel); receivers without an image layout are processed pixel-wise",
-        },
-        /// Sub-lights per side S.
-        sublights: u32 = ParamSpec {
-            key: "sublights",
-            kind: ParamKind::Int { min: 1, max: 4 },
-            default: "1",
-            help: "S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V averaged (Yang §5)",
-        },
-        /// Most opacity levels.
-        opacity_levels: u32 = ParamSpec {
-            key: "opacity_levels",
-            kind: ParamKind::Int { min: 1, max: 16 },
-            default: "2",
-            help: "most opacity levels, one pass each, for semi-transparent meshes (docs/methods.md §3 \"Semi-transparent occluders\"): V = sum of level weights times V with only the meshes of at least that opacity as casters; a scene needing more levels (its distinct opacities, plus one without casters when no mesh is opaque) is treated as opaque; 1 = always opaque",
-        },
-        /// Td.
-        td: f64 = ParamSpec {
-            key: "td",
-            kind: ParamKind::Float { min: 0.0, max: 1.0 },
-            default: "0.8",
-            help: "Td: a packet whose diverging probability P_d (Yang eq. 5) exceeds Td is processed pixel-wise",
-        },
-        /// Hierarchical extraction.
-        hierarchy: bool = ParamSpec {
-            key: "hierarchy",
-            kind: ParamKind::Bool,
-            default: "true",
-            help: "hierarchical contour extraction over the dual-grid MSSM (Yang §4.2, Algorithm 3); false: every 2x2 block of the kernel (GBP07)",
-        },
-        /// Coherence test.
-        coherence: bool = ParamSpec {
-            key: "coherence",
-            kind: ParamKind::Bool,
-            default: "true",
-            help: "coherence test (Yang §4.3: P_d > Td or cost ratio eq. 6 > 1 sends a packet pixel-wise); false: every packet is tried packet-wise",
-        },
-        /// Q_e.
-        qe: f64 = ParamSpec {
-            key: "qe",
-            kind: ParamKind::Float { min: 0.0, max: 1e6 },
-            default: "2.0",
-            help: "Q_e of the cost model (eq. 6): cost of extracting an edge, in units of Q_n = 1 (a node)",
-        },
-        /// Q_v.
-        qv: f64 = ParamSpec {
-            key: "qv",
-            kind: ParamKind::Float { min: 0.0, max: 1e6 },
-            default: "4.0",
-            help: "Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one pixel",
-        },
+        /// packet of WxH neighbouring pixels (Yang §4.1; 1x1 = per pixel); receivers without an
+        /// image layout are processed pixel-wise
+        packet: Packet = ParamSpec::choice(PACKETS, "3x3"),
+        /// S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V
+        /// averaged (Yang §5)
+        sublights: u32 = ParamSpec::int(1, 4, "1"),
+        /// most opacity levels, one pass each, for semi-transparent meshes (docs/methods.md §3
+        /// "Semi-transparent occluders"): V = sum of level weights times V with only the meshes of
+        /// at least that opacity as casters; a scene needing more levels (its distinct opacities,
+        /// plus one without casters when no mesh is opaque) is treated as opaque; 1 = always opaque
+        opacity_levels: u32 = ParamSpec::int(1, 16, "2"),
+        /// Td: a packet whose diverging probability P_d (Yang eq. 5) exceeds Td is processed
+        /// pixel-wise
+        td: f64 = ParamSpec::float(0.0, 1.0, "0.8"),
+        /// hierarchical contour extraction over the dual-grid MSSM (Yang §4.2, Algorithm 3); false:
+        /// every 2x2 block of the kernel (GBP07)
+        hierarchy: bool = ParamSpec::flag(true),
+        /// coherence test (Yang §4.3: P_d > Td or cost ratio eq. 6 > 1 sends a packet pixel-wise);
+        /// false: every packet is tried packet-wise
+        coherence: bool = ParamSpec::flag(true),
+        /// Q_e of the cost model (eq. 6): cost of extracting an edge, in units of Q_n = 1 (a node)
+        qe: f64 = ParamSpec::float(0.0, 1e6, "2.0"),
+        /// Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one
+        /// pixel
+        qv: f64 = ParamSpec::float(0.0, 1e6, "4.0"),
         ;
         /// Midpoint classification or a receiver bias, and receiver-plane rejection.
         shadow: SelfShadowSettings,

@@ -16,12 +16,12 @@ pub use cpu::CpuPacketHsm;
 pub use frame::PacketHsmFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
-use shadow_map_core::method::{setting, MethodDescriptor, Setting};
+use shadow_map_core::method::{MethodDescriptor, Sweep};
 
 /// Packet-based hierarchical soft shadow mapping in the registry: `packet-hsm`, its CPU twin
 /// and its engine path (also its GPU estimator, through the core's frame twin).
 pub const DESCRIPTOR: MethodDescriptor = {
-    let d = MethodDescriptor::new("packet-hsm", || Ok(Box::new(CpuPacketHsm::new()?)), sweep);
+    let d = MethodDescriptor::new("packet-hsm", || Ok(Box::new(CpuPacketHsm::new()?)), SWEEP);
     #[cfg(feature = "gpu")]
     let d = d.with_frame(|ctx, params, n| Ok(Box::new(PacketHsmFrame::prepare(ctx, params, n)?)));
     d
@@ -29,19 +29,14 @@ pub const DESCRIPTOR: MethodDescriptor = {
 
 /// The report's settings: sub-lights (Yang section 5), packet sizes (Algorithm 2) and the
 /// resolution; hierarchy and coherence change only the time, so the report runs their defaults.
-fn sweep(quick: bool) -> Vec<Setting> {
-    if quick {
-        return vec![
-            setting(&[("resolution", "256")]),
-            setting(&[("sublights", "2")]),
-        ];
-    }
-    vec![
-        setting(&[("sublights", "2")]),
-        setting(&[("sublights", "4")]),
-        setting(&[("packet", "1x1")]),
-        setting(&[("packet", "4x4")]),
-        setting(&[("resolution", "256")]),
-        setting(&[("resolution", "512")]),
-    ]
-}
+const SWEEP: Sweep = Sweep {
+    quick: &[&[("resolution", "256")], &[("sublights", "2")]],
+    full: &[
+        &[("sublights", "2")],
+        &[("sublights", "4")],
+        &[("packet", "1x1")],
+        &[("packet", "4x4")],
+        &[("resolution", "256")],
+        &[("resolution", "512")],
+    ],
+};

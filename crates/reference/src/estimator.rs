@@ -2,31 +2,17 @@
 use crate::trace::{visibility_cancellable, TraceOptions};
 use shadow_map_core::{
     estimator::{Report, SoftShadowEstimator},
-    Cancel, ParamKind, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
+    Cancel, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
 };
 
 shadow_map_core::typed_params! {
     /// The reference's settings, one field a parameter.
     pub struct ReferenceSettings {
-        /// Light samples per receiver (rounded up to a square by [`TraceOptions::from_spp`]).
-        spp: u32 = ParamSpec {
-            key: "spp",
-            kind: ParamKind::Int { min: 1, max: 65536 },
-            default: "1024",
-            help:
-                "light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))), \
-                   the count used is reported in the notes",
-        },
-        /// Seed of the sample jitter.
-        seed: u64 = ParamSpec {
-            key: "seed",
-            kind: ParamKind::Int {
-                min: 0,
-                max: 1 << 31,
-            },
-            default: "1",
-            help: "seed of the deterministic sample jitter (same seed, same V bit for bit)",
-        },
+        /// light samples per receiver; rounded up to the next square s*s (s = ceil(sqrt(spp))),
+        /// the count used is reported in the notes
+        spp: u32 = ParamSpec::int(1, 65536, "1024"),
+        /// seed of the deterministic sample jitter (same seed, same V bit for bit)
+        seed: u64 = ParamSpec::int(0, 1 << 31, "1"),
     }
 }
 

@@ -11,7 +11,7 @@ pub use estimator::ReferenceEstimator;
 pub const DESCRIPTOR: shadow_map_core::MethodDescriptor = shadow_map_core::MethodDescriptor::new(
     "reference",
     || Ok(Box::new(ReferenceEstimator::new()?)),
-    shadow_map_core::method::no_sweep,
+    shadow_map_core::method::Sweep::NONE,
 );
 
 /// This crate's version, part of the key under which `softshadow report` caches reference

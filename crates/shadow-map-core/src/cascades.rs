@@ -33,41 +33,16 @@ pub use tiles::{direction_tiles, Tiles};
 mod tests;
 
 /// `cascades`: how many camera-depth slices ([`Cascaded`]).
-pub const CASCADES: ParamSpec = ParamSpec {
-    key: "cascades",
-    kind: ParamKind::Int { min: 0, max: 8 },
-    default: "0",
-    help: "camera-depth cascades, one light view (set) fitted to each slice of the receivers: 0 = auto (one view unless the receivers' far/near camera-depth ratio exceeds 8 and one view's texel density p95 exceeds 2 pixels per texel; then ceil(log4 ratio), 2 to 4)",
-};
+pub const CASCADES: ParamSpec = ParamSpec::int(0, 8, "0").named("cascades", "camera-depth cascades, one light view (set) fitted to each slice of the receivers: 0 = auto (one view unless the receivers' far/near camera-depth ratio exceeds 8 and one view's texel density p95 exceeds 2 pixels per texel; then ceil(log4 ratio), 2 to 4)");
 /// `cascade_lambda`: the practical split scheme's weight ([`practical_splits`]).
-pub const CASCADE_LAMBDA: ParamSpec = ParamSpec {
-    key: "cascade_lambda",
-    kind: ParamKind::Float { min: 0.0, max: 1.0 },
-    default: "0.75",
-    help: "split scheme: lambda times the logarithmic split plus (1 - lambda) times the uniform one (Zhang et al. 2006)",
-};
+pub const CASCADE_LAMBDA: ParamSpec = ParamSpec::float(0.0, 1.0, "0.75").named("cascade_lambda", "split scheme: lambda times the logarithmic split plus (1 - lambda) times the uniform one (Zhang et al. 2006)");
 /// `cascade_blend`: the blend band's half width ([`cascade_weights`]).
-pub const CASCADE_BLEND: ParamSpec = ParamSpec {
-    key: "cascade_blend",
-    kind: ParamKind::Float { min: 0.0, max: 0.5 },
-    default: "0.1",
-    help: "blend band at each split, half width as a fraction of the nearer slice's depth range; V blends linearly across it",
-};
+pub const CASCADE_BLEND: ParamSpec = ParamSpec::float(0.0, 0.5, "0.1").named("cascade_blend", "blend band at each split, half width as a fraction of the nearer slice's depth range; V blends linearly across it");
 
 /// `tiles`: how many light views by direction per cascade ([`direction_tiles`]).
-pub const TILES: ParamSpec = ParamSpec {
-    key: "tiles",
-    kind: ParamKind::Int { min: 0, max: 16 },
-    default: "0",
-    help: "light views by direction from the light centre per cascade, each fitted to the receivers of one tile of directions: 0 = auto (one view unless the receivers' directions span more than tile_span in tan space and one view's texel density p95 exceeds 2 pixels per texel; then up to 8 tiles of at most tile_span), 1 = one view, k = k tiles. Each tile costs a full view build",
-};
+pub const TILES: ParamSpec = ParamSpec::int(0, 16, "0").named("tiles", "light views by direction from the light centre per cascade, each fitted to the receivers of one tile of directions: 0 = auto (one view unless the receivers' directions span more than tile_span in tan space and one view's texel density p95 exceeds 2 pixels per texel; then up to 8 tiles of at most tile_span), 1 = one view, k = k tiles. Each tile costs a full view build");
 /// `tile_span`: the largest extent in tan space one tile keeps under `tiles=0`.
-pub const TILE_SPAN: ParamSpec = ParamSpec {
-    key: "tile_span",
-    kind: ParamKind::Float { min: 0.25, max: 40.0 },
-    default: "2",
-    help: "tiles=0: a tile of directions is split while its receivers span more than this in tan space (x/z or y/z in the light frame; 2 is +-45 degrees about its centre direction)",
-};
+pub const TILE_SPAN: ParamSpec = ParamSpec::float(0.25, 40.0, "2").named("tile_span", "tiles=0: a tile of directions is split while its receivers span more than this in tan space (x/z or y/z in the light frame; 2 is +-45 degrees about its centre direction)");
 /// Most tiles `tiles=0` (auto) picks.
 pub const MAX_AUTO_TILES: usize = 8;
 
@@ -90,12 +65,7 @@ pub enum Casters {
 crate::param_words!(Casters { Auto = "auto", On = "on", Off = "off" });
 
 /// `casters`: caster-aware fitting ([`Casters`]).
-pub const CASTERS: ParamSpec = ParamSpec {
-    key: "casters",
-    kind: ParamKind::Choice(Casters::WORDS),
-    default: "auto",
-    help: "caster-aware fitting: on = receivers whose light pyramid holds no geometry in front of their tangent plane get their facing fraction (exact, no map) and the views fit only the others; off = every receiver in a view; auto = on where one view's texel density p95 exceeds 2 pixels per texel",
-};
+pub const CASTERS: ParamSpec = ParamSpec::choice(Casters::WORDS, "auto").named("casters", "caster-aware fitting: on = receivers whose light pyramid holds no geometry in front of their tangent plane get their facing fraction (exact, no map) and the views fit only the others; off = every receiver in a view; auto = on where one view's texel density p95 exceeds 2 pixels per texel");
 
 /// Most cascades (the [`CASCADES`] range).
 pub const MAX_CASCADES: u32 = 8;

@@ -2,11 +2,7 @@
 //! z = n (the papers' convention, docs/methods.md §1), fitted tightly to what the receivers need
 //! (common-techniques-shadow-depth-maps.md, "tight light frusta" and "near and far planes").
 use crate::{
-    light::LightFrame,
-    params::{ParamKind, ParamSpec},
-    receivers::Receivers,
-    scene::Scene,
-    Error, Result,
+    light::LightFrame, params::ParamSpec, receivers::Receivers, scene::Scene, Error, Result,
 };
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
@@ -134,52 +130,19 @@ crate::typed_params! {
 }
 
 /// `resolution`: shadow-map side in texels (every estimator with a map).
-pub const RESOLUTION: ParamSpec = ParamSpec {
-    key: "resolution",
-    kind: ParamKind::Int {
-        min: 1,
-        max: MAX_RESOLUTION as i64,
-    },
-    default: "1024",
-    help: "shadow-map resolution r (texels per side)",
-};
+pub const RESOLUTION: ParamSpec = ParamSpec::int(1, MAX_RESOLUTION as i64, "1024")
+    .named("resolution", "shadow-map resolution r (texels per side)");
 /// `bias`: constant receiver bias `b0` in texel footprints ([`LightView::receiver_bias`]).
-pub const BIAS: ParamSpec = ParamSpec {
-    key: "bias",
-    kind: ParamKind::Float {
-        min: 0.0,
-        max: 1000.0,
-    },
-    default: "1.0",
-    help: "constant bias in world-space texel footprints at the receiver (w z / (n r)): along the normal under receiver_plane=true (tolerance of the tangent-plane test), along z under receiver_plane=false",
-};
+pub const BIAS: ParamSpec = ParamSpec::float(0.0, 1000.0, "1.0").named("bias", "constant bias in world-space texel footprints at the receiver (w z / (n r)): along the normal under receiver_plane=true (tolerance of the tangent-plane test), along z under receiver_plane=false");
 /// `slope_bias`: slope-scaled receiver bias `b1` in texel footprints
 /// ([`LightView::receiver_bias`]).
-pub const SLOPE_BIAS: ParamSpec = ParamSpec {
-    key: "slope_bias",
-    kind: ParamKind::Float {
-        min: 0.0,
-        max: 1000.0,
-    },
-    default: "1.0",
-    help: "slope-scaled bias (receiver_plane=false only): texel footprints times min(tan(theta), 10), theta = angle(normal, light)",
-};
+pub const SLOPE_BIAS: ParamSpec = ParamSpec::float(0.0, 1000.0, "1.0").named("slope_bias", "slope-scaled bias (receiver_plane=false only): texel footprints times min(tan(theta), 10), theta = angle(normal, light)");
 
 /// `fit`: the window choice ([`FitMode`]).
-pub const FIT: ParamSpec = ParamSpec {
-    key: "fit",
-    kind: ParamKind::Choice(FitMode::WORDS),
-    default: "receivers",
-    help: "light-view window: tightest over the receivers, the whole scene, or stable (power-of-two size, texel-snapped: no shimmer when the camera moves)",
-};
+pub const FIT: ParamSpec = ParamSpec::choice(FitMode::WORDS, "receivers").named("fit", "light-view window: tightest over the receivers, the whole scene, or stable (power-of-two size, texel-snapped: no shimmer when the camera moves)");
 
 /// `nearfar`: the near/far choice ([`NearFar`]).
-pub const NEARFAR: ParamSpec = ParamSpec {
-    key: "nearfar",
-    kind: ParamKind::Choice(NearFar::WORDS),
-    default: "clipped",
-    help: "near/far planes: light frustum clipped to the scene, scene AABB, or the view frustum (receivers; clips casters nearer than them)",
-};
+pub const NEARFAR: ParamSpec = ParamSpec::choice(NearFar::WORDS, "clipped").named("nearfar", "near/far planes: light frustum clipped to the scene, scene AABB, or the view frustum (receivers; clips casters nearer than them)");
 
 impl LightView {
     /// A view of side `r` on the world axes (near 1, far 2, window [-1, 1]^2) that stands in for

@@ -9,6 +9,34 @@ use crate::{Result, SoftShadowEstimator};
 /// One report setting: `(key, value)` overrides of a method's defaults.
 pub type Setting = Vec<(&'static str, String)>;
 
+/// The settings `softshadow report` runs besides a method's defaults, as data: each setting a
+/// list of `(key, value)` overrides (checked against the method's table when the report runs).
+#[derive(Debug, Clone, Copy)]
+pub struct Sweep {
+    /// The small set CI runs (`report --quick`).
+    pub quick: &'static [&'static [(&'static str, &'static str)]],
+    /// The full report's set.
+    pub full: &'static [&'static [(&'static str, &'static str)]],
+}
+
+impl Sweep {
+    /// No settings besides the defaults (a method without a sweep: the reference).
+    pub const NONE: Sweep = Sweep {
+        quick: &[],
+        full: &[],
+    };
+
+    /// The shadow-map resolutions: 256 (quick), or 256, 512 and 2048 (full).
+    pub const RESOLUTIONS: Sweep = Sweep {
+        quick: &[&[("resolution", "256")]],
+        full: &[
+            &[("resolution", "256")],
+            &[("resolution", "512")],
+            &[("resolution", "2048")],
+        ],
+    };
+}
+
 /// A fresh CPU estimator with default parameters.
 pub type CpuConstructor = fn() -> Result<Box<dyn SoftShadowEstimator>>;
 
@@ -28,7 +56,7 @@ pub type FrameConstructor = fn(
 pub struct MethodDescriptor {
     name: &'static str,
     cpu: CpuConstructor,
-    sweep: fn(bool) -> Vec<Setting>,
+    sweep: Sweep,
     #[cfg(feature = "gpu")]
     frame: Option<FrameConstructor>,
 }
@@ -44,13 +72,9 @@ impl std::fmt::Debug for MethodDescriptor {
 }
 
 impl MethodDescriptor {
-    /// A CPU-only method called `name` (`--algo NAME`) whose report runs `sweep(quick)` besides
-    /// its defaults (`quick`: the small set CI runs).
-    pub const fn new(
-        name: &'static str,
-        cpu: CpuConstructor,
-        sweep: fn(bool) -> Vec<Setting>,
-    ) -> MethodDescriptor {
+    /// A CPU-only method called `name` (`--algo NAME`) whose report runs `sweep` besides its
+    /// defaults.
+    pub const fn new(name: &'static str, cpu: CpuConstructor, sweep: Sweep) -> MethodDescriptor {
         MethodDescriptor {
             name,
             cpu,
@@ -79,7 +103,12 @@ impl MethodDescriptor {
 
     /// The settings the report runs besides the defaults (`quick`: CI's small set).
     pub fn sweep(&self, quick: bool) -> Vec<Setting> {
-        (self.sweep)(quick)
+        let set = if quick {
+            self.sweep.quick
+        } else {
+            self.sweep.full
+        };
+        set.iter().map(|pairs| setting(pairs)).collect()
     }
 
     /// Whether this build has the method on the GPU (its engine path, run as an estimator by
@@ -126,19 +155,6 @@ impl MethodDescriptor {
     ) -> Option<Result<Box<dyn crate::gpu::frame::FrameEstimator>>> {
         self.frame.map(|f| f(ctx, params, max_receivers))
     }
-}
-
-/// The shadow-map resolutions a report sweeps: 256 (quick), or 256, 512 and 2048 (full).
-pub fn resolution_sweep(quick: bool) -> Vec<Setting> {
-    let rs: &[u32] = if quick { &[256] } else { &[256, 512, 2048] };
-    rs.iter()
-        .map(|r| vec![(crate::light_view::RESOLUTION.key, r.to_string())])
-        .collect()
-}
-
-/// No settings besides the defaults (a method without a sweep: the reference).
-pub fn no_sweep(_quick: bool) -> Vec<Setting> {
-    Vec::new()
 }
 
 /// `(key, value)` pairs as one [`Setting`].

@@ -38,6 +38,59 @@ pub struct ParamSpec {
     pub help: &'static str,
 }
 
+impl ParamSpec {
+    const fn of(kind: ParamKind, default: &'static str) -> Self {
+        Self {
+            key: "",
+            kind,
+            default,
+            help: "",
+        }
+    }
+
+    /// An integer in `min..=max`. Inside [`typed_params!`](crate::typed_params) the key is the
+    /// field's name and the help its doc comment; elsewhere give both with [`Self::named`].
+    pub const fn int(min: i64, max: i64, default: &'static str) -> Self {
+        Self::of(ParamKind::Int { min, max }, default)
+    }
+
+    /// A finite float in `min..=max` (key and help as [`Self::int`]).
+    pub const fn float(min: f64, max: f64, default: &'static str) -> Self {
+        Self::of(ParamKind::Float { min, max }, default)
+    }
+
+    /// One of `words` (key and help as [`Self::int`]).
+    pub const fn choice(words: &'static [&'static str], default: &'static str) -> Self {
+        Self::of(ParamKind::Choice(words), default)
+    }
+
+    /// `true` or `false` (key and help as [`Self::int`]).
+    pub const fn flag(default: bool) -> Self {
+        Self::of(ParamKind::Bool, if default { "true" } else { "false" })
+    }
+
+    /// This spec under `key`, described by `help`.
+    pub const fn named(self, key: &'static str, help: &'static str) -> Self {
+        Self { key, help, ..self }
+    }
+
+    /// The spec of a [`typed_params!`](crate::typed_params) field: an empty key becomes the
+    /// field's name, an empty help its doc comment (the lines joined, trimmed). A spec declared
+    /// with its own key and help (a shared one, such as
+    /// [`RESOLUTION`](crate::light_view::RESOLUTION)) is kept as it is.
+    pub const fn declared(self, field: &'static str, doc: &'static str) -> Self {
+        Self {
+            key: if self.key.is_empty() { field } else { self.key },
+            help: if self.help.is_empty() {
+                doc.trim_ascii()
+            } else {
+                self.help
+            },
+            ..self
+        }
+    }
+}
+
 /// A parsed value.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ParamValue {
@@ -359,12 +412,7 @@ pub const fn concat_spec_parts<const N: usize>(parts: &[&[ParamSpec]]) -> [Param
         spec_parts_len(parts) == N,
         "concat_spec_parts: N is not the sum of the lengths"
     );
-    const BLANK: ParamSpec = ParamSpec {
-        key: "",
-        kind: ParamKind::Bool,
-        default: "",
-        help: "",
-    };
+    const BLANK: ParamSpec = ParamSpec::flag(false);
     let mut out = [BLANK; N];
     let (mut i, mut k) = (0, 0);
     while k < parts.len() {
@@ -393,12 +441,7 @@ pub const fn concat_spec_parts<const N: usize>(parts: &[&[ParamSpec]]) -> [Param
 /// shadow_map_core::typed_params! {
 ///     /// Own.
 ///     pub struct Own {
-///         kernel: u32 = ParamSpec {
-///             key: "kernel",
-///             kind: ParamKind::Int { min: 1, max: 9 },
-///             default: "3",
-///             help: "kernel side",
-///         },
+///         kernel: u32 = ParamSpec::int(1, 9, "3").named("kernel", "kernel side"),
 ///     }
 /// }
 /// const SPECS: &[ParamSpec] = shadow_map_core::concat_specs!(Shared::SPECS, Own::SPECS);
@@ -417,29 +460,28 @@ macro_rules! concat_specs {
 /// Declares an estimator's parameters once: a struct with one typed field a parameter, its
 /// [`ParamSpec`] table (`SPECS`, what `softshadow algos`, `--param` and
 /// [`SoftShadowEstimator::set_param`](crate::SoftShadowEstimator::set_param) use) and
-/// `from_params`, which reads every field from a [`Params`] of that table. A field must be named
-/// like its key (checked at compile time), so code never spells a key as a string.
+/// `from_params`, which reads every field from a [`Params`] of that table. A field declared with
+/// [`ParamSpec::int`], `float`, `choice` or `flag` is keyed by its name and described by its doc
+/// comment (one text for rustdoc and `softshadow algos`); a spec shared from elsewhere keeps its
+/// own key and help, and its key must equal the field's name (checked at compile time), so code
+/// never spells a key as a string.
 ///
 /// ```
-/// use shadow_map_core::{light_view::RESOLUTION, ParamKind, ParamSpec, Params};
+/// use shadow_map_core::{light_view::RESOLUTION, ParamSpec, Params};
 /// shadow_map_core::typed_params! {
 ///     /// Settings of a demo estimator.
 ///     pub struct Demo {
 ///         /// Shadow-map side.
 ///         resolution: u32 = RESOLUTION,
-///         /// Kernel side.
-///         kernel: u32 = ParamSpec {
-///             key: "kernel",
-///             kind: ParamKind::Int { min: 1, max: 9 },
-///             default: "3",
-///             help: "kernel side",
-///         },
+///         /// kernel side
+///         kernel: u32 = ParamSpec::int(1, 9, "3"),
 ///     }
 /// }
 /// let mut p = Params::new(Demo::SPECS).unwrap();
 /// p.set("kernel", "5").unwrap();
 /// let d = Demo::from_params(&p).unwrap();
 /// assert_eq!((d.resolution, d.kernel), (1024, 5));
+/// assert_eq!((Demo::SPECS[1].key, Demo::SPECS[1].help), ("kernel", "kernel side"));
 /// assert!(p.set("kernle", "5").is_err());
 /// ```
 ///
@@ -471,21 +513,23 @@ macro_rules! typed_params {
     (
         $(#[$meta:meta])*
         $vis:vis struct $name:ident {
-            $( $(#[$fmeta:meta])* $field:ident : $ty:ty = $spec:expr ),* $(,)?
+            $( $(#[doc = $doc:literal])* $field:ident : $ty:ty = $spec:expr ),* $(,)?
             $( ; $( $(#[$gmeta:meta])* $group:ident : $gty:ty ),+ $(,)? )?
         }
     ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, Copy, PartialEq)]
         $vis struct $name {
-            $( $(#[$fmeta])* pub $field: $ty, )*
+            $( $(#[doc = $doc])* pub $field: $ty, )*
             $($( $(#[$gmeta])* pub $group: $gty, )+)?
         }
 
         impl $name {
             /// This struct's own parameters, in declaration order (its groups' follow in
             /// [`Self::SPECS`]).
-            pub const OWN_SPECS: &'static [$crate::ParamSpec] = &[$($spec),*];
+            pub const OWN_SPECS: &'static [$crate::ParamSpec] = &[$(
+                $crate::ParamSpec::declared($spec, stringify!($field), concat!("" $(, $doc)*))
+            ),*];
 
             /// The parameter table: the own parameters, then each group's table in order.
             pub const SPECS: &'static [$crate::ParamSpec] =
@@ -525,18 +569,8 @@ mod tests {
     use super::*;
 
     const SPECS: &[ParamSpec] = &[
-        ParamSpec {
-            key: "k",
-            kind: ParamKind::Int { min: 1, max: 9 },
-            default: "3",
-            help: "",
-        },
-        ParamSpec {
-            key: "mode",
-            kind: ParamKind::Choice(&["a", "b"]),
-            default: "a",
-            help: "",
-        },
+        ParamSpec::int(1, 9, "3").named("k", ""),
+        ParamSpec::choice(&["a", "b"], "a").named("mode", ""),
     ];
 
     /// A misspelled or mistyped key is an error naming it, never 0 or "".

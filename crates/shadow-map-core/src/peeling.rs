@@ -5,17 +5,15 @@ use crate::{
     light_view::{LightView, BIAS, SLOPE_BIAS},
     raster::{DepthBias, DepthMap, PreparedScene},
     receiver_plane::RECEIVER_PLANE,
-    ParamKind, ParamSpec,
+    ParamSpec,
 };
 
 /// `self_shadow`: how an estimator with midpoint layers tells a receiver's own surface from an
 /// occluder (Bavoil §4.2): by the midpoint layers (parameter-free) or by a receiver bias.
-pub const SELF_SHADOW: ParamSpec = ParamSpec {
-    key: "self_shadow",
-    kind: ParamKind::Choice(SelfShadow::WORDS),
-    default: "midpoint",
-    help: "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
-};
+pub const SELF_SHADOW: ParamSpec = ParamSpec::choice(SelfShadow::WORDS, "midpoint").named(
+    "self_shadow",
+    "classify samples by midpoint layers (Bavoil §4.2, parameter-free) or by a receiver bias",
+);
 /// How receivers are told from occluders ([`SELF_SHADOW`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum SelfShadow {
@@ -29,12 +27,10 @@ pub enum SelfShadow {
 crate::param_words!(SelfShadow { Midpoint = "midpoint", Bias = "bias" });
 
 /// `max_bias`: the clamp of [`midpoint`], in texel footprints at the far plane.
-pub const MAX_BIAS: ParamSpec = ParamSpec {
-    key: "max_bias",
-    kind: ParamKind::Float { min: 0.0, max: 1e6 },
-    default: "4.0",
-    help: "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
-};
+pub const MAX_BIAS: ParamSpec = ParamSpec::float(0.0, 1e6, "4.0").named(
+    "max_bias",
+    "midpoint clamp in texel footprints at the far plane: midpoint <= z_1 + max_bias w far / (n r)",
+);
 /// [`BIAS`] where it applies only under `self_shadow=bias`.
 pub const SELF_SHADOW_BIAS: ParamSpec = ParamSpec {
     help: "self_shadow=bias: constant depth bias, in world-space texel footprints at the receiver (w z / (n r))",

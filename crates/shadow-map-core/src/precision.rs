@@ -17,10 +17,7 @@
 //! is, so estimators add `s / 2` ([`Unorm16Map::half_step`]) to their receiver bias under
 //! `unorm16`: the quantisation never adds acne, at the price of up to `s / 2` more
 //! peter-panning (measured in `scripts/depth-table.sh`).
-use crate::{
-    params::{ParamKind, ParamSpec},
-    raster::DepthMap,
-};
+use crate::{params::ParamSpec, raster::DepthMap};
 
 /// The code of an empty texel (and of depths beyond the representable range): +inf.
 pub const EMPTY_CODE: u16 = u16::MAX;
@@ -40,12 +37,7 @@ pub enum DepthPrecision {
 crate::param_words!(DepthPrecision { F32 = "f32", Unorm16 = "unorm16" });
 
 /// `depth`: the stored precision ([`DepthPrecision`]).
-pub const DEPTH: ParamSpec = ParamSpec {
-    key: "depth",
-    kind: ParamKind::Choice(DepthPrecision::WORDS),
-    default: "f32",
-    help: "stored shadow-map depth: 32-bit float, or 16-bit codes over [near, far] (half the memory; bias grows by half a code step)",
-};
+pub const DEPTH: ParamSpec = ParamSpec::choice(DepthPrecision::WORDS, "f32").named("depth", "stored shadow-map depth: 32-bit float, or 16-bit codes over [near, far] (half the memory; bias grows by half a code step)");
 
 impl DepthPrecision {
     /// Bytes per stored texel.

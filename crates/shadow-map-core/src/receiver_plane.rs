@@ -45,16 +45,11 @@
 //! With `receiver_plane=false` the same struct performs the classic test `z < z_p - eps`, eps
 //! from [`LightView::receiver_bias`] (constant plus slope-scaled bias).
 use crate::light_view::LightView;
-use crate::params::{ParamKind, ParamSpec};
+use crate::params::ParamSpec;
 use glam::{Vec2, Vec3};
 
 /// `receiver_plane`: receiver-plane rejection on or off (every estimator with a kernel).
-pub const RECEIVER_PLANE: ParamSpec = ParamSpec {
-    key: "receiver_plane",
-    kind: ParamKind::Bool,
-    default: "true",
-    help: "a sample shadows the receiver only if it lies in front of the receiver's tangent plane (no bias tuning at any angle); false: the classic depth test against z - bias",
-};
+pub const RECEIVER_PLANE: ParamSpec = ParamSpec::flag(true).named("receiver_plane", "a sample shadows the receiver only if it lies in front of the receiver's tangent plane (no bias tuning at any angle); false: the classic depth test against z - bias");
 
 /// Relative rounding allowance of the test (see the module documentation).
 pub const ROUNDING: f32 = 1.0 / 65536.0;

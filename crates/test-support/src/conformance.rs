@@ -619,28 +619,9 @@ fn frames_compared(
     receivers: &Receivers,
     cut_word: Option<usize>,
 ) -> FrameComparison {
-    use shadow_map_core::gpu::{frame::FrameInputs, receivers::GpuReceivers, GpuScene};
-    let views = frame
-        .fit_views(scene, receivers)
-        .unwrap_or_else(|e| panic!("{label}: fit_views: {e}"));
-    let casters = GpuScene::upload(ctx, scene).unwrap_or_else(|e| panic!("{label}: {e}"));
-    let rec = GpuReceivers::upload(ctx, receivers).unwrap_or_else(|e| panic!("{label}: {e}"));
-    let n = receivers.len() as u64;
-    let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("caller's V"),
-        size: 4 * n.max(1),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let inputs = FrameInputs {
-        casters: &casters,
-        views: &views,
-        light: scene.light(),
-        receivers: &rec.buffer,
-        count: rec.count,
-        v: &v_buf,
-        timestamps: None,
-    };
+    let rig = crate::frame_run::FrameRig::new(ctx, frame, scene, receivers)
+        .unwrap_or_else(|e| panic!("{label}: {e}"));
+    let (views, inputs, n) = (&rig.views, rig.inputs(), receivers.len() as u64);
     for _ in 0..3 {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         frame
@@ -649,7 +630,7 @@ fn frames_compared(
         ctx.queue.submit([enc.finish()]);
     }
     let bits: Vec<u32> = ctx
-        .read_buffer(&v_buf, 4 * n)
+        .read_buffer(&rig.v, 4 * n)
         .unwrap_or_else(|e| panic!("{label}: {e}"));
     timestamped_frame_matches(label, ctx, frame, &inputs, &bits);
     let words: Vec<u32> = match frame.status() {
@@ -660,7 +641,7 @@ fn frames_compared(
     };
     let status = frame.decode_status(&words);
     let cpu = frame
-        .cpu_twin(scene, receivers, &views)
+        .cpu_twin(scene, receivers, views)
         .unwrap_or_else(|e| panic!("{label}: CPU twin: {e}"));
     let (mut max_dv, mut beyond, mut active, mut sq) = (0.0f32, 0usize, 0usize, 0.0f64);
     let mut cut = 0usize;

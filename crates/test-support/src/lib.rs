@@ -11,11 +11,13 @@
 //!   square occluders, a line of receivers) and the scene fixtures under `fixtures/`.
 //! - `gate` (feature `gpu`): the shared Vulkan context, a loud skip without an adapter, a
 //!   failure instead under `SOFTSHADOW_REQUIRE_GPU=1`.
+//! - `frame_run` (feature `gpu`): one frame of a `FrameEstimator` as a renderer records it
+//!   (`FrameRig`, `run_frame`): inputs uploaded, one submit, V and the status read back.
 //! - [`wgsl`]: naga's checks of WGSL without a device (shaders parse and validate, `#[repr(C)]`
 //!   mirrors match their WGSL structs: [`assert_wgsl_layout!`]), for every crate's shader tests.
 //! - `conformance` (feature `gpu`): the CPU-vs-GPU conformance suite every method's twins pass:
-//!   random scenes, empty and inactive receivers, chunking invariance, one name and parameter
-//!   table, the CLI path and the loop-limit redo; the macro `twin_suite!` instantiates it per
+//!   random scenes, empty and inactive receivers, one name and parameter table, the CLI path
+//!   and the loop-limit redo; the macro `twin_suite!` instantiates it per
 //!   algorithm, in a module `twin::<algorithm>`, so that test names carry the algorithm.
 #![warn(missing_docs)]
 
@@ -23,6 +25,8 @@ pub mod config;
 #[cfg(feature = "gpu")]
 pub mod conformance;
 pub mod fixtures;
+#[cfg(feature = "gpu")]
+pub mod frame_run;
 #[cfg(feature = "gpu")]
 pub mod gate;
 pub mod scenes;

@@ -235,7 +235,7 @@ mod bounds_tests {
 
 mod param_tests {
     use super::*;
-    use crate::{precision::DEPTH, Cull, DepthPrecision, FromParam, ParamValue};
+    use crate::{precision::DEPTH, Cull, DepthPrecision, FromParam, ParamKind, ParamValue};
 
     /// Every word of a choice converts, nothing else does.
     fn words_convert<T: FromParam>(spec: &ParamSpec) {
@@ -258,12 +258,7 @@ mod param_tests {
         words_convert::<FitMode>(&FIT);
         words_convert::<NearFar>(&NEARFAR);
         words_convert::<DepthPrecision>(&DEPTH);
-        let cull = ParamSpec {
-            key: "cull",
-            kind: ParamKind::Choice(Cull::WORDS),
-            default: "none",
-            help: "",
-        };
+        let cull = ParamSpec::choice(Cull::WORDS, "none").named("cull", "");
         words_convert::<Cull>(&cull);
         words_convert::<crate::peeling::SelfShadow>(&crate::peeling::SELF_SHADOW);
         for w in ["midpoint", "bias"] {

@@ -10,7 +10,7 @@ use crate::common;
 use common::{good_scene_toml, QUAD};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
-use shadow_map_core::{params::parse_assignment, Error, ParamKind, ParamSpec, Params, Scene};
+use shadow_map_core::{params::parse_assignment, Error, ParamSpec, Params, Scene};
 use std::path::Path;
 
 const GOOD: &str = concat!(good_scene_toml!(), "opacity = 0.5\n");
@@ -195,30 +195,10 @@ fn arbitrary_bytes_as_scene_and_obj() {
 }
 
 const SPECS: &[ParamSpec] = &[
-    ParamSpec {
-        key: "resolution",
-        kind: ParamKind::Int { min: 1, max: 16384 },
-        default: "1024",
-        help: "r",
-    },
-    ParamSpec {
-        key: "c",
-        kind: ParamKind::Float { min: 0.0, max: 1e4 },
-        default: "80",
-        help: "c",
-    },
-    ParamSpec {
-        key: "variant",
-        kind: ParamKind::Choice(&["additive", "exact"]),
-        default: "additive",
-        help: "v",
-    },
-    ParamSpec {
-        key: "hierarchy",
-        kind: ParamKind::Bool,
-        default: "true",
-        help: "h",
-    },
+    ParamSpec::int(1, 16384, "1024").named("resolution", "r"),
+    ParamSpec::float(0.0, 1e4, "80").named("c", "c"),
+    ParamSpec::choice(&["additive", "exact"], "additive").named("variant", "v"),
+    ParamSpec::flag(true).named("hierarchy", "h"),
 ];
 
 #[test]
