@@ -72,8 +72,7 @@ impl FixedCase {
 ///
 /// The methods named like tests are the suite's optional checks: [`twin_suite!`] generates a
 /// test of that name for each one listed after the pair; their default bodies panic (not part
-/// of this method's suite) unless the method gives one, except chunking, which needs only
-/// [`TwinPair::gpu_chunked`].
+/// of this method's suite) unless the method gives one.
 ///
 /// [`twin_suite!`]: crate::twin_suite
 pub trait TwinPair {
@@ -87,11 +86,6 @@ pub trait TwinPair {
 
     /// A new GPU twin on `ctx`, default parameters.
     fn gpu(&self, ctx: &Arc<GpuContext>) -> Box<dyn SoftShadowEstimator>;
-
-    /// A new GPU twin on `ctx` that splits its receivers into small dispatches, if it can.
-    fn gpu_chunked(&self, _ctx: &Arc<GpuContext>) -> Option<Box<dyn SoftShadowEstimator>> {
-        None
-    }
 
     /// The focused checks' case.
     fn fixed_case(&self) -> FixedCase;
@@ -117,16 +111,6 @@ pub trait TwinPair {
         let case = self.fixed_case();
         let (mut cpu, mut gpu) = (self.cpu(), self.gpu(ctx));
         zero_receivers_work_alike(&self.label(), &mut *cpu, &mut *gpu, &case);
-    }
-
-    /// Check: [`chunked_dispatch_equals_one_dispatch`] on the fixed case.
-    fn chunked_dispatch_equals_one_dispatch(&self, ctx: &Arc<GpuContext>) {
-        let label = self.label();
-        let Some(mut chunked) = self.gpu_chunked(ctx) else {
-            panic!("{label}: the GPU twin does not chunk its dispatches");
-        };
-        let case = self.fixed_case();
-        chunked_dispatch_equals_one_dispatch(&label, &mut *self.gpu(ctx), &mut *chunked, &case);
     }
 
     /// The GPU twin's engine path on `ctx`, prepared with `params` (the fixed case's), if the
@@ -180,15 +164,15 @@ pub trait TwinPair {
 /// - `zero_receivers_work_like_the_cpu_twin` ([`zero_receivers_work_alike`], fixed case),
 ///
 /// and one test per optional check listed in brackets after the algorithm, named as the
-/// [`TwinPair`] method it calls (`chunked_dispatch_equals_one_dispatch`,
-/// `cli_path_matches_the_cpu_twin`, `loop_limit_is_detected_and_redone`). Each test passes the
+/// [`TwinPair`] method it calls (`cli_path_matches_the_cpu_twin`,
+/// `loop_limit_is_detected_and_redone`, `frame_path_matches_the_cpu_twin`). Each test passes the
 /// GPU gate first ([`gpu`](crate::gpu)). Needs the `gpu` feature; the invoking file must see
 /// every name that the pair expressions use.
 ///
 /// ```ignore
 /// test_support::twin_suite! {
-///     pcss [chunked_dispatch_equals_one_dispatch, cli_path_matches_the_cpu_twin] => Baseline(Which::Pcss),
-///     hard [chunked_dispatch_equals_one_dispatch] => Baseline(Which::Hard),
+///     pcss [cli_path_matches_the_cpu_twin] => Baseline(Which::Pcss),
+///     hard [frame_path_matches_the_cpu_twin] => Baseline(Which::Hard),
 /// }
 /// ```
 #[macro_export]
@@ -235,10 +219,9 @@ macro_rules! twin_suite {
 }
 
 /// The constructors of a [`TwinPair`] inside its `impl` block: [`TwinPair::cpu`] is
-/// `<$cpu>::new()`, [`TwinPair::gpu`] is `<$gpu>::new(ctx)`, or with `descriptor = D` the
-/// registry's GPU estimator of `D` (its frame run by `FrameTwin`) (default parameters, a
-/// failure to build panics), with `chunk = N` also [`TwinPair::gpu_chunked`]: the GPU twin after
-/// `set_max_chunk(N)`, and with `fixed = EXPR` also [`TwinPair::fixed_case`]: `EXPR`.
+/// `<$cpu>::new()`, [`TwinPair::gpu`] the registry's GPU estimator of the descriptor `D` (its
+/// frame run by `FrameTwin`), both with default parameters (a failure to build panics); with
+/// `fixed = EXPR` also [`TwinPair::fixed_case`]: `EXPR`.
 ///
 /// ```ignore
 /// impl TwinPair for Accumulation {
@@ -262,35 +245,6 @@ macro_rules! twin_constructors {
                 .expect("the method has a frame")
                 .expect("gpu estimator")
         }
-
-        $(
-            fn fixed_case(&self) -> $crate::conformance::FixedCase {
-                $fixed
-            }
-        )?
-    };
-    ($cpu:ty, $gpu:ty $(, chunk = $chunk:expr)? $(, fixed = $fixed:expr)? $(,)?) => {
-        fn cpu(&self) -> $crate::conformance::BoxedEstimator {
-            ::std::boxed::Box::new(<$cpu>::new().expect("cpu twin"))
-        }
-
-        fn gpu(
-            &self,
-            ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
-        ) -> $crate::conformance::BoxedEstimator {
-            ::std::boxed::Box::new(<$gpu>::new(ctx.clone()).expect("gpu twin"))
-        }
-
-        $(
-            fn gpu_chunked(
-                &self,
-                ctx: &::std::sync::Arc<$crate::conformance::GpuContext>,
-            ) -> ::std::option::Option<$crate::conformance::BoxedEstimator> {
-                let mut g = <$gpu>::new(ctx.clone()).expect("gpu twin");
-                g.set_max_chunk($chunk).expect("chunk cap");
-                ::std::option::Option::Some(::std::boxed::Box::new(g))
-            }
-        )?
 
         $(
             fn fixed_case(&self) -> $crate::conformance::FixedCase {
@@ -408,29 +362,6 @@ pub fn zero_receivers_work_alike(
     );
 }
 
-/// The fixed case through the CLI path on a GPU twin dispatching everything at once and on one
-/// split into small dispatches: bit-identical V. Returns that V.
-pub fn chunked_dispatch_equals_one_dispatch(
-    label: &str,
-    whole: &mut dyn SoftShadowEstimator,
-    chunked: &mut dyn SoftShadowEstimator,
-    case: &FixedCase,
-) -> Vec<f32> {
-    let run_one = |e: &mut dyn SoftShadowEstimator| {
-        if let Err(err) = set_params(e, &case.params) {
-            panic!("{label}: {err}");
-        }
-        match run(e, &case.scene, &case.receivers) {
-            Ok((v, _)) => v,
-            Err(err) => panic!("{label}: {err}"),
-        }
-    };
-    let (a, b) = (run_one(whole), run_one(chunked));
-    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&a), bits(&b), "{label}: chunking changed V");
-    a
-}
-
 /// Both twins through the CLI path (`build` + `estimate`) on the same scene and receivers.
 #[derive(Debug, Clone)]
 pub struct CliRun {
@@ -503,12 +434,6 @@ impl CliRun {
     pub fn check_contract(&self, rec: &Receivers) {
         check_contract(&self.cpu, rec);
         check_contract(&self.gpu, rec);
-    }
-
-    /// The GPU report's count of receivers redone on the CPU after a kernel hit the device's
-    /// loop budget (`loop_limit_cpu_fallbacks`, "0" when absent).
-    pub fn loop_limit_fallbacks(&self) -> String {
-        note(&self.gpu_report, "loop_limit_cpu_fallbacks").unwrap_or_else(|| "0".to_string())
     }
 }
 

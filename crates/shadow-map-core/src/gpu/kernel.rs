@@ -1,7 +1,7 @@
-//! The compute-kernel layer every estimator's GPU twin builds on: shader modules assembled from
-//! WGSL parts, bind-group layouts and bind groups from a binding list (binding `k` is entry `k`),
+//! The compute-kernel layer every method's frame builds on: shader modules assembled from WGSL
+//! parts, bind-group layouts and bind groups from a binding list (binding `k` is entry `k`),
 //! compute pipelines with their override constants, all inside labelled error scopes; uniform
-//! buffers; receivers split into chunks that fit the device's limits, and V read back per chunk.
+//! buffers; planes in texture arrays.
 //!
 //! One kernel in three lines:
 //!
@@ -12,8 +12,8 @@
 //!     &[Binding::Uniform, Binding::Storage, Binding::StorageRw], &[("WG", 64.0)])?;
 //! # let _ = k; Ok(()) }
 //! ```
-use super::{depth_map::texture_desc, shared::pack_receivers, shared::ReceiverGpu, GpuContext};
-use crate::{Receivers, Result};
+use super::{depth_map::texture_desc, GpuContext};
+use crate::Result;
 
 /// What one binding of a compute kernel is (its number is its position in the list).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -286,94 +286,6 @@ pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, value: &T) -> wg
         bytemuck::bytes_of(value),
         wgpu::BufferUsages::UNIFORM,
     )
-}
-
-/// Most receivers one dispatch of `workgroup_size`-wide workgroups may cover on this device:
-/// limited by the storage-binding and buffer sizes (one [`ReceiverGpu`] per receiver), by 1D
-/// dispatch (`max workgroups per dimension x workgroup_size`) and by `cap` (tests pass small
-/// values to exercise chunking).
-pub fn max_chunk(ctx: &GpuContext, workgroup_size: u32, cap: usize) -> usize {
-    let l = ctx.limits();
-    let per = std::mem::size_of::<ReceiverGpu>() as u64;
-    let by_binding = l.max_storage_buffer_binding_size / per;
-    let by_buffer = l.max_buffer_size / per;
-    let by_dispatch = l.max_compute_workgroups_per_dimension as u64 * workgroup_size as u64;
-    let m = by_binding.min(by_buffer).min(by_dispatch).min(cap as u64);
-    (m as usize).max(1)
-}
-
-/// One chunk of receivers: its slice of the receiver array and its own buffers.
-#[derive(Debug)]
-pub struct ReceiverChunk {
-    /// First receiver index of the chunk.
-    pub start: usize,
-    /// Receivers in the chunk (> 0).
-    pub len: usize,
-    /// `array<ReceiverGpu>` of the chunk.
-    pub receivers: wgpu::Buffer,
-    /// `array<u32>`: V bits per receiver (copied back).
-    pub out: wgpu::Buffer,
-    /// `array<f32>` per receiver, zeroed (an accumulator), when asked for.
-    pub acc: Option<wgpu::Buffer>,
-}
-
-impl ReceiverChunk {
-    /// Workgroups of `workgroup_size` covering the chunk.
-    pub fn workgroups(&self, workgroup_size: u32) -> u32 {
-        self.len.div_ceil(workgroup_size as usize) as u32
-    }
-}
-
-/// Packs and uploads the receivers in chunks of at most `chunk` (none for zero receivers), each
-/// with a zeroed V buffer and, with `with_acc`, a zeroed accumulator; buffers are labelled
-/// `"{label} receivers"`, `"{label} V"`, `"{label} accumulator"`.
-pub fn upload_receivers(
-    ctx: &GpuContext,
-    label: &str,
-    receivers: &Receivers,
-    chunk: usize,
-    with_acc: bool,
-) -> Vec<ReceiverChunk> {
-    let packed = pack_receivers(receivers);
-    let chunk = chunk.max(1);
-    packed
-        .chunks(chunk)
-        .enumerate()
-        .map(|(c, part)| {
-            let len = part.len();
-            let receivers = buffer_init(
-                &ctx.device,
-                &format!("{label} receivers"),
-                bytemuck::cast_slice(part),
-                wgpu::BufferUsages::STORAGE,
-            );
-            let storage = |what: &str| {
-                ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(&format!("{label} {what}")),
-                    size: (len * 4) as u64,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                    // Zeroed by wgpu on creation.
-                    mapped_at_creation: false,
-                })
-            };
-            ReceiverChunk {
-                start: c * chunk,
-                len,
-                receivers,
-                out: storage("V"),
-                acc: with_acc.then(|| storage("accumulator")),
-            }
-        })
-        .collect()
-}
-
-/// Reads every chunk's V back into `v` (f32 bits; NaN bits for inactive receivers).
-pub fn read_v(ctx: &GpuContext, chunks: &[ReceiverChunk], v: &mut [f32]) -> Result<()> {
-    for c in chunks {
-        let part: Vec<f32> = ctx.read_buffer(&c.out, (c.len * 4) as u64)?;
-        v[c.start..c.start + c.len].copy_from_slice(&part);
-    }
-    Ok(())
 }
 
 /// `size x size` R32Float planes in one texture array.
