@@ -36,6 +36,7 @@ use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         frame::{FrameEstimator, FrameInputs, FrameTimestamps},
+        receivers::GpuReceivers,
         GpuContext, GpuGBuffer, GpuScene,
     },
     Camera, LightView, Receivers, Result, Scene,
@@ -176,6 +177,26 @@ const SWEEP_BYTES: usize = 64 << 20;
 /// Recordings of the warm-encode measurement ([`Measured::host_warm_ms`]).
 const WARM_ENCODES: u32 = 2000;
 
+/// A frame's inputs: `casters` under `scene`'s light in `views`, the G-buffer's `receivers`, V
+/// into `v`, no timestamps.
+fn frame_inputs<'a>(
+    casters: &'a GpuScene,
+    views: &'a [Option<LightView>],
+    scene: &'a Scene,
+    receivers: &'a GpuReceivers,
+    v: &'a wgpu::Buffer,
+) -> FrameInputs<'a> {
+    FrameInputs {
+        casters,
+        views,
+        light: scene.light(),
+        receivers: &receivers.buffer,
+        count: receivers.count,
+        v,
+        timestamps: None,
+    }
+}
+
 /// Runs `frames` frames of `path` over `scene`, reads V and the receivers back once after the
 /// last, compares with the CPU twin, then times `timed` more frames.
 fn run(
@@ -205,15 +226,7 @@ fn run(
         let (t, cpu) = (Instant::now(), ThreadTime::now());
         path.encode(
             &mut enc,
-            &FrameInputs {
-                casters: &casters,
-                views: &views,
-                light: scene.light(),
-                receivers: &img.receivers.buffer,
-                count: img.receivers.count,
-                v: &v,
-                timestamps: None,
-            },
+            &frame_inputs(&casters, &views, scene, &img.receivers, &v),
         )?;
         host += cpu.elapsed().as_secs_f64() * 1e3;
         host_wall += t.elapsed().as_secs_f64() * 1e3;
@@ -261,15 +274,7 @@ fn run(
         }
     }
     // After the comparison: frames timed on the last receivers, waited for once.
-    let inputs = FrameInputs {
-        casters: &casters,
-        views: &views,
-        light: scene.light(),
-        receivers: &img.receivers.buffer,
-        count: img.receivers.count,
-        v: &v,
-        timestamps: None,
-    };
+    let inputs = frame_inputs(&casters, &views, scene, &img.receivers, &v);
     ctx.wait()?;
     let t = Instant::now();
     for _ in 0..timed {
@@ -390,20 +395,16 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         .copied()
         .filter(|a| only.as_deref().is_none_or(|o| o == *a))
     {
-        let sm = run(
-            &ctx,
-            frame_path(&ctx, algo, &small, resolution)?,
-            &small,
-            frames,
-            timed,
-        )?;
-        let lg = run(
-            &ctx,
-            frame_path(&ctx, algo, &large, resolution)?,
-            &large,
-            frames,
-            timed,
-        )?;
+        let measure = |scene: &Scene| {
+            run(
+                &ctx,
+                frame_path(&ctx, algo, scene, resolution)?,
+                scene,
+                frames,
+                timed,
+            )
+        };
+        let (sm, lg) = (measure(&small)?, measure(&large)?);
         let (ts, tl) = (small.triangles().len(), large.triangles().len());
         if json {
             println!(

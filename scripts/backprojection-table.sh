@@ -5,12 +5,8 @@
 # of 3, from --stats) and whole-process ms (median of 3).
 #   scripts/backprojection-table.sh [OUT_DIR]
 # GPU rows need a Vulkan adapter (WGPU_BACKEND=vulkan; lavapipe on a machine without a GPU).
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/baseline-table}
-mkdir -p "$out"
-cargo build --release -q -p softshadow-cli
-bin=target/release/softshadow
+source "$(dirname "$0")/lib.sh"
+table_setup "${1:-target/baseline-table}"
 variants=(
   "backprojection|cpu|"
   "backprojection|gpu|"
@@ -23,12 +19,9 @@ variants=(
   "multi-sample|cpu|"
   "pcf|cpu|"
 )
-echo "| fixture | algo | backend | settings | RMSE | MAE | p99 | build ms | estimate ms | whole ms |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+table_header fixture algo backend settings RMSE MAE p99 'build ms' 'estimate ms' 'whole ms'
 for scene in fixtures/*/*.toml; do
-  name=$(basename "$scene" .toml)
-  ref="$out/$name-reference.exr"
-  [ -f "$ref" ] || $bin render "$scene" --algo reference --out "$ref"
+  with_reference "$scene"
   for v in "${variants[@]}"; do
     IFS='|' read -r algo backend args <<<"$v"
     tag=$(echo "$algo-$backend-$args" | tr -c 'a-zA-Z0-9_-' '_')

@@ -3,18 +3,13 @@
 # a markdown table: RMSE against the reference (softshadow score) and whole-process wall time
 # (median of 5 runs, includes loading, BVH, G-buffer, light-space build, estimate and EXR write).
 #   scripts/baseline-table.sh [OUT_DIR] [ALGO...]
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/baseline-table}
+source "$(dirname "$0")/lib.sh"
+table_setup "${1:-target/baseline-table}"
 shift || true
 algos=("${@:-pcss multi-sample hard pcf}")
 read -r -a algos <<<"${algos[*]}"
-mkdir -p "$out"
-cargo build --release -q -p softshadow-cli
-bin=target/release/softshadow
 median() { python3 -c 'import sys,statistics; print("%.0f" % statistics.median(float(x) for x in sys.argv[1:]))' "$@"; }
-echo "| fixture | algo | RMSE | MAE | p99 | whole process ms (median of 5) |"
-echo "|---|---|---|---|---|---|"
+table_header fixture algo RMSE MAE p99 'whole process ms (median of 5)'
 for scene in fixtures/*/*.toml; do
   name=$(basename "$scene" .toml)
   ref="$out/$name-reference.exr"

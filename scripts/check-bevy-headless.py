@@ -7,15 +7,13 @@ waiting). Times are printed, not asserted.
 
     cd crates/bevy-softshadow && cargo run --example headless -- --json --frames 3 | python3 ../../scripts/check-bevy-headless.py
 """
-import json
 import sys
 
-EXPECTED = {"hard", "pcf", "pcss", "multi-sample", "backprojection", "accumulation", "deep-shadow", "packet-hsm"}
-rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
-seen = {r["algo"] for r in rows}
-bad = []
-if not EXPECTED <= seen:
-    bad.append("missing methods: %s" % sorted(EXPECTED - seen))
+sys.dont_write_bytecode = True  # no __pycache__ of checklib left in scripts/
+from checklib import finish, json_rows, missing_methods  # noqa: E402
+
+rows = json_rows()
+bad = missing_methods(rows, "methods")
 for r in rows:
     a = r["algo"]
     if "error" in r:
@@ -37,7 +35,4 @@ for r in rows:
         a, r["frames"], r["width"], r["height"], r["ms_per_frame"], r["rmse_vs_cpu"],
         r["max_abs_vs_cpu"], r["nan"], r["rmse_vs_cpu_render"], g["pixels_covered_by_one"],
         g["pixels_apart_1e-3"]))
-if bad:
-    print("bevy headless check failed:\n  " + "\n  ".join(bad))
-    sys.exit(1)
-print("bevy headless check: %d methods: ok" % len(rows))
+finish("bevy headless check", bad, "%d methods" % len(rows))

@@ -9,15 +9,13 @@ scripts/encode-instructions.sh counts encode's instructions, which repeat).
 
     cargo run --release --example frame_loop -- --json --frames 3 | python3 scripts/check-frame-loop.py
 """
-import json
 import sys
 
-EXPECTED = {"hard", "pcf", "pcss", "multi-sample", "backprojection", "accumulation", "deep-shadow", "packet-hsm"}
-rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
-seen = {r["algo"] for r in rows}
-bad = []
-if not EXPECTED <= seen:
-    bad.append("missing estimators: %s" % sorted(EXPECTED - seen))
+sys.dont_write_bytecode = True  # no __pycache__ of checklib left in scripts/
+from checklib import finish, json_rows, missing_methods  # noqa: E402
+
+rows = json_rows()
+bad = missing_methods(rows, "estimators")
 for r in rows:
     a = r["algo"]
     # Counted by the library (GpuContext::readbacks): every buffer mapped back during the frames.
@@ -53,7 +51,4 @@ for r in rows:
         if st:
             print("%-14s   GPU ms per stage, %s: %s" % ("", size, ", ".join(
                 "%s %.3f" % (k, v) for k, v in st.items())))
-if bad:
-    print("frame_loop check failed:\n  " + "\n  ".join(bad))
-    sys.exit(1)
-print("frame_loop check: %d estimators: ok" % len(rows))
+finish("frame_loop check", bad, "%d estimators" % len(rows))

@@ -10,17 +10,20 @@ render command.
 import json
 import sys
 
+sys.dont_write_bytecode = True  # no __pycache__ of checklib left in scripts/
+from checklib import json_rows  # noqa: E402
+
 args = sys.argv[1:]
 write = args and args[0] == "--write"
 path = args[-1] if args else None
 if not path:
     print(__doc__)
     sys.exit(2)
-lines = [l for l in sys.stdin if l.strip().startswith("{")]
-if not lines:
+rows = json_rows()
+if not rows:
     print("score check FAILED: no JSON line from softshadow score")
     sys.exit(1)
-got = json.loads(lines[-1])
+got = rows[-1]
 if write:
     keep = {k: got[k] for k in ("matched_fraction", "rmse", "mae", "nonfinite_v") if k in got}
     json.dump(keep, open(path, "w"), indent=1)

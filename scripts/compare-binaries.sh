@@ -3,14 +3,12 @@
 # (NAME-reference.exr, e.g. rendered by scripts/defaults-table.sh) and build+estimate ms, best of
 # three, per fixture and estimator. Before/after tables of a change come from it.
 #   scripts/compare-binaries.sh OLD_BIN NEW_BIN REF_DIR "ALGOS" SCENE.toml...
-set -euo pipefail
-cd "$(dirname "$0")/.."
+source "$(dirname "$0")/lib.sh"
 old=$1 new=$2 refs=$3 algos=$4
 shift 4
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-echo "| fixture | estimator | before: RMSE / ms | after: RMSE / ms |"
-echo "|---|---|---|---|"
+table_header fixture estimator 'before: RMSE / ms' 'after: RMSE / ms'
 for scene in "$@"; do
   f=$(basename "$scene" .toml)
   for a in $algos; do

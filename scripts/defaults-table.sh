@@ -4,23 +4,17 @@
 # ray-traced reference (1024 spp, rendered once and kept in OUT_DIR), and the estimator's own
 # stage time (--stats). Prints a markdown table; before/after tables of a change come from it.
 #   scripts/defaults-table.sh [OUT_DIR] [BACKEND] [SCENE.toml...]
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/defaults-table}
+source "$(dirname "$0")/lib.sh"
+table_setup "${1:-target/defaults-table}"
 backend=${2:-cpu}
 shift 2 || true
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(fixtures/*/*.toml)
-bin=${SOFTSHADOW_BIN:-target/release/softshadow}
-[ -n "${SOFTSHADOW_BIN:-}" ] || cargo build --release -q -p softshadow-cli
 algos=(hard pcf pcss multi-sample backprojection accumulation packet-hsm deep-shadow)
-mkdir -p "$out"
-echo "| fixture | algo | backend | RMSE | lit MAE | lit px | build ms | estimate ms | cascades | cascade jump mean / max |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+table_header fixture algo backend RMSE 'lit MAE' 'lit px' 'build ms' 'estimate ms' cascades \
+  'cascade jump mean / max'
 for scene in "${scenes[@]}"; do
-  name=$(basename "$scene" .toml)
-  ref="$out/$name-reference.exr"
-  [ -f "$ref" ] || $bin render "$scene" --algo reference --out "$ref" >/dev/null
+  with_reference "$scene"
   for algo in "${algos[@]}"; do
     img="$out/$name-$algo-$backend.exr"
     if ! stats=$($bin render "$scene" --algo "$algo" --backend "$backend" --out "$img" --stats 2>&1); then

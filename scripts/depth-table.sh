@@ -7,20 +7,14 @@
 # light-space bytes and the estimate time. References are cached in OUT_DIR (shared with
 # scripts/baseline-table.sh).
 #   scripts/depth-table.sh [OUT_DIR] [--gpu]
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/baseline-table}
+source "$(dirname "$0")/lib.sh"
+table_setup "${1:-target/baseline-table}"
 backends=(cpu)
 [ "${2:-}" = "--gpu" ] && backends+=(gpu)
-mkdir -p "$out"
-cargo build --release -q -p softshadow-cli
-bin=${CARGO_TARGET_DIR:-target}/release/softshadow
-echo "| fixture | algo | backend | nearfar | RMSE f32 | RMSE unorm16 | RMSE(u16 - f32) | frac \|dV\|>0.1 | step s | (far-n)/s | bytes f32 -> u16 | estimate ms f32 / u16 |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+table_header fixture algo backend nearfar 'RMSE f32' 'RMSE unorm16' 'RMSE(u16 - f32)' \
+  'frac \|dV\|>0.1' 'step s' '(far-n)/s' 'bytes f32 -> u16' 'estimate ms f32 / u16'
 for scene in fixtures/*/*.toml; do
-  name=$(basename "$scene" .toml)
-  ref="$out/$name-reference.exr"
-  [ -f "$ref" ] || $bin render "$scene" --algo reference --out "$ref" >/dev/null
+  with_reference "$scene"
   for backend in "${backends[@]}"; do
     for algo in hard pcf pcss multi-sample; do
       for nf in clipped aabb frustum; do

@@ -6,8 +6,7 @@
 #   algo  instructions/encode small  large  large/small
 # Usage: scripts/encode-instructions.sh [ALGO ...]   (default: every engine path)
 # Needs valgrind and a Vulkan adapter (lavapipe); about a minute per estimator.
-set -euo pipefail
-cd "$(dirname "$0")/.."
+source "$(dirname "$0")/lib.sh"
 export WGPU_BACKEND="${WGPU_BACKEND:-vulkan}" XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
 cargo build --release -q --example frame_loop
 algos=("$@")

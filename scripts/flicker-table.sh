@@ -4,16 +4,11 @@
 # stable: mean and p99 of |dV| between consecutive frames at the same world points (see
 # crates/cli/src/path.rs for the matching).
 #   scripts/flicker-table.sh [OUT_DIR] [FRAMES] [PAN]
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/flicker}
+source "$(dirname "$0")/lib.sh"
+table_setup "${1:-target/flicker}"
 frames=${2:-8}
 pan=${3:-0.2,0,0}
-mkdir -p "$out"
-cargo build --release -q -p softshadow-cli
-bin=target/release/softshadow
-echo "| fixture | algo | fit | mean abs dV | p99 abs dV | pairs |"
-echo "|---|---|---|---|---|---|"
+table_header fixture algo fit 'mean abs dV' 'p99 abs dV' pairs
 for scene in fixtures/*/*.toml; do
   name=$(basename "$scene" .toml)
   for algo in hard pcf pcss; do

@@ -19,8 +19,7 @@
 # `run` defaults (override by setting them): SOFTSHADOW_BENCH_RES=2048,
 # SOFTSHADOW_BENCH_RECEIVERS=1920x1080, SOFTSHADOW_BENCH_FIXTURE=fixtures/bunny/bunny.toml,
 # FRAME_LOOP_FRAMES=60. Any other SOFTSHADOW_BENCH_* variable (benches/README.md) passes through.
-set -euo pipefail
-cd "$(dirname "$0")/.."
+source "$(dirname "$0")/lib.sh"
 
 build() {
   # The bench binary's path comes from cargo's JSON messages (its name carries a hash).

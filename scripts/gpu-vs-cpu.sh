@@ -2,15 +2,10 @@
 # Renders every fixture with each baseline on both backends through the CLI (`--backend gpu` also
 # rasterises the camera G-buffer and the shadow maps on the GPU) and scores GPU against CPU.
 #   scripts/gpu-vs-cpu.sh [OUT_DIR]
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/gpu-vs-cpu}
-mkdir -p "$out"
+source "$(dirname "$0")/lib.sh"
 export WGPU_BACKEND=vulkan XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
-cargo build --release -q -p softshadow-cli
-bin=target/release/softshadow
-echo "| fixture | algo | RMSE gpu vs cpu | p99 | fraction > 0.1 | matched |"
-echo "|---|---|---|---|---|---|"
+table_setup "${1:-target/gpu-vs-cpu}"
+table_header fixture algo 'RMSE gpu vs cpu' p99 'fraction > 0.1' matched
 for scene in fixtures/*/*.toml; do
   name=$(basename "$scene" .toml)
   for algo in hard pcf pcss multi-sample; do

@@ -5,18 +5,11 @@
 # side; the texel density given up is its square). References cached in OUT_DIR (shared with
 # scripts/baseline-table.sh).
 #   scripts/view-table.sh [OUT_DIR]
-set -euo pipefail
-cd "$(dirname "$0")/.."
-out=${1:-target/baseline-table}
-mkdir -p "$out"
-cargo build --release -q -p softshadow-cli
-bin=target/release/softshadow
-echo "| fixture | algo | fit | nearfar | RMSE | n | far | far/n | window scale |"
-echo "|---|---|---|---|---|---|---|---|---|"
+source "$(dirname "$0")/lib.sh"
+table_setup "${1:-target/baseline-table}"
+table_header fixture algo fit nearfar RMSE n far 'far/n' 'window scale'
 for scene in fixtures/*/*.toml; do
-  name=$(basename "$scene" .toml)
-  ref="$out/$name-reference.exr"
-  [ -f "$ref" ] || $bin render "$scene" --algo reference --out "$ref"
+  with_reference "$scene"
   algos=(hard pcss)
   grep -q 'shape = "rect"' "$scene" && algos+=(backprojection)
   for algo in "${algos[@]}"; do

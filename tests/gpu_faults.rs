@@ -21,14 +21,14 @@ use shadow_map_core::{
         receivers::GpuReceivers,
         GpuContext, GpuScene,
     },
-    run, Error, LightView, Params, Receivers, Result, Scene,
+    run, Error, LightView, Params, Receivers, Result, Scene, SoftShadowEstimator,
 };
-use softshadow::{FRAME_ALGOS, METHODS};
+use softshadow::{MethodDescriptor, FRAME_ALGOS, METHODS};
 use std::{
     panic::{catch_unwind, AssertUnwindSafe},
     sync::Arc,
 };
-use test_support::gate::context_for_tests;
+use test_support::{fixtures::configure, gate::gpu};
 
 /// The parallel-squares fixture at a small image, and its camera receivers.
 fn scene() -> (Scene, Receivers) {
@@ -55,6 +55,22 @@ fn frame(
     max_receivers: u32,
 ) -> Result<Box<dyn FrameEstimator>> {
     Ok(softshadow::frame_estimator(algo, ctx.clone(), p, max_receivers)?.expect("an engine path"))
+}
+
+/// `m`'s GPU twin on `ctx` with every `(key, value)` of `kv` set.
+fn twin(
+    m: &MethodDescriptor,
+    ctx: &Arc<GpuContext>,
+    kv: &[(&str, &str)],
+) -> Box<dyn SoftShadowEstimator> {
+    let mut e = m.gpu(ctx.clone()).expect("a GPU twin").unwrap();
+    configure(e.as_mut(), kv);
+    e
+}
+
+/// The GPU twin of the method `algo` on `ctx` ([`twin`]).
+fn twin_of(algo: &str, ctx: &Arc<GpuContext>, kv: &[(&str, &str)]) -> Box<dyn SoftShadowEstimator> {
+    twin(softshadow::method(algo).unwrap(), ctx, kv)
 }
 
 /// `f()`, with a panic turned into a test failure naming `what`.
@@ -130,10 +146,9 @@ fn lose(ctx: &GpuContext) {
 
 #[test]
 fn device_loss_is_a_typed_error_and_a_new_device_works_in_every_frame_estimator() {
-    let Some(shared) = context_for_tests(
-        "device_loss_is_a_typed_error_and_a_new_device_works_in_every_frame_estimator",
-    )
-    .unwrap() else {
+    let Some(shared) =
+        gpu("device_loss_is_a_typed_error_and_a_new_device_works_in_every_frame_estimator")
+    else {
         return;
     };
     let (scene, rec) = scene();
@@ -206,24 +221,18 @@ fn device_loss_is_a_typed_error_and_a_new_device_works_in_every_frame_estimator(
 
 #[test]
 fn device_loss_is_a_typed_error_and_a_new_device_works_in_every_gpu_twin() {
-    let Some(shared) =
-        context_for_tests("device_loss_is_a_typed_error_and_a_new_device_works_in_every_gpu_twin")
-            .unwrap()
+    let Some(shared) = gpu("device_loss_is_a_typed_error_and_a_new_device_works_in_every_gpu_twin")
     else {
         return;
     };
     let (scene, rec) = scene();
-    let twin = |ctx: &Arc<GpuContext>, m: &softshadow::MethodDescriptor| {
-        let mut e = m.gpu(ctx.clone()).unwrap().unwrap();
-        e.set_param("resolution", "128").unwrap();
-        e
-    };
+    let res = [("resolution", "128")];
     for m in METHODS {
         if !m.has_gpu() {
             continue;
         }
         let ctx = Arc::new(GpuContext::new().unwrap());
-        let mut e = twin(&ctx, m);
+        let mut e = twin(m, &ctx, &res);
         run(e.as_mut(), &scene, &rec).unwrap_or_else(|err| panic!("{}: {err}", m.name()));
         // Built on the device, then lost before the estimate.
         e.build(&scene, &rec)
@@ -248,8 +257,10 @@ fn device_loss_is_a_typed_error_and_a_new_device_works_in_every_gpu_twin() {
             );
         });
         let new = Arc::new(GpuContext::new().unwrap());
-        let after = run(twin(&new, m).as_mut(), &scene, &rec).unwrap().0;
-        let never_lost = run(twin(&shared, m).as_mut(), &scene, &rec).unwrap().0;
+        let after = run(twin(m, &new, &res).as_mut(), &scene, &rec).unwrap().0;
+        let never_lost = run(twin(m, &shared, &res).as_mut(), &scene, &rec)
+            .unwrap()
+            .0;
         let mut worst = 0.0f32;
         for (k, (a, b)) in after.iter().zip(&never_lost).enumerate() {
             assert_eq!(
@@ -292,6 +303,17 @@ fn limited(lower: impl FnOnce(&mut wgpu::Limits)) -> Arc<GpuContext> {
     Arc::new(GpuContext::from_device(device, queue))
 }
 
+/// The start of a limits test: on a device with the limits `lower` lowers ([`limited`]), the
+/// small scene and its receivers; `None` after the GPU gate's loud skip.
+fn limited_case(
+    test: &str,
+    lower: impl FnOnce(&mut wgpu::Limits),
+) -> Option<(Arc<GpuContext>, Scene, Receivers)> {
+    gpu(test)?;
+    let (scene, rec) = scene();
+    Some((limited(lower), scene, rec))
+}
+
 /// `r` is `Error::Limit` naming `limit` (and no panic got here).
 fn assert_limit<T: std::fmt::Debug>(what: &str, limit: &str, r: Result<T>) {
     match r {
@@ -308,14 +330,12 @@ fn assert_limit<T: std::fmt::Debug>(what: &str, limit: &str, r: Result<T>) {
 
 #[test]
 fn resolution_past_max_texture_dimension_2d_is_a_limit_error() {
-    if context_for_tests("resolution_past_max_texture_dimension_2d_is_a_limit_error")
-        .unwrap()
-        .is_none()
-    {
+    let Some((ctx, scene, rec)) = limited_case(
+        "resolution_past_max_texture_dimension_2d_is_a_limit_error",
+        |l| l.max_texture_dimension_2d = 256,
+    ) else {
         return;
-    }
-    let ctx = limited(|l| l.max_texture_dimension_2d = 256);
-    let (scene, rec) = scene();
+    };
     let r = ctx.limits().max_texture_dimension_2d + 1;
     for algo in FRAME_ALGOS {
         let what = format!("{algo}: frame prepare at resolution {r}");
@@ -334,8 +354,7 @@ fn resolution_past_max_texture_dimension_2d_is_a_limit_error() {
         }
         let what = format!("{}: twin at resolution {r}", m.name());
         no_panic(&what, || {
-            let mut e = m.gpu(ctx.clone()).unwrap().unwrap();
-            e.set_param("resolution", &r.to_string()).unwrap();
+            let mut e = twin(m, &ctx, &[("resolution", &r.to_string())]);
             let out = run(e.as_mut(), &scene, &rec).map(|_| ());
             assert_limit(&what, "max_texture_dimension_2d", out);
         });
@@ -345,18 +364,16 @@ fn resolution_past_max_texture_dimension_2d_is_a_limit_error() {
 
 #[test]
 fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
-    if context_for_tests("receivers_past_max_storage_buffer_binding_size_are_a_limit_error")
-        .unwrap()
-        .is_none()
-    {
-        return;
-    }
     const BINDING: u64 = 1 << 20;
-    let ctx = limited(|l| {
-        l.max_storage_buffer_binding_size = BINDING;
-        l.max_buffer_size = 8 * BINDING;
-    });
-    let (scene, rec) = scene();
+    let Some((ctx, scene, rec)) = limited_case(
+        "receivers_past_max_storage_buffer_binding_size_are_a_limit_error",
+        |l| {
+            l.max_storage_buffer_binding_size = BINDING;
+            l.max_buffer_size = 8 * BINDING;
+        },
+    ) else {
+        return;
+    };
     let limit = "max_storage_buffer_binding_size";
     // One receiver past what a receiver binding (32 bytes each) may hold.
     let n = (BINDING / 32 + 1) as u32;
@@ -403,12 +420,7 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
     for (algo, r) in [("packet-hsm", 256), ("deep-shadow", 513)] {
         let what = format!("{algo} twin at resolution {r}");
         no_panic(&what, || {
-            let mut e = softshadow::method(algo)
-                .unwrap()
-                .gpu(ctx.clone())
-                .unwrap()
-                .unwrap();
-            e.set_param("resolution", &r.to_string()).unwrap();
+            let mut e = twin_of(algo, &ctx, &[("resolution", &r.to_string())]);
             assert_limit(&what, limit, run(e.as_mut(), &scene, &rec).map(|_| ()));
         });
     }
@@ -430,12 +442,7 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
         shadow_map_core::Receivers::from_points(pos[..64].to_vec(), nrm[..64].to_vec()).unwrap();
     let what = "deep-shadow: list elements past the binding";
     no_panic(what, || {
-        let mut e = softshadow::method("deep-shadow")
-            .unwrap()
-            .gpu(tiny.clone())
-            .unwrap()
-            .unwrap();
-        e.set_param("resolution", "32").unwrap();
+        let mut e = twin_of("deep-shadow", &tiny, &[("resolution", "32")]);
         let (v, report) =
             run(e.as_mut(), &translucent, &few).unwrap_or_else(|e| panic!("{what}: {e}"));
         let active = few.active().iter().filter(|a| **a).count();
@@ -451,14 +458,12 @@ fn receivers_past_max_storage_buffer_binding_size_are_a_limit_error() {
 
 #[test]
 fn layers_past_max_texture_array_layers_are_a_limit_error() {
-    if context_for_tests("layers_past_max_texture_array_layers_are_a_limit_error")
-        .unwrap()
-        .is_none()
-    {
+    let Some((ctx, scene, rec)) = limited_case(
+        "layers_past_max_texture_array_layers_are_a_limit_error",
+        |l| l.max_texture_array_layers = 2,
+    ) else {
         return;
-    }
-    let ctx = limited(|l| l.max_texture_array_layers = 2);
-    let (scene, rec) = scene();
+    };
     let limit = "max_texture_array_layers";
     for (algo, extra) in [
         ("backprojection", &[("layers", "3")][..]),
@@ -474,15 +479,8 @@ fn layers_past_max_texture_array_layers_are_a_limit_error() {
         });
         let what = format!("{algo}: twin with 3 layers");
         no_panic(&what, || {
-            let mut e = softshadow::method(algo)
-                .unwrap()
-                .gpu(ctx.clone())
-                .unwrap()
-                .unwrap();
-            e.set_param("resolution", "64").unwrap();
-            for (k, v) in extra {
-                e.set_param(k, v).unwrap();
-            }
+            let kv = [&[("resolution", "64")][..], extra].concat();
+            let mut e = twin_of(algo, &ctx, &kv);
             assert_limit(&what, limit, run(e.as_mut(), &scene, &rec).map(|_| ()));
         });
     }

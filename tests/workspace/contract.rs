@@ -3,6 +3,7 @@
 //! defaults parse.
 use shadow_map_core::{run, Error, LightShape, Receivers, Scene, SceneBvh};
 use softshadow::{registry, Backend, ALGOS};
+use test_support::fixtures::{fixture_names, fixture_path};
 
 #[test]
 fn registry_is_complete_and_defaults_parse() {
@@ -26,29 +27,15 @@ fn registry_is_complete_and_defaults_parse() {
 
 #[test]
 fn every_estimator_keeps_the_contract_on_every_fixture() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures");
-    let mut scenes: Vec<_> = std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|d| {
-            let d = d.ok()?.path();
-            let name = d.file_name()?.to_str()?.to_string();
-            let toml = d.join(format!("{name}.toml"));
-            toml.exists().then_some(toml)
-        })
-        .collect();
-    scenes.sort();
-    assert!(scenes.len() >= 5, "fixtures missing: {scenes:?}");
-    for path in scenes {
-        let mut scene = Scene::load(&path).unwrap();
+    let names = fixture_names();
+    assert!(names.len() >= 5, "fixtures missing: {names:?}");
+    for name in names {
+        let mut scene = Scene::load(fixture_path(&name)).unwrap();
         // Small images keep this fast; the contract does not depend on size.
         scene.set_resolution(40, 30).unwrap();
         let bvh = SceneBvh::new(&scene);
         let rec = Receivers::from_camera(&scene, &bvh);
-        assert!(
-            rec.active_count() > 0,
-            "{}: camera sees nothing",
-            path.display()
-        );
+        assert!(rec.active_count() > 0, "{}: camera sees nothing", name);
         for mut e in registry().unwrap() {
             for (k, v) in [("resolution", "128"), ("spp", "16")] {
                 if e.params().get(k).is_some() {
@@ -60,7 +47,7 @@ fn every_estimator_keeps_the_contract_on_every_fixture() {
                 Ok((v, _)) => v,
                 // Rect-only estimators may refuse other lights, naming the light, and nothing else.
                 Err(Error::Param { key, .. }) if !rect && key == "light" => continue,
-                Err(err) => panic!("{} on {}: {err}", e.name(), path.display()),
+                Err(err) => panic!("{} on {}: {err}", e.name(), name),
             };
             for (k, x) in v.iter().enumerate() {
                 if rec.active()[k] {
@@ -68,14 +55,14 @@ fn every_estimator_keeps_the_contract_on_every_fixture() {
                         (0.0..=1.0).contains(x),
                         "{} on {}: V[{k}] = {x}",
                         e.name(),
-                        path.display()
+                        name
                     );
                 } else {
                     assert!(
                         x.is_nan(),
                         "{} on {}: background V[{k}] = {x}",
                         e.name(),
-                        path.display()
+                        name
                     );
                 }
             }

@@ -10,6 +10,9 @@
 use glam::{Mat3, Vec3};
 use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
 use softshadow::{estimator, Backend, ALGOS};
+use test_support::fixtures::cuboid;
+
+use crate::support::square;
 
 fn light(center: Vec3, size: f32) -> Light {
     let normal = (-center).normalize();
@@ -31,35 +34,6 @@ fn camera() -> Camera {
         width: 8,
         height: 8,
     }
-}
-
-fn quad(m: Mat3, half: f32) -> Vec<[Vec3; 3]> {
-    let c = [(-half, -half), (-half, half), (half, half), (half, -half)]
-        .map(|(x, z)| m * Vec3::new(x, 0.0, z));
-    vec![[c[0], c[1], c[2]], [c[0], c[2], c[3]]]
-}
-
-/// Closed box, counter-clockwise seen from outside.
-fn cube(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
-    let p = |x: usize, y: usize, z: usize| {
-        Vec3::new(
-            if x == 0 { lo.x } else { hi.x },
-            if y == 0 { lo.y } else { hi.y },
-            if z == 0 { lo.z } else { hi.z },
-        )
-    };
-    let faces = [
-        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)], // -x
-        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)], // +x
-        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)], // -y
-        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)], // +y
-        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)], // -z
-        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)], // +z
-    ];
-    faces
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect()
 }
 
 /// Ground truth: 1 when the segment to the light centre is free.
@@ -88,7 +62,13 @@ struct Case {
 fn tilted_plane(deg: f32, light_size: f32) -> Case {
     let m = Mat3::from_rotation_x(deg.to_radians());
     let l = light(Vec3::new(0.0, 3.0, 0.0), light_size);
-    let scene = Scene::from_meshes("tilted", camera(), l, vec![(quad(m, 2.0), 1.0)]).unwrap();
+    let scene = Scene::from_meshes(
+        "tilted",
+        camera(),
+        l,
+        vec![(square(Vec3::ZERO, 2.0, m), 1.0)],
+    )
+    .unwrap();
     let mut p = Vec::new();
     for j in 0..60 {
         for i in 0..60 {
@@ -117,8 +97,8 @@ fn tilted_plane(deg: f32, light_size: f32) -> Case {
 /// on the box's lit +x and +y faces.
 fn box_on_ground(light_size: f32) -> Case {
     let l = light(Vec3::new(2.0, 3.0, 0.3), light_size);
-    let ground = quad(Mat3::IDENTITY, 3.0);
-    let bx = cube(Vec3::new(-0.3, 0.0, -0.3), Vec3::new(0.3, 0.6, 0.3));
+    let ground = square(Vec3::ZERO, 3.0, Mat3::IDENTITY);
+    let bx = cuboid(Vec3::new(-0.3, 0.0, -0.3), Vec3::new(0.3, 0.6, 0.3));
     let scene = Scene::from_meshes("box", camera(), l, vec![(ground, 1.0), (bx, 1.0)]).unwrap();
     let (mut p, mut n) = (Vec::new(), Vec::new());
     for j in 0..40 {

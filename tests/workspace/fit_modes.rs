@@ -9,7 +9,7 @@
 use crate::support;
 use glam::Vec3;
 use shadow_map_core::{run, Light, Receivers, Scene};
-use softshadow::{backends, estimator, ALGOS};
+use softshadow::{estimator, ALGOS};
 
 const STEP: f32 = 0.02;
 const N: i32 = 100;
@@ -59,7 +59,7 @@ fn common(v0: &[f32], v1: &[f32]) -> Vec<(f32, f32)> {
 
 /// Settings each estimator runs under (besides resolution 256): the defaults, and for deep-shadow
 /// a PCF kernel too, whose margin the stable fit keeps on its lattice
-/// (`deep_shadow::cpu::stable_margin`; a plain widening changes the pitch and V, measured up to
+/// (`deep_shadow::math::view::stable_margin`; a plain widening changes the pitch and V, measured up to
 /// 0.09 at 8% of the points with a 7 x 7 kernel in deep-shadow's own pan test).
 fn settings(name: &str) -> &'static [&'static [(&'static str, &'static str)]] {
     match name {
@@ -86,10 +86,7 @@ fn stable_fit_keeps_v_when_the_camera_pans() {
     let mut sun_shimmer = 0.0f32;
     for (light, scene) in [("area light", &scene), ("sun", &sun)] {
         for name in ALGOS {
-            for b in backends(name) {
-                let Some(backend) = support::runnable(b, "stable_fit (gpu rows)") else {
-                    continue;
-                };
+            for (_, backend) in support::runnable_backends(name, "stable_fit (gpu rows)") {
                 if estimator(name, backend)
                     .expect("registered")
                     .params()

@@ -17,7 +17,7 @@
 use crate::support;
 use glam::Vec3;
 use shadow_map_core::{run, Light, LightShape, Receivers, Scene};
-use softshadow::{backends, estimator, Backend, SoftShadowEstimator, ALGOS};
+use softshadow::{estimator, Backend, SoftShadowEstimator, ALGOS};
 use test_support::fixtures::{camera, cuboid, quad};
 
 /// Receiver grid side.
@@ -149,16 +149,8 @@ fn catalogue() -> Vec<(Case, &'static [&'static str])> {
 }
 
 fn estimators() -> Vec<(Box<dyn SoftShadowEstimator>, &'static str)> {
-    let mut out = Vec::new();
-    for name in ALGOS.iter().filter(|n| **n != "reference") {
-        for b in backends(name) {
-            let Some(backend) = support::runnable(b, "self_shadow (gpu rows)") else {
-                continue;
-            };
-            out.push((estimator(name, backend).expect("registered"), *b));
-        }
-    }
-    out
+    let algos = ALGOS.iter().copied().filter(|n| *n != "reference");
+    support::estimators(algos, "self_shadow (gpu rows)")
 }
 
 #[test]

@@ -7,9 +7,11 @@
 //!
 //! `cargo test --test workspace stability:: -- --nocapture` prints a line per case and estimator.
 use crate::support;
+use crate::support::square;
 use glam::{Mat3, Vec3};
 use shadow_map_core::{run, Camera, Light, LightShape, Receivers, Scene, SceneBvh};
-use softshadow::{backends, estimator, Backend, SoftShadowEstimator, ALGOS};
+use softshadow::{estimator, Backend, SoftShadowEstimator, ALGOS};
+use test_support::fixtures::cuboid;
 
 fn rect_light(center: Vec3, size: f32) -> Light {
     let normal = Vec3::NEG_Y;
@@ -30,33 +32,6 @@ fn camera(eye: Vec3, target: Vec3) -> Camera {
         width: 24,
         height: 18,
     }
-}
-
-fn quad(c: Vec3, half: f32, m: Mat3) -> Vec<[Vec3; 3]> {
-    let p = [(-half, -half), (-half, half), (half, half), (half, -half)]
-        .map(|(x, z)| c + m * Vec3::new(x, 0.0, z));
-    vec![[p[0], p[1], p[2]], [p[0], p[2], p[3]]]
-}
-
-fn cube(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
-    let p = |x: usize, y: usize, z: usize| {
-        Vec3::new(
-            if x == 0 { lo.x } else { hi.x },
-            if y == 0 { lo.y } else { hi.y },
-            if z == 0 { lo.z } else { hi.z },
-        )
-    };
-    [
-        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
-        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
-        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)],
-        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)],
-        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)],
-        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)],
-    ]
-    .iter()
-    .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-    .collect()
 }
 
 struct Case {
@@ -87,7 +62,7 @@ fn scene(light: Light, cam: Camera, meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
 }
 
 fn ground() -> Vec<[Vec3; 3]> {
-    quad(Vec3::ZERO, 3.0, Mat3::IDENTITY)
+    square(Vec3::ZERO, 3.0, Mat3::IDENTITY)
 }
 
 fn std_cam() -> Camera {
@@ -98,13 +73,13 @@ fn std_cam() -> Camera {
 /// them, seen from the standard camera.
 fn floating_square(name: &'static str, centre: Vec3) -> Case {
     let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
-    let occ = quad(centre, 0.5, Mat3::IDENTITY);
+    let occ = square(centre, 0.5, Mat3::IDENTITY);
     from_camera(name, scene(l, std_cam(), vec![ground(), occ]))
 }
 
 fn catalogue() -> Vec<Case> {
     let l = rect_light(Vec3::new(0.0, 3.0, 0.0), 1.0);
-    let occ = quad(Vec3::new(0.0, 1.0, 0.0), 0.5, Mat3::IDENTITY);
+    let occ = square(Vec3::new(0.0, 1.0, 0.0), 0.5, Mat3::IDENTITY);
     let mut cases = vec![
         from_camera(
             "occluder touching the receiver",
@@ -113,7 +88,7 @@ fn catalogue() -> Vec<Case> {
                 std_cam(),
                 vec![
                     ground(),
-                    cube(Vec3::new(-0.4, 0.0, -0.4), Vec3::new(0.4, 0.8, 0.4)),
+                    cuboid(Vec3::new(-0.4, 0.0, -0.4), Vec3::new(0.4, 0.8, 0.4)),
                 ],
             ),
         ),
@@ -124,7 +99,7 @@ fn catalogue() -> Vec<Case> {
                 std_cam(),
                 vec![
                     ground(),
-                    quad(Vec3::new(0.2, 3.0 - 1e-4, 0.1), 0.3, Mat3::IDENTITY),
+                    square(Vec3::new(0.2, 3.0 - 1e-4, 0.1), 0.3, Mat3::IDENTITY),
                 ],
             ),
         ),
@@ -135,7 +110,7 @@ fn catalogue() -> Vec<Case> {
                 std_cam(),
                 vec![
                     ground(),
-                    cube(Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 3.5, 1.0)),
+                    cuboid(Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 3.5, 1.0)),
                 ],
             ),
         ),
@@ -146,7 +121,7 @@ fn catalogue() -> Vec<Case> {
                 camera(Vec3::new(0.0, 3.0, 4.0), Vec3::ZERO),
                 vec![
                     ground(),
-                    quad(Vec3::new(0.0, 100.0 - 1e-3, 0.0), 0.01, Mat3::IDENTITY),
+                    square(Vec3::new(0.0, 100.0 - 1e-3, 0.0), 0.01, Mat3::IDENTITY),
                 ],
             ),
         ),
@@ -167,7 +142,7 @@ fn catalogue() -> Vec<Case> {
                 vec![
                     ground(),
                     occ.clone(),
-                    quad(Vec3::new(0.1, 1.0, 0.1), 0.5, Mat3::IDENTITY),
+                    square(Vec3::new(0.1, 1.0, 0.1), 0.5, Mat3::IDENTITY),
                 ],
             ),
         ),
@@ -265,16 +240,7 @@ fn catalogue() -> Vec<Case> {
 }
 
 fn estimators() -> Vec<(Box<dyn SoftShadowEstimator>, &'static str)> {
-    let mut out = Vec::new();
-    for name in ALGOS {
-        for b in backends(name) {
-            let Some(backend) = support::runnable(b, "stability (gpu rows)") else {
-                continue;
-            };
-            out.push((estimator(name, backend).expect("registered"), *b));
-        }
-    }
-    out
+    support::estimators(ALGOS.iter().copied(), "stability (gpu rows)")
 }
 
 fn configure(e: &mut dyn SoftShadowEstimator, resolution: &str) {
@@ -371,7 +337,7 @@ fn shrinking_light_converges_to_the_hard_shadow() {
                 cam,
                 vec![
                     ground(),
-                    quad(Vec3::new(0.13, 1.0, 0.07), 0.5, Mat3::IDENTITY),
+                    square(Vec3::new(0.13, 1.0, 0.07), 0.5, Mat3::IDENTITY),
                 ],
             );
             let bvh = SceneBvh::new(&s);

@@ -5,7 +5,7 @@
 use crate::support;
 use glam::Vec3;
 use shadow_map_core::{run, Light, Receivers, Scene, SceneBvh};
-use softshadow::{backends, estimator, Backend, ALGOS};
+use softshadow::{estimator, Backend, ALGOS};
 use test_support::fixtures::fixture;
 
 /// The bunny fixture under a low 3-degree sun.
@@ -67,12 +67,9 @@ fn every_estimator_renders_the_sun_on_both_backends() {
     let mut failures = Vec::new();
     for &name in SUN_FORMS {
         let mut cpu_v: Option<Vec<f32>> = None;
-        for &b in backends(name) {
-            let Some(backend) =
-                support::runnable(b, "every_estimator_renders_the_sun_on_both_backends")
-            else {
-                continue;
-            };
+        for (b, backend) in
+            support::runnable_backends(name, "every_estimator_renders_the_sun_on_both_backends")
+        {
             let mut e = estimator(name, backend).unwrap();
             let v = match run(e.as_mut(), &scene, &rec) {
                 Ok((v, _)) => v,

@@ -4,14 +4,11 @@
 //! what one instance gives alone (within 1e-5: the twins' atomics may order ties differently).
 use shadow_map_core::{run, Receivers, Scene, SceneBvh};
 use softshadow::{estimator, Backend, FRAME_ALGOS};
-use test_support::gate::context_for_tests;
+use test_support::gate::gpu;
 
 #[test]
 fn two_threads_share_one_device() {
-    if context_for_tests("two_threads_share_one_device")
-        .unwrap()
-        .is_none()
-    {
+    if gpu("two_threads_share_one_device").is_none() {
         return;
     }
     let path = concat!(

@@ -2,8 +2,9 @@
 //! r = 1024, K = 10): the light-space build and the estimate for additive/exact x fixed/adaptive
 //! on the CPU, and (feature `gpu`, when an adapter exists) one frame of the engine path on the
 //! GPU: the layers (and MSSM) rasterised, laid out and the kernel run, recorded into one encoder,
-//! submitted and waited for (casters and receivers uploaded once, no readback). Ids:
-//! `accumulation/<backend>/<stage>/<variant>-<kernel>`. Run: `cargo bench -p accumulation`.
+//! submitted and waited for (the frame's inputs uploaded once per mode, test-support's
+//! `FrameRig`; no readback). Ids: `accumulation/<backend>/<stage>/<variant>-<kernel>`.
+//! Run: `cargo bench -p accumulation`.
 use accumulation::CpuAccumulation;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use shadow_map_core::SoftShadowEstimator;
@@ -55,33 +56,16 @@ fn gpu_frames(
     receivers: &shadow_map_core::Receivers,
 ) {
     use accumulation::AccumulationFrame;
-    use shadow_map_core::gpu::{
-        frame::{FrameEstimator, FrameInputs},
-        GpuReceivers, GpuScene,
-    };
-    let casters = GpuScene::upload(ctx, scene).expect("casters");
-    let rec = GpuReceivers::upload(ctx, receivers).expect("receivers");
-    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("bench V"),
-        size: 4 * rec.count.max(1) as u64,
-        usage: wgpu::BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
+    use shadow_map_core::gpu::frame::FrameEstimator;
+    use test_support::frame_run::FrameRig;
     for (variant, kernel) in MODES {
-        let mut params = shadow_map_core::Params::new(accumulation::cpu::SPECS).expect("params");
+        let mut params =
+            shadow_map_core::Params::new(accumulation::settings::SPECS).expect("params");
         params.set("variant", variant).expect("variant");
         params.set("kernel", kernel).expect("kernel");
         let frame = AccumulationFrame::prepare(ctx.clone(), &params).expect("frame");
-        let views = frame.fit_views(scene, receivers).expect("view");
-        let inputs = FrameInputs {
-            casters: &casters,
-            views: &views,
-            light: scene.light(),
-            receivers: &rec.buffer,
-            count: rec.count,
-            v: &v,
-            timestamps: None,
-        };
+        let rig = FrameRig::new(ctx, &frame, scene, receivers).expect("rig");
+        let inputs = rig.inputs();
         g.bench_function(format!("gpu/frame/{variant}-{kernel}"), |b| {
             b.iter(|| {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());

@@ -8,47 +8,38 @@
 //! ```
 //!
 //! Frame ms: `reps` frames of [`AccumulationFrame`] (layers, MSSM, layout copies and kernel),
-//! each recorded and submitted, one wait after the last, divided by `reps` (casters and
-//! receivers uploaded once, no readback). Maps ms: the same frames over no receivers (the
-//! kernel is not dispatched). Kernel ms: their difference, wall-clock on any adapter (lavapipe's
-//! timestamps do not time its compute work). Taps: lexel fetches per receiver as the CPU twin
-//! counts them (same kernel), so taps/s = taps / kernel time; compare with the texture-fetch
-//! ceiling in docs/methods.md §12.
+//! each recorded and submitted, one wait after the last, divided by `reps` (the frame's inputs
+//! uploaded once per mode, test-support's `FrameRig`; no readback). Maps ms: the same frames
+//! over no receivers (the kernel is not dispatched). Kernel ms: their difference, wall-clock on
+//! any adapter (lavapipe's timestamps do not time its compute work). Taps: lexel fetches per
+//! receiver as the CPU twin counts them (same kernel), so taps/s = taps / kernel time; compare
+//! with the texture-fetch ceiling in docs/methods.md §12.
 use accumulation::{AccumulationFrame, CpuAccumulation};
 use shadow_map_core::{
     gpu::{
         frame::{FrameEstimator, FrameInputs},
-        GpuContext, GpuReceivers, GpuScene,
+        GpuContext,
     },
     run, LightShape, Params, Receivers, Scene, SceneBvh, SoftShadowEstimator,
 };
 use std::time::Instant;
-use test_support::fixtures::note;
+use test_support::{fixtures::note, frame_run::FrameRig};
+
+mod common;
 
 fn main() {
     let mut size = (320u32, 240u32);
     let mut res = 1024u32;
     let mut reps = 10u32;
     let mut cpu_time = false;
-    let a: Vec<String> = std::env::args().skip(1).collect();
-    let mut i = 0;
-    while i < a.len() {
-        let next = a.get(i + 1).cloned().unwrap_or_default();
-        match a[i].as_str() {
-            "--size" => {
-                let p: Vec<u32> = next.split('x').filter_map(|x| x.parse().ok()).collect();
-                size = (p[0], p[1]);
-            }
-            "--res" => res = next.parse().unwrap_or(res),
-            "--reps" => reps = next.parse().unwrap_or(reps),
-            "--cpu" => {
-                cpu_time = true;
-                i += 1;
-                continue;
-            }
+    for (flag, value) in common::flags(&["--cpu"]) {
+        match flag.as_str() {
+            "--size" => size = common::size(&value),
+            "--res" => res = value.parse().unwrap_or(res),
+            "--reps" => reps = value.parse().unwrap_or(reps),
+            "--cpu" => cpu_time = true,
             other => panic!("unknown argument {other}"),
         }
-        i += 2;
     }
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -71,14 +62,6 @@ fn main() {
     );
     let ctx = GpuContext::shared().expect("a Vulkan adapter");
     println!("device: {}", ctx.describe());
-    let casters = GpuScene::upload(&ctx, &scene).expect("casters");
-    let gpu_rec = GpuReceivers::upload(&ctx, &rec).expect("receivers");
-    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("speed V"),
-        size: 4 * gpu_rec.count.max(1) as u64,
-        usage: wgpu::BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
     println!(
         "| variant | kernel | res | taps/receiver | frame ms | maps ms | kernel ms | G taps/s | CPU ms |"
     );
@@ -96,7 +79,7 @@ fn main() {
             ("kernel", kernel.to_string()),
         ];
         let mut cpu = CpuAccumulation::new().unwrap();
-        let mut params = Params::new(accumulation::cpu::SPECS).unwrap();
+        let mut params = Params::new(accumulation::settings::SPECS).unwrap();
         for (k, v) in &kv {
             cpu.set_param(k, v).unwrap();
             params.set(k, v).unwrap();
@@ -111,16 +94,9 @@ fn main() {
             "-".into()
         };
         let frame = AccumulationFrame::prepare(ctx.clone(), &params).expect("frame");
-        let views = frame.fit_views(&scene, &rec).expect("view");
-        let inputs = FrameInputs {
-            casters: &casters,
-            views: &views,
-            light: scene.light(),
-            receivers: &gpu_rec.buffer,
-            count: gpu_rec.count,
-            v: &v,
-            timestamps: None,
-        };
+        let rig = FrameRig::new(&ctx, &frame, &scene, &rec).expect("frame inputs");
+        let inputs = rig.inputs();
+        let count = inputs.count;
         let frames = |n: u32, count: u32| {
             let t = Instant::now();
             for _ in 0..n {
@@ -132,8 +108,8 @@ fn main() {
             ctx.wait().expect("wait");
             t.elapsed().as_secs_f64() * 1e3 / n as f64
         };
-        frames(1, gpu_rec.count);
-        let frame_ms = frames(reps.max(1), gpu_rec.count);
+        frames(1, count);
+        let frame_ms = frames(reps.max(1), count);
         let maps_ms = frames(reps.max(1), 0);
         let kernel_ms = (frame_ms - maps_ms).max(f64::MIN_POSITIVE);
         let gtaps = taps * rec.active_count() as f64 / (kernel_ms * 1e-3) / 1e9;

@@ -17,6 +17,8 @@ use reference::ReferenceEstimator;
 use shadow_map_core::{run, Receivers, Scene, SceneBvh, SoftShadowEstimator};
 use std::time::Instant;
 
+mod common;
+
 struct Args {
     size: (u32, u32),
     spp: u32,
@@ -39,27 +41,16 @@ fn args() -> Args {
         fixtures: vec!["sphere-light".into(), "strands".into()],
         extra: false,
     };
-    let v: Vec<String> = std::env::args().skip(1).collect();
-    let mut i = 0;
-    while i < v.len() {
-        let next = v.get(i + 1).cloned().unwrap_or_default();
-        match v[i].as_str() {
-            "--size" => {
-                let p = list(&next.replace('x', ","));
-                a.size = (p[0], p[1]);
-            }
-            "--spp" => a.spp = next.parse().unwrap_or(a.spp),
-            "--res" => a.res = list(&next),
-            "--k" => a.ks = list(&next),
-            "--fixtures" => a.fixtures = next.split(',').map(String::from).collect(),
-            "--extra" => {
-                a.extra = true;
-                i += 1;
-                continue;
-            }
+    for (flag, value) in common::flags(&["--extra"]) {
+        match flag.as_str() {
+            "--size" => a.size = common::size(&value),
+            "--spp" => a.spp = value.parse().unwrap_or(a.spp),
+            "--res" => a.res = list(&value),
+            "--k" => a.ks = list(&value),
+            "--fixtures" => a.fixtures = value.split(',').map(String::from).collect(),
+            "--extra" => a.extra = true,
             other => panic!("unknown argument {other}"),
         }
-        i += 2;
     }
     a
 }

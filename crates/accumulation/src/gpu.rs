@@ -17,15 +17,17 @@
 //! 1e-7); the driver may fuse a multiply and an add, which can flip a depth comparison, a caster
 //! centre on the footprint's edge or a bit on a caster square's edge when it is a tie to within
 //! f32 rounding (the conformance test explains every such receiver).
-use crate::cpu::{ring_phase, CpuAccumulation, KernelMode, Settings, Variant, MAX_BITS};
-use crate::math::{sun_lift, LightPatch, PatchShape, SphereModel, DISK_BOUNDARY_POINTS};
+use crate::cpu::{ring_phase, CpuAccumulation, MAX_BITS};
+use crate::math::{sun_lift, LightPatch, PatchShape, DISK_BOUNDARY_POINTS};
+use crate::settings::{KernelMode, Settings, SphereModel, Variant};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
         frame::{
-            buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
+            buffer_range, check_buffers, compute_pass, cpu_twin_v, single_view, status_buffer,
+            FrameEstimator, FrameInputs,
         },
         kernel::{Binding, Kernel},
         layout::{GpuLayout, KernelMaps},
@@ -379,14 +381,8 @@ impl FrameEstimator for AccumulationFrame {
                 self.status.as_entire_binding(),
             ],
         );
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(LABEL),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.kernel.pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
-        drop(pass);
+        let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
+        compute_pass(enc, LABEL, &self.kernel.pipeline, &group, [wg, 1, 1]);
         inputs.mark(enc, "estimate");
         Ok(())
     }
@@ -402,12 +398,11 @@ impl FrameEstimator for AccumulationFrame {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let mut cpu = CpuAccumulation::new()?;
-        shadow_map_core::estimator::configure(&mut cpu, &self.params)?;
-        cpu.build_in_view(scene, receivers, *single_view(views)?)?;
-        let mut v = vec![0.0; receivers.len()];
-        cpu.estimate(scene, receivers, &mut v)?;
-        Ok(v)
+        let view = *single_view(views)?;
+        cpu_twin_v(CpuAccumulation::new()?, &self.params, receivers, |e, v| {
+            e.build_in_view(scene, receivers, view)?;
+            e.estimate(scene, receivers, v)
+        })
     }
 }
 

@@ -54,26 +54,13 @@
 //! ([`LightPatch::bit_point`]), projects each onto the plane ([`Footprint::to_plane`]) and sets it
 //! when a caster square contains it; `s = popcount / B^2` counts every occluded bit once (a
 //! union, not a sum), and equal-area bits make it an area fraction of the light.
+use crate::settings::SphereModel;
 use glam::{Vec2, Vec3};
 pub use shadow_map_core::overlap::{poly_area, poly_disk_area, quad_disk_area};
 use shadow_map_core::LightShape;
 
 /// Points on a disk's boundary used to bound its projections ([`Footprint::texel_bounds`]).
 pub const DISK_BOUNDARY_POINTS: u32 = 16;
-
-/// How a sphere light's emitting disk is modelled.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SphereModel {
-    /// The contract's silhouette disk: radius R through the centre, perpendicular to the direction
-    /// from the receiver to the centre (exact for the project's V).
-    Contract,
-    /// The paper's: a disk of radius R perpendicular to the light normal (§1.1, assumption 1).
-    /// From a receiver at angle theta off the light axis it looks foreshortened by about cos theta
-    /// compared with the contract's disk.
-    Paper,
-}
-
-shadow_map_core::param_words!(SphereModel { Contract = "contract", Paper = "paper" });
 
 /// The emitting shape in its own plane through the light centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -697,29 +684,20 @@ mod tests {
             let normal = r.cross(Vec3::X);
             let side = |l: Vec2| normal.dot(Vec3::new(l.x, l.y, n));
             let delta = 2e-3;
+            let near = |what: &str, got: f32, want: f32, tol: f32| {
+                assert!(
+                    (got - want).abs() < tol,
+                    "{shape:?} {model:?}: {what} {got}"
+                )
+            };
             let (s_add, s_exact, s_ovl) = flat_occluder(&fp, delta, c, side, 16);
-            assert!(
-                (s_ovl - 0.5).abs() < 0.01,
-                "{shape:?} {model:?}: overlap {s_ovl}"
-            );
-            assert!(
-                (s_add - 0.5).abs() < 0.01,
-                "{shape:?} {model:?}: additive {s_add}"
-            );
-            assert!(
-                (s_exact - 0.5).abs() < 0.04,
-                "{shape:?} {model:?}: exact {s_exact}"
-            );
+            near("overlap", s_ovl, 0.5, 0.01);
+            near("additive", s_add, 0.5, 0.01);
+            near("exact", s_exact, 0.5, 0.04);
             // A full occluder: every square tiles the footprint once.
             let (s_full, e_full, o_full) = flat_occluder(&fp, delta, c, |_| -1.0, 8);
-            assert!(
-                (o_full - 1.0).abs() < 0.01,
-                "{shape:?} {model:?}: overlap full {o_full}"
-            );
-            assert!(
-                (s_full - 1.0).abs() < 0.01,
-                "{shape:?} {model:?}: full {s_full}"
-            );
+            near("overlap full", o_full, 1.0, 0.01);
+            near("full", s_full, 1.0, 0.01);
             assert_eq!(e_full, 1.0);
         }
     }

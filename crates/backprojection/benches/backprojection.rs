@@ -59,7 +59,8 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-/// `gpu/frame/layers-<k>`: one frame recorded, submitted and waited for.
+/// `gpu/frame/layers-<k>`: one frame recorded, submitted and waited for (the inputs uploaded
+/// once, outside the timed loop).
 #[cfg(feature = "gpu")]
 fn frame_rows(
     g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
@@ -67,33 +68,16 @@ fn frame_rows(
     scene: &shadow_map_core::Scene,
     receivers: &shadow_map_core::Receivers,
 ) {
-    use shadow_map_core::gpu::{
-        frame::{FrameEstimator, FrameInputs},
-        GpuReceivers, GpuScene,
-    };
-    let casters = GpuScene::upload(ctx, scene).expect("casters");
-    let rec = GpuReceivers::upload(ctx, receivers).expect("receivers");
-    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("bench V"),
-        size: 4 * receivers.len().max(1) as u64,
-        usage: wgpu::BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
+    use shadow_map_core::gpu::frame::FrameEstimator;
+    use test_support::frame_run::FrameRig;
     for k in [1, 3] {
-        let mut params = shadow_map_core::Params::new(backprojection::cpu::SPECS).expect("params");
+        let mut params =
+            shadow_map_core::Params::new(backprojection::settings::SPECS).expect("params");
         params.set("layers", &k.to_string()).expect("layers");
         let frame =
             backprojection::BackprojectionFrame::prepare(ctx.clone(), &params).expect("frame");
-        let views = frame.fit_views(scene, receivers).expect("views");
-        let inputs = FrameInputs {
-            casters: &casters,
-            views: &views,
-            light: scene.light(),
-            receivers: &rec.buffer,
-            count: rec.count,
-            v: &v,
-            timestamps: None,
-        };
+        let rig = FrameRig::new(ctx, &frame, scene, receivers).expect("frame inputs");
+        let inputs = rig.inputs();
         g.bench_function(format!("gpu/frame/layers-{k}"), |b| {
             b.iter(|| {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());

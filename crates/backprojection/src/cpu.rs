@@ -1,92 +1,18 @@
-//! The CPU backprojection estimator (docs/methods.md §2; Bavoil 2008 §4.1, §4.2, §5).
+//! The CPU backprojection estimator (docs/methods.md §2; Bavoil 2008 §4.1, §4.2, §5), over
+//! the geometry of [`crate::math`] with the settings of [`crate::settings`], and the light view
+//! and light-space request it plans ([`plan`], [`request`]), which the frame renders too.
 use crate::math::{
-    backprojected_micropatch, micropatch_k, micropatch_scale, Emitter, Rect, Silhouette,
+    backprojected_micropatch, emitter_bits, gap_filled, micropatch_k, Emitter, Rect, Silhouette,
 };
+use crate::settings::{LayerRule, Occlusion, Resolved, Settings, SPECS};
 use glam::Vec3;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
-    light_view::{FitReport, LightView, ViewOptions, RESOLUTION},
-    peeling::SelfShadowSettings,
-    Cancel, ParamSpec, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
+    light_view::{FitReport, LightView},
+    Cancel, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
     SoftShadowEstimator, Warning,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
-
-/// `layer_rule`: which of a texel's occluding layers is backprojected (Bavoil 2008 §4.2).
-pub const LAYER_RULE: ParamSpec = ParamSpec::choice(LayerRule::WORDS, "auto").named("layer_rule", "which occluding layer of a texel is backprojected: auto = first_nonzero under bitmask occlusion, deepest under additive; deepest = the deepest occluding layer, even when its micropatch misses the light; first_nonzero = from the deepest, the first whose micropatch covers part of the light (Bavoil §4.2's rule; never too bright on stacked occluders, but more overlapping micropatches: larger RMSE on most fixtures)");
-
-/// Which occluding layer of a texel is backprojected ([`LAYER_RULE`]).
-///
-/// Measured (CPU, defaults otherwise, RMSE against the ray-traced reference):
-/// `first_nonzero` / `deepest` = 0.1085 / 0.1115 on `fixtures/stacked`, 0.0270 / 0.0271 on
-/// `grazing-posts`, 0.0414 / 0.0286 on `hover-boxes`, 0.0457 / 0.0359 on `bunny`; on the
-/// stacked plates of `tests/accuracy.rs` 0.123 / 0.051, with V at most 0.000 / 0.250 above the
-/// exact visibility. Backprojection sums micropatch areas with no overlap test, so the paper's rule,
-/// which adds the near occluder's micropatch where the far one misses the light, removes the
-/// light leak but overshadows more elsewhere: `deepest` under additive occlusion. With
-/// `occlusion=bitmask` (overlaps counted once) `first_nonzero` wins: 0.0501 on `stacked`, 0.0238
-/// on `bunny` (docs/methods.md §2 "Bitmask occlusion"). The default `auto` picks by
-/// occlusion (docs/methods.md §2 "Defaults").
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum LayerRule {
-    /// Bavoil 2008 §4.2: "the samples are processed starting from the deepest shadow map layer
-    /// and the first non-zero shadow contribution is selected": the deepest occluding layer whose
-    /// backprojected micropatch overlaps the light (its own micropatch, before gap filling).
-    FirstNonzero,
-    /// The deepest occluding layer, whatever its contribution (a layer whose micropatch misses
-    /// the light then hides the shallower ones).
-    Deepest,
-    /// `FirstNonzero` under bitmask occlusion, `Deepest` under additive (the default;
-    /// [`Settings::resolve`]).
-    #[default]
-    Auto,
-}
-
-shadow_map_core::param_words!(LayerRule {
-    FirstNonzero = "first_nonzero",
-    Deepest = "deepest",
-    Auto = "auto"
-});
-
-/// `gap_filling`: extend occluding micropatches to their neighbours (docs/methods.md §2).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum GapFilling {
-    /// On under bitmask occlusion (where an extended micropatch's overlap is counted once), off
-    /// under additive (where it would be counted twice); the default ([`Settings::resolve`]).
-    #[default]
-    Auto,
-    /// On.
-    On,
-    /// Off.
-    Off,
-}
-
-shadow_map_core::param_words!(GapFilling { Auto = "auto", On = "true", Off = "false" });
-
-/// `occlusion`: how the micropatches' coverage of the light is combined (docs/methods.md §2
-/// "Bitmask occlusion").
-pub const OCCLUSION: ParamSpec = ParamSpec::choice(Occlusion::WORDS, "auto").named("occlusion", "auto: bitmask on a scene of opaque meshes, additive (opacity-weighted) when a mesh is semi-transparent (bits carry no opacity); additive: the light area each backprojected micropatch covers, summed and clamped (overlaps count twice); bitmask: a bits x bits grid of light samples, each set once by any micropatch covering it (Schwarz & Stamminger 2007)");
-
-/// How the micropatches' coverage of the light is combined ([`OCCLUSION`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum Occlusion {
-    /// `V = 1 - clamp01(sum area(B_s ∩ L) / A_L)` (Guennebaud 2006, Bavoil 2008): overlapping
-    /// micropatches are counted more than once.
-    Additive,
-    /// Occlusion bits (Schwarz & Stamminger 2007): `B x B` light samples ([`shadow_map_core::bitmask`]),
-    /// each set by every micropatch containing it, counted once: `V = 1 - set / B^2`.
-    Bitmask,
-    /// `Bitmask` on a scene of opaque meshes, `Additive` when a mesh is semi-transparent (the
-    /// default; [`Settings::resolve`]).
-    #[default]
-    Auto,
-}
-
-shadow_map_core::param_words!(Occlusion {
-    Additive = "additive",
-    Bitmask = "bitmask",
-    Auto = "auto"
-});
 
 /// The report notes of the resolved choices (`occlusion`, `layer_rule`, `gap_filling`, and
 /// `bits` under bitmask).
@@ -112,75 +38,6 @@ pub fn warn_bitmask_opacity(report: &mut Report, s: &Settings, scene: &Scene) {
         report.warn_all(Warning::opaque_casters(scene));
     }
 }
-
-/// [`Settings`]' occlusion, layer rule and gap filling with `auto` resolved for one scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Resolved {
-    /// `Additive` or `Bitmask`.
-    pub occlusion: Occlusion,
-    /// `layer_rule=first_nonzero`.
-    pub first_nonzero: bool,
-    /// Gap filling on.
-    pub gap_filling: bool,
-}
-
-impl Settings {
-    /// Resolves the `auto` choices (docs/methods.md §2 "Defaults") for a scene with
-    /// (`semi_transparent`) or without semi-transparent meshes: bitmask occlusion with Bavoil's
-    /// first non-zero layer and gap filling when every mesh is opaque; additive occlusion, weighted
-    /// by opacity, with the deepest layer and no gap filling otherwise.
-    pub fn resolve(&self, semi_transparent: bool) -> Resolved {
-        let occlusion = match self.occlusion {
-            Occlusion::Auto if semi_transparent => Occlusion::Additive,
-            Occlusion::Auto => Occlusion::Bitmask,
-            o => o,
-        };
-        let bitmask = occlusion == Occlusion::Bitmask;
-        Resolved {
-            occlusion,
-            first_nonzero: match self.layer_rule {
-                LayerRule::Auto => bitmask,
-                r => r == LayerRule::FirstNonzero,
-            },
-            gap_filling: match self.gap_filling {
-                GapFilling::Auto => bitmask,
-                g => g == GapFilling::On,
-            },
-        }
-    }
-}
-
-shadow_map_core::typed_params! {
-    /// Settings of [`CpuBackprojection`] (and of its engine path), one field a parameter.
-    pub struct Settings {
-        /// Shadow-map resolution r.
-        resolution: u32 = RESOLUTION,
-        /// depth-peeled layers k; per texel one occluding layer is backprojected (Bavoil §4.1;
-        /// which one: layer_rule)
-        layers: u32 = ParamSpec::int(1, 4, "3"),
-        /// Which occluding layer of a texel is backprojected.
-        layer_rule: LayerRule = LAYER_RULE,
-        /// extend each occluding micropatch to its +u and +v occluding neighbours (docs/methods.md
-        /// §2, reconstructed): auto = on under bitmask occlusion, off under additive
-        gap_filling: GapFilling = ParamSpec::choice(GapFilling::WORDS, "auto"),
-        /// Additive areas or occlusion bits.
-        occlusion: Occlusion = OCCLUSION,
-        /// occlusion=bitmask: bit-grid side B (B x B equal-area light samples: a grid on a rect
-        /// light, concentric on a disk or a sphere's silhouette disk)
-        bits: u32 = ParamSpec::int(2, shadow_map_core::bitmask::MAX_BITS as i64, "8"),
-        /// most samples per receiver; wider kernels use a uniform step ceil(W / sqrt(max_nspp))
-        /// (Bavoil §5)
-        max_nspp: u32 = ParamSpec::int(1, 4096, "121"),
-        ;
-        /// Midpoints or a receiver bias, and receiver-plane rejection.
-        shadow: SelfShadowSettings,
-        /// Light-view window and near/far choice.
-        view: ViewOptions,
-    }
-}
-
-/// Parameters of [`CpuBackprojection`].
-pub const SPECS: &[ParamSpec] = Settings::SPECS;
 
 /// Soft shadows by micropatch backprojection onto an area light (Guennebaud et al. 2006),
 /// with Bavoil's (2008) depth-peeled layers (§4.1: per texel, only the furthest occluding layer
@@ -365,12 +222,23 @@ impl CpuBackprojection {
                 view.r, self.settings.resolution
             )));
         }
-        self.report = Report::default();
         let half = shadow_map_core::light_view::fit_half_extent(scene.light(), receivers);
-        let req = request(&self.settings, &view, half);
-        let ls = self.report.time("build", || {
-            LightSpace::try_build_in_view(scene, view, FitReport::default(), &req)
-        })?;
+        self.timed_build(|s| {
+            LightSpace::try_build_in_view(
+                scene,
+                view,
+                FitReport::default(),
+                &request(s, &view, half),
+            )
+        })
+    }
+
+    /// A fresh report whose `build` stage times `make` (given the settings), then the
+    /// light-space data it made kept as the last build's.
+    fn timed_build(&mut self, make: impl FnOnce(&Settings) -> Result<LightSpace>) -> Result<()> {
+        self.report = Report::default();
+        let settings = &self.settings;
+        let ls = self.report.time("build", || make(settings))?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);
         Ok(())
@@ -403,19 +271,6 @@ struct Setup<'a> {
     ///
     /// [`BitMask::set_in_lattice`]: shadow_map_core::bitmask::BitMask::set_in_lattice
     bit_side: u32,
-}
-
-/// The bit points of `occlusion=bitmask` for `emitter` (B = `bits`): a grid on a rect light,
-/// concentric on a disk, on the unit-free silhouette disk of radius `radius` for a sphere.
-pub fn emitter_bits(emitter: &Emitter, bits: u32) -> Vec<glam::Vec2> {
-    match *emitter {
-        Emitter::Rect { half } => {
-            shadow_map_core::bitmask::bit_points(glam::Vec2::from(half), None, bits)
-        }
-        Emitter::Disk { radius } | Emitter::Sphere { radius } => {
-            shadow_map_core::bitmask::bit_points(glam::Vec2::ZERO, Some(radius), bits)
-        }
-    }
 }
 
 /// A half-open texel rectangle `[x0, x1) x [y0, y1)` of the kernel around `uv`, clamped to the map.
@@ -600,30 +455,12 @@ impl Setup<'_> {
                     zp,
                 );
                 if self.gap_filling {
-                    // +u neighbour: its x0 is (i1 - u_p) S_t.
+                    // The +u and +v neighbours' near edges: (i1 - u_p) S_t and (j1 - v_p) S_t.
                     if a + 1 < bx {
-                        let zt = occ[b * bx + a + 1];
-                        if zt.is_finite() {
-                            let st = micropatch_scale(k.0, zt, zp, k.1);
-                            let d = i1 as f32 - uv.x;
-                            if d != 0.0 && st > 0.0 {
-                                let x0t =
-                                    (d * st).clamp(-crate::math::FAR_BOUND, crate::math::FAR_BOUND);
-                                br.x1 = br.x1.max(x0t);
-                            }
-                        }
+                        br.x1 = gap_filled(br.x1, k, occ[b * bx + a + 1], zp, i1 as f32 - uv.x);
                     }
                     if b + 1 < by {
-                        let zt = occ[(b + 1) * bx + a];
-                        if zt.is_finite() {
-                            let st = micropatch_scale(k.0, zt, zp, k.1);
-                            let d = j1 as f32 - uv.y;
-                            if d != 0.0 && st > 0.0 {
-                                let y0t =
-                                    (d * st).clamp(-crate::math::FAR_BOUND, crate::math::FAR_BOUND);
-                                br.y1 = br.y1.max(y0t);
-                            }
-                        }
+                        br.y1 = gap_filled(br.y1, k, occ[(b + 1) * bx + a], zp, j1 as f32 - uv.y);
                     }
                 }
                 if bitmask {
@@ -724,15 +561,11 @@ impl SoftShadowEstimator for CpuBackprojection {
         Ok(())
     }
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
-        self.report = Report::default();
         self.ls = None;
-        let ls = self.report.time("build", || -> Result<LightSpace> {
-            let (view, fit, req) = plan(&self.settings, scene, receivers)?;
+        self.timed_build(|s| {
+            let (view, fit, req) = plan(s, scene, receivers)?;
             LightSpace::try_build_in_view(scene, view, fit, &req)
-        })?;
-        self.report.light_space_bytes = ls.bytes();
-        self.ls = Some(ls);
-        Ok(())
+        })
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         self.estimate_light(scene.light(), receivers, v)?;

@@ -10,7 +10,8 @@
 //! area); the driver may fuse a multiply and an add, which can flip a depth comparison that is a
 //! tie to within f32 rounding. The GPU rasteriser's layers match the CPU's up to the ties that
 //! `shadow-map-core`'s `tests/gpu_maps.rs` explains (texel centres exactly on an edge).
-use crate::cpu::{emitter_bits, Occlusion, Settings};
+use crate::math::{emitter_bits, Emitter};
+use crate::settings::{Occlusion, Settings};
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
@@ -18,6 +19,7 @@ use shadow_map_core::{
             EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
             WORKGROUP_SIZE,
         },
+        frame::compute_pass,
         kernel::{Binding, Kernel},
         layout::KernelMaps,
         receivers::RECEIVERS_WGSL,
@@ -150,14 +152,9 @@ impl BpKernel {
         count: u32,
         counters: &wgpu::Buffer,
     ) {
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(LABEL),
-            timestamp_writes: None,
-        });
         if count == 0 {
             return;
         }
-        pass.set_pipeline(&self.kernel.pipeline);
         let group = self.kernel.bind_group(
             ctx,
             LABEL,
@@ -173,12 +170,8 @@ impl BpKernel {
                 bufs.bits.as_entire_binding(),
             ],
         );
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(
-            (count as usize).div_ceil(WORKGROUP_SIZE as usize) as u32,
-            1,
-            1,
-        );
+        let wg = count.div_ceil(WORKGROUP_SIZE);
+        compute_pass(enc, LABEL, &self.kernel.pipeline, &group, [wg, 1, 1]);
     }
 }
 
@@ -203,7 +196,7 @@ fn uniforms(
     let mut table = BitTable::zeroed();
     let mut nbits = 0;
     if res.occlusion == Occlusion::Bitmask {
-        let pts = emitter_bits(&crate::math::Emitter::of(&light.shape), s.bits);
+        let pts = emitter_bits(&Emitter::of(&light.shape), s.bits);
         nbits = pts.len() as u32;
         for (k, p) in pts.iter().enumerate() {
             table.pts[k / 2][2 * (k % 2)] = p.x;
@@ -215,7 +208,7 @@ fn uniforms(
     let max_nspp = s.max_nspp;
     let bpu = BpUniform {
         half: [h.x, h.y],
-        area: crate::math::Emitter::of(&light.shape).area() as f32,
+        area: Emitter::of(&light.shape).area() as f32,
         b0: s.shadow.bias,
         b1: s.shadow.slope_bias,
         midpoint: u32::from(midpoint),

@@ -7,6 +7,7 @@ pub mod cpu;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod math;
+pub mod settings;
 
 pub use cpu::CpuBackprojection;
 #[cfg(feature = "gpu")]

@@ -17,7 +17,8 @@ pub use shadow_map_core::silhouette::{
 };
 
 /// `(k, ortho)` of a view for [`micropatch_scale`] and [`backprojected_micropatch`]: the texel
-/// pitch over n in perspective, the texel pitch itself for an orthographic view (the sun).
+/// pitch over n in perspective, the texel pitch itself for an orthographic view (the sun;
+/// docs/methods.md §2 "Backprojected micropatch", §14 "Backprojection").
 #[inline]
 pub fn micropatch_k(view: &shadow_map_core::LightView) -> (f32, bool) {
     if view.is_ortho() {
@@ -218,6 +219,39 @@ impl Emitter {
                 ) as f64
             }
             Emitter::Sphere { .. } => sil.map_or(0.0, |s| overlap_on(s, rect) as f64),
+        }
+    }
+}
+
+/// Gap filling (docs/methods.md §2 "Gap filling", reconstructed): `bound`, a micropatch's far
+/// edge on the light plane (`x1` or `y1`), extended to the near edge of its +u or +v
+/// neighbour's micropatch, the occluder at true depth `z_t` whose near texel edge lies `d`
+/// texels past the receiver's projection: `max(bound, d S_t)`, `d S_t` clamped to
+/// +-[`FAR_BOUND`]. `bound` unchanged where the neighbour occludes nothing (`z_t` +inf), blocks
+/// nothing (`S_t = 0`) or its edge passes through the receiver's projection (`d = 0`).
+#[inline]
+pub fn gap_filled(bound: f32, k: (f32, bool), z_t: f32, z_p: f32, d: f32) -> f32 {
+    if !z_t.is_finite() {
+        return bound;
+    }
+    let s_t = micropatch_scale(k.0, z_t, z_p, k.1);
+    if d != 0.0 && s_t > 0.0 {
+        bound.max((d * s_t).clamp(-FAR_BOUND, FAR_BOUND))
+    } else {
+        bound
+    }
+}
+
+/// The bit points of `occlusion=bitmask` for `emitter` (B = `bits`): a grid on a rect light,
+/// concentric on a disk, on the unit-free silhouette disk of radius `radius` for a sphere
+/// (docs/methods.md §2 "Bitmask occlusion"; Schwarz & Stamminger 2007).
+pub fn emitter_bits(emitter: &Emitter, bits: u32) -> Vec<glam::Vec2> {
+    match *emitter {
+        Emitter::Rect { half } => {
+            shadow_map_core::bitmask::bit_points(glam::Vec2::from(half), None, bits)
+        }
+        Emitter::Disk { radius } | Emitter::Sphere { radius } => {
+            shadow_map_core::bitmask::bit_points(glam::Vec2::ZERO, Some(radius), bits)
         }
     }
 }

@@ -21,8 +21,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    ReadChannels, ReadLayers, SmallVec, Text, WritableImage,
+    SmallVec, Text, WritableImage,
 };
+
+mod first_layer;
 
 /// Name of the visibility channel: the fraction of the light's area visible
 /// from the surface point seen through the pixel (NaN on background pixels).
@@ -271,15 +273,7 @@ pub fn read_exr(path: &Path) -> Result<VisibilityImage, ImageError> {
         path: path.to_path_buf(),
         reason,
     };
-    let read = catch_unwind(AssertUnwindSafe(|| {
-        exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .all_channels()
-            .first_valid_layer()
-            .all_attributes()
-            .from_file(path)
-    }));
+    let read = catch_unwind(AssertUnwindSafe(|| first_layer::read_first_layer(path)));
     let image = match read {
         Ok(Ok(image)) => image,
         Ok(Err(e)) => return Err(fail(one_line(&e.to_string()))),
@@ -582,14 +576,7 @@ mod tests {
         let back = read_exr(&path).unwrap();
         assert_eq!(back.channel("V").unwrap(), v.as_slice());
         // Cross-check the stored order with exr's own pixel accessor.
-        let raw = exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .all_channels()
-            .first_valid_layer()
-            .all_attributes()
-            .from_file(&path)
-            .unwrap();
+        let raw = first_layer::read_first_layer(&path).unwrap();
         let layer = raw.layer_data;
         let top_left = layer.channel_data.list[0]
             .sample_data

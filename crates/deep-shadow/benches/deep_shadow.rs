@@ -5,10 +5,12 @@
 //! Ids: `deep-shadow/<backend>/<stage>`. Run: `cargo bench -p deep-shadow --bench deep_shadow`.
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use deep_shadow::{
-    cpu::{lookup_settings, query, sublight_view, Query},
-    dsm::DeepShadowMap,
-    params::Settings,
-    raster::{fragments, prepare},
+    cpu::{
+        dsm::DeepShadowMap,
+        raster::{fragments, prepare},
+    },
+    math::view::{lookup_settings, query, sublight_view, Query},
+    settings::Settings,
     CpuDeepShadow,
 };
 use glam::Vec2;
@@ -109,34 +111,15 @@ fn gpu_frame(
     rec: &Receivers,
 ) {
     use deep_shadow::DeepShadowFrame;
-    use shadow_map_core::gpu::{
-        frame::{FrameEstimator, FrameInputs},
-        receivers::GpuReceivers,
-        GpuScene,
-    };
-    let mut params = shadow_map_core::Params::new(deep_shadow::params::SPECS).unwrap();
+    use shadow_map_core::gpu::frame::FrameEstimator;
+    use test_support::frame_run::FrameRig;
+    let mut params = shadow_map_core::Params::new(deep_shadow::settings::SPECS).unwrap();
     for (k, v) in [("resolution", "512"), ("filter", "edsm"), ("kernel", "7")] {
         params.set(k, v).unwrap();
     }
     let frame = DeepShadowFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
-    let views = frame.fit_views(scene, rec).unwrap();
-    let casters = GpuScene::upload(ctx, scene).unwrap();
-    let receivers = GpuReceivers::upload(ctx, rec).unwrap();
-    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("bench V"),
-        size: 4 * rec.len().max(1) as u64,
-        usage: wgpu::BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
-    let inputs = FrameInputs {
-        casters: &casters,
-        views: &views,
-        light: scene.light(),
-        receivers: &receivers.buffer,
-        count: receivers.count,
-        v: &v,
-        timestamps: None,
-    };
+    let rig = FrameRig::new(ctx, &frame, scene, rec).unwrap();
+    let inputs = rig.inputs();
     g.bench_function("gpu/frame/edsm7", |b| {
         b.iter(|| {
             let mut enc = ctx.device.create_command_encoder(&Default::default());

@@ -1,18 +1,18 @@
 // Deep shadow maps on the GPU (Fürst et al.), the twin of dsm.rs stage for stage, for the engine
-// path (frame.rs): clear, process (§1.3.2: sort, tau, prev, truncation), link (§1.3.3), and the
+// path (gpu.rs): clear, process (§1.3.2: sort, tau, prev, truncation), link (§1.3.3), and the
 // per-query transmittance of the lists (§1.3.4, §1.3.5; filter=pcss: soft_transmittance) or of
 // the opaque path's nearest depths, which frame.wgsl's `frame_lookup` calls. The lists
 // themselves are inserted by insert.wgsl.
 // `Cells`, `cells_new`, `cell`, `Sum`, `sum_add` come from the core's cells.wgsl, the part
 // before this one; the workgroup size WG from the core's estimate.wgsl.
-// Structs mirror shared.rs field for field (Node: node.wgsl).
+// Structs mirror gpu/kernel.rs field for field (Node: node.wgsl, math/node.rs).
 //
 // A query (frame.wgsl `frame_query`, the twin of cpu.rs `query`) is two vec4: q0 = (u, v, z_p,
 // fixed), fixed >= 0 the transmittance without a lookup, fixed < 0 a lookup whose result is
 // multiplied by -fixed (the facing factor); then q1, the caster test of
 // shadow_map_core::ReceiverPlane (hs = 0; see q_slope_height).
 
-// Set from Rust as a pipeline override (dsm::EDSM_CUTOFF; NIL and Node come from node.wgsl).
+// Set from Rust as a pipeline override (math::EDSM_CUTOFF; NIL and Node come from node.wgsl).
 override EDSM_CUTOFF: f32;
 const SORT_LOCAL: u32 = 64u;
 const FILTER_FIRST: u32 = 0u;
@@ -40,7 +40,7 @@ struct DsUniform {
     trunc_window: f32,
 }
 
-// frame.rs COUNTER_BYTES. `count` the elements asked for, `wraps` the element counter's wraps
+// gpu/kernel.rs COUNTER_BYTES. `count` the elements asked for, `wraps` the element counter's wraps
 // past u32::MAX (insert.wgsl), `cut` the texels whose process or link the device's loop budget
 // cut short (shared.wgsl loop_limit_hit): frame.wgsl then leaves the frame's receivers for the
 // caller to redo.
@@ -225,7 +225,7 @@ fn q_caster(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32, z: f32) -> bool {
     return z == z && abs(z) <= 3.40282347e38 && z < q0.z && z * gc.x < gc.y;
 }
 
-// dsm::caster_depth: ReceiverPlane::threshold_at at the centre of texel (i, j): exact where the
+// math::caster_depth: ReceiverPlane::threshold_at at the centre of texel (i, j): exact where the
 // ray descends towards the tangent plane (g > 0), z_p elsewhere.
 fn q_threshold(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> f32 {
     let gc = q_slope_height(q1, i, j);
@@ -235,7 +235,7 @@ fn q_threshold(q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> f32 {
     return q0.z;
 }
 
-// dsm::find_by with q_caster in texel (i, j): the last element that is a caster, searched from
+// math::find_by with q_caster in texel (i, j): the last element that is a caster, searched from
 // `start` along next or prev; and the steps.
 fn find_caster(start: u32, q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> vec2<u32> {
     var s = start;
@@ -258,7 +258,7 @@ fn find_caster(start: u32, q0: vec4<f32>, q1: vec4<f32>, i: i32, j: i32) -> vec2
 }
 
 // The last element with depth < d, searched from `start` along next or prev; and the steps:
-// find_caster with the plain depth test (dsm::find is dsm::find_by of `z < d` the same way).
+// find_caster with the plain depth test (math::find is math::find_by of `z < d` the same way).
 fn find(start: u32, d: f32) -> vec2<u32> {
     return find_caster(start, vec4<f32>(0.0, 0.0, d, 0.0), vec4<f32>(1.0, 0.0, 0.0, d), 0, 0);
 }
@@ -289,7 +289,7 @@ struct TapT {
     steps: u32,
 }
 
-// dsm::SoftTaps::tap: tau of the last caster of texel (i, j), 1 when none (the opaque path: 0 or
+// DeepShadowMap's SoftTaps::tap: tau of the last caster of texel (i, j), 1 when none (the opaque path: 0 or
 // 1 from the nearest depth).
 fn soft_tap(i: i32, j: i32, q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
     let hd = head_at(i, j);
@@ -300,68 +300,81 @@ fn soft_tap(i: i32, j: i32, q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT 
     return TapT(nodes[f.x].tau, f.y);
 }
 
-// dsm::soft_transmittance (docs/methods.md §8 "Percentage-closer soft transmittance"), the same
-// steps in the same order: PCSS's blocker search over the first fragments (search_width), z_avg,
-// the kernel width (filter_width), the weighted mean of the taps' T (disk_edge for disk lights).
-fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
+// The two Kahan sums and the list steps of one region of cells ([`region_sums`]).
+struct RegionSums {
+    a: Sum,
+    b: Sum,
+    steps: u32,
+}
+
+// One region of soft_transmittance, `width` texels wide around the query, in cells of at most
+// max_taps a side, row by row. `search`: PCSS's blocker search over the first fragments, a = the
+// casters' w z, b = their w. Otherwise the kernel (for disk lights with disk_edge's one-texel soft
+// edge): a = w T of each tap, b = w.
+fn region_sums(q0: vec4<f32>, q1: vec4<f32>, opaque: bool, width: vec2<f32>, search: bool) -> RegionSums {
     let uv = q0.xy;
-    let zr = q0.z;
-    let l = vec2<f32>(P.light_x, P.light_y);
-    let ws = pcss_search_width(l, zr, P.near, P.to_texels, P.ortho != 0u);
-    var steps = 0u;
-    var sum = Sum(0.0, 0.0);
-    var count = Sum(0.0, 0.0);
-    let cy = cells_new(uv.y - 0.5 * ws.y, uv.y + 0.5 * ws.y, P.max_taps);
+    var out = RegionSums(Sum(0.0, 0.0), Sum(0.0, 0.0), 0u);
+    let cy = cells_new(uv.y - 0.5 * width.y, uv.y + 0.5 * width.y, P.max_taps);
     for (var ky = 0u; ky < cy.count; ky++) {
         let cj = cell(cy, ky);
         if (!cj.valid) { continue; }
-        let cx = cells_new(uv.x - 0.5 * ws.x, uv.x + 0.5 * ws.x, P.max_taps);
+        let cx = cells_new(uv.x - 0.5 * width.x, uv.x + 0.5 * width.x, P.max_taps);
         for (var kx = 0u; kx < cx.count; kx++) {
             let ci = cell(cx, kx);
             if (!ci.valid) { continue; }
-            let hd = head_at(ci.i, cj.i);
-            if (hd == NIL) { continue; }
-            var z = 0.0;
-            if (opaque) { z = bitcast<f32>(hd); } else { z = nodes[hd].depth; }
-            steps++;
-            if (q_caster(q0, q1, ci.i, cj.i, z)) {
-                let w = ci.w * cj.w;
-                sum = sum_add(sum, w * z);
-                count = sum_add(count, w);
+            if (search) {
+                let hd = head_at(ci.i, cj.i);
+                if (hd == NIL) { continue; }
+                var z = 0.0;
+                if (opaque) { z = bitcast<f32>(hd); } else { z = nodes[hd].depth; }
+                out.steps++;
+                if (q_caster(q0, q1, ci.i, cj.i, z)) {
+                    let w = ci.w * cj.w;
+                    out.a = sum_add(out.a, w * z);
+                    out.b = sum_add(out.b, w);
+                }
+            } else {
+                var edge = 1.0;
+                if (P.disk != 0u && width.x > 1.0) {
+                    let rad = 0.5 * width.x;
+                    let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - uv;
+                    edge = clamp(rad + 0.5 - sqrt(c.x * c.x + c.y * c.y), 0.0, 1.0);
+                }
+                if (edge <= 0.0) { continue; }
+                let w = ci.w * cj.w * edge;
+                out.b = sum_add(out.b, w);
+                let tt = soft_tap(ci.i, cj.i, q0, q1, opaque);
+                out.steps += tt.steps;
+                if (tt.t != 0.0) { out.a = sum_add(out.a, w * tt.t); }
             }
         }
     }
-    if (!(count.s > 0.0)) { return TapT(1.0, steps); }
-    let z_avg = sum.s / count.s;
+    return out;
+}
+
+// soft_transmittance::soft_transmittance of the core (docs/methods.md §8 "Percentage-closer soft transmittance"), the same
+// steps in the same order: PCSS's blocker search over the first fragments (search_width), z_avg,
+// the kernel width (filter_width), the weighted mean of the taps' T (disk_edge for disk lights).
+fn soft_transmittance(q0: vec4<f32>, q1: vec4<f32>, opaque: bool) -> TapT {
+    let zr = q0.z;
+    let l = vec2<f32>(P.light_x, P.light_y);
+    let ws = pcss_search_width(l, zr, P.near, P.to_texels, P.ortho != 0u);
+    let search = region_sums(q0, q1, opaque, ws, true);
+    if (!(search.b.s > 0.0)) { return TapT(1.0, search.steps); }
+    let z_avg = search.a.s / search.b.s;
     let wf = pcss_filter_width(l, zr, z_avg, P.near, P.to_texels, P.ortho != 0u);
-    var lit = Sum(0.0, 0.0);
-    var total = Sum(0.0, 0.0);
-    let fy = cells_new(uv.y - 0.5 * wf.y, uv.y + 0.5 * wf.y, P.max_taps);
-    for (var ky = 0u; ky < fy.count; ky++) {
-        let cj = cell(fy, ky);
-        if (!cj.valid) { continue; }
-        let fx = cells_new(uv.x - 0.5 * wf.x, uv.x + 0.5 * wf.x, P.max_taps);
-        for (var kx = 0u; kx < fx.count; kx++) {
-            let ci = cell(fx, kx);
-            if (!ci.valid) { continue; }
-            var edge = 1.0;
-            if (P.disk != 0u && wf.x > 1.0) {
-                let rad = 0.5 * wf.x;
-                let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - uv;
-                edge = clamp(rad + 0.5 - sqrt(c.x * c.x + c.y * c.y), 0.0, 1.0);
-            }
-            if (edge <= 0.0) { continue; }
-            let w = ci.w * cj.w * edge;
-            total = sum_add(total, w);
-            let tt = soft_tap(ci.i, cj.i, q0, q1, opaque);
-            steps += tt.steps;
-            if (tt.t != 0.0) { lit = sum_add(lit, w * tt.t); }
-        }
-    }
-    if (!(total.s > 0.0)) { return TapT(1.0, steps); }
-    let t = lit.s / total.s;
+    let kernel = region_sums(q0, q1, opaque, wf, false);
+    let steps = search.steps + kernel.steps;
+    if (!(kernel.b.s > 0.0)) { return TapT(1.0, steps); }
+    let t = kernel.a.s / kernel.b.s;
     if (t == t && abs(t) <= 3.40282347e38) { return TapT(clamp(t, 0.0, 1.0), steps); }
     return TapT(1.0, steps);
+}
+
+// LookupSettings::first_tap: the kernel's first tap (i, j) around texel coordinates uv, the
+// receiver's texel less half the n x n kernel on each axis.
+fn first_tap(uv: vec2<f32>, n: i32) -> vec2<i32> {
+    return vec2<i32>(i32(floor(uv.x)), i32(floor(uv.y))) - vec2<i32>(n / 2);
 }
 
 fn kernel_side() -> i32 {
@@ -379,18 +392,16 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
         return -q.w * tt.t;
     }
     let r = i32(P.r);
-    let ci = i32(floor(q.x));
-    let cj = i32(floor(q.y));
     let n = kernel_side();
-    let hk = n / 2;
+    let t0 = first_tap(q.xy, n);
     var sum = 0.0;
     var steps = 0u;
     var row_anchor = NIL;
     for (var b = 0; b < n; b++) {
-        let j = cj - hk + b;
+        let j = t0.y + b;
         var anchor = NIL;
         for (var a = 0; a < n; a++) {
-            let i = ci - hk + a;
+            let i = t0.x + a;
             if (i < 0 || j < 0 || i >= r || j >= r) {
                 sum += 1.0;
                 anchor = NIL;
@@ -446,22 +457,20 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
 }
 
 // The opaque path's transmittance of one query (q0 = (u, v, z_p, fixed), q1 the caster test), as
-// dsm::transmittance_opaque_plane: head[] holds the nearest depth's bits (NIL: empty), no lists.
+// math::transmittance_opaque_plane: head[] holds the nearest depth's bits (NIL: empty), no lists.
 fn opaque_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
     if (q.w >= 0.0) { return q.w; }
     if (P.filter_mode == FILTER_PCSS) {
         return -q.w * soft_transmittance(q, q1, true).t;
     }
     let r = i32(P.r);
-    let ci = i32(floor(q.x));
-    let cj = i32(floor(q.y));
     let n = kernel_side();
-    let hk = n / 2;
+    let t0 = first_tap(q.xy, n);
     var sum = 0.0;
     for (var b = 0; b < n; b++) {
         for (var a = 0; a < n; a++) {
-            let i = ci - hk + a;
-            let j = cj - hk + b;
+            let i = t0.x + a;
+            let j = t0.y + b;
             var lit = 1.0;
             if (i >= 0 && j >= 0 && i < r && j < r) {
                 let bits = atomicLoad(&head[u32(j * r + i)]);

@@ -1,4 +1,4 @@
-// Deep shadow maps on the engine path (frame.rs, DeepShadowFrame). Opaque casters: the caster
+// Deep shadow maps on the engine path (gpu.rs, DeepShadowFrame). Opaque casters: the caster
 // map of each sub-light view comes from the core's raster pass (an R32Float layer, +inf where
 // empty); its depths go into head[] as the opaque path's bits (`frame_head`). Semi-transparent
 // casters (F.lists): insert.wgsl builds the lists, deep_shadow.wgsl's `clear`, `process` and
@@ -8,7 +8,7 @@
 // Appended after the core's shared.wgsl, estimate.wgsl, math.wgsl and cells.wgsl, node.wgsl and
 // deep_shadow.wgsl (bindings 0, 3, 4 and 5).
 
-// Mirrors frame.rs DsFrameUniform field for field.
+// Mirrors gpu.rs DsFrameUniform field for field.
 struct DsFrameUniform {
     bias: f32,
     slope_bias: f32,

@@ -4,16 +4,14 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cpu;
-pub mod dsm;
 #[cfg(feature = "gpu")]
-pub mod frame;
-pub mod params;
-pub mod raster;
-pub mod shared;
+pub mod gpu;
+pub mod math;
+pub mod settings;
 
 pub use cpu::CpuDeepShadow;
 #[cfg(feature = "gpu")]
-pub use frame::DeepShadowFrame;
+pub use gpu::DeepShadowFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{MethodDescriptor, Sweep};

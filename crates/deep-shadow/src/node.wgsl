@@ -1,4 +1,4 @@
-// A list element of the deep shadow map (mirrors shared.rs Node field for field) and the
+// A list element of the deep shadow map (mirrors math/node.rs Node field for field) and the
 // empty-list index NIL (shared::NIL, set from Rust as a pipeline override): the part both
 // deep-shadow modules (the frame's and the insert pass's) take before their own.
 override NIL: u32;

@@ -28,8 +28,10 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 use backprojection::CpuBackprojection;
 use baselines::{MultiSample, PcssShadow};
-use packet_hsm::contour::{extract, CellRect, Planes, Traversal};
-use packet_hsm::cpu::{prepare, Config, Prep, SubView};
+use packet_hsm::cpu::extract::{extract, Planes, Traversal};
+use packet_hsm::cpu::{prepare, Prep, SubView};
+use packet_hsm::math::CellRect;
+use packet_hsm::settings::Config;
 use packet_hsm::CpuPacketHsm;
 use reference::ReferenceEstimator;
 use shadow_map_core::{mssm::MinMax, Receivers, Scene, SoftShadowEstimator};

@@ -1,47 +1,34 @@
-//! The CPU estimator: Yang et al. 2009, Algorithm 1, steps 2-8, over the exact per-pixel contour
-//! backprojection of [`crate::contour`].
-use crate::contour::Scale;
-use crate::contour::{
-    edge_area, extract, pixel_visibility, visibility_from_area, CellRect, Edge, OccluderTest,
-    PaddedDualMssm, Planes, Receiver, SampleGrid, Traversal,
-};
+//! The CPU twin: Yang et al. 2009, Algorithm 1, steps 2-8, over the exact per-pixel contour
+//! backprojection ([`extract`](mod@extract), on the geometry of [`crate::math`]).
+//!
+//! - `setup`: step 5 for one receiver (set-up, tight kernel, trivial classification);
+//! - `sublights`: the opacity levels and S x S sub-lights, one [`SubView`] (maps, MSSM, padded
+//!   dual-grid MSSM) at a time;
+//! - [`extract`](mod@extract): the padded dual-grid MSSM and the contour extraction over it (flat, or Yang's
+//!   Algorithm 3), and the per-pixel GBP07;
+//! - [`fit`]: the own-plane bounds the extraction's pruning may use.
+use crate::math::contour::{CellRect, Edge, OccluderTest, Receiver, SampleGrid};
+use crate::math::radial::{edge_area, visibility_from_area, Scale};
+use crate::math::{diverging_probability, kernel_side, p_null, packet_pays};
+use crate::settings::{Config, DESCRIPTION, NAME, SPECS};
+use extract::{extract, pixel_visibility, PaddedDualMssm, Planes};
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
-    light_view::{ViewOptions, RESOLUTION},
-    params::FromParam,
-    peeling::SelfShadowSettings,
-    Cancel, Error, LightShape, ParamSpec, ParamValue, Params, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    Cancel, Error, LightShape, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 
+pub mod extract;
+pub mod fit;
 mod setup;
 mod sublights;
 pub use setup::{
-    kernel_cells, kernel_light, kernel_side, prepare, setup_receiver, trivial, Prep, ReceiverSetup,
+    kernel_light, prepare, prepare_receiver, setup_receiver, trivial, Prep, ReceiverSetup,
 };
 pub use sublights::{
-    emitter_of, levels_run, sublight_centre, OpacityLevels, OwnPlane, SubLights, SubView,
-    OWN_PLANE_WORTH,
+    emitter_of, levels_run, OpacityLevels, OwnPlane, SubLights, SubView, OWN_PLANE_WORTH,
 };
-
-/// Registry name (shared with the engine path).
-pub const NAME: &str = "packet-hsm";
-/// One-line description (shared with the registry's GPU estimator).
-pub const DESCRIPTION: &str = "packet-based hierarchical soft shadow mapping: contour backprojection over a dual-grid MSSM, pixel packets, coherence test, S x S sub-lights (Yang 2009, GBP07)";
-
-/// Every packet size from 1x1 to 8x8 (`WxH`).
-pub const PACKETS: &[&str] = &[
-    "1x1", "1x2", "1x3", "1x4", "1x5", "1x6", "1x7", "1x8", "2x1", "2x2", "2x3", "2x4", "2x5",
-    "2x6", "2x7", "2x8", "3x1", "3x2", "3x3", "3x4", "3x5", "3x6", "3x7", "3x8", "4x1", "4x2",
-    "4x3", "4x4", "4x5", "4x6", "4x7", "4x8", "5x1", "5x2", "5x3", "5x4", "5x5", "5x6", "5x7",
-    "5x8", "6x1", "6x2", "6x3", "6x4", "6x5", "6x6", "6x7", "6x8", "7x1", "7x2", "7x3", "7x4",
-    "7x5", "7x6", "7x7", "7x8", "8x1", "8x2", "8x3", "8x4", "8x5", "8x6", "8x7", "8x8",
-];
-
-/// Parameters of [`CpuPacketHsm`] (shared with the engine path, [`crate::frame`]).
-pub const SPECS: &[ParamSpec] = Config::SPECS;
 
 /// Per-receiver diagnostics of the last estimate (Yang Figs. 5 and 8): what the EXR channels of a
 /// diagnostic image would hold.
@@ -123,119 +110,10 @@ impl CpuPacketHsm {
     }
 }
 
-/// The packet size `(w, h)` of a `WxH` parameter value.
-pub fn parse_packet(s: &str) -> Result<(u32, u32)> {
-    let bad = || {
-        Error::param(
-            "packet",
-            format!("expected WxH with W, H in 1..=8, got {s:?}"),
-        )
-    };
-    let (a, b) = s.split_once('x').ok_or_else(bad)?;
-    let w: u32 = a.parse().map_err(|_| bad())?;
-    let h: u32 = b.parse().map_err(|_| bad())?;
-    if !(1..=8).contains(&w) || !(1..=8).contains(&h) {
-        return Err(bad());
-    }
-    Ok((w, h))
-}
-
-pub use shadow_map_core::mssm::kernel_width;
-
-/// A packet size `WxH` (the `packet` parameter).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Packet {
-    /// Pixels per packet row, W.
-    pub w: u32,
-    /// Rows per packet, H.
-    pub h: u32,
-}
-
-impl Packet {
-    /// `(w, h)`.
-    pub fn size(self) -> (u32, u32) {
-        (self.w, self.h)
-    }
-}
-
-impl std::fmt::Display for Packet {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}x{}", self.w, self.h)
-    }
-}
-
-impl FromParam for Packet {
-    /// A `WxH` word ([`parse_packet`]); `None` for anything else.
-    fn from_param(v: ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice(word) => parse_packet(word).ok().map(|(w, h)| Packet { w, h }),
-            _ => None,
-        }
-    }
-}
-
-shadow_map_core::typed_params! {
-    /// Settings of one estimate, one field a parameter ([`SPECS`]).
-    pub struct Config {
-        /// Shadow-map resolution r of each sub-light's map.
-        resolution: u32 = ParamSpec {
-            help: "shadow-map resolution r (texels per side) of each sub-light's map",
-            ..RESOLUTION
-        },
-        /// packet of WxH neighbouring pixels (Yang §4.1; 1x1 = per pixel); receivers without an
-        /// image layout are processed pixel-wise
-        packet: Packet = ParamSpec::choice(PACKETS, "3x3"),
-        /// S: the light is split into S x S equal sub-lights, one shadow map + MSSM each, V
-        /// averaged (Yang §5)
-        sublights: u32 = ParamSpec::int(1, 4, "1"),
-        /// most opacity levels, one pass each, for semi-transparent meshes (docs/methods.md §3
-        /// "Semi-transparent occluders"): V = sum of level weights times V with only the meshes of
-        /// at least that opacity as casters; a scene needing more levels (its distinct opacities,
-        /// plus one without casters when no mesh is opaque) is treated as opaque; 1 = always opaque
-        opacity_levels: u32 = ParamSpec::int(1, 16, "2"),
-        /// Td: a packet whose diverging probability P_d (Yang eq. 5) exceeds Td is processed
-        /// pixel-wise
-        td: f64 = ParamSpec::float(0.0, 1.0, "0.8"),
-        /// hierarchical contour extraction over the dual-grid MSSM (Yang §4.2, Algorithm 3); false:
-        /// every 2x2 block of the kernel (GBP07)
-        hierarchy: bool = ParamSpec::flag(true),
-        /// coherence test (Yang §4.3: P_d > Td or cost ratio eq. 6 > 1 sends a packet pixel-wise);
-        /// false: every packet is tried packet-wise
-        coherence: bool = ParamSpec::flag(true),
-        /// Q_e of the cost model (eq. 6): cost of extracting an edge, in units of Q_n = 1 (a node)
-        qe: f64 = ParamSpec::float(0.0, 1e6, "2.0"),
-        /// Q_v of the cost model (eq. 6): cost of backprojecting and integrating an edge for one
-        /// pixel
-        qv: f64 = ParamSpec::float(0.0, 1e6, "4.0"),
-        ;
-        /// Midpoint classification or a receiver bias, and receiver-plane rejection.
-        shadow: SelfShadowSettings,
-        /// Light-view window and near/far choice of every sub-light's map.
-        view: ViewOptions,
-    }
-}
-
-impl Config {
-    fn traversal(&self) -> Traversal {
-        if self.hierarchy {
-            Traversal::Hierarchical
-        } else {
-            Traversal::Flat
-        }
-    }
-}
-
 /// Yang §4.3, the coherence test of a packet with extended kernel `k` (cells), threshold range
-/// `[t_min, t_max]` and member kernel sides `w_i`:
-///
-/// - `P_null = max(min(t_max, zbar_max) - max(t_min, zbar_min), 0) / (zbar_max - zbar_min)`
-///   (eq. 4), with `[zbar_min, zbar_max]` the depth range of the packet kernel (empty samples
-///   counted at `far`);
-/// - `P_d = 1 - (1 - P_null)^(wbar^2)` (eq. 5), `wbar` the packet kernel side; non-coherent when
-///   `P_d > Td`;
-/// - cost ratio (eq. 6), `Q_n = 1`, log base 2:
-///   `(log(wbar) wbar + (Q_e + Q_v n) wbar) / sum_i (log(w_i) w_i + (Q_e + Q_v) w_i)`;
-///   non-coherent when it exceeds 1.
+/// `[t_min, t_max]` and member kernel sides `w_i`: [`p_null`] (eq. 4) over the packet kernel's
+/// depth range (empty samples counted at `far`), non-coherent when the [`diverging_probability`]
+/// (eq. 5) exceeds Td, or when the cost ratio (eq. 6, [`packet_pays`]) exceeds 1.
 ///
 /// Returns true for a coherent packet. Only speed depends on it.
 pub fn coherence(
@@ -248,33 +126,13 @@ pub fn coherence(
     cfg: &Config,
 ) -> bool {
     let mm = dual.query(k);
-    let zmin = mm.min.min(far) as f64;
-    let zmax = mm.max.min(far) as f64;
-    let (tmin, tmax) = (t_min as f64, t_max as f64);
-    let inter = (tmax.min(zmax) - tmin.max(zmin)).max(0.0);
-    let range = zmax - zmin;
-    let p_null = if range > 0.0 {
-        (inter / range).min(1.0)
-    } else if tmin <= zmin && zmin < tmax {
-        1.0
-    } else {
-        0.0
-    };
+    let z = [mm.min.min(far) as f64, mm.max.min(far) as f64];
+    let p_null = p_null(z, [t_min as f64, t_max as f64]);
     let wbar = kernel_side(k).max(1) as f64;
-    let p_d = 1.0 - (1.0 - p_null).powf(wbar * wbar);
-    if p_d > cfg.td {
+    if diverging_probability(p_null, wbar) > cfg.td {
         return false;
     }
-    let n = sides.len() as f64;
-    let packet = wbar.log2() * wbar + (cfg.qe + cfg.qv * n) * wbar;
-    let pixels: f64 = sides
-        .iter()
-        .map(|&w| {
-            let w = w.max(1) as f64;
-            w.log2() * w + (cfg.qe + cfg.qv) * w
-        })
-        .sum();
-    packet <= pixels
+    packet_pays(wbar, sides, cfg.qe, cfg.qv)
 }
 
 /// Counters of one estimate.
@@ -373,15 +231,7 @@ pub fn estimate_sublight(
                         if !receivers.active()[gi] {
                             continue;
                         }
-                        let mut out = false;
-                        let prep = prepare(
-                            sv,
-                            &grid,
-                            cfg,
-                            receivers.position()[gi],
-                            receivers.normal()[gi],
-                            &mut out,
-                        );
+                        let (prep, out) = prepare_receiver(sv, &grid, cfg, receivers, gi);
                         outside += out as u64;
                         match prep {
                             Prep::Done(v) => acc[li] += weight * v,

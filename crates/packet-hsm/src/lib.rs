@@ -3,17 +3,15 @@
 // `!(a > b)` is deliberate: true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod contour;
 pub mod cpu;
-pub mod fit;
 #[cfg(feature = "gpu")]
-pub mod frame;
-#[cfg(feature = "gpu")]
-pub mod kernel;
+pub mod gpu;
+pub mod math;
+pub mod settings;
 
 pub use cpu::CpuPacketHsm;
 #[cfg(feature = "gpu")]
-pub use frame::PacketHsmFrame;
+pub use gpu::PacketHsmFrame;
 pub use shadow_map_core::SoftShadowEstimator;
 
 use shadow_map_core::method::{MethodDescriptor, Sweep};

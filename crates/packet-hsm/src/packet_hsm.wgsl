@@ -1,7 +1,7 @@
 // Twin of crates/packet-hsm/src/contour.rs (per-pixel GBP07, hierarchical extraction with an
 // explicit stack, Yang 2009 Algorithm 3) and of cpu.rs's kernel_cells and trivial
 // classification, in f32. Two entry points (packet_hsm_passes.wgsl), dispatched in order after
-// the frame's set-up pass (frame.wgsl `frame_setup`) wrote each receiver's RecIn: `prepare` (one
+// the frame's set-up pass (packet_hsm_frame.wgsl `frame_setup`) wrote each receiver's RecIn: `prepare` (one
 // invocation per receiver: kernel, lit / umbra, centre status), `pixels` (one per receiver:
 // per-pixel GBP07 for every penumbra receiver).
 //
@@ -282,7 +282,7 @@ fn occludes(rec: RecIn, i: i32, j: i32, s: vec2<f32>) -> bool {
 }
 
 // ReceiverPlane's slope and height at uv: (g0 + gu u + gv v, c) in perspective, (g0, c + cu u +
-// cv v) in an orthographic view (frame.wgsl's set-up packs cu, cv where gu, gv go).
+// cv v) in an orthographic view (packet_hsm_frame.wgsl's set-up packs cu, cv where gu, gv go).
 fn plane_gc(rec: RecIn, uv: vec2<f32>) -> vec2<f32> {
     let lin = rec.gu * uv.x + rec.gv * uv.y;
     if u.ortho != 0u {

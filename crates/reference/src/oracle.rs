@@ -27,6 +27,13 @@ pub struct RectOccluder {
     pub z: f32,
 }
 
+impl RectOccluder {
+    /// The rectangle `[min.x, max.x] x [min.y, max.y]` at depth `z`.
+    pub const fn new(min: Vec2, max: Vec2, z: f32) -> Self {
+        RectOccluder { min, max, z }
+    }
+}
+
 /// Central projection from the receiver `p` onto the light plane `z = 0` of a point at depth `z_o`:
 /// the scale `s = z_p / (z_p - z_o)` (docs/methods.md §10 item 1, §9). A point `q` at depth `z_o`
 /// projects to `p_xy + s (q - p_xy)`.
@@ -373,21 +380,9 @@ mod tests {
     fn rect_oracle_matches_brute_force() {
         let half = Vec2::new(0.6, 0.4);
         let occ = [
-            RectOccluder {
-                min: Vec2::new(-0.4, -0.3),
-                max: Vec2::new(0.6, 0.5),
-                z: 1.5,
-            },
-            RectOccluder {
-                min: Vec2::new(0.2, -1.0),
-                max: Vec2::new(0.9, -0.1),
-                z: 0.8,
-            },
-            RectOccluder {
-                min: Vec2::new(-2.0, 0.7),
-                max: Vec2::new(-0.5, 1.2),
-                z: 2.2,
-            },
+            RectOccluder::new(Vec2::new(-0.4, -0.3), Vec2::new(0.6, 0.5), 1.5),
+            RectOccluder::new(Vec2::new(0.2, -1.0), Vec2::new(0.9, -0.1), 0.8),
+            RectOccluder::new(Vec2::new(-2.0, 0.7), Vec2::new(-0.5, 1.2), 2.2),
         ];
         let mut worst = 0.0f64;
         for k in 0..60 {
@@ -407,11 +402,11 @@ mod tests {
     #[test]
     fn rect_oracle_edge_cases() {
         let half = Vec2::splat(0.5);
-        let occ = [RectOccluder {
-            min: Vec2::splat(-10.0),
-            max: Vec2::splat(10.0),
-            z: 1.0,
-        }];
+        let occ = [RectOccluder::new(
+            Vec2::splat(-10.0),
+            Vec2::splat(10.0),
+            1.0,
+        )];
         assert_eq!(
             rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0)),
             0.0
@@ -431,18 +426,18 @@ mod tests {
             1.0
         );
         // Concentric half-width occluder halfway: projection doubles, covers everything.
-        let occ = [RectOccluder {
-            min: Vec2::splat(-0.25),
-            max: Vec2::splat(0.25),
-            z: 1.0,
-        }];
+        let occ = [RectOccluder::new(
+            Vec2::splat(-0.25),
+            Vec2::splat(0.25),
+            1.0,
+        )];
         assert!(rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0)).abs() < 1e-12);
         // Quarter-width occluder: covers (0.5 / 1)^2 = 1/4 of the light.
-        let occ = [RectOccluder {
-            min: Vec2::splat(-0.125),
-            max: Vec2::splat(0.125),
-            z: 1.0,
-        }];
+        let occ = [RectOccluder::new(
+            Vec2::splat(-0.125),
+            Vec2::splat(0.125),
+            1.0,
+        )];
         let v = rect_occluder_visibility(half, &occ, Vec3::new(0.0, 0.0, 2.0));
         assert!((v - 0.75).abs() < 1e-12, "{v}");
     }

@@ -146,11 +146,11 @@ fn rect_scene(light: Light, occluders: &[RectOccluder], ground: bool) -> Scene {
 /// and the ground plane.
 fn occluded_scene() -> (Light, [RectOccluder; 1], Scene) {
     let light = down_light();
-    let occ = [RectOccluder {
-        min: Vec2::new(-0.4, -0.3),
-        max: Vec2::new(0.6, 0.5),
-        z: 1.5,
-    }];
+    let occ = [RectOccluder::new(
+        Vec2::new(-0.4, -0.3),
+        Vec2::new(0.6, 0.5),
+        1.5,
+    )];
     let scene = rect_scene(light, &occ, true);
     (light, occ, scene)
 }
@@ -217,16 +217,8 @@ fn a_tilted_rect_light_with_two_occluders_matches_closed_form() {
     );
     let f = light.frame();
     let occ = [
-        RectOccluder {
-            min: Vec2::new(-0.5, -0.2),
-            max: Vec2::new(0.3, 0.6),
-            z: 1.2,
-        },
-        RectOccluder {
-            min: Vec2::new(0.0, -0.7),
-            max: Vec2::new(0.9, 0.1),
-            z: 2.0,
-        },
+        RectOccluder::new(Vec2::new(-0.5, -0.2), Vec2::new(0.3, 0.6), 1.2),
+        RectOccluder::new(Vec2::new(0.0, -0.7), Vec2::new(0.9, 0.1), 2.0),
     ];
     let scene = rect_scene(light, &occ, false);
     let mut lp = Vec::new();
@@ -656,7 +648,7 @@ proptest! {
         let f = light.frame();
         let occ: Vec<RectOccluder> = occ
             .iter()
-            .map(|&((x, y), (w, h), z)| RectOccluder { min: Vec2::new(x, y), max: Vec2::new(x + w, y + h), z })
+            .map(|&((x, y), (w, h), z)| RectOccluder::new(Vec2::new(x, y), Vec2::new(x + w, y + h), z))
             .collect();
         let scene = rect_scene(light, &occ, false);
         let lp: Vec<Vec3> = recv.iter().map(|&(x, y, z)| Vec3::new(x, y, z)).collect();

@@ -31,6 +31,22 @@ fn scene(light: Light, meshes: Vec<Vec<[Vec3; 3]>>) -> Scene {
     Scene::from_meshes("test", camera(), light, all).unwrap()
 }
 
+/// `n` receivers facing up on the ground (y = 0) at `x = x0 + k dx` (`k < n`) and `z`.
+fn ground_line(n: usize, x0: f32, dx: f32, z: f32) -> Receivers {
+    let pos: Vec<Vec3> = (0..n)
+        .map(|k| Vec3::new(x0 + k as f32 * dx, 0.0, z))
+        .collect();
+    points(pos, Vec3::Y)
+}
+
+/// Every `got[k]` within `tol` of `want[k]`; a failure names `label`, k and both values.
+fn assert_close(label: &str, got: &[f32], want: &[f32], tol: f32) {
+    assert_eq!(got.len(), want.len(), "{label}: lengths");
+    for (k, (g, w)) in got.iter().zip(want).enumerate() {
+        assert!((g - w).abs() < tol, "{label} #{k}: {g} vs {w}");
+    }
+}
+
 fn acc(kv: &[(&str, &str)]) -> CpuAccumulation {
     with_params(CpuAccumulation::new().unwrap(), kv)
 }
@@ -105,10 +121,8 @@ fn half_occluder_through_the_estimator() {
 #[test]
 fn light_radius_to_zero_converges_to_the_hard_shadow_map() {
     let occ = quad(-0.5, -0.5, 0.5123, 0.5, 1.5);
-    let pos: Vec<Vec3> = (0..121)
-        .map(|k| Vec3::new(-1.5 + k as f32 * 0.025, 0.0, 0.13))
-        .collect();
-    let r = points(pos.clone(), Vec3::Y);
+    let r = ground_line(121, -1.5, 0.025, 0.13);
+    let pos = r.position();
     for shape in [
         LightShape::Disk { radius: 1e-3 },
         LightShape::Sphere { radius: 1e-3 },
@@ -157,10 +171,7 @@ fn receiver_behind_a_touching_occluder() {
         vec![cuboid(Vec3::new(0.2, 0.0, -0.3), Vec3::new(0.8, 0.6, 0.3))],
     );
     // Ground receivers from the box's far wall (x = 0.8) outwards.
-    let pos: Vec<Vec3> = (0..40)
-        .map(|k| Vec3::new(0.8 + 1e-3 + k as f32 * 0.02, 0.0, 0.05))
-        .collect();
-    let r = points(pos, Vec3::Y);
+    let r = ground_line(40, 0.8 + 1e-3, 0.02, 0.05);
     let vr = reference(&s, &r, 1024);
     for (mode, v) in every_mode(&s, &r, "512") {
         // The first receivers touch the wall: the reference is well below 1 there.
@@ -187,10 +198,7 @@ fn caster_nearer_than_the_papers_plane() {
         light(LightShape::Disk { radius: 0.5 }, 3.0),
         vec![quad(-0.1, -0.1, 0.1, 0.1, 2.8)],
     );
-    let pos: Vec<Vec3> = (0..21)
-        .map(|k| Vec3::new(-0.5 + k as f32 * 0.05, 0.0, 0.0))
-        .collect();
-    let r = points(pos, Vec3::Y);
+    let r = ground_line(21, -0.5, 0.05, 0.0);
     let vr = reference(&s, &r, 1024);
     assert!(
         vr[10] < 0.95,
@@ -250,14 +258,7 @@ fn grazing_receivers() {
     let r = points(pos, Vec3::Y);
     let vr = reference(&s, &r, 1024);
     for (mode, v) in every_mode(&s, &r, "512") {
-        for k in 0..v.len() {
-            assert!(
-                (v[k] - vr[k]).abs() < 0.05,
-                "{mode:?} #{k}: V = {} vs reference {}",
-                v[k],
-                vr[k]
-            );
-        }
+        assert_close(&format!("{mode:?} V vs reference"), &v, &vr, 0.05);
     }
 }
 
@@ -371,10 +372,7 @@ fn every_fixture_gives_v_in_range() {
 #[test]
 fn sphere_models_off_axis() {
     let l = light(LightShape::Sphere { radius: 0.5 }, 2.0);
-    let pos: Vec<Vec3> = (0..60)
-        .map(|k| Vec3::new(0.5 + k as f32 * 0.05, 0.0, 0.05))
-        .collect();
-    let r = points(pos, Vec3::Y);
+    let r = ground_line(60, 0.5, 0.05, 0.05);
     for (edge, occ, contract_max, paper_min) in [
         ("across", quad(1.0, -3.0, 5.0, 3.0, 0.8), 0.008, 0.025),
         ("along", quad(-1.0, 0.0, 5.0, 3.0, 0.8), 0.02, 0.0),
@@ -457,14 +455,7 @@ fn grazing_receiver_under_an_occluder_loses_the_front_light() {
         })
         .collect();
     let vr = reference(&s, &r, 1024);
-    for k in 0..pos.len() {
-        assert!(
-            (vr[k] - exact[k]).abs() < 0.03,
-            "reference #{k}: {} vs closed form {}",
-            vr[k],
-            exact[k]
-        );
-    }
+    assert_close("reference vs closed form", &vr, &exact, 0.03);
     let mut worsts = Vec::new();
     for mode in modes() {
         let mut kv = mode.clone();
@@ -507,10 +498,7 @@ fn grazing_receiver_under_an_occluder_loses_the_front_light() {
 #[test]
 fn sphere_receivers_beyond_the_window_are_counted() {
     let l = light(LightShape::Sphere { radius: 0.5 }, 2.0);
-    let pos: Vec<Vec3> = (0..50)
-        .map(|k| Vec3::new(4.0 + k as f32 * 0.1, 0.0, 0.05))
-        .collect();
-    let r = points(pos, Vec3::Y);
+    let r = ground_line(50, 4.0, 0.1, 0.05);
     // The receivers needing more than 4 radii, by the formula of `fit_half_extent`.
     let frame = l.frame();
     let expected = r

@@ -15,17 +15,14 @@
 #![cfg(feature = "gpu")]
 
 use accumulation::{
-    cpu::{Settings, Variant, MAX_BITS},
+    cpu::MAX_BITS,
     math::{Footprint, FrontEdge},
+    settings::{Settings, Variant},
     AccumulationFrame, CpuAccumulation,
 };
 use glam::Vec3;
 use shadow_map_core::{
-    gpu::{
-        frame::{FrameEstimator, FrameInputs},
-        shared::CUT_BITS,
-        GpuContext, GpuReceivers, GpuScene,
-    },
+    gpu::{frame::FrameEstimator, shared::CUT_BITS, GpuContext},
     light_space::LightSpace,
     LightView, Params, Receivers, Result, Scene, SoftShadowEstimator,
 };
@@ -37,7 +34,8 @@ pub const TIE_NUDGE_REL: f32 = 1e-5;
 /// The receiver nudge of a sampling tie, relative to its distance from the origin.
 pub const SAMPLING_NUDGE_REL: f32 = 1e-6;
 
-/// One frame's output, read back.
+/// One frame's output, read back: what [`test_support::frame_run`] reads, with the raw status
+/// words and the maps the frame rendered.
 pub struct FrameRun {
     /// The view the frame fitted.
     pub view: LightView,
@@ -49,47 +47,23 @@ pub struct FrameRun {
     pub maps: LightSpace,
 }
 
-/// Fits the frame's view to `rec`, records one frame into a fresh encoder from `scene`'s casters
-/// and `rec` uploaded, submits it and reads V, the status and the maps back. Errors: the
-/// frame's own (a view it cannot fit, device limits).
+/// One frame of `frame` over `scene` and `rec` ([`test_support::frame_run::run_frame`]), then its
+/// status words and its maps read back. Errors: the frame's own (a view it cannot fit, device
+/// limits).
 pub fn run_frame(
     ctx: &GpuContext,
     frame: &AccumulationFrame,
     scene: &Scene,
     rec: &Receivers,
 ) -> Result<FrameRun> {
-    let views = frame.fit_views(scene, rec)?;
-    let view = views[0].expect("accumulation fits one view");
-    let casters = GpuScene::upload(ctx, scene)?;
-    let receivers = GpuReceivers::upload(ctx, rec)?;
-    let n = rec.len() as u64;
-    let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test V"),
-        size: 4 * n.max(1),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    frame.encode(
-        &mut enc,
-        &FrameInputs {
-            casters: &casters,
-            views: &views,
-            light: scene.light(),
-            receivers: &receivers.buffer,
-            count: receivers.count,
-            v: &v_buf,
-            timestamps: None,
-        },
-    )?;
-    ctx.queue.submit([enc.finish()]);
-    let v: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n)?;
+    let (rig, out) = test_support::frame_run::run_frame(ctx, frame, scene, rec)?;
+    let view = rig.views[0].expect("accumulation fits one view");
     let status_buf = frame.status().expect("the frame keeps a status");
     let status: Vec<u32> = ctx.read_buffer(status_buf, status_buf.size())?;
     let maps = frame.light_space(&view).to_cpu(ctx)?;
     Ok(FrameRun {
         view,
-        v,
+        v: out.v,
         status,
         maps,
     })

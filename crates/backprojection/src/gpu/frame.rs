@@ -6,7 +6,8 @@ use shadow_map_core::{
     gpu::{
         estimate::EstimateUniform,
         frame::{
-            buffer_range, check_buffers, single_view, status_buffer, FrameEstimator, FrameInputs,
+            buffer_range, check_buffers, cpu_twin_v, single_view, status_buffer, FrameEstimator,
+            FrameInputs,
         },
         layout::{GpuLayout, KernelMaps},
         light_space::GpuLightSpace,
@@ -215,11 +216,15 @@ impl FrameEstimator for BackprojectionFrame {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let mut cpu = CpuBackprojection::new()?;
-        shadow_map_core::estimator::configure(&mut cpu, self.cpu.params())?;
-        cpu.build_in_view(scene, receivers, *single_view(views)?)?;
-        let mut v = vec![0.0; receivers.len()];
-        cpu.estimate(scene, receivers, &mut v)?;
-        Ok(v)
+        let view = *single_view(views)?;
+        cpu_twin_v(
+            CpuBackprojection::new()?,
+            self.cpu.params(),
+            receivers,
+            |e, v| {
+                e.build_in_view(scene, receivers, view)?;
+                e.estimate(scene, receivers, v)
+            },
+        )
     }
 }

@@ -20,6 +20,39 @@ fn bp(kv: &[(&str, &str)]) -> CpuBackprojection {
     with_params(CpuBackprojection::new().unwrap(), kv)
 }
 
+/// The unit light 3 above the ground ([`rect_light`]) with the shape `shape`.
+fn shaped_light(shape: LightShape) -> Light {
+    let mut light = rect_light(1.0, 3.0);
+    light.shape = shape;
+    light
+}
+
+/// The fronto-parallel [`SQUARE`] under the light of shape `shape`, and the line of receivers.
+fn square_under(shape: LightShape) -> (Scene, Receivers) {
+    (scene_with(shaped_light(shape), &[SQUARE]), line_receivers())
+}
+
+/// The estimate with additive occlusion (exact areas: the edge bounds below are its) and up to
+/// 4096 samples at resolution `res`: V, the report's `max_step`, and the width on the light
+/// plane of one texel at depth `z_o` backprojected from `z_p`, `S = k z_o z_p / (z_p - z_o)`
+/// (`k = w / (n r)`).
+fn additive_edge_run(s: &Scene, r: &Receivers, res: u32, zo: f32, zp: f32) -> (Vec<f32>, f64, f64) {
+    let mut e = bp(&[
+        ("resolution", &res.to_string()),
+        ("max_nspp", "4096"),
+        ("occlusion", "additive"),
+    ]);
+    let (v, report) = run(&mut e, s, r).unwrap();
+    let step: f64 = note_as(&report, "max_step");
+    let view = e.light_space().unwrap().view;
+    let k = view.delta() / view.n;
+    (v, step, (k * zo * zp / (zp - zo)) as f64)
+}
+
+/// Two stacked squares, a small one near the light and a large one near the ground,
+/// overlapping in projection.
+const STACKED: [Occ; 2] = [(-0.3, -0.3, 0.3, 0.3, 2.4), (-1.0, -1.0, 1.0, 1.0, 0.8)];
+
 /// A fronto-parallel square occluder: its micropatches tile exactly (docs/methods.md §2), so the
 /// only error is where the rasteriser puts the occluder's edge, within one texel of the true edge.
 ///
@@ -38,17 +71,8 @@ fn flat_occluder_errors(occ: Occ, label: &str) -> Vec<(f64, f64, f64)> {
     let mut out = Vec::new();
     for res in [128u32, 256, 512] {
         // The bound is additive occlusion's (exact areas; bits add their quantisation).
-        let mut e = bp(&[
-            ("resolution", &res.to_string()),
-            ("max_nspp", "4096"),
-            ("occlusion", "additive"),
-        ]);
-        let (v, report) = run(&mut e, &s, &r).unwrap();
-        let step: f64 = note_as(&report, "max_step");
-        let view = e.light_space().unwrap().view;
-        let k = view.delta() / view.n;
-        let (zo, zp) = (3.0 - occ.4, 3.0f32);
-        let bound = step * (k * zo * zp / (zp - zo)) as f64 / 1.0 + 1e-4;
+        let (v, step, strip) = additive_edge_run(&s, &r, res, 3.0 - occ.4, 3.0);
+        let bound = step * strip / 1.0 + 1e-4;
         let (rms, max) = errors(&v, &o);
         eprintln!(
             "flat occluder {label} r={res}: step {step} rms {rms:.5} max {max:.5} bound {bound:.5}"
@@ -124,10 +148,9 @@ fn tiny_light_equals_the_hard_shadow() {
 /// the extra micropatches overlap (overshadowing). Receiver-plane rejection changes nothing here.
 #[test]
 fn overlapping_occluders_layers() {
-    let occ: [Occ; 2] = [(-0.3, -0.3, 0.3, 0.3, 2.4), (-1.0, -1.0, 1.0, 1.0, 0.8)];
-    let s = scene_with(rect_light(1.0, 3.0), &occ);
+    let s = scene_with(rect_light(1.0, 3.0), &STACKED);
     let r = line_receivers();
-    let o = oracle(&s, &occ, &r);
+    let o = oracle(&s, &STACKED, &r);
     let mut rmse = Vec::new();
     for (layers, rule, plane) in [
         ("1", "first_nonzero", "true"),
@@ -194,18 +217,18 @@ fn overlapping_occluders_layers() {
 /// additive beyond that bound, and the bitmask RMSE below additive's. Rect and disk lights.
 #[test]
 fn bitmask_counts_overlapping_micropatches_once() {
-    let occ: [Occ; 2] = [(-0.3, -0.3, 0.3, 0.3, 2.4), (-1.0, -1.0, 1.0, 1.0, 0.8)];
     for disk in [false, true] {
-        let mut light = rect_light(1.0, 3.0);
-        if disk {
-            light.shape = LightShape::Disk { radius: 0.5 };
-        }
-        let s = scene_with(light, &occ);
+        let light = if disk {
+            shaped_light(LightShape::Disk { radius: 0.5 })
+        } else {
+            rect_light(1.0, 3.0)
+        };
+        let s = scene_with(light, &STACKED);
         let r = line_receivers();
         let o: Vec<f64> = if disk {
             traced(&s, &r, 1024)
         } else {
-            oracle(&s, &occ, &r)
+            oracle(&s, &STACKED, &r)
         };
         // Disk: the reference's noise at 1024 spp (3 sigma at V = 1/2 is 0.047).
         let noise = if disk { 0.05 } else { 0.0 };
@@ -364,10 +387,7 @@ fn hard_cases_stay_finite() {
 /// with 1e-4 slack, and RMSE <= 0.02 (the bound for the closed-form disk scene).
 #[test]
 fn disk_light_matches_the_closed_form() {
-    let mut light = rect_light(1.0, 3.0);
-    light.shape = LightShape::Disk { radius: 0.5 };
-    let s = scene_with(light, &[SQUARE]);
-    let r = line_receivers();
+    let (s, r) = square_under(LightShape::Disk { radius: 0.5 });
     let o = test_support::fixtures::oracle_disk(&s, SQUARE, &r);
     for res in [256u32, 512] {
         // Default occlusion (bitmask on this opaque scene), 4096 samples: RMSE <= 0.02.
@@ -381,18 +401,9 @@ fn disk_light_matches_the_closed_form() {
         eprintln!("disk light r={res} default occlusion: rms {rms:.5} max {max:.5}");
         assert!(rms <= 0.02, "r={res} default occlusion: RMSE {rms}");
         // The edge bound is additive occlusion's (exact areas).
-        let mut e = bp(&[
-            ("resolution", &res.to_string()),
-            ("max_nspp", "4096"),
-            ("occlusion", "additive"),
-        ]);
-        let (v, report) = run(&mut e, &s, &r).unwrap();
+        let (v, step, strip) = additive_edge_run(&s, &r, res, 1.5, 3.0);
         assert_valid(&v, "disk light");
-        let step: f64 = note_as(&report, "max_step");
-        let view = e.light_space().unwrap().view;
-        let k = view.delta() / view.n;
-        let (zo, zp, rad) = (1.5f32, 3.0f32, 0.5f64);
-        let strip = (k * zo * zp / (zp - zo)) as f64;
+        let rad = 0.5f64;
         let bound = step * strip * 2.0 * rad / (std::f64::consts::PI * rad * rad) + 1e-4;
         let (rms, max) = errors(&v, &o);
         eprintln!("disk light r={res}: step {step} rms {rms:.5} max {max:.5} bound {bound:.5}");
@@ -406,10 +417,7 @@ fn disk_light_matches_the_closed_form() {
 /// with it, so B_s is carried onto a tilted disk. RMSE <= 0.02.
 #[test]
 fn sphere_light_matches_the_reference() {
-    let mut light = rect_light(1.0, 3.0);
-    light.shape = LightShape::Sphere { radius: 0.4 };
-    let s = scene_with(light, &[SQUARE]);
-    let r = line_receivers();
+    let (s, r) = square_under(LightShape::Sphere { radius: 0.4 });
     let truth = traced(&s, &r, 4096);
     let mut e = bp(&[("resolution", "512"), ("max_nspp", "4096")]);
     let v = run(&mut e, &s, &r).unwrap().0;

@@ -6,8 +6,9 @@
 //! run by the core's `FrameTwin`: receivers uploaded, one frame, V read back).
 #![cfg(feature = "gpu")]
 
-use backprojection::{BackprojectionFrame, CpuBackprojection};
-use shadow_map_core::{gpu::frame::FrameEstimator, run, Params, SoftShadowEstimator};
+use crate::support::{cpu_on_maps, frame_maps};
+use backprojection::BackprojectionFrame;
+use shadow_map_core::{gpu::frame::FrameEstimator, run, Params};
 use test_support::{
     conformance::frames_match_the_cpu_twin,
     fixtures::{bunny_under_three_lights, fixture},
@@ -20,15 +21,15 @@ fn backprojection_frames_match_the_twins() {
     let Some(ctx) = context_for_tests("backprojection_frames_match_the_twins").unwrap() else {
         return;
     };
-    let params = Params::new(backprojection::cpu::SPECS).unwrap();
+    let params = Params::new(backprojection::settings::SPECS).unwrap();
     let frame = BackprojectionFrame::prepare(ctx.clone(), &params).unwrap();
+    let mut gpu = backprojection::DESCRIPTOR
+        .gpu(ctx.clone())
+        .expect("a GPU estimator")
+        .unwrap();
     for (name, scene, rec) in bunny_under_three_lights(64, 48) {
         let label = format!("backprojection {name}");
         let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
-        let mut gpu = backprojection::DESCRIPTOR
-            .gpu(ctx.clone())
-            .expect("a GPU estimator")
-            .unwrap();
         let (v_gpu, _) = run(&mut *gpu, &scene, &rec).unwrap();
         let differ_gpu = (0..rec.len())
             .filter(|&k| rec.active()[k] && c.v[k].to_bits() != v_gpu[k].to_bits())
@@ -64,7 +65,7 @@ fn backprojection_frame_models_semi_transparent_casters() {
     else {
         return;
     };
-    let params = Params::new(backprojection::cpu::SPECS).unwrap();
+    let params = Params::new(backprojection::settings::SPECS).unwrap();
     let frame = BackprojectionFrame::prepare(ctx.clone(), &params).unwrap();
     assert!(frame.models_opacity());
     for name in ["strands", "hair"] {
@@ -76,19 +77,15 @@ fn backprojection_frame_models_semi_transparent_casters() {
         let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
         assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
         let views = frame.fit_views(&scene, &rec).unwrap();
-        let view = views[0].unwrap();
 
-        // The CPU twin on the frame's own maps.
-        let ls = frame.light_space(&view).to_cpu(&ctx).unwrap();
+        // The CPU twin (default parameters) on the frame's own maps.
+        let ls = frame_maps(&ctx, &frame, &views).unwrap();
         assert_eq!(
             ls.opacity.len(),
             ls.layers.len(),
             "{label}: opacity planes read back"
         );
-        let mut cpu = CpuBackprojection::new().unwrap();
-        cpu.set_light_space(ls);
-        let mut same_maps = vec![0.0; rec.len()];
-        cpu.estimate(&scene, &rec, &mut same_maps).unwrap();
+        let same_maps = cpu_on_maps(&ls, &scene, &rec, &Vec::new());
         let active: Vec<usize> = (0..rec.len()).filter(|&k| rec.active()[k]).collect();
         let beyond = active
             .iter()

@@ -15,19 +15,16 @@
 //! `SOFTSHADOW_PROPTEST_CASES=N` for more.
 #![cfg(feature = "gpu")]
 
+use crate::support::{cpu_on_maps, frame_once, prepare, prepare_and_run, FrameRun};
 use backprojection::{BackprojectionFrame, CpuBackprojection};
 use proptest::prelude::*;
 use shadow_map_core::{
-    gpu::{
-        frame::{FrameEstimator, FrameInputs, FrameStatus},
-        GpuContext, GpuReceivers, GpuScene,
-    },
-    light_space::LightSpace,
-    run, Backend, LightView, Receivers, Report, Scene, SoftShadowEstimator,
+    gpu::{frame::FrameEstimator, GpuContext},
+    run, Backend, Receivers, Report, Scene,
 };
-use std::sync::Arc;
+use std::{collections::HashMap, sync::Arc};
 use test_support::{
-    conformance::{random_twins, table, BoxedFrame, FixedCase, Params, TwinPair},
+    conformance::{random_twins, BoxedFrame, FixedCase, Params, TwinPair},
     fixtures::configure,
     proptest_config,
     scenes::{arb_bias, arb_case, BoxSpec, LightSpec, SceneRanges, SceneSpec, Shapes},
@@ -148,92 +145,33 @@ fn run_cpu(scene: &Scene, rec: &Receivers, s: &Settings, bias: f32) -> Vec<f32> 
     run(&mut e, scene, rec).expect("cpu run").0
 }
 
-/// One frame as a renderer records it: V read back, the decoded status, the views and the maps
-/// the frame rendered (read back, opacity planes included for semi-transparent casters).
-struct FrameRun {
-    v: Vec<f32>,
-    status: FrameStatus,
-    views: Vec<Option<LightView>>,
-    maps: LightSpace,
-}
+/// Frames prepared so far, one per parameter table: a random case whose table an earlier case
+/// drew (or a shrink step that keeps it) reuses its frame instead of compiling the pipelines
+/// again (a frame is reusable across scenes and receivers).
+#[derive(Default)]
+struct Frames(HashMap<Params, BackprojectionFrame>);
 
-impl FrameRun {
-    /// Active receivers the frame left NaN (cut short by the loop budget).
-    fn cut(&self, rec: &Receivers) -> Vec<usize> {
-        (0..rec.len())
-            .filter(|&k| rec.active()[k] && self.v[k].is_nan())
-            .collect()
+impl Frames {
+    /// The frame prepared for `params`, prepared now if no earlier case drew them.
+    fn get(
+        &mut self,
+        ctx: &Arc<GpuContext>,
+        params: &Params,
+    ) -> Result<&BackprojectionFrame, String> {
+        if !self.0.contains_key(params) {
+            self.0.insert(params.clone(), prepare(ctx, params)?);
+        }
+        Ok(&self.0[params])
     }
 }
 
-/// `frame` on `scene`'s casters (uploaded) and `rec` (uploaded), in the views it fits for them:
-/// one encoder, one submit, then V, the status and the maps read back.
-fn frame_once(
-    ctx: &GpuContext,
-    frame: &BackprojectionFrame,
-    scene: &Scene,
-    rec: &Receivers,
-) -> Result<FrameRun, String> {
-    let e = |e: shadow_map_core::Error| format!("frame: {e}");
-    let views = frame.fit_views(scene, rec).map_err(e)?;
-    let casters = GpuScene::upload(ctx, scene).map_err(e)?;
-    let receivers = GpuReceivers::upload(ctx, rec).map_err(e)?;
-    let n = rec.len() as u64;
-    let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test V"),
-        size: 4 * n.max(1),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    frame
-        .encode(
-            &mut enc,
-            &FrameInputs {
-                casters: &casters,
-                views: &views,
-                light: scene.light(),
-                receivers: &receivers.buffer,
-                count: receivers.count,
-                v: &v_buf,
-                timestamps: None,
-            },
-        )
-        .map_err(e)?;
-    ctx.queue.submit([enc.finish()]);
-    let v: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n).map_err(e)?;
-    let status = frame.read_status(ctx).map_err(e)?.unwrap_or_default();
-    let view = views[0].ok_or("frame: no view")?;
-    let maps = frame.light_space(&view).to_cpu(ctx).map_err(e)?;
-    Ok(FrameRun {
-        v,
-        status,
-        views,
-        maps,
-    })
-}
-
-/// [`frame_once`] with a frame prepared for `params`.
-fn run_frame(
-    ctx: &Arc<GpuContext>,
-    scene: &Scene,
-    rec: &Receivers,
-    params: &Params,
-) -> Result<FrameRun, String> {
-    let frame =
-        BackprojectionFrame::prepare(ctx.clone(), &table(backprojection::cpu::SPECS, params))
-            .map_err(|e| format!("prepare: {e}"))?;
-    frame_once(ctx, &frame, scene, rec)
-}
-
-/// The CPU twin's V with `params` on the light-space data `maps` (the frame's, read back).
-fn cpu_on_maps(maps: &LightSpace, scene: &Scene, rec: &Receivers, params: &Params) -> Vec<f32> {
-    let mut e = CpuBackprojection::new().expect("cpu twin");
-    configure(&mut e, params);
-    e.set_light_space(maps.clone());
-    let mut v = vec![0.5f32; rec.len()];
-    e.estimate(scene, rec, &mut v).expect("cpu estimate");
-    v
+/// Two V of receiver `k`, each named, are the same bits.
+fn assert_same_bits(k: usize, (a_name, a): (&str, f32), (b_name, b): (&str, f32)) {
+    assert_eq!(
+        a.to_bits(),
+        b.to_bits(),
+        "receiver {k}: {a_name} {a}, {b_name} {b}"
+    );
 }
 
 /// A note of `report` as a count (0 when absent).
@@ -245,17 +183,18 @@ fn note_count(report: &Report, key: &str) -> usize {
         .map_or(0, |n| n.1.parse::<usize>().unwrap())
 }
 
-/// The frame on the case's scene against the CPU twin on the frame's own maps; `cuts` adds the
-/// receivers the loop budget cut.
+/// The frame (from `frames`) on the case's scene against the CPU twin on the frame's own maps;
+/// `cuts` adds the receivers the loop budget cut.
 fn check_case(
     ctx: &Arc<GpuContext>,
+    frames: &mut Frames,
     case: &Case,
     cuts: &mut usize,
 ) -> Result<Option<CaseStats>, String> {
     let (scene, rec) = case.scene.scene_and_receivers();
     let s = &case.settings;
     let kv = settings_kv(s, s.bias);
-    let fr = run_frame(ctx, &scene, &rec, &kv)?;
+    let fr = frame_once(ctx, frames.get(ctx, &kv)?, &scene, &rec)?;
     let v_cpu = cpu_on_maps(&fr.maps, &scene, &rec, &kv);
     let cut = fr.cut(&rec);
     if cut.len() != fr.status.left_nan as usize {
@@ -346,22 +285,24 @@ impl TwinPair for Backprojection {
     );
 
     fn frame(&self, ctx: &Arc<GpuContext>, params: &Params) -> Option<BoxedFrame> {
-        let t = table(backprojection::cpu::SPECS, params);
-        Some(Box::new(
-            BackprojectionFrame::prepare(ctx.clone(), &t).unwrap(),
-        ))
+        Some(Box::new(prepare(ctx, params).unwrap()))
     }
 
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let mut cuts = 0;
+        let mut frames = Frames::default();
         let st = random_twins(
             "backprojection",
             proptest_config(source_file, 12),
             &arb_case(&RANGES, arb_settings()),
             &TWIN,
-            |case| check_case(ctx, case, &mut cuts),
+            |case| check_case(ctx, &mut frames, case, &mut cuts),
         );
-        eprintln!("backprojection: {cuts} receivers cut by the loop budget, left out");
+        eprintln!(
+            "backprojection: {cuts} receivers cut by the loop budget, left out; {} frames \
+             prepared",
+            frames.0.len()
+        );
         // Every case compares its receivers (none refused), and the run met every class.
         assert_eq!(st.refused, 0, "backprojection: cases refused");
         assert!(
@@ -400,9 +341,7 @@ impl TwinPair for Backprojection {
         let (vg, rg) = run(&mut *g, &scene, &rec).unwrap();
         let redone = note_count(&rg, "frame_cpu_redo");
 
-        let frame =
-            BackprojectionFrame::prepare(ctx.clone(), &table(backprojection::cpu::SPECS, &kv))
-                .unwrap();
+        let frame = prepare(ctx, &kv).unwrap();
         let fr = frame_once(ctx, &frame, &scene, &rec).unwrap();
         let cut = fr.cut(&rec);
         eprintln!(
@@ -428,21 +367,9 @@ impl TwinPair for Backprojection {
             if !rec.active()[k] {
                 assert!(vg[k].is_nan(), "inactive receiver {k}: {}", vg[k]);
             } else if cut.contains(&k) {
-                assert_eq!(
-                    vg[k].to_bits(),
-                    twin[k].to_bits(),
-                    "cut receiver {k}: redone {}, CPU twin {}",
-                    vg[k],
-                    twin[k]
-                );
+                assert_same_bits(k, ("redone", vg[k]), ("CPU twin", twin[k]));
             } else {
-                assert_eq!(
-                    vg[k].to_bits(),
-                    fr.v[k].to_bits(),
-                    "receiver {k}: estimator {}, frame {}",
-                    vg[k],
-                    fr.v[k]
-                );
+                assert_same_bits(k, ("estimator", vg[k]), ("frame", fr.v[k]));
             }
         }
         let on_maps = cpu_on_maps(&fr.maps, &scene, &rec, &kv);
@@ -489,7 +416,7 @@ impl TwinPair for Backprojection {
                 .any(|(k, v)| k == "engine_path" && v == "frame twin"),
             "{report:?}"
         );
-        let fr = run_frame(ctx, &scene, &rec, &kv).unwrap();
+        let fr = prepare_and_run(ctx, &scene, &rec, &kv).unwrap();
         assert!(fr.cut(&rec).is_empty(), "{:?}", fr.status);
         let mut umbra_pen = 0;
         for k in 0..rec.len() {
@@ -497,13 +424,7 @@ impl TwinPair for Backprojection {
                 assert!(v1[k].is_nan());
                 continue;
             }
-            assert_eq!(
-                v1[k].to_bits(),
-                fr.v[k].to_bits(),
-                "#{k}: CLI path {} vs the frame {}",
-                v1[k],
-                fr.v[k]
-            );
+            assert_same_bits(k, ("CLI path", v1[k]), ("frame", fr.v[k]));
             assert!(
                 (v1[k] - v_cpu[k]).abs() <= TWIN.abs,
                 "#{k}: {} vs {}",
@@ -567,7 +488,7 @@ fn gpu_weights_semi_transparent_micropatches_as_the_cpu() {
     }
     assert!(!scene.is_opaque());
 
-    let fr = run_frame(&ctx, &scene, &rec, &kv).unwrap();
+    let fr = prepare_and_run(&ctx, &scene, &rec, &kv).unwrap();
     assert_eq!(
         fr.maps.opacity.len(),
         fr.maps.layers.len(),
@@ -617,15 +538,17 @@ fn gpu_bitmask_matches_cpu_on_every_light() {
     let Some(ctx) = test_support::gpu("gpu_bitmask_matches_cpu_on_every_light") else {
         return;
     };
-    for shape in 0u8..3 {
+    // One frame per parameter table, across the three lights (the shape is the scene's).
+    for (bits, gap) in [(8u32, true), (16, false)] {
         let mut case = fixed_case();
-        case.scene.light.shape = shape;
-        for (bits, gap) in [(8u32, true), (16, false)] {
-            case.settings.bits = Some(bits);
-            case.settings.gap_filling = gap;
-            let kv = settings_kv(&case.settings, 1.0);
+        case.settings.bits = Some(bits);
+        case.settings.gap_filling = gap;
+        let kv = settings_kv(&case.settings, 1.0);
+        let frame = prepare(&ctx, &kv).unwrap();
+        for shape in 0u8..3 {
+            case.scene.light.shape = shape;
             let (scene, rec) = case.scene.scene_and_receivers();
-            let fr = run_frame(&ctx, &scene, &rec, &kv).unwrap();
+            let fr = frame_once(&ctx, &frame, &scene, &rec).unwrap();
             let on_maps = cpu_on_maps(&fr.maps, &scene, &rec, &kv);
             let (worst, cut) = worst_on_maps(&fr, &on_maps, &rec);
             let penumbra = (0..rec.len())

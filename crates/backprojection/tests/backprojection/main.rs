@@ -2,3 +2,4 @@
 mod accuracy;
 mod frame;
 mod gpu_twin;
+mod support;

@@ -14,22 +14,21 @@
 //! them with the CPU twin in the same views).
 use super::{
     kernel,
-    map_estimator::{entry, shader_parts, GpuFilter},
+    map_estimator::{shader_parts, GpuFilter},
     multi_sample::Kernels as MultiSampleKernels,
 };
 use crate::{
-    common::MapSettings,
-    multi_sample::{jitter, MultiSampleParams},
+    cpu::{MapEstimator, MultiSample},
+    math::{inv_samples, jitter},
+    settings::{MapSettings, MultiSampleParams},
 };
-use crate::{map_estimator::MapEstimator, MultiSample};
 pub use shadow_map_core::gpu::frame::{FrameEstimator, FrameInputs};
 use shadow_map_core::{
-    estimator::configure,
     gpu::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
         frame::{
-            buffer_range, check_buffers, check_per_receiver, check_prepared_inputs, single_view,
-            status_buffer,
+            buffer_range, check_buffers, check_per_receiver, check_prepared_inputs, compute_pass,
+            cpu_twin_v, single_view, status_buffer,
         },
         receivers::RECEIVER_BYTES,
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
@@ -46,9 +45,7 @@ pub struct MapFrame<F: GpuFilter> {
     params: Params,
     settings: MapSettings,
     filter: F,
-    map: GpuMapFrame,
-    /// The layer's 16-bit codes under `depth=unorm16`.
-    unorm16: Option<GpuUnorm16Frame>,
+    map: FrameMap,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
     est: wgpu::Buffer,
@@ -62,9 +59,7 @@ impl<F: GpuFilter> MapFrame<F> {
     pub fn prepare(ctx: Arc<GpuContext>, params: &Params) -> Result<Self> {
         let settings = MapSettings::from_params(params)?;
         let filter = F::from_params(params)?;
-        let mapper = GpuShadowMapper::new(&ctx)?;
-        let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), 1)?;
-        let unorm16 = unorm16_frame(&ctx, settings.depth, &map)?;
+        let map = FrameMap::new(&ctx, &settings, 1)?;
         let label = format!("{} frame", F::NAME);
         let module = shadow_map_core::gpu::kernel::shader_module(
             &ctx,
@@ -75,13 +70,7 @@ impl<F: GpuFilter> MapFrame<F> {
         let pipeline = shadow_map_core::gpu::kernel::compute_pipeline(
             &ctx, &label, &module, &layout, "estimate", OVERRIDES,
         )?;
-        let usage = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
-        let est = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame estimate uniform"),
-            size: std::mem::size_of::<EstimateUniform>() as u64,
-            usage,
-            mapped_at_creation: false,
-        });
+        let est = uniform_buffer(&ctx, "frame estimate uniform");
         let status = status_buffer(&ctx, "frame status", 4);
         Ok(MapFrame {
             ctx,
@@ -89,7 +78,6 @@ impl<F: GpuFilter> MapFrame<F> {
             settings,
             filter,
             map,
-            unorm16,
             layout,
             pipeline,
             est,
@@ -102,7 +90,7 @@ impl<F: GpuFilter> MapFrame<F> {
     /// ([`GpuLightSpace::to_cpu`]) to run the CPU filter on the very map the kernel read
     /// ([`MapEstimator::set_light_space`]).
     pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
-        map_light_space(&self.map, 0, view)
+        self.map.light_space(0, view)
     }
 }
 
@@ -123,7 +111,7 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
 
     /// The map and, under `depth=unorm16`, its 16-bit codes.
     fn light_space_bytes(&self) -> usize {
-        self.map.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
+        self.map.bytes()
     }
 
     /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
@@ -139,13 +127,13 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let queue = &self.ctx.queue;
         inputs.mark(enc, "start");
-        self.map.encode(queue, enc, inputs.casters, view, 0)?;
+        self.map
+            .raster
+            .encode(queue, enc, inputs.casters, view, 0)?;
         inputs.mark(enc, "raster");
-        let (b0, b1) = self.settings.biases();
-        let mut u = EstimateUniform::new(inputs.light, b0, b1);
-        u.receiver_plane = u32::from(self.settings.receiver_plane);
+        let mut u = estimate_uniform(&self.settings, inputs.light);
         self.filter.set_uniform(&mut u);
-        if let Some(codes) = &self.unorm16 {
+        if let Some(codes) = &self.map.unorm16 {
             u.depth_step = codes.encode(&self.ctx, enc, 0, view.n, view.far)?;
             inputs.mark(enc, "unorm16");
         }
@@ -154,29 +142,21 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         if n == 0 {
             return Ok(());
         }
-        let group = self
-            .ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("frame estimate"),
-                layout: &self.layout,
-                entries: &[
-                    entry(0, self.map.view_uniform(0).as_entire_binding()),
-                    entry(1, self.est.as_entire_binding()),
-                    entry(2, map_binding(&self.map, self.unorm16.as_ref())),
-                    entry(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
-                    entry(4, buffer_range(inputs.v, n * 4)),
-                    entry(5, self.status.as_entire_binding()),
-                ],
-            });
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("frame estimate"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(inputs.count.div_ceil(WORKGROUP_SIZE), 1, 1);
-        drop(pass);
+        let group = kernel::bind_group(
+            &self.ctx,
+            "frame estimate",
+            &self.layout,
+            &[
+                self.map.raster.view_uniform(0).as_entire_binding(),
+                self.est.as_entire_binding(),
+                self.map.binding(),
+                buffer_range(inputs.receivers, n * RECEIVER_BYTES),
+                buffer_range(inputs.v, n * 4),
+                self.status.as_entire_binding(),
+            ],
+        );
+        let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
+        compute_pass(enc, "frame estimate", &self.pipeline, &group, [wg, 1, 1]);
         inputs.mark(enc, "estimate");
         Ok(())
     }
@@ -191,53 +171,88 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let mut e = MapEstimator::<F>::new()?;
-        configure(&mut e, &self.params)?;
-        e.build_in_view(scene, *single_view(views)?)?;
-        let mut v = vec![0.0; receivers.len()];
-        e.estimate(scene, receivers, &mut v)?;
-        Ok(v)
+        let view = *single_view(views)?;
+        cpu_twin_v(
+            MapEstimator::<F>::new()?,
+            &self.params,
+            receivers,
+            |e, v| {
+                e.build_in_view(scene, view)?;
+                e.estimate(scene, receivers, v)
+            },
+        )
     }
 }
 
-/// The 16-bit codes of `map`'s layer under `depth=unorm16` (one encoder uniform per view slot),
-/// `None` for f32 maps.
-fn unorm16_frame(
-    ctx: &GpuContext,
-    depth: DepthPrecision,
-    map: &GpuMapFrame,
-) -> Result<Option<GpuUnorm16Frame>> {
-    match depth {
-        DepthPrecision::F32 => Ok(None),
-        DepthPrecision::Unorm16 => Ok(Some(GpuUnorm16Frame::new(ctx, &map.layer, map.slots())?)),
+/// The map a frame renders its views into (one view slot each), and its 16-bit codes under
+/// `depth=unorm16`.
+struct FrameMap {
+    raster: GpuMapFrame,
+    /// The layer's 16-bit codes under `depth=unorm16`, re-encoded after each view's raster.
+    unorm16: Option<GpuUnorm16Frame>,
+}
+
+impl FrameMap {
+    /// The map at `settings`' resolution, raster options and precision, with `views` slots.
+    fn new(ctx: &GpuContext, settings: &MapSettings, views: u32) -> Result<Self> {
+        let mapper = GpuShadowMapper::new(ctx)?;
+        let raster = mapper.map_frame(ctx, settings.resolution, settings.raster(), views)?;
+        let unorm16 = match settings.depth {
+            DepthPrecision::F32 => None,
+            DepthPrecision::Unorm16 => {
+                Some(GpuUnorm16Frame::new(ctx, &raster.layer, raster.slots())?)
+            }
+        };
+        Ok(FrameMap { raster, unorm16 })
+    }
+
+    /// The map and, under `depth=unorm16`, its 16-bit codes.
+    fn bytes(&self) -> usize {
+        self.raster.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
+    }
+
+    /// What the filter kernels bind as the map: the layer (f32) or its codes (`depth=unorm16`).
+    fn binding(&self) -> wgpu::BindingResource<'_> {
+        match &self.unorm16 {
+            Some(codes) => codes.binding(),
+            None => wgpu::BindingResource::TextureView(&self.raster.layer.view),
+        }
+    }
+
+    /// The layer as light-space data in `view` (sharing the frame's texture), with the view
+    /// uniform of `slot`.
+    fn light_space(&self, slot: usize, view: &LightView) -> GpuLightSpace {
+        GpuLightSpace {
+            view: *view,
+            fit: FitReport::default(),
+            view_uniform: self.raster.view_uniform(slot).clone(),
+            layers: vec![self.raster.layer.clone()],
+            opacity: Vec::new(),
+            midpoints: Vec::new(),
+            mssm: None,
+            dual_mssm: None,
+            pyramid: None,
+        }
     }
 }
 
-/// The layer of `map` as light-space data in `view` (sharing the frame's texture), with the view
-/// uniform of `slot`.
-fn map_light_space(map: &GpuMapFrame, slot: usize, view: &LightView) -> GpuLightSpace {
-    GpuLightSpace {
-        view: *view,
-        fit: FitReport::default(),
-        view_uniform: map.view_uniform(slot).clone(),
-        layers: vec![map.layer.clone()],
-        opacity: Vec::new(),
-        midpoints: Vec::new(),
-        mssm: None,
-        dual_mssm: None,
-        pyramid: None,
-    }
+/// The estimate uniform of a frame's kernels: the light, the receiver bias and the caster test
+/// of `settings` (each method adds its own fields).
+fn estimate_uniform(settings: &MapSettings, light: &shadow_map_core::Light) -> EstimateUniform {
+    let (b0, b1) = settings.biases();
+    let mut u = EstimateUniform::new(light, b0, b1);
+    u.receiver_plane = u32::from(settings.receiver_plane);
+    u
 }
 
-/// What the filter kernels bind as the map: the layer (f32) or its codes (`depth=unorm16`).
-fn map_binding<'a>(
-    map: &'a GpuMapFrame,
-    unorm16: Option<&'a GpuUnorm16Frame>,
-) -> wgpu::BindingResource<'a> {
-    match unorm16 {
-        Some(codes) => codes.binding(),
-        None => wgpu::BindingResource::TextureView(&map.layer.view),
-    }
+/// A buffer for one [`EstimateUniform`], written each frame.
+fn uniform_buffer(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: std::mem::size_of::<EstimateUniform>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 /// Multi-sample shadows on the engine path: per frame, the S x S sub-light maps rendered in turn
@@ -249,9 +264,7 @@ pub struct MultiSampleFrame {
     params: Params,
     settings: MapSettings,
     own: MultiSampleParams,
-    map: GpuMapFrame,
-    /// The layer's 16-bit codes under `depth=unorm16`, re-encoded after each sub-light's raster.
-    unorm16: Option<GpuUnorm16Frame>,
+    map: FrameMap,
     kernels: MultiSampleKernels,
     /// One estimate uniform per view slot (the code step is the sub-light view's own).
     est: Vec<wgpu::Buffer>,
@@ -272,20 +285,10 @@ impl MultiSampleFrame {
             "multi-sample frame counts bytes (max_storage_buffer_binding_size)",
             max_receivers,
         )?;
-        let mapper = GpuShadowMapper::new(&ctx)?;
-        let views = own.sublights * own.sublights;
-        let map = mapper.map_frame(&ctx, settings.resolution, settings.raster(), views)?;
-        let unorm16 = unorm16_frame(&ctx, settings.depth, &map)?;
+        let map = FrameMap::new(&ctx, &settings, own.sublights * own.sublights)?;
         let kernels = MultiSampleKernels::new(&ctx, settings.depth)?;
-        let est = (0..map.slots())
-            .map(|_| {
-                ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("multi-sample frame uniform"),
-                    size: std::mem::size_of::<EstimateUniform>() as u64,
-                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                })
-            })
+        let est = (0..map.raster.slots())
+            .map(|_| uniform_buffer(&ctx, "multi-sample frame uniform"))
             .collect();
         let acc = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("multi-sample frame counts"),
@@ -299,7 +302,6 @@ impl MultiSampleFrame {
             settings,
             own,
             map,
-            unorm16,
             kernels,
             est,
             acc,
@@ -318,7 +320,7 @@ impl MultiSampleFrame {
             .enumerate()
             .rev()
             .find_map(|(slot, v)| v.as_ref().map(|v| (slot, v)))?;
-        (slot < self.map.slots()).then(|| map_light_space(&self.map, slot, view))
+        (slot < self.map.raster.slots()).then(|| self.map.light_space(slot, view))
     }
 }
 
@@ -357,7 +359,7 @@ impl FrameEstimator for MultiSampleFrame {
 
     /// The map and, under `depth=unorm16`, its 16-bit codes.
     fn light_space_bytes(&self) -> usize {
-        self.map.layer.bytes() + self.unorm16.as_ref().map_or(0, GpuUnorm16Frame::bytes)
+        self.map.bytes()
     }
 
     /// Keeps no counters.
@@ -375,24 +377,24 @@ impl FrameEstimator for MultiSampleFrame {
             self.max_receivers,
             "receivers per multi-sample frame (max_receivers at prepare)",
         )?;
-        if inputs.views.len() > self.map.slots() {
+        let slots = self.map.raster.slots();
+        if inputs.views.len() > slots {
             return Err(Error::LightView(format!(
                 "{} views for {} sub-lights",
                 inputs.views.len(),
-                self.map.slots()
+                slots
             )));
         }
-        if let Some(v) = inputs.views.iter().flatten().find(|v| v.r != self.map.r) {
+        let r = self.map.raster.r;
+        if let Some(v) = inputs.views.iter().flatten().find(|v| v.r != r) {
             return Err(Error::LightView(format!(
                 "a sub-light view has resolution {} but the map was prepared at {}",
-                v.r, self.map.r
+                v.r, r
             )));
         }
         let queue = &self.ctx.queue;
-        let (b0, b1) = self.settings.biases();
-        let mut u = EstimateUniform::new(inputs.light, b0, b1);
-        u.receiver_plane = u32::from(self.settings.receiver_plane);
-        u.inv_samples = 1.0 / inputs.views.len().max(1) as f32;
+        let mut u = estimate_uniform(&self.settings, inputs.light);
+        u.inv_samples = inv_samples(inputs.views.len());
         queue.write_buffer(&self.est[0], 0, bytemuck::bytes_of(&u));
         enc.clear_buffer(&self.acc, 0, None);
         if n == 0 {
@@ -400,67 +402,62 @@ impl FrameEstimator for MultiSampleFrame {
         }
         let k = &self.kernels;
         let groups = |view: &wgpu::Buffer, est: &wgpu::Buffer, map: wgpu::BindingResource<'_>| {
-            self.ctx
-                .device
-                .create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("multi-sample frame"),
-                    layout: &k.layout,
-                    entries: &[
-                        entry(0, view.as_entire_binding()),
-                        entry(1, est.as_entire_binding()),
-                        entry(2, map),
-                        entry(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
-                        entry(4, buffer_range(&self.acc, n * 4)),
-                        entry(5, buffer_range(inputs.v, n * 4)),
-                    ],
-                })
+            kernel::bind_group(
+                &self.ctx,
+                "multi-sample frame",
+                &k.layout,
+                &[
+                    view.as_entire_binding(),
+                    est.as_entire_binding(),
+                    map,
+                    buffer_range(inputs.receivers, n * RECEIVER_BYTES),
+                    buffer_range(&self.acc, n * 4),
+                    buffer_range(inputs.v, n * 4),
+                ],
+            )
         };
         let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
         inputs.mark(enc, "start");
         for (slot, view) in inputs.views.iter().enumerate() {
             let Some(view) = view else { continue };
-            self.map.encode(queue, enc, inputs.casters, view, slot)?;
+            self.map
+                .raster
+                .encode(queue, enc, inputs.casters, view, slot)?;
             inputs.mark(enc, "raster");
-            if let Some(codes) = &self.unorm16 {
+            if let Some(codes) = &self.map.unorm16 {
                 let mut us = u;
                 us.depth_step = codes.encode(&self.ctx, enc, slot, view.n, view.far)?;
                 queue.write_buffer(&self.est[slot], 0, bytemuck::bytes_of(&us));
                 inputs.mark(enc, "unorm16");
             }
-            let est = if self.unorm16.is_some() {
+            let est = if self.map.unorm16.is_some() {
                 &self.est[slot]
             } else {
                 &self.est[0]
             };
-            let group = groups(
-                self.map.view_uniform(slot),
-                est,
-                map_binding(&self.map, self.unorm16.as_ref()),
+            let group = groups(self.map.raster.view_uniform(slot), est, self.map.binding());
+            compute_pass(
+                enc,
+                "multi-sample frame accumulate",
+                &k.accumulate,
+                &group,
+                [wg, 1, 1],
             );
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("multi-sample frame accumulate"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&k.accumulate);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(wg, 1, 1);
-            drop(pass);
             inputs.mark(enc, "estimate");
         }
         // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
         let group = groups(
-            self.map.view_uniform(0),
+            self.map.raster.view_uniform(0),
             &self.est[0],
             k.placeholder.binding(),
         );
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("multi-sample frame finalize"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&k.finalize);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(wg, 1, 1);
-        drop(pass);
+        compute_pass(
+            enc,
+            "multi-sample frame finalize",
+            &k.finalize,
+            &group,
+            [wg, 1, 1],
+        );
         inputs.mark(enc, "finalize");
         Ok(())
     }
@@ -471,10 +468,8 @@ impl FrameEstimator for MultiSampleFrame {
         receivers: &Receivers,
         views: &[Option<LightView>],
     ) -> Result<Vec<f32>> {
-        let mut e = MultiSample::new()?;
-        configure(&mut e, &self.params)?;
-        let mut v = vec![0.0; receivers.len()];
-        e.estimate_in_views(scene, receivers, views, &mut v)?;
-        Ok(v)
+        cpu_twin_v(MultiSample::new()?, &self.params, receivers, |e, v| {
+            e.estimate_in_views(scene, receivers, views, v)
+        })
     }
 }

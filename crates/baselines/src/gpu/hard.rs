@@ -1,6 +1,6 @@
-//! The GPU side of [`crate::hard`]: the hard shadow map's binary test in `hard.wgsl`.
+//! The GPU side of [`crate::cpu::hard`]: the hard shadow map's binary test in `hard.wgsl`.
 use super::map_estimator::GpuFilter;
-use crate::hard::Hard;
+use crate::settings::Hard;
 
 /// WGSL of the hard test (`facing`, `visibility`).
 pub const HARD_WGSL: &str = include_str!("hard.wgsl");

@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/hard.rs: V = [z_p - eps <= D(floor u, floor v)], and 0 when the
+// Twin of crates/baselines/src/cpu/hard.rs: V = [z_p - eps <= D(floor u, floor v)], and 0 when the
 // light centre is behind the receiver's tangent plane (or the receiver behind a one-sided light).
 
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {

@@ -1,7 +1,9 @@
 //! What the baseline kernels add to the core's kernel layer ([`shadow_map_core::gpu::kernel`],
-//! whose shader and pipeline constructors are re-exported here): the depth-access WGSL part per
-//! precision and the one bind-group layout they share.
-pub use shadow_map_core::gpu::kernel::{compute_pipeline, shader_module, shader_source};
+//! whose shader, pipeline and bind-group constructors are re-exported here): the depth-access
+//! WGSL part per precision and the one bind-group layout they share.
+pub use shadow_map_core::gpu::kernel::{
+    bind_group, compute_pipeline, shader_module, shader_source,
+};
 use shadow_map_core::{
     gpu::{kernel, kernel::Binding, GpuContext},
     DepthPrecision,

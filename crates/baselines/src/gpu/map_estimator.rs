@@ -1,9 +1,9 @@
-//! The GPU side of [`crate::map_estimator`]: the per-receiver kernel that
+//! The GPU side of [`crate::cpu::map_estimator`]: the per-receiver kernel that
 //! [`MapFrame`](super::MapFrame) dispatches after rendering its map (`map_estimator.wgsl` + the
 //! filter's WGSL, one invocation per receiver), and [`GpuFilter`], what each of hard, PCF and
 //! PCSS adds to it.
 use super::kernel;
-use crate::map_estimator::Filter;
+use crate::cpu::Filter;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, ESTIMATE_HEAD_WGSL},
@@ -37,9 +37,4 @@ pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str;
         MAP_ESTIMATOR_WGSL,
         F::WGSL,
     ]
-}
-
-/// A bind-group entry.
-pub(crate) fn entry(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry { binding, resource }
 }

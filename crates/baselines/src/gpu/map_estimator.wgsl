@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/map_estimator.rs: one shadow map at the light centre, filtered per
+// Twin of crates/baselines/src/cpu/map_estimator.rs: one shadow map at the light centre, filtered per
 // receiver. The filter file appended after this one defines
 //   fn facing(p_world: vec3<f32>, n_world: vec3<f32>) -> f32      (Filter::facing)
 //   fn visibility(r: ReceiverSample) -> f32                        (Filter::visibility)

@@ -1,4 +1,4 @@
-//! The GPU side of [`crate::multi_sample`]: the kernels [`MultiSampleFrame`](super::MultiSampleFrame)
+//! The GPU side of [`crate::cpu::multi_sample`]: the kernels [`MultiSampleFrame`](super::MultiSampleFrame)
 //! dispatches, `accumulate` after each sub-light's map (its hard test into a per-receiver count)
 //! and `finalize` once at the end (the count divided by the number of sub-lights).
 use super::kernel;

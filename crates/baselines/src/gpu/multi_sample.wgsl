@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/multi_sample.rs (Heckbert & Herf 1997, docs/methods.md §6):
+// Twin of crates/baselines/src/cpu/multi_sample.rs (Heckbert & Herf 1997, docs/methods.md §6):
 // `accumulate` adds one sub-light's hard test into a per-receiver count, once per sub-light map;
 // `finalize` divides by the number of sub-lights and applies the one-sided and inactive rules.
 // The view uniform is the sub-light's: its origin is the light point y_k (world), bit for bit

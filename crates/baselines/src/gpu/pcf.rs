@@ -1,6 +1,6 @@
-//! The GPU side of [`crate::pcf`]: the N x N percentage-closer block in `pcf.wgsl`.
+//! The GPU side of [`crate::cpu::pcf`]: the N x N percentage-closer block in `pcf.wgsl`.
 use super::map_estimator::GpuFilter;
-use crate::pcf::Pcf;
+use crate::settings::Pcf;
 use shadow_map_core::gpu::EstimateUniform;
 
 /// WGSL of PCF (`facing`, `visibility`).

@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/pcf.rs (Reeves, Salesin, Cook 1987):
+// Twin of crates/baselines/src/cpu/pcf.rs (Reeves, Salesin, Cook 1987):
 // V = (1/N^2) sum_{|di|,|dj| <= half} [D(i + di, j + dj) is no caster], N = 2 half + 1.
 
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {

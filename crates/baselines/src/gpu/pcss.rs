@@ -1,7 +1,7 @@
-//! The GPU side of [`crate::pcss`]: blocker search, penumbra estimate and weighted PCF in
+//! The GPU side of [`crate::cpu::pcss`]: blocker search, penumbra estimate and weighted PCF in
 //! `pcss.wgsl`.
 use super::map_estimator::GpuFilter;
-use crate::pcss::Pcss;
+use crate::settings::Pcss;
 use shadow_map_core::gpu::EstimateUniform;
 
 /// WGSL of PCSS (`facing`, `visibility`).

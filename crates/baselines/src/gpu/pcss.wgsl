@@ -1,4 +1,4 @@
-// Twin of crates/baselines/src/pcss.rs (Fernando 2005, docs/methods.md §5): blocker search over
+// Twin of crates/baselines/src/cpu/pcss.rs (Fernando 2005, docs/methods.md §5): blocker search over
 // W_search = l (z_r - n) / z_r, z_avg, penumbra w_p = (z_r - z_avg) l / z_avg, then PCF over
 // W_filter = w_p n / z_r with overlap weights (a disk of that diameter for disk and sphere lights).
 //
@@ -59,7 +59,7 @@ fn visibility(r: ReceiverSample) -> f32 {
             if !ci.valid {
                 continue;
             }
-            // Disk filter with a one-texel soft edge (baselines::pcss).
+            // Disk filter with a one-texel soft edge (baselines::math::disk_edge).
             var edge = 1.0;
             if disk && wf.x > 1.0 {
                 let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - r.uv;

@@ -14,21 +14,17 @@ use super::frame_maps::{
     cpu_on_map, cpu_on_sub_light_maps, run_map_frame, run_multi_sample_frame, FrameRun,
 };
 use baselines::{
+    cpu::Filter,
     gpu::{FrameEstimator, FrameInputs, GpuFilter, MapFrame, MultiSampleFrame},
-    hard::Hard,
-    map_estimator::Filter,
-    pcf::Pcf,
-    pcss::Pcss,
+    Hard, Pcf, Pcss,
 };
-use shadow_map_core::{
-    gpu::{receivers::GpuReceivers, GpuContext, GpuScene},
-    Params, Receivers,
-};
+use shadow_map_core::{gpu::GpuContext, Params, Receivers};
 use std::sync::Arc;
 use test_support::gate::context_for_tests;
 use test_support::{
     conformance::{frames_match_the_cpu_twin, FrameComparison},
     fixtures::{bunny_under_three_lights, fixture},
+    frame_run::FrameRig,
     Tolerance,
 };
 
@@ -68,17 +64,21 @@ fn matches_on_its_own_maps(
     );
 }
 
-/// Hard, PCF or PCSS: the twins' tolerance (|dV| <= 1e-4 on 99.9% of the receivers, PCSS's
-/// compensated sums differing in their last bits, and no |dV| above 1e-3), against the CPU
+/// Hard, PCF or PCSS with shadow-map depth `depth`, on the bunny under rect, disk and sun (one
+/// frame prepared for the three): the twins' tolerance (|dV| <= 1e-4 on 99.9% of the receivers,
+/// PCSS's compensated sums differing in their last bits, and no |dV| above 1e-3), against the CPU
 /// twin's own map and against the CPU twin on the frame's map; the status counts no receiver cut
 /// by the loop budget.
-fn map_frames_match<F: GpuFilter>(ctx: &Arc<GpuContext>) {
+fn map_frames_match<F: GpuFilter>(ctx: &Arc<GpuContext>, depth: &str) {
+    let kv = [("depth", depth.to_string())];
+    let mut params = Params::new(F::SPECS).unwrap();
+    params.set("depth", depth).unwrap();
+    let frame = MapFrame::<F>::prepare(ctx.clone(), &params).unwrap();
     for (name, scene, rec) in bunny_under_three_lights(64, 48) {
-        let frame = MapFrame::<F>::prepare(ctx.clone(), &Params::new(F::SPECS).unwrap()).unwrap();
-        let label = format!("{} {name}", F::NAME);
+        let label = format!("{} depth={depth} {name}", F::NAME);
         let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
         let run = run_map_frame(ctx, &frame, &scene, &rec).unwrap();
-        let cpu = cpu_on_map::<F>(&[] as &[(&str, String)], &scene, &rec, &run.maps).unwrap();
+        let cpu = cpu_on_map::<F>(&kv, &scene, &rec, &run.maps).unwrap();
         matches_on_its_own_maps(&label, &rec, &c, &run, &cpu);
         assert_eq!(
             c.status.left_nan, 0,
@@ -101,9 +101,9 @@ fn hard_pcf_and_pcss_frames_match_their_cpu_twins() {
     else {
         return;
     };
-    map_frames_match::<Hard>(&ctx);
-    map_frames_match::<Pcf>(&ctx);
-    map_frames_match::<Pcss>(&ctx);
+    map_frames_match::<Hard>(&ctx, "f32");
+    map_frames_match::<Pcf>(&ctx, "f32");
+    map_frames_match::<Pcss>(&ctx, "f32");
 }
 
 /// Multi-sample's S x S sub-light maps rendered in turn into one layer within each frame: the
@@ -127,9 +127,8 @@ fn bad_frames_are_refused() {
     let (scene, rec) = fixture("bunny", 16, 12);
     let params = Params::new(<Pcss as Filter>::SPECS).unwrap();
     let frame = MapFrame::<Pcss>::prepare(ctx.clone(), &params).unwrap();
-    let views = frame.fit_views(&scene, &rec).unwrap();
-    let casters = GpuScene::upload(&ctx, &scene).unwrap();
-    let receivers = GpuReceivers::upload(&ctx, &rec).unwrap();
+    let rig = FrameRig::new(&ctx, &frame, &scene, &rec).unwrap();
+    let views = &rig.views;
     let buffer = |size| {
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("V"),
@@ -141,13 +140,8 @@ fn bad_frames_are_refused() {
     let small = buffer(4);
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     let inputs = FrameInputs {
-        casters: &casters,
-        views: &views,
-        light: scene.light(),
-        receivers: &receivers.buffer,
-        count: receivers.count,
         v: &small,
-        timestamps: None,
+        ..rig.inputs()
     };
     let err = frame.encode(&mut enc, &inputs).unwrap_err().to_string();
     assert!(err.contains("V buffer"), "{err}");
@@ -194,41 +188,28 @@ fn unorm16_frames_match_the_cpu_twin() {
     let Some(ctx) = context_for_tests("unorm16_frames_match_the_cpu_twin").unwrap() else {
         return;
     };
-    fn map<F: GpuFilter>(ctx: &Arc<GpuContext>) {
-        let kv = [("depth", "unorm16".to_string())];
-        for (name, scene, rec) in bunny_under_three_lights(64, 48) {
-            let mut params = Params::new(F::SPECS).unwrap();
-            params.set("depth", "unorm16").unwrap();
-            let frame = MapFrame::<F>::prepare(ctx.clone(), &params).unwrap();
-            let label = format!("{} unorm16 {name}", F::NAME);
-            let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);
-            assert!(
-                c.max_dv <= 1e-3 && c.beyond * 1000 <= c.active,
-                "{label}: max |dV| {}, {} of {} beyond 1e-4",
-                c.max_dv,
-                c.beyond,
-                c.active
-            );
-            let run = run_map_frame(ctx, &frame, &scene, &rec).unwrap();
-            let cpu = cpu_on_map::<F>(&kv, &scene, &rec, &run.maps).unwrap();
-            matches_on_its_own_maps(&label, &rec, &c, &run, &cpu);
-        }
-    }
-    map::<Hard>(&ctx);
-    map::<Pcf>(&ctx);
-    map::<Pcss>(&ctx);
+    map_frames_match::<Hard>(&ctx, "unorm16");
+    map_frames_match::<Pcf>(&ctx, "unorm16");
+    map_frames_match::<Pcss>(&ctx, "unorm16");
     multi_sample_frames_match(&ctx, "unorm16");
 }
 
 /// Multi-sample's engine path with shadow-map depth `depth` against the CPU twin in the same
 /// views and on the frame's own sub-light maps: the CPU twin's V but for depth ties (at most 0.1%
-/// of the receivers, one sub-light's test each), on the bunny under rect, disk and sun.
+/// of the receivers, one sub-light's test each), on the bunny under rect, disk and sun (one frame
+/// prepared for the three).
 fn multi_sample_frames_match(ctx: &Arc<GpuContext>, depth: &str) {
     let kv = [("depth", depth.to_string())];
-    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
-        let mut params = Params::new(baselines::multi_sample::SPECS).unwrap();
-        params.set("depth", depth).unwrap();
-        let frame = MultiSampleFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
+    let scenes = bunny_under_three_lights(64, 48);
+    let mut params = Params::new(baselines::settings::MULTI_SAMPLE_SPECS).unwrap();
+    params.set("depth", depth).unwrap();
+    let max_receivers = scenes
+        .iter()
+        .map(|(_, _, rec)| rec.len())
+        .max()
+        .unwrap_or(0);
+    let frame = MultiSampleFrame::prepare(ctx.clone(), &params, max_receivers as u32).unwrap();
+    for (name, scene, rec) in scenes {
         assert_eq!(frame.fit_views(&scene, &rec).unwrap().len(), 16);
         let label = format!("multi-sample depth={depth} {name}");
         let c = frames_match_the_cpu_twin(&label, ctx, &frame, &scene, &rec);

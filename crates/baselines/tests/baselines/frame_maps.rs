@@ -4,62 +4,25 @@
 #![cfg(feature = "gpu")]
 
 use baselines::{
-    gpu::{FrameEstimator, FrameInputs, GpuFilter, MapFrame, MultiSampleFrame},
-    map_estimator::{Filter, MapEstimator},
+    cpu::{Filter, MapEstimator},
+    gpu::{GpuFilter, MapFrame, MultiSampleFrame},
     MultiSample,
 };
 use shadow_map_core::{
-    gpu::{receivers::GpuReceivers, GpuContext, GpuScene},
-    light_space::LightSpace,
-    Error, LightView, Receivers, Result, Scene, SoftShadowEstimator,
+    gpu::GpuContext, light_space::LightSpace, Error, LightView, Receivers, Result, Scene,
+    SoftShadowEstimator,
 };
+use test_support::frame_run::run_frame;
 
 /// One frame on a scene: V, the views it was recorded in, and per view the map the frame
 /// rendered in it, read back (`None` where the view is absent).
 pub struct FrameRun {
     /// V, read back after the frame.
     pub v: Vec<f32>,
-    /// The views ([`FrameEstimator::fit_views`]).
+    /// The views ([`FrameEstimator::fit_views`](baselines::gpu::FrameEstimator::fit_views)).
     pub views: Vec<Option<LightView>>,
     /// The frame's maps, one per view.
     pub maps: Vec<Option<LightSpace>>,
-}
-
-/// Records one frame of `frame` in `views` into an encoder of its own, submits it and reads V
-/// back.
-pub fn encode_frame(
-    ctx: &GpuContext,
-    frame: &dyn FrameEstimator,
-    scene: &Scene,
-    casters: &GpuScene,
-    receivers: &GpuReceivers,
-    views: &[Option<LightView>],
-) -> Result<Vec<f32>> {
-    let n = receivers.count as u64;
-    let v = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test V"),
-        size: 4 * n.max(1),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    frame.encode(
-        &mut enc,
-        &FrameInputs {
-            casters,
-            views,
-            light: scene.light(),
-            receivers: &receivers.buffer,
-            count: receivers.count,
-            v: &v,
-            timestamps: None,
-        },
-    )?;
-    ctx.queue.submit([enc.finish()]);
-    if n == 0 {
-        return Ok(Vec::new());
-    }
-    ctx.read_buffer(&v, 4 * n)
 }
 
 /// Hard, PCF or PCSS: one frame in the views the frame fits, and its one map read back
@@ -70,18 +33,20 @@ pub fn run_map_frame<F: GpuFilter>(
     scene: &Scene,
     rec: &Receivers,
 ) -> Result<FrameRun> {
-    let views = frame.fit_views(scene, rec)?;
-    let casters = GpuScene::upload(ctx, scene)?;
-    let gpu_rec = GpuReceivers::upload(ctx, rec)?;
-    let v = encode_frame(ctx, frame, scene, &casters, &gpu_rec, &views)?;
-    let maps = views
+    let (rig, out) = run_frame(ctx, frame, scene, rec)?;
+    let maps = rig
+        .views
         .iter()
         .map(|view| {
             view.map(|view| frame.light_space(&view).to_cpu(ctx))
                 .transpose()
         })
         .collect::<Result<_>>()?;
-    Ok(FrameRun { v, views, maps })
+    Ok(FrameRun {
+        v: out.v,
+        views: rig.views,
+        maps,
+    })
 }
 
 /// Multi-sample: one frame in the views the frame fits, then, per sub-light, one more frame with
@@ -94,26 +59,28 @@ pub fn run_multi_sample_frame(
     scene: &Scene,
     rec: &Receivers,
 ) -> Result<FrameRun> {
-    let views = frame.fit_views(scene, rec)?;
-    let casters = GpuScene::upload(ctx, scene)?;
-    let gpu_rec = GpuReceivers::upload(ctx, rec)?;
-    let v = encode_frame(ctx, frame, scene, &casters, &gpu_rec, &views)?;
+    let (mut rig, out) = run_frame(ctx, frame, scene, rec)?;
+    let views = std::mem::take(&mut rig.views);
     let mut maps = Vec::with_capacity(views.len());
     for (k, view) in views.iter().enumerate() {
         if view.is_none() {
             maps.push(None);
             continue;
         }
-        let only: Vec<Option<LightView>> = (0..views.len())
+        rig.views = (0..views.len())
             .map(|i| if i == k { *view } else { None })
             .collect();
-        encode_frame(ctx, frame, scene, &casters, &gpu_rec, &only)?;
+        rig.run(ctx, frame)?;
         let ls = frame
-            .light_space(&only)
+            .light_space(&rig.views)
             .ok_or_else(|| Error::LightView(format!("no map for sub-light {k}")))?;
         maps.push(Some(ls.to_cpu(ctx)?));
     }
-    Ok(FrameRun { v, views, maps })
+    Ok(FrameRun {
+        v: out.v,
+        views,
+        maps,
+    })
 }
 
 /// The CPU filter `F` with `params` on `maps` (the one map of a map frame, as rendered):

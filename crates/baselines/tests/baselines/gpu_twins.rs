@@ -17,30 +17,27 @@
 #![cfg(feature = "gpu")]
 
 use super::frame_maps::{
-    cpu_on_map, cpu_on_sub_light_maps, encode_frame, run_map_frame, run_multi_sample_frame,
-    FrameRun,
+    cpu_on_map, cpu_on_sub_light_maps, run_map_frame, run_multi_sample_frame, FrameRun,
 };
 use baselines::{
+    cpu::Filter,
     gpu::{MapFrame, MultiSampleFrame},
-    hard::Hard,
-    map_estimator::Filter,
-    pcf::Pcf,
-    pcss::Pcss,
-    HardShadow, MultiSample, PcfShadow, PcssShadow,
+    Hard, HardShadow, MultiSample, Pcf, PcfShadow, Pcss, PcssShadow,
 };
 use proptest::prelude::*;
 use shadow_map_core::{
-    gpu::{frame::FrameStatus, receivers::GpuReceivers, GpuContext, GpuScene},
+    gpu::{frame::FrameStatus, receivers::GpuReceivers, GpuContext},
     light_space::point_frame,
     method::MethodDescriptor,
     run, Error, LightShape, ParamSpec, Receivers, Scene, SceneBvh, SoftShadowEstimator,
 };
-use std::sync::Arc;
+use std::{collections::HashMap, sync::Arc};
 use test_support::{
     conformance::{
         random_twins, table, BoxedEstimator, BoxedFrame, CliRun, FixedCase, Params, TwinPair,
     },
     fixtures::{fixture_path, note, note_as},
+    frame_run::FrameRig,
     proptest_config,
     scenes::{arb_bias, arb_case, BoxSpec, LightSpec, SceneRanges, SceneSpec},
     tolerance::bias_nudge,
@@ -170,7 +167,7 @@ fn specs(w: Which) -> &'static [ParamSpec] {
         Which::Hard => <Hard as Filter>::SPECS,
         Which::Pcf => <Pcf as Filter>::SPECS,
         Which::Pcss => <Pcss as Filter>::SPECS,
-        Which::MultiSample => baselines::multi_sample::SPECS,
+        Which::MultiSample => baselines::settings::MULTI_SAMPLE_SPECS,
     }
 }
 
@@ -212,23 +209,55 @@ fn settings_kv(w: Which, s: &Settings, bias: f32) -> Params {
     kv
 }
 
-/// The frame of `w` prepared with `kv`, one frame on the scene, its maps read back.
-fn run_frame(
-    w: Which,
-    ctx: &Arc<GpuContext>,
-    scene: &Scene,
-    rec: &Receivers,
-    kv: &Params,
-) -> Result<FrameRun, Error> {
-    let t = table(specs(w), kv);
-    let c = || ctx.clone();
-    match w {
-        Which::Hard => run_map_frame(ctx, &MapFrame::<Hard>::prepare(c(), &t)?, scene, rec),
-        Which::Pcf => run_map_frame(ctx, &MapFrame::<Pcf>::prepare(c(), &t)?, scene, rec),
-        Which::Pcss => run_map_frame(ctx, &MapFrame::<Pcss>::prepare(c(), &t)?, scene, rec),
-        Which::MultiSample => {
-            let f = MultiSampleFrame::prepare(c(), &t, rec.len() as u32)?;
-            run_multi_sample_frame(ctx, &f, scene, rec)
+/// A method's frame, prepared for one parameter table.
+enum Prepared {
+    Hard(MapFrame<Hard>),
+    Pcf(MapFrame<Pcf>),
+    Pcss(MapFrame<Pcss>),
+    /// With the receivers it was prepared for.
+    MultiSample(MultiSampleFrame, usize),
+}
+
+/// The frames of one method prepared so far, one per parameter table: random cases (and a
+/// failing case's shrinking) that repeat a table reuse its frame instead of compiling again.
+#[derive(Default)]
+struct Frames(HashMap<String, Prepared>);
+
+impl Frames {
+    /// The frame of `w` prepared with `kv` (for at least `rec`'s receivers), one frame on the
+    /// scene, its maps read back.
+    fn run(
+        &mut self,
+        w: Which,
+        ctx: &Arc<GpuContext>,
+        scene: &Scene,
+        rec: &Receivers,
+        kv: &Params,
+    ) -> Result<FrameRun, Error> {
+        let key = format!("{kv:?}");
+        let reusable = match self.0.get(&key) {
+            Some(Prepared::MultiSample(_, n)) => *n >= rec.len(),
+            other => other.is_some(),
+        };
+        if !reusable {
+            let t = table(specs(w), kv);
+            let c = ctx.clone();
+            let prepared = match w {
+                Which::Hard => Prepared::Hard(MapFrame::prepare(c, &t)?),
+                Which::Pcf => Prepared::Pcf(MapFrame::prepare(c, &t)?),
+                Which::Pcss => Prepared::Pcss(MapFrame::prepare(c, &t)?),
+                Which::MultiSample => Prepared::MultiSample(
+                    MultiSampleFrame::prepare(c, &t, rec.len() as u32)?,
+                    rec.len(),
+                ),
+            };
+            self.0.insert(key.clone(), prepared);
+        }
+        match &self.0[&key] {
+            Prepared::Hard(f) => run_map_frame(ctx, f, scene, rec),
+            Prepared::Pcf(f) => run_map_frame(ctx, f, scene, rec),
+            Prepared::Pcss(f) => run_map_frame(ctx, f, scene, rec),
+            Prepared::MultiSample(f, _) => run_multi_sample_frame(ctx, f, scene, rec),
         }
     }
 }
@@ -289,11 +318,17 @@ fn sampling_tie(
 }
 
 /// One random case: the frame's V against the CPU twin's on the frame's own maps.
-fn check_case(w: Which, case: &Case, ctx: &Arc<GpuContext>) -> Result<Option<CaseStats>, String> {
+fn check_case(
+    w: Which,
+    case: &Case,
+    ctx: &Arc<GpuContext>,
+    frames: &mut Frames,
+) -> Result<Option<CaseStats>, String> {
     let (scene, rec) = case.scene.scene_and_receivers();
     let s = &case.settings;
     let what = format!("{w:?}");
-    let run = run_frame(w, ctx, &scene, &rec, &settings_kv(w, s, s.bias))
+    let run = frames
+        .run(w, ctx, &scene, &rec, &settings_kv(w, s, s.bias))
         .map_err(|e| format!("{w:?} frame: {e}"))?;
     let cpu = |rec: &Receivers, bias: f32| cpu_on_maps(w, &scene, rec, s, bias, &run);
     let v_cpu = cpu(&rec, s.bias)?;
@@ -395,12 +430,13 @@ impl TwinPair for Baseline {
     fn random_scenes(&self, ctx: &Arc<GpuContext>, source_file: &'static str) {
         let w = self.0;
         let label = self.label();
+        let mut frames = Frames::default();
         let st = random_twins(
             &label,
             proptest_config(source_file, 24),
             &arb_case(&SceneRanges::ALL, arb_settings()),
             &TWIN,
-            |case| check_case(w, case, ctx),
+            |case| check_case(w, case, ctx, &mut frames),
         );
         // Hard is binary; every other baseline must also have met penumbrae.
         st.assert_met(&label, true, w != Which::Hard, true);
@@ -498,26 +534,32 @@ impl TwinPair for Baseline {
 // ---------------------------------------------------------------------------------------------
 // Specific to the baselines
 
+/// The shared GPU context (`None`: skipped, printed loudly) and [`small_case`] with its scene and
+/// receivers.
+fn small_case_on_gpu(test: &str) -> Option<(Arc<GpuContext>, Case, Scene, Receivers)> {
+    let ctx = test_support::gpu(test)?;
+    let case = small_case();
+    let (scene, rec) = case.scene.scene_and_receivers();
+    Some((ctx, case, scene, rec))
+}
+
 /// Every frame records a frame of zero receivers (in views fitted to the fixed case's
 /// receivers) and counts nothing in its status.
 #[test]
 fn frames_take_zero_receivers() {
-    let Some(ctx) = test_support::gpu("frames_take_zero_receivers") else {
+    let Some((ctx, case, scene, rec)) = small_case_on_gpu("frames_take_zero_receivers") else {
         return;
     };
-    let case = small_case();
-    let (scene, rec) = case.scene.scene_and_receivers();
     let none = Receivers::default();
-    let casters = GpuScene::upload(&ctx, &scene).unwrap();
-    let gpu_none = GpuReceivers::upload(&ctx, &none).unwrap();
     for w in ALL {
         let s = &case.settings;
         let f = frame(w, &ctx, &settings_kv(w, s, s.bias), 0);
-        let views = f.fit_views(&scene, &rec).unwrap();
-        let v = encode_frame(&ctx, &*f, &scene, &casters, &gpu_none, &views)
-            .unwrap_or_else(|e| panic!("{w:?}: {e}"));
-        assert!(v.is_empty(), "{w:?}");
-        if let Some(status) = f.read_status(&ctx).unwrap() {
+        // The views fitted to the case's receivers; the frame recorded over none.
+        let mut rig = FrameRig::new(&ctx, &*f, &scene, &rec).unwrap();
+        rig.receivers = GpuReceivers::upload(&ctx, &none).unwrap();
+        let out = rig.run(&ctx, &*f).unwrap_or_else(|e| panic!("{w:?}: {e}"));
+        assert!(out.v.is_empty(), "{w:?}");
+        if let Some(status) = out.status {
             assert_eq!(status, FrameStatus::default(), "{w:?}");
         }
     }
@@ -568,16 +610,15 @@ fn gpu_estimators_warn_as_the_cpu_twins() {
 /// (stratified, jittered by `jitter` with the `seed` parameter).
 #[test]
 fn sub_light_views_are_the_cpu_twins_points() {
-    let Some(ctx) = test_support::gpu("sub_light_views_are_the_cpu_twins_points") else {
+    let Some((ctx, _, scene, rec)) = small_case_on_gpu("sub_light_views_are_the_cpu_twins_points")
+    else {
         return;
     };
-    let case = small_case();
-    let (scene, rec) = case.scene.scene_and_receivers();
     let kv = vec![("sublights", "3".to_string()), ("seed", "11".to_string())];
     let f = frame(Which::MultiSample, &ctx, &kv, rec.len() as u32);
     let views = f.fit_views(&scene, &rec).unwrap();
     let light = scene.light();
-    let points = light.stratified_points(3, |k| baselines::multi_sample::jitter(11, k));
+    let points = light.stratified_points(3, |k| baselines::math::jitter(11, k));
     assert_eq!(views.len(), points.len());
     for (k, (view, y)) in views.iter().zip(points).enumerate() {
         let view = view.unwrap_or_else(|| panic!("sub-light {k}: no view"));

@@ -13,14 +13,31 @@ fn fixture(rel: &str) -> PathBuf {
         .join(rel)
 }
 
-fn run_ok(args: &[&str]) -> String {
+/// Runs, expects success, returns the process's output.
+fn run_success(args: &[&str]) -> std::process::Output {
     let out = bin().args(args).output().unwrap();
     assert!(
         out.status.success(),
         "{args:?} failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    String::from_utf8(out.stdout).unwrap()
+    out
+}
+
+/// Runs, expects success, returns stdout.
+fn run_ok(args: &[&str]) -> String {
+    String::from_utf8(run_success(args).stdout).unwrap()
+}
+
+/// The JSON `score <candidate> <reference> <rest...>` prints.
+fn score(candidate: &Path, reference: &Path, rest: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "score",
+        candidate.to_str().unwrap(),
+        reference.to_str().unwrap(),
+    ];
+    args.extend_from_slice(rest);
+    serde_json::from_str(run_ok(&args).trim()).unwrap()
 }
 
 /// Runs, expects failure, returns stderr (which must be one line).
@@ -65,10 +82,7 @@ fn render_stats_and_score() {
         &["spp=64"],
         &["--out", refr.to_str().unwrap()],
     ));
-    let s: serde_json::Value = serde_json::from_str(
-        run_ok(&["score", pcss.to_str().unwrap(), refr.to_str().unwrap()]).trim(),
-    )
-    .unwrap();
+    let s = score(&pcss, &refr, &[]);
     assert_eq!(s["matched_fraction"], 1.0);
     assert!(s["rmse"].as_f64().unwrap() < 0.05, "{s}");
     assert_eq!(s["nonfinite_v"], 0);
@@ -84,17 +98,7 @@ fn render_stats_and_score() {
     assert_eq!(s["reference_provenance"]["params"]["spp"], "64");
     // An image against itself scores zero, and the error image is written.
     let err_png = dir.path().join("err.png");
-    let s: serde_json::Value = serde_json::from_str(
-        run_ok(&[
-            "score",
-            pcss.to_str().unwrap(),
-            pcss.to_str().unwrap(),
-            "--err-png",
-            err_png.to_str().unwrap(),
-        ])
-        .trim(),
-    )
-    .unwrap();
+    let s = score(&pcss, &pcss, &["--err-png", err_png.to_str().unwrap()]);
     assert_eq!(s["rmse"], 0.0);
     assert!(err_png.exists());
 }
@@ -104,35 +108,25 @@ fn render_stats_and_score() {
 #[test]
 fn render_warns_of_semi_transparent_casters() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("strands.exr");
-    let scene = fixture("strands/strands.toml");
-    let args = render(
-        scene.to_str().unwrap(),
-        "pcss",
-        &["resolution=256"],
-        &["--out", out.to_str().unwrap()],
-    );
-    let run = bin().args(&args).output().unwrap();
-    let err = String::from_utf8(run.stderr).unwrap();
-    assert!(run.status.success(), "{err}");
-    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
-    assert_eq!(
-        lines,
-        ["warning: pcss: 1 semi-transparent meshes were treated as opaque (V too low behind them; backprojection, packet-hsm and deep-shadow model opacity)"],
-        "{err}"
-    );
-    assert!(out.exists());
-    let opaque = fixture("parallel-squares/parallel-squares.toml");
-    let args = render(
-        opaque.to_str().unwrap(),
-        "pcss",
-        &["resolution=256"],
-        &["--out", out.to_str().unwrap()],
-    );
-    let run = bin().args(&args).output().unwrap();
-    let err = String::from_utf8(run.stderr).unwrap();
-    assert!(run.status.success(), "{err}");
-    assert!(!err.contains("warning: "), "{err}");
+    let out = dir.path().join("out.exr");
+    let semi_transparent: &[&str] = &["warning: pcss: 1 semi-transparent meshes were treated as opaque (V too low behind them; backprojection, packet-hsm and deep-shadow model opacity)"];
+    for (scene, warnings) in [
+        ("strands/strands.toml", semi_transparent),
+        ("parallel-squares/parallel-squares.toml", &[]),
+    ] {
+        let scene = fixture(scene);
+        let run = run_success(&render(
+            scene.to_str().unwrap(),
+            "pcss",
+            &["resolution=256"],
+            &["--out", out.to_str().unwrap()],
+        ));
+        let err = String::from_utf8(run.stderr).unwrap();
+        let lines: Vec<&str> = err.lines().filter(|l| l.contains("warning: ")).collect();
+        assert_eq!(lines, warnings, "{err}");
+        assert!(out.exists());
+        std::fs::remove_file(&out).unwrap();
+    }
 }
 
 #[test]
@@ -313,47 +307,29 @@ fn render_gpu_takes_the_frame_api() {
         FrameTwin,
         Twin,
     }
+    // Every case at resolution=256, with these parameters besides.
     let cases: [(&str, &[&str], Path, &std::path::Path); 16] = [
-        ("pcss", &["resolution=256"], Path::Frame, &squares),
+        ("pcss", &[], Path::Frame, &squares),
         // 16-bit maps: encoded within the frame (the engine path used to refuse them).
-        (
-            "hard",
-            &["resolution=256", "depth=unorm16"],
-            Path::Frame,
-            &squares,
-        ),
-        ("backprojection", &["resolution=256"], Path::Frame, &squares),
-        (
-            "accumulation",
-            &["resolution=256", "variant=exact"],
-            Path::Frame,
-            &squares,
-        ),
-        ("deep-shadow", &["resolution=256"], Path::Frame, &squares),
-        (
-            "pcss",
-            &["resolution=256", "cascades=3"],
-            Path::FrameTwin,
-            &squares,
-        ),
-        ("backprojection", &["resolution=256"], Path::Frame, &strands),
-        ("backprojection", &["resolution=256"], Path::Frame, &hair),
-        ("deep-shadow", &["resolution=256"], Path::Frame, &strands),
-        ("deep-shadow", &["resolution=256"], Path::Frame, &hair),
-        ("hard", &["resolution=256"], Path::FrameTwin, &strands),
-        ("hard", &["resolution=256"], Path::FrameTwin, &hair),
-        ("packet-hsm", &["resolution=256"], Path::Frame, &squares),
-        ("packet-hsm", &["resolution=256"], Path::Frame, &sphere),
+        ("hard", &["depth=unorm16"], Path::Frame, &squares),
+        ("backprojection", &[], Path::Frame, &squares),
+        ("accumulation", &["variant=exact"], Path::Frame, &squares),
+        ("deep-shadow", &[], Path::Frame, &squares),
+        ("pcss", &["cascades=3"], Path::FrameTwin, &squares),
+        ("backprojection", &[], Path::Frame, &strands),
+        ("backprojection", &[], Path::Frame, &hair),
+        ("deep-shadow", &[], Path::Frame, &strands),
+        ("deep-shadow", &[], Path::Frame, &hair),
+        ("hard", &[], Path::FrameTwin, &strands),
+        ("hard", &[], Path::FrameTwin, &hair),
+        ("packet-hsm", &[], Path::Frame, &squares),
+        ("packet-hsm", &[], Path::Frame, &sphere),
         // Sub-lights and opacity levels: one view each within the frame.
-        (
-            "packet-hsm",
-            &["resolution=256", "sublights=2"],
-            Path::Frame,
-            &squares,
-        ),
-        ("packet-hsm", &["resolution=256"], Path::Frame, &hair),
+        ("packet-hsm", &["sublights=2"], Path::Frame, &squares),
+        ("packet-hsm", &[], Path::Frame, &hair),
     ];
-    for (algo, params, engine, scene) in cases {
+    for (algo, extra, engine, scene) in cases {
+        let params = [&["resolution=256"][..], extra].concat();
         let sc = scene.to_str().unwrap();
         let mut imgs = Vec::new();
         for backend in ["cpu", "gpu"] {
@@ -361,7 +337,7 @@ fn render_gpu_takes_the_frame_api() {
             let stats = run_ok(&render(
                 sc,
                 algo,
-                params,
+                &params,
                 &[
                     "--backend",
                     backend,
@@ -381,15 +357,7 @@ fn render_gpu_takes_the_frame_api() {
             }
             imgs.push(out);
         }
-        let s: serde_json::Value = serde_json::from_str(
-            run_ok(&[
-                "score",
-                imgs[1].to_str().unwrap(),
-                imgs[0].to_str().unwrap(),
-            ])
-            .trim(),
-        )
-        .unwrap();
+        let s = score(&imgs[1], &imgs[0], &[]);
         assert_eq!(s["nonfinite_v"], 0, "{algo} {params:?}: {s}");
         // The same receivers on both backends: every pixel matched.
         assert_eq!(s["matched_fraction"], 1.0, "{algo} {params:?}: {s}");
@@ -402,15 +370,7 @@ fn render_gpu_takes_the_frame_api() {
 
 /// V and Z of an EXR the CLI wrote.
 fn read_vz(path: &Path) -> (Vec<f32>, Vec<f32>) {
-    use exr::prelude::{ReadChannels, ReadLayers};
-    let image = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .unwrap();
+    let image = crate::first_layer::read_first_layer(path).unwrap();
     let get = |name: &str| -> Vec<f32> {
         image
             .layer_data

@@ -2,10 +2,12 @@
 use crate::common;
 use common::*;
 use deep_shadow::{
-    cpu::{build_deep_map, sublight_view, sublight_view_with},
-    dsm::DeepShadowMap,
-    params::Settings,
-    shared::NIL,
+    cpu::{build_deep_map, dsm::DeepShadowMap},
+    math::{
+        view::{sublight_view, sublight_view_with},
+        NIL,
+    },
+    settings::Settings,
     CpuDeepShadow,
 };
 use glam::Vec3;
@@ -355,7 +357,7 @@ fn a_tiny_capacity_grows_and_rebuilds_or_fails_with_a_typed_error() {
     }
     // Direct: the detected need equals the fragment count.
     let frs = vec![
-        deep_shadow::raster::Fragment {
+        deep_shadow::cpu::raster::Fragment {
             texel: 0,
             depth: 1.0,
             alpha: 0.5
@@ -499,7 +501,7 @@ fn accuracy_against_the_reference_is_bounded_and_beats_the_opaque_baselines() {
     }
 }
 
-/// `fit=stable` with a filter margin ([`deep_shadow::cpu::stable_margin`]): the window stays on a
+/// `fit=stable` with a filter margin ([`deep_shadow::math::view::stable_margin`]): the window stays on a
 /// power-of-two lattice (side `s` a power of two in `x/z` units, corner a whole number of pitches
 /// `s / r`), the fit's own lattice when the kernels fit in r texels (the corner shifted by whole
 /// texels) and a doubled one when they do not, and every texel of every receiver's kernel is
@@ -788,8 +790,9 @@ fn pcss_penumbra_widens_with_the_light() {
 /// (`truncation_window`) the error is at most epsilon at every receiver depth.
 #[test]
 fn edsm_truncation_error_is_at_most_epsilon() {
-    use deep_shadow::dsm::{find, soft_tau, truncation_window, Filter};
-    use deep_shadow::raster::Fragment;
+    use deep_shadow::cpu::raster::Fragment;
+    use deep_shadow::math::{find, soft_tau, truncation_window};
+    use deep_shadow::settings::Filter;
     let c = 80.0f32; // c' for a depth range of 1 at the default c
     let eps = 0.001f32;
     let lists: Vec<Vec<(f32, f32)>> = vec![

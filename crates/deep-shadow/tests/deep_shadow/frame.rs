@@ -7,8 +7,9 @@
 //! buffer cuts the frame for a redo.
 #![cfg(feature = "gpu")]
 
+use crate::common::params;
 use deep_shadow::DeepShadowFrame;
-use shadow_map_core::{gpu::frame::FrameEstimator, run, Params};
+use shadow_map_core::{gpu::frame::FrameEstimator, run};
 use test_support::{
     conformance::frames_match_the_cpu_twin,
     fixtures::{bunny_under_three_lights, fixture, note_as, rmse},
@@ -30,10 +31,7 @@ fn deep_shadow_frames_match_the_cpu_twin() {
     ];
     let scenes = bunny_under_three_lights(64, 48);
     for kv in settings {
-        let mut params = Params::new(deep_shadow::params::SPECS).unwrap();
-        for (k, v) in *kv {
-            params.set(k, v).unwrap();
-        }
+        let params = params(kv);
         let frame = DeepShadowFrame::prepare(ctx.clone(), &params, 64 * 48).unwrap();
         assert_eq!(frame.name(), "deep-shadow");
         // Semi-transparent casters are modelled (lists), so no scene is refused for them.
@@ -87,10 +85,7 @@ fn deep_shadow_frames_build_lists_for_semi_transparent_casters() {
         let (scene, rec) = fixture(name, 64, 48);
         assert!(!scene.is_opaque(), "{name}: a semi-transparent fixture");
         for kv in settings {
-            let mut params = Params::new(deep_shadow::params::SPECS).unwrap();
-            for (k, v) in *kv {
-                params.set(k, v).unwrap();
-            }
+            let params = params(kv);
             let frame = DeepShadowFrame::prepare(ctx.clone(), &params, 64 * 48).unwrap();
             let label = format!("deep-shadow {name} {kv:?}");
             let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);

@@ -1,13 +1,13 @@
 //! Step 5 for one receiver and one sub-light: the map-free set-up (facing fraction, projection,
 //! threshold), the tight kernel from the MSSM and the trivial lit / umbra classification.
-use super::{Config, SubView};
-use crate::contour::{
-    plane_threshold_range, true_min, CellRect, Emitter, OccluderTest, Receiver, SampleGrid,
+use super::SubView;
+use crate::math::contour::{
+    plane_threshold_range, true_min, CellRect, OccluderTest, Receiver, SampleGrid,
 };
+use crate::math::{kernel_cells, radial::Emitter};
+use crate::settings::Config;
 use glam::{Vec2, Vec3};
-use shadow_map_core::{
-    light::front_fraction, light_view::LightView, mssm::Mssm, silhouette::Silhouette, ReceiverPlane,
-};
+use shadow_map_core::{light::front_fraction, silhouette::Silhouette, ReceiverPlane, Receivers};
 
 /// The outcome of step 5 for one receiver and one sub-light.
 #[derive(Debug, Clone, Copy)]
@@ -25,7 +25,7 @@ pub enum Prep {
     },
 }
 
-/// The per-receiver setup that needs no map (the CPU twin's; `frame.wgsl`'s `frame_setup` is
+/// The per-receiver setup that needs no map (the CPU twin's; `packet_hsm_frame.wgsl`'s `frame_setup` is
 /// its twin on the GPU).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ReceiverSetup {
@@ -164,6 +164,21 @@ pub fn prepare(
     Prep::Penumbra { rec, cr, facing }
 }
 
+/// [`prepare`] for receiver `k` of `receivers`: its outcome, and whether it projects outside
+/// the map.
+pub fn prepare_receiver(
+    sv: &SubView,
+    grid: &SampleGrid,
+    cfg: &Config,
+    receivers: &Receivers,
+    k: usize,
+) -> (Prep, bool) {
+    let mut outside = false;
+    let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
+    let prep = prepare(sv, grid, cfg, pw, nw, &mut outside);
+    (prep, outside)
+}
+
 /// The light size `l` of a receiver's kernel ([`kernel_cells`]): the (sub-)light's bounding
 /// rectangle (a disk's bounding square is conservative, docs/methods.md §3 "Disk lights"), or for
 /// a sphere the smallest rectangle centred on the light's centre holding [`Silhouette::clip`]
@@ -206,52 +221,4 @@ pub fn trivial(
         return (true, false);
     }
     (false, max < test.t && max < lo)
-}
-
-/// The tight kernel of a receiver in dual cells (Yang eq. 1 with the MSSM, docs/methods.md §2
-/// "Refining the kernel"), or `None` when no sample it could see is nearer than `z_p` (lit).
-///
-/// Samples rect `[x0, x1)` from `W = alpha l (1/z_m - 1/z_p)` around `(u_p, v_p)`, starting at
-/// `z_m = n`; `z_m` is then the exact minimum depth over the samples touched by the cells
-/// `[x0 - 1, x1)` (the cells touching the rect), until the kernel stops shrinking. Cells are
-/// clamped to anchors `[-1, r)`.
-pub fn kernel_cells(view: &LightView, mssm: &Mssm, uv: Vec2, zp: f32, l: Vec2) -> Option<CellRect> {
-    let r = view.r as f32;
-    let rect = |zm: f32| -> [i32; 4] {
-        let (wx, wy) = (
-            view.kernel_texels(l.x, zm, zp),
-            view.kernel_texels(l.y, zm, zp),
-        );
-        let lo = |c: f32, w: f32| (c - 0.5 * w).floor().clamp(0.0, r) as i32;
-        let hi = |c: f32, w: f32| (c + 0.5 * w).ceil().clamp(0.0, r) as i32;
-        [lo(uv.x, wx), lo(uv.y, wy), hi(uv.x, wx), hi(uv.y, wy)]
-    };
-    let area = |q: &[i32; 4]| (q[2] - q[0]) as i64 * (q[3] - q[1]) as i64;
-    let mut zm = view.n;
-    let mut s = rect(zm);
-    for _ in 0..16 {
-        let zmin = mssm.query(s[0] - 1, s[1] - 1, s[2] + 1, s[3] + 1).min;
-        if !(zmin < zp) {
-            return None;
-        }
-        if !(zmin > zm) {
-            break;
-        }
-        zm = zmin;
-        let next = rect(zm);
-        if area(&next) >= area(&s) {
-            break;
-        }
-        s = next;
-    }
-    if s[0] >= s[2] || s[1] >= s[3] {
-        return None;
-    }
-    Some([s[0] - 1, s[1] - 1, s[2], s[3]])
-}
-
-/// Side of a kernel in cells (`w_i` of eq. 6).
-#[inline]
-pub fn kernel_side(cr: &CellRect) -> u32 {
-    (cr[2] - cr[0]).max(cr[3] - cr[1]).max(0) as u32
 }

@@ -1,8 +1,10 @@
 //! The CPU twin's sub-light loop (Yang §5): opacity levels, the S x S sub-lights and each
 //! sub-light's [`SubView`] (map, MSSM, padded dual-grid MSSM, own-plane bounds).
-use super::{prepare, Config, Prep};
-use crate::contour::{Emitter, PaddedDualMssm, SampleGrid};
-use crate::fit::DualFit;
+use super::extract::PaddedDualMssm;
+use super::fit::DualFit;
+use super::{prepare_receiver, Prep};
+use crate::math::{contour::SampleGrid, radial::Emitter, sublight_centre};
+use crate::settings::Config;
 use glam::Vec2;
 use rayon::prelude::*;
 use shadow_map_core::{
@@ -174,13 +176,6 @@ impl SubLights {
         });
         rep.warn(Warning::OutsideViews { receivers: outside });
     }
-}
-
-/// Centre of sub-light (a, b) of S x S in light-plane coordinates, for a light of half extents
-/// `half`.
-pub fn sublight_centre(half: Vec2, s: u32, a: u32, b: u32) -> Vec2 {
-    let f = |k: u32, h: f32| ((k as f32 + 0.5) / s as f32 - 0.5) * 2.0 * h;
-    Vec2::new(f(a, half.x), f(b, half.y))
 }
 
 /// Kernel cells per padded map sample ([`SubView::kernel_cells_estimate`] over `(r + 2)^2`)
@@ -366,15 +361,7 @@ impl SubView {
                 if !receivers.active()[k] {
                     return 0;
                 }
-                let mut out = false;
-                match prepare(
-                    self,
-                    &grid,
-                    cfg,
-                    receivers.position()[k],
-                    receivers.normal()[k],
-                    &mut out,
-                ) {
+                match prepare_receiver(self, &grid, cfg, receivers, k).0 {
                     Prep::Penumbra { cr, .. } => {
                         ((cr[2] - cr[0]).max(0) as u64) * ((cr[3] - cr[1]).max(0) as u64)
                     }

@@ -5,7 +5,8 @@ use backprojection::CpuBackprojection;
 use baselines::HardShadow;
 use common::*;
 use glam::Vec3;
-use packet_hsm::cpu::{Config, SubView};
+use packet_hsm::cpu::SubView;
+use packet_hsm::settings::Config;
 use shadow_map_core::{run, Error, LightShape, Receivers, Scene, SoftShadowEstimator};
 
 /// World size on the light plane of one texel at the occluder depth seen from the receiver:

@@ -11,13 +11,27 @@
 use crate::common;
 use common::*;
 use glam::Vec3;
-use packet_hsm::cpu::{
-    estimate_sublight, reference_pixel, Config, Counters, PixelDiag, SubView, PACKETS,
-};
+use packet_hsm::cpu::{estimate_sublight, reference_pixel, Counters, PixelDiag, SubView};
+use packet_hsm::settings::{Config, PACKETS};
 use proptest::prelude::*;
 use shadow_map_core::{run, Cancel, Receivers, Scene, SceneBvh, SoftShadowEstimator};
 
 const TOL: f32 = 1e-5;
+
+/// Steps 5-8 of the CPU twin for the one sub-light `sv` with weight 1: V, the diagnostics and
+/// the counters.
+fn one_sublight(
+    sv: &SubView,
+    cfg: &Config,
+    rec: &Receivers,
+) -> (Vec<f32>, Vec<PixelDiag>, Counters) {
+    let mut acc = vec![0.0f32; rec.len()];
+    let mut diag = vec![PixelDiag::default(); rec.len()];
+    let counters = Counters::default();
+    let cancel = Cancel::new();
+    estimate_sublight(sv, cfg, rec, 1.0, &mut acc, &mut diag, &counters, &cancel).unwrap();
+    (acc, diag, counters)
+}
 
 fn random_scene(
     light: f32,
@@ -82,20 +96,7 @@ fn check_all_combinations(scene: &Scene, res: u32, self_shadow: &str) -> f32 {
                     ("self_shadow", self_shadow),
                 ]);
                 let cfg = Config::from_params(e.params()).unwrap();
-                let mut acc = vec![0.0f32; rec.len()];
-                let mut diag = vec![PixelDiag::default(); rec.len()];
-                let counters = Counters::default();
-                estimate_sublight(
-                    &sv,
-                    &cfg,
-                    &rec,
-                    1.0,
-                    &mut acc,
-                    &mut diag,
-                    &counters,
-                    &Cancel::new(),
-                )
-                .unwrap();
+                let (acc, _, counters) = one_sublight(&sv, &cfg, &rec);
                 packet_evals += counters.coherent.load(std::sync::atomic::Ordering::Relaxed);
                 for k in 0..rec.len() {
                     if !rec.active()[k] {
@@ -264,20 +265,7 @@ fn own_plane_pruning_is_exact_and_prunes_a_grazing_ground() {
         )
         .unwrap();
         assert_eq!(sv.fit.is_some(), own_plane);
-        let mut acc = vec![0.0f32; rec.len()];
-        let mut diag = vec![PixelDiag::default(); rec.len()];
-        let counters = Counters::default();
-        estimate_sublight(
-            &sv,
-            &cfg,
-            &rec,
-            1.0,
-            &mut acc,
-            &mut diag,
-            &counters,
-            &Cancel::new(),
-        )
-        .unwrap();
+        let (acc, _, counters) = one_sublight(&sv, &cfg, &rec);
         let visited = counters.visited.load(std::sync::atomic::Ordering::Relaxed);
         (acc, visited)
     };

@@ -7,15 +7,54 @@
 //! with a plain bias.
 #![cfg(feature = "gpu")]
 
+use crate::common::table_of;
 use packet_hsm::PacketHsmFrame;
 use shadow_map_core::{
-    gpu::frame::FrameEstimator, LightShape, Params, Receivers, SceneBvh, Warning,
+    gpu::{frame::FrameEstimator, GpuContext},
+    LightShape, Receivers, Scene, SceneBvh, Warning,
 };
+use std::sync::Arc;
 use test_support::{
-    conformance::frames_match_the_cpu_twin_with_cuts,
+    conformance::{frames_match_the_cpu_twin_with_cuts, FrameComparison},
     fixtures::{bunny_under_three_lights, fixture, rmse},
     gate::context_for_tests,
 };
+
+/// Some receivers of `c` not cut, at most one in `per` beyond 1e-4 of the CPU twin, and the
+/// RMSE to it at most `rmse`.
+fn assert_close(label: &str, c: &FrameComparison, per: usize, rmse: f64) {
+    assert!(
+        c.active > c.cut && c.beyond * per <= c.active && c.rmse <= rmse,
+        "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",
+        c.beyond,
+        c.active,
+        c.max_dv,
+        c.rmse
+    );
+}
+
+/// Packet-hsm's frame with `kv` on a fixture at 48 x 36: one view per sub-light and each of
+/// `levels` opacity levels, and the frame against the CPU twin
+/// ([`frames_match_the_cpu_twin_with_cuts`]) without a non-finite V.
+fn on_fixture(
+    ctx: &Arc<GpuContext>,
+    (scene, rec): (&Scene, &Receivers),
+    kv: &[(&str, &str)],
+    levels: usize,
+    label: &str,
+) -> (PacketHsmFrame, FrameComparison) {
+    let frame = PacketHsmFrame::prepare(ctx.clone(), &table_of(kv), 48 * 36).unwrap();
+    let n: usize = table_of(kv).int("sublights").unwrap() as usize;
+    let views = frame.fit_views(scene, rec).unwrap();
+    assert_eq!(
+        views.len(),
+        n * n * levels,
+        "{label}: a view per sub-light and level"
+    );
+    let c = frames_match_the_cpu_twin_with_cuts(label, ctx, &frame, scene, rec, 2);
+    assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
+    (frame, c)
+}
 
 #[test]
 fn packet_hsm_frames_match_the_cpu_twin() {
@@ -36,11 +75,7 @@ fn packet_hsm_frames_match_the_cpu_twin() {
     let rec = Receivers::from_camera(&sphere, &SceneBvh::new(&sphere));
     scenes.push(("sphere-bunny", sphere, rec));
     for kv in settings {
-        let mut params = Params::new(packet_hsm::cpu::SPECS).unwrap();
-        for (k, v) in *kv {
-            params.set(k, v).unwrap();
-        }
-        let frame = PacketHsmFrame::prepare(ctx.clone(), &params, 64 * 48).unwrap();
+        let frame = PacketHsmFrame::prepare(ctx.clone(), &table_of(kv), 64 * 48).unwrap();
         assert_eq!(frame.name(), "packet-hsm");
         for (name, scene, rec) in &scenes {
             let label = format!("packet-hsm {name} {kv:?}");
@@ -55,14 +90,7 @@ fn packet_hsm_frames_match_the_cpu_twin() {
             // maps the CPU twin agrees within 1e-4, gpu_twin.rs). On lavapipe: 18 of 2570 beyond
             // 1e-4, max |dV| 0.013, RMSE 2.6e-4; with the plain bias 19, 0.026, 5.7e-4.
             let bound = if *name == "sphere-bunny" { 1e-3 } else { 2e-4 };
-            assert!(
-                c.active > c.cut && c.beyond * 100 <= c.active && c.rmse <= bound,
-                "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",
-                c.beyond,
-                c.active,
-                c.max_dv,
-                c.rmse
-            );
+            assert_close(&label, &c, 100, bound);
         }
     }
 }
@@ -76,38 +104,21 @@ fn packet_hsm_frames_render_sub_lights() {
     let Some(ctx) = context_for_tests("packet_hsm_frames_render_sub_lights").unwrap() else {
         return;
     };
+    // One view's frame (sublights=1), prepared once, for its CPU twin on each scene.
+    let single = PacketHsmFrame::prepare(ctx.clone(), &table_of(&[]), 48 * 36).unwrap();
     for (name, s) in [("bunny", "2"), ("stacked", "2"), ("hover-boxes", "3")] {
         let (scene, rec) = fixture(name, 48, 36);
-        let mut params = Params::new(packet_hsm::cpu::SPECS).unwrap();
-        params.set("sublights", s).unwrap();
-        let frame = PacketHsmFrame::prepare(ctx.clone(), &params, 48 * 36).unwrap();
-        let views = frame.fit_views(&scene, &rec).unwrap();
-        let n: usize = s.parse().unwrap();
-        assert_eq!(views.len(), n * n, "{name}: one view per sub-light");
         let label = format!("packet-hsm {name} sublights={s}");
-        let c = frames_match_the_cpu_twin_with_cuts(&label, &ctx, &frame, &scene, &rec, 2);
-        assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
+        let (_, c) = on_fixture(&ctx, (&scene, &rec), &[("sublights", s)], 1, &label);
         // Against one view's V: the sub-lights really are summed.
-        let one = {
-            let mut p = params.clone();
-            p.set("sublights", "1").unwrap();
-            let f = PacketHsmFrame::prepare(ctx.clone(), &p, 48 * 36).unwrap();
-            let v = f.fit_views(&scene, &rec).unwrap();
-            f.cpu_twin(&scene, &rec, &v).unwrap()
-        };
+        let views = single.fit_views(&scene, &rec).unwrap();
+        let one = single.cpu_twin(&scene, &rec, &views).unwrap();
         let apart = rmse(&c.v, &one, rec.active());
         println!(
             "{label}: {} of {} beyond 1e-4, max |dV| {}, RMSE {:.2e}; {} cut; RMSE to sublights=1 {apart:.4}",
             c.beyond, c.active, c.max_dv, c.rmse, c.cut
         );
-        assert!(
-            c.active > c.cut && c.beyond * 100 <= c.active && c.rmse <= 2e-4,
-            "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",
-            c.beyond,
-            c.active,
-            c.max_dv,
-            c.rmse
-        );
+        assert_close(&label, &c, 100, 2e-4);
         assert!(apart > 1e-3, "{label}: V is one view's ({apart})");
     }
 }
@@ -126,22 +137,12 @@ fn packet_hsm_frames_render_opacity_levels() {
         let (scene, rec) = fixture(name, 48, 36);
         assert!(!scene.is_opaque(), "{name}: a semi-transparent fixture");
         let levels = scene.opacity_levels().len();
-        let mut params = Params::new(packet_hsm::cpu::SPECS).unwrap();
-        params.set("sublights", s).unwrap();
-        params.set("opacity_levels", &levels.to_string()).unwrap();
-        let frame = PacketHsmFrame::prepare(ctx.clone(), &params, 48 * 36).unwrap();
-        assert!(frame.models_opacity() && frame.scene_warnings(&scene).is_empty());
-        let views = frame.fit_views(&scene, &rec).unwrap();
-        let n: usize = s.parse().unwrap();
-        assert_eq!(
-            views.len(),
-            n * n * levels,
-            "{name}: a view per sub-light and level"
-        );
+        let kv = [("sublights", s), ("opacity_levels", &levels.to_string())];
         let label = format!("packet-hsm {name} sublights={s} ({levels} opacity levels)");
-        let c = frames_match_the_cpu_twin_with_cuts(&label, &ctx, &frame, &scene, &rec, 2);
-        assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
+        let (frame, c) = on_fixture(&ctx, (&scene, &rec), &kv, levels, &label);
+        assert!(frame.models_opacity() && frame.scene_warnings(&scene).is_empty());
         // Each sub-light's first level's view (fitted on every caster).
+        let views = frame.fit_views(&scene, &rec).unwrap();
         let firsts: Vec<_> = views.iter().step_by(levels).copied().collect();
         let opaque = frame.cpu_twin(&scene.opaque(), &rec, &firsts);
         let opaque = opaque.unwrap_or_else(|e| panic!("{label}: {e}"));
@@ -155,14 +156,7 @@ fn packet_hsm_frames_render_opacity_levels() {
         // Thin strands rastered by the hardware differ from the CPU's fill rule at sub-texel
         // ties (as deep-shadow's frame measures): on the strands 74 of 1360 beyond 1e-4, max
         // |dV| 5.7e-4, RMSE 6.4e-5; allowed: 10% beyond 1e-4, RMSE 5e-4.
-        assert!(
-            c.active > c.cut && c.beyond * 10 <= c.active && c.rmse <= 5e-4,
-            "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",
-            c.beyond,
-            c.active,
-            c.max_dv,
-            c.rmse
-        );
+        assert_close(&label, &c, 10, 5e-4);
         assert!(apart > 0.01, "{label}: V is the opaque scene's ({apart})");
     }
 }
@@ -176,9 +170,9 @@ fn packet_hsm_frames_warn_when_levels_are_capped() {
         return;
     };
     let (scene, rec) = fixture("hair", 16, 12);
-    let mut params = Params::new(packet_hsm::cpu::SPECS).unwrap();
-    params.set("opacity_levels", "1").unwrap();
-    let frame = PacketHsmFrame::prepare(ctx.clone(), &params, 16 * 12).unwrap();
+    let frame =
+        PacketHsmFrame::prepare(ctx.clone(), &table_of(&[("opacity_levels", "1")]), 16 * 12)
+            .unwrap();
     let w = frame.scene_warnings(&scene);
     assert!(
         matches!(

@@ -26,16 +26,13 @@ use glam::Vec3;
 use packet_hsm::{CpuPacketHsm, PacketHsmFrame, DESCRIPTOR};
 use proptest::prelude::*;
 use shadow_map_core::{
-    gpu::{
-        frame::{FrameEstimator, FrameInputs},
-        receivers::GpuReceivers,
-        GpuContext, GpuScene,
-    },
+    gpu::{frame::FrameEstimator, GpuContext},
     run, LightSpace, LightView, Receivers, Scene, SceneBvh, SoftShadowEstimator,
 };
 use std::sync::Arc;
 use test_support::{
     conformance::{random_twins, table, BoxedFrame, FixedCase, Params, TwinPair},
+    frame_run::run_frame,
     proptest_config, CaseStats, Tolerance,
 };
 
@@ -123,50 +120,40 @@ impl OnMaps {
     }
 }
 
-/// Packet-hsm's frame prepared with `kv` on `scene` and `rec`: one frame encoded from the
-/// caller's casters, receivers and V buffer, V and the status read back; then each view's maps
-/// recorded again alone ([`PacketHsmFrame::encode_view_maps`]) and read back, the last view's
-/// checked bit for bit against what the whole frame left; the CPU twin on those maps
-/// ([`PacketHsmFrame::cpu_twin_in_maps`]). Panics (naming `what`) on an error, an active
-/// receiver NaN without the status counting it, or an inactive one not NaN on both.
-fn on_frame_maps(
+/// Packet-hsm's frame prepared with `kv` for up to `max_receivers` receivers.
+fn prepared(ctx: &Arc<GpuContext>, kv: &[(&str, &str)], max_receivers: usize) -> PacketHsmFrame {
+    PacketHsmFrame::prepare(ctx.clone(), &table_of(kv), max_receivers.max(1) as u32)
+        .unwrap_or_else(|e| panic!("{kv:?}: prepare: {e}"))
+}
+
+/// [`on_frame_maps`] with a frame prepared for `kv` and `rec` alone.
+fn on_new_frame_maps(
     ctx: &Arc<GpuContext>,
     kv: &[(&str, &str)],
     scene: &Scene,
     rec: &Receivers,
     what: &str,
 ) -> OnMaps {
-    let params = table_of(kv);
-    let n = rec.len() as u32;
-    let frame = PacketHsmFrame::prepare(ctx.clone(), &params, n.max(1))
-        .unwrap_or_else(|e| panic!("{what}: prepare: {e}"));
-    let views = frame
-        .fit_views(scene, rec)
-        .unwrap_or_else(|e| panic!("{what}: fit_views: {e}"));
-    let casters = GpuScene::upload(ctx, scene).unwrap();
-    let receivers = GpuReceivers::upload(ctx, rec).unwrap();
-    let v_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test V"),
-        size: 4 * n.max(1) as u64,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let inputs = FrameInputs {
-        casters: &casters,
-        views: &views,
-        light: scene.light(),
-        receivers: &receivers.buffer,
-        count: receivers.count,
-        v: &v_buf,
-        timestamps: None,
-    };
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    frame
-        .encode(&mut enc, &inputs)
-        .unwrap_or_else(|e| panic!("{what}: encode: {e}"));
-    ctx.queue.submit([enc.finish()]);
-    let gpu: Vec<f32> = ctx.read_buffer(&v_buf, 4 * n as u64).unwrap();
-    let status = frame.read_status(ctx).unwrap().expect("a status buffer");
+    on_frame_maps(ctx, &prepared(ctx, kv, rec.len()), scene, rec, what)
+}
+
+/// `frame` on `scene` and `rec`: one frame as a renderer records it ([`run_frame`]), V and the
+/// status read back; then each view's maps recorded again alone
+/// ([`PacketHsmFrame::encode_view_maps`]) and read back, the last view's checked bit for bit
+/// against what the whole frame left; the CPU twin on those maps
+/// ([`PacketHsmFrame::cpu_twin_in_maps`]). Panics (naming `what`) on an error, an active
+/// receiver NaN without the status counting it, or an inactive one not NaN on both.
+fn on_frame_maps(
+    ctx: &Arc<GpuContext>,
+    frame: &PacketHsmFrame,
+    scene: &Scene,
+    rec: &Receivers,
+    what: &str,
+) -> OnMaps {
+    let (rig, out) =
+        run_frame(ctx, frame, scene, rec).unwrap_or_else(|e| panic!("{what}: frame: {e}"));
+    let (gpu, views, inputs) = (out.v, &rig.views, rig.inputs());
+    let status = out.status.expect("a status buffer");
     assert_eq!(status.nonfinite, 0, "{what}: non-finite V ({status:?})");
     let read = |view: &LightView| frame.light_space(view).to_cpu(ctx).unwrap();
     let last = views.last().copied().flatten().expect("a view");
@@ -210,7 +197,7 @@ fn on_frame_maps(
     OnMaps {
         gpu,
         cpu,
-        views,
+        views: views.clone(),
         cut,
         outside: status.outside,
     }
@@ -240,7 +227,7 @@ impl TwinPair for PacketHsm {
     test_support::twin_constructors!(CpuPacketHsm, descriptor = DESCRIPTOR, fixed = fixed_case());
 
     fn frame(&self, ctx: &Arc<GpuContext>, params: &Params) -> Option<BoxedFrame> {
-        let params = table(packet_hsm::cpu::SPECS, params);
+        let params = table(packet_hsm::settings::SPECS, params);
         let frame = PacketHsmFrame::prepare(ctx.clone(), &params, 1 << 12).expect("frame");
         Some(Box::new(frame))
     }
@@ -308,7 +295,7 @@ impl TwinPair for PacketHsm {
                     ("receiver_plane", plane.as_str()),
                 ];
                 let what = format!("shape {shape} {kv:?}");
-                let m = on_frame_maps(ctx, &kv, &s, &rec, &what);
+                let m = on_new_frame_maps(ctx, &kv, &s, &rec, &what);
                 let n: usize = sl.parse().unwrap();
                 if m.views.len() != n * n {
                     return Err(format!("{what}: {} views", m.views.len()));
@@ -377,7 +364,8 @@ impl TwinPair for PacketHsm {
         ] {
             let kv = [("resolution", res), ("packet", p), ("hierarchy", h)];
             let what = format!("large kernels {kv:?} ({} receivers)", r.len());
-            let m = on_frame_maps(ctx, &kv, &s, r, &what);
+            let frame = prepared(ctx, &kv, r.len());
+            let m = on_frame_maps(ctx, &frame, &s, r, &what);
             let active = r.active().iter().filter(|a| **a).count();
             // Every receiver may be cut (a flat scan of the line on lavapipe).
             let worst = if m.cut.len() < active {
@@ -394,7 +382,6 @@ impl TwinPair for PacketHsm {
                 m.cut.len().to_string()
             };
             assert_eq!(redo, expected, "{what}: receivers redone on the CPU");
-            let frame = PacketHsmFrame::prepare(ctx.clone(), &table_of(&kv), 1).unwrap();
             let cpu = frame.cpu_twin(&s, r, &m.views).unwrap();
             for k in 0..r.len() {
                 let want = if m.cut.contains(&k) { cpu[k] } else { m.gpu[k] };
@@ -414,15 +401,6 @@ impl TwinPair for PacketHsm {
     }
 }
 
-/// `kv` as a parameter table of packet-hsm's specs.
-fn table_of(kv: &[(&str, &str)]) -> shadow_map_core::Params {
-    let mut t = shadow_map_core::Params::new(packet_hsm::cpu::SPECS).unwrap();
-    for (k, v) in kv {
-        t.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
-    }
-    t
-}
-
 /// Disk and sphere lights (docs/methods.md §3 "Disk lights", "Sphere lights") through the frame,
 /// hierarchy on and off: V in [0, 1], within the twin tolerance of the CPU twin on the frame's
 /// maps, and in shadow somewhere.
@@ -431,15 +409,28 @@ fn frame_disk_and_sphere_lights_match_the_cpu_twin() {
     let Some(ctx) = test_support::gpu("frame_disk_and_sphere_lights_match_the_cpu_twin") else {
         return;
     };
-    for shape in [1u8, 2] {
-        let s = shaped_scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1)], shape);
-        let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
-        for (p, h) in [("3x3", "true"), ("1x1", "false"), ("4x4", "false")] {
-            let kv = [("resolution", "128"), ("packet", p), ("hierarchy", h)];
+    let scenes: Vec<(u8, Scene, Receivers)> = [1u8, 2]
+        .into_iter()
+        .map(|shape| {
+            let s = shaped_scene(1.2, 3.0, &[(-1.2, 0.3, 0.6, 1.1)], shape);
+            let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
+            (shape, s, rec)
+        })
+        .collect();
+    for (p, h) in [("3x3", "true"), ("1x1", "false"), ("4x4", "false")] {
+        let kv = [("resolution", "128"), ("packet", p), ("hierarchy", h)];
+        // One frame per table, reused across the scenes.
+        let most = scenes
+            .iter()
+            .map(|(_, _, rec)| rec.len())
+            .max()
+            .unwrap_or(1);
+        let frame = prepared(&ctx, &kv, most);
+        for (shape, s, rec) in &scenes {
             let what = format!("shape {shape} {kv:?}");
-            let m = on_frame_maps(&ctx, &kv, &s, &rec, &what);
+            let m = on_frame_maps(&ctx, &frame, s, rec, &what);
             assert!(m.cpu.iter().any(|&v| v < 0.5), "{what}: no shadow");
-            let (f, worst) = m.assert_twins(&rec, &what);
+            let (f, worst) = m.assert_twins(rec, &what);
             eprintln!(
                 "{what}: within {f:.4}, worst {worst:e}, {} cut",
                 m.cut.len()
@@ -459,7 +450,7 @@ fn frame_opacity_levels_match_the_cpu_twin() {
     s.set_mesh_opacity(1, 0.35).unwrap();
     let rec = Receivers::from_camera(&s, &SceneBvh::new(&s));
     let kv = [("resolution", "128"), ("packet", "3x3")];
-    let m = on_frame_maps(&ctx, &kv, &s, &rec, "opacity levels");
+    let m = on_new_frame_maps(&ctx, &kv, &s, &rec, "opacity levels");
     assert_eq!(m.views.len(), 2, "one view per opacity level");
     assert!(
         m.cpu.iter().any(|&v| v < 0.9 && v > 0.5),
@@ -480,6 +471,7 @@ fn frame_hard_cases_stay_finite() {
     let kv = [("resolution", "128")];
     let mut g = gpu_estimator(&ctx, &kv);
     let r = line_receivers();
+    let frame = prepared(&ctx, &kv, r.len());
     for occ in [
         (-0.5, -0.5, 0.5, 0.5, 3.0 - 1e-4),
         (-0.5, -0.5, 0.5, 0.5, 1e-5),
@@ -488,7 +480,7 @@ fn frame_hard_cases_stay_finite() {
         let vg = run(&mut *g, &s, &r).unwrap().0;
         assert_valid(&vg, "gpu hard case");
         let what = format!("hard case {occ:?}");
-        let m = on_frame_maps(&ctx, &kv, &s, &r, &what);
+        let m = on_frame_maps(&ctx, &frame, &s, &r, &what);
         let (_, worst) = m.assert_twins(&r, &what);
         eprintln!("{what}: worst {worst:e}, {} cut", m.cut.len());
     }
@@ -520,7 +512,7 @@ fn every_fit_and_nearfar_match_on_the_frame() {
                 ];
                 let what = format!("{kv:?}");
                 let (vc, rc) = run(&mut hsm(&kv), &s, &rec).unwrap();
-                let m = on_frame_maps(&ctx, &kv, &s, &rec, &what);
+                let m = on_new_frame_maps(&ctx, &kv, &s, &rec, &what);
                 let views: Vec<LightView> = m.views.iter().flatten().copied().collect();
                 let near = views.iter().map(|v| v.n).fold(f32::INFINITY, f32::min);
                 let far = views.iter().map(|v| v.far).fold(0.0, f32::max);

@@ -469,6 +469,21 @@ pub fn check_prepared_inputs(
     Ok(n)
 }
 
+/// V of a frame's CPU twin `est` configured with the frame's `params`
+/// ([`FrameEstimator::cpu_twin`]): `estimate` builds it in the frame's views and writes one
+/// value per receiver of `receivers`.
+pub fn cpu_twin_v<E: crate::SoftShadowEstimator>(
+    mut est: E,
+    params: &crate::Params,
+    receivers: &Receivers,
+    estimate: impl FnOnce(&mut E, &mut [f32]) -> Result<()>,
+) -> Result<Vec<f32>> {
+    crate::estimator::configure(&mut est, params)?;
+    let mut v = vec![0.0; receivers.len()];
+    estimate(&mut est, &mut v)?;
+    Ok(v)
+}
+
 /// Records one compute pass `label`: `pipe` with `group` at index 0, `workgroups` dispatched.
 pub fn compute_pass(
     enc: &mut wgpu::CommandEncoder,

@@ -16,7 +16,7 @@ use common::fixture;
 use shadow_map_core::{
     gpu::{read_depth_map, GpuScene, GpuShadowMapper},
     light_view::ViewOptions,
-    Error, LightSpace, LightSpaceRequest, RasterOptions, Receivers, SceneBvh,
+    Error, LightSpace, LightSpaceRequest, Receivers, SceneBvh,
 };
 
 #[test]
@@ -26,14 +26,9 @@ fn layer_opacity_planes_match_the_cpu() -> Result<(), Error> {
     };
     let mapper = GpuShadowMapper::new(&ctx)?;
     let req = LightSpaceRequest {
-        resolution: 128,
         layers: 3,
-        midpoints: None,
-        mssm_levels: None,
-        dual_mssm_levels: None,
-        pyramid: false,
-        raster: RasterOptions::default(),
         opacity: true,
+        ..LightSpaceRequest::single(128)
     };
     for name in ["strands", "hair"] {
         let scene = fixture(name, 64, 48);
@@ -105,16 +100,7 @@ fn layer_slots_render_each_opacity_level_in_its_own_view() -> Result<(), Error> 
     };
     use shadow_map_core::gpu::{GpuDepthMap, LayersSlot};
     let mapper = GpuShadowMapper::new(&ctx)?;
-    let req = LightSpaceRequest {
-        resolution: 64,
-        layers: 1,
-        midpoints: None,
-        mssm_levels: None,
-        dual_mssm_levels: None,
-        pyramid: false,
-        raster: RasterOptions::default(),
-        opacity: false,
-    };
+    let req = LightSpaceRequest::single(64);
     let scene = fixture("hair", 32, 24);
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     let (view, _) = req.fit_view(&scene, &rec, &ViewOptions::default())?;

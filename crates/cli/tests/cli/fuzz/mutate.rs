@@ -1,6 +1,6 @@
 //! The fuzz's mutators: weird numbers, structural scene edits, text and OBJ edits, parameter
 //! values, and glTF documents built from triangles and then edited.
-use toml::Value as T;
+use toml::{Table, Value as T};
 
 pub(super) fn pick<'a, X>(rng: &mut fastrand::Rng, xs: &'a [X]) -> &'a X {
     &xs[rng.usize(..xs.len())]
@@ -24,26 +24,47 @@ fn weird_number(rng: &mut fastrand::Rng, x: f64) -> T {
     }
 }
 
-/// Paths (table keys and array indices) of every number in `v`.
-fn number_paths(v: &T, path: &mut Vec<String>, out: &mut Vec<Vec<String>>) {
-    match v {
-        T::Integer(_) | T::Float(_) => out.push(path.clone()),
-        T::Array(a) => {
-            for (k, x) in a.iter().enumerate() {
-                path.push(k.to_string());
-                number_paths(x, path, out);
-                path.pop();
-            }
+/// Paths (table keys and array indices) of every value in `v` that `keep` accepts, the root
+/// included, depth first in key order.
+fn paths_where(v: &T, keep: fn(&T) -> bool) -> Vec<Vec<String>> {
+    fn walk(v: &T, keep: fn(&T) -> bool, path: &mut Vec<String>, out: &mut Vec<Vec<String>>) {
+        if keep(v) {
+            out.push(path.clone());
         }
-        T::Table(t) => {
-            for (k, x) in t {
-                path.push(k.clone());
-                number_paths(x, path, out);
-                path.pop();
-            }
+        let children: Vec<(String, &T)> = match v {
+            T::Array(a) => a
+                .iter()
+                .enumerate()
+                .map(|(k, x)| (k.to_string(), x))
+                .collect(),
+            T::Table(t) => t.iter().map(|(k, x)| (k.clone(), x)).collect(),
+            _ => Vec::new(),
+        };
+        for (k, x) in children {
+            path.push(k);
+            walk(x, keep, path, out);
+            path.pop();
         }
-        _ => {}
     }
+    let mut out = Vec::new();
+    walk(v, keep, &mut vec![], &mut out);
+    out
+}
+
+/// Paths of every number in `v`.
+fn number_paths(v: &T) -> Vec<Vec<String>> {
+    paths_where(v, |x| x.is_integer() || x.is_float())
+}
+
+/// A table of `v` picked at random (the root included), with its path.
+fn random_table<'a>(rng: &mut fastrand::Rng, v: &'a mut T) -> (Vec<String>, Option<&'a mut Table>) {
+    let tables = paths_where(v, T::is_table);
+    let p = pick(rng, &tables).clone();
+    let table = match at(v, &p) {
+        Some(T::Table(t)) => Some(t),
+        _ => None,
+    };
+    (p, table)
 }
 
 pub(super) fn at<'a>(v: &'a mut T, path: &[String]) -> Option<&'a mut T> {
@@ -58,28 +79,6 @@ pub(super) fn at<'a>(v: &'a mut T, path: &[String]) -> Option<&'a mut T> {
     Some(cur)
 }
 
-/// Every table in `v` (as paths), the root included.
-fn table_paths(v: &T, path: &mut Vec<String>, out: &mut Vec<Vec<String>>) {
-    match v {
-        T::Table(t) => {
-            out.push(path.clone());
-            for (k, x) in t {
-                path.push(k.clone());
-                table_paths(x, path, out);
-                path.pop();
-            }
-        }
-        T::Array(a) => {
-            for (k, x) in a.iter().enumerate() {
-                path.push(k.to_string());
-                table_paths(x, path, out);
-                path.pop();
-            }
-        }
-        _ => {}
-    }
-}
-
 fn vec3(rng: &mut fastrand::Rng, scale: f64) -> T {
     T::Array(
         (0..3)
@@ -88,12 +87,22 @@ fn vec3(rng: &mut fastrand::Rng, scale: f64) -> T {
     )
 }
 
+/// `line`'s whitespace-separated fields joined by single spaces, a random one after the first
+/// (the OBJ keyword) replaced by `value` (none when the line has no such field).
+fn replace_field(rng: &mut fastrand::Rng, line: &str, value: &str) -> String {
+    let mut parts: Vec<&str> = line.split_whitespace().collect();
+    let j = 1 + rng.usize(..parts.len().saturating_sub(1).max(1));
+    if j < parts.len() {
+        parts[j] = value;
+    }
+    parts.join(" ")
+}
+
 /// One structural mutation of the scene table.
 pub(super) fn mutate_scene(rng: &mut fastrand::Rng, scene: &mut T, what: &mut Vec<String>) {
     match rng.u32(..10) {
         0 | 1 => {
-            let mut paths = Vec::new();
-            number_paths(scene, &mut vec![], &mut paths);
+            let paths = number_paths(scene);
             if let Some(p) = paths.get(rng.usize(..paths.len().max(1))) {
                 if let Some(x) = at(scene, p) {
                     let old = match x {
@@ -108,10 +117,7 @@ pub(super) fn mutate_scene(rng: &mut fastrand::Rng, scene: &mut T, what: &mut Ve
         }
         2 => {
             // Delete a key anywhere.
-            let mut tables = Vec::new();
-            table_paths(scene, &mut vec![], &mut tables);
-            let p = pick(rng, &tables).clone();
-            if let Some(T::Table(t)) = at(scene, &p) {
+            if let (p, Some(t)) = random_table(rng, scene) {
                 let keys: Vec<String> = t.keys().cloned().collect();
                 if !keys.is_empty() {
                     let k = pick(rng, &keys).clone();
@@ -121,10 +127,7 @@ pub(super) fn mutate_scene(rng: &mut fastrand::Rng, scene: &mut T, what: &mut Ve
             }
         }
         3 => {
-            let mut tables = Vec::new();
-            table_paths(scene, &mut vec![], &mut tables);
-            let p = pick(rng, &tables).clone();
-            if let Some(T::Table(t)) = at(scene, &p) {
+            if let (p, Some(t)) = random_table(rng, scene) {
                 t.insert("bogus".into(), T::Integer(1));
                 what.push(format!("added {}.bogus", p.join(".")));
             }
@@ -231,8 +234,7 @@ pub(super) fn mutate_scene(rng: &mut fastrand::Rng, scene: &mut T, what: &mut Ve
         }
         7 => {
             // A vector of the wrong length or type.
-            let mut paths = Vec::new();
-            number_paths(scene, &mut vec![], &mut paths);
+            let paths = number_paths(scene);
             let arrays: Vec<Vec<String>> = paths
                 .iter()
                 .filter(|p| p.last().is_some_and(|k| k.parse::<usize>().is_ok()))
@@ -325,12 +327,7 @@ pub(super) fn mutate_obj(rng: &mut fastrand::Rng, text: &str, what: &mut Vec<Str
         0 if !verts.is_empty() => {
             let k = *pick(rng, &verts);
             let c = *pick(rng, &["nan", "inf", "-inf", "1e30", "1e-30", "x", "1e400"]);
-            let mut parts: Vec<String> = lines[k].split_whitespace().map(String::from).collect();
-            let j = 1 + rng.usize(..parts.len().saturating_sub(1).max(1));
-            if j < parts.len() {
-                parts[j] = c.into();
-            }
-            lines[k] = parts.join(" ");
+            lines[k] = replace_field(rng, &lines[k], c);
             what.push(format!("obj vertex {k}: {c}"));
         }
         1 if !faces.is_empty() => {
@@ -348,12 +345,7 @@ pub(super) fn mutate_obj(rng: &mut fastrand::Rng, text: &str, what: &mut Vec<Str
                 ],
             )
             .clone();
-            let mut parts: Vec<String> = lines[k].split_whitespace().map(String::from).collect();
-            let j = 1 + rng.usize(..parts.len().saturating_sub(1).max(1));
-            if j < parts.len() {
-                parts[j] = idx.clone();
-            }
-            lines[k] = parts.join(" ");
+            lines[k] = replace_field(rng, &lines[k], &idx);
             what.push(format!("obj face {k}: index {idx}"));
         }
         2 => {

@@ -2,10 +2,20 @@
 //! stacks of semi-transparent sheets.
 #![allow(dead_code, unused_imports)]
 use glam::Vec3;
-use shadow_map_core::{Camera, Light, Receivers, Scene};
+use shadow_map_core::{Camera, Light, Params, Receivers, Scene};
 pub use test_support::fixtures::{
     check_contract, fixture, fixture_names, max_abs_diff, note, note_as, quad, rmse,
 };
+
+/// deep-shadow's parameter table with `kv` set; panics on a key or value it refuses (a test's
+/// bug).
+pub fn params(kv: &[(&str, &str)]) -> Params {
+    let mut p = Params::new(deep_shadow::settings::SPECS).unwrap();
+    for (k, v) in kv {
+        p.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
+    }
+    p
+}
 
 /// The fixed scenes' camera, 8 x 8 pixels.
 pub fn camera() -> Camera {

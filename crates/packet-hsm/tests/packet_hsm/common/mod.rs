@@ -2,7 +2,7 @@
 //! rect light, and the CPU estimator configured.
 #![allow(dead_code, unused_imports)]
 use packet_hsm::CpuPacketHsm;
-use shadow_map_core::{run, Receivers, Scene};
+use shadow_map_core::{run, Params, Receivers, Scene};
 pub use test_support::fixtures::{
     assert_valid, camera, errors, light_of_shape, line_receivers, oracle, quad, rect_light,
     scene_with, traced, Occ, SQUARE,
@@ -16,4 +16,13 @@ pub fn hsm(kv: &[(&str, &str)]) -> CpuPacketHsm {
 /// V of [`hsm`] with `kv` on `s` at `r`.
 pub fn hsm_v(kv: &[(&str, &str)], s: &Scene, r: &Receivers) -> Vec<f32> {
     run(&mut hsm(kv), s, r).unwrap().0
+}
+
+/// `kv` as a parameter table of packet-hsm's specs.
+pub fn table_of(kv: &[(&str, &str)]) -> Params {
+    let mut t = Params::new(packet_hsm::settings::SPECS).unwrap();
+    for (k, v) in kv {
+        t.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
+    }
+    t
 }

@@ -1,0 +1,301 @@
+//! The kernel the engine path ([`crate::gpu`]) runs after its set-up pass, the twin of
+//! [`crate::cpu::pixel_value`] in f32 (`packet_hsm.wgsl`, `packet_hsm_passes.wgsl`): `prepare`
+//! (one invocation per receiver: the tight kernel from the MSSM, the fully lit / fully occluded
+//! classification over the padded dual-grid MSSM, the centre status), then `pixels` (per-pixel
+//! GBP07 for every penumbra receiver: flat scan, or Yang's Algorithm 3 with an explicit stack
+//! when `hierarchy`). Receivers in a buffer carry no image layout, so the GPU has no packets.
+//!
+//! Known differences from the CPU: f32 light-plane geometry and sums (f64 on the CPU), a
+//! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added
+//! in f32; the receiver plane's caster test is the same product and comparison in f32 (a fused
+//! multiply-add can flip a tie).
+use crate::math::radial::Emitter;
+use crate::settings::Config;
+use bytemuck::{Pod, Zeroable};
+use shadow_map_core::{
+    gpu::{
+        kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
+        GpuContext,
+    },
+    LightView, Result,
+};
+use std::sync::Arc;
+
+/// The kernel's own WGSL: bindings, helpers, contour cells and radial integration.
+pub const PACKET_HSM_WGSL: &str = include_str!("../packet_hsm.wgsl");
+/// The kernel's entry points (`prepare`, `pixels`), after [`PACKET_HSM_WGSL`].
+pub const PACKET_HSM_PASSES_WGSL: &str = include_str!("../packet_hsm_passes.wgsl");
+/// [`RecIn`] in WGSL, which the kernel reads and the frame's set-up pass writes.
+pub const REC_IN_WGSL: &str = include_str!("../rec_in.wgsl");
+/// The WGSL parts of the kernel, in order: the core's disk edge term
+/// ([`DISK_EDGE_WGSL`](shadow_map_core::gpu::estimate::DISK_EDGE_WGSL)) and silhouette carry
+/// ([`SILHOUETTE_WGSL`](shadow_map_core::gpu::estimate::SILHOUETTE_WGSL)), [`REC_IN_WGSL`], then
+/// [`PACKET_HSM_WGSL`] and [`PACKET_HSM_PASSES_WGSL`].
+pub const SHADER_PARTS: [&str; 5] = [
+    shadow_map_core::gpu::estimate::DISK_EDGE_WGSL,
+    shadow_map_core::gpu::estimate::SILHOUETTE_WGSL,
+    REC_IN_WGSL,
+    PACKET_HSM_WGSL,
+    PACKET_HSM_PASSES_WGSL,
+];
+
+/// [`HsmUniform::shape`] of a rect (sub-)light.
+pub const SHAPE_RECT: u32 = 0;
+/// [`HsmUniform::shape`] of a disk light (radius `hx`).
+pub const SHAPE_DISK: u32 = 1;
+/// [`HsmUniform::shape`] of a sphere light (radius `hx`; [`RecIn`]'s silhouette).
+pub const SHAPE_SPHERE: u32 = 2;
+
+/// The kernel's uniform for one view (mirrors `HsmUniform` in `packet_hsm.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct HsmUniform {
+    /// Shadow-map side r.
+    pub r: u32,
+    /// Padded side r + 2 of the dual-grid MSSM.
+    pub padded: u32,
+    /// Anchored MSSM levels the view reads.
+    pub mssm_levels: u32,
+    /// Dual-grid MSSM levels the view reads.
+    pub dual_levels: u32,
+    /// `alpha = n r / w`.
+    pub alpha: f32,
+    /// Near plane n.
+    pub n: f32,
+    /// `k = w / (n r)` (texel pitch over n).
+    pub k: f32,
+    /// 1: hierarchical extraction.
+    pub hierarchy: u32,
+    /// Sub-light half extent x.
+    pub hx: f32,
+    /// Sub-light half extent y.
+    pub hy: f32,
+    /// Receivers.
+    pub count: u32,
+    /// Always 2: the trip count of the shader's loop-limit probe.
+    pub probe: u32,
+    /// 1: receiver-plane rejection (`receiver_plane=true`, [`RecIn`]'s plane).
+    pub receiver_plane: u32,
+    /// 1: the classification depths are the true depths (`self_shadow=bias`).
+    pub class_is_depth: u32,
+    /// The light: [`SHAPE_RECT`], [`SHAPE_DISK`] (radius `hx`, docs/methods.md §3 "Disk
+    /// lights") or [`SHAPE_SPHERE`] (radius `hx`, §3 "Sphere lights").
+    pub shape: u32,
+    /// 1 for an orthographic view (the sun): `k` is the texel pitch ([`crate::math::radial::Scale`]),
+    /// kernels are the occluder prism's width, and a receiver's plane holds `(cu, cv)` where a
+    /// perspective one holds `(gu, gv)`.
+    pub ortho: u32,
+}
+
+/// Per-receiver state between the passes (mirrors `PrepGpu`): kernel cells, nudged texel
+/// coordinates, state (0 done, 2 penumbra still to evaluate), centre status.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PrepGpu {
+    /// Kernel cells `[x0, y0, x1, y1)`.
+    pub cr: [i32; 4],
+    /// Nudged `(u_p, v_p)`.
+    pub q: [f32; 2],
+    /// State.
+    pub state: u32,
+    /// Centre status.
+    pub centre: u32,
+}
+
+/// One receiver as the kernel reads it and the frame's set-up pass writes it (mirrors `RecIn`
+/// in `rec_in.wgsl`): texel coordinates, `z_p` and the classification threshold `t_p`;
+/// `zp <= 0` for receivers the set-up settled.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct RecIn {
+    /// `(u_p, v_p)`.
+    pub uv: [f32; 2],
+    /// `z_p`.
+    pub zp: f32,
+    /// `t_p`.
+    pub t: f32,
+    /// [`ReceiverPlane::g0`](shadow_map_core::ReceiverPlane::g0) (0 without the plane).
+    pub g0: f32,
+    /// [`ReceiverPlane::gu`](shadow_map_core::ReceiverPlane::gu).
+    pub gu: f32,
+    /// [`ReceiverPlane::gv`](shadow_map_core::ReceiverPlane::gv).
+    pub gv: f32,
+    /// [`ReceiverPlane::c`](shadow_map_core::ReceiverPlane::c).
+    pub c: f32,
+    /// A sphere light's [`Silhouette`](shadow_map_core::silhouette::Silhouette) seen from the
+    /// receiver (zeros otherwise): `(a, dist)`.
+    pub sil_a: [f32; 4],
+    /// `(e1, radius)`.
+    pub sil_e1: [f32; 4],
+    /// `(e2, 0)`.
+    pub sil_e2: [f32; 4],
+    /// [`Silhouette::clip`](shadow_map_core::silhouette::Silhouette::clip).
+    pub sil_clip: [f32; 4],
+}
+
+/// Threads per workgroup of every pass (the core's `WG` override).
+pub(crate) const WORKGROUP: u32 = 64;
+
+/// Why a receiver can come back cut: some devices bound the loop iterations of one shader
+/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run:
+/// gallivm's `LP_MAX_TGSI_LOOP_ITERATIONS`), which would silently truncate a long contour scan
+/// (a large kernel without the hierarchy). The kernel detects it (a loop that did not finish,
+/// and a two-trip probe loop with a uniform bound that trips once when the budget is spent) and
+/// flags the receiver; the frame leaves its V NaN and counts it, for the caller to redo with
+/// the CPU twin in the same views (`frame_cpu_redo` in the registry estimator's report).
+pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
+
+/// The kernel's bind group layout and its two pipelines, compiled once.
+pub(crate) struct Kernel {
+    pub ctx: Arc<GpuContext>,
+    pub layout: wgpu::BindGroupLayout,
+    pub prepare: wgpu::ComputePipeline,
+    pub pixels: wgpu::ComputePipeline,
+}
+
+impl Kernel {
+    /// Compiles [`SHADER_PARTS`] on `ctx`'s device.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
+        const LABEL: &str = "packet-hsm kernel";
+        let module = shader_module(&ctx, LABEL, &SHADER_PARTS)?;
+        let layout = ctx.scoped(LABEL, || {
+            let mut bindings = vec![Binding::Uniform];
+            bindings.extend([Binding::Storage; 6]);
+            bindings.extend([Binding::StorageRw; 2]);
+            bind_group_layout(&ctx, LABEL, &bindings)
+        })?;
+        let constants = [("WG", WORKGROUP as f64)];
+        let make = |entry: &str| compute_pipeline(&ctx, LABEL, &module, &layout, entry, &constants);
+        let (prepare, pixels) = (make("prepare")?, make("pixels")?);
+        Ok(Kernel {
+            ctx,
+            layout,
+            prepare,
+            pixels,
+        })
+    }
+
+    /// A bind group over `bufs`, bound in order from 0: the uniform, depth, classification,
+    /// MSSM, dual min, dual max, receivers, V out, prep.
+    pub fn group(&self, bufs: [&wgpu::Buffer; 9]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = bufs
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("packet-hsm kernel"),
+                layout: &self.layout,
+                entries: &entries,
+            })
+    }
+}
+
+/// What the kernel's uniform takes from one view: the view, the sub-light's half extents and
+/// emitter, and the sizes of its hierarchies.
+pub(crate) struct SubLightShape {
+    pub view: LightView,
+    pub half: glam::Vec2,
+    pub emitter: Emitter,
+    /// Side of the padded dual-grid MSSM, `r + 2`.
+    pub padded: u32,
+    /// Levels of the anchored MSSM and of the dual-grid MSSM.
+    pub mssm_levels: u32,
+    pub dual_levels: u32,
+    /// The classification depths are the true depths.
+    pub class_is_depth: bool,
+}
+
+/// The kernel's uniform for the view `sv` over `count` receivers.
+pub(crate) fn hsm_uniform(sv: &SubLightShape, cfg: &Config, count: u32) -> HsmUniform {
+    let view = &sv.view;
+    HsmUniform {
+        r: view.r,
+        padded: sv.padded,
+        mssm_levels: sv.mssm_levels.max(1),
+        dual_levels: sv.dual_levels.max(1),
+        alpha: view.alpha(),
+        n: view.n,
+        k: crate::math::radial::Scale::of(view).k as f32,
+        hierarchy: cfg.hierarchy as u32,
+        hx: sv.half.x,
+        hy: sv.half.y,
+        count,
+        probe: 2,
+        receiver_plane: cfg.shadow.receiver_plane as u32,
+        class_is_depth: sv.class_is_depth as u32,
+        shape: match sv.emitter {
+            Emitter::Rect(_) => SHAPE_RECT,
+            Emitter::Disk(_) => SHAPE_DISK,
+            Emitter::Sphere(_) => SHAPE_SPHERE,
+        },
+        ortho: u32::from(view.is_ortho()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{HsmUniform, PrepGpu, RecIn, SHADER_PARTS};
+
+    /// Every mirrored struct agrees with the WGSL by member name and offset, and in size.
+    #[test]
+    fn mirrored_structs_match_the_wgsl() {
+        test_support::assert_wgsl_layout!(
+            SHADER_PARTS.concat(),
+            HsmUniform {
+                r,
+                padded,
+                mssm_levels,
+                dual_levels,
+                alpha,
+                n,
+                k,
+                hierarchy,
+                hx,
+                hy,
+                count,
+                probe,
+                receiver_plane,
+                class_is_depth,
+                shape,
+                ortho,
+            }
+        );
+        test_support::assert_wgsl_layout!(
+            SHADER_PARTS.concat(),
+            PrepGpu {
+                cr,
+                q,
+                state,
+                centre,
+            }
+        );
+        test_support::assert_wgsl_layout!(
+            SHADER_PARTS.concat(),
+            RecIn {
+                uv,
+                zp,
+                t,
+                g0,
+                gu,
+                gv,
+                c,
+                sil_a,
+                sil_e1,
+                sil_e2,
+                sil_clip,
+            }
+        );
+    }
+
+    /// The kernel parses and validates with naga (no device needed).
+    #[test]
+    fn wgsl_validates_with_naga() {
+        test_support::wgsl::assert_shaders_valid([("packet_hsm", SHADER_PARTS.concat())]);
+    }
+}
