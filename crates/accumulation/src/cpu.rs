@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView},
+    mssm::refine_kernel,
     Error, LightShape, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
@@ -21,8 +22,8 @@ pub use shadow_map_core::bitmask::{MASK_WORDS, MAX_BITS};
 /// Highest MSSM level built for the adaptive kernel (windows up to 32 texels; wider kernels take
 /// more fetches, never a wrong minimum).
 pub const MAX_MSSM_LEVEL: u32 = 5;
-/// Most refinement rounds of the adaptive kernel.
-pub const REFINE_ROUNDS: u32 = 16;
+/// Most refinement rounds of the adaptive kernel (the WGSL's `REFINE_ROUNDS`).
+pub use shadow_map_core::mssm::REFINE_ROUNDS;
 
 /// The light view and the request the CPU twin and the engine path build (one shadow map at the
 /// light centre, fitted to the receivers with the `fit` and `nearfar` choices of `s.view`
@@ -143,36 +144,9 @@ impl Accumulator<'_> {
                 });
             }
             KernelMode::Fixed => bounds(view.n),
-            KernelMode::Adaptive => {
-                let mut zm = view.n;
-                let mut rect = bounds(zm);
-                for _ in 0..REFINE_ROUNDS {
-                    let zmin = match &self.ls.mssm {
-                        Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
-                        None => f32::NEG_INFINITY,
-                    };
-                    let bound = plane.max_threshold(
-                        rect[0] as f32,
-                        rect[2] as f32,
-                        rect[1] as f32,
-                        rect[3] as f32,
-                    );
-                    if zmin >= bound {
-                        return None;
-                    }
-                    if !(zmin > zm) {
-                        break;
-                    }
-                    zm = zmin;
-                    let next = bounds(zm);
-                    let area = |r: &[i32; 4]| (r[2] - r[0]) as i64 * (r[3] - r[1]) as i64;
-                    if area(&next) >= area(&rect) {
-                        break;
-                    }
-                    rect = next;
-                }
-                rect
-            }
+            KernelMode::Adaptive => refine_kernel(self.ls.mssm.as_ref(), view.n, bounds, |r| {
+                plane.max_threshold(r[0] as f32, r[2] as f32, r[1] as f32, r[3] as f32)
+            })?,
         };
         let (nx, ny) = (
             (rect[2] - rect[0]).max(0) as u32,

@@ -9,6 +9,7 @@ use glam::Vec3;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView},
+    mssm::refine_kernel,
     Cancel, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
     SoftShadowEstimator, Warning,
 };
@@ -331,38 +332,15 @@ impl Setup<'_> {
                 view.kernel_texels(ly, zm, zp),
             ),
         };
-        let mut zm = view.n;
-        let mut rect = kernel(zm);
-        for _ in 0..16 {
-            let zmin = match &ls.mssm {
-                Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
-                None => f32::NEG_INFINITY,
-            };
-            // No sample of the kernel can occlude: the plane's largest caster depth bound over
-            // the kernel's texels (ReceiverPlane::max_threshold, conservative).
-            let bound = match &plane {
-                Some(pl) => pl.max_threshold(
-                    rect[0] as f32,
-                    rect[2] as f32,
-                    rect[1] as f32,
-                    rect[3] as f32,
-                ),
-                None => zp - eps,
-            };
-            if zmin >= bound {
-                return 1.0;
-            }
-            if !(zmin > zm) {
-                break;
-            }
-            zm = zmin;
-            let next = kernel(zm);
-            let area = |r: &[i32; 4]| (r[2] - r[0]) as i64 * (r[3] - r[1]) as i64;
-            if area(&next) >= area(&rect) {
-                break;
-            }
-            rect = next;
-        }
+        // No sample of the kernel can occlude: the plane's largest caster depth bound over the
+        // kernel's texels (ReceiverPlane::max_threshold, conservative).
+        let bound = |r: &[i32; 4]| match &plane {
+            Some(pl) => pl.max_threshold(r[0] as f32, r[2] as f32, r[1] as f32, r[3] as f32),
+            None => zp - eps,
+        };
+        let Some(rect) = refine_kernel(ls.mssm.as_ref(), view.n, kernel, bound) else {
+            return 1.0;
+        };
         let (nx, ny) = ((rect[2] - rect[0]) as u32, (rect[3] - rect[1]) as u32);
         if nx == 0 || ny == 0 {
             return 1.0;

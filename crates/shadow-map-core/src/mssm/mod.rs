@@ -460,6 +460,47 @@ impl Mssm {
     }
 }
 
+/// Most rounds of [`refine_kernel`].
+pub const REFINE_ROUNDS: u32 = 16;
+
+/// A blocker-search kernel refined with the MSSM (Bavoil et al. 2008 §5, Yang et al. 2009 §3:
+/// the kernel's extent follows from the nearest caster depth it may hold). Starting from
+/// `kernel(z_near)`, the minimum depth `zmin` over the kernel's texels bounds how near a caster
+/// can be, so the kernel shrinks to `kernel(zmin)` while that shrinks its area, at most
+/// [`REFINE_ROUNDS`] rounds. `None` when no texel of the kernel can occlude (`zmin >=
+/// bound(kernel)`, `bound` a conservative caster-depth threshold: the receiver is lit); without
+/// an MSSM, `kernel(z_near)` unless `bound` rules it out.
+pub fn refine_kernel(
+    mssm: Option<&Mssm>,
+    z_near: f32,
+    kernel: impl Fn(f32) -> [i32; 4],
+    bound: impl Fn(&[i32; 4]) -> f32,
+) -> Option<[i32; 4]> {
+    let area = |r: &[i32; 4]| (r[2] - r[0]) as i64 * (r[3] - r[1]) as i64;
+    let mut zm = z_near;
+    let mut rect = kernel(zm);
+    for _ in 0..REFINE_ROUNDS {
+        let zmin = match mssm {
+            Some(m) => m.query(rect[0], rect[1], rect[2], rect[3]).min,
+            None => f32::NEG_INFINITY,
+        };
+        if zmin >= bound(&rect) {
+            return None;
+        }
+        // `!(a > b)`: a NaN minimum stops the refinement, as an equal one does.
+        if !(zmin > zm) {
+            break;
+        }
+        zm = zmin;
+        let next = kernel(zm);
+        if area(&next) >= area(&rect) {
+            break;
+        }
+        rect = next;
+    }
+    Some(rect)
+}
+
 mod anchored;
 mod dual;
 mod pyramid;

@@ -343,3 +343,28 @@ fn single_texel_map() {
     assert_eq!(p.query(0, 0, 1, 1), one);
     assert_eq!(p.covered_texels(0, 0, 5, 5), 1);
 }
+
+/// The refinement shrinks a kernel to the nearest caster depth it holds, stops when a round no
+/// longer shrinks it, and rules the receiver lit when no texel can occlude.
+#[test]
+fn refine_kernel_shrinks_to_the_nearest_caster_and_rules_out_lit_receivers() {
+    // A 16 x 16 map at depth 10 with one caster texel at depth 4.
+    let mut depth = vec![10.0f32; 256];
+    depth[8 * 16 + 8] = 4.0;
+    let m = Mssm::build(&depth, 16, 4);
+    // The kernel's half-width falls with the blocker depth z (as a penumbra estimate does).
+    let kernel = |z: f32| {
+        let h = (16.0 / z).ceil() as i32;
+        [8 - h, 8 - h, 8 + h + 1, 8 + h + 1]
+    };
+    // From the near plane at 1: the wide kernel holds the caster at 4, so it shrinks to
+    // kernel(4), which still holds it; the next round finds 4 again and stops.
+    assert_eq!(
+        refine_kernel(Some(&m), 1.0, kernel, |_| 9.0),
+        Some(kernel(4.0))
+    );
+    // A threshold at or below the nearest caster: nothing in the kernel occludes.
+    assert_eq!(refine_kernel(Some(&m), 1.0, kernel, |_| 4.0), None);
+    // Without an MSSM the first kernel stands.
+    assert_eq!(refine_kernel(None, 1.0, kernel, |_| 9.0), Some(kernel(1.0)));
+}
