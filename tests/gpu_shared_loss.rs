@@ -7,13 +7,11 @@
 use shadow_map_core::{gpu::GpuContext, run, Error};
 use softshadow::{estimator, Backend};
 use std::sync::Arc;
-use test_support::gate::context_for_tests;
+use test_support::gpu;
 
 #[test]
 fn shared_context_is_replaced_once_its_device_is_lost() {
-    let Some(first) =
-        context_for_tests("shared_context_is_replaced_once_its_device_is_lost").unwrap()
-    else {
+    let Some(first) = gpu("shared_context_is_replaced_once_its_device_is_lost") else {
         return;
     };
     let (scene, rec) = test_support::fixtures::fixture("parallel-squares", 16, 12);

@@ -56,21 +56,17 @@ fn gpu_frames(
     receivers: &shadow_map_core::Receivers,
 ) {
     use accumulation::AccumulationFrame;
-    use shadow_map_core::gpu::frame::FrameEstimator;
-    use test_support::frame_run::FrameRig;
+    use test_support::{fixtures::param_table, frame_run::FrameRig};
     for (variant, kernel) in MODES {
-        let mut params =
-            shadow_map_core::Params::new(accumulation::settings::SPECS).expect("params");
-        params.set("variant", variant).expect("variant");
-        params.set("kernel", kernel).expect("kernel");
+        let params = param_table(
+            accumulation::settings::SPECS,
+            &[("variant", variant), ("kernel", kernel)],
+        );
         let frame = AccumulationFrame::prepare(ctx.clone(), &params).expect("frame");
         let rig = FrameRig::new(ctx, &frame, scene, receivers).expect("rig");
-        let inputs = rig.inputs();
         g.bench_function(format!("gpu/frame/{variant}-{kernel}"), |b| {
             b.iter(|| {
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                frame.encode(&mut enc, &inputs).expect("encode");
-                ctx.queue.submit([enc.finish()]);
+                black_box(&rig).submit(ctx, &frame).expect("frame");
                 ctx.wait().expect("wait");
             })
         });

@@ -1,15 +1,15 @@
 //! The CPU shadow-accumulation estimator (Aszódi & Szirmay-Kalos 2006, §1.1; geometry in
 //! [`crate::math`]).
 use crate::math::{fixed_kernel_start, paper_plane_distance, Footprint, FrontEdge};
-use crate::settings::{KernelMode, Settings, SphereModel, Variant, SPECS};
+use crate::settings::{KernelMode, Settings, SphereModel, Variant};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView},
     mssm::refine_kernel,
-    Error, LightShape, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
-    SoftShadowEstimator,
+    Cancel, Configured, Error, LightShape, RasterOptions, ReceiverPlane, Receivers, Report, Result,
+    Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -323,24 +323,21 @@ impl Accumulator<'_> {
 ///
 /// All surfaces are treated as opaque (the shadow map stores no opacity).
 pub struct CpuAccumulation {
-    params: Params,
-    /// `params`, typed (re-read on every `set_param`).
-    settings: Settings,
+    /// The parameters and their typed settings.
+    config: Configured<Settings>,
     ls: Option<LightSpace>,
     report: Report,
-    cancel: shadow_map_core::Cancel,
+    cancel: Cancel,
 }
 
 impl CpuAccumulation {
     /// With default parameters.
     pub fn new() -> Result<Self> {
-        let params = Params::new(SPECS)?;
         Ok(CpuAccumulation {
-            settings: Settings::from_params(&params)?,
-            params,
+            config: Configured::new()?,
             ls: None,
             report: Report::default(),
-            cancel: shadow_map_core::Cancel::new(),
+            cancel: Cancel::new(),
         })
     }
     /// The light-space data of the last build.
@@ -349,7 +346,7 @@ impl CpuAccumulation {
     }
     /// The typed settings.
     pub fn settings(&self) -> Settings {
-        self.settings
+        *self.config.settings()
     }
 
     /// Builds the light-space data in a given `view` (the engine path's CPU twin: a view the
@@ -362,18 +359,15 @@ impl CpuAccumulation {
         receivers: &Receivers,
         view: LightView,
     ) -> Result<()> {
-        if view.r != self.settings.resolution {
+        let s = self.settings();
+        if view.r != s.resolution {
             return Err(Error::LightView(format!(
                 "a view of resolution {} for resolution={}",
-                view.r, self.settings.resolution
+                view.r, s.resolution
             )));
         }
         self.report = Report::default();
-        let req = request(
-            &self.settings,
-            &view,
-            plan_half_extent(scene, receivers, &self.settings),
-        );
+        let req = request(&s, &view, plan_half_extent(scene, receivers, &s));
         let ls = self.report.time("build", || {
             LightSpace::try_build_in_view(scene, view, FitReport::default(), &req)
         })?;
@@ -532,15 +526,7 @@ pub fn settle_outside(scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Re
 }
 
 impl SoftShadowEstimator for CpuAccumulation {
-    shadow_map_core::estimator_identity!("accumulation", "shadow accumulation over a kernel of elementary casters, additive or exact occlusion bits (Aszodi & Szirmay-Kalos 2006)", Cpu, params);
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)?;
-        self.settings = Settings::from_params(&self.params)?;
-        Ok(())
-    }
-    fn set_cancel(&mut self, cancel: shadow_map_core::Cancel) {
-        self.cancel = cancel;
-    }
+    shadow_map_core::estimator_identity!("accumulation", "shadow accumulation over a kernel of elementary casters, additive or exact occlusion bits (Aszodi & Szirmay-Kalos 2006)", Cpu, config: config, cancel: cancel);
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         self.ls = None;

@@ -68,21 +68,18 @@ fn frame_rows(
     scene: &shadow_map_core::Scene,
     receivers: &shadow_map_core::Receivers,
 ) {
-    use shadow_map_core::gpu::frame::FrameEstimator;
-    use test_support::frame_run::FrameRig;
+    use test_support::{fixtures::param_table, frame_run::FrameRig};
     for k in [1, 3] {
-        let mut params =
-            shadow_map_core::Params::new(backprojection::settings::SPECS).expect("params");
-        params.set("layers", &k.to_string()).expect("layers");
+        let params = param_table(
+            backprojection::settings::SPECS,
+            &[("layers", k.to_string())],
+        );
         let frame =
             backprojection::BackprojectionFrame::prepare(ctx.clone(), &params).expect("frame");
         let rig = FrameRig::new(ctx, &frame, scene, receivers).expect("frame inputs");
-        let inputs = rig.inputs();
         g.bench_function(format!("gpu/frame/layers-{k}"), |b| {
             b.iter(|| {
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                frame.encode(&mut enc, black_box(&inputs)).expect("encode");
-                ctx.queue.submit([enc.finish()]);
+                black_box(&rig).submit(ctx, &frame).expect("frame");
                 ctx.wait().expect("wait");
             })
         });

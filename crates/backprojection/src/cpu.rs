@@ -4,13 +4,13 @@
 use crate::math::{
     backprojected_micropatch, emitter_bits, gap_filled, micropatch_k, Emitter, Rect, Silhouette,
 };
-use crate::settings::{LayerRule, Occlusion, Resolved, Settings, SPECS};
+use crate::settings::{LayerRule, Occlusion, Resolved, Settings};
 use glam::Vec3;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, LightView},
     mssm::refine_kernel,
-    Cancel, Params, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
+    Cancel, Configured, RasterOptions, ReceiverPlane, Receivers, Report, Result, Scene,
     SoftShadowEstimator, Warning,
 };
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
@@ -70,9 +70,8 @@ pub fn warn_bitmask_opacity(report: &mut Report, s: &Settings, scene: &Scene) {
 /// overlap of `B_s` carried onto the receiver's silhouette disk ([`Silhouette`]), whose hull also
 /// bounds the kernel.
 pub struct CpuBackprojection {
-    params: Params,
-    /// `params`, typed (re-read on every `set_param`).
-    settings: Settings,
+    /// The parameters and their typed settings.
+    config: Configured<Settings>,
     ls: Option<LightSpace>,
     report: Report,
     cancel: Cancel,
@@ -81,10 +80,8 @@ pub struct CpuBackprojection {
 impl CpuBackprojection {
     /// With default parameters.
     pub fn new() -> Result<Self> {
-        let params = Params::new(SPECS)?;
         Ok(CpuBackprojection {
-            settings: Settings::from_params(&params)?,
-            params,
+            config: Configured::new()?,
             ls: None,
             report: Report::default(),
             cancel: Cancel::new(),
@@ -96,7 +93,7 @@ impl CpuBackprojection {
     }
     /// The current parameters, typed.
     pub fn settings(&self) -> &Settings {
-        &self.settings
+        self.config.settings()
     }
     /// Takes given light-space data as the last build's: the CPU estimate on maps made elsewhere
     /// (say the engine path's, read back with
@@ -114,27 +111,28 @@ impl CpuBackprojection {
     ) -> Result<()> {
         receivers.check_output(v)?;
         let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
+        let s = self.config.settings();
         let h = light.half_extent();
         let emitter = Emitter::of(&light.shape);
-        let res = self.settings.resolve(!ls.opacity.is_empty());
+        let res = s.resolve(!ls.opacity.is_empty());
         let setup = Setup {
             ls,
             emitter,
             half: [h.x, h.y],
             area: emitter.area(),
-            midpoint: self.settings.shadow.midpoint(),
+            midpoint: s.shadow.midpoint(),
             gap_filling: res.gap_filling,
-            max_nspp: self.settings.max_nspp,
-            b0: self.settings.shadow.bias,
-            b1: self.settings.shadow.slope_bias,
-            receiver_plane: self.settings.shadow.receiver_plane,
+            max_nspp: s.max_nspp,
+            b0: s.shadow.bias,
+            b1: s.shadow.slope_bias,
+            receiver_plane: s.shadow.receiver_plane,
             first_nonzero: res.first_nonzero,
             max_step: AtomicU32::new(1),
             bit_pts: match res.occlusion {
-                Occlusion::Bitmask => emitter_bits(&emitter, self.settings.bits),
+                Occlusion::Bitmask => emitter_bits(&emitter, s.bits),
                 _ => Vec::new(),
             },
-            bit_side: self.settings.bits,
+            bit_side: s.bits,
         };
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
@@ -184,11 +182,9 @@ impl CpuBackprojection {
             .push(("estimate".into(), t.elapsed().as_secs_f64() * 1e3));
         self.report.note("resolution", view.r);
         self.report.note("layers", ls.layers.len());
-        self.report
-            .note("self_shadow", self.settings.shadow.self_shadow);
-        note_resolved(&mut self.report, &self.settings, res);
-        self.report
-            .note("receiver_plane", self.settings.shadow.receiver_plane);
+        self.report.note("self_shadow", s.shadow.self_shadow);
+        note_resolved(&mut self.report, s, res);
+        self.report.note("receiver_plane", s.shadow.receiver_plane);
         self.report
             .note("max_step", setup.max_step.load(Ordering::Relaxed));
         self.report.note("near", view.n);
@@ -217,10 +213,11 @@ impl CpuBackprojection {
         receivers: &Receivers,
         view: LightView,
     ) -> Result<()> {
-        if view.r != self.settings.resolution {
+        let r = self.config.settings().resolution;
+        if view.r != r {
             return Err(shadow_map_core::Error::LightView(format!(
-                "a view of resolution {} for resolution={}",
-                view.r, self.settings.resolution
+                "a view of resolution {} for resolution={r}",
+                view.r
             )));
         }
         let half = shadow_map_core::light_view::fit_half_extent(scene.light(), receivers);
@@ -238,7 +235,7 @@ impl CpuBackprojection {
     /// light-space data it made kept as the last build's.
     fn timed_build(&mut self, make: impl FnOnce(&Settings) -> Result<LightSpace>) -> Result<()> {
         self.report = Report::default();
-        let settings = &self.settings;
+        let settings = self.config.settings();
         let ls = self.report.time("build", || make(settings))?;
         self.report.light_space_bytes = ls.bytes();
         self.ls = Some(ls);
@@ -532,12 +529,7 @@ pub fn request(settings: &Settings, view: &LightView, half: glam::Vec2) -> Light
 }
 
 impl SoftShadowEstimator for CpuBackprojection {
-    shadow_map_core::estimator_identity!("backprojection", "micropatch backprojection onto rect, disk and sphere lights with depth-peeled layers and midpoints, additive or occlusion bits (Guennebaud 2006, Bavoil 2008, Schwarz & Stamminger 2007)", Cpu, params);
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)?;
-        self.settings = Settings::from_params(&self.params)?;
-        Ok(())
-    }
+    shadow_map_core::estimator_identity!("backprojection", "micropatch backprojection onto rect, disk and sphere lights with depth-peeled layers and midpoints, additive or occlusion bits (Guennebaud 2006, Bavoil 2008, Schwarz & Stamminger 2007)", Cpu, config: config, cancel: cancel);
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.ls = None;
         self.timed_build(|s| {
@@ -547,11 +539,8 @@ impl SoftShadowEstimator for CpuBackprojection {
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         self.estimate_light(scene.light(), receivers, v)?;
-        warn_bitmask_opacity(&mut self.report, &self.settings, scene);
+        warn_bitmask_opacity(&mut self.report, self.config.settings(), scene);
         Ok(())
-    }
-    fn set_cancel(&mut self, cancel: Cancel) {
-        self.cancel = cancel;
     }
     fn report(&self) -> Report {
         self.report.clone()

@@ -1,7 +1,7 @@
 //! The settings both twins read: the table every baseline shares ([`MapSettings`]), the own
 //! parameters of hard shadows ([`Hard`], none), PCF ([`Pcf`]), PCSS ([`Pcss`]) and multi-sample
-//! ([`MultiSampleParams`]), and multi-sample's name, description and full table (the others'
-//! are their [`Filter`](crate::cpu::Filter) identity).
+//! ([`MultiSampleParams`]), and multi-sample's name, description and full table
+//! ([`MultiSampleSettings`]; the others' are their [`Filter`](crate::cpu::Filter) identity).
 //! The choice words (`cull`, `depth`) are the core's enums ([`Cull`], [`DepthPrecision`]).
 use crate::math;
 use shadow_map_core::{
@@ -124,7 +124,18 @@ shadow_map_core::typed_params! {
     }
 }
 
+shadow_map_core::typed_params! {
+    /// All the settings of multi-sample shadows, one table ([`MULTI_SAMPLE_SPECS`]): the shared
+    /// ones, then its own.
+    pub struct MultiSampleSettings {
+        ;
+        /// The settings every baseline shares.
+        map: MapSettings,
+        /// Multi-sample's own.
+        sample: MultiSampleParams,
+    }
+}
+
 /// The parameters of multi-sample shadows (also its frame's): [`MapSettings::SPECS`],
 /// then [`MultiSampleParams::SPECS`].
-pub const MULTI_SAMPLE_SPECS: &[ParamSpec] =
-    shadow_map_core::concat_specs!(MapSettings::SPECS, MultiSampleParams::SPECS);
+pub const MULTI_SAMPLE_SPECS: &[ParamSpec] = MultiSampleSettings::SPECS;

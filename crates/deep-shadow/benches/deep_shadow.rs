@@ -111,20 +111,16 @@ fn gpu_frame(
     rec: &Receivers,
 ) {
     use deep_shadow::DeepShadowFrame;
-    use shadow_map_core::gpu::frame::FrameEstimator;
-    use test_support::frame_run::FrameRig;
-    let mut params = shadow_map_core::Params::new(deep_shadow::settings::SPECS).unwrap();
-    for (k, v) in [("resolution", "512"), ("filter", "edsm"), ("kernel", "7")] {
-        params.set(k, v).unwrap();
-    }
+    use test_support::{fixtures::param_table, frame_run::FrameRig};
+    let params = param_table(
+        deep_shadow::settings::SPECS,
+        &[("resolution", "512"), ("filter", "edsm"), ("kernel", "7")],
+    );
     let frame = DeepShadowFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
     let rig = FrameRig::new(ctx, &frame, scene, rec).unwrap();
-    let inputs = rig.inputs();
     g.bench_function("gpu/frame/edsm7", |b| {
         b.iter(|| {
-            let mut enc = ctx.device.create_command_encoder(&Default::default());
-            frame.encode(&mut enc, black_box(&inputs)).unwrap();
-            ctx.queue.submit([enc.finish()]);
+            black_box(&rig).submit(ctx, &frame).unwrap();
             ctx.wait().unwrap();
         })
     });

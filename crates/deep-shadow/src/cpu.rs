@@ -6,7 +6,7 @@ use crate::math::view::{
     kernel_margin, lookup_settings, query, sublight_points, sublight_view_reaching,
     truncation_window, view_light_extent, Query,
 };
-use crate::settings::{self, Filter, Settings, DESCRIPTION, NAME, SPECS};
+use crate::settings::{self, Filter, Settings, DESCRIPTION, NAME};
 use dsm::DeepShadowMap;
 use glam::Vec2;
 use raster::{fragments, prepare};
@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use shadow_map_core::{
     light_space::{LightSpace, LightSpaceRequest},
     light_view::{FitReport, MAX_TAN},
-    Cancel, DepthMap, Light, LightShape, LightView, Params, Receivers, Report, Result, Scene,
+    Cancel, Configured, DepthMap, Light, LightShape, LightView, Receivers, Report, Result, Scene,
     SoftShadowEstimator,
 };
 use std::time::Instant;
@@ -122,9 +122,8 @@ pub fn build_deep_map_timed(
 /// A fully opaque scene builds no lists: each view is the core's ordinary shadow map, read by the
 /// same filters (`--stats` note `path`).
 pub struct CpuDeepShadow {
-    params: Params,
-    /// `params`, typed (re-read on every `set_param`).
-    settings: Settings,
+    /// The parameters and their typed settings ([`settings::check`]ed).
+    config: Configured<Settings>,
     report: Report,
     cancel: Cancel,
 }
@@ -132,17 +131,15 @@ pub struct CpuDeepShadow {
 impl CpuDeepShadow {
     /// With default parameters.
     pub fn new() -> Result<Self> {
-        let params = Params::new(SPECS)?;
         Ok(CpuDeepShadow {
-            settings: Settings::from_params(&params)?,
-            params,
+            config: Configured::new()?,
             report: Report::default(),
             cancel: Cancel::new(),
         })
     }
     /// The current settings.
     pub fn settings(&self) -> Settings {
-        self.settings
+        *self.config.settings()
     }
 
     /// V in the given sub-light views (one per sub-light point, as [`Tally::fit_view`] fits
@@ -418,14 +415,7 @@ impl Tally {
 }
 
 impl SoftShadowEstimator for CpuDeepShadow {
-    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, params);
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.settings = settings::set(&mut self.params, key, value)?;
-        Ok(())
-    }
-    fn set_cancel(&mut self, cancel: Cancel) {
-        self.cancel = cancel;
-    }
+    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, config: config, cancel: cancel, check: settings::check);
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
         self.report = Report::default();

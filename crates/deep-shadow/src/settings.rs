@@ -3,7 +3,7 @@
 use shadow_map_core::{
     light_view::{ViewOptions, BIAS, RESOLUTION, SLOPE_BIAS},
     receiver_plane::RECEIVER_PLANE,
-    Error, ParamSpec, Params, Result,
+    Error, ParamSpec, Result,
 };
 
 /// How a lookup filters the transmittance over the shadow-map plane.
@@ -91,18 +91,14 @@ shadow_map_core::typed_params! {
 /// The parameters, shared by both twins.
 pub const SPECS: &[ParamSpec] = Settings::SPECS;
 
-/// Sets one parameter, with the checks the table cannot express (odd kernel); the settings of
-/// the new parameters.
-pub fn set(p: &mut Params, key: &str, value: &str) -> Result<Settings> {
-    let mut q = p.clone();
-    q.set(key, value)?;
-    let s = Settings::from_params(&q)?;
-    if s.kernel % 2 == 0 {
+/// The checks the table cannot express (an odd kernel), run on every `set_param` before the
+/// new settings are taken ([`shadow_map_core::Configured::set_checked`]).
+pub fn check(s: &Settings) -> Result<()> {
+    if s.kernel.is_multiple_of(2) {
         return Err(Error::param(
             "kernel",
             format!("must be odd (1, 3, 5, 7), got {}", s.kernel),
         ));
     }
-    *p = q;
-    Ok(s)
+    Ok(())
 }

@@ -10,12 +10,12 @@
 use crate::math::contour::{CellRect, Edge, OccluderTest, Receiver, SampleGrid};
 use crate::math::radial::{edge_area, visibility_from_area, Scale};
 use crate::math::{diverging_probability, kernel_side, p_null, packet_pays};
-use crate::settings::{Config, DESCRIPTION, NAME, SPECS};
+use crate::settings::{Config, DESCRIPTION, NAME};
 use extract::{extract, pixel_visibility, PaddedDualMssm, Planes};
 use glam::Vec3;
 use rayon::prelude::*;
 use shadow_map_core::{
-    Cancel, Error, LightShape, Params, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    Cancel, Configured, Error, LightShape, Receivers, Report, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -88,7 +88,8 @@ pub const CLASS_PIXEL: u8 = 2;
 ///
 /// [`ReceiverPlane::caster`]: shadow_map_core::ReceiverPlane::caster
 pub struct CpuPacketHsm {
-    params: Params,
+    /// The parameters and their typed settings.
+    config: Configured<Config>,
     report: Report,
     diagnostics: Vec<PixelDiag>,
     cancel: Cancel,
@@ -98,7 +99,7 @@ impl CpuPacketHsm {
     /// With default parameters.
     pub fn new() -> Result<Self> {
         Ok(CpuPacketHsm {
-            params: Params::new(SPECS)?,
+            config: Configured::new()?,
             report: Report::default(),
             diagnostics: Vec::new(),
             cancel: Cancel::new(),
@@ -384,21 +385,15 @@ impl CpuPacketHsm {
 }
 
 impl SoftShadowEstimator for CpuPacketHsm {
-    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, params);
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
-    }
-    fn set_cancel(&mut self, cancel: Cancel) {
-        self.cancel = cancel;
-    }
+    shadow_map_core::estimator_identity!(NAME, DESCRIPTION, Cpu, config: config, cancel: cancel);
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
         self.report = Report::default();
-        Self::check_light(scene.light(), &Config::from_params(&self.params)?)
+        Self::check_light(scene.light(), self.config.settings())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
-        let cfg = Config::from_params(&self.params)?;
+        let cfg = *self.config.settings();
         Self::check_light(scene.light(), &cfg)?;
         let s = cfg.sublights;
         let mut subs = SubLights::new(&cfg, receivers.len());

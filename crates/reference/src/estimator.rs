@@ -2,7 +2,7 @@
 use crate::trace::{visibility_cancellable, TraceOptions};
 use shadow_map_core::{
     estimator::{Report, SoftShadowEstimator},
-    Cancel, ParamSpec, Params, Receivers, Result, Scene, SceneBvh,
+    Cancel, Configured, ParamSpec, Receivers, Result, Scene, SceneBvh,
 };
 
 shadow_map_core::typed_params! {
@@ -26,9 +26,8 @@ pub const PARAMS: &[ParamSpec] = ReferenceSettings::SPECS;
 /// `spp` (the sample count actually used, a square), `samples_per_side`, `seed`,
 /// `active_receivers`, `triangles`.
 pub struct ReferenceEstimator {
-    params: Params,
-    /// `params`, typed (re-read on every `set_param`).
-    settings: ReferenceSettings,
+    /// The parameters and their typed settings.
+    config: Configured<ReferenceSettings>,
     bvh: Option<SceneBvh>,
     report: Report,
     progress: bool,
@@ -38,7 +37,7 @@ pub struct ReferenceEstimator {
 impl std::fmt::Debug for ReferenceEstimator {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ReferenceEstimator")
-            .field("params", &self.params)
+            .field("params", self.config.params())
             .field("built", &self.bvh.is_some())
             .field("progress", &self.progress)
             .finish()
@@ -49,10 +48,8 @@ impl ReferenceEstimator {
     /// The reference at its defaults (1024 samples per receiver, seed 1), progress bar off. Fails
     /// only if a declared default does not parse (a bug).
     pub fn new() -> Result<Self> {
-        let params = Params::new(PARAMS)?;
         Ok(ReferenceEstimator {
-            settings: ReferenceSettings::from_params(&params)?,
-            params,
+            config: Configured::new()?,
             bvh: None,
             report: Report::default(),
             progress: false,
@@ -70,7 +67,8 @@ impl ReferenceEstimator {
     }
     /// The trace options the current parameters give (`s = ceil(sqrt(spp))`).
     pub fn options(&self) -> TraceOptions {
-        TraceOptions::from_spp(self.settings.spp, self.settings.seed)
+        let s = self.config.settings();
+        TraceOptions::from_spp(s.spp, s.seed)
     }
 }
 
@@ -80,16 +78,9 @@ impl SoftShadowEstimator for ReferenceEstimator {
         "ray-traced ground truth: stratified light samples through the BVH (transmittance for \
          semi-transparent meshes)",
         Cpu,
-        params
+        config: config,
+        cancel: cancel
     );
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)?;
-        self.settings = ReferenceSettings::from_params(&self.params)?;
-        Ok(())
-    }
-    fn set_cancel(&mut self, cancel: Cancel) {
-        self.cancel = cancel;
-    }
     fn build(&mut self, scene: &Scene, _receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
         let bvh = self.report.time("build", || SceneBvh::new(scene));

@@ -324,16 +324,21 @@ pub fn run(
 }
 
 /// The identity half of a [`SoftShadowEstimator`] impl (`name`, `description`, `backend`,
-/// `params`, and for a twin `set_param` and `set_cancel`), written once:
+/// `params`, and in the `config` and twin forms `set_param` and `set_cancel`), written once:
 ///
+/// - `estimator_identity!(NAME, DESCRIPTION, Cpu, config: config, cancel: cancel)`: the
+///   estimator keeps its table and typed settings in the field `config` (a
+///   [`Configured`](crate::Configured)), which `set_param` sets, and its token in the field
+///   `cancel`, which `set_cancel` replaces; append `, check: f` to refuse settings that
+///   `f(&settings) -> Result<()>` refuses ([`Configured::set_checked`](crate::Configured::set_checked));
 /// - `estimator_identity!(NAME, DESCRIPTION, Cpu, params)`: the estimator owns its [`Params`]
-///   in the field `params` (`set_param` is left to the impl, which may refresh typed settings);
+///   in the field `params` (`set_param` and `set_cancel` are left to the impl);
 /// - `estimator_identity!(twin of cpu, Gpu)`: a GPU twin that keeps its CPU twin in the field
 ///   `cpu` and shares its name, description, parameter table and cancellation token
 ///   (`set_cancel` hands it to the CPU twin).
 #[macro_export]
 macro_rules! estimator_identity {
-    ($name:expr, $description:expr, $backend:ident, $params:ident) => {
+    (@fixed $name:expr, $description:expr, $backend:ident) => {
         fn name(&self) -> &'static str {
             $name
         }
@@ -343,6 +348,30 @@ macro_rules! estimator_identity {
         fn backend(&self) -> $crate::Backend {
             $crate::Backend::$backend
         }
+    };
+    ($name:expr, $description:expr, $backend:ident, config: $config:ident, cancel: $cancel:ident) => {
+        $crate::estimator_identity!(
+            $name, $description, $backend, config: $config, cancel: $cancel,
+            check: |_| ::std::result::Result::Ok(())
+        );
+    };
+    (
+        $name:expr, $description:expr, $backend:ident,
+        config: $config:ident, cancel: $cancel:ident, check: $check:expr
+    ) => {
+        $crate::estimator_identity!(@fixed $name, $description, $backend);
+        fn params(&self) -> &$crate::Params {
+            self.$config.params()
+        }
+        fn set_param(&mut self, key: &str, value: &str) -> $crate::Result<()> {
+            self.$config.set_checked(key, value, $check)
+        }
+        fn set_cancel(&mut self, cancel: $crate::Cancel) {
+            self.$cancel = cancel;
+        }
+    };
+    ($name:expr, $description:expr, $backend:ident, $params:ident) => {
+        $crate::estimator_identity!(@fixed $name, $description, $backend);
         fn params(&self) -> &$crate::Params {
             &self.$params
         }

@@ -36,7 +36,7 @@ pub use light::{Light, LightFrame, LightShape};
 pub use light_space::{LightSpace, LightSpaceRequest};
 pub use light_view::LightView;
 pub use method::{MethodDescriptor, Setting};
-pub use params::{FromParam, ParamKind, ParamSpec, ParamValue, Params};
+pub use params::{Configured, FromParam, ParamKind, ParamSpec, ParamValue, Params, TypedParams};
 pub use precision::{DepthLookup, DepthPrecision, Unorm16Map};
 pub use raster::{Cull, DepthBias, DepthMap, RasterOptions};
 pub use receiver_plane::ReceiverPlane;

@@ -377,6 +377,87 @@ impl Params {
     }
 }
 
+/// A settings struct read whole from a [`Params`] of its own table: what
+/// [`typed_params!`](crate::typed_params) declares (its inherent `SPECS` and `from_params`), or a
+/// hand-written pair of such structs over one concatenated table. [`Configured`] keeps one in
+/// step with its table.
+pub trait TypedParams: Sized {
+    /// The parameter table `from_params` reads.
+    const SPECS: &'static [ParamSpec];
+    /// Every field read from `p` (a [`Params`] holding [`Self::SPECS`]).
+    fn from_params(p: &Params) -> Result<Self>;
+}
+
+/// An estimator's parameter table and its typed settings `S`, kept in step: every change to the
+/// table is read back into `S` at once, so the estimator reads typed fields, never keys, and the
+/// two never disagree (a refused change leaves both as they were).
+///
+/// ```
+/// use shadow_map_core::{params::Configured, ParamSpec};
+/// shadow_map_core::typed_params! {
+///     /// Demo settings.
+///     pub struct Demo {
+///         /// kernel side
+///         kernel: u32 = ParamSpec::int(1, 9, "3"),
+///     }
+/// }
+/// let mut c = Configured::<Demo>::new().unwrap();
+/// c.set("kernel", "5").unwrap();
+/// assert_eq!((c.settings().kernel, c.params().int("kernel").unwrap()), (5, 5));
+/// let odd = |d: &Demo| match d.kernel % 2 {
+///     1 => Ok(()),
+///     _ => Err(shadow_map_core::Error::param("kernel", "must be odd")),
+/// };
+/// assert!(c.set_checked("kernel", "4", odd).is_err());
+/// assert!(c.set("kernel", "10").is_err());
+/// assert_eq!((c.settings().kernel, c.params().int("kernel").unwrap()), (5, 5));
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Configured<S> {
+    params: Params,
+    settings: S,
+}
+
+impl<S: TypedParams> Configured<S> {
+    /// Every parameter at its default. Fails only if a default does not parse or convert (a bug
+    /// the estimator registry test catches).
+    pub fn new() -> Result<Self> {
+        let params = Params::new(S::SPECS)?;
+        Ok(Self {
+            settings: S::from_params(&params)?,
+            params,
+        })
+    }
+    /// Sets `key` from a string and re-reads the settings; on an error (unknown key, a value
+    /// the table refuses) both stay as they were.
+    pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
+        self.set_checked(key, value, |_| Ok(()))
+    }
+    /// [`set`](Self::set), also refusing new settings that `check` refuses: the rules the table
+    /// cannot express (e.g. an odd kernel).
+    pub fn set_checked(
+        &mut self,
+        key: &str,
+        value: &str,
+        check: impl FnOnce(&S) -> Result<()>,
+    ) -> Result<()> {
+        let mut params = self.params.clone();
+        params.set(key, value)?;
+        let settings = S::from_params(&params)?;
+        check(&settings)?;
+        (self.params, self.settings) = (params, settings);
+        Ok(())
+    }
+    /// The current parameters (and their declarations).
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+    /// The current parameters, typed.
+    pub fn settings(&self) -> &S {
+        &self.settings
+    }
+}
+
 /// Whether two strings are equal, in a `const` context ([`typed_params!`](crate::typed_params)
 /// checks at compile time that every field is named like its key).
 pub const fn same_key(a: &str, b: &str) -> bool {
@@ -460,7 +541,8 @@ macro_rules! concat_specs {
 /// Declares an estimator's parameters once: a struct with one typed field a parameter, its
 /// [`ParamSpec`] table (`SPECS`, what `softshadow algos`, `--param` and
 /// [`SoftShadowEstimator::set_param`](crate::SoftShadowEstimator::set_param) use) and
-/// `from_params`, which reads every field from a [`Params`] of that table. A field declared with
+/// `from_params`, which reads every field from a [`Params`] of that table (both also as its
+/// [`TypedParams`] impl, for [`Configured`]). A field declared with
 /// [`ParamSpec::int`], `float`, `choice` or `flag` is keyed by its name and described by its doc
 /// comment (one text for rustdoc and `softshadow algos`); a spec shared from elsewhere keeps its
 /// own key and help, and its key must equal the field's name (checked at compile time), so code
@@ -546,6 +628,14 @@ macro_rules! typed_params {
                 let _ = k;
                 $($( let $group = <$gty>::from_params(p)?; )+)?
                 Ok(Self { $($field,)* $($($group,)+)? })
+            }
+        }
+
+        impl $crate::TypedParams for $name {
+            // The inherent items above (inherent items come first in path resolution).
+            const SPECS: &'static [$crate::ParamSpec] = $name::SPECS;
+            fn from_params(p: &$crate::Params) -> $crate::Result<Self> {
+                $name::from_params(p)
             }
         }
 

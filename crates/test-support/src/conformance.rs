@@ -9,7 +9,7 @@
 //! suite with [`twin_suite!`](crate::twin_suite); the checks are also callable one by one.
 
 use crate::{
-    fixtures::{check_contract, note, set_params},
+    fixtures::{check_contract, note, param_table, rmse, set_params, NamedScene},
     scenes::SceneSpec,
     tolerance::{CaseStats, RunStats, Tolerance},
 };
@@ -38,11 +38,7 @@ pub fn table(
     specs: &'static [shadow_map_core::ParamSpec],
     params: &Params,
 ) -> shadow_map_core::Params {
-    let mut t = shadow_map_core::Params::new(specs).expect("parameter table");
-    for (k, v) in params {
-        t.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
-    }
-    t
+    param_table(specs, params)
 }
 
 /// The fixed case of the focused checks: a scene, its receivers (some inactive) and the
@@ -458,6 +454,23 @@ pub struct FrameComparison {
     pub v: Vec<f32>,
 }
 
+impl FrameComparison {
+    /// Asserts, naming `label`, that more receivers were compared than left cut, at most one in
+    /// `per` of those compared beyond [`Tolerance::TWIN`]'s `abs`, and the RMSE at most `rmse`
+    /// (`f64::INFINITY` for no bound on it).
+    pub fn assert_close(&self, label: &str, per: usize, rmse: f64) {
+        assert!(
+            self.active > self.cut && self.beyond * per <= self.active && self.rmse <= rmse,
+            "{label}: {} of {} beyond {} of the CPU twin (max |dV| {}, rmse {})",
+            self.beyond,
+            self.active,
+            Tolerance::TWIN.abs,
+            self.max_dv,
+            self.rmse
+        );
+    }
+}
+
 /// The engine path against the CPU twin: the views `frame` fits for `receivers`, then three
 /// frames through [`FrameEstimator::encode`](shadow_map_core::gpu::frame::FrameEstimator)
 /// (each its own encoder and submit, nothing read between them) from a caller's casters,
@@ -472,6 +485,74 @@ pub fn frames_match_the_cpu_twin(
     receivers: &Receivers,
 ) -> FrameComparison {
     frames_compared(label, ctx, frame, scene, receivers, None)
+}
+
+/// One comparison of [`frames_over_settings`], for the caller's bounds.
+pub struct SettingsCase<'a, F> {
+    /// `<method> <scene> <settings>`, for messages.
+    pub label: String,
+    /// The settings over the defaults.
+    pub kv: &'a [(&'a str, &'a str)],
+    /// The frame, prepared for these settings.
+    pub frame: &'a F,
+    /// The scene's name.
+    pub name: &'static str,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its receivers.
+    pub rec: &'a Receivers,
+    /// The frames against the CPU twin.
+    pub c: FrameComparison,
+}
+
+impl<F: shadow_map_core::gpu::frame::FrameEstimator> SettingsCase<'_, F> {
+    /// The RMSE of the frame's V to its CPU twin on the scene made opaque (every caster cast
+    /// opaque), in the views the frame fits, over the active receivers: how far a frame that
+    /// ignored opacity would be.
+    pub fn rmse_to_opaque(&self) -> f64 {
+        let (scene, rec, label) = (self.scene, self.rec, &self.label);
+        let views = self
+            .frame
+            .fit_views(scene, rec)
+            .unwrap_or_else(|e| panic!("{label}: {e}"));
+        let opaque = self
+            .frame
+            .cpu_twin(&scene.opaque(), rec, &views)
+            .unwrap_or_else(|e| panic!("{label}: CPU twin: {e}"));
+        rmse(&self.c.v, &opaque, rec.active())
+    }
+}
+
+/// The engine path over a table of settings: for each `kv` of `settings` one frame from
+/// `prepare` (reused across the scenes), then on every scene of `scenes`
+/// [`frames_match_the_cpu_twin`] (or, with `cut_word`,
+/// [`frames_match_the_cpu_twin_with_cuts`]) labelled `<method> <scene> <kv>`, its comparison
+/// handed to `check` for the method's bounds.
+pub fn frames_over_settings<F: shadow_map_core::gpu::frame::FrameEstimator>(
+    method: &str,
+    ctx: &GpuContext,
+    settings: &[&[(&str, &str)]],
+    scenes: &[NamedScene],
+    cut_word: Option<usize>,
+    prepare: impl Fn(&[(&str, &str)]) -> F,
+    mut check: impl FnMut(SettingsCase<'_, F>),
+) {
+    for &kv in settings {
+        let frame = prepare(kv);
+        for (name, scene, rec) in scenes {
+            let label = format!("{method} {name} {kv:?}");
+            let c = frames_compared(&label, ctx, &frame, scene, rec, cut_word);
+            check(SettingsCase {
+                label,
+                kv,
+                frame: &frame,
+                name,
+                scene,
+                rec,
+                c,
+            });
+        }
+    }
 }
 
 /// [`frames_match_the_cpu_twin`] for an engine path that leaves receivers cut short by the
@@ -548,11 +629,8 @@ fn frames_compared(
         .unwrap_or_else(|e| panic!("{label}: {e}"));
     let (views, inputs, n) = (&rig.views, rig.inputs(), receivers.len() as u64);
     for _ in 0..3 {
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        frame
-            .encode(&mut enc, &inputs)
+        rig.submit(ctx, frame)
             .unwrap_or_else(|e| panic!("{label}: encode: {e}"));
-        ctx.queue.submit([enc.finish()]);
     }
     let bits: Vec<u32> = ctx
         .read_buffer(&rig.v, 4 * n)

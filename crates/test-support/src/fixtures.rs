@@ -6,7 +6,8 @@
 
 use glam::Vec3;
 use shadow_map_core::{
-    Camera, Error, Light, LightShape, Receivers, Report, Scene, SceneBvh, SoftShadowEstimator,
+    Camera, Error, Light, LightShape, ParamSpec, Params, Receivers, Report, Scene, SceneBvh,
+    SoftShadowEstimator,
 };
 
 /// The fixed scenes' camera: from (0, 4, 5) at the origin, 40 degrees vertical field of view,
@@ -198,12 +199,14 @@ fn fixture_scene(name: &str) -> Scene {
     }
 }
 
-/// `scene` and its camera's receivers.
+/// A named scene and its receivers, as the engine-path tests loop over them.
+pub type NamedScene = (&'static str, Scene, Receivers);
+
 /// The bunny fixture at `w x h` under three lights, each with its camera receivers: its own rect
 /// light (`bunny`), a disk of the rect's larger half extent in its place (`disk-bunny`) and a
 /// low 3-degree sun (`sun-bunny`): the engine-path tests' perspective, disk and orthographic
 /// cases.
-pub fn bunny_under_three_lights(w: u32, h: u32) -> Vec<(&'static str, Scene, Receivers)> {
+pub fn bunny_under_three_lights(w: u32, h: u32) -> Vec<NamedScene> {
     let (bunny, rec) = fixture("bunny", w, h);
     let lit = |light: Light| {
         let mut s = bunny.clone();
@@ -223,6 +226,21 @@ pub fn bunny_under_three_lights(w: u32, h: u32) -> Vec<(&'static str, Scene, Rec
     ]
 }
 
+/// The semi-transparent fixtures at `w x h`, each with its receivers: the strands (one mesh of
+/// opacity 0.4 over a ground, a disk light) and the hair (four meshes of opacity 0.2 to 0.5, a
+/// rect light); panics if either has become opaque.
+pub fn semi_transparent_fixtures(w: u32, h: u32) -> Vec<NamedScene> {
+    ["strands", "hair"]
+        .into_iter()
+        .map(|name| {
+            let (scene, rec) = fixture(name, w, h);
+            assert!(!scene.is_opaque(), "{name}: a semi-transparent fixture");
+            (name, scene, rec)
+        })
+        .collect()
+}
+
+/// `scene` and its camera's receivers.
 fn with_camera_receivers(scene: Scene) -> (Scene, Receivers) {
     let rec = Receivers::from_camera(&scene, &SceneBvh::new(&scene));
     (scene, rec)
@@ -255,6 +273,21 @@ where
             panic!("set {k}={v}: {err}");
         }
     }
+}
+
+/// A parameter table of `specs` with every `(key, value)` of `kv` set over the defaults; a
+/// refused key or value panics, naming it (a test's bug).
+pub fn param_table<K, V>(specs: &'static [ParamSpec], kv: &[(K, V)]) -> Params
+where
+    K: AsRef<str>,
+    V: AsRef<str>,
+{
+    let mut t = Params::new(specs).expect("parameter table");
+    for (k, v) in kv {
+        let (k, v) = (k.as_ref(), v.as_ref());
+        t.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
+    }
+    t
 }
 
 /// `e` with every `(key, value)` of `kv` set ([`configure`]).
@@ -350,6 +383,29 @@ pub fn traced(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f64> {
         .iter()
         .map(|&x| x as f64)
         .collect()
+}
+
+/// The sphere-light reference case of the accuracy tests: a sphere light of radius 0.4, 3 above
+/// the ground, over [`SQUARE`] (camera 8 x 8), the [`line_receivers`], and the ray-traced
+/// reference's V at 4096 samples (noise about 0.008 at V = 0.5).
+#[cfg(feature = "oracle")]
+pub fn sphere_light_over_square() -> (Scene, Receivers, Vec<f64>) {
+    let light = Light {
+        shape: LightShape::Sphere { radius: 0.4 },
+        ..rect_light(1.0, 3.0)
+    };
+    let (s, r) = (scene_with(light, &[SQUARE], 8, 8), line_receivers());
+    let truth = traced(&s, &r, 4096);
+    (s, r, truth)
+}
+
+/// `v` valid ([`assert_valid`]) and its RMSE to `truth` at most `bound`; prints the RMS and the
+/// maximum error, `what` naming the case.
+pub fn assert_rmse_within(what: &str, v: &[f32], truth: &[f64], bound: f64) {
+    assert_valid(v, what);
+    let (rms, max) = errors(v, truth);
+    eprintln!("{what}: rms {rms:.5} max {max:.5}");
+    assert!(rms <= bound, "{what}: RMSE {rms}");
 }
 
 /// The closed-form visibility of the rect light of `scene` past the square occluders `occ`

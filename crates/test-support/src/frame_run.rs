@@ -76,10 +76,17 @@ impl FrameRig {
     /// One frame of `frame` recorded into an encoder of its own and submitted, then V and the
     /// status read back.
     pub fn run(&self, ctx: &GpuContext, frame: &dyn FrameEstimator) -> Result<FrameOutput> {
+        self.submit(ctx, frame)?;
+        self.read(ctx, frame)
+    }
+
+    /// One frame of `frame` recorded into an encoder of its own and submitted; nothing waited
+    /// for or read back (a bench's timed frame, or one of several frames in a row).
+    pub fn submit(&self, ctx: &GpuContext, frame: &dyn FrameEstimator) -> Result<()> {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         frame.encode(&mut enc, &self.inputs())?;
         ctx.queue.submit([enc.finish()]);
-        self.read(ctx, frame)
+        Ok(())
     }
 
     /// V and `frame`'s status as the last submitted frame left them.

@@ -4,8 +4,8 @@ use baselines::HardShadow;
 use glam::Vec3;
 use shadow_map_core::{run, Error, Light, LightShape, Receivers, Scene, SoftShadowEstimator};
 use test_support::fixtures::{
-    assert_valid, errors, line_receivers, note_as, oracle, quad, rect_light, traced, with_params,
-    Occ, SQUARE,
+    assert_rmse_within, assert_valid, errors, line_receivers, note_as, oracle, quad, rect_light,
+    sphere_light_over_square, traced, with_params, Occ, SQUARE,
 };
 
 fn camera() -> shadow_map_core::Camera {
@@ -417,14 +417,10 @@ fn disk_light_matches_the_closed_form() {
 /// with it, so B_s is carried onto a tilted disk. RMSE <= 0.02.
 #[test]
 fn sphere_light_matches_the_reference() {
-    let (s, r) = square_under(LightShape::Sphere { radius: 0.4 });
-    let truth = traced(&s, &r, 4096);
+    let (s, r, truth) = sphere_light_over_square();
     let mut e = bp(&[("resolution", "512"), ("max_nspp", "4096")]);
     let v = run(&mut e, &s, &r).unwrap().0;
-    assert_valid(&v, "sphere light");
-    let (rms, max) = errors(&v, &truth);
-    eprintln!("sphere light r=512: rms {rms:.5} max {max:.5}");
-    assert!(rms <= 0.02, "RMSE {rms}");
+    assert_rmse_within("sphere light r=512", &v, &truth, 0.02);
 }
 
 /// A semi-transparent sheet (opacity 0.4) over the ground: the sheet's micropatches cover the

@@ -1,49 +1,48 @@
 //! Backprojection's engine path ([`backprojection::BackprojectionFrame`]) through the
-//! conformance suite's [`frames_match_the_cpu_twin`]: depth peeling, midpoints, the MSSM, the
-//! layout copies and the kernel recorded into the caller's command encoder three frames running,
-//! V read back once, against the CPU twin in the same view, on a rect light (bunny), a disk light
-//! and a low sun; and bit for bit the registry's GPU estimator's `build` + `estimate` (the frame
-//! run by the core's `FrameTwin`: receivers uploaded, one frame, V read back).
+//! conformance suite's `frames_match_the_cpu_twin` ([`frames_over_settings`]): depth peeling,
+//! midpoints, the MSSM, the layout copies and the kernel recorded into the caller's command
+//! encoder three frames running, V read back once, against the CPU twin in the same view, on a
+//! rect light (bunny), a disk light and a low sun; and bit for bit the registry's GPU estimator's
+//! `build` + `estimate` (the frame run by the core's `FrameTwin`: receivers uploaded, one frame,
+//! V read back).
 #![cfg(feature = "gpu")]
 
 use crate::support::{cpu_on_maps, frame_maps};
+use backprojection::settings::SPECS;
 use backprojection::BackprojectionFrame;
-use shadow_map_core::{gpu::frame::FrameEstimator, run, Params};
+use shadow_map_core::{
+    gpu::{frame::FrameEstimator, GpuContext},
+    run,
+};
+use std::sync::Arc;
 use test_support::{
-    conformance::frames_match_the_cpu_twin,
-    fixtures::{bunny_under_three_lights, fixture},
-    gate::context_for_tests,
+    conformance::{frames_over_settings, SettingsCase},
+    fixtures::{bunny_under_three_lights, param_table, semi_transparent_fixtures, NamedScene},
+    gpu,
     tolerance::Tolerance,
 };
 
 #[test]
 fn backprojection_frames_match_the_twins() {
-    let Some(ctx) = context_for_tests("backprojection_frames_match_the_twins").unwrap() else {
+    let Some(ctx) = gpu("backprojection_frames_match_the_twins") else {
         return;
     };
-    let params = Params::new(backprojection::settings::SPECS).unwrap();
-    let frame = BackprojectionFrame::prepare(ctx.clone(), &params).unwrap();
     let mut gpu = backprojection::DESCRIPTOR
         .gpu(ctx.clone())
         .expect("a GPU estimator")
         .unwrap();
-    for (name, scene, rec) in bunny_under_three_lights(64, 48) {
-        let label = format!("backprojection {name}");
-        let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
-        let (v_gpu, _) = run(&mut *gpu, &scene, &rec).unwrap();
+    let scenes = bunny_under_three_lights(64, 48);
+    let check = |case: SettingsCase<'_, BackprojectionFrame>| {
+        let (label, rec, c) = (&case.label, case.rec, &case.c);
+        let (v_gpu, _) = run(&mut *gpu, case.scene, rec).unwrap();
         let differ_gpu = (0..rec.len())
             .filter(|&k| rec.active()[k] && c.v[k].to_bits() != v_gpu[k].to_bits())
             .count();
         assert_eq!(differ_gpu, 0, "{label}: differs from the GPU estimator's");
         assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
-        assert!(
-            c.beyond * 1000 <= c.active,
-            "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {})",
-            c.beyond,
-            c.active,
-            c.max_dv
-        );
-    }
+        c.assert_close(label, 1000, f64::INFINITY);
+    };
+    at_defaults(&ctx, &scenes, check);
 }
 
 /// Semi-transparent casters on the engine path: the peeling passes write each layer's opacity
@@ -60,32 +59,26 @@ fn backprojection_frames_match_the_twins() {
 ///   opaque would give).
 #[test]
 fn backprojection_frame_models_semi_transparent_casters() {
-    let Some(ctx) =
-        context_for_tests("backprojection_frame_models_semi_transparent_casters").unwrap()
-    else {
+    let Some(ctx) = gpu("backprojection_frame_models_semi_transparent_casters") else {
         return;
     };
-    let params = Params::new(backprojection::settings::SPECS).unwrap();
-    let frame = BackprojectionFrame::prepare(ctx.clone(), &params).unwrap();
-    assert!(frame.models_opacity());
-    for name in ["strands", "hair"] {
-        let (scene, rec) = fixture(name, 64, 48);
-        assert!(!scene.is_opaque(), "{name}: a semi-transparent fixture");
-        let label = format!("backprojection {name}");
-        assert_eq!(frame.refuses(&scene), None, "{label}");
-        assert!(frame.scene_warnings(&scene).is_empty(), "{label}");
-        let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
+    let scenes = semi_transparent_fixtures(64, 48);
+    let check = |case: SettingsCase<'_, BackprojectionFrame>| {
+        let (label, rec, c) = (&case.label, case.rec, &case.c);
+        assert!(case.frame.models_opacity());
+        assert_eq!(case.frame.refuses(case.scene), None, "{label}");
+        assert!(case.frame.scene_warnings(case.scene).is_empty(), "{label}");
         assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
-        let views = frame.fit_views(&scene, &rec).unwrap();
 
         // The CPU twin (default parameters) on the frame's own maps.
-        let ls = frame_maps(&ctx, &frame, &views).unwrap();
+        let views = case.frame.fit_views(case.scene, rec).unwrap();
+        let ls = frame_maps(&ctx, case.frame, &views).unwrap();
         assert_eq!(
             ls.opacity.len(),
             ls.layers.len(),
             "{label}: opacity planes read back"
         );
-        let same_maps = cpu_on_maps(&ls, &scene, &rec, &Vec::new());
+        let same_maps = cpu_on_maps(&ls, case.scene, rec, &Vec::new());
         let active: Vec<usize> = (0..rec.len()).filter(|&k| rec.active()[k]).collect();
         let beyond = active
             .iter()
@@ -101,15 +94,7 @@ fn backprojection_frame_models_semi_transparent_casters() {
         );
 
         // The CPU twin on its own maps, and on the scene made opaque.
-        let rms = |other: &[f32]| {
-            let sq: f64 = active
-                .iter()
-                .map(|&k| ((c.v[k] - other[k]) as f64).powi(2))
-                .sum();
-            (sq / active.len() as f64).sqrt()
-        };
-        let opaque = frame.cpu_twin(&scene.opaque(), &rec, &views).unwrap();
-        let apart = rms(&opaque);
+        let apart = case.rmse_to_opaque();
         println!(
             "{label}: {beyond} of {} beyond 1e-4 of the CPU twin on the frame's maps; RMSE to \
              the CPU twin on its own maps {:.2e}, to the opaque scene's {apart:.3}",
@@ -122,5 +107,19 @@ fn backprojection_frame_models_semi_transparent_casters() {
             "{label}: the frame is as close to the opaque scene ({apart}) as to the twin ({})",
             c.rmse
         );
-    }
+    };
+    at_defaults(&ctx, &scenes, check);
+}
+
+/// The engine path at the defaults on `scenes` ([`frames_over_settings`]; one frame), `check`
+/// judging each comparison.
+fn at_defaults(
+    ctx: &Arc<GpuContext>,
+    scenes: &[NamedScene],
+    check: impl FnMut(SettingsCase<'_, BackprojectionFrame>),
+) {
+    let prepare = |kv: &[(&str, &str)]| {
+        BackprojectionFrame::prepare(ctx.clone(), &param_table(SPECS, kv)).unwrap()
+    };
+    frames_over_settings("backprojection", ctx, &[&[]], scenes, None, prepare, check);
 }

@@ -4,8 +4,9 @@ use crate::cpu::{encode_layer0, for_each_receiver};
 use crate::settings::MapSettings;
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
-    light_space::LightSpace, light_view::LightView, Cancel, DepthLookup, Light, ParamSpec, Params,
-    ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map, Warning,
+    light_space::LightSpace, light_view::LightView, Cancel, Configured, DepthLookup, Light,
+    ParamSpec, Params, ReceiverPlane, Receivers, Report, Result, Scene, SoftShadowEstimator,
+    TypedParams, Unorm16Map, Warning,
 };
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -99,28 +100,44 @@ macro_rules! filter_identity {
 }
 pub(crate) use filter_identity;
 
+/// The settings of a single-map baseline, both read from its filter's table
+/// ([`Filter::SPECS`]): the shared [`MapSettings`] and the filter with its own.
+struct MapConfig<F> {
+    map: MapSettings,
+    filter: F,
+}
+
+impl<F: Filter> TypedParams for MapConfig<F> {
+    const SPECS: &'static [ParamSpec] = F::SPECS;
+    fn from_params(p: &Params) -> Result<Self> {
+        Ok(MapConfig {
+            map: MapSettings::from_params(p)?,
+            filter: F::from_params(p)?,
+        })
+    }
+}
+
 /// A [`SoftShadowEstimator`] from a [`Filter`]: builds one shadow map at the light centre, fitted
 /// to the receivers, then runs the filter per receiver. Under `depth=unorm16` the map is encoded
 /// to 16-bit codes after the build and the f32 layer is freed.
 pub struct MapEstimator<F: Filter> {
-    params: Params,
+    /// The parameters and their typed settings.
+    config: Configured<MapConfig<F>>,
     ls: Option<LightSpace>,
     q16: Option<Unorm16Map>,
     report: Report,
     cancel: Cancel,
-    _f: std::marker::PhantomData<F>,
 }
 
 impl<F: Filter> MapEstimator<F> {
     /// With default parameters.
     pub fn new() -> Result<Self> {
         Ok(MapEstimator {
-            params: Params::new(F::SPECS)?,
+            config: Configured::new()?,
             ls: None,
             q16: None,
             report: Report::default(),
             cancel: Cancel::new(),
-            _f: Default::default(),
         })
     }
     /// The light-space data of the last build (for tests). Under `depth=unorm16` its layer 0 is
@@ -137,7 +154,7 @@ impl<F: Filter> MapEstimator<F> {
     /// instead of one fitted to the receivers: the CPU twin of the frame path's
     /// [`MapFrame`](crate::gpu::MapFrame), whose view the caller fits.
     pub fn build_in_view(&mut self, scene: &Scene, view: LightView) -> Result<()> {
-        let mut req = MapSettings::from_params(&self.params)?.request();
+        let mut req = self.config.settings().map.request();
         req.resolution = view.r;
         let ls = LightSpace::try_build_in_view(scene, view, Default::default(), &req)?;
         self.set_light_space(ls)
@@ -148,7 +165,7 @@ impl<F: Filter> MapEstimator<F> {
     /// frame rendered, read back, so the filter runs on the very map the kernel read.
     pub fn set_light_space(&mut self, mut ls: LightSpace) -> Result<()> {
         self.report = Report::default();
-        let q16 = encode_layer0(&mut ls, MapSettings::from_params(&self.params)?.depth);
+        let q16 = encode_layer0(&mut ls, self.config.settings().map.depth);
         self.keep(ls, q16);
         Ok(())
     }
@@ -162,16 +179,10 @@ impl<F: Filter> MapEstimator<F> {
 }
 
 impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
-    shadow_map_core::estimator_identity!(F::NAME, F::DESCRIPTION, Cpu, params);
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
-    }
-    fn set_cancel(&mut self, cancel: Cancel) {
-        self.cancel = cancel;
-    }
+    shadow_map_core::estimator_identity!(F::NAME, F::DESCRIPTION, Cpu, config: config, cancel: cancel);
     fn build(&mut self, scene: &Scene, receivers: &Receivers) -> Result<()> {
         self.report = Report::default();
-        let settings = MapSettings::from_params(&self.params)?;
+        let settings = self.config.settings().map;
         let req = settings.request();
         let (ls, q16) = self.report.time("build", || -> Result<_> {
             let opts = settings.view;
@@ -185,14 +196,14 @@ impl<F: Filter> SoftShadowEstimator for MapEstimator<F> {
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
         receivers.check_output(v)?;
         let ls = shadow_map_core::estimator::built(self.ls.as_ref())?;
-        let filter = F::from_params(&self.params)?;
-        let test = MapSettings::from_params(&self.params)?.caster_test();
+        let MapConfig { map, filter } = self.config.settings();
+        let test = map.caster_test();
         let light = scene.light();
         let view = &ls.view;
         let t = std::time::Instant::now();
         let pass = FilterPass {
             cancel: &self.cancel,
-            filter: &filter,
+            filter,
             receivers,
             test,
         };

@@ -4,10 +4,10 @@
 use super::encode_layer0;
 use crate::math::{inv_samples, jitter};
 use crate::settings::{
-    MapSettings, MultiSampleParams, MULTI_SAMPLE_DESCRIPTION, MULTI_SAMPLE_NAME, MULTI_SAMPLE_SPECS,
+    MultiSampleParams, MultiSampleSettings, MULTI_SAMPLE_DESCRIPTION, MULTI_SAMPLE_NAME,
 };
 use shadow_map_core::{
-    light_space::LightSpace, Cancel, DepthLookup, Error, LightShape, Params, ReceiverPlane,
+    light_space::LightSpace, Cancel, Configured, DepthLookup, Error, LightShape, ReceiverPlane,
     Receivers, Report, Result, Scene, SoftShadowEstimator, Unorm16Map, Warning,
 };
 
@@ -23,7 +23,8 @@ use shadow_map_core::{
 /// orthographic view along `e_z + y_k` (docs/methods.md §14 "Multi-sample"): exact sampling of the contract's
 /// V, as for rect and disk lights.
 pub struct MultiSample {
-    params: Params,
+    /// The parameters and their typed settings.
+    config: Configured<MultiSampleSettings>,
     report: Report,
     cancel: Cancel,
 }
@@ -32,7 +33,7 @@ impl MultiSample {
     /// With default parameters.
     pub fn new() -> Result<Self> {
         Ok(MultiSample {
-            params: Params::new(MULTI_SAMPLE_SPECS)?,
+            config: Configured::new()?,
             report: Report::default(),
             cancel: Cancel::new(),
         })
@@ -40,22 +41,17 @@ impl MultiSample {
 }
 
 impl SoftShadowEstimator for MultiSample {
-    shadow_map_core::estimator_identity!(MULTI_SAMPLE_NAME, MULTI_SAMPLE_DESCRIPTION, Cpu, params);
-    fn set_param(&mut self, key: &str, value: &str) -> Result<()> {
-        self.params.set(key, value)
-    }
-    fn set_cancel(&mut self, cancel: Cancel) {
-        self.cancel = cancel;
-    }
+    shadow_map_core::estimator_identity!(MULTI_SAMPLE_NAME, MULTI_SAMPLE_DESCRIPTION, Cpu, config: config, cancel: cancel);
     fn build(&mut self, _scene: &Scene, _receivers: &Receivers) -> Result<()> {
         // Multi-view: each sub-light's map is built inside `estimate`, one at a time.
         self.report = Report::default();
         Ok(())
     }
     fn estimate(&mut self, scene: &Scene, receivers: &Receivers, v: &mut [f32]) -> Result<()> {
-        let settings = MapSettings::from_params(&self.params)?;
-        let MultiSampleParams { sublights: s, seed } =
-            MultiSampleParams::from_params(&self.params)?;
+        let MultiSampleSettings {
+            map: settings,
+            sample: MultiSampleParams { sublights: s, seed },
+        } = *self.config.settings();
         let (req, opts) = (settings.request(), settings.view);
         let points = scene.light().stratified_points(s, |k| jitter(seed, k));
         let maps = points
@@ -81,7 +77,7 @@ impl MultiSample {
         v: &mut [f32],
     ) -> Result<()> {
         self.report = Report::default();
-        let req = MapSettings::from_params(&self.params)?.request();
+        let req = self.config.settings().map.request();
         let maps = views.iter().map(|view| match view {
             Some(view) => LightSpace::try_build_in_view(scene, *view, Default::default(), &req),
             None => Err(Error::LightView(
@@ -120,8 +116,10 @@ impl MultiSample {
         mut maps: impl ExactSizeIterator<Item = Result<LightSpace>>,
     ) -> Result<()> {
         receivers.check_output(v)?;
-        let settings = MapSettings::from_params(&self.params)?;
-        let s = MultiSampleParams::from_params(&self.params)?.sublights;
+        let MultiSampleSettings {
+            map: settings,
+            sample: MultiSampleParams { sublights: s, .. },
+        } = *self.config.settings();
         let (on, biases) = settings.caster_test();
         let precision = settings.depth;
         let light = *scene.light();

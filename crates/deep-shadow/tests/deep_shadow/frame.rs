@@ -1,6 +1,7 @@
 //! Deep-shadow's engine path ([`deep_shadow::DeepShadowFrame`]) through the
-//! conformance suite's [`frames_match_the_cpu_twin`]: the core's raster pass, the head copy, the
-//! per-receiver queries and lookups recorded into the caller's command encoder three frames
+//! conformance suite's `frames_match_the_cpu_twin` (over tables of settings,
+//! [`frames_over_settings`]): the core's raster pass, the head copy, the per-receiver queries
+//! and lookups recorded into the caller's command encoder three frames
 //! running, V read back once, against the CPU twin in the same views, on a rect light (bunny),
 //! a disk light and a low sun; at the defaults (pcss, one view) and with 2 x 2 sub-lights and
 //! each of the other filters; and on semi-transparent casters (lists), where a full element
@@ -11,14 +12,14 @@ use crate::common::params;
 use deep_shadow::DeepShadowFrame;
 use shadow_map_core::{gpu::frame::FrameEstimator, run};
 use test_support::{
-    conformance::frames_match_the_cpu_twin,
-    fixtures::{bunny_under_three_lights, fixture, note_as, rmse},
-    gate::context_for_tests,
+    conformance::{frames_over_settings, SettingsCase},
+    fixtures::{bunny_under_three_lights, fixture, note_as, semi_transparent_fixtures},
+    gpu,
 };
 
 #[test]
 fn deep_shadow_frames_match_the_cpu_twin() {
-    let Some(ctx) = context_for_tests("deep_shadow_frames_match_the_cpu_twin").unwrap() else {
+    let Some(ctx) = gpu("deep_shadow_frames_match_the_cpu_twin") else {
         return;
     };
     let settings: &[&[(&str, &str)]] = &[
@@ -30,9 +31,8 @@ fn deep_shadow_frames_match_the_cpu_twin() {
         &[("filter", "first"), ("receiver_plane", "false")],
     ];
     let scenes = bunny_under_three_lights(64, 48);
-    for kv in settings {
-        let params = params(kv);
-        let frame = DeepShadowFrame::prepare(ctx.clone(), &params, 64 * 48).unwrap();
+    let prepare = |kv: &[(&str, &str)]| {
+        let frame = DeepShadowFrame::prepare(ctx.clone(), &params(kv), 64 * 48).unwrap();
         assert_eq!(frame.name(), "deep-shadow");
         // Semi-transparent casters are modelled (lists), so no scene is refused for them.
         assert!(frame.models_opacity());
@@ -40,25 +40,19 @@ fn deep_shadow_frames_match_the_cpu_twin() {
         half.set_mesh_opacity(0, 0.5).unwrap();
         assert_eq!(frame.refuses(&half), None);
         assert!(frame.scene_warnings(&half).is_empty());
-        for (name, scene, rec) in &scenes {
-            let label = format!("deep-shadow {name} {kv:?}");
-            let c = frames_match_the_cpu_twin(&label, &ctx, &frame, scene, rec);
-            assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
-            // The map is the hardware raster's (depth interpolated in f32 by the rasteriser),
-            // the CPU twin's the core's CPU raster (1/z in f64): PCSS's blocker average moves by
-            // that rounding, and V with it, by up to a few 1e-4 in sharp penumbrae; a tap whose
-            // depth ties the caster test moves V by its weight. Bounds: 1% of the receivers
-            // beyond 1e-4, RMSE a tenth of the engine path's 2e-3.
-            assert!(
-                c.beyond * 100 <= c.active && c.rmse <= 2e-4,
-                "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",
-                c.beyond,
-                c.active,
-                c.max_dv,
-                c.rmse
-            );
-        }
-    }
+        frame
+    };
+    let check = |case: SettingsCase<'_, DeepShadowFrame>| {
+        let (label, c) = (&case.label, &case.c);
+        assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
+        // The map is the hardware raster's (depth interpolated in f32 by the rasteriser), the
+        // CPU twin's the core's CPU raster (1/z in f64): PCSS's blocker average moves by that
+        // rounding, and V with it, by up to a few 1e-4 in sharp penumbrae; a tap whose depth
+        // ties the caster test moves V by its weight. Bounds: 1% of the receivers beyond 1e-4,
+        // RMSE a tenth of the engine path's 2e-3.
+        c.assert_close(label, 100, 2e-4);
+    };
+    frames_over_settings("deep-shadow", &ctx, settings, &scenes, None, prepare, check);
 }
 
 /// Semi-transparent casters on the engine path: the lists built by the insert pass, `process`
@@ -70,9 +64,7 @@ fn deep_shadow_frames_match_the_cpu_twin() {
 /// within 2e-3. V is the semi-transparent scene's, not the opaque one's.
 #[test]
 fn deep_shadow_frames_build_lists_for_semi_transparent_casters() {
-    let Some(ctx) =
-        context_for_tests("deep_shadow_frames_build_lists_for_semi_transparent_casters").unwrap()
-    else {
+    let Some(ctx) = gpu("deep_shadow_frames_build_lists_for_semi_transparent_casters") else {
         return;
     };
     let settings: &[&[(&str, &str)]] = &[
@@ -81,33 +73,22 @@ fn deep_shadow_frames_build_lists_for_semi_transparent_casters() {
         &[("filter", "edsm"), ("kernel", "3")],
         &[("filter", "none"), ("traversal", "naive")],
     ];
-    for name in ["strands", "hair"] {
-        let (scene, rec) = fixture(name, 64, 48);
-        assert!(!scene.is_opaque(), "{name}: a semi-transparent fixture");
-        for kv in settings {
-            let params = params(kv);
-            let frame = DeepShadowFrame::prepare(ctx.clone(), &params, 64 * 48).unwrap();
-            let label = format!("deep-shadow {name} {kv:?}");
-            let c = frames_match_the_cpu_twin(&label, &ctx, &frame, &scene, &rec);
-            assert_eq!(c.status.left_nan, 0, "{label}: {:?}", c.status);
-            assert!(
-                c.beyond * 10 <= c.active && c.rmse <= 2e-3 && c.max_dv <= 0.1,
-                "{label}: {} of {} beyond 1e-4 (max |dV| {}, rmse {})",
-                c.beyond,
-                c.active,
-                c.max_dv,
-                c.rmse
-            );
-            let views = frame.fit_views(&scene, &rec).unwrap();
-            let opaque = frame.cpu_twin(&scene.opaque(), &rec, &views).unwrap();
-            let apart = rmse(&c.v, &opaque, rec.active());
-            println!("{label}: RMSE to the opaque scene's CPU twin {apart:.3}");
-            assert!(
-                apart > 10.0 * c.rmse.max(1e-3),
-                "{label}: V is the opaque scene's"
-            );
-        }
-    }
+    let scenes = semi_transparent_fixtures(64, 48);
+    let prepare =
+        |kv: &[(&str, &str)]| DeepShadowFrame::prepare(ctx.clone(), &params(kv), 64 * 48).unwrap();
+    let check = |case: SettingsCase<'_, DeepShadowFrame>| {
+        let (label, c) = (&case.label, &case.c);
+        assert_eq!(c.status.left_nan, 0, "{label}: {:?}", c.status);
+        c.assert_close(label, 10, 2e-3);
+        assert!(c.max_dv <= 0.1, "{label}: max |dV| {}", c.max_dv);
+        let apart = case.rmse_to_opaque();
+        println!("{label}: RMSE to the opaque scene's CPU twin {apart:.3}");
+        assert!(
+            apart > 10.0 * c.rmse.max(1e-3),
+            "{label}: V is the opaque scene's"
+        );
+    };
+    frames_over_settings("deep-shadow", &ctx, settings, &scenes, None, prepare, check);
 }
 
 /// An element buffer too small for the frame's fragments loses none silently: the frame leaves
@@ -116,8 +97,7 @@ fn deep_shadow_frames_build_lists_for_semi_transparent_casters() {
 /// same views, noting how many (`frame_cpu_redo`).
 #[test]
 fn a_full_element_buffer_cuts_the_frame_for_a_redo() {
-    let Some(ctx) = context_for_tests("a_full_element_buffer_cuts_the_frame_for_a_redo").unwrap()
-    else {
+    let Some(ctx) = gpu("a_full_element_buffer_cuts_the_frame_for_a_redo") else {
         return;
     };
     let (scene, rec) = fixture("hair", 32, 24);

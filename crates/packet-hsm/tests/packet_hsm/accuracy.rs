@@ -157,17 +157,10 @@ fn semi_transparent_occluders_by_opacity_levels() {
 /// per pixel alike.
 #[test]
 fn sphere_light_matches_the_reference() {
-    let mut light = rect_light(1.0, 3.0);
-    light.shape = LightShape::Sphere { radius: 0.4 };
-    let s = scene_with(light, &[SQUARE], 8, 8);
-    let r = line_receivers();
-    let truth = traced(&s, &r, 4096);
+    let (s, r, truth) = sphere_light_over_square();
     for p in ["1x1", "3x3"] {
         let v = hsm_v(&[("resolution", "512"), ("packet", p)], &s, &r);
-        assert_valid(&v, "sphere light");
-        let (rms, max) = errors(&v, &truth);
-        eprintln!("sphere light r=512 {p}: rms {rms:.5} max {max:.5}");
-        assert!(rms <= 0.02, "{p}: RMSE {rms}");
+        assert_rmse_within(&format!("sphere light r=512 {p}"), &v, &truth, 0.02);
     }
 }
 

@@ -18,6 +18,18 @@ use shadow_map_core::{run, Cancel, Receivers, Scene, SceneBvh, SoftShadowEstimat
 
 const TOL: f32 = 1e-5;
 
+/// Asserts `|got - want| <= TOL` at every active receiver of `rec`, `what` naming the case in a
+/// failure; returns the largest difference.
+fn assert_active_within_tol(what: &str, rec: &Receivers, got: &[f32], want: &[f32]) -> f32 {
+    let mut worst = 0.0f32;
+    for k in (0..rec.len()).filter(|&k| rec.active()[k]) {
+        let d = (got[k] - want[k]).abs();
+        worst = worst.max(d);
+        assert!(d <= TOL, "{what} receiver {k}: {} vs {}", got[k], want[k]);
+    }
+    worst
+}
+
 /// Steps 5-8 of the CPU twin for the one sub-light `sv` with weight 1: V, the diagnostics and
 /// the counters.
 fn one_sublight(
@@ -98,19 +110,8 @@ fn check_all_combinations(scene: &Scene, res: u32, self_shadow: &str) -> f32 {
                 let cfg = Config::from_params(e.params()).unwrap();
                 let (acc, _, counters) = one_sublight(&sv, &cfg, &rec);
                 packet_evals += counters.coherent.load(std::sync::atomic::Ordering::Relaxed);
-                for k in 0..rec.len() {
-                    if !rec.active()[k] {
-                        continue;
-                    }
-                    let d = (acc[k] - reference[k]).abs();
-                    worst = worst.max(d);
-                    assert!(
-                        d <= TOL,
-                        "packet {p} hierarchy {hierarchy} coherence {coherence} receiver {k}: {} vs {}",
-                        acc[k],
-                        reference[k]
-                    );
-                }
+                let what = format!("packet {p} hierarchy {hierarchy} coherence {coherence}");
+                worst = worst.max(assert_active_within_tol(&what, &rec, &acc, &reference));
             }
         }
     }
@@ -183,17 +184,9 @@ fn trait_level_combinations_agree() {
                     ("hierarchy", h),
                 ]);
                 let (v, rep) = run(&mut e, &s, &rec).unwrap();
-                for k in 0..v.len() {
-                    if rec.active()[k] {
-                        assert!(
-                            (v[k] - base[k]).abs() <= TOL,
-                            "S={sl} {p} {h} {k}: {} vs {}",
-                            v[k],
-                            base[k]
-                        );
-                    } else {
-                        assert!(v[k].is_nan());
-                    }
+                assert_active_within_tol(&format!("S={sl} {p} {h}"), &rec, &v, &base);
+                for (k, x) in v.iter().enumerate() {
+                    assert!(rec.active()[k] || x.is_nan(), "S={sl} {p} {h} {k}: {x}");
                 }
                 assert!(rep.notes.iter().any(|n| n.0 == "packets_coherent"));
             }
@@ -272,17 +265,8 @@ fn own_plane_pruning_is_exact_and_prunes_a_grazing_ground() {
     let (flat, _) = run_with(false, false);
     let (without, n_without) = run_with(true, false);
     let (with, n_with) = run_with(true, true);
-    for k in 0..rec.len() {
-        if rec.active()[k] {
-            assert!(
-                (with[k] - flat[k]).abs() <= TOL,
-                "receiver {k}: {} vs flat {}",
-                with[k],
-                flat[k]
-            );
-            assert!((with[k] - without[k]).abs() <= TOL, "receiver {k}");
-        }
-    }
+    assert_active_within_tol("own-plane pruning against flat", &rec, &with, &flat);
+    assert_active_within_tol("own-plane pruning against none", &rec, &with, &without);
     eprintln!("own-plane pruning: {n_without} -> {n_with} nodes");
     assert!(
         2 * n_with < n_without,

@@ -15,23 +15,12 @@ use shadow_map_core::{
 };
 use std::sync::Arc;
 use test_support::{
-    conformance::{frames_match_the_cpu_twin_with_cuts, FrameComparison},
+    conformance::{
+        frames_match_the_cpu_twin_with_cuts, frames_over_settings, FrameComparison, SettingsCase,
+    },
     fixtures::{bunny_under_three_lights, fixture, rmse},
-    gate::context_for_tests,
+    gpu,
 };
-
-/// Some receivers of `c` not cut, at most one in `per` beyond 1e-4 of the CPU twin, and the
-/// RMSE to it at most `rmse`.
-fn assert_close(label: &str, c: &FrameComparison, per: usize, rmse: f64) {
-    assert!(
-        c.active > c.cut && c.beyond * per <= c.active && c.rmse <= rmse,
-        "{label}: {} of {} beyond 1e-4 of the CPU twin (max |dV| {}, rmse {})",
-        c.beyond,
-        c.active,
-        c.max_dv,
-        c.rmse
-    );
-}
 
 /// Packet-hsm's frame with `kv` on a fixture at 48 x 36: one view per sub-light and each of
 /// `levels` opacity levels, and the frame against the CPU twin
@@ -58,7 +47,7 @@ fn on_fixture(
 
 #[test]
 fn packet_hsm_frames_match_the_cpu_twin() {
-    let Some(ctx) = context_for_tests("packet_hsm_frames_match_the_cpu_twin").unwrap() else {
+    let Some(ctx) = gpu("packet_hsm_frames_match_the_cpu_twin") else {
         return;
     };
     let settings: &[&[(&str, &str)]] = &[
@@ -74,25 +63,39 @@ fn packet_hsm_frames_match_the_cpu_twin() {
     sphere.set_light(light).unwrap();
     let rec = Receivers::from_camera(&sphere, &SceneBvh::new(&sphere));
     scenes.push(("sphere-bunny", sphere, rec));
-    for kv in settings {
+    let prepare = |kv: &[(&str, &str)]| {
         let frame = PacketHsmFrame::prepare(ctx.clone(), &table_of(kv), 64 * 48).unwrap();
         assert_eq!(frame.name(), "packet-hsm");
-        for (name, scene, rec) in &scenes {
-            let label = format!("packet-hsm {name} {kv:?}");
-            let c = frames_match_the_cpu_twin_with_cuts(&label, &ctx, &frame, scene, rec, 2);
-            assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
-            // Receivers the device's loop budget cuts short are left NaN and counted (the
-            // caller redoes them; on lavapipe 15 to 23 of ~2580 at the defaults, 229 with the
-            // flat traversal); the rest must agree: 1% beyond 1e-4 (hardware raster ties), RMSE
-            // a tenth of the engine path's 2e-3. Under the sphere light half of it: its silhouette
-            // kernels span more texels of the device-rastered maps (the set-up on the device is
-            // bit for bit the CPU's: read back and compared while porting it; on the frame's own
-            // maps the CPU twin agrees within 1e-4, gpu_twin.rs). On lavapipe: 18 of 2570 beyond
-            // 1e-4, max |dV| 0.013, RMSE 2.6e-4; with the plain bias 19, 0.026, 5.7e-4.
-            let bound = if *name == "sphere-bunny" { 1e-3 } else { 2e-4 };
-            assert_close(&label, &c, 100, bound);
-        }
-    }
+        frame
+    };
+    let check = |case: SettingsCase<'_, PacketHsmFrame>| {
+        let (label, c) = (&case.label, &case.c);
+        assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
+        // Receivers the device's loop budget cuts short are left NaN and counted (the caller
+        // redoes them; on lavapipe 15 to 23 of ~2580 at the defaults, 229 with the flat
+        // traversal); the rest must agree: 1% beyond 1e-4 (hardware raster ties), RMSE a tenth
+        // of the engine path's 2e-3. Under the sphere light half of it: its silhouette kernels
+        // span more texels of the device-rastered maps (the set-up on the device is bit for bit
+        // the CPU's: read back and compared while porting it; on the frame's own maps the CPU
+        // twin agrees within 1e-4, gpu_twin.rs). On lavapipe: 18 of 2570 beyond 1e-4, max |dV|
+        // 0.013, RMSE 2.6e-4; with the plain bias 19, 0.026, 5.7e-4.
+        let bound = if case.name == "sphere-bunny" {
+            1e-3
+        } else {
+            2e-4
+        };
+        c.assert_close(label, 100, bound);
+    };
+    // Cut receivers are counted in status word 2.
+    frames_over_settings(
+        "packet-hsm",
+        &ctx,
+        settings,
+        &scenes,
+        Some(2),
+        prepare,
+        check,
+    );
 }
 
 /// Sub-lights (Yang §5) in one frame: S x S views rendered in turn within one encoder, each
@@ -101,7 +104,7 @@ fn packet_hsm_frames_match_the_cpu_twin() {
 /// not looked at while writing it (stacked, hover-boxes's tilted rect light).
 #[test]
 fn packet_hsm_frames_render_sub_lights() {
-    let Some(ctx) = context_for_tests("packet_hsm_frames_render_sub_lights").unwrap() else {
+    let Some(ctx) = gpu("packet_hsm_frames_render_sub_lights") else {
         return;
     };
     // One view's frame (sublights=1), prepared once, for its CPU twin on each scene.
@@ -118,7 +121,7 @@ fn packet_hsm_frames_render_sub_lights() {
             "{label}: {} of {} beyond 1e-4, max |dV| {}, RMSE {:.2e}; {} cut; RMSE to sublights=1 {apart:.4}",
             c.beyond, c.active, c.max_dv, c.rmse, c.cut
         );
-        assert_close(&label, &c, 100, 2e-4);
+        c.assert_close(&label, 100, 2e-4);
         assert!(apart > 1e-3, "{label}: V is one view's ({apart})");
     }
 }
@@ -130,7 +133,7 @@ fn packet_hsm_frames_render_sub_lights() {
 /// `opacity_levels` set to the levels each scene has.
 #[test]
 fn packet_hsm_frames_render_opacity_levels() {
-    let Some(ctx) = context_for_tests("packet_hsm_frames_render_opacity_levels").unwrap() else {
+    let Some(ctx) = gpu("packet_hsm_frames_render_opacity_levels") else {
         return;
     };
     for (name, s) in [("strands", "1"), ("hair", "1"), ("hair", "2")] {
@@ -156,7 +159,7 @@ fn packet_hsm_frames_render_opacity_levels() {
         // Thin strands rastered by the hardware differ from the CPU's fill rule at sub-texel
         // ties (as deep-shadow's frame measures): on the strands 74 of 1360 beyond 1e-4, max
         // |dV| 5.7e-4, RMSE 6.4e-5; allowed: 10% beyond 1e-4, RMSE 5e-4.
-        assert_close(&label, &c, 10, 5e-4);
+        c.assert_close(&label, 10, 5e-4);
         assert!(apart > 0.01, "{label}: V is the opaque scene's ({apart})");
     }
 }
@@ -165,8 +168,7 @@ fn packet_hsm_frames_render_opacity_levels() {
 /// the CPU twin's warning.
 #[test]
 fn packet_hsm_frames_warn_when_levels_are_capped() {
-    let Some(ctx) = context_for_tests("packet_hsm_frames_warn_when_levels_are_capped").unwrap()
-    else {
+    let Some(ctx) = gpu("packet_hsm_frames_warn_when_levels_are_capped") else {
         return;
     };
     let (scene, rec) = fixture("hair", 16, 12);

@@ -10,11 +10,7 @@ pub use test_support::fixtures::{
 /// deep-shadow's parameter table with `kv` set; panics on a key or value it refuses (a test's
 /// bug).
 pub fn params(kv: &[(&str, &str)]) -> Params {
-    let mut p = Params::new(deep_shadow::settings::SPECS).unwrap();
-    for (k, v) in kv {
-        p.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
-    }
-    p
+    test_support::fixtures::param_table(deep_shadow::settings::SPECS, kv)
 }
 
 /// The fixed scenes' camera, 8 x 8 pixels.

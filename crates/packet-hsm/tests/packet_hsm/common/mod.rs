@@ -4,8 +4,8 @@
 use packet_hsm::CpuPacketHsm;
 use shadow_map_core::{run, Params, Receivers, Scene};
 pub use test_support::fixtures::{
-    assert_valid, camera, errors, light_of_shape, line_receivers, oracle, quad, rect_light,
-    scene_with, traced, Occ, SQUARE,
+    assert_rmse_within, assert_valid, camera, errors, light_of_shape, line_receivers, oracle, quad,
+    rect_light, scene_with, sphere_light_over_square, traced, Occ, SQUARE,
 };
 
 /// The CPU estimator with the parameters `kv`.
@@ -20,9 +20,5 @@ pub fn hsm_v(kv: &[(&str, &str)], s: &Scene, r: &Receivers) -> Vec<f32> {
 
 /// `kv` as a parameter table of packet-hsm's specs.
 pub fn table_of(kv: &[(&str, &str)]) -> Params {
-    let mut t = Params::new(packet_hsm::settings::SPECS).unwrap();
-    for (k, v) in kv {
-        t.set(k, v).unwrap_or_else(|e| panic!("{k}={v}: {e}"));
-    }
-    t
+    test_support::fixtures::param_table(packet_hsm::settings::SPECS, kv)
 }
