@@ -49,15 +49,15 @@ use shadow_map_core::gpu::estimate::CELLS_WGSL;
 use shadow_map_core::{
     gpu::{
         depth_map::DEPTH_MAP_FORMAT,
-        estimate::{EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES},
+        estimate::{EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES},
         frame::{
             buffer_range, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
             status_buffer, FrameEstimator, FrameInputs,
         },
-        kernel::{compute_pipeline, shader_module, Binding},
+        kernel::{compute_pipeline, shader_module, uniform_buffer, Binding},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
         receivers::RECEIVER_BYTES,
-        shared::{LightViewUniform, SHARED_WGSL},
+        shared::LightViewUniform,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
     raster::{RasterOptions, PEEL_EPS_REL},
@@ -84,13 +84,11 @@ pub const SHADERS: &[(&str, &[&str])] = &[
 /// The engine path's own WGSL (appended to [`FRAME_SHADER_PARTS`]' others).
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
-/// The engine path's module, in order: the core's shared structs, estimate uniform and math,
-/// the core's cells, the list element ([`NODE_WGSL`]), [`DEEP_SHADOW_WGSL`], then
+/// The engine path's module, in order: the core's light head ([`LIGHT_HEAD_WGSL`]: shared
+/// structs, estimate uniform and math), the core's cells, the list element ([`NODE_WGSL`]), [`DEEP_SHADOW_WGSL`], then
 /// [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
-    SHARED_WGSL,
-    ESTIMATE_WGSL,
-    MATH_WGSL,
+    LIGHT_HEAD_WGSL,
     CELLS_WGSL,
     NODE_WGSL,
     DEEP_SHADOW_WGSL,
@@ -369,26 +367,10 @@ pub enum FrameMap {
     Depths(DepthMap),
 }
 
-fn uniform_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
-}
-
 /// A storage buffer the frame clears (`COPY_DST`) and [`DeepShadowFrame::read_map`] reads back
 /// (`COPY_SRC`).
 fn storage_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(16),
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    })
+    shadow_map_core::gpu::kernel::storage_buffer(ctx, label, bytes.max(16))
 }
 
 impl DeepShadowFrame {

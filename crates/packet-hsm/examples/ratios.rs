@@ -64,6 +64,23 @@ fn settings() -> Settings {
     }
 }
 
+/// The settings with their fixture's scene and receivers.
+fn setup() -> (Settings, Scene, Receivers) {
+    let s = settings();
+    let (scene, rec) = fixture(&s.name, s.w, s.h);
+    (s, scene, rec)
+}
+
+/// Runs `f` with the scene's light scaled by each factor, small to large (the speed, visits and
+/// gpu sections' rows).
+fn each_light_scale(scene: &mut Scene, mut f: impl FnMut(f32, &Scene)) {
+    let base_light = *scene.light();
+    for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
+        scene.set_light(base_light.scaled(scale)).unwrap();
+        f(scale, scene);
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -160,26 +177,27 @@ fn variant_columns(ms: [f64; 4]) -> String {
 }
 
 fn speed() {
-    let Settings {
-        name,
-        w,
-        h,
-        res,
-        runs,
-    } = settings();
-    let (mut scene, rec) = fixture(&name, w, h);
-    let base_light = *scene.light();
+    let (
+        Settings {
+            name,
+            w,
+            h,
+            res,
+            runs,
+        },
+        mut scene,
+        rec,
+    ) = setup();
     println!("\n## speed: {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}), one shadow map (S = 1), 3x3 packets");
     println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV | penumbra px | visited/px GBP07 | visited/px both | coherent packets |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
-        scene.set_light(base_light.scaled(scale)).unwrap();
+    each_light_scale(&mut scene, |scale, scene| {
         let mut out = Vec::new();
         for kv in VARIANTS {
             let mut kv = kv.to_vec();
             kv.push(("resolution", &res));
             let mut e = hsm(&kv);
-            out.push(time(&mut e, &scene, &rec, runs));
+            out.push(time(&mut e, scene, &rec, runs));
         }
         let dv = out
             .iter()
@@ -194,7 +212,7 @@ fn speed() {
             note(&out[0].3, "visited_per_penumbra_pixel").unwrap_or_default(),
             note(&out[3].3, "visited_per_penumbra_pixel").unwrap_or_default(),
         );
-    }
+    });
     println!("Yang 2009 Fig. 13 (GTX 280, 1280x1024, 3x3 packets): hierarchy 1.5-4x on top of packets; packets + hierarchy up to an order of magnitude for large lights, 20x in Fig. 1-c.");
 }
 
@@ -265,21 +283,23 @@ impl CellPyramid {
 }
 
 fn visits() {
-    let name = env("HSM_SCENE", "bunny");
-    let (w, h) = (envu("HSM_W", 160), envu("HSM_H", 120));
-    let res: u32 = envu("HSM_RES", 512);
-    let (mut scene, rec) = fixture(&name, w, h);
-    let base_light = *scene.light();
+    let (
+        Settings {
+            name, w, h, res, ..
+        },
+        mut scene,
+        rec,
+    ) = setup();
+    let res: u32 = res.parse().unwrap_or(512);
     println!(
         "\n## visited nodes per penumbra pixel: {name}, {w}x{h}, r = {res}, per pixel (no packets)"
     );
     println!("| light scale | penumbra px | kernel cells (flat scan) | MSSM hierarchy (Yang) | min/max mip from root (DU07) | flat / MSSM | mip / MSSM |");
     println!("|---|---|---|---|---|---|---|");
-    for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
-        scene.set_light(base_light.scaled(scale)).unwrap();
+    each_light_scale(&mut scene, |scale, scene| {
         let cfg = Config::from_params(hsm(&[]).params()).expect("cfg");
         let sv = SubView::build(
-            &scene,
+            scene,
             &rec,
             (res, glam::Vec2::ZERO, scene.light().half_extent()),
             &cfg,
@@ -334,7 +354,7 @@ fn visits() {
             flat as f64 / hier.max(1) as f64,
             mip as f64 / hier.max(1) as f64
         );
-    }
+    });
     println!(
         "Yang 2009 Fig. 8: visited samples, ours < DU07 < MSSM-only (no figures given in numbers)."
     );
@@ -368,14 +388,17 @@ fn sweep() {
 }
 
 fn tune() {
-    let Settings {
-        name,
-        w,
-        h,
-        res,
-        runs,
-    } = settings();
-    let (mut scene, rec) = fixture(&name, w, h);
+    let (
+        Settings {
+            name,
+            w,
+            h,
+            res,
+            runs,
+        },
+        mut scene,
+        rec,
+    ) = setup();
     scene.set_light(scene.light().scaled(2.0)).unwrap();
     let grid = ["0", "1", "2", "4", "8", "16"];
     println!("\n## Q_e, Q_v tuning (eq. 6, Q_n = 1): {name} under a 2x light, {w}x{h}, r = {res}, 3x3 packets, hierarchy on; estimate ms (median of {runs})");
@@ -516,22 +539,23 @@ fn gpu() {
             return;
         }
     };
-    let Settings {
-        name,
-        w,
-        h,
-        res,
-        runs,
-    } = settings();
-    let (mut scene, rec) = fixture(&name, w, h);
-    let base_light = *scene.light();
+    let (
+        Settings {
+            name,
+            w,
+            h,
+            res,
+            runs,
+        },
+        mut scene,
+        rec,
+    ) = setup();
     println!("\n## gpu ({}): {name}, {w}x{h}, r = {res}, the registry's GPU estimator (the frame: maps rendered on the GPU, no packets), estimate ms (median of {runs}; upload, frame and readback), S = 1", ctx.describe());
     println!("| light scale | GBP07 per pixel | hierarchy | GBP07 / hierarchy | max dV vs CPU | receivers redone on the CPU (loop limit), per variant |");
     println!("|---|---|---|---|---|---|");
-    for scale in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
-        scene.set_light(base_light.scaled(scale)).unwrap();
+    each_light_scale(&mut scene, |scale, scene| {
         let mut cpu = hsm(&[("resolution", &res)]);
-        let (_, _, vc, _) = time(&mut cpu, &scene, &rec, 1);
+        let (_, _, vc, _) = time(&mut cpu, scene, &rec, 1);
         let mut out = Vec::new();
         for kv in &VARIANTS[..2] {
             let mut e = packet_hsm::DESCRIPTOR
@@ -542,7 +566,7 @@ fn gpu() {
             for (k, v) in kv.iter() {
                 e.set_param(k, v).expect("param");
             }
-            out.push(time(e.as_mut(), &scene, &rec, runs));
+            out.push(time(e.as_mut(), scene, &rec, runs));
         }
         let dv = out.iter().map(|o| max_diff(&o.2, &vc)).fold(0.0, f32::max);
         let fb: Vec<String> = out
@@ -556,7 +580,7 @@ fn gpu() {
             out[0].0 / out[1].0,
             fb.join(" / ")
         );
-    }
+    });
 }
 
 #[cfg(not(feature = "gpu"))]

@@ -49,9 +49,10 @@ use bytemuck::{Pod, Zeroable};
 use kernel::{hsm_uniform, HsmUniform, Kernel, PrepGpu, RecIn, SubLightShape, WORKGROUP};
 use shadow_map_core::{
     gpu::{
+        depth_map::write_planes,
         estimate::{
-            EstimateUniform, ESTIMATE_WGSL, MATH_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
-            SILHOUETTE_WGSL, WORKGROUP_SIZE,
+            EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL, SILHOUETTE_WGSL,
+            WORKGROUP_SIZE,
         },
         frame::{
             buffer_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
@@ -60,7 +61,6 @@ use shadow_map_core::{
         kernel::{compute_pipeline, shader_module, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         receivers::RECEIVER_BYTES,
-        shared::SHARED_WGSL,
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
         UniformStage,
     },
@@ -75,12 +75,10 @@ pub mod kernel;
 /// The engine path's own WGSL.
 pub const FRAME_WGSL: &str = include_str!("packet_hsm_frame.wgsl");
 
-/// The engine path's set-up module, in order: the core's shared structs, estimate uniform, math
-/// and a sphere light's silhouette set-up, the kernel's `RecIn`, then [`FRAME_WGSL`].
+/// The engine path's set-up module, in order: the core's light head ([`LIGHT_HEAD_WGSL`]: shared
+/// structs, estimate uniform, math) and a sphere light's silhouette set-up, the kernel's `RecIn`, then [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
-    SHARED_WGSL,
-    ESTIMATE_WGSL,
-    MATH_WGSL,
+    LIGHT_HEAD_WGSL,
     SILHOUETTE_WGSL,
     SILHOUETTE_SETUP_WGSL,
     kernel::REC_IN_WGSL,
@@ -212,20 +210,7 @@ impl PacketHsmFrame {
         let padded = GpuDepthMap::new(&ctx, p, "packet-hsm padded classification")?;
         // The ring stays +inf: only the interior is copied each frame.
         let inf = vec![f32::INFINITY; (p * p) as usize];
-        ctx.queue.write_texture(
-            padded.texture.as_image_copy(),
-            bytemuck::cast_slice(&inf),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * p),
-                rows_per_image: Some(p),
-            },
-            wgpu::Extent3d {
-                width: p,
-                height: p,
-                depth_or_array_layers: 1,
-            },
-        );
+        write_planes(&ctx, &padded.texture, p, 1, &inf);
         let (set, dual_pass) = GpuMssmBuilder::new(&ctx)?.prepare(
             &ctx,
             &padded,

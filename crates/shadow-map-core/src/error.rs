@@ -107,6 +107,18 @@ pub enum Error {
 }
 
 impl Error {
+    /// `Ok` for a count or side `n` in `1..=max`, else [`Error::Limit`] naming `what`.
+    pub fn check_in_range(what: &'static str, n: u32, max: u32) -> Result<()> {
+        if n == 0 || n > max {
+            return Err(Error::Limit {
+                what,
+                requested: n as u64,
+                max: max as u64,
+            });
+        }
+        Ok(())
+    }
+
     /// Shorthand for a [`Error::Param`].
     pub fn param(key: impl Into<String>, reason: impl Into<String>) -> Self {
         Error::Param {

@@ -26,6 +26,8 @@ pub mod scene;
 pub mod settle;
 pub mod silhouette;
 pub mod soft_transmittance;
+#[cfg(test)]
+mod test_geometry;
 
 pub use bvh::SceneBvh;
 pub use camera::Camera;

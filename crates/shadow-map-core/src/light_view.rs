@@ -439,14 +439,7 @@ pub fn sphere_window_factor(radius: f32, p: Vec3) -> f32 {
 }
 
 fn check_resolution(r: u32) -> Result<()> {
-    if r == 0 || r > MAX_RESOLUTION {
-        return Err(Error::Limit {
-            what: "shadow-map resolution",
-            requested: r as u64,
-            max: MAX_RESOLUTION as u64,
-        });
-    }
-    Ok(())
+    Error::check_in_range("shadow-map resolution", r, MAX_RESOLUTION)
 }
 
 /// The active receivers in tan space, `(x/z, y/z)` and z, counting those behind the light or

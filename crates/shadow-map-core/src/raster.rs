@@ -333,6 +333,25 @@ pub fn owns_ties(du: f64, dv: f64) -> bool {
     dv < 0.0 || (dv == 0.0 && du > 0.0)
 }
 
+/// The texels whose centres `(i + 0.5, j + 0.5)` can lie in the triangle `uv` (continuous
+/// texel coordinates): its bounding box's columns `i` of the `r`-wide map and rows `j` within
+/// `rows`, as half-open ranges (empty where the box misses them; a NaN bound counts as 0, or
+/// `rows.start`).
+pub fn texel_span(
+    uv: [DVec2; 3],
+    r: usize,
+    rows: std::ops::Range<usize>,
+) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+    let [a, b, c] = uv;
+    let lo = a.min(b).min(c);
+    let hi = a.max(b).max(c);
+    let i0 = ((lo.x - 0.5).ceil().max(0.0) as usize).min(r);
+    let i1 = (((hi.x - 0.5).floor() + 1.0).max(0.0) as usize).min(r);
+    let j0 = ((lo.y - 0.5).ceil().max(rows.start as f64) as usize).min(rows.end);
+    let j1 = (((hi.y - 0.5).floor() + 1.0).max(0.0) as usize).min(rows.end);
+    (i0..i1, j0..j1)
+}
+
 /// The rows of the map one band of the raster writes: from row `row0`, depths and (optionally)
 /// opacities.
 struct Band<'a> {
@@ -373,17 +392,12 @@ fn raster_triangle(
     let e2 = c - a;
     let gu = ((zb - za) * e2.y - (zc - za) * e1.y) / area;
     let gv = ((zc - za) * e1.x - (zb - za) * e2.x) / area;
-    let lo = a.min(b).min(c);
-    let hi = a.max(b).max(c);
-    let i0 = ((lo.x - 0.5).ceil().max(0.0) as usize).min(r);
-    let i1 = (((hi.x - 0.5).floor() + 1.0).max(0.0) as usize).min(r);
-    let j0 = ((lo.y - 0.5).ceil().max(row0 as f64) as usize).min(row0 + nrows);
-    let j1 = (((hi.y - 0.5).floor() + 1.0).max(0.0) as usize).min(row0 + nrows);
+    let (cols, rows_hit) = texel_span([a, b, c], r, row0..row0 + nrows);
     let edges = [(a, b), (b, c), (c, a)];
     let own = edges.map(|(p, q)| owns_ties(q.x - p.x, q.y - p.y));
-    for j in j0..j1 {
+    for j in rows_hit {
         let pv = j as f64 + 0.5;
-        for i in i0..i1 {
+        for i in cols.clone() {
             let p = DVec2::new(i as f64 + 0.5, pv);
             let mut inside = true;
             for (k, (s, e)) in edges.iter().enumerate() {

@@ -226,33 +226,46 @@ mod tests {
     /// lifted off the plane by 1e-3 of its distance is one.
     #[test]
     fn a_planar_receiver_never_shadows_itself() {
+        let p = Vec3::new(0.1, -0.2, 5.0);
+        sweep_tilted_planes(view, p, |v, rp, n, (r, deg), i, j| {
+            let d = v.unproject_dir(Vec2::new(i as f32 + 0.5, j as f32 + 0.5));
+            let g = -n.dot(d);
+            if g <= 1e-3 {
+                return;
+            }
+            let z = -n.dot(p) / g;
+            if !(z > v.n && z < v.far) {
+                return; // the plane meets this ray outside the view
+            }
+            assert!(!rp.caster(i, j, z), "r {r} {deg} deg texel ({i},{j}) z {z}");
+            // The same point lifted off the plane by 1e-3 of its distance: a caster when it is
+            // nearer the light than the receiver.
+            let s = z * d + n * (1e-3 * (z * d).length());
+            assert!(
+                s.z >= p.z || rp.caster_at(v.project(s), s.z),
+                "lifted sample not a caster: r {r} {deg} deg"
+            );
+        });
+    }
+
+    /// Calls `check(v, rp, n, (r, deg), i, j)` at about 64 x 64 texels `(i, j)` of `v =
+    /// view_at(r)` for r of 256, 1024 and 4096, with `rp` the plane through `p` whose normal `n`
+    /// is tilted from -z towards +x by `deg` from 0 to 89.9 degrees.
+    fn sweep_tilted_planes(
+        view_at: impl Fn(u32) -> LightView,
+        p: Vec3,
+        mut check: impl FnMut(&LightView, &ReceiverPlane, Vec3, (u32, f32), i32, i32),
+    ) {
         for r in [256u32, 1024, 4096] {
-            let v = view(r);
+            let v = view_at(r);
             for deg in [0.0f32, 60.0, 75.0, 85.0, 89.0, 89.9] {
                 let t = deg.to_radians();
                 let n = Vec3::new(t.sin(), 0.0, -t.cos());
-                let p = Vec3::new(0.1, -0.2, 5.0);
                 let rp = ReceiverPlane::plane(&v, p, n, 0.0, 0.0);
                 let step = (r / 64).max(1) as usize;
                 for j in (0..r as i32).step_by(step) {
                     for i in (0..r as i32).step_by(step) {
-                        let d = v.unproject_dir(Vec2::new(i as f32 + 0.5, j as f32 + 0.5));
-                        let g = -n.dot(d);
-                        if g <= 1e-3 {
-                            continue;
-                        }
-                        let z = -n.dot(p) / g;
-                        if !(z > v.n && z < v.far) {
-                            continue; // the plane meets this ray outside the view
-                        }
-                        assert!(!rp.caster(i, j, z), "r {r} {deg} deg texel ({i},{j}) z {z}");
-                        // The same point lifted off the plane by 1e-3 of its distance: a caster
-                        // when it is nearer the light than the receiver.
-                        let s = z * d + n * (1e-3 * (z * d).length());
-                        assert!(
-                            s.z >= p.z || rp.caster_at(v.project(s), s.z),
-                            "lifted sample not a caster: r {r} {deg} deg"
-                        );
+                        check(&v, &rp, n, (r, deg), i, j);
                     }
                 }
             }
@@ -266,45 +279,35 @@ mod tests {
     /// and a point lifted off it by 1e-3 of the window's size is a caster.
     #[test]
     fn a_planar_receiver_never_shadows_itself_under_the_sun() {
-        for r in [256u32, 1024, 4096] {
-            let v = LightView {
-                projection: crate::light_view::Projection::Orthographic,
-                n: 40.0,
-                far: 120.0,
-                window_min: Vec2::new(35.0, -60.0),
-                w: 20.0,
-                ..view(r)
-            };
-            for deg in [0.0f32, 60.0, 75.0, 85.0, 89.0, 89.9] {
-                let t = deg.to_radians();
-                let n = Vec3::new(t.sin(), 0.0, -t.cos());
-                let p = Vec3::new(44.3, -51.7, 80.0);
-                let rp = ReceiverPlane::plane(&v, p, n, 0.0, 0.0);
-                let step = (r / 64).max(1) as usize;
-                for j in (0..r as i32).step_by(step) {
-                    for i in (0..r as i32).step_by(step) {
-                        let uv = Vec2::new(i as f32 + 0.5, j as f32 + 0.5);
-                        let xy = v.texel_point(uv, 0.0);
-                        // The plane's depth over this texel: n.(s - p) = 0.
-                        let z = p.z - (n.x * (xy.x - p.x) + n.y * (xy.y - p.y)) / n.z;
-                        if !(z > v.n && z < v.far) {
-                            continue;
-                        }
-                        assert!(!rp.caster(i, j, z), "r {r} {deg} deg texel ({i},{j}) z {z}");
-                        // The threshold depth never reaches the plane (tau and kappa keep it
-                        // in front), and at moderate tilts it is the plane's depth.
-                        let th = rp.threshold_at(uv);
-                        assert!(th <= z.min(p.z), "{deg} deg: {th} above {z}");
-                        assert!(deg > 60.0 || z.min(p.z) - th <= 1e-3 * z, "{th} vs {z}");
-                        let s = v.texel_point(uv, z) + n * (1e-3 * v.w);
-                        assert!(
-                            s.z >= p.z || rp.caster_at(v.project(s), s.z),
-                            "lifted sample not a caster: r {r} {deg} deg"
-                        );
-                    }
-                }
+        let sun = |r| LightView {
+            projection: crate::light_view::Projection::Orthographic,
+            n: 40.0,
+            far: 120.0,
+            window_min: Vec2::new(35.0, -60.0),
+            w: 20.0,
+            ..view(r)
+        };
+        let p = Vec3::new(44.3, -51.7, 80.0);
+        sweep_tilted_planes(sun, p, |v, rp, n, (r, deg), i, j| {
+            let uv = Vec2::new(i as f32 + 0.5, j as f32 + 0.5);
+            let xy = v.texel_point(uv, 0.0);
+            // The plane's depth over this texel: n.(s - p) = 0.
+            let z = p.z - (n.x * (xy.x - p.x) + n.y * (xy.y - p.y)) / n.z;
+            if !(z > v.n && z < v.far) {
+                return;
             }
-        }
+            assert!(!rp.caster(i, j, z), "r {r} {deg} deg texel ({i},{j}) z {z}");
+            // The threshold depth never reaches the plane (tau and kappa keep it in front), and
+            // at moderate tilts it is the plane's depth.
+            let th = rp.threshold_at(uv);
+            assert!(th <= z.min(p.z), "{deg} deg: {th} above {z}");
+            assert!(deg > 60.0 || z.min(p.z) - th <= 1e-3 * z, "{th} vs {z}");
+            let s = v.texel_point(uv, z) + n * (1e-3 * v.w);
+            assert!(
+                s.z >= p.z || rp.caster_at(v.project(s), s.z),
+                "lifted sample not a caster: r {r} {deg} deg"
+            );
+        });
     }
 
     #[test]

@@ -124,26 +124,17 @@ impl Receivers {
 
     /// Replaces the active mask (one flag per slot).
     pub fn with_active(mut self, active: Vec<bool>) -> Result<Self> {
-        if active.len() != self.len() {
-            return Err(Error::Receivers(format!(
-                "{} active flags for {} receivers",
-                active.len(),
-                self.len()
-            )));
-        }
+        self.check_per_slot(active.len(), format_args!("{} active flags", active.len()))?;
         self.active = active;
         Ok(self)
     }
 
     /// Attaches view depths (one per slot, none NaN; +inf marks background).
     pub fn with_view_depth(mut self, view_depth: Vec<f32>) -> Result<Self> {
-        if view_depth.len() != self.len() {
-            return Err(Error::Receivers(format!(
-                "{} view depths for {} receivers",
-                view_depth.len(),
-                self.len()
-            )));
-        }
+        self.check_per_slot(
+            view_depth.len(),
+            format_args!("{} view depths", view_depth.len()),
+        )?;
         if let Some(k) = view_depth.iter().position(|z| z.is_nan()) {
             return Err(Error::Receivers(format!("view depth {k} is NaN")));
         }
@@ -259,10 +250,14 @@ impl Receivers {
     }
     /// Fails with [`Error::Receivers`] unless `v` has one output slot per receiver.
     pub fn check_output(&self, v: &[f32]) -> Result<()> {
-        if v.len() != self.len() {
+        self.check_per_slot(v.len(), format_args!("output has {} slots", v.len()))
+    }
+    /// Fails with [`Error::Receivers`] ("`what` for `len` receivers") unless `n`, the length of
+    /// what `what` describes, is one per slot.
+    fn check_per_slot(&self, n: usize, what: std::fmt::Arguments<'_>) -> Result<()> {
+        if n != self.len() {
             return Err(Error::Receivers(format!(
-                "output has {} slots for {} receivers",
-                v.len(),
+                "{what} for {} receivers",
                 self.len()
             )));
         }

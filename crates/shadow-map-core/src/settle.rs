@@ -210,19 +210,7 @@ mod tests {
     }
 
     fn ground() -> Vec<[Vec3; 3]> {
-        let s = 50.0;
-        vec![
-            [
-                Vec3::new(-s, 0.0, -s),
-                Vec3::new(-s, 0.0, s),
-                Vec3::new(s, 0.0, s),
-            ],
-            [
-                Vec3::new(-s, 0.0, -s),
-                Vec3::new(s, 0.0, s),
-                Vec3::new(s, 0.0, -s),
-            ],
-        ]
+        crate::test_geometry::square(0.0, 50.0)
     }
 
     /// A light facing +x at height 1 above a ground that runs past its plane: ground points far

@@ -372,6 +372,33 @@ pub fn assert_valid(v: &[f32], what: &str) {
     }
 }
 
+/// The light weighting of an occluder at `opacity`: on every active receiver of `r`,
+/// `v = 1 - opacity (1 - v_opaque)` within 1e-5, `v_opaque` being the same estimator on the
+/// opaque occluder (`what` names the case in a failure). Returns how many active receivers lie
+/// in `v_opaque`'s penumbra (0.01 < V < 0.99).
+pub fn assert_opacity_weighted(
+    v: &[f32],
+    v_opaque: &[f32],
+    opacity: f32,
+    r: &Receivers,
+    what: &str,
+) -> usize {
+    let mut penumbra = 0;
+    for k in 0..r.len() {
+        if !r.active()[k] {
+            continue;
+        }
+        let want = 1.0 - opacity * (1.0 - v_opaque[k]);
+        assert!(
+            (v[k] - want).abs() <= 1e-5,
+            "{what} #{k}: {} vs {want}",
+            v[k]
+        );
+        penumbra += usize::from(v_opaque[k] > 0.01 && v_opaque[k] < 0.99);
+    }
+    penumbra
+}
+
 /// The ray-traced reference's V of `r` in `scene` at `spp` samples per receiver, as f64.
 #[cfg(feature = "oracle")]
 pub fn traced(scene: &Scene, r: &Receivers, spp: u32) -> Vec<f64> {

@@ -1,6 +1,8 @@
 //! The GPU gate of every GPU test.
 
-use crate::config::REQUIRE_GPU_ENV;
+// `super`: the crate root here; shadow-map-core's tests compile this file by path into their own
+// `common::gpu`, which imports the same constant.
+use super::REQUIRE_GPU_ENV;
 use shadow_map_core::{gpu::GpuContext, Result};
 use std::sync::Arc;
 

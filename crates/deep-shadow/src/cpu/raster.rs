@@ -6,7 +6,10 @@
 //! to an edge differently.
 use glam::{DVec2, Vec3};
 use rayon::prelude::*;
-use shadow_map_core::{raster::TexelProjection, LightView, Scene};
+use shadow_map_core::{
+    raster::{texel_span, TexelProjection},
+    LightView, Scene,
+};
 
 /// A triangle after clipping to z >= n and projection to continuous texel coordinates, with the
 /// opacity of its mesh. Triangles of fully transparent meshes (opacity 0) are dropped: they
@@ -84,18 +87,12 @@ pub fn raster_tri(t: &PreparedTri, r: u32, rows: (u32, u32), mut emit: impl FnMu
     let e2 = c - a;
     let gu = ((zb - za) * e2.y - (zc - za) * e1.y) / area;
     let gv = ((zc - za) * e1.x - (zb - za) * e2.x) / area;
-    let rf = r as f64;
-    let lo = a.min(b).min(c);
-    let hi = a.max(b).max(c);
-    let i0 = (lo.x - 0.5).ceil().clamp(0.0, rf) as u32;
-    let i1 = ((hi.x - 0.5).floor() + 1.0).clamp(0.0, rf) as u32;
-    let j0 = ((lo.y - 0.5).ceil().clamp(0.0, rf) as u32).max(rows.0);
-    let j1 = (((hi.y - 0.5).floor() + 1.0).clamp(0.0, rf) as u32).min(rows.1);
+    let (cols, rows_hit) = texel_span(t.uv, r as usize, rows.0 as usize..rows.1.min(r) as usize);
     let edges = [(a, b), (b, c), (c, a)];
     let own = edges.map(|(p, q)| owns_ties(q.x - p.x, q.y - p.y));
-    for j in j0..j1 {
+    for j in rows_hit.map(|j| j as u32) {
         let pv = j as f64 + 0.5;
-        for i in i0..i1 {
+        for i in cols.clone().map(|i| i as u32) {
             let p = DVec2::new(i as f64 + 0.5, pv);
             let inside = edges.iter().enumerate().all(|(k, (s, e))| {
                 let ef = edge_function(*s, *e, p);
@@ -123,14 +120,11 @@ pub fn fragments(tris: &[PreparedTri], r: u32) -> Vec<Fragment> {
     let nb = r.div_ceil(band) as usize;
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nb];
     for (k, t) in tris.iter().enumerate() {
-        let vlo = t.uv[0].y.min(t.uv[1].y).min(t.uv[2].y);
-        let vhi = t.uv[0].y.max(t.uv[1].y).max(t.uv[2].y);
-        let j0 = (vlo - 0.5).ceil().clamp(0.0, r as f64) as u32;
-        let j1 = ((vhi - 0.5).floor() + 1.0).clamp(0.0, r as f64) as u32;
-        if j0 >= j1 {
+        let (_, rows) = texel_span(t.uv, r as usize, 0..r as usize);
+        if rows.is_empty() {
             continue;
         }
-        for bin in &mut bins[(j0 / band) as usize..=((j1 - 1) / band) as usize] {
+        for bin in &mut bins[rows.start / band as usize..=(rows.end - 1) / band as usize] {
             bin.push(k as u32);
         }
     }

@@ -98,15 +98,11 @@ pub(crate) fn extent(size: u32) -> wgpu::Extent3d {
 
 /// Fails with [`Error::Limit`] when a square texture of side `size` cannot be created.
 pub(crate) fn check_size(ctx: &GpuContext, size: u32) -> Result<()> {
-    let max = ctx.limits().max_texture_dimension_2d;
-    if size == 0 || size > max {
-        return Err(Error::Limit {
-            what: "shadow-map resolution (GPU max_texture_dimension_2d)",
-            requested: size as u64,
-            max: max as u64,
-        });
-    }
-    Ok(())
+    Error::check_in_range(
+        "shadow-map resolution (GPU max_texture_dimension_2d)",
+        size,
+        ctx.limits().max_texture_dimension_2d,
+    )
 }
 
 /// The [`Error::Gpu`] of the upload `stage` given `len` `what` (depths, codes) for a square map
@@ -116,6 +112,30 @@ pub(crate) fn upload_len_error(stage: &str, what: &str, len: usize, size: u32) -
         stage: stage.into(),
         reason: format!("{len} {what} for a {size}x{size} map"),
     }
+}
+
+/// Writes `layers` planes of f32 texels (each `size x size`, row-major, one after the other in
+/// `texels`) into the first array layers of the R32Float `texture`, bit for bit.
+pub fn write_planes(
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+    size: u32,
+    layers: u32,
+    texels: &[f32],
+) {
+    ctx.queue.write_texture(
+        texture.as_image_copy(),
+        bytemuck::cast_slice(texels),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(size * 4),
+            rows_per_image: Some(size),
+        },
+        wgpu::Extent3d {
+            depth_or_array_layers: layers,
+            ..extent(size)
+        },
+    );
 }
 
 /// Uploads a CPU depth map (bit for bit). Fails with [`Error::Limit`] when its side is 0 or
@@ -132,21 +152,7 @@ pub fn upload_depth_map(ctx: &GpuContext, map: &DepthMap) -> Result<GpuDepthMap>
     }
     ctx.scoped("depth-map upload", || -> Result<GpuDepthMap> {
         let gpu = GpuDepthMap::new(ctx, map.size, "depth-map upload")?;
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &gpu.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            bytemuck::cast_slice(&map.depth),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(map.size * 4),
-                rows_per_image: Some(map.size),
-            },
-            extent(map.size),
-        );
+        write_planes(ctx, &gpu.texture, map.size, 1, &map.depth);
         Ok(gpu)
     })?
 }

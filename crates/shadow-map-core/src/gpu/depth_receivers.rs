@@ -205,12 +205,11 @@ impl GpuDepthReceivers {
             ],
             &[],
         )?;
-        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("depth receivers.params"),
-            size: std::mem::size_of::<DepthReceiversParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let uniform = super::kernel::uniform_buffer(
+            ctx,
+            "depth receivers.params",
+            std::mem::size_of::<DepthReceiversParams>() as u64,
+        );
         Ok(GpuDepthReceivers { kernel, uniform })
     }
 

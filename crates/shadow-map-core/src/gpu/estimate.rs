@@ -11,6 +11,33 @@ use super::shared::FrameGpu;
 use crate::{Light, LightShape};
 use bytemuck::{Pod, Zeroable};
 
+// The estimate heads as literals, so that `concat!` can extend them into longer constants
+// (`concat!` takes literals only, not constants): the light head (shared structs, estimate
+// uniform, math) and the estimate head (the light head, disk-edge, silhouette, overlap).
+macro_rules! light_head_wgsl {
+    () => {
+        concat!(
+            include_str!("shared.wgsl"),
+            include_str!("estimate.wgsl"),
+            include_str!("math.wgsl")
+        )
+    };
+}
+macro_rules! estimate_head_wgsl {
+    () => {
+        concat!(
+            light_head_wgsl!(),
+            include_str!("disk_edge.wgsl"),
+            include_str!("silhouette.wgsl"),
+            include_str!("overlap.wgsl")
+        )
+    };
+}
+
+/// The core's shared structs, [`ESTIMATE_WGSL`] and [`MATH_WGSL`], in that order: the start of
+/// [`ESTIMATE_HEAD_WGSL`], and of kernels that take the light math without the overlap helpers.
+pub const LIGHT_HEAD_WGSL: &str = light_head_wgsl!();
+
 /// WGSL source of [`EstimateUniform`] and the override constants; prepended (after the core's
 /// `SHARED_WGSL`) to every estimate kernel.
 pub const ESTIMATE_WGSL: &str = include_str!("estimate.wgsl");
@@ -33,15 +60,8 @@ pub const SILHOUETTE_WGSL: &str = include_str!("silhouette.wgsl");
 /// append it.
 pub const SILHOUETTE_SETUP_WGSL: &str = include_str!("silhouette_setup.wgsl");
 /// [`SILHOUETTE_SETUP_WGSL`] after the estimate head, as [`super::SHADERS`] validates it.
-pub const SILHOUETTE_SETUP_CHECK_WGSL: &str = concat!(
-    include_str!("shared.wgsl"),
-    include_str!("estimate.wgsl"),
-    include_str!("math.wgsl"),
-    include_str!("disk_edge.wgsl"),
-    include_str!("silhouette.wgsl"),
-    include_str!("overlap.wgsl"),
-    include_str!("silhouette_setup.wgsl")
-);
+pub const SILHOUETTE_SETUP_CHECK_WGSL: &str =
+    concat!(estimate_head_wgsl!(), include_str!("silhouette_setup.wgsl"));
 /// WGSL twins of the rest of [`crate::overlap`] (after [`MATH_WGSL`] and [`DISK_EDGE_WGSL`]).
 pub const OVERLAP_WGSL: &str = include_str!("overlap.wgsl");
 /// WGSL twin of [`crate::bitmask`] (containment tests and the mask), self-contained; not in
@@ -50,14 +70,7 @@ pub const BITMASK_WGSL: &str = include_str!("bitmask.wgsl");
 /// The head of every estimate kernel: the core's shared structs, [`ESTIMATE_WGSL`],
 /// [`MATH_WGSL`], [`DISK_EDGE_WGSL`], [`SILHOUETTE_WGSL`] and [`OVERLAP_WGSL`], in that order; a
 /// kernel appends its own WGSL.
-pub const ESTIMATE_HEAD_WGSL: &str = concat!(
-    include_str!("shared.wgsl"),
-    include_str!("estimate.wgsl"),
-    include_str!("math.wgsl"),
-    include_str!("disk_edge.wgsl"),
-    include_str!("silhouette.wgsl"),
-    include_str!("overlap.wgsl")
-);
+pub const ESTIMATE_HEAD_WGSL: &str = estimate_head_wgsl!();
 
 /// `light_shape` of a rect light (WGSL override `LIGHT_RECT`).
 pub const LIGHT_RECT: u32 = 0;

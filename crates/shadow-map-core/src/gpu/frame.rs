@@ -505,14 +505,7 @@ pub fn compute_pass(
 /// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame
 /// writes for the caller to read when it likes (cleared by each `encode`).
 pub fn status_buffer(ctx: &GpuContext, label: &str, words: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: 4 * words.max(1),
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
+    super::kernel::storage_buffer(ctx, label, 4 * words.max(1))
 }
 
 /// A frame's status read back without waiting, for an engine's render loop: each frame,

@@ -233,6 +233,29 @@ pub fn buffer_init(
     })
 }
 
+/// An unmapped `UNIFORM | COPY_DST` buffer of `bytes` bytes (written with `write_buffer`).
+pub fn uniform_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// An unmapped `STORAGE | COPY_SRC | COPY_DST` buffer of `bytes` bytes: written by kernels or
+/// cleared and filled from the CPU, and read back.
+pub fn storage_buffer(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
 /// wgpu's `DeviceExt::create_buffer_init`, without its panic when the device is lost: wgpu's
 /// version expects the mapping of the new buffer, which fails (a panic) for a buffer of a
 /// device that was destroyed or lost and not yet reported as such. Here the buffer is then
@@ -306,20 +329,16 @@ pub struct PlaneArray {
 /// [`Error::Limit`](crate::Error::Limit).
 pub fn plane_array(ctx: &GpuContext, label: &str, size: u32, count: u32) -> Result<PlaneArray> {
     let l = ctx.limits();
-    if size == 0 || size > l.max_texture_dimension_2d {
-        return Err(crate::Error::Limit {
-            what: "texture-array side (max_texture_dimension_2d)",
-            requested: size as u64,
-            max: l.max_texture_dimension_2d as u64,
-        });
-    }
-    if count == 0 || count > l.max_texture_array_layers {
-        return Err(crate::Error::Limit {
-            what: "texture-array layers (max_texture_array_layers)",
-            requested: count as u64,
-            max: l.max_texture_array_layers as u64,
-        });
-    }
+    crate::Error::check_in_range(
+        "texture-array side (max_texture_dimension_2d)",
+        size,
+        l.max_texture_dimension_2d,
+    )?;
+    crate::Error::check_in_range(
+        "texture-array layers (max_texture_array_layers)",
+        count,
+        l.max_texture_array_layers,
+    )?;
     ctx.scoped(label, || {
         let texture = ctx.device.create_texture(&texture_desc(
             label,
@@ -364,25 +383,7 @@ pub fn upload_planes(
         data.extend_from_slice(p);
     }
     ctx.scoped(label, || {
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &array.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            bytemuck::cast_slice(&data),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * size),
-                rows_per_image: Some(size),
-            },
-            wgpu::Extent3d {
-                width: size,
-                height: size,
-                depth_or_array_layers: planes.len() as u32,
-            },
-        );
+        super::depth_map::write_planes(ctx, &array.texture, size, planes.len() as u32, &data);
     })?;
     Ok(array)
 }

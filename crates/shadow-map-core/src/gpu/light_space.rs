@@ -38,17 +38,21 @@ pub struct GpuLightSpace {
     pub pyramid: Option<GpuMinMaxPyramid>,
 }
 
-/// Bytes of `maps` and an MSSM family `(mssm, dual-grid MSSM, pyramid)`, counted as
-/// [`LightSpace::bytes`] counts them: [`GpuLightSpace::bytes`] and the engine path's layers.
-pub(crate) fn maps_bytes<'a>(
-    maps: impl IntoIterator<Item = &'a GpuDepthMap>,
+/// Bytes of the `[layers, midpoints, opacity]` maps and an MSSM family `(mssm, dual-grid MSSM,
+/// pyramid)`, counted as [`LightSpace::bytes`] counts them: [`GpuLightSpace::bytes`] and the
+/// engine path's layers.
+pub(crate) fn maps_bytes(
+    maps: [&[GpuDepthMap]; 3],
     (mssm, dual, pyramid): (
         Option<&GpuMssm>,
         Option<&GpuDualMssm>,
         Option<&GpuMinMaxPyramid>,
     ),
 ) -> usize {
-    maps.into_iter().map(GpuDepthMap::bytes).sum::<usize>()
+    maps.iter()
+        .flat_map(|m| m.iter())
+        .map(GpuDepthMap::bytes)
+        .sum::<usize>()
         + mssm.map_or(0, GpuMssm::bytes)
         + dual.map_or(0, GpuDualMssm::bytes)
         + pyramid.map_or(0, GpuMinMaxPyramid::bytes)
@@ -59,17 +63,12 @@ impl GpuLightSpace {
     /// depth-map level counted in it, although on the GPU the MSSM and the pyramid share one
     /// buffer for it).
     pub fn bytes(&self) -> usize {
-        let maps = self
-            .layers
-            .iter()
-            .chain(&self.midpoints)
-            .chain(&self.opacity);
         let family = (
             self.mssm.as_ref(),
             self.dual_mssm.as_ref(),
             self.pyramid.as_ref(),
         );
-        maps_bytes(maps, family)
+        maps_bytes([&self.layers, &self.midpoints, &self.opacity], family)
     }
 
     /// Reads everything back into a [`LightSpace`]: layers, opacity planes and midpoints bit for

@@ -21,7 +21,7 @@
 //! [`MinMaxPyramid`]: crate::mssm::MinMaxPyramid
 use super::{
     depth_map::GpuDepthMap,
-    kernel::{wgsl_module, Binding},
+    kernel::{storage_buffer, uniform_buffer, wgsl_module, Binding},
     GpuContext,
 };
 use crate::{Error, Result};
@@ -298,14 +298,7 @@ impl<'a> Recorder<'a> {
                 max,
             });
         }
-        Ok(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: bytes.max(4),
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        }))
+        Ok(storage_buffer(self.ctx, label, bytes.max(4)))
     }
 
     fn params(size: u32, out_size: u32, h: u32, row0: u32, rows: u32) -> MinMaxParams {
@@ -325,27 +318,76 @@ impl<'a> Recorder<'a> {
         }
     }
 
+    /// Two level planes of side `size`, labelled `{label}.min` and `{label}.max`.
+    fn planes(&self, size: u32, label: &str) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+        Ok((
+            self.plane(size, &format!("{label}.min"))?,
+            self.plane(size, &format!("{label}.max"))?,
+        ))
+    }
+
+    /// [`range`](Self::range) over the same elements of a `min` and a `max` plane; the element
+    /// index is the same in both (equal offsets in equally aligned buffers).
+    fn ranges(
+        &self,
+        (min, max): (&wgpu::Buffer, &wgpu::Buffer),
+        first: u64,
+        count: u64,
+    ) -> (Range, Range, u32) {
+        let (rmin, base) = self.range(min, first, count);
+        let (rmax, _) = self.range(max, first, count);
+        (rmin, rmax, base)
+    }
+
+    /// Plans one dispatch per chunk of output rows of an `out_size`-sided level (chunks sized by
+    /// [`rows_per_chunk`](Self::rows_per_chunk)); `plan` gets the chunk's first row and row count
+    /// and returns the dispatch's kind, parameters, texture and bindings.
+    fn chunked(
+        &mut self,
+        (plane_bytes, row_bytes): (u64, u64),
+        out_size: u32,
+        mut plan: impl FnMut(
+            &Self,
+            u32,
+            u32,
+        ) -> (
+            Kind,
+            MinMaxParams,
+            Option<wgpu::TextureView>,
+            Vec<(u32, Range)>,
+        ),
+    ) -> Result<()> {
+        let per = self.rows_per_chunk(plane_bytes, row_bytes, out_size)?;
+        let mut row0 = 0;
+        while row0 < out_size {
+            let rows = per.min(out_size - row0);
+            let (kind, params, texture, buffers) = plan(self, row0, rows);
+            self.dispatches.push(Dispatch {
+                kind,
+                params,
+                texture,
+                buffers,
+                groups: (
+                    out_size.div_ceil(MSSM_WORKGROUP),
+                    rows.div_ceil(MSSM_WORKGROUP),
+                ),
+            });
+            row0 += rows;
+        }
+        Ok(())
+    }
+
     /// `mssm::sanitized_level0`: the depth map as a single-plane level.
     fn load(&mut self, depth: &GpuDepthMap, label: &str) -> Result<GpuMinMaxLevel> {
         let s = depth.size;
         let out = self.plane(s, label)?;
         let row = s as u64 * 4;
-        let per = self.rows_per_chunk(row * s as u64, row, s)?;
-        let mut row0 = 0;
-        while row0 < s {
-            let rows = per.min(s - row0);
-            let (o, out_base) = self.range(&out, row0 as u64 * s as u64, rows as u64 * s as u64);
+        self.chunked((row * s as u64, row), s, |r, row0, rows| {
+            let (o, out_base) = r.range(&out, row0 as u64 * s as u64, rows as u64 * s as u64);
             let mut params = Self::params(s, s, 0, row0, rows);
             params.out_base = out_base;
-            self.dispatches.push(Dispatch {
-                kind: Kind::Load,
-                params,
-                texture: Some(depth.view.clone()),
-                buffers: vec![(7, o)],
-                groups: (s.div_ceil(MSSM_WORKGROUP), rows.div_ceil(MSSM_WORKGROUP)),
-            });
-            row0 += rows;
-        }
+            (Kind::Load, params, Some(depth.view.clone()), vec![(7, o)])
+        })?;
         Ok(GpuMinMaxLevel {
             size: s,
             min: out.clone(),
@@ -357,54 +399,38 @@ impl<'a> Recorder<'a> {
     /// `mssm::anchored_step` with window offset `h`.
     fn step(&mut self, src: &GpuMinMaxLevel, h: u32, label: &str) -> Result<GpuMinMaxLevel> {
         let s = src.size;
-        let (omin, omax) = (
-            self.plane(s, &format!("{label}.min"))?,
-            self.plane(s, &format!("{label}.max"))?,
-        );
+        let (omin, omax) = self.planes(s, label)?;
         let row = s as u64 * 4;
-        let per = self.rows_per_chunk(row * s as u64, row, s)?;
         let su = s as u64;
-        let mut row0 = 0;
-        while row0 < s {
-            let rows = per.min(s - row0);
+        let source = (&src.min, &src.max);
+        self.chunked((row * su, row), s, |r, row0, rows| {
             let n = rows as u64 * su;
-            let (tmin, top_base) = self.range(&src.min, row0 as u64 * su, n);
-            let (tmax, _) = self.range(&src.max, row0 as u64 * su, n);
+            let (tmin, tmax, top_base) = r.ranges(source, row0 as u64 * su, n);
             // Rows [row0 + h, min(row0 + rows + h, s)) exist only when row0 + h < s; otherwise the
             // shader never reads them and the top rows stand in for the binding.
             let b0 = row0 as u64 + h as u64;
             let (bmin, bmax, bot_base) = if b0 < su {
                 let bn = (su - b0).min(rows as u64) * su;
-                let (bmin, bot_base) = self.range(&src.min, b0 * su, bn);
-                let (bmax, _) = self.range(&src.max, b0 * su, bn);
-                (bmin, bmax, bot_base)
+                r.ranges(source, b0 * su, bn)
             } else {
-                let (bmin, _) = self.range(&src.min, row0 as u64 * su, n);
-                let (bmax, _) = self.range(&src.max, row0 as u64 * su, n);
+                let (bmin, bmax, _) = r.ranges(source, row0 as u64 * su, n);
                 (bmin, bmax, 0)
             };
-            let (outmin, out_base) = self.range(&omin, row0 as u64 * su, n);
-            let (outmax, _) = self.range(&omax, row0 as u64 * su, n);
+            let (outmin, outmax, out_base) = r.ranges((&omin, &omax), row0 as u64 * su, n);
             let mut params = Self::params(s, s, h, row0, rows);
             params.top_base = top_base;
             params.bot_base = bot_base;
             params.out_base = out_base;
-            self.dispatches.push(Dispatch {
-                kind: Kind::Step,
-                params,
-                texture: None,
-                buffers: vec![
-                    (3, tmin),
-                    (4, tmax),
-                    (5, bmin),
-                    (6, bmax),
-                    (7, outmin),
-                    (8, outmax),
-                ],
-                groups: (s.div_ceil(MSSM_WORKGROUP), rows.div_ceil(MSSM_WORKGROUP)),
-            });
-            row0 += rows;
-        }
+            let buffers = vec![
+                (3, tmin),
+                (4, tmax),
+                (5, bmin),
+                (6, bmax),
+                (7, outmin),
+                (8, outmax),
+            ];
+            (Kind::Step, params, None, buffers)
+        })?;
         Ok(GpuMinMaxLevel {
             size: s,
             min: omin,
@@ -417,35 +443,22 @@ impl<'a> Recorder<'a> {
     fn reduce(&mut self, src: &GpuMinMaxLevel, label: &str) -> Result<GpuMinMaxLevel> {
         let sp = src.size;
         let sd = sp.div_ceil(2);
-        let (omin, omax) = (
-            self.plane(sd, &format!("{label}.min"))?,
-            self.plane(sd, &format!("{label}.max"))?,
-        );
+        let (omin, omax) = self.planes(sd, label)?;
         let spu = sp as u64;
         let row = 2 * spu * 4;
-        let per = self.rows_per_chunk(spu * spu * 4, row, sd)?;
-        let mut row0 = 0;
-        while row0 < sd {
-            let rows = per.min(sd - row0);
+        self.chunked((spu * spu * 4, row), sd, |r, row0, rows| {
             let src_first = 2 * row0 as u64;
             let src_rows = (2 * rows as u64).min(spu - src_first);
-            let (tmin, top_base) = self.range(&src.min, src_first * spu, src_rows * spu);
-            let (tmax, _) = self.range(&src.max, src_first * spu, src_rows * spu);
+            let (tmin, tmax, top_base) =
+                r.ranges((&src.min, &src.max), src_first * spu, src_rows * spu);
             let n = rows as u64 * sd as u64;
-            let (outmin, out_base) = self.range(&omin, row0 as u64 * sd as u64, n);
-            let (outmax, _) = self.range(&omax, row0 as u64 * sd as u64, n);
+            let (outmin, outmax, out_base) = r.ranges((&omin, &omax), row0 as u64 * sd as u64, n);
             let mut params = Self::params(sp, sd, 0, row0, rows);
             params.top_base = top_base;
             params.out_base = out_base;
-            self.dispatches.push(Dispatch {
-                kind: Kind::Reduce,
-                params,
-                texture: None,
-                buffers: vec![(3, tmin), (4, tmax), (7, outmin), (8, outmax)],
-                groups: (sd.div_ceil(MSSM_WORKGROUP), rows.div_ceil(MSSM_WORKGROUP)),
-            });
-            row0 += rows;
-        }
+            let buffers = vec![(3, tmin), (4, tmax), (7, outmin), (8, outmax)];
+            (Kind::Reduce, params, None, buffers)
+        })?;
         Ok(GpuMinMaxLevel {
             size: sd,
             min: omin,
@@ -472,12 +485,7 @@ impl<'a> Recorder<'a> {
             let at = k * stride as usize;
             bytes[at..at + psize as usize].copy_from_slice(bytemuck::bytes_of(&d.params));
         }
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("mssm.params"),
-            size: bytes.len() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let params = uniform_buffer(self.ctx, "mssm.params", bytes.len() as u64);
         self.ctx.queue.write_buffer(&params, 0, &bytes);
         let dispatches = self
             .dispatches

@@ -8,7 +8,7 @@
 //! ```
 use super::{
     depth_map::{upload_len_error, GpuDepthMap},
-    kernel::{buffer_init, Binding, Kernel},
+    kernel::{buffer_init, uniform_buffer, Binding, Kernel},
     GpuContext,
 };
 use crate::{
@@ -268,12 +268,11 @@ impl GpuUnorm16Frame {
             let codes = code_buffer(ctx, layer.size);
             let slots = (0..slots.max(1))
                 .map(|_| {
-                    let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("unorm16 frame params"),
-                        size: std::mem::size_of::<EncodeParams>() as u64,
-                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    });
+                    let params = uniform_buffer(
+                        ctx,
+                        "unorm16 frame params",
+                        std::mem::size_of::<EncodeParams>() as u64,
+                    );
                     let group = encoder.group(ctx, &params, layer, &codes);
                     (params, group)
                 })

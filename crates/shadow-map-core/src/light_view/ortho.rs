@@ -225,25 +225,12 @@ mod tests {
         light_view::{FitMode, LightView, NearFar, Projection, ViewOptions},
         receivers::Receivers,
         scene::Scene,
+        test_geometry::square,
     };
     use glam::{Vec2, Vec3};
 
     /// A 20 x 20 ground and a 1 x 1 x 1 box standing on it, under a 4-degree sun.
     fn scene() -> Scene {
-        let quad = |y: f32, h: f32| {
-            vec![
-                [
-                    Vec3::new(-h, y, -h),
-                    Vec3::new(-h, y, h),
-                    Vec3::new(h, y, h),
-                ],
-                [
-                    Vec3::new(-h, y, -h),
-                    Vec3::new(h, y, h),
-                    Vec3::new(h, y, -h),
-                ],
-            ]
-        };
         let cam = Camera {
             eye: Vec3::new(0.0, 5.0, 8.0),
             target: Vec3::ZERO,
@@ -257,7 +244,7 @@ mod tests {
             "sun-box",
             cam,
             light,
-            vec![(quad(0.0, 10.0), 1.0), (quad(1.0, 0.5), 1.0)],
+            vec![(square(0.0, 10.0), 1.0), (square(1.0, 0.5), 1.0)],
         )
         .unwrap()
     }

@@ -56,6 +56,18 @@ pub fn load_obj_triangles(path: &Path) -> Result<Vec<[Vec3; 3]>> {
     Ok(tris)
 }
 
+/// A line's fields after its keyword, or the reason "`needs`, got N" when there are fewer than 3.
+fn at_least_three<'a>(
+    fields: impl Iterator<Item = &'a str>,
+    needs: &str,
+) -> std::result::Result<Vec<&'a str>, String> {
+    let fields: Vec<&str> = fields.collect();
+    if fields.len() < 3 {
+        return Err(format!("{needs}, got {}", fields.len()));
+    }
+    Ok(fields)
+}
+
 fn prescan(path: &Path, text: &str) -> Result<()> {
     let mut nv: i64 = 0;
     for (ln, raw) in text.lines().enumerate() {
@@ -68,13 +80,7 @@ fn prescan(path: &Path, text: &str) -> Result<()> {
         let mut it = line.split_whitespace();
         match it.next() {
             Some("v") => {
-                let vals: Vec<&str> = it.collect();
-                if vals.len() < 3 {
-                    return Err(err(format!(
-                        "vertex needs 3 coordinates, got {}",
-                        vals.len()
-                    )));
-                }
+                let vals = at_least_three(it, "vertex needs 3 coordinates").map_err(err)?;
                 for s in &vals[..3] {
                     match s.parse::<f32>() {
                         Ok(x) if x.is_finite() => {}
@@ -88,13 +94,7 @@ fn prescan(path: &Path, text: &str) -> Result<()> {
                 nv += 1;
             }
             Some("f") => {
-                let refs: Vec<&str> = it.collect();
-                if refs.len() < 3 {
-                    return Err(err(format!(
-                        "face needs at least 3 vertices, got {}",
-                        refs.len()
-                    )));
-                }
+                let refs = at_least_three(it, "face needs at least 3 vertices").map_err(err)?;
                 for r in refs {
                     let first = r.split('/').next().unwrap_or("");
                     let i: i64 = first

@@ -456,18 +456,7 @@ fn ribbon(a: Vec3, b: Vec3, side: Vec3, w: f32) -> Vec<[Vec3; 3]> {
 /// `eye` looking at the origin.
 fn strand_scene(seed: u64, star: bool, g: f32, eye: Vec3, w: u32, h: u32) -> Result<Scene, Error> {
     let mut r = Mix(seed);
-    let mut tris = vec![
-        [
-            Vec3::new(-g, 0.0, -g),
-            Vec3::new(-g, 0.0, g),
-            Vec3::new(g, 0.0, g),
-        ],
-        [
-            Vec3::new(-g, 0.0, -g),
-            Vec3::new(g, 0.0, g),
-            Vec3::new(g, 0.0, -g),
-        ],
-    ];
+    let mut tris = test_support::fixtures::quad(-g, -g, g, g, 0.0);
     let mut rods = Vec::new();
     if star {
         let c = Vec3::new(r.range(-0.3, 0.3), 0.6, r.range(-0.3, 0.3));

@@ -38,40 +38,80 @@ fn good_scene_loads() {
     assert!(s.is_opaque());
 }
 
+/// One `GOOD.replace(from, to)` edit per row, each expected to fail with every needle.
+type Edit<'a> = (&'a str, &'a str, &'a [&'a str]);
+
+fn expect_edit_errs(edits: &[Edit]) {
+    for &(from, to, needles) in edits {
+        assert!(GOOD.contains(from), "edit {from:?} does not apply");
+        expect_err(&GOOD.replace(from, to), QUAD, needles);
+    }
+}
+
 #[test]
 fn unknown_key() {
-    let t = GOOD.replace("fov_y_deg = 40.0", "fov_y_deg = 40.0\nzoom = 2.0");
-    expect_err(&t, QUAD, &["scene.toml", "zoom", "line"]);
+    expect_edit_errs(&[(
+        "fov_y_deg = 40.0",
+        "fov_y_deg = 40.0\nzoom = 2.0",
+        &["scene.toml", "zoom", "line"],
+    )]);
 }
 
 #[test]
 fn missing_key() {
-    let t = GOOD.replace("target = [0.0, 0.5, 0.0]\n", "");
-    expect_err(&t, QUAD, &["scene.toml", "target"]);
+    expect_edit_errs(&[("target = [0.0, 0.5, 0.0]\n", "", &["scene.toml", "target"])]);
 }
 
 #[test]
 fn wrong_type() {
-    let t = GOOD.replace("width = 32", "width = \"wide\"");
-    expect_err(&t, QUAD, &["scene.toml", "line 7", "expected u32"]);
+    expect_edit_errs(&[(
+        "width = 32",
+        "width = \"wide\"",
+        &["scene.toml", "line 7", "expected u32"],
+    )]);
 }
 
 #[test]
 fn non_finite_numbers() {
-    let t = GOOD.replace("center = [0.0, 6.0, 0.0]", "center = [0.0, nan, 0.0]");
-    expect_err(&t, QUAD, &["light.center", "finite"]);
-    let t = GOOD.replace("fov_y_deg = 40.0", "fov_y_deg = inf");
-    expect_err(&t, QUAD, &["camera.fov_y_deg"]);
+    expect_edit_errs(&[
+        (
+            "center = [0.0, 6.0, 0.0]",
+            "center = [0.0, nan, 0.0]",
+            &["light.center", "finite"],
+        ),
+        ("fov_y_deg = 40.0", "fov_y_deg = inf", &["camera.fov_y_deg"]),
+    ]);
 }
 
 #[test]
 fn zero_size_and_degenerate_lights() {
-    let t = GOOD.replace("size = [2.0, 2.0]", "size = [0.0, 2.0]");
-    expect_err(&t, QUAD, &["light.size", "> 0"]);
-    let t = GOOD.replace("tangent = [1.0, 0.0, 0.0]", "tangent = [0.0, 2.0, 0.0]");
-    expect_err(&t, QUAD, &["light.tangent", "parallel"]);
-    let t = GOOD.replace("normal = [0.0, -1.0, 0.0]", "normal = [0.0, 0.0, 0.0]");
-    expect_err(&t, QUAD, &["light.normal", "zero"]);
+    expect_edit_errs(&[
+        (
+            "size = [2.0, 2.0]",
+            "size = [0.0, 2.0]",
+            &["light.size", "> 0"],
+        ),
+        (
+            "tangent = [1.0, 0.0, 0.0]",
+            "tangent = [0.0, 2.0, 0.0]",
+            &["light.tangent", "parallel"],
+        ),
+        (
+            "normal = [0.0, -1.0, 0.0]",
+            "normal = [0.0, 0.0, 0.0]",
+            &["light.normal", "zero"],
+        ),
+        (
+            "shape = \"rect\"",
+            "shape = \"tube\"",
+            &["light.shape", "tube"],
+        ),
+        (
+            "size = [2.0, 2.0]",
+            "size = [2.0, 2.0]\nradius = 1.0",
+            &["light.radius", "rect"],
+        ),
+    ]);
     let disk = GOOD
         .replace("shape = \"rect\"", "shape = \"disk\"")
         .replace(
@@ -79,45 +119,44 @@ fn zero_size_and_degenerate_lights() {
             "radius = -1.0",
         );
     expect_err(&disk, QUAD, &["light.radius"]);
-    let t = GOOD.replace("shape = \"rect\"", "shape = \"tube\"");
-    expect_err(&t, QUAD, &["light.shape", "tube"]);
-    let t = GOOD.replace("size = [2.0, 2.0]", "size = [2.0, 2.0]\nradius = 1.0");
-    expect_err(&t, QUAD, &["light.radius", "rect"]);
 }
 
 #[test]
 fn bad_camera() {
-    expect_err(
-        &GOOD.replace("width = 32", "width = 0"),
-        QUAD,
-        &["camera.width"],
-    );
-    expect_err(
-        &GOOD.replace("up = [0.0, 1.0, 0.0]", "up = [0.0, 2.5, 6.0]"),
-        QUAD,
-        &["camera.up", "parallel"],
-    );
-    expect_err(
-        &GOOD.replace("target = [0.0, 0.5, 0.0]", "target = [0.0, 3.0, 6.0]"),
-        QUAD,
-        &["camera.target"],
-    );
+    expect_edit_errs(&[
+        ("width = 32", "width = 0", &["camera.width"]),
+        (
+            "up = [0.0, 1.0, 0.0]",
+            "up = [0.0, 2.5, 6.0]",
+            &["camera.up", "parallel"],
+        ),
+        (
+            "target = [0.0, 0.5, 0.0]",
+            "target = [0.0, 3.0, 6.0]",
+            &["camera.target"],
+        ),
+    ]);
 }
 
 #[test]
 fn bad_mesh_keys() {
-    expect_err(
-        &GOOD.replace("path = \"quad.obj\"", "path = \"quad.obj\"\nopacity = 1.5"),
-        QUAD,
-        &["mesh[0].opacity"],
-    );
-    expect_err(
-        &GOOD.replace("path = \"quad.obj\"", "path = \"quad.obj\"\nscale = 0.0"),
-        QUAD,
-        &["mesh[0].scale"],
-    );
-    let t = GOOD.replace("[[mesh]]\npath = \"quad.obj\"\n", "");
-    expect_err(&t, QUAD, &["mesh", "no [[mesh]]"]);
+    expect_edit_errs(&[
+        (
+            "path = \"quad.obj\"",
+            "path = \"quad.obj\"\nopacity = 1.5",
+            &["mesh[0].opacity"],
+        ),
+        (
+            "path = \"quad.obj\"",
+            "path = \"quad.obj\"\nscale = 0.0",
+            &["mesh[0].scale"],
+        ),
+        (
+            "[[mesh]]\npath = \"quad.obj\"\n",
+            "",
+            &["mesh", "no [[mesh]]"],
+        ),
+    ]);
 }
 
 #[test]

@@ -144,18 +144,13 @@ impl GpuLayersFrame {
     /// Bytes of the layers, opacity planes, midpoints and MSSM family, counted as
     /// [`GpuLightSpace::bytes`] counts them.
     pub fn bytes(&self) -> usize {
-        let maps = self
-            .layers
-            .iter()
-            .chain(&self.midpoints)
-            .chain(&self.opacity);
         let set = &self.set;
         let family = (
             set.mssm.as_ref(),
             set.dual_mssm.as_ref(),
             set.pyramid.as_ref(),
         );
-        crate::gpu::light_space::maps_bytes(maps, family)
+        crate::gpu::light_space::maps_bytes([&self.layers, &self.midpoints, &self.opacity], family)
     }
 
     /// Render passes over the casters per `encode` (the peeled layers, the midpoints' extra one

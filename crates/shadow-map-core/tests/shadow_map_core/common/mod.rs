@@ -89,6 +89,16 @@ pub(crate) use good_scene_toml;
 #[allow(unused_imports)] // not every binary uses the GPU part
 pub use gpu::*;
 
+// test-support's GPU gate (`context_for_tests`), compiled here by path: this crate's
+// dev-dependency leaves test-support's `gpu` feature off, so that CPU-only test builds of this
+// crate stay CPU-only. Its other items are unused here; it reads `super::REQUIRE_GPU_ENV`.
+#[cfg(feature = "gpu")]
+#[path = "../../../../test-support/src/gate.rs"]
+#[allow(dead_code)]
+mod gate;
+#[cfg(feature = "gpu")]
+use test_support::REQUIRE_GPU_ENV;
+
 #[cfg(feature = "gpu")]
 mod gpu {
     use shadow_map_core::{
@@ -96,25 +106,8 @@ mod gpu {
         Error,
     };
     use std::sync::{Arc, OnceLock};
-    use test_support::REQUIRE_GPU_ENV;
 
-    /// The shared context, or `None` after printing a loud skip message; with
-    /// `SOFTSHADOW_REQUIRE_GPU=1` a missing adapter is a failure (an `Err`), never a skip. (As
-    /// `test_support::gate`, which needs test-support's `gpu` feature: this crate's dev-dependency
-    /// leaves it off, so that CPU-only test builds of this crate stay CPU-only.)
-    pub fn context_for_tests(test: &str) -> Result<Option<Arc<GpuContext>>, Error> {
-        match GpuContext::shared() {
-            Ok(c) => Ok(Some(c)),
-            Err(e) => {
-                if std::env::var(REQUIRE_GPU_ENV).is_ok_and(|v| v == "1") {
-                    Err(e)
-                } else {
-                    eprintln!("SKIPPED (no Vulkan adapter): {test}: {e}");
-                    Ok(None)
-                }
-            }
-        }
-    }
+    pub use super::gate::context_for_tests;
 
     /// The shared context and one object of the whole test binary.
     pub type Shared<T> = (Arc<GpuContext>, Arc<T>);
