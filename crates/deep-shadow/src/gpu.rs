@@ -54,7 +54,7 @@ use shadow_map_core::{
             buffer_range, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
             status_buffer, FrameEstimator, FrameInputs,
         },
-        kernel::{compute_pipeline, shader_module, uniform_buffer, Binding},
+        kernel::{bind_group_layout_at, compute_pipeline, shader_module, uniform_buffer, Binding},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
         receivers::RECEIVER_BYTES,
         shared::LightViewUniform,
@@ -397,12 +397,7 @@ impl DeepShadowFrame {
             GpuShadowMapper::new(&ctx)?.map_frame(&ctx, r, RasterOptions::default(), views)?;
         let module = shader_module(&ctx, "deep-shadow frame", FRAME_SHADER_PARTS)?;
         let layout = ctx.scoped("deep-shadow frame layout", || {
-            let entries: Vec<_> = BINDINGS.iter().map(|(k, b)| b.entry(*k)).collect();
-            ctx.device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("deep-shadow frame"),
-                    entries: &entries,
-                })
+            bind_group_layout_at(&ctx, "deep-shadow frame", BINDINGS)
         })?;
         let overrides: Vec<(&str, f64)> = OVERRIDES.iter().chain(OWN_OVERRIDES).copied().collect();
         let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, &overrides);

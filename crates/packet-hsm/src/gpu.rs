@@ -58,7 +58,7 @@ use shadow_map_core::{
             buffer_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
             FrameInputs,
         },
-        kernel::{compute_pipeline, shader_module, Binding},
+        kernel::{bind_group_layout_at, compute_pipeline, shader_module, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         receivers::RECEIVER_BYTES,
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
@@ -250,12 +250,7 @@ impl PacketHsmFrame {
         let texels = 4 * r as u64 * r as u64;
         let module = shader_module(&ctx, "packet-hsm frame", FRAME_SHADER_PARTS)?;
         let layout = ctx.scoped("packet-hsm frame layout", || {
-            let entries: Vec<_> = BINDINGS.iter().map(|(k, b)| b.entry(*k)).collect();
-            ctx.device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("packet-hsm frame"),
-                    entries: &entries,
-                })
+            bind_group_layout_at(&ctx, "packet-hsm frame", &BINDINGS)
         })?;
         let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, OVERRIDES);
         let (maps_pipe, setup_pipe, finish_pipe) =

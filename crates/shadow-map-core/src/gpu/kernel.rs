@@ -114,11 +114,18 @@ pub fn bind_group_layout(
     label: &str,
     bindings: &[Binding],
 ) -> wgpu::BindGroupLayout {
-    let entries: Vec<_> = bindings
-        .iter()
-        .zip(0u32..)
-        .map(|(b, k)| b.entry(k))
-        .collect();
+    let indexed: Vec<_> = (0u32..).zip(bindings.iter().copied()).collect();
+    bind_group_layout_at(ctx, label, &indexed)
+}
+
+/// The bind-group layout of `(binding index, kind)` pairs, for layouts whose indices are not
+/// `0..n` (a frame's bindings numbered as its WGSL declares them).
+pub fn bind_group_layout_at(
+    ctx: &GpuContext,
+    label: &str,
+    bindings: &[(u32, Binding)],
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = bindings.iter().map(|&(k, b)| b.entry(k)).collect();
     ctx.device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),
