@@ -35,7 +35,7 @@ use cpu_time::ThreadTime;
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
-        frame::{FrameEstimator, FrameInputs, FrameTimestamps},
+        frame::{FrameEstimator, FrameInputs, FrameTimestamps, Views},
         receivers::GpuReceivers,
         GpuContext, GpuGBuffer, GpuScene,
     },
@@ -181,7 +181,7 @@ const WARM_ENCODES: u32 = 2000;
 /// into `v`, no timestamps.
 fn frame_inputs<'a>(
     casters: &'a GpuScene,
-    views: &'a [Option<LightView>],
+    views: &'a Views,
     scene: &'a Scene,
     receivers: &'a GpuReceivers,
     v: &'a wgpu::Buffer,

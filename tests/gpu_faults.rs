@@ -17,11 +17,11 @@
 
 use shadow_map_core::{
     gpu::{
-        frame::{FrameEstimator, FrameInputs},
+        frame::{FrameEstimator, FrameInputs, Views},
         receivers::GpuReceivers,
         GpuContext, GpuScene,
     },
-    run, Error, LightView, Params, Receivers, Result, Scene, SoftShadowEstimator,
+    run, Error, Params, Receivers, Result, Scene, SoftShadowEstimator,
 };
 use softshadow::{MethodDescriptor, FRAME_ALGOS, METHODS};
 use std::{
@@ -101,7 +101,7 @@ impl Caller {
         })
     }
 
-    fn inputs<'a>(&'a self, scene: &'a Scene, views: &'a [Option<LightView>]) -> FrameInputs<'a> {
+    fn inputs<'a>(&'a self, scene: &'a Scene, views: &'a Views) -> FrameInputs<'a> {
         FrameInputs {
             casters: &self.casters,
             views,

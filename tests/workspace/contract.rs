@@ -26,6 +26,22 @@ fn registry_is_complete_and_defaults_parse() {
 }
 
 #[test]
+fn every_report_setting_applies_to_its_method() {
+    for m in softshadow::METHODS {
+        for quick in [true, false] {
+            for setting in m.sweep(quick) {
+                let mut e = m.cpu().unwrap();
+                for (k, v) in &setting {
+                    if let Err(err) = e.set_param(k, v) {
+                        panic!("{}: report setting {setting:?}: {err}", m.name());
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn every_estimator_keeps_the_contract_on_every_fixture() {
     let names = fixture_names();
     assert!(names.len() >= 5, "fixtures missing: {names:?}");

@@ -25,7 +25,7 @@ use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
-        frame::{
+        frame::{Views, 
             buffer_range, check_buffers, compute_pass, cpu_twin_v, single_view, status_buffer,
             FrameEstimator, FrameInputs,
         },
@@ -387,17 +387,12 @@ impl FrameEstimator for AccumulationFrame {
         Ok(())
     }
 
-    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+    fn caster_passes(&self, _views: &Views) -> u32 {
         self.layers.passes()
     }
 
     /// [`CpuAccumulation::build_in_view`], then its estimate (outside receivers settled).
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>> {
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>> {
         let view = *single_view(views)?;
         cpu_twin_v(CpuAccumulation::new()?, &self.params, receivers, |e, v| {
             e.build_in_view(scene, receivers, view)?;

@@ -3,43 +3,21 @@
 // `!(a > b)` is deliberate: true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod cpu;
-#[cfg(feature = "gpu")]
-pub mod gpu;
-pub mod math;
-pub mod settings;
+use shadow_map_core::method::Sweep;
 
-pub use cpu::CpuAccumulation;
-#[cfg(feature = "gpu")]
-pub use gpu::AccumulationFrame;
-pub use shadow_map_core::SoftShadowEstimator;
-
-use shadow_map_core::method::{MethodDescriptor, Sweep};
-
-/// Shadow accumulation in the registry: `accumulation`, its CPU twin and its engine path (also its
-/// GPU estimator, run by the core's `FrameTwin`).
-pub const DESCRIPTOR: MethodDescriptor = {
-    let d = MethodDescriptor::new(
-        "accumulation",
-        || Ok(Box::new(CpuAccumulation::new()?)),
-        SWEEP,
-    );
-    #[cfg(feature = "gpu")]
-    let d = d.with_frame(|ctx, params, _| Ok(Box::new(AccumulationFrame::prepare(ctx, params)?)));
-    d
-};
+// The modules (settings, math, cpu, gpu), the re-exports and `DESCRIPTOR`: see
+// `shadow_map_core::method_crate!`.
+shadow_map_core::method_crate! {
+    /// Shadow accumulation in the registry: `accumulation`, its CPU twin and its engine path (also its
+    /// GPU estimator, run by the core's `FrameTwin`).
+    "accumulation": CpuAccumulation,
+    AccumulationFrame = |ctx, params, _| AccumulationFrame::prepare(ctx, params),
+    SWEEP
+}
 
 /// The report's settings: the kernel size K (Aszodi section 3), the exact variant, a fixed
 /// kernel, and the resolution.
 const SWEEP: Sweep = Sweep {
-    quick: &[&[("resolution", "256")], &[("variant", "exact")]],
-    full: &[
-        &[("k", "3")],
-        &[("k", "5")],
-        &[("k", "15")],
-        &[("variant", "exact")],
-        &[("kernel", "fixed")],
-        &[("resolution", "256")],
-        &[("resolution", "2048")],
-    ],
+    quick: "resolution=256; variant=exact",
+    full: "k=3; k=5; k=15; variant=exact; kernel=fixed; resolution=256; resolution=2048",
 };

@@ -10,7 +10,9 @@ mod fixture;
 #[path = "common/headless.rs"]
 mod headless;
 
-use bevy_softshadow::Method;
+use bevy_softshadow::Method::{
+    self, Accumulation, Backprojection, DeepShadow, Hard, MultiSample, PacketHsm, Pcf, Pcss,
+};
 use shadow_map_core::Scene;
 
 fn fixture(name: &str, w: u32, h: u32) -> Scene {
@@ -101,47 +103,28 @@ fn check(scene: &Scene, methods: &[Method]) {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// `methods` in one app on the fixture `name` at 96 x 72 (the GPU gate named `test`).
+fn check_fixture(test: &str, name: &str, methods: &[Method]) {
+    if gpu(test) {
+        check(&fixture(name, 96, 72), methods);
+    }
+}
+
 #[test]
 fn bunny_rect_light_in_bevy() {
-    if !gpu("bunny_rect_light_in_bevy") {
-        return;
-    }
-    check(
-        &fixture("bunny", 96, 72),
-        &[
-            Method::Pcss,
-            Method::Backprojection,
-            Method::Accumulation,
-            Method::PacketHsm,
-        ],
-    );
+    let methods = [Pcss, Backprojection, Accumulation, PacketHsm];
+    check_fixture("bunny_rect_light_in_bevy", "bunny", &methods);
 }
 
 #[test]
 fn sun_bunny_in_bevy() {
-    if !gpu("sun_bunny_in_bevy") {
-        return;
-    }
-    check(
-        &fixture("sun-bunny", 96, 72),
-        &[
-            Method::Hard,
-            Method::Pcf,
-            Method::MultiSample,
-            Method::DeepShadow,
-        ],
-    );
+    let methods = [Hard, Pcf, MultiSample, DeepShadow];
+    check_fixture("sun_bunny_in_bevy", "sun-bunny", &methods);
 }
 
 #[test]
 fn sphere_light_in_bevy() {
-    if !gpu("sphere_light_in_bevy") {
-        return;
-    }
-    check(
-        &fixture("bunny-sphere", 96, 72),
-        &[Method::Pcss, Method::PacketHsm],
-    );
+    check_fixture("sphere_light_in_bevy", "bunny-sphere", &[Pcss, PacketHsm]);
 }
 
 /// A 200 m ground lit from 10 m up: one view over the whole box cannot hold it (a one-line

@@ -50,7 +50,7 @@ use shadow_map_core::{
     gpu::{
         depth_map::DEPTH_MAP_FORMAT,
         estimate::{EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES},
-        frame::{
+        frame::{Views, 
             buffer_range, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
             status_buffer, FrameEstimator, FrameInputs,
         },
@@ -722,12 +722,7 @@ impl FrameEstimator for DeepShadowFrame {
     }
 
     /// The CPU twin in the same views.
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>> {
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>> {
         let views: Vec<LightView> = views.iter().flatten().copied().collect();
         cpu_twin_v(CpuDeepShadow::new()?, &self.params, receivers, |e, v| {
             e.estimate_in_views(scene, receivers, &views, v)

@@ -54,7 +54,7 @@ use shadow_map_core::{
             EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL, SILHOUETTE_WGSL,
             WORKGROUP_SIZE,
         },
-        frame::{
+        frame::{Views, 
             buffer_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
             FrameInputs,
         },
@@ -751,12 +751,7 @@ impl FrameEstimator for PacketHsmFrame {
     /// receiver's [`setup_receiver`], then [`pixel_value`] (the per-pixel GBP07 with the
     /// configured traversal, what the kernel computes without packets), weighted and summed as
     /// [`crate::cpu::SubLights`] sums them.
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>> {
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>> {
         let half = self.sub_half(scene.light());
         let cfg = &self.cfg;
         self.cpu_sum(scene, receivers, views.len(), |slot, level| {

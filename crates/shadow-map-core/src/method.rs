@@ -9,31 +9,28 @@ use crate::{Result, SoftShadowEstimator};
 /// One report setting: `(key, value)` overrides of a method's defaults.
 pub type Setting = Vec<(&'static str, String)>;
 
-/// The settings `softshadow report` runs besides a method's defaults, as data: each setting a
-/// list of `(key, value)` overrides (checked against the method's table when the report runs).
+/// The settings `softshadow report` runs besides a method's defaults, as data: settings
+/// separated by `;`, each `key=value` overrides separated by spaces as `--param` takes them
+/// (checked against the method's table when the report runs).
 #[derive(Debug, Clone, Copy)]
 pub struct Sweep {
     /// The small set CI runs (`report --quick`).
-    pub quick: &'static [&'static [(&'static str, &'static str)]],
+    pub quick: &'static str,
     /// The full report's set.
-    pub full: &'static [&'static [(&'static str, &'static str)]],
+    pub full: &'static str,
 }
 
 impl Sweep {
     /// No settings besides the defaults (a method without a sweep: the reference).
     pub const NONE: Sweep = Sweep {
-        quick: &[],
-        full: &[],
+        quick: "",
+        full: "",
     };
 
     /// The shadow-map resolutions: 256 (quick), or 256, 512 and 2048 (full).
     pub const RESOLUTIONS: Sweep = Sweep {
-        quick: &[&[("resolution", "256")]],
-        full: &[
-            &[("resolution", "256")],
-            &[("resolution", "512")],
-            &[("resolution", "2048")],
-        ],
+        quick: "resolution=256",
+        full: "resolution=256; resolution=512; resolution=2048",
     };
 }
 
@@ -108,7 +105,10 @@ impl MethodDescriptor {
         } else {
             self.sweep.full
         };
-        set.iter().map(|pairs| setting(pairs)).collect()
+        set.split(';')
+            .filter(|line| !line.trim().is_empty())
+            .map(parse_setting)
+            .collect()
     }
 
     /// Whether this build has the method on the GPU (its engine path, run as an estimator by
@@ -160,4 +160,92 @@ impl MethodDescriptor {
 /// `(key, value)` pairs as one [`Setting`].
 pub fn setting(pairs: &[(&'static str, &str)]) -> Setting {
     pairs.iter().map(|(k, v)| (*k, v.to_string())).collect()
+}
+
+/// One setting of a sweep, `key=value` pairs separated by white space, as one [`Setting`]; a word without
+/// `=` sets its key to the empty value, which the method's table then refuses by name.
+fn parse_setting(line: &'static str) -> Setting {
+    line.split_whitespace()
+        .map(|kv| {
+            let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
+            (k, v.to_string())
+        })
+        .collect()
+}
+
+/// A method crate's root, the same in every method crate (docs/layout.md): its modules
+/// `settings` (typed parameters), `math` (pure, paper-cited), `cpu` (the CPU twin) and, with
+/// the crate's `gpu` feature, `gpu` (the frame); the re-exports of its CPU estimator and frame;
+/// and its registry entry `DESCRIPTOR`: the name, the CPU estimator's `new`, the frame's
+/// constructor `(ctx, params, max_receivers)` and the report's [`Sweep`].
+///
+/// ```ignore
+/// shadow_map_core::method_crate! {
+///     /// Shadow accumulation in the registry.
+///     "accumulation": CpuAccumulation,
+///     AccumulationFrame = |ctx, params, _| AccumulationFrame::prepare(ctx, params),
+///     SWEEP
+/// }
+/// ```
+#[macro_export]
+macro_rules! method_crate {
+    (
+        $(#[$meta:meta])*
+        $name:literal: $cpu:ident,
+        $frame:ident = $prepare:expr,
+        $sweep:expr $(,)?
+    ) => {
+        pub mod cpu;
+        #[cfg(feature = "gpu")]
+        pub mod gpu;
+        pub mod math;
+        pub mod settings;
+
+        pub use cpu::$cpu;
+        #[cfg(feature = "gpu")]
+        pub use gpu::$frame;
+        pub use $crate::SoftShadowEstimator;
+
+        $(#[$meta])*
+        pub const DESCRIPTOR: $crate::method::MethodDescriptor = {
+            let d = $crate::method::MethodDescriptor::new(
+                $name,
+                || Ok(Box::new($cpu::new()?)),
+                $sweep,
+            );
+            #[cfg(feature = "gpu")]
+            let d = d.with_frame(|ctx, params, n| Ok(Box::new(($prepare)(ctx, params, n)?)));
+            d
+        };
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn none() -> Result<Box<dyn SoftShadowEstimator>> {
+        Err(crate::Error::Receivers("no estimator".into()))
+    }
+
+    #[test]
+    fn a_sweep_reads_settings_separated_by_semicolons() {
+        let sweep = Sweep {
+            quick: "resolution=256",
+            full: " k=3; filter=pcf kernel=5 ;; flag",
+        };
+        let d = MethodDescriptor::new("toy", none, sweep);
+        assert_eq!(d.sweep(true), vec![vec![("resolution", "256".to_string())]]);
+        assert_eq!(
+            d.sweep(false),
+            vec![
+                vec![("k", "3".to_string())],
+                vec![("filter", "pcf".to_string()), ("kernel", "5".to_string())],
+                vec![("flag", String::new())],
+            ]
+        );
+        assert!(MethodDescriptor::new("toy", none, Sweep::NONE)
+            .sweep(false)
+            .is_empty());
+    }
 }

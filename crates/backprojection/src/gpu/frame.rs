@@ -5,7 +5,7 @@ use crate::cpu::{plan, CpuBackprojection};
 use shadow_map_core::{
     gpu::{
         estimate::EstimateUniform,
-        frame::{
+        frame::{Views, 
             buffer_range, check_buffers, cpu_twin_v, single_view, status_buffer, FrameEstimator,
             FrameInputs,
         },
@@ -205,17 +205,12 @@ impl FrameEstimator for BackprojectionFrame {
         Ok(())
     }
 
-    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+    fn caster_passes(&self, _views: &Views) -> u32 {
         self.layers.passes()
     }
 
     /// [`CpuBackprojection::build_in_view`], then its estimate.
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>> {
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>> {
         let view = *single_view(views)?;
         cpu_twin_v(
             CpuBackprojection::new()?,

@@ -45,7 +45,7 @@ pub fn prepare(ctx: &Arc<GpuContext>, params: &Params) -> Result<BackprojectionF
 pub fn frame_maps(
     ctx: &GpuContext,
     frame: &BackprojectionFrame,
-    views: &[Option<LightView>],
+    views: &Views,
 ) -> Result<LightSpace, String> {
     let view = views.first().copied().flatten().ok_or("frame: no view")?;
     frame

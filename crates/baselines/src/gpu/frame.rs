@@ -28,7 +28,7 @@ use shadow_map_core::{
         estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
         frame::{
             buffer_range, check_buffers, check_per_receiver, check_prepared_inputs, compute_pass,
-            cpu_twin_v, single_view, status_buffer,
+            cpu_twin_v, single_view, status_buffer, Views,
         },
         receivers::RECEIVER_BYTES,
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
@@ -161,16 +161,11 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         Ok(())
     }
 
-    fn caster_passes(&self, _views: &[Option<LightView>]) -> u32 {
+    fn caster_passes(&self, _views: &Views) -> u32 {
         1
     }
 
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>> {
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>> {
         let view = *single_view(views)?;
         cpu_twin_v(
             MapEstimator::<F>::new()?,
@@ -314,7 +309,7 @@ impl MultiSampleFrame {
     /// view present. Recorded with one sub-light's view present, that sub-light's map: what a
     /// test reads back ([`GpuLightSpace::to_cpu`]) to run the CPU twin on
     /// ([`MultiSample::estimate_in_light_spaces`]).
-    pub fn light_space(&self, views: &[Option<LightView>]) -> Option<GpuLightSpace> {
+    pub fn light_space(&self, views: &Views) -> Option<GpuLightSpace> {
         let (slot, view) = views
             .iter()
             .enumerate()
@@ -462,12 +457,7 @@ impl FrameEstimator for MultiSampleFrame {
         Ok(())
     }
 
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>> {
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>> {
         cpu_twin_v(MultiSample::new()?, &self.params, receivers, |e, v| {
             e.estimate_in_views(scene, receivers, views, v)
         })

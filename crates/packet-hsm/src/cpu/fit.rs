@@ -318,18 +318,15 @@ impl DualFit {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{Vec2, Vec3};
-    use shadow_map_core::{light::LightFrame, LightView, ReceiverPlane};
+    use glam::Vec3;
+    use shadow_map_core::{LightView, ReceiverPlane};
 
+    /// A view down the world's z axis (window [-1, 1]^2, near 0.5, far 40).
     fn view(r: u32) -> LightView {
         LightView {
-            frame: LightFrame::new(Vec3::ZERO, Vec3::Z, Vec3::X).unwrap(),
             n: 0.5,
             far: 40.0,
-            w: 2.0,
-            window_min: Vec2::splat(-1.0),
-            r,
-            projection: Default::default(),
+            ..LightView::placeholder(r)
         }
     }
 

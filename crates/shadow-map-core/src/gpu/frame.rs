@@ -82,7 +82,7 @@ pub trait FrameEstimator: Send + Sync {
     /// Render passes over the casters one frame records in `views` (peeled layers, sub-lights):
     /// what a frame's raster work is, in units of the casters' triangles. The default: one per
     /// view present.
-    fn caster_passes(&self, views: &[Option<LightView>]) -> u32 {
+    fn caster_passes(&self, views: &Views) -> u32 {
         views.iter().flatten().count() as u32
     }
 
@@ -111,12 +111,7 @@ pub trait FrameEstimator: Send + Sync {
 
     /// The CPU twin's V for `receivers` in the same `views` (what the conformance check and
     /// `examples/frame_loop.rs` compare a frame with).
-    fn cpu_twin(
-        &self,
-        scene: &Scene,
-        receivers: &Receivers,
-        views: &[Option<LightView>],
-    ) -> Result<Vec<f32>>;
+    fn cpu_twin(&self, scene: &Scene, receivers: &Receivers, views: &Views) -> Result<Vec<f32>>;
 }
 
 /// What the last submitted frame counted ([`FrameEstimator::decode_status`]).
@@ -175,7 +170,7 @@ pub fn finish_on_cpu(
     ctx: &GpuContext,
     scene: &Scene,
     receivers: &Receivers,
-    views: &[Option<LightView>],
+    views: &Views,
     v: &mut [f32],
     report: &mut Report,
 ) -> Result<()> {
@@ -216,7 +211,7 @@ pub fn finish_on_cpu(
 
 /// The one view of a single-view method's frame: `views` must hold exactly one, present
 /// ([`Error::LightView`] otherwise).
-pub fn single_view(views: &[Option<LightView>]) -> Result<&LightView> {
+pub fn single_view(views: &Views) -> Result<&LightView> {
     match views {
         [Some(v)] => Ok(v),
         _ => Err(Error::LightView(format!(
@@ -227,6 +222,10 @@ pub fn single_view(views: &[Option<LightView>]) -> Result<&LightView> {
     }
 }
 
+/// A frame's light views, one per slot (cascades, direction tiles, sub-lights); `None` for a
+/// slot no receiver needs this frame ([`FrameEstimator::fit_views`]).
+pub type Views = [Option<LightView>];
+
 /// What one frame reads and writes, all the caller's.
 #[derive(Debug, Clone, Copy)]
 pub struct FrameInputs<'a> {
@@ -235,7 +234,7 @@ pub struct FrameInputs<'a> {
     pub casters: &'a GpuScene,
     /// The frame's light views ([`FrameEstimator::fit_views`]), at the resolution the frame
     /// was prepared with.
-    pub views: &'a [Option<LightView>],
+    pub views: &'a Views,
     /// The light.
     pub light: &'a Light,
     /// The receivers: an array of the core's `ReceiverGpu` (32 bytes each), `STORAGE` usage.
