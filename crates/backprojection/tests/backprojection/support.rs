@@ -5,7 +5,10 @@
 
 use backprojection::{BackprojectionFrame, CpuBackprojection};
 use shadow_map_core::{
-    gpu::{frame::FrameStatus, GpuContext},
+    gpu::{
+        frame::{FrameStatus, Views},
+        GpuContext,
+    },
     light_space::LightSpace,
     LightView, Receivers, Scene, SoftShadowEstimator,
 };
