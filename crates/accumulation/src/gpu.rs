@@ -24,15 +24,15 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use shadow_map_core::{
     gpu::{
-        estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES},
         frame::{Views, 
-            buffer_range, check_buffers, compute_pass, cpu_twin_v, single_view, status_buffer,
+            check_buffers, compute_pass, receiver_ranges, cpu_twin_v, single_view, status_buffer,
             FrameEstimator, FrameInputs,
         },
         kernel::{Binding, Kernel},
         layout::{GpuLayout, KernelMaps},
         raster::{GpuLayersFrame, GpuShadowMapper},
-        receivers::{RECEIVERS_WGSL, RECEIVER_BYTES},
+        receivers::RECEIVERS_WGSL,
         GpuContext,
     },
     light_view::LightView,
@@ -366,23 +366,25 @@ impl FrameEstimator for AccumulationFrame {
         if n == 0 {
             return Ok(());
         }
-        let group = self.kernel.bind_group(
-            ctx,
-            LABEL,
-            &[
-                self.layers.view_uniform().as_entire_binding(),
-                self.est.as_entire_binding(),
-                self.acc.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&self.km.maps.view),
-                wgpu::BindingResource::TextureView(&self.km.mssm.view),
-                self.tables.as_entire_binding(),
-                buffer_range(inputs.receivers, n * RECEIVER_BYTES),
-                buffer_range(inputs.v, n * 4),
-                self.status.as_entire_binding(),
-            ],
-        );
-        let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
-        compute_pass(enc, LABEL, &self.kernel.pipeline, &group, [wg, 1, 1]);
+        // One dispatch per range of receivers (a 4K view is two under the default limits).
+        for range in receiver_ranges(ctx, inputs.count) {
+            let group = self.kernel.bind_group(
+                ctx,
+                LABEL,
+                &[
+                    self.layers.view_uniform().as_entire_binding(),
+                    self.est.as_entire_binding(),
+                    self.acc.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&self.km.maps.view),
+                    wgpu::BindingResource::TextureView(&self.km.mssm.view),
+                    self.tables.as_entire_binding(),
+                    range.receivers(inputs.receivers),
+                    range.words(inputs.v),
+                    self.status.as_entire_binding(),
+                ],
+            );
+            compute_pass(enc, LABEL, &self.kernel.pipeline, &group, range.workgroups());
+        }
         inputs.mark(enc, "estimate");
         Ok(())
     }

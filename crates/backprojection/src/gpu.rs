@@ -17,9 +17,8 @@ use shadow_map_core::{
     gpu::{
         estimate::{
             EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
-            WORKGROUP_SIZE,
         },
-        frame::compute_pass,
+        frame::{compute_pass, receiver_ranges},
         kernel::{Binding, Kernel},
         layout::KernelMaps,
         receivers::RECEIVERS_WGSL,
@@ -137,9 +136,9 @@ impl BpKernel {
         Ok(BpKernel { kernel })
     }
 
-    /// Records the kernel's pass into `enc`: one dispatch over `count` receivers of the
-    /// `receivers` binding, V bits into the `v` binding, the counters added to `counters`
-    /// (nothing dispatched for no receivers).
+    /// Records the kernel's passes into `enc`: one dispatch per [`receiver_ranges`] range of the
+    /// first `count` receivers of `receivers`, V bits into `v`, the counters added to
+    /// `counters` (nothing dispatched for no receivers).
     #[allow(clippy::too_many_arguments)]
     fn encode(
         &self,
@@ -147,31 +146,29 @@ impl BpKernel {
         enc: &mut wgpu::CommandEncoder,
         bufs: &KernelUniforms,
         maps: &KernelMaps,
-        receivers: wgpu::BindingResource<'_>,
-        v: wgpu::BindingResource<'_>,
+        receivers: &wgpu::Buffer,
+        v: &wgpu::Buffer,
         count: u32,
         counters: &wgpu::Buffer,
     ) {
-        if count == 0 {
-            return;
+        for range in receiver_ranges(ctx, count) {
+            let group = self.kernel.bind_group(
+                ctx,
+                LABEL,
+                &[
+                    bufs.view.as_entire_binding(),
+                    bufs.est.as_entire_binding(),
+                    bufs.bp.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&maps.maps.view),
+                    wgpu::BindingResource::TextureView(&maps.mssm.view),
+                    range.receivers(receivers),
+                    range.words(v),
+                    counters.as_entire_binding(),
+                    bufs.bits.as_entire_binding(),
+                ],
+            );
+            compute_pass(enc, LABEL, &self.kernel.pipeline, &group, range.workgroups());
         }
-        let group = self.kernel.bind_group(
-            ctx,
-            LABEL,
-            &[
-                bufs.view.as_entire_binding(),
-                bufs.est.as_entire_binding(),
-                bufs.bp.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&maps.maps.view),
-                wgpu::BindingResource::TextureView(&maps.mssm.view),
-                receivers,
-                v,
-                counters.as_entire_binding(),
-                bufs.bits.as_entire_binding(),
-            ],
-        );
-        let wg = count.div_ceil(WORKGROUP_SIZE);
-        compute_pass(enc, LABEL, &self.kernel.pipeline, &group, [wg, 1, 1]);
     }
 }
 

@@ -14,9 +14,9 @@ struct DsFrameUniform {
     slope_bias: f32,
     receiver_plane: u32,
     pcss: u32,
-    count: u32,
     inv_views: f32,
     lists: u32,
+    _pad0: u32,
     _pad1: u32,
 }
 
@@ -24,6 +24,7 @@ struct DsFrameUniform {
 // The view's light (cpu.rs view_light) in frame_lookup, the scene's light in frame_finish.
 @group(0) @binding(9) var<uniform> flight: EstimateUniform;
 @group(0) @binding(10) var depth_map: texture_2d<f32>;
+// Bindings 11 to 13 hold one range of the frame's receivers (gpu.rs ReceiverRange).
 @group(0) @binding(11) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(12) var<storage, read_write> acc: array<f32>;
 @group(0) @binding(13) var<storage, read_write> v_out: array<u32>;
@@ -83,7 +84,7 @@ fn frame_query(pw: vec3<f32>, nw: vec3<f32>) -> array<vec4<f32>, 2> {
 fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_id) lid: vec3<u32>) {
     let k = linear_id(wid, nwg, lid);
-    if (k >= F.count || receivers[k].is_active == 0u) { return; }
+    if (k >= arrayLength(&v_out) || receivers[k].is_active == 0u) { return; }
     // Cut short in an earlier view: stays cut.
     if (bitcast<u32>(acc[k]) == CUT_BITS) { return; }
     let q = frame_query(receivers[k].position, receivers[k].normal);
@@ -117,7 +118,7 @@ fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
 fn frame_finish(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_id) lid: vec3<u32>) {
     let k = linear_id(wid, nwg, lid);
-    if (k >= F.count) { return; }
+    if (k >= arrayLength(&v_out)) { return; }
     if (receivers[k].is_active == 0u) {
         v_out[k] = NAN_BITS;
         return;

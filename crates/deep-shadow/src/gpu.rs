@@ -51,12 +51,11 @@ use shadow_map_core::{
         depth_map::DEPTH_MAP_FORMAT,
         estimate::{EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES},
         frame::{Views, 
-            buffer_range, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
-            status_buffer, FrameEstimator, FrameInputs,
+            check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v, receiver_ranges,
+            status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
         },
         kernel::{bind_group_layout_at, compute_pipeline, shader_module, uniform_buffer, Binding},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
-        receivers::RECEIVER_BYTES,
         shared::LightViewUniform,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
@@ -107,12 +106,12 @@ pub struct DsFrameUniform {
     pub receiver_plane: u32,
     /// 1: `filter=pcss`, whose facing factor is the fraction of the view's light in front.
     pub pcss: u32,
-    /// Receivers this frame.
-    pub count: u32,
     /// `1 / views`.
     pub inv_views: f32,
     /// 1: semi-transparent casters, looked up in the lists (`insert.wgsl`); 0: the opaque path.
     pub lists: u32,
+    /// Padding.
+    pub _pad0: u32,
     /// Padding.
     pub _pad1: u32,
 }
@@ -502,8 +501,8 @@ impl DeepShadowFrame {
         light: &wgpu::Buffer,
         nodes: &wgpu::Buffer,
         inputs: &FrameInputs<'_>,
+        range: ReceiverRange,
     ) -> wgpu::BindGroup {
-        let n = inputs.count.max(1) as u64;
         let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         self.ctx
             .device
@@ -518,9 +517,9 @@ impl DeepShadowFrame {
                     e(8, view.as_entire_binding()),
                     e(9, light.as_entire_binding()),
                     e(10, wgpu::BindingResource::TextureView(&self.map.layer.view)),
-                    e(11, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
-                    e(12, buffer_range(&self.acc, n * 4)),
-                    e(13, buffer_range(inputs.v, n * 4)),
+                    e(11, range.receivers(inputs.receivers)),
+                    e(12, range.words(&self.acc)),
+                    e(13, range.words(inputs.v)),
                     e(14, self.status.as_entire_binding()),
                     e(15, self.frame.as_entire_binding()),
                 ],
@@ -613,7 +612,6 @@ impl FrameEstimator for DeepShadowFrame {
             slope_bias: s.slope_bias,
             receiver_plane: u32::from(s.receiver_plane),
             pcss: u32::from(s.filter == Filter::Pcss),
-            count: inputs.count,
             inv_views: 1.0 / views.len().max(1) as f32,
             lists: u32::from(lists),
             ..Default::default()
@@ -625,6 +623,9 @@ impl FrameEstimator for DeepShadowFrame {
             return Ok(());
         }
         let texels = self.map.r as u64 * self.map.r as u64;
+        // The per-receiver passes run once per range of receivers (its own bind group); the
+        // per-texel passes bind the first range's group, whose receivers they do not read.
+        let ranges = receiver_ranges(&self.ctx, inputs.count);
         let nodes = self.lists.nodes(&self.ctx, lists)?;
         let list_group = lists.then(|| {
             let entries: Vec<_> = [&self.head, &nodes, &self.lists.counters]
@@ -660,13 +661,20 @@ impl FrameEstimator for DeepShadowFrame {
                 0,
                 bytemuck::bytes_of(&EstimateUniform::new(&vl, s.bias, s.slope_bias)),
             );
-            let group = self.group(
-                &bufs.ds,
-                self.map.view_uniform(slot),
-                &bufs.light,
-                &nodes,
-                inputs,
-            );
+            let groups: Vec<_> = ranges
+                .iter()
+                .map(|&r| {
+                    self.group(
+                        &bufs.ds,
+                        self.map.view_uniform(slot),
+                        &bufs.light,
+                        &nodes,
+                        inputs,
+                        r,
+                    )
+                })
+                .collect();
+            let group = &groups[0];
             if let Some(list_group) = &list_group {
                 queue.write_buffer(
                     self.map.view_uniform(slot),
@@ -675,7 +683,7 @@ impl FrameEstimator for DeepShadowFrame {
                 );
                 self.lists.encode(
                     enc,
-                    (&group, list_group),
+                    (group, list_group),
                     slot,
                     inputs.casters,
                     &self.map.layer.view,
@@ -689,34 +697,39 @@ impl FrameEstimator for DeepShadowFrame {
                     enc,
                     "deep-shadow frame head",
                     &self.head_pipe,
-                    &group,
+                    group,
                     texels,
                 );
                 inputs.mark(enc, "heads");
             }
-            run(
-                enc,
-                "deep-shadow frame lookup",
-                &self.lookup_pipe,
-                &group,
-                n,
-            );
+            for (range, group) in ranges.iter().zip(&groups) {
+                run(
+                    enc,
+                    "deep-shadow frame lookup",
+                    &self.lookup_pipe,
+                    group,
+                    range.count as u64,
+                );
+            }
             inputs.mark(enc, "lookup");
         }
-        let group = self.group(
-            &self.slots[0].ds,
-            self.map.view_uniform(0),
-            &self.light,
-            &nodes,
-            inputs,
-        );
-        run(
-            enc,
-            "deep-shadow frame finish",
-            &self.finish_pipe,
-            &group,
-            n,
-        );
+        for &range in &ranges {
+            let group = self.group(
+                &self.slots[0].ds,
+                self.map.view_uniform(0),
+                &self.light,
+                &nodes,
+                inputs,
+                range,
+            );
+            run(
+                enc,
+                "deep-shadow frame finish",
+                &self.finish_pipe,
+                &group,
+                range.count as u64,
+            );
+        }
         inputs.mark(enc, "finish");
         Ok(())
     }

@@ -55,7 +55,7 @@ use shadow_map_core::{
             WORKGROUP_SIZE,
         },
         frame::{Views, 
-            buffer_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
+            buffer_range, check_one_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
             FrameInputs,
         },
         kernel::{bind_group_layout_at, compute_pipeline, shader_module, Binding},
@@ -541,6 +541,8 @@ impl PacketHsmFrame {
     /// [`FrameEstimator::encode`]'s checks of `inputs`: the receiver count (returned), the light,
     /// one present view per sub-light and opacity level; and the levels the frame renders.
     fn checked(&self, inputs: &FrameInputs<'_>) -> Result<(u64, Vec<OpacityLevel>)> {
+        // Every receiver in one dispatch (its per-receiver passes bind them all at once).
+        check_one_range(&self.kernel.ctx, inputs.count as u64)?;
         let n = check_prepared_inputs(
             &self.kernel.ctx,
             inputs,

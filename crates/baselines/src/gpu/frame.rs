@@ -25,12 +25,11 @@ use crate::{
 pub use shadow_map_core::gpu::frame::{FrameEstimator, FrameInputs};
 use shadow_map_core::{
     gpu::{
-        estimate::{EstimateUniform, OVERRIDES, WORKGROUP_SIZE},
+        estimate::{EstimateUniform, OVERRIDES},
         frame::{
-            buffer_range, check_buffers, check_per_receiver, check_prepared_inputs, compute_pass,
-            cpu_twin_v, single_view, status_buffer, Views,
+            check_buffers, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
+            receiver_ranges, single_view, status_buffer, Views,
         },
-        receivers::RECEIVER_BYTES,
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
@@ -142,21 +141,23 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         if n == 0 {
             return Ok(());
         }
-        let group = kernel::bind_group(
-            &self.ctx,
-            "frame estimate",
-            &self.layout,
-            &[
-                self.map.raster.view_uniform(0).as_entire_binding(),
-                self.est.as_entire_binding(),
-                self.map.binding(),
-                buffer_range(inputs.receivers, n * RECEIVER_BYTES),
-                buffer_range(inputs.v, n * 4),
-                self.status.as_entire_binding(),
-            ],
-        );
-        let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
-        compute_pass(enc, "frame estimate", &self.pipeline, &group, [wg, 1, 1]);
+        for range in receiver_ranges(&self.ctx, inputs.count) {
+            let group = kernel::bind_group(
+                &self.ctx,
+                "frame estimate",
+                &self.layout,
+                &[
+                    self.map.raster.view_uniform(0).as_entire_binding(),
+                    self.est.as_entire_binding(),
+                    self.map.binding(),
+                    range.receivers(inputs.receivers),
+                    range.words(inputs.v),
+                    self.status.as_entire_binding(),
+                ],
+            );
+            let wg = range.workgroups();
+            compute_pass(enc, "frame estimate", &self.pipeline, &group, wg);
+        }
         inputs.mark(enc, "estimate");
         Ok(())
     }
@@ -396,22 +397,34 @@ impl FrameEstimator for MultiSampleFrame {
             return Ok(());
         }
         let k = &self.kernels;
-        let groups = |view: &wgpu::Buffer, est: &wgpu::Buffer, map: wgpu::BindingResource<'_>| {
-            kernel::bind_group(
-                &self.ctx,
-                "multi-sample frame",
-                &k.layout,
-                &[
-                    view.as_entire_binding(),
-                    est.as_entire_binding(),
-                    map,
-                    buffer_range(inputs.receivers, n * RECEIVER_BYTES),
-                    buffer_range(&self.acc, n * 4),
-                    buffer_range(inputs.v, n * 4),
-                ],
-            )
+        let ranges = receiver_ranges(&self.ctx, inputs.count);
+        // One pass of `pipe` per range of receivers, its bind group over the range's receivers,
+        // sums and V.
+        let passes = |enc: &mut wgpu::CommandEncoder,
+                      label: &str,
+                      pipe: &wgpu::ComputePipeline,
+                      (view, est, map): (
+            &wgpu::Buffer,
+            &wgpu::Buffer,
+            wgpu::BindingResource<'_>,
+        )| {
+            for range in &ranges {
+                let group = kernel::bind_group(
+                    &self.ctx,
+                    "multi-sample frame",
+                    &k.layout,
+                    &[
+                        view.as_entire_binding(),
+                        est.as_entire_binding(),
+                        map.clone(),
+                        range.receivers(inputs.receivers),
+                        range.words(&self.acc),
+                        range.words(inputs.v),
+                    ],
+                );
+                compute_pass(enc, label, pipe, &group, range.workgroups());
+            }
         };
-        let wg = inputs.count.div_ceil(WORKGROUP_SIZE);
         inputs.mark(enc, "start");
         for (slot, view) in inputs.views.iter().enumerate() {
             let Some(view) = view else { continue };
@@ -430,29 +443,17 @@ impl FrameEstimator for MultiSampleFrame {
             } else {
                 &self.est[0]
             };
-            let group = groups(self.map.raster.view_uniform(slot), est, self.map.binding());
-            compute_pass(
-                enc,
-                "multi-sample frame accumulate",
-                &k.accumulate,
-                &group,
-                [wg, 1, 1],
-            );
+            let at = (self.map.raster.view_uniform(slot), est, self.map.binding());
+            passes(enc, "multi-sample frame accumulate", &k.accumulate, at);
             inputs.mark(enc, "estimate");
         }
         // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
-        let group = groups(
+        let at = (
             self.map.raster.view_uniform(0),
             &self.est[0],
             k.placeholder.binding(),
         );
-        compute_pass(
-            enc,
-            "multi-sample frame finalize",
-            &k.finalize,
-            &group,
-            [wg, 1, 1],
-        );
+        passes(enc, "multi-sample frame finalize", &k.finalize, at);
         inputs.mark(enc, "finalize");
         Ok(())
     }

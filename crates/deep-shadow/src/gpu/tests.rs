@@ -162,9 +162,9 @@ fn shared_structs_match_the_wgsl_layouts() {
             slope_bias,
             receiver_plane,
             pcss,
-            count,
             inv_views,
             lists,
+            _pad0,
             _pad1,
         }
     );

@@ -33,9 +33,9 @@ pub trait FrameEstimator: Send + Sync {
 
     /// Records one frame into `enc` (one `encode` per submit: uniforms are staged with
     /// `queue.write_buffer`). Errors, before anything is recorded: views of another resolution
-    /// or number ([`Error::LightView`]); a receiver count beyond one dispatch, bindings beyond
-    /// the device's `max_storage_buffer_binding_size` or buffers smaller than the count needs
-    /// ([`Error::Limit`], [`check_buffers`]); a lost device ([`Error::DeviceLost`]: checked
+    /// or number ([`Error::LightView`]); buffers smaller than the count needs, or, for a frame
+    /// that binds all its receivers in one dispatch, more receivers than one takes
+    /// ([`Error::Limit`], [`check_buffers`], [`check_one_range`]); a lost device ([`Error::DeviceLost`]: checked
     /// first, never blocking; see below).
     ///
     /// **Device loss.** Once the device is lost (as [`GpuContext::check_lost`] sees it: a real
@@ -383,10 +383,10 @@ impl FrameTimestamps {
 }
 
 /// The checks every [`FrameEstimator::encode`] makes first, before anything is recorded: the
-/// device not lost ([`GpuContext::check_lost`], a flag: no poll, no wait), then the receiver
-/// count against one dispatch (`65535 x WORKGROUP_SIZE`), the bindings of the count's
-/// receivers and V against the device's `max_storage_buffer_binding_size`, and the caller's
-/// buffers against the count ([`Error::Limit`], `what` naming the limit).
+/// device not lost ([`GpuContext::check_lost`], a flag: no poll, no wait), then the caller's
+/// buffers against the count ([`Error::Limit`], `what` naming the buffer). A frame that binds
+/// its receivers a [`ReceiverRange`] at a time takes any count these buffers hold; one that binds
+/// them all at once also calls [`check_one_range`].
 pub fn check_buffers(
     ctx: &GpuContext,
     receivers: &wgpu::Buffer,
@@ -394,33 +394,6 @@ pub fn check_buffers(
     n: u64,
 ) -> Result<()> {
     ctx.check_lost()?;
-    let max = 65_535 * WORKGROUP_SIZE as u64;
-    if n > max {
-        return Err(Error::Limit {
-            what: "receivers per frame (one dispatch)",
-            requested: n,
-            max,
-        });
-    }
-    let binding = ctx.limits().max_storage_buffer_binding_size;
-    for (what, bytes) in [
-        (
-            "receiver binding bytes of a frame (max_storage_buffer_binding_size)",
-            n * RECEIVER_BYTES,
-        ),
-        (
-            "V binding bytes of a frame (max_storage_buffer_binding_size)",
-            n * 4,
-        ),
-    ] {
-        if bytes > binding {
-            return Err(Error::Limit {
-                what,
-                requested: bytes,
-                max: binding,
-            });
-        }
-    }
     for (what, have, need) in [
         (
             "receiver buffer bytes",
@@ -438,6 +411,104 @@ pub fn check_buffers(
         }
     }
     Ok(())
+}
+
+/// For a frame that binds all its `n` receivers in one dispatch: `n` within one
+/// [`ReceiverRange`] of the device ([`receiver_ranges`]), else [`Error::Limit`] naming the
+/// receivers one dispatch of that frame takes.
+pub fn check_one_range(ctx: &GpuContext, n: u64) -> Result<()> {
+    let max = max_range(&ctx.limits());
+    if n > max {
+        return Err(Error::Limit {
+            what: "receivers per frame of a method that binds them in one dispatch \
+                   (max_storage_buffer_binding_size / 32 bytes, max_compute_workgroups_per_dimension)",
+            requested: n,
+            max,
+        });
+    }
+    Ok(())
+}
+
+/// A run of a frame's receivers that one dispatch covers: receivers `first..first + count`,
+/// bound as a range of the caller's receiver buffer, of V and of any per-receiver buffer of the
+/// frame's own, so the kernel indexes them from 0 and `arrayLength` is the range's count.
+/// [`receiver_ranges`] cuts a frame into them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReceiverRange {
+    /// The range's first receiver.
+    pub first: u32,
+    /// How many receivers it holds (at least 1).
+    pub count: u32,
+}
+
+impl ReceiverRange {
+    /// The range's elements of `stride` bytes each in `b` (receivers: [`RECEIVER_BYTES`]; V
+    /// and other per-receiver words: 4) as a binding.
+    pub fn bind(self, b: &wgpu::Buffer, stride: u64) -> wgpu::BindingResource<'_> {
+        wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: b,
+            offset: self.first as u64 * stride,
+            size: NonZeroU64::new(self.count as u64 * stride),
+        })
+    }
+
+    /// The range's receivers in the caller's receiver buffer.
+    pub fn receivers(self, b: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+        self.bind(b, RECEIVER_BYTES)
+    }
+
+    /// The range's words (V, per-receiver sums) in `b`.
+    pub fn words(self, b: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+        self.bind(b, 4)
+    }
+
+    /// The workgroups of one invocation per receiver of the range.
+    pub fn workgroups(self) -> [u32; 3] {
+        [self.count.div_ceil(WORKGROUP_SIZE), 1, 1]
+    }
+}
+
+/// The most receivers one [`ReceiverRange`] holds on a device of `limits`: its receivers' binding
+/// within `max_storage_buffer_binding_size`, its dispatch within
+/// `max_compute_workgroups_per_dimension`, a multiple of the offset unit (see
+/// [`receiver_ranges`]) and of [`WORKGROUP_SIZE`].
+fn max_range(limits: &wgpu::Limits) -> u64 {
+    let unit = range_unit(limits);
+    let by_binding = limits.max_storage_buffer_binding_size / RECEIVER_BYTES;
+    let by_dispatch = limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64;
+    (by_binding.min(by_dispatch) / unit * unit).max(unit)
+}
+
+/// The step range starts are multiples of: their byte offsets in 4-byte and 32-byte buffers are
+/// multiples of `min_storage_buffer_offset_alignment`, and ranges hold whole workgroups.
+fn range_unit(limits: &wgpu::Limits) -> u64 {
+    let words = (limits.min_storage_buffer_offset_alignment.max(1) as u64).div_ceil(4);
+    let wg = WORKGROUP_SIZE as u64;
+    words / gcd(words, wg) * wg
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// The [`ReceiverRange`]s covering `count` receivers on `ctx`'s device, in order (none for 0):
+/// a 3840 x 2160 view (8.3 M receivers, 265 MB) is 2 ranges under the default 128 MiB binding.
+pub fn receiver_ranges(ctx: &GpuContext, count: u32) -> Vec<ReceiverRange> {
+    ranges_of(max_range(&ctx.limits()), count)
+}
+
+fn ranges_of(per: u64, count: u32) -> Vec<ReceiverRange> {
+    (0..count as u64)
+        .step_by(per as usize)
+        .map(|first| ReceiverRange {
+            first: first as u32,
+            count: (count as u64 - first).min(per) as u32,
+        })
+        .collect()
 }
 
 /// The per-receiver storage buffer of `4 max_receivers` bytes an engine path allocates at
@@ -604,4 +675,39 @@ pub fn buffer_range(b: &wgpu::Buffer, bytes: u64) -> wgpu::BindingResource<'_> {
         offset: 0,
         size: NonZeroU64::new(bytes),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn receiver_ranges_cover_every_receiver_once_within_the_limits() {
+        let mut limits = wgpu::Limits::default();
+        // The default limits: one dispatch (65,535 workgroups) holds fewer receivers than a
+        // 128 MiB binding (4 Mi); a 4K view takes 2 ranges.
+        assert_eq!(max_range(&limits), 65_535 * 64);
+        assert_eq!(ranges_of(max_range(&limits), 3840 * 2160).len(), 2);
+        for (binding, groups, align) in [(64 << 10, 65_535, 256), (1 << 20, 3, 256), (4096, 8, 1)] {
+            limits.max_storage_buffer_binding_size = binding;
+            limits.max_compute_workgroups_per_dimension = groups;
+            limits.min_storage_buffer_offset_alignment = align;
+            let per = max_range(&limits);
+            assert!(per * RECEIVER_BYTES <= binding && per <= groups as u64 * 64);
+            for count in [0, 1, 63, 64, 65, 2047, 2048, 2049, 10_000] {
+                let ranges = ranges_of(per, count);
+                let mut next = 0;
+                for r in &ranges {
+                    assert_eq!(r.first, next, "{count}: ranges in order, no gap");
+                    assert!(r.count >= 1 && r.count as u64 <= per);
+                    assert_eq!(r.first as u64 * 4 % align as u64, 0, "aligned V offset");
+                    assert_eq!(r.first % WORKGROUP_SIZE, 0, "whole workgroups");
+                    let [x, y, z] = r.workgroups();
+                    assert!(x <= groups && y == 1 && z == 1);
+                    next = r.first + r.count;
+                }
+                assert_eq!(next, count);
+            }
+        }
+    }
 }
