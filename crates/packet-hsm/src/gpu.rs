@@ -24,6 +24,10 @@
 //!    the view's weight (`1 / S^2` times the level's) added to each receiver's sum; after the
 //!    last view, V = the sum clamped to [0, 1], as [`crate::cpu::SubLights::finish`] does.
 //!
+//! Steps 4 to 6 run once per range of receivers ([`ReceiverRange`]: the caller's receivers and
+//! V and the frame's sums bound at the range, the scratch of steps 4 and 5 from its start, sized
+//! at `prepare` for one range), so a frame takes any receiver count the caller's buffers hold.
+//!
 //! The views a frame may render are bounded at `prepare` (`sublights^2 x opacity_levels`
 //! slots); casters needing more levels than `opacity_levels` are cast opaque in one level, with
 //! [`Warning::OpacityLevelsCapped`], as on the CPU. Rect lights take any `sublights`; disk,
@@ -55,12 +59,11 @@ use shadow_map_core::{
             WORKGROUP_SIZE,
         },
         frame::{Views, 
-            buffer_range, check_one_range, check_prepared_inputs, compute_pass, status_buffer, FrameEstimator,
+            check_prepared_inputs, compute_pass, range_capacity, receiver_ranges_binding, status_buffer, FrameEstimator, ReceiverRange,
             FrameInputs,
         },
         kernel::{bind_group_layout_at, compute_pipeline, shader_module, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
-        receivers::RECEIVER_BYTES,
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
         UniformStage,
     },
@@ -100,8 +103,8 @@ pub struct HsmFrameUniform {
     pub midpoint: u32,
     /// 1: receiver-plane rejection.
     pub receiver_plane: u32,
-    /// Receivers this frame.
-    pub count: u32,
+    /// Padding (the passes' receiver count is the bound range's, `arrayLength(&v_out)`).
+    pub _pad0: u32,
     /// Map side r.
     pub r: u32,
     /// This view's weight in V: `1 / S^2` times its opacity level's.
@@ -146,6 +149,9 @@ pub struct PacketHsmFrame {
     mssm: wgpu::Buffer,
     dual_min: wgpu::Buffer,
     dual_max: wgpu::Buffer,
+    /// Scratch of one range of receivers (sized at `prepare` for the most one holds:
+    /// [`range_capacity`] of `RecIn`, the widest element bound per range): the set-up's `RecIn`
+    /// and decision, the kernel's V and state.
     recs: wgpu::Buffer,
     setup: wgpu::Buffer,
     out: wgpu::Buffer,
@@ -162,6 +168,13 @@ pub struct PacketHsmFrame {
     setup_pipe: wgpu::ComputePipeline,
     finish_pipe: wgpu::ComputePipeline,
     max_receivers: u32,
+}
+
+/// A frame's bind groups: the per-texel pass's, and per range of receivers the frame passes'
+/// and the kernel's.
+struct RangeGroups {
+    maps: wgpu::BindGroup,
+    ranges: Vec<(ReceiverRange, wgpu::BindGroup, wgpu::BindGroup)>,
 }
 
 /// The kernel's, the light's and the frame's uniforms, one slot per view.
@@ -222,6 +235,13 @@ impl PacketHsmFrame {
         let mssm_bytes = 4 * (r as u64 * r as u64) * (floor_log2(r) as u64 + 1);
         let dual_bytes = 4 * (p as u64 * p as u64) * dual.levels.len() as u64;
         let n = max_receivers.max(1) as u64;
+        // The scratch buffers hold one range of receivers.
+        let range = range_capacity(
+            &ctx,
+            "packet-hsm frame receiver bytes of one range (max_storage_buffer_binding_size)",
+            size_of::<RecIn>() as u64,
+        )?
+        .min(n);
         for (what, bytes) in [
             (
                 "packet-hsm frame MSSM bytes (max_storage_buffer_binding_size)",
@@ -232,15 +252,7 @@ impl PacketHsmFrame {
                 dual_bytes,
             ),
             (
-                "packet-hsm frame receiver bytes (max_storage_buffer_binding_size)",
-                n * std::mem::size_of::<RecIn>() as u64,
-            ),
-            (
-                "packet-hsm frame prep bytes (max_storage_buffer_binding_size)",
-                n * std::mem::size_of::<PrepGpu>() as u64,
-            ),
-            (
-                "packet-hsm frame kernel V and sum bytes (max_storage_buffer_binding_size)",
+                "packet-hsm frame sum bytes (max_storage_buffer_binding_size)",
                 8 * n,
             ),
         ] {
@@ -264,15 +276,15 @@ impl PacketHsmFrame {
             recs: buffer(
                 &ctx,
                 "packet-hsm frame receivers",
-                n * std::mem::size_of::<RecIn>() as u64,
+                range * size_of::<RecIn>() as u64,
                 storage,
             ),
-            setup: buffer(&ctx, "packet-hsm frame set-up", 8 * n, storage),
-            out: buffer(&ctx, "packet-hsm frame kernel V", 8 * n, storage),
+            setup: buffer(&ctx, "packet-hsm frame set-up", 8 * range, storage),
+            out: buffer(&ctx, "packet-hsm frame kernel V", 8 * range, storage),
             prep: buffer(
                 &ctx,
                 "packet-hsm frame prep",
-                n * std::mem::size_of::<PrepGpu>() as u64,
+                range * size_of::<PrepGpu>() as u64,
                 storage,
             ),
             hsm: buffer(
@@ -347,7 +359,9 @@ impl PacketHsmFrame {
         levels_run(casters, self.cfg.opacity_levels)
     }
 
-    fn group(&self, inputs: &FrameInputs<'_>, n: u64) -> wgpu::BindGroup {
+    /// The frame passes' bind group over `range`: the caller's receivers and V, and the sums, at
+    /// the range's offset; the scratch buffers from their start.
+    fn group(&self, inputs: &FrameInputs<'_>, range: ReceiverRange) -> wgpu::BindGroup {
         let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         let class = match self.layers.midpoints().first() {
             Some(m) if self.cfg.shadow.midpoint() => &m.view,
@@ -363,11 +377,11 @@ impl PacketHsmFrame {
                     e(0, self.layers.view_uniform().as_entire_binding()),
                     e(1, self.light.as_entire_binding()),
                     e(2, self.frame.as_entire_binding()),
-                    e(3, buffer_range(inputs.receivers, n * RECEIVER_BYTES)),
-                    e(4, self.recs.as_entire_binding()),
-                    e(5, self.setup.as_entire_binding()),
-                    e(6, self.out.as_entire_binding()),
-                    e(7, buffer_range(inputs.v, n * 4)),
+                    e(3, range.receivers(inputs.receivers)),
+                    e(4, self.scratch(&self.recs, range, size_of::<RecIn>())),
+                    e(5, self.scratch(&self.setup, range, 8)),
+                    e(6, self.scratch(&self.out, range, 8)),
+                    e(7, range.words(inputs.v)),
                     e(8, self.status.as_entire_binding()),
                     e(
                         9,
@@ -376,23 +390,34 @@ impl PacketHsmFrame {
                     e(10, wgpu::BindingResource::TextureView(class)),
                     e(11, self.depth.as_entire_binding()),
                     e(12, self.class.as_entire_binding()),
-                    e(13, self.acc.as_entire_binding()),
+                    e(13, range.bind(&self.acc, 8)),
                 ],
             })
     }
 
-    fn kernel_group(&self) -> wgpu::BindGroup {
+    /// The kernel's bind group over `range` (its scratch from the start).
+    fn kernel_group(&self, range: ReceiverRange) -> wgpu::BindGroup {
         self.kernel.group([
-            &self.hsm,
-            &self.depth,
-            &self.class,
-            &self.mssm,
-            &self.dual_min,
-            &self.dual_max,
-            &self.recs,
-            &self.out,
-            &self.prep,
+            self.hsm.as_entire_binding(),
+            self.depth.as_entire_binding(),
+            self.class.as_entire_binding(),
+            self.mssm.as_entire_binding(),
+            self.dual_min.as_entire_binding(),
+            self.dual_max.as_entire_binding(),
+            self.scratch(&self.recs, range, size_of::<RecIn>()),
+            self.scratch(&self.out, range, 8),
+            self.scratch(&self.prep, range, size_of::<PrepGpu>()),
         ])
+    }
+
+    /// `range.count` elements of `stride` bytes from the start of scratch buffer `b`.
+    fn scratch<'a>(
+        &self,
+        b: &'a wgpu::Buffer,
+        range: ReceiverRange,
+        stride: usize,
+    ) -> wgpu::BindingResource<'a> {
+        ReceiverRange { first: 0, ..range }.bind(b, stride as u64)
     }
 }
 
@@ -458,7 +483,7 @@ impl PacketHsmFrame {
         &self,
         enc: &mut wgpu::CommandEncoder,
         inputs: &FrameInputs<'_>,
-        (group, kernel): (&wgpu::BindGroup, &wgpu::BindGroup),
+        groups: &RangeGroups,
         (slot, views, view): (usize, usize, &LightView),
         level: &OpacityLevel,
     ) -> Result<()> {
@@ -496,7 +521,7 @@ impl PacketHsmFrame {
             enc.copy_buffer_to_buffer(&level.min, 0, &self.dual_min, at, pplane);
             enc.copy_buffer_to_buffer(&level.max, 0, &self.dual_max, at, pplane);
         }
-        let hu = hsm_uniform(&shape, cfg, inputs.count);
+        let hu = hsm_uniform(&shape, cfg);
         self.stage.hsm.stage(queue, enc, slot, &hu, &self.hsm)?;
         let mut eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
         if let LightShape::Rect { .. } = inputs.light.shape {
@@ -511,27 +536,25 @@ impl PacketHsmFrame {
             slope_bias: cfg.shadow.slope_bias,
             midpoint: u32::from(cfg.shadow.midpoint()),
             receiver_plane: u32::from(cfg.shadow.receiver_plane),
-            count: inputs.count,
             r,
             weight: (1.0 / s2) * level.weight,
             flags: if slot == 0 { FIRST_VIEW } else { 0 }
-                | if slot + 1 == views { LAST_VIEW } else { 0 },
+                | if slot + 1 == views { LAST_VIEW } else { 0 },            ..Default::default()
         };
         self.stage.frame.stage(queue, enc, slot, &fu, &self.frame)?;
-        // No stale kernel state from the last view for receivers the set-up settles.
-        enc.clear_buffer(&self.prep, 0, None);
         let texels = r as u64 * r as u64;
-        run(enc, "packet-hsm frame maps", &self.maps_pipe, group, texels);
+        run(enc, "packet-hsm frame maps", &self.maps_pipe, &groups.maps, texels);
         // Two marks a view (a frame may render many): the maps, then the rest.
         inputs.mark(enc, "maps");
-        let n = inputs.count as u64;
-        if n == 0 {
-            return Ok(());
+        for (range, group, kernel) in &groups.ranges {
+            let n = range.count as u64;
+            // No stale kernel state from the last view or range for receivers the set-up settles.
+            enc.clear_buffer(&self.prep, 0, Some(n * size_of::<PrepGpu>() as u64));
+            run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
+            run(enc, "packet-hsm prepare", &self.kernel.prepare, kernel, n);
+            run(enc, "packet-hsm pixels", &self.kernel.pixels, kernel, n);
+            run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         }
-        run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
-        run(enc, "packet-hsm prepare", &self.kernel.prepare, kernel, n);
-        run(enc, "packet-hsm pixels", &self.kernel.pixels, kernel, n);
-        run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         inputs.mark(enc, "estimate");
         Ok(())
     }
@@ -541,8 +564,6 @@ impl PacketHsmFrame {
     /// [`FrameEstimator::encode`]'s checks of `inputs`: the receiver count (returned), the light,
     /// one present view per sub-light and opacity level; and the levels the frame renders.
     fn checked(&self, inputs: &FrameInputs<'_>) -> Result<(u64, Vec<OpacityLevel>)> {
-        // Every receiver in one dispatch (its per-receiver passes bind them all at once).
-        check_one_range(&self.kernel.ctx, inputs.count as u64)?;
         let n = check_prepared_inputs(
             &self.kernel.ctx,
             inputs,
@@ -739,12 +760,19 @@ impl FrameEstimator for PacketHsmFrame {
         let views = inputs.views;
         inputs.mark(enc, "start");
         enc.clear_buffer(&self.status, 0, None);
-        let group = self.group(inputs, n.max(1));
-        let kernel = self.kernel_group();
+        let ranges = receiver_ranges_binding(&self.kernel.ctx, n as u32, size_of::<RecIn>() as u64);
+        let groups = RangeGroups {
+            // The per-texel pass reads no receivers: any range's group (one receiver for none).
+            maps: self.group(inputs, ranges.first().copied().unwrap_or(ReceiverRange { first: 0, count: 1 })),
+            ranges: ranges
+                .iter()
+                .map(|&r| (r, self.group(inputs, r), self.kernel_group(r)))
+                .collect(),
+        };
         for (slot, view) in views.iter().flatten().enumerate() {
             let level = &levels[slot % levels.len()];
             let at = (slot, views.len(), view);
-            self.encode_view(enc, inputs, (&group, &kernel), at, level)?;
+            self.encode_view(enc, inputs, &groups, at, level)?;
         }
         Ok(())
     }
@@ -780,7 +808,7 @@ mod tests {
                 slope_bias,
                 midpoint,
                 receiver_plane,
-                count,
+                _pad0,
                 r,
                 weight,
                 flags,

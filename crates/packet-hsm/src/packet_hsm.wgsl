@@ -27,7 +27,7 @@ struct HsmUniform {
     hierarchy: u32,
     hx: f32,
     hy: f32,
-    count: u32,
+    _pad0: u32,
     // Always 2: the trip count of the loop-limit probe (a uniform, so it is not unrolled).
     probe: u32,
     // 1: receiver-plane rejection (RecIn's plane); 0: the classic test c_s < t_p.
@@ -63,6 +63,8 @@ const STATE_PENUMBRA: u32 = 2u;
 // Padded dual-grid MSSM of the classification depths, (r+2)^2 per level, min and max.
 @group(0) @binding(4) var<storage, read> dual_min: array<f32>;
 @group(0) @binding(5) var<storage, read> dual_max: array<f32>;
+// Bindings 6 to 8 hold one range of receivers (gpu.rs ReceiverRange): the passes run over
+// arrayLength(&prep).
 @group(0) @binding(6) var<storage, read> recs: array<RecIn>;
 // Per receiver: V before the facing factor, nodes visited.
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;

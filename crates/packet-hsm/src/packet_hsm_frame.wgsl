@@ -15,7 +15,7 @@ struct HsmFrameUniform {
     midpoint: u32,
     // 1: receiver-plane rejection.
     receiver_plane: u32,
-    count: u32,
+    _pad0: u32,
     r: u32,
     // This view's weight in V (1 / S^2 times its opacity level's).
     weight: f32,
@@ -35,6 +35,7 @@ const SETUP_MAP: f32 = 2.0;
 @group(0) @binding(0) var<uniform> fview: LightViewUniform;
 @group(0) @binding(1) var<uniform> flight: EstimateUniform;
 @group(0) @binding(2) var<uniform> F: HsmFrameUniform;
+// Bindings 3 to 7 and 13 hold one range of the frame's receivers (gpu.rs ReceiverRange).
 @group(0) @binding(3) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(4) var<storage, read_write> recs: array<RecIn>;
 @group(0) @binding(5) var<storage, read_write> setup: array<vec2<f32>>;
@@ -82,7 +83,7 @@ fn settle(k: u32, kind: f32, x: f32) {
 @compute @workgroup_size(WG)
 fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
-    if k >= F.count {
+    if k >= arrayLength(&v_out) {
         return;
     }
     if receivers[k].is_active == 0u {
@@ -176,7 +177,7 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(WG)
 fn frame_finish(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
-    if k >= F.count {
+    if k >= arrayLength(&v_out) {
         return;
     }
     let last = (F.flags & LAST_VIEW) != 0u;

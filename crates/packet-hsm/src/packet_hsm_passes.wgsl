@@ -1,7 +1,7 @@
 @compute @workgroup_size(WG)
 fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = gid.x;
-    if idx >= u.count {
+    if idx >= arrayLength(&prep) {
         return;
     }
     var p: PrepGpu;
@@ -88,7 +88,7 @@ fn finish(sum: f32, centre: u32) -> f32 {
 @compute @workgroup_size(WG)
 fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = gid.x;
-    if idx >= u.count {
+    if idx >= arrayLength(&prep) {
         return;
     }
     let p = prep[idx];

@@ -70,8 +70,8 @@ pub struct HsmUniform {
     pub hx: f32,
     /// Sub-light half extent y.
     pub hy: f32,
-    /// Receivers.
-    pub count: u32,
+    /// Padding (the passes' receiver count is the bound range's, `arrayLength(&prep)`).
+    pub _pad0: u32,
     /// Always 2: the trip count of the shader's loop-limit probe.
     pub probe: u32,
     /// 1: receiver-plane rejection (`receiver_plane=true`, [`RecIn`]'s plane).
@@ -176,14 +176,15 @@ impl Kernel {
     }
 
     /// A bind group over `bufs`, bound in order from 0: the uniform, depth, classification,
-    /// MSSM, dual min, dual max, receivers, V out, prep.
-    pub fn group(&self, bufs: [&wgpu::Buffer; 9]) -> wgpu::BindGroup {
+    /// MSSM, dual min, dual max, receivers, V out, prep (the last three one range of receivers:
+    /// the passes run over `arrayLength(&prep)`).
+    pub fn group(&self, bufs: [wgpu::BindingResource<'_>; 9]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = bufs
-            .iter()
+            .into_iter()
             .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
+            .map(|(i, resource)| wgpu::BindGroupEntry {
                 binding: i as u32,
-                resource: b.as_entire_binding(),
+                resource,
             })
             .collect();
         self.ctx
@@ -211,8 +212,8 @@ pub(crate) struct SubLightShape {
     pub class_is_depth: bool,
 }
 
-/// The kernel's uniform for the view `sv` over `count` receivers.
-pub(crate) fn hsm_uniform(sv: &SubLightShape, cfg: &Config, count: u32) -> HsmUniform {
+/// The kernel's uniform for the view `sv`.
+pub(crate) fn hsm_uniform(sv: &SubLightShape, cfg: &Config) -> HsmUniform {
     let view = &sv.view;
     HsmUniform {
         r: view.r,
@@ -225,7 +226,7 @@ pub(crate) fn hsm_uniform(sv: &SubLightShape, cfg: &Config, count: u32) -> HsmUn
         hierarchy: cfg.hierarchy as u32,
         hx: sv.half.x,
         hy: sv.half.y,
-        count,
+        _pad0: 0,
         probe: 2,
         receiver_plane: cfg.shadow.receiver_plane as u32,
         class_is_depth: sv.class_is_depth as u32,
@@ -258,7 +259,7 @@ mod tests {
                 hierarchy,
                 hx,
                 hy,
-                count,
+                _pad0,
                 probe,
                 receiver_plane,
                 class_is_depth,

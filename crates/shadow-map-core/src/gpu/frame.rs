@@ -33,9 +33,8 @@ pub trait FrameEstimator: Send + Sync {
 
     /// Records one frame into `enc` (one `encode` per submit: uniforms are staged with
     /// `queue.write_buffer`). Errors, before anything is recorded: views of another resolution
-    /// or number ([`Error::LightView`]); buffers smaller than the count needs, or, for a frame
-    /// that binds all its receivers in one dispatch, more receivers than one takes
-    /// ([`Error::Limit`], [`check_buffers`], [`check_one_range`]); a lost device ([`Error::DeviceLost`]: checked
+    /// or number ([`Error::LightView`]); buffers smaller than the count needs ([`Error::Limit`],
+    /// [`check_buffers`]); a lost device ([`Error::DeviceLost`]: checked
     /// first, never blocking; see below).
     ///
     /// **Device loss.** Once the device is lost (as [`GpuContext::check_lost`] sees it: a real
@@ -384,9 +383,8 @@ impl FrameTimestamps {
 
 /// The checks every [`FrameEstimator::encode`] makes first, before anything is recorded: the
 /// device not lost ([`GpuContext::check_lost`], a flag: no poll, no wait), then the caller's
-/// buffers against the count ([`Error::Limit`], `what` naming the buffer). A frame that binds
-/// its receivers a [`ReceiverRange`] at a time takes any count these buffers hold; one that binds
-/// them all at once also calls [`check_one_range`].
+/// buffers against the count ([`Error::Limit`], `what` naming the buffer). Frames bind their
+/// receivers a [`ReceiverRange`] at a time, so they take any count these buffers hold.
 pub fn check_buffers(
     ctx: &GpuContext,
     receivers: &wgpu::Buffer,
@@ -409,22 +407,6 @@ pub fn check_buffers(
                 max: have,
             });
         }
-    }
-    Ok(())
-}
-
-/// For a frame that binds all its `n` receivers in one dispatch: `n` within one
-/// [`ReceiverRange`] of the device ([`receiver_ranges`]), else [`Error::Limit`] naming the
-/// receivers one dispatch of that frame takes.
-pub fn check_one_range(ctx: &GpuContext, n: u64) -> Result<()> {
-    let max = max_range(&ctx.limits());
-    if n > max {
-        return Err(Error::Limit {
-            what: "receivers per frame of a method that binds them in one dispatch \
-                   (max_storage_buffer_binding_size / 32 bytes, max_compute_workgroups_per_dimension)",
-            requested: n,
-            max,
-        });
     }
     Ok(())
 }
@@ -468,15 +450,17 @@ impl ReceiverRange {
     }
 }
 
-/// The most receivers one [`ReceiverRange`] holds on a device of `limits`: its receivers' binding
-/// within `max_storage_buffer_binding_size`, its dispatch within
+/// The most receivers one [`ReceiverRange`] holds on a device of `limits` when the widest
+/// per-receiver element it binds is `widest` bytes: that binding within
+/// `max_storage_buffer_binding_size`, its dispatch within
 /// `max_compute_workgroups_per_dimension`, a multiple of the offset unit (see
-/// [`receiver_ranges`]) and of [`WORKGROUP_SIZE`].
-fn max_range(limits: &wgpu::Limits) -> u64 {
+/// [`receiver_ranges`]) and of [`WORKGROUP_SIZE`]; 0 where the binding holds less than one such
+/// multiple.
+fn max_range(limits: &wgpu::Limits, widest: u64) -> u64 {
     let unit = range_unit(limits);
-    let by_binding = limits.max_storage_buffer_binding_size / RECEIVER_BYTES;
+    let by_binding = limits.max_storage_buffer_binding_size / widest.max(RECEIVER_BYTES);
     let by_dispatch = limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64;
-    (by_binding.min(by_dispatch) / unit * unit).max(unit)
+    by_binding.min(by_dispatch) / unit * unit
 }
 
 /// The step range starts are multiples of: their byte offsets in 4-byte and 32-byte buffers are
@@ -496,9 +480,32 @@ fn gcd(a: u64, b: u64) -> u64 {
 }
 
 /// The [`ReceiverRange`]s covering `count` receivers on `ctx`'s device, in order (none for 0):
-/// a 3840 x 2160 view (8.3 M receivers, 265 MB) is 2 ranges under the default 128 MiB binding.
+/// a 3840 x 2160 view (8.3 M receivers, 265 MB) is 2 ranges under the default limits.
 pub fn receiver_ranges(ctx: &GpuContext, count: u32) -> Vec<ReceiverRange> {
-    ranges_of(max_range(&ctx.limits()), count)
+    receiver_ranges_binding(ctx, count, RECEIVER_BYTES)
+}
+
+/// [`receiver_ranges`] for a frame that also binds per-receiver elements of its own of up to
+/// `widest` bytes a range at a time (each range's binding of them within the device's). A frame
+/// calls [`range_capacity`] at `prepare` first, which refuses a device with no such range.
+pub fn receiver_ranges_binding(ctx: &GpuContext, count: u32, widest: u64) -> Vec<ReceiverRange> {
+    ranges_of(max_range(&ctx.limits(), widest).max(1), count)
+}
+
+/// The most receivers one range of [`receiver_ranges_binding`] holds on `ctx`'s device: what a
+/// frame sizes the scratch buffers it binds a range at a time for. [`Error::Limit`] (`what`
+/// naming the elements) where `max_storage_buffer_binding_size` holds fewer `widest`-byte
+/// elements than one aligned run of whole workgroups.
+pub fn range_capacity(ctx: &GpuContext, what: &'static str, widest: u64) -> Result<u64> {
+    let limits = ctx.limits();
+    match max_range(&limits, widest) {
+        0 => Err(Error::Limit {
+            what,
+            requested: range_unit(&limits) * widest,
+            max: limits.max_storage_buffer_binding_size,
+        }),
+        n => Ok(n),
+    }
 }
 
 fn ranges_of(per: u64, count: u32) -> Vec<ReceiverRange> {
@@ -686,14 +693,22 @@ mod tests {
         let mut limits = wgpu::Limits::default();
         // The default limits: one dispatch (65,535 workgroups) holds fewer receivers than a
         // 128 MiB binding (4 Mi); a 4K view takes 2 ranges.
-        assert_eq!(max_range(&limits), 65_535 * 64);
-        assert_eq!(ranges_of(max_range(&limits), 3840 * 2160).len(), 2);
+        assert_eq!(max_range(&limits, RECEIVER_BYTES), 65_535 * 64);
+        assert_eq!(
+            ranges_of(max_range(&limits, RECEIVER_BYTES), 3840 * 2160).len(),
+            2
+        );
+        // 96-byte elements: 128 MiB / 96, down to whole workgroups.
+        assert_eq!(max_range(&limits, 96), (128 << 20) / 96 / 64 * 64);
+        // A binding short of one aligned run of whole workgroups: none.
+        limits.max_storage_buffer_binding_size = 4096;
+        assert_eq!(max_range(&limits, 96), 0);
         for (binding, groups, align) in [(64 << 10, 65_535, 256), (1 << 20, 3, 256), (4096, 8, 1)] {
             limits.max_storage_buffer_binding_size = binding;
             limits.max_compute_workgroups_per_dimension = groups;
             limits.min_storage_buffer_offset_alignment = align;
-            let per = max_range(&limits);
-            assert!(per * RECEIVER_BYTES <= binding && per <= groups as u64 * 64);
+            let per = max_range(&limits, RECEIVER_BYTES);
+            assert!(per > 0 && per * RECEIVER_BYTES <= binding && per <= groups as u64 * 64);
             for count in [0, 1, 63, 64, 65, 2047, 2048, 2049, 10_000] {
                 let ranges = ranges_of(per, count);
                 let mut next = 0;
