@@ -20,6 +20,7 @@ use shadow_map_core::gpu::{
         NormalEncoding,
     },
     frame::FrameInputs,
+    receivers::GpuReceivers,
     shared::ReceiverGpu,
     GpuContext, GpuScene,
 };
@@ -231,6 +232,170 @@ fn frames_take_a_renderers_meshes_and_prepass() {
             if rmse.is_nan() || rmse > 2e-3 || m < n / 4 {
                 failures.push(format!("{algo}, {what}: RMSE {rmse} over {m} receivers"));
             }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// One estimator records two frames into one encoder, each its own scene (casters, receivers,
+/// light and views) and V buffer, as a renderer drawing two lights or two cameras does: one
+/// submit gives each frame the V bits it gives submitted alone. The frames write their uniforms
+/// in the encoder's order (`GpuContext::write_in`), so the second's do not overwrite the
+/// first's.
+#[test]
+fn one_estimator_records_two_scenes_into_one_submit() {
+    let Some(ctx) =
+        test_support::gate::context_for_tests("one_estimator_records_two_scenes_into_one_submit")
+            .unwrap()
+    else {
+        return;
+    };
+    let scenes = [
+        test_support::fixtures::fixture("bunny", 48, 36),
+        test_support::fixtures::fixture("stacked", 48, 36),
+    ];
+    let n = scenes[0].1.len();
+    let inputs: Vec<_> = scenes
+        .iter()
+        .map(|(scene, rec)| {
+            let casters = GpuScene::upload(&ctx, scene).unwrap();
+            let receivers = GpuReceivers::upload(&ctx, rec).unwrap();
+            (casters, receivers)
+        })
+        .collect();
+    let make_v = || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("V"),
+            size: 4 * n as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    };
+    let mut failures = Vec::new();
+    for &algo in FRAME_ALGOS {
+        let cpu = softshadow::estimator(algo, softshadow::Backend::Cpu).unwrap();
+        let params = own_params(algo, cpu.params()).unwrap();
+        let frame = frame_estimator(algo, ctx.clone(), &params, n as u32)
+            .unwrap()
+            .expect("every FRAME_ALGOS estimator has a frame");
+        let views: Vec<_> = scenes
+            .iter()
+            .map(|(scene, rec)| frame.fit_views(scene, rec).unwrap())
+            .collect();
+        let record = |enc: &mut wgpu::CommandEncoder, k: usize, v: &wgpu::Buffer| {
+            let (casters, receivers) = &inputs[k];
+            frame
+                .encode(
+                    enc,
+                    &FrameInputs {
+                        casters,
+                        views: &views[k],
+                        light: scenes[k].0.light(),
+                        receivers: &receivers.buffer,
+                        count: receivers.count,
+                        v,
+                        timestamps: None,
+                    },
+                )
+                .unwrap_or_else(|e| panic!("{algo}, scene {k}: {e}"));
+        };
+        let read = |v: &wgpu::Buffer| ctx.read_buffer::<u32>(v, 4 * n as u64).unwrap();
+        let alone: Vec<Vec<u32>> = (0..2)
+            .map(|k| {
+                let v = make_v();
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                record(&mut enc, k, &v);
+                ctx.queue.submit([enc.finish()]);
+                read(&v)
+            })
+            .collect();
+        let together = [make_v(), make_v()];
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        for (k, v) in together.iter().enumerate() {
+            record(&mut enc, k, v);
+        }
+        ctx.queue.submit([enc.finish()]);
+        for (k, v) in together.iter().enumerate() {
+            let got = read(v);
+            let differ = got.iter().zip(&alone[k]).filter(|(a, b)| a != b).count();
+            println!("{algo}, scene {k} of 2 in one submit: {differ} of {n} V differ from alone");
+            if differ > 0 {
+                failures.push(format!("{algo}, scene {k}: {differ} of {n} V differ"));
+            }
+        }
+        if alone[0] == alone[1] {
+            failures.push(format!("{algo}: the two scenes give the same V"));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// A frame recorded again from the same buffers makes no bind group (each estimator keeps its
+/// groups while what they bind stays the same); given another V buffer it makes new ones. On a
+/// device of its own, so other tests' groups do not count.
+#[test]
+fn a_frame_recorded_again_from_the_same_buffers_makes_no_bind_group() {
+    let name = "a_frame_recorded_again_from_the_same_buffers_makes_no_bind_group";
+    if test_support::gate::context_for_tests(name)
+        .unwrap()
+        .is_none()
+    {
+        return;
+    }
+    let ctx = std::sync::Arc::new(GpuContext::new().unwrap());
+    let (scene, rec) = test_support::fixtures::fixture("bunny", 48, 36);
+    let n = rec.len();
+    let casters = GpuScene::upload(&ctx, &scene).unwrap();
+    let receivers = GpuReceivers::upload(&ctx, &rec).unwrap();
+    let make_v = || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("V"),
+            size: 4 * n as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    };
+    let mut failures = Vec::new();
+    for &algo in FRAME_ALGOS {
+        let cpu = softshadow::estimator(algo, softshadow::Backend::Cpu).unwrap();
+        let params = own_params(algo, cpu.params()).unwrap();
+        let frame = frame_estimator(algo, ctx.clone(), &params, n as u32)
+            .unwrap()
+            .expect("every FRAME_ALGOS estimator has a frame");
+        let views = frame.fit_views(&scene, &rec).unwrap();
+        // Bind groups made by one encode into `v`, submitted.
+        let made = |v: &wgpu::Buffer| {
+            let before = ctx.bind_groups();
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            frame
+                .encode(
+                    &mut enc,
+                    &FrameInputs {
+                        casters: &casters,
+                        views: &views,
+                        light: scene.light(),
+                        receivers: &receivers.buffer,
+                        count: receivers.count,
+                        v,
+                        timestamps: None,
+                    },
+                )
+                .unwrap_or_else(|e| panic!("{algo}: {e}"));
+            ctx.queue.submit([enc.finish()]);
+            ctx.bind_groups() - before
+        };
+        let (v1, v2) = (make_v(), make_v());
+        let counts = [made(&v1), made(&v1), made(&v1), made(&v2)];
+        println!("{algo}: bind groups made by 4 encodes (V, V, V, another V): {counts:?}");
+        if counts[0] == 0 || counts[1] != 0 || counts[2] != 0 || counts[3] == 0 {
+            failures.push(format!("{algo}: {counts:?}"));
+        }
+        let (a, b) = (
+            ctx.read_buffer::<u32>(&v1, 4 * n as u64).unwrap(),
+            ctx.read_buffer::<u32>(&v2, 4 * n as u64).unwrap(),
+        );
+        if a != b {
+            failures.push(format!("{algo}: V differs between the two buffers"));
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");

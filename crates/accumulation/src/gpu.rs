@@ -29,7 +29,7 @@ use shadow_map_core::{
             check_buffers, compute_pass, receiver_ranges, cpu_twin_v, single_view, status_buffer,
             FrameEstimator, FrameInputs,
         },
-        kernel::{Binding, Kernel},
+        kernel::{BindGroupCache, Binding, Kernel},
         layout::{GpuLayout, KernelMaps},
         raster::{GpuLayersFrame, GpuShadowMapper},
         receivers::RECEIVERS_WGSL,
@@ -205,6 +205,7 @@ pub struct AccumulationFrame {
     est: wgpu::Buffer,
     tables: wgpu::Buffer,
     status: wgpu::Buffer,
+    groups: BindGroupCache,
 }
 
 impl AccumulationFrame {
@@ -285,6 +286,7 @@ impl AccumulationFrame {
         );
         let status = status_buffer(&ctx, "accumulation frame status", 3);
         Ok(AccumulationFrame {
+            groups: BindGroupCache::default(),
             ctx,
             params: cpu.params().clone(),
             settings: s,
@@ -347,9 +349,9 @@ impl FrameEstimator for AccumulationFrame {
         let n = inputs.count as u64;
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.ctx;
-        let queue = &ctx.queue;
-        inputs.mark(enc, "start");
-        self.layers.encode(queue, enc, inputs.casters, view, 0.0)?;
+        self.groups.next_encode();
+                inputs.mark(enc, "start");
+        self.layers.encode(ctx, enc, inputs.casters, view, 0.0)?;
         inputs.mark(enc, "layers");
         self.km.record(enc, false);
         inputs.mark(enc, "layout");
@@ -359,18 +361,19 @@ impl FrameEstimator for AccumulationFrame {
             uniform_and_tables(s, &inputs.light.shape, view, self.km.layers as usize, mssm);
         let mut eu = EstimateUniform::new(inputs.light, s.bias, s.slope_bias);
         eu.receiver_plane = u32::from(s.receiver_plane);
-        queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&eu));
-        queue.write_buffer(&self.acc, 0, bytemuck::bytes_of(&au));
-        queue.write_buffer(&self.tables, 0, bytemuck::cast_slice(&tables));
+        ctx.write_in(enc, &self.est, 0, bytemuck::bytes_of(&eu));
+        ctx.write_in(enc, &self.acc, 0, bytemuck::bytes_of(&au));
+        ctx.write_in(enc, &self.tables, 0, bytemuck::cast_slice(&tables));
         enc.clear_buffer(&self.status, 0, None);
         if n == 0 {
             return Ok(());
         }
         // One dispatch per range of receivers (a 4K view is two under the default limits).
         for range in receiver_ranges(ctx, inputs.count) {
-            let group = self.kernel.bind_group(
+            let group = self.groups.get_dense(
                 ctx,
                 LABEL,
+                &self.kernel.layout,
                 &[
                     self.layers.view_uniform().as_entire_binding(),
                     self.est.as_entire_binding(),

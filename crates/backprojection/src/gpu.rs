@@ -19,7 +19,7 @@ use shadow_map_core::{
             EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
         },
         frame::{compute_pass, receiver_ranges},
-        kernel::{Binding, Kernel},
+        kernel::{BindGroupCache, Binding, Kernel},
         layout::KernelMaps,
         receivers::RECEIVERS_WGSL,
         GpuContext,
@@ -108,6 +108,7 @@ pub struct BpUniform {
 /// dispatch of it is bound and recorded.
 struct BpKernel {
     kernel: Kernel,
+    groups: BindGroupCache,
 }
 
 const LABEL: &str = "backprojection estimate";
@@ -133,7 +134,10 @@ impl BpKernel {
             ],
             OVERRIDES,
         )?;
-        Ok(BpKernel { kernel })
+        Ok(BpKernel {
+            kernel,
+            groups: BindGroupCache::default(),
+        })
     }
 
     /// Records the kernel's passes into `enc`: one dispatch per [`receiver_ranges`] range of the
@@ -151,10 +155,12 @@ impl BpKernel {
         count: u32,
         counters: &wgpu::Buffer,
     ) {
+        self.groups.next_encode();
         for range in receiver_ranges(ctx, count) {
-            let group = self.kernel.bind_group(
+            let group = self.groups.get_dense(
                 ctx,
                 LABEL,
+                &self.kernel.layout,
                 &[
                     bufs.view.as_entire_binding(),
                     bufs.est.as_entire_binding(),

@@ -54,7 +54,10 @@ use shadow_map_core::{
             check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v, receiver_ranges,
             status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
         },
-        kernel::{bind_group_layout_at, compute_pipeline, shader_module, uniform_buffer, Binding},
+        kernel::{
+            bind_group_layout_at, compute_pipeline, shader_module, uniform_buffer, BindGroupCache,
+            Binding,
+        },
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
         shared::LightViewUniform,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
@@ -232,7 +235,7 @@ impl Lists {
         })?;
         let view_groups = (0..map.slots())
             .map(|slot| {
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                ctx.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("deep-shadow insert view"),
                     layout: &view_layout,
                     entries: &[wgpu::BindGroupEntry {
@@ -338,6 +341,7 @@ struct Slot {
 /// Deep shadow maps on the engine path (module documentation).
 pub struct DeepShadowFrame {
     ctx: Arc<GpuContext>,
+    groups: BindGroupCache,
     params: Params,
     settings: Settings,
     map: GpuMapFrame,
@@ -412,6 +416,7 @@ impl DeepShadowFrame {
             })
             .collect();
         Ok(DeepShadowFrame {
+            groups: BindGroupCache::default(),
             head: storage_buffer(&ctx, "deep-shadow frame head", head_bytes),
             light: uniform_buffer(&ctx, "deep-shadow frame light", est_bytes),
             frame: uniform_buffer(
@@ -504,12 +509,8 @@ impl DeepShadowFrame {
         range: ReceiverRange,
     ) -> wgpu::BindGroup {
         let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
-        self.ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("deep-shadow frame"),
-                layout: &self.layout,
-                entries: &[
+        self.groups.get(
+&self.ctx, "deep-shadow frame", &self.layout, &[
                     e(0, ds.as_entire_binding()),
                     e(3, self.head.as_entire_binding()),
                     e(4, nodes.as_entire_binding()),
@@ -522,8 +523,7 @@ impl DeepShadowFrame {
                     e(13, range.words(inputs.v)),
                     e(14, self.status.as_entire_binding()),
                     e(15, self.frame.as_entire_binding()),
-                ],
-            })
+                ])
     }
 }
 
@@ -581,6 +581,7 @@ impl FrameEstimator for DeepShadowFrame {
             self.max_receivers,
             "receivers per deep-shadow frame (max_receivers at prepare)",
         )?;
+        self.groups.next_encode();
         let views: Vec<&LightView> = inputs.views.iter().flatten().collect();
         if views.len() != inputs.views.len() || views.len() != self.slots.len() {
             return Err(Error::LightView(format!(
@@ -596,13 +597,13 @@ impl FrameEstimator for DeepShadowFrame {
                 v.r, self.map.r
             )));
         }
-        let queue = &self.ctx.queue;
+        let ctx = &self.ctx;
         let s = &self.settings;
         let light = inputs.light;
         // Semi-transparent casters: lists (the insert pass), else the opaque path's heads.
         let lists = !inputs.casters.is_opaque();
         self.last_lists.store(lists, Ordering::Relaxed);
-        queue.write_buffer(
+        ctx.write_in(enc, 
             &self.light,
             0,
             bytemuck::bytes_of(&EstimateUniform::new(light, s.bias, s.slope_bias)),
@@ -616,7 +617,7 @@ impl FrameEstimator for DeepShadowFrame {
             lists: u32::from(lists),
             ..Default::default()
         };
-        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&fu));
+        ctx.write_in(enc, &self.frame, 0, bytemuck::bytes_of(&fu));
         enc.clear_buffer(&self.status, 0, None);
         enc.clear_buffer(&self.acc, 0, None);
         if n == 0 {
@@ -636,13 +637,8 @@ impl FrameEstimator for DeepShadowFrame {
                     resource: b.as_entire_binding(),
                 })
                 .collect();
-            self.ctx
-                .device
-                .create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("deep-shadow insert lists"),
-                    layout: &self.lists.layout,
-                    entries: &entries,
-                })
+            self.groups.get(
+&self.ctx, "deep-shadow insert lists", &self.lists.layout, &entries)
         });
         inputs.mark(enc, "start");
         for (slot, (view, bufs)) in views.iter().zip(&self.slots).enumerate() {
@@ -654,9 +650,9 @@ impl FrameEstimator for DeepShadowFrame {
                 u.epsilon = s.epsilon;
                 u.trunc_window = truncation_window(view, s);
             }
-            queue.write_buffer(&bufs.ds, 0, bytemuck::bytes_of(&u));
+            ctx.write_in(enc, &bufs.ds, 0, bytemuck::bytes_of(&u));
             let vl = view_light(light, view, s.sublights);
-            queue.write_buffer(
+            ctx.write_in(enc, 
                 &bufs.light,
                 0,
                 bytemuck::bytes_of(&EstimateUniform::new(&vl, s.bias, s.slope_bias)),
@@ -676,7 +672,7 @@ impl FrameEstimator for DeepShadowFrame {
                 .collect();
             let group = &groups[0];
             if let Some(list_group) = &list_group {
-                queue.write_buffer(
+                ctx.write_in(enc, 
                     self.map.view_uniform(slot),
                     0,
                     bytemuck::bytes_of(&LightViewUniform::from(*view)),
@@ -691,7 +687,7 @@ impl FrameEstimator for DeepShadowFrame {
                 );
                 inputs.mark(enc, "lists");
             } else {
-                self.map.encode(queue, enc, inputs.casters, view, slot)?;
+                self.map.encode(ctx, enc, inputs.casters, view, slot)?;
                 inputs.mark(enc, "raster");
                 run(
                     enc,

@@ -5,7 +5,7 @@
 //! One frame renders one view per sub-light and opacity level (Yang §5; docs/methods.md §3
 //! "Semi-transparent occluders"), in the CPU twin's order (sub-light rows, sub-lights, levels),
 //! each fitted by [`FrameEstimator::fit_views`] as [`SubView::fit`] fits it. Per view, its
-//! uniforms staged in the view's slot ([`UniformStage`]):
+//! uniforms written in the encoder's order ([`GpuContext::write_in`]):
 //! 1. the core's raster, midpoint and MSSM passes ([`GpuLayersFrame::encode_slot`]): layer 0
 //!    of the casters of at least the level's opacity (the caster buffer's w), its midpoints when
 //!    the classification takes them, the anchored MSSM of layer 0;
@@ -62,10 +62,9 @@ use shadow_map_core::{
             check_prepared_inputs, compute_pass, range_capacity, receiver_ranges_binding, status_buffer, FrameEstimator, ReceiverRange,
             FrameInputs,
         },
-        kernel::{bind_group_layout_at, compute_pipeline, shader_module, Binding},
+        kernel::{bind_group_layout_at, compute_pipeline, shader_module, BindGroupCache, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
-        UniformStage,
     },
     light_view::FitReport,
     Error, Light, LightShape, LightSpace, LightSpaceRequest, LightView, OpacityLevel, Params,
@@ -139,6 +138,7 @@ const BINDINGS: [(u32, Binding); 14] = [
 /// Packet-hsm recorded into the caller's frame (module docs).
 pub struct PacketHsmFrame {
     kernel: Kernel,
+    groups: BindGroupCache,
     cfg: Config,
     layers: GpuLayersFrame,
     padded: GpuDepthMap,
@@ -162,7 +162,6 @@ pub struct PacketHsmFrame {
     status: wgpu::Buffer,
     /// Per receiver: V summed over the views so far, and 1 once a view was cut.
     acc: wgpu::Buffer,
-    stage: SlotStages,
     layout: wgpu::BindGroupLayout,
     maps_pipe: wgpu::ComputePipeline,
     setup_pipe: wgpu::ComputePipeline,
@@ -175,13 +174,6 @@ pub struct PacketHsmFrame {
 struct RangeGroups {
     maps: wgpu::BindGroup,
     ranges: Vec<(ReceiverRange, wgpu::BindGroup, wgpu::BindGroup)>,
-}
-
-/// The kernel's, the light's and the frame's uniforms, one slot per view.
-struct SlotStages {
-    hsm: UniformStage<HsmUniform>,
-    light: UniformStage<EstimateUniform>,
-    frame: UniformStage<HsmFrameUniform>,
 }
 
 fn buffer(ctx: &GpuContext, label: &str, bytes: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -268,6 +260,7 @@ impl PacketHsmFrame {
         let (maps_pipe, setup_pipe, finish_pipe) =
             (mk("frame_maps")?, mk("frame_setup")?, mk("frame_finish")?);
         Ok(PacketHsmFrame {
+            groups: BindGroupCache::default(),
             depth: buffer(&ctx, "packet-hsm frame depth", texels, storage),
             class: buffer(&ctx, "packet-hsm frame classification", texels, storage),
             mssm: buffer(&ctx, "packet-hsm frame MSSM", mssm_bytes, storage),
@@ -307,11 +300,6 @@ impl PacketHsmFrame {
             ),
             status: status_buffer(&ctx, "packet-hsm frame status", 3),
             acc: buffer(&ctx, "packet-hsm frame sums", 8 * n, storage),
-            stage: SlotStages {
-                hsm: UniformStage::new(&ctx, "packet-hsm frame kernel uniform stage", slots),
-                light: UniformStage::new(&ctx, "packet-hsm frame light stage", slots),
-                frame: UniformStage::new(&ctx, "packet-hsm frame uniform stage", slots),
-            },
             kernel,
             cfg,
             layers,
@@ -367,13 +355,8 @@ impl PacketHsmFrame {
             Some(m) if self.cfg.shadow.midpoint() => &m.view,
             _ => &self.layers.layers()[0].view,
         };
-        self.kernel
-            .ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("packet-hsm frame"),
-                layout: &self.layout,
-                entries: &[
+        self.groups.get(
+&self.kernel.ctx, "packet-hsm frame", &self.layout, &[
                     e(0, self.layers.view_uniform().as_entire_binding()),
                     e(1, self.light.as_entire_binding()),
                     e(2, self.frame.as_entire_binding()),
@@ -391,8 +374,7 @@ impl PacketHsmFrame {
                     e(11, self.depth.as_entire_binding()),
                     e(12, self.class.as_entire_binding()),
                     e(13, range.bind(&self.acc, 8)),
-                ],
-            })
+                ])
     }
 
     /// The kernel's bind group over `range` (its scratch from the start).
@@ -444,7 +426,7 @@ impl PacketHsmFrame {
         (slot, view): (usize, &LightView),
         level: &OpacityLevel,
     ) -> Result<()> {
-        let queue = &self.kernel.ctx.queue;
+        let ctx = &self.kernel.ctx;
         let cfg = &self.cfg;
         let layers = LayersSlot {
             view,
@@ -453,7 +435,7 @@ impl PacketHsmFrame {
             slot,
         };
         self.layers
-            .encode_slot(queue, enc, inputs.casters, &layers)?;
+            .encode_slot(ctx, enc, inputs.casters, &layers)?;
         // The classification layer into the padded map's interior, then its dual-grid MSSM.
         let class = match self.layers.midpoints().first() {
             Some(m) if cfg.shadow.midpoint() => m,
@@ -487,7 +469,7 @@ impl PacketHsmFrame {
         (slot, views, view): (usize, usize, &LightView),
         level: &OpacityLevel,
     ) -> Result<()> {
-        let queue = &self.kernel.ctx.queue;
+        let ctx = &self.kernel.ctx;
         let cfg = &self.cfg;
         let half = self.sub_half(inputs.light);
         let shape = self.shape(view, inputs.light, half);
@@ -522,14 +504,14 @@ impl PacketHsmFrame {
             enc.copy_buffer_to_buffer(&level.max, 0, &self.dual_max, at, pplane);
         }
         let hu = hsm_uniform(&shape, cfg);
-        self.stage.hsm.stage(queue, enc, slot, &hu, &self.hsm)?;
+        ctx.write_in(enc, &self.hsm, 0, bytemuck::bytes_of(&hu));
         let mut eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
         if let LightShape::Rect { .. } = inputs.light.shape {
             // The sub-light's rectangle, for its facing fraction (SubView::shape).
             eu.light_size_x = 2.0 * half.x;
             eu.light_size_y = 2.0 * half.y;
         }
-        self.stage.light.stage(queue, enc, slot, &eu, &self.light)?;
+        ctx.write_in(enc, &self.light, 0, bytemuck::bytes_of(&eu));
         let s2 = (cfg.sublights * cfg.sublights) as f32;
         let fu = HsmFrameUniform {
             bias: cfg.shadow.bias,
@@ -541,7 +523,7 @@ impl PacketHsmFrame {
             flags: if slot == 0 { FIRST_VIEW } else { 0 }
                 | if slot + 1 == views { LAST_VIEW } else { 0 },            ..Default::default()
         };
-        self.stage.frame.stage(queue, enc, slot, &fu, &self.frame)?;
+        ctx.write_in(enc, &self.frame, 0, bytemuck::bytes_of(&fu));
         let texels = r as u64 * r as u64;
         run(enc, "packet-hsm frame maps", &self.maps_pipe, &groups.maps, texels);
         // Two marks a view (a frame may render many): the maps, then the rest.
@@ -757,6 +739,8 @@ impl FrameEstimator for PacketHsmFrame {
 
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let (n, levels) = self.checked(inputs)?;
+        self.groups.next_encode();
+        self.kernel.groups.next_encode();
         let views = inputs.views;
         inputs.mark(enc, "start");
         enc.clear_buffer(&self.status, 0, None);

@@ -175,20 +175,19 @@ impl FrameEstimator for BackprojectionFrame {
         let n = inputs.count as u64;
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.ctx;
-        let queue = &ctx.queue;
-        let settings = self.cpu.settings();
+                let settings = self.cpu.settings();
         let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
         inputs.mark(enc, "start");
         self.layers
-            .encode(queue, enc, inputs.casters, view, clamp)?;
+            .encode(ctx, enc, inputs.casters, view, clamp)?;
         inputs.mark(enc, "layers");
         let semi = !inputs.casters.is_opaque();
         self.km.record(enc, semi);
         inputs.mark(enc, "layout");
         let (eu, bpu, table) = uniforms(settings, &self.km, semi, inputs.light);
-        queue.write_buffer(&self.bufs.est, 0, bytemuck::bytes_of(&eu));
-        queue.write_buffer(&self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
-        queue.write_buffer(&self.bufs.bits, 0, bytemuck::bytes_of(&table));
+        ctx.write_in(enc, &self.bufs.est, 0, bytemuck::bytes_of(&eu));
+        ctx.write_in(enc, &self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
+        ctx.write_in(enc, &self.bufs.bits, 0, bytemuck::bytes_of(&table));
         enc.clear_buffer(&self.status, 0, None);
         self.kernel.encode(
             ctx,

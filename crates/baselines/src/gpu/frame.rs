@@ -30,6 +30,7 @@ use shadow_map_core::{
             check_buffers, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
             receiver_ranges, single_view, status_buffer, Views,
         },
+        kernel::BindGroupCache,
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
@@ -49,6 +50,7 @@ pub struct MapFrame<F: GpuFilter> {
     pipeline: wgpu::ComputePipeline,
     est: wgpu::Buffer,
     status: wgpu::Buffer,
+    groups: BindGroupCache,
 }
 
 impl<F: GpuFilter> MapFrame<F> {
@@ -72,6 +74,7 @@ impl<F: GpuFilter> MapFrame<F> {
         let est = uniform_buffer(&ctx, "frame estimate uniform");
         let status = status_buffer(&ctx, "frame status", 4);
         Ok(MapFrame {
+            groups: BindGroupCache::default(),
             ctx,
             params: params.clone(),
             settings,
@@ -124,11 +127,10 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         let view = single_view(inputs.views)?;
         let n = inputs.count as u64;
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
-        let queue = &self.ctx.queue;
+        let ctx = &self.ctx;
+        self.groups.next_encode();
         inputs.mark(enc, "start");
-        self.map
-            .raster
-            .encode(queue, enc, inputs.casters, view, 0)?;
+        self.map.raster.encode(ctx, enc, inputs.casters, view, 0)?;
         inputs.mark(enc, "raster");
         let mut u = estimate_uniform(&self.settings, inputs.light);
         self.filter.set_uniform(&mut u);
@@ -136,13 +138,13 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
             u.depth_step = codes.encode(&self.ctx, enc, 0, view.n, view.far)?;
             inputs.mark(enc, "unorm16");
         }
-        queue.write_buffer(&self.est, 0, bytemuck::bytes_of(&u));
+        ctx.write_in(enc, &self.est, 0, bytemuck::bytes_of(&u));
         enc.clear_buffer(&self.status, 0, None);
         if n == 0 {
             return Ok(());
         }
         for range in receiver_ranges(&self.ctx, inputs.count) {
-            let group = kernel::bind_group(
+            let group = self.groups.get_dense(
                 &self.ctx,
                 "frame estimate",
                 &self.layout,
@@ -266,6 +268,7 @@ pub struct MultiSampleFrame {
     est: Vec<wgpu::Buffer>,
     acc: wgpu::Buffer,
     max_receivers: u32,
+    groups: BindGroupCache,
 }
 
 impl MultiSampleFrame {
@@ -293,6 +296,7 @@ impl MultiSampleFrame {
             mapped_at_creation: false,
         });
         Ok(MultiSampleFrame {
+            groups: BindGroupCache::default(),
             ctx,
             params: params.clone(),
             settings,
@@ -373,6 +377,7 @@ impl FrameEstimator for MultiSampleFrame {
             self.max_receivers,
             "receivers per multi-sample frame (max_receivers at prepare)",
         )?;
+        self.groups.next_encode();
         let slots = self.map.raster.slots();
         if inputs.views.len() > slots {
             return Err(Error::LightView(format!(
@@ -388,10 +393,10 @@ impl FrameEstimator for MultiSampleFrame {
                 v.r, r
             )));
         }
-        let queue = &self.ctx.queue;
+        let ctx = &self.ctx;
         let mut u = estimate_uniform(&self.settings, inputs.light);
         u.inv_samples = inv_samples(inputs.views.len());
-        queue.write_buffer(&self.est[0], 0, bytemuck::bytes_of(&u));
+        ctx.write_in(enc, &self.est[0], 0, bytemuck::bytes_of(&u));
         enc.clear_buffer(&self.acc, 0, None);
         if n == 0 {
             return Ok(());
@@ -409,7 +414,7 @@ impl FrameEstimator for MultiSampleFrame {
             wgpu::BindingResource<'_>,
         )| {
             for range in &ranges {
-                let group = kernel::bind_group(
+                let group = self.groups.get_dense(
                     &self.ctx,
                     "multi-sample frame",
                     &k.layout,
@@ -430,12 +435,12 @@ impl FrameEstimator for MultiSampleFrame {
             let Some(view) = view else { continue };
             self.map
                 .raster
-                .encode(queue, enc, inputs.casters, view, slot)?;
+                .encode(ctx, enc, inputs.casters, view, slot)?;
             inputs.mark(enc, "raster");
             if let Some(codes) = &self.map.unorm16 {
                 let mut us = u;
                 us.depth_step = codes.encode(&self.ctx, enc, slot, view.n, view.far)?;
-                queue.write_buffer(&self.est[slot], 0, bytemuck::bytes_of(&us));
+                ctx.write_in(enc, &self.est[slot], 0, bytemuck::bytes_of(&us));
                 inputs.mark(enc, "unorm16");
             }
             let est = if self.map.unorm16.is_some() {

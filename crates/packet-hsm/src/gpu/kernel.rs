@@ -14,7 +14,7 @@ use crate::settings::Config;
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
-        kernel::{bind_group_layout, compute_pipeline, shader_module, Binding},
+        kernel::{bind_group_layout, compute_pipeline, shader_module, BindGroupCache, Binding},
         GpuContext,
     },
     LightView, Result,
@@ -151,6 +151,8 @@ pub(crate) struct Kernel {
     pub layout: wgpu::BindGroupLayout,
     pub prepare: wgpu::ComputePipeline,
     pub pixels: wgpu::ComputePipeline,
+    /// The bind groups [`group`](Self::group) made, kept while their buffers stay the same.
+    pub groups: BindGroupCache,
 }
 
 impl Kernel {
@@ -172,6 +174,7 @@ impl Kernel {
             layout,
             prepare,
             pixels,
+            groups: BindGroupCache::default(),
         })
     }
 
@@ -187,13 +190,8 @@ impl Kernel {
                 resource,
             })
             .collect();
-        self.ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("packet-hsm kernel"),
-                layout: &self.layout,
-                entries: &entries,
-            })
+        self.groups.get(
+&self.ctx, "packet-hsm kernel", &self.layout, &entries)
     }
 }
 

@@ -184,8 +184,8 @@ impl GpuCasterBuilder {
             .sum()
     }
 
-    /// Stages the meshes' uniforms and the instances' transforms (`queue.write_buffer`: one
-    /// `encode` per submit) and records one dispatch per mesh with instances, writing every
+    /// Writes the meshes' uniforms and the instances' transforms in the encoder's order
+    /// ([`GpuContext::write_in`]) and records one dispatch per mesh with instances, writing every
     /// instance's triangles into `out` (mesh by mesh in the order of `meshes`, instances in
     /// their order) and setting `out.triangles`. Errors before anything is recorded
     /// ([`Error::Receivers`] names the mesh or instance, [`Error::Limit`] the capacity): an
@@ -300,10 +300,8 @@ impl GpuCasterBuilder {
                 _pad: [0; 2],
             };
             let p_off = self.params_stride * k as u64;
-            ctx.queue
-                .write_buffer(&self.params, p_off, bytemuck::bytes_of(&params));
-            ctx.queue
-                .write_buffer(&self.transforms, 64 * slot, bytemuck::cast_slice(mats));
+            ctx.write_in(enc, &self.params, p_off, bytemuck::bytes_of(&params));
+            ctx.write_in(enc, &self.transforms, 64 * slot, bytemuck::cast_slice(mats));
             let index_buf = match m.indices {
                 CasterIndices::None => &self.no_indices,
                 CasterIndices::U16(b) | CasterIndices::U32(b) => b,

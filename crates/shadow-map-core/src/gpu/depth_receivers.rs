@@ -213,7 +213,7 @@ impl GpuDepthReceivers {
         Ok(GpuDepthReceivers { kernel, uniform })
     }
 
-    /// Stages `camera` (`queue.write_buffer`: one `encode` per submit) and records the pass
+    /// Writes `camera` in the encoder's order ([`GpuContext::write_in`]) and records the pass
     /// writing `camera.width * camera.height` receivers into `out` (`STORAGE`, at least
     /// `32 * width * height` bytes) from `depth` (a `texture_depth_2d` view: `Depth32Float`, or
     /// the depth aspect of a depth-stencil texture) and `normals` (an unfilterable-float view:
@@ -259,8 +259,7 @@ impl GpuDepthReceivers {
         if w == 0 || h == 0 {
             return Ok(());
         }
-        ctx.queue
-            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&params));
+        ctx.write_in(enc, &self.uniform, 0, bytemuck::bytes_of(&params));
         let depth_view = depth.create_view(&wgpu::TextureViewDescriptor {
             aspect: wgpu::TextureAspect::DepthOnly,
             ..Default::default()

@@ -31,8 +31,10 @@ pub trait FrameEstimator: Send + Sync {
     /// of no use to it any more).
     fn fit_views(&self, scene: &Scene, receivers: &Receivers) -> Result<Vec<Option<LightView>>>;
 
-    /// Records one frame into `enc` (one `encode` per submit: uniforms are staged with
-    /// `queue.write_buffer`). Errors, before anything is recorded: views of another resolution
+    /// Records one frame into `enc`. Its uniforms are written in the encoder's order
+    /// ([`GpuContext::write_in`]), so one estimator may record several frames (lights, views,
+    /// receiver sets) into one encoder or into several encoders of one submit, each reading its
+    /// own; the status buffer holds the last one's. Errors, before anything is recorded: views of another resolution
     /// or number ([`Error::LightView`]); buffers smaller than the count needs ([`Error::Limit`],
     /// [`check_buffers`]); a lost device ([`Error::DeviceLost`]: checked
     /// first, never blocking; see below).

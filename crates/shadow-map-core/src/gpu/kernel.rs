@@ -203,6 +203,120 @@ impl Kernel {
     }
 }
 
+/// Encodes a group unused for this many encodes of its frame is kept through
+/// ([`BindGroupCache::next_encode`]): room for a few frames recorded in turn from other buffers
+/// (two lights, two cameras) without holding a caller's old buffers for long.
+const KEEP_ENCODES: u64 = 4;
+
+/// The bind groups a frame's `encode` makes, kept while what they bind stays the same (the
+/// same layout, and per binding the same buffer range, texture view or sampler), so a frame
+/// recorded every frame from the same buffers makes none after the first. A cached group holds
+/// the resources it binds: groups not asked for during the last 4 encodes are
+/// dropped, and with them the buffers a caller has since replaced.
+#[derive(Debug, Default)]
+pub struct BindGroupCache {
+    inner: std::sync::Mutex<CacheInner>,
+}
+
+#[derive(Debug, Default)]
+struct CacheInner {
+    encode: u64,
+    groups: std::collections::HashMap<GroupKey, (wgpu::BindGroup, u64)>,
+}
+
+#[derive(Debug, PartialEq, Eq, Hash)]
+struct GroupKey {
+    layout: wgpu::BindGroupLayout,
+    entries: Vec<(u32, Bound)>,
+}
+
+#[derive(Debug, PartialEq, Eq, Hash)]
+enum Bound {
+    Buffer(wgpu::Buffer, u64, Option<std::num::NonZeroU64>),
+    View(wgpu::TextureView),
+    Sampler(wgpu::Sampler),
+}
+
+impl BindGroupCache {
+    /// Marks the start of an encode: groups no encode asked for during the last
+    /// 4 are dropped.
+    pub fn next_encode(&self) {
+        let mut c = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        c.encode += 1;
+        let oldest = c.encode.saturating_sub(KEEP_ENCODES);
+        c.groups.retain(|_, (_, used)| *used >= oldest);
+    }
+
+    /// The bind group of `layout` with `entries`, made on `ctx` only when no cached group binds
+    /// the same; entries of resource arrays are never cached.
+    pub fn get(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        entries: &[wgpu::BindGroupEntry<'_>],
+    ) -> wgpu::BindGroup {
+        let make = || {
+            ctx.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout,
+                entries,
+            })
+        };
+        let bound: Option<Vec<(u32, Bound)>> = entries
+            .iter()
+            .map(|e| {
+                Some((
+                    e.binding,
+                    match &e.resource {
+                        wgpu::BindingResource::Buffer(b) => {
+                            Bound::Buffer(b.buffer.clone(), b.offset, b.size)
+                        }
+                        wgpu::BindingResource::TextureView(v) => Bound::View((*v).clone()),
+                        wgpu::BindingResource::Sampler(s) => Bound::Sampler((*s).clone()),
+                        _ => return None,
+                    },
+                ))
+            })
+            .collect();
+        let Some(entries) = bound else {
+            return make();
+        };
+        let key = GroupKey {
+            layout: layout.clone(),
+            entries,
+        };
+        let mut c = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let now = c.encode;
+        let (group, used) = c.groups.entry(key).or_insert_with(|| (make(), now));
+        *used = now;
+        group.clone()
+    }
+
+    /// [`get`](Self::get) with `resources[k]` at binding `k`.
+    pub fn get_dense(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        resources: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
+        self.get(ctx, label, layout, &dense_entries(resources))
+    }
+}
+
+/// `resources[k]` as the entry of binding `k`.
+fn dense_entries<'a>(resources: &[wgpu::BindingResource<'a>]) -> Vec<wgpu::BindGroupEntry<'a>> {
+    resources
+        .iter()
+        .zip(0u32..)
+        .map(|(r, k)| wgpu::BindGroupEntry {
+            binding: k,
+            resource: r.clone(),
+        })
+        .collect()
+}
+
 /// A bind group of `layout`: `resources[k]` at binding `k`.
 pub fn bind_group(
     ctx: &GpuContext,
@@ -210,18 +324,10 @@ pub fn bind_group(
     layout: &wgpu::BindGroupLayout,
     resources: &[wgpu::BindingResource<'_>],
 ) -> wgpu::BindGroup {
-    let entries: Vec<_> = resources
-        .iter()
-        .zip(0u32..)
-        .map(|(r, k)| wgpu::BindGroupEntry {
-            binding: k,
-            resource: r.clone(),
-        })
-        .collect();
-    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+    ctx.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some(label),
         layout,
-        entries: &entries,
+        entries: &dense_entries(resources),
     })
 }
 

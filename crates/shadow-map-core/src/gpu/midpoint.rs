@@ -5,7 +5,6 @@
 use super::{
     depth_map::GpuDepthMap,
     kernel::{buffer_init, Binding, Kernel},
-    stage::UniformStage,
     GpuContext,
 };
 use crate::Result;
@@ -69,7 +68,7 @@ impl GpuMidpoints {
         max_bias: f32,
     ) {
         if let Some(pass) = self.prepare(ctx, layers, out) {
-            pass.record(&ctx.queue, encoder, max_bias);
+            pass.record(ctx, encoder, max_bias);
         }
     }
 
@@ -141,34 +140,16 @@ pub struct GpuMidpointPass {
 }
 
 impl GpuMidpointPass {
-    /// Stages `max_bias` (it takes effect at the next submit) and records the pass.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, max_bias: f32) {
-        queue.write_buffer(
+    /// Writes `max_bias` in the encoder's order ([`GpuContext::write_in`]) and records the
+    /// pass.
+    pub fn record(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, max_bias: f32) {
+        ctx.write_in(
+            encoder,
             &self.params,
             0,
             bytemuck::bytes_of(&self.params_of(max_bias)),
         );
         self.dispatch(encoder);
-    }
-
-    /// [`record`](Self::record) with the clamp staged in a slot of `stage`, for frames that
-    /// record the dispatches in several views within one encoder.
-    pub fn record_staged(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        max_bias: f32,
-        (stage, slot): (&UniformStage<MidpointParams>, usize),
-    ) -> Result<()> {
-        stage.stage(
-            queue,
-            encoder,
-            slot,
-            &self.params_of(max_bias),
-            &self.params,
-        )?;
-        self.dispatch(encoder);
-        Ok(())
     }
 
     fn params_of(&self, max_bias: f32) -> MidpointParams {

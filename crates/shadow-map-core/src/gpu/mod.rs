@@ -19,7 +19,6 @@
 //! | [`shared`] (`shared.wgsl`) | structs both sides read | |
 //! | [`estimate`] (`estimate.wgsl`, `math.wgsl`) | [`EstimateUniform`]: the light and bias every estimate kernel reads, f32 light math | [`crate::light`], [`crate::LightView::receiver_bias`] |
 //! | [`kernel`] | [`Kernel`]: layouts from a binding list, pipelines, chunked receivers, readback | |
-//! | [`stage`] | [`UniformStage`]: a uniform per view within one encoder | |
 use crate::{Error, Result};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -40,7 +39,6 @@ pub mod precision;
 pub mod raster;
 pub mod receivers;
 pub mod shared;
-pub mod stage;
 
 pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
 pub use estimate::EstimateUniform;
@@ -54,7 +52,6 @@ pub use mssm::{
 pub use precision::{GpuUnorm16Encoder, GpuUnorm16Frame, GpuUnorm16Map};
 pub use raster::{GpuLayersFrame, GpuMapFrame, GpuScene, GpuShadowMapper, LayersSlot};
 pub use receivers::GpuReceivers;
-pub use stage::UniformStage;
 
 /// Every WGSL shader of the crate as `(name, complete source)`, shared structs prepended where a
 /// stage uses them. A unit test validates each with naga, so a WGSL error fails CPU-only CI.
@@ -113,6 +110,10 @@ pub fn redo_cut_receivers(
     Ok(cut.len())
 }
 
+/// Bytes per chunk of [`GpuContext::write_in`]'s staging belt: each write takes a chunk of its
+/// own (larger writes a larger one), the uniforms of a frame one each.
+const BELT_CHUNK_BYTES: u64 = 256;
+
 /// A device and queue, owned or borrowed, with what the backend needs to know about them.
 #[derive(Debug, Clone)]
 pub struct GpuContext {
@@ -127,6 +128,10 @@ pub struct GpuContext {
     /// Buffers mapped for reading through [`GpuContext::read_buffer`] (every readback the
     /// library makes goes through it).
     readbacks: Arc<AtomicU64>,
+    /// The staging memory of [`GpuContext::write_in`].
+    belt: Arc<Mutex<wgpu::util::StagingBelt>>,
+    /// Bind groups made through [`GpuContext::create_bind_group`].
+    bind_groups: Arc<AtomicU64>,
 }
 
 impl GpuContext {
@@ -172,13 +177,62 @@ impl GpuContext {
     /// from this crate as [`Error::DeviceLost`], call
     /// [`report_device_lost`](Self::report_device_lost) from that callback.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let belt = wgpu::util::StagingBelt::new(device.clone(), BELT_CHUNK_BYTES);
         GpuContext {
             device,
             queue,
             adapter: None,
             lost: Arc::new(Mutex::new(None)),
             readbacks: Arc::new(AtomicU64::new(0)),
+            belt: Arc::new(Mutex::new(belt)),
+            bind_groups: Arc::new(AtomicU64::new(0)),
         }
+    }
+
+    /// `device.create_bind_group`, counted ([`bind_groups`](Self::bind_groups)): the bind
+    /// groups of every frame estimator's `encode` and of the compute kernels go through it.
+    pub fn create_bind_group(&self, desc: &wgpu::BindGroupDescriptor<'_>) -> wgpu::BindGroup {
+        self.bind_groups.fetch_add(1, Ordering::Relaxed);
+        self.device.create_bind_group(desc)
+    }
+
+    /// How many bind groups this context has made so far: a frame recorded again from the same
+    /// buffers makes none ([`kernel::BindGroupCache`]).
+    pub fn bind_groups(&self) -> u64 {
+        self.bind_groups.load(Ordering::Relaxed)
+    }
+
+    /// Writes `bytes` (a multiple of 4 long) into `dst` at `offset` as a copy recorded into
+    /// `enc` (`dst` needs `COPY_DST`): passes recorded after it read the new value and passes
+    /// before it the old one, so one encoder, or several submitted together, may record a frame
+    /// many times with different uniforms. `queue.write_buffer` instead lands before the whole
+    /// submit, leaving every pass the last value written. The bytes go through mapped chunks
+    /// of wgpu's `StagingBelt`, handed back for reuse once `enc` is submitted and done (an
+    /// encoder dropped unsubmitted drops its chunks).
+    pub fn write_in(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        dst: &wgpu::Buffer,
+        offset: u64,
+        bytes: &[u8],
+    ) {
+        let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) else {
+            return;
+        };
+        let mut belt = self.belt.lock().unwrap_or_else(|e| e.into_inner());
+        let align = wgpu::BufferSize::new(wgpu::COPY_BUFFER_ALIGNMENT).expect("non-zero");
+        let slice = belt.allocate(size, align);
+        // A device lost or destroyed gives no mapping: nothing is written (nothing recorded on
+        // it will run; `check_lost` and the submit report the loss).
+        let Ok(mut view) = slice.get_mapped_range_mut() else {
+            return;
+        };
+        view.copy_from_slice(bytes);
+        drop(view);
+        enc.copy_buffer_to_buffer(slice.buffer(), slice.offset(), dst, offset, size.get());
+        // Closed at once: the chunk is unmapped before `enc` can be submitted, and re-mapped
+        // for the belt when that submission completes.
+        belt.finish_and_recall_on_submit(enc);
     }
 
     /// Marks the device lost (`reason` is kept for the error): every later call through this

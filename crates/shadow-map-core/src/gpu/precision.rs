@@ -247,8 +247,7 @@ fn code_buffer(ctx: &GpuContext, size: u32) -> wgpu::Buffer {
 /// 16-bit encoding on the engine path: the codes of one f32 layer, recorded into the
 /// caller's command encoder after each raster of that layer. Allocated once: one code buffer
 /// (each encoding overwrites it, so a kernel reads it before the next raster into the layer)
-/// and one encoder uniform per view slot (a frame's `queue.write_buffer`s all land before its
-/// passes run, so views rendered in turn within one frame need one each).
+/// and one encoder uniform per view slot.
 #[derive(Debug)]
 pub struct GpuUnorm16Frame {
     encoder: GpuUnorm16Encoder,
@@ -305,7 +304,8 @@ impl GpuUnorm16Frame {
             });
         };
         let step = step_for(n, far);
-        ctx.queue.write_buffer(
+        ctx.write_in(
+            enc,
             params,
             0,
             bytemuck::bytes_of(&encode_params(self.size, n, step)),

@@ -40,7 +40,6 @@ use super::{
     midpoint::GpuMidpoints,
     mssm::{GpuMssmBuilder, MinMaxRequest},
     shared::LightViewUniform,
-    stage::UniformStage,
     GpuContext,
 };
 use crate::{
@@ -420,13 +419,7 @@ impl GpuShadowMapper {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("raster"),
                 });
-            frame.encode(
-                &ctx.queue,
-                &mut enc,
-                scene,
-                view,
-                req.midpoints.unwrap_or(0.0),
-            )?;
+            frame.encode(ctx, &mut enc, scene, view, req.midpoints.unwrap_or(0.0))?;
             ctx.queue.submit([enc.finish()]);
             Ok(frame.light_space(view))
         })?
@@ -524,9 +517,7 @@ impl GpuShadowMapper {
                 r,
                 layers_out: layers_out as usize,
                 stage: LayersStage {
-                    view: UniformStage::new(ctx, "raster.view stage", slots),
-                    params: UniformStage::new(ctx, "raster.params stage", slots),
-                    midpoint: UniformStage::new(ctx, "midpoint stage", slots),
+                    slots: slots.max(1) as usize,
                     base: RasterParams::from(bias),
                 },
                 params,

@@ -46,7 +46,7 @@ fn layer_opacity_planes_match_the_cpu() -> Result<(), Error> {
         let casters = GpuScene::upload(&ctx, &scene)?;
         assert!(!casters.is_opaque(), "{name}: the upload keeps the opacity");
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        frame.encode(&ctx.queue, &mut enc, &casters, &view, 0.0)?;
+        frame.encode(&ctx, &mut enc, &casters, &view, 0.0)?;
         ctx.queue.submit([enc.finish()]);
         assert_eq!(frame.opacity().len(), frame.layers().len(), "{name}");
 
@@ -129,7 +129,7 @@ fn layer_slots_render_each_opacity_level_in_its_own_view() -> Result<(), Error> 
             min_opacity: level.min_opacity,
             slot: k,
         };
-        frame.encode_slot(&ctx.queue, &mut enc, &casters, &slot)?;
+        frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
         enc.copy_texture_to_texture(
             frame.layers()[0].texture.as_image_copy(),
             copies[k].texture.as_image_copy(),

@@ -3,8 +3,7 @@
 //! midpoints and MSSM family ([`GpuLayersFrame`], several views in turn through [`LayersSlot`]).
 use super::{begin_layer_pass, GpuScene, LayerPipelines, RasterParams};
 use crate::gpu::{
-    depth_map::GpuDepthMap, light_space::GpuLightSpace, shared::LightViewUniform,
-    stage::UniformStage,
+    depth_map::GpuDepthMap, light_space::GpuLightSpace, shared::LightViewUniform, GpuContext,
 };
 use crate::{
     light_view::{FitReport, LightView},
@@ -12,12 +11,11 @@ use crate::{
 };
 
 /// A shadow map rendered every frame into the caller's command encoder (the engine path,
-/// [`GpuShadowMapper::map_frame`](super::GpuShadowMapper::map_frame)): [`encode`](Self::encode) stages a view in one of its view
-/// slots with `queue.write_buffer` and records one render pass into the layer; nothing is
-/// submitted, nothing waits, and no CPU work grows with the triangles. Staged views take effect
-/// at the caller's next `queue.submit`, so a frame renders each slot at most once per submit
-/// (multi-view methods render their views in turn into the one layer, each followed by the pass
-/// that reads it).
+/// [`GpuShadowMapper::map_frame`](super::GpuShadowMapper::map_frame)): [`encode`](Self::encode) writes a view into one of its view
+/// slots in the encoder's order ([`GpuContext::write_in`]) and records one render pass into the
+/// layer; nothing is submitted, nothing waits, and no CPU work grows with the triangles.
+/// Multi-view methods render their views in turn into the one layer, each followed by the pass
+/// that reads it.
 #[derive(Debug)]
 pub struct GpuMapFrame {
     /// Side in texels.
@@ -47,7 +45,7 @@ impl GpuMapFrame {
     /// of another resolution, [`Error::Limit`] for a slot beyond those prepared.
     pub fn encode(
         &self,
-        queue: &wgpu::Queue,
+        ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
         casters: &GpuScene,
         view: &LightView,
@@ -66,7 +64,8 @@ impl GpuMapFrame {
                 view.r, self.r
             )));
         }
-        queue.write_buffer(
+        ctx.write_in(
+            enc,
             uniform,
             0,
             bytemuck::bytes_of(&LightViewUniform::from(view)),
@@ -97,21 +96,19 @@ pub struct LayersSlot<'a> {
     pub slot: usize,
 }
 
-/// A [`GpuLayersFrame`]'s staged uniforms and its raster parameters at opacity 0.
+/// A [`GpuLayersFrame`]'s view slots and its raster parameters at opacity 0.
 #[derive(Debug)]
 pub(super) struct LayersStage {
-    pub(super) view: UniformStage<LightViewUniform>,
-    pub(super) params: UniformStage<RasterParams>,
-    pub(super) midpoint: UniformStage<crate::gpu::midpoint::MidpointParams>,
+    pub(super) slots: usize,
     pub(super) base: RasterParams,
 }
 
 /// The depth-peeled layers, midpoint layers and MSSM family of one view, rendered every frame
 /// into the caller's command encoder (the engine path, [`GpuShadowMapper::layers_frame`](super::GpuShadowMapper::layers_frame)): the
 /// resources and bind groups of [`GpuShadowMapper::render_layers`](super::GpuShadowMapper::render_layers), allocated once;
-/// [`encode`](Self::encode) stages the view and the midpoint clamp with `queue.write_buffer` and
-/// records the peeling passes, the midpoint pass and the MSSM pass. Nothing is submitted, nothing
-/// waits, no CPU work grows with the triangles or texels; one `encode` per submit.
+/// [`encode`](Self::encode) writes the view and the midpoint clamp in the encoder's order
+/// ([`GpuContext::write_in`]) and records the peeling passes, the midpoint pass and the MSSM
+/// pass. Nothing is submitted, nothing waits, no CPU work grows with the triangles or texels.
 #[derive(Debug)]
 pub struct GpuLayersFrame {
     /// Side in texels.
@@ -186,7 +183,7 @@ impl GpuLayersFrame {
     /// and records every pass, every caster cast: [`encode_slot`](Self::encode_slot) in slot 0.
     pub fn encode(
         &self,
-        queue: &wgpu::Queue,
+        ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
         casters: &GpuScene,
         view: &LightView,
@@ -198,16 +195,16 @@ impl GpuLayersFrame {
             min_opacity: 0.0,
             slot: 0,
         };
-        self.encode_slot(queue, enc, casters, &slot)
+        self.encode_slot(ctx, enc, casters, &slot)
     }
 
-    /// Records every pass in `slot.view`, its uniforms staged in `slot.slot`
-    /// ([`UniformStage`]), so one encoder can render the layers in several views in turn, each
-    /// followed by the passes that read them. Errors: [`Error::LightView`] for a view of another
-    /// resolution or a slot beyond those prepared.
+    /// Records every pass in `slot.view`, its uniforms written in the encoder's order
+    /// ([`GpuContext::write_in`]), so one encoder can render the layers in several views in
+    /// turn, each followed by the passes that read them. Errors: [`Error::LightView`] for a view
+    /// of another resolution or a slot beyond those prepared.
     pub fn encode_slot(
         &self,
-        queue: &wgpu::Queue,
+        ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
         casters: &GpuScene,
         slot: &LayersSlot<'_>,
@@ -220,19 +217,23 @@ impl GpuLayersFrame {
             )));
         }
         let st = &self.stage;
-        st.view.stage(
-            queue,
+        if slot.slot >= st.slots {
+            return Err(Error::LightView(format!(
+                "view slot {} of a frame prepared for {} views",
+                slot.slot, st.slots
+            )));
+        }
+        ctx.write_in(
             enc,
-            slot.slot,
-            &LightViewUniform::from(view),
             &self.view_uniform,
-        )?;
+            0,
+            bytemuck::bytes_of(&LightViewUniform::from(view)),
+        );
         let params = RasterParams {
             min_opacity: slot.min_opacity,
             ..st.base
         };
-        st.params
-            .stage(queue, enc, slot.slot, &params, &self.params)?;
+        ctx.write_in(enc, &self.params, 0, bytemuck::bytes_of(&params));
         let with_opacity = !casters.is_opaque() && !self.opacity.is_empty();
         self.wrote_opacity
             .store(with_opacity, std::sync::atomic::Ordering::Relaxed);
@@ -251,7 +252,7 @@ impl GpuLayersFrame {
             }
         }
         if let Some(p) = &self.midpoint_pass {
-            p.record_staged(queue, enc, slot.max_bias, (&st.midpoint, slot.slot))?;
+            p.record(ctx, enc, slot.max_bias);
         }
         self.mssm_pass.record(enc);
         Ok(())
