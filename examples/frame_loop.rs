@@ -26,10 +26,11 @@
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release --example frame_loop -- [--json] [--frames N]
-//!     [--timed-frames N] [--size WxH] [--resolution R] [--algo NAME] [SCENE.toml]
+//!     [--timed-frames N] [--size WxH] [--resolution R] [--algo NAME] [--small-only] [SCENE.toml]
 //!
 //! `--size` sets the camera's image (the receivers), `--resolution` every estimator's shadow-map
-//! resolution, `--algo` runs one estimator only.
+//! resolution, `--algo` runs one estimator only, `--small-only` the scene as loaded only (one
+//! JSON line per estimator: a 3840 x 2160 view in minutes on lavapipe).
 //! ```
 use cpu_time::ThreadTime;
 use glam::Vec3;
@@ -350,6 +351,7 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
     let mut timed = TIMED_FRAMES;
     let mut path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny/bunny.toml").to_string();
     let (mut size, mut resolution, mut only) = (None, None, None);
+    let mut small_only = false;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or(format!("{a} needs a value"));
@@ -364,6 +366,7 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
             }
             "--resolution" => resolution = Some(value()?.parse::<u32>()?),
             "--algo" => only = Some(value()?),
+            "--small-only" => small_only = true,
             "--size" => {
                 let v = value()?;
                 let (w, h) = v
@@ -404,6 +407,15 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
                 timed,
             )
         };
+        if small_only {
+            let sm = measure(&small)?;
+            let (w, h) = (small.camera().width, small.camera().height);
+            println!(
+                "{{\"algo\":\"{algo}\",\"size\":\"{w}x{h}\",\"frames\":{frames},\"host_ms_per_frame\":{:.4},\"gpu_ms_per_frame\":{:.3},\"cpu_twin_ms\":{:.3},\"rmse_vs_cpu\":{:.3e},\"left_nan\":{},\"active\":{},\"gpu_stage_ms\":{}}}",
+                sm.host_ms, sm.gpu_ms, sm.cpu_ms, sm.rmse, sm.left_nan, sm.active, stages_json(&sm.stages)
+            );
+            continue;
+        }
         let (sm, lg) = (measure(&small)?, measure(&large)?);
         let (ts, tl) = (small.triangles().len(), large.triangles().len());
         if json {
