@@ -120,14 +120,7 @@ fn frames_take_a_renderers_meshes_and_prepass() {
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let make_v = || {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("V"),
-            size: 4 * n as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        })
-    };
+    let make_v = || v_buffer(&ctx, n);
     let prepass = GpuDepthReceivers::new(&ctx).unwrap();
 
     // The receivers the prepass gives, read back once for the CPU twin.
@@ -162,11 +155,7 @@ fn frames_take_a_renderers_meshes_and_prepass() {
 
     let mut failures = Vec::new();
     for &algo in FRAME_ALGOS {
-        let cpu = softshadow::estimator(algo, softshadow::Backend::Cpu).unwrap();
-        let params = own_params(algo, cpu.params()).unwrap();
-        let frame = frame_estimator(algo, ctx.clone(), &params, n as u32)
-            .unwrap()
-            .expect("every FRAME_ALGOS estimator has a frame");
+        let frame = default_frame(&ctx, algo, n);
         let views = frame.fit_views(&scene, &from_depth).unwrap();
         let run = |c: &GpuScene, v: &wgpu::Buffer, views: &[Option<shadow_map_core::LightView>]| {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -237,6 +226,55 @@ fn frames_take_a_renderers_meshes_and_prepass() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// A V buffer of `n` receivers.
+fn v_buffer(ctx: &GpuContext, n: usize) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("V"),
+        size: 4 * n as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// `algo`'s frame at its CPU twin's defaults, prepared for `n` receivers.
+fn default_frame(
+    ctx: &std::sync::Arc<GpuContext>,
+    algo: &str,
+    n: usize,
+) -> Box<dyn shadow_map_core::gpu::frame::FrameEstimator> {
+    let cpu = softshadow::estimator(algo, softshadow::Backend::Cpu).unwrap();
+    let params = own_params(algo, cpu.params()).unwrap();
+    frame_estimator(algo, ctx.clone(), &params, n as u32)
+        .unwrap()
+        .expect("every FRAME_ALGOS estimator has a frame")
+}
+
+/// Records `frame` into `enc` for `scene`'s light in `views`, from `casters` and `receivers`,
+/// V into `v`.
+fn record(
+    frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
+    enc: &mut wgpu::CommandEncoder,
+    (casters, receivers): (&GpuScene, &GpuReceivers),
+    scene: &shadow_map_core::Scene,
+    views: &shadow_map_core::gpu::frame::Views,
+    v: &wgpu::Buffer,
+) {
+    frame
+        .encode(
+            enc,
+            &FrameInputs {
+                casters,
+                views,
+                light: scene.light(),
+                receivers: &receivers.buffer,
+                count: receivers.count,
+                v,
+                timestamps: None,
+            },
+        )
+        .unwrap_or_else(|e| panic!("{}: {e}", frame.name()));
+}
+
 /// One estimator records two frames into one encoder, each its own scene (casters, receivers,
 /// light and views) and V buffer, as a renderer drawing two lights or two cameras does: one
 /// submit gives each frame the V bits it gives submitted alone. The frames write their uniforms
@@ -263,41 +301,24 @@ fn one_estimator_records_two_scenes_into_one_submit() {
             (casters, receivers)
         })
         .collect();
-    let make_v = || {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("V"),
-            size: 4 * n as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        })
-    };
+    let make_v = || v_buffer(&ctx, n);
     let mut failures = Vec::new();
     for &algo in FRAME_ALGOS {
-        let cpu = softshadow::estimator(algo, softshadow::Backend::Cpu).unwrap();
-        let params = own_params(algo, cpu.params()).unwrap();
-        let frame = frame_estimator(algo, ctx.clone(), &params, n as u32)
-            .unwrap()
-            .expect("every FRAME_ALGOS estimator has a frame");
+        let frame = default_frame(&ctx, algo, n);
         let views: Vec<_> = scenes
             .iter()
             .map(|(scene, rec)| frame.fit_views(scene, rec).unwrap())
             .collect();
         let record = |enc: &mut wgpu::CommandEncoder, k: usize, v: &wgpu::Buffer| {
             let (casters, receivers) = &inputs[k];
-            frame
-                .encode(
-                    enc,
-                    &FrameInputs {
-                        casters,
-                        views: &views[k],
-                        light: scenes[k].0.light(),
-                        receivers: &receivers.buffer,
-                        count: receivers.count,
-                        v,
-                        timestamps: None,
-                    },
-                )
-                .unwrap_or_else(|e| panic!("{algo}, scene {k}: {e}"));
+            record(
+                &*frame,
+                enc,
+                (casters, receivers),
+                &scenes[k].0,
+                &views[k],
+                v,
+            );
         };
         let read = |v: &wgpu::Buffer| ctx.read_buffer::<u32>(v, 4 * n as u64).unwrap();
         let alone: Vec<Vec<u32>> = (0..2)
@@ -347,40 +368,16 @@ fn a_frame_recorded_again_from_the_same_buffers_makes_no_bind_group() {
     let n = rec.len();
     let casters = GpuScene::upload(&ctx, &scene).unwrap();
     let receivers = GpuReceivers::upload(&ctx, &rec).unwrap();
-    let make_v = || {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("V"),
-            size: 4 * n as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        })
-    };
+    let make_v = || v_buffer(&ctx, n);
     let mut failures = Vec::new();
     for &algo in FRAME_ALGOS {
-        let cpu = softshadow::estimator(algo, softshadow::Backend::Cpu).unwrap();
-        let params = own_params(algo, cpu.params()).unwrap();
-        let frame = frame_estimator(algo, ctx.clone(), &params, n as u32)
-            .unwrap()
-            .expect("every FRAME_ALGOS estimator has a frame");
+        let frame = default_frame(&ctx, algo, n);
         let views = frame.fit_views(&scene, &rec).unwrap();
         // Bind groups made by one encode into `v`, submitted.
         let made = |v: &wgpu::Buffer| {
             let before = ctx.bind_groups();
             let mut enc = ctx.device.create_command_encoder(&Default::default());
-            frame
-                .encode(
-                    &mut enc,
-                    &FrameInputs {
-                        casters: &casters,
-                        views: &views,
-                        light: scene.light(),
-                        receivers: &receivers.buffer,
-                        count: receivers.count,
-                        v,
-                        timestamps: None,
-                    },
-                )
-                .unwrap_or_else(|e| panic!("{algo}: {e}"));
+            record(&*frame, &mut enc, (&casters, &receivers), &scene, &views, v);
             ctx.queue.submit([enc.finish()]);
             ctx.bind_groups() - before
         };
