@@ -20,12 +20,12 @@ use shadow_map_core::gpu::{
         NormalEncoding,
     },
     frame::FrameInputs,
-    receivers::GpuReceivers,
     shared::ReceiverGpu,
     GpuContext, GpuScene,
 };
 use shadow_map_core::light_view::{bounds_stand_in, receiver_bounds};
 use softshadow::{frame_estimator, own_params, FRAME_ALGOS};
+use test_support::frame_run::FrameRig;
 use wgpu::util::DeviceExt;
 
 fn storage(ctx: &GpuContext, usage: wgpu::BufferUsages, bytes: &[u8]) -> wgpu::Buffer {
@@ -249,32 +249,6 @@ fn default_frame(
         .expect("every FRAME_ALGOS estimator has a frame")
 }
 
-/// Records `frame` into `enc` for `scene`'s light in `views`, from `casters` and `receivers`,
-/// V into `v`.
-fn record(
-    frame: &dyn shadow_map_core::gpu::frame::FrameEstimator,
-    enc: &mut wgpu::CommandEncoder,
-    (casters, receivers): (&GpuScene, &GpuReceivers),
-    scene: &shadow_map_core::Scene,
-    views: &shadow_map_core::gpu::frame::Views,
-    v: &wgpu::Buffer,
-) {
-    frame
-        .encode(
-            enc,
-            &FrameInputs {
-                casters,
-                views,
-                light: scene.light(),
-                receivers: &receivers.buffer,
-                count: receivers.count,
-                v,
-                timestamps: None,
-            },
-        )
-        .unwrap_or_else(|e| panic!("{}: {e}", frame.name()));
-}
-
 /// One estimator records two frames into one encoder, each its own scene (casters, receivers,
 /// light and views) and V buffer, as a renderer drawing two lights or two cameras does: one
 /// submit gives each frame the V bits it gives submitted alone. The frames write their uniforms
@@ -293,51 +267,29 @@ fn one_estimator_records_two_scenes_into_one_submit() {
         test_support::fixtures::fixture("stacked", 48, 36),
     ];
     let n = scenes[0].1.len();
-    let inputs: Vec<_> = scenes
-        .iter()
-        .map(|(scene, rec)| {
-            let casters = GpuScene::upload(&ctx, scene).unwrap();
-            let receivers = GpuReceivers::upload(&ctx, rec).unwrap();
-            (casters, receivers)
-        })
-        .collect();
-    let make_v = || v_buffer(&ctx, n);
+    let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<u32>>();
     let mut failures = Vec::new();
     for &algo in FRAME_ALGOS {
         let frame = default_frame(&ctx, algo, n);
-        let views: Vec<_> = scenes
+        let rigs: Vec<FrameRig> = scenes
             .iter()
-            .map(|(scene, rec)| frame.fit_views(scene, rec).unwrap())
+            .map(|(scene, rec)| FrameRig::new(&ctx, &*frame, scene, rec).unwrap())
             .collect();
-        let record = |enc: &mut wgpu::CommandEncoder, k: usize, v: &wgpu::Buffer| {
-            let (casters, receivers) = &inputs[k];
-            record(
-                &*frame,
-                enc,
-                (casters, receivers),
-                &scenes[k].0,
-                &views[k],
-                v,
-            );
-        };
-        let read = |v: &wgpu::Buffer| ctx.read_buffer::<u32>(v, 4 * n as u64).unwrap();
-        let alone: Vec<Vec<u32>> = (0..2)
-            .map(|k| {
-                let v = make_v();
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                record(&mut enc, k, &v);
-                ctx.queue.submit([enc.finish()]);
-                read(&v)
-            })
+        let alone: Vec<Vec<u32>> = rigs
+            .iter()
+            .map(|rig| bits(rig.run(&ctx, &*frame).unwrap().v))
             .collect();
-        let together = [make_v(), make_v()];
+        // Both frames in one encoder, V into fresh buffers.
+        let together: Vec<wgpu::Buffer> = rigs.iter().map(|_| v_buffer(&ctx, n)).collect();
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        for (k, v) in together.iter().enumerate() {
-            record(&mut enc, k, v);
+        for (k, (rig, v)) in rigs.iter().zip(&together).enumerate() {
+            frame
+                .encode(&mut enc, &FrameInputs { v, ..rig.inputs() })
+                .unwrap_or_else(|e| panic!("{algo}, scene {k}: {e}"));
         }
         ctx.queue.submit([enc.finish()]);
         for (k, v) in together.iter().enumerate() {
-            let got = read(v);
+            let got = ctx.read_buffer::<u32>(v, 4 * n as u64).unwrap();
             let differ = got.iter().zip(&alone[k]).filter(|(a, b)| a != b).count();
             println!("{algo}, scene {k} of 2 in one submit: {differ} of {n} V differ from alone");
             if differ > 0 {
@@ -366,30 +318,29 @@ fn a_frame_recorded_again_from_the_same_buffers_makes_no_bind_group() {
     let ctx = std::sync::Arc::new(GpuContext::new().unwrap());
     let (scene, rec) = test_support::fixtures::fixture("bunny", 48, 36);
     let n = rec.len();
-    let casters = GpuScene::upload(&ctx, &scene).unwrap();
-    let receivers = GpuReceivers::upload(&ctx, &rec).unwrap();
-    let make_v = || v_buffer(&ctx, n);
     let mut failures = Vec::new();
     for &algo in FRAME_ALGOS {
         let frame = default_frame(&ctx, algo, n);
-        let views = frame.fit_views(&scene, &rec).unwrap();
+        let rig = FrameRig::new(&ctx, &*frame, &scene, &rec).unwrap();
         // Bind groups made by one encode into `v`, submitted.
         let made = |v: &wgpu::Buffer| {
             let before = ctx.bind_groups();
             let mut enc = ctx.device.create_command_encoder(&Default::default());
-            record(&*frame, &mut enc, (&casters, &receivers), &scene, &views, v);
+            frame
+                .encode(&mut enc, &FrameInputs { v, ..rig.inputs() })
+                .unwrap_or_else(|e| panic!("{algo}: {e}"));
             ctx.queue.submit([enc.finish()]);
             ctx.bind_groups() - before
         };
-        let (v1, v2) = (make_v(), make_v());
-        let counts = [made(&v1), made(&v1), made(&v1), made(&v2)];
+        let (v1, v2) = (&rig.v, &v_buffer(&ctx, n));
+        let counts = [made(v1), made(v1), made(v1), made(v2)];
         println!("{algo}: bind groups made by 4 encodes (V, V, V, another V): {counts:?}");
         if counts[0] == 0 || counts[1] != 0 || counts[2] != 0 || counts[3] == 0 {
             failures.push(format!("{algo}: {counts:?}"));
         }
         let (a, b) = (
-            ctx.read_buffer::<u32>(&v1, 4 * n as u64).unwrap(),
-            ctx.read_buffer::<u32>(&v2, 4 * n as u64).unwrap(),
+            ctx.read_buffer::<u32>(v1, 4 * n as u64).unwrap(),
+            ctx.read_buffer::<u32>(v2, 4 * n as u64).unwrap(),
         );
         if a != b {
             failures.push(format!("{algo}: V differs between the two buffers"));
