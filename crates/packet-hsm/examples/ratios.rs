@@ -64,11 +64,11 @@ fn settings() -> Settings {
     }
 }
 
-/// The settings with their fixture's scene and receivers.
-fn setup() -> (Settings, Scene, Receivers) {
+/// The settings (name, width, height, resolution, runs) with their fixture's scene and receivers.
+fn setup() -> (String, u32, u32, String, u32, Scene, Receivers) {
     let s = settings();
     let (scene, rec) = fixture(&s.name, s.w, s.h);
-    (s, scene, rec)
+    (s.name, s.w, s.h, s.res, s.runs, scene, rec)
 }
 
 /// Runs `f` with the scene's light scaled by each factor, small to large (the speed, visits and
@@ -177,17 +177,7 @@ fn variant_columns(ms: [f64; 4]) -> String {
 }
 
 fn speed() {
-    let (
-        Settings {
-            name,
-            w,
-            h,
-            res,
-            runs,
-        },
-        mut scene,
-        rec,
-    ) = setup();
+    let (name, w, h, res, runs, mut scene, rec) = setup();
     println!("\n## speed: {name}, {w}x{h}, r = {res}, estimate ms (median of {runs}), one shadow map (S = 1), 3x3 packets");
     println!("| light scale | GBP07 per pixel | hierarchy alone | packets alone | packets + hierarchy | GBP07 / hierarchy | GBP07 / packets | GBP07 / both | max dV | penumbra px | visited/px GBP07 | visited/px both | coherent packets |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
@@ -283,13 +273,7 @@ impl CellPyramid {
 }
 
 fn visits() {
-    let (
-        Settings {
-            name, w, h, res, ..
-        },
-        mut scene,
-        rec,
-    ) = setup();
+    let (name, w, h, res, _, mut scene, rec) = setup();
     let res: u32 = res.parse().unwrap_or(512);
     println!(
         "\n## visited nodes per penumbra pixel: {name}, {w}x{h}, r = {res}, per pixel (no packets)"
@@ -388,17 +372,7 @@ fn sweep() {
 }
 
 fn tune() {
-    let (
-        Settings {
-            name,
-            w,
-            h,
-            res,
-            runs,
-        },
-        mut scene,
-        rec,
-    ) = setup();
+    let (name, w, h, res, runs, mut scene, rec) = setup();
     scene.set_light(scene.light().scaled(2.0)).unwrap();
     let grid = ["0", "1", "2", "4", "8", "16"];
     println!("\n## Q_e, Q_v tuning (eq. 6, Q_n = 1): {name} under a 2x light, {w}x{h}, r = {res}, 3x3 packets, hierarchy on; estimate ms (median of {runs})");
@@ -539,17 +513,7 @@ fn gpu() {
             return;
         }
     };
-    let (
-        Settings {
-            name,
-            w,
-            h,
-            res,
-            runs,
-        },
-        mut scene,
-        rec,
-    ) = setup();
+    let (name, w, h, res, runs, mut scene, rec) = setup();
     println!("\n## gpu ({}): {name}, {w}x{h}, r = {res}, the registry's GPU estimator (the frame: maps rendered on the GPU, no packets), estimate ms (median of {runs}; upload, frame and readback), S = 1", ctx.describe());
     println!("| light scale | GBP07 per pixel | hierarchy | GBP07 / hierarchy | max dV vs CPU | receivers redone on the CPU (loop limit), per variant |");
     println!("|---|---|---|---|---|---|");
