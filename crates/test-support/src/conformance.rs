@@ -115,7 +115,7 @@ pub trait TwinPair {
         None
     }
 
-    /// Check: the engine path on the fixed case, three frames in the caller's encoder and
+    /// Check: the engine path on the fixed case, two frames in the caller's encoder and
     /// buffers ([`frames_match_the_cpu_twin`]), within [`Tolerance::TWIN`] of the CPU twin in
     /// the same views.
     fn frame_path_matches_the_cpu_twin(&self, ctx: &Arc<GpuContext>) {
@@ -471,7 +471,7 @@ impl FrameComparison {
     }
 }
 
-/// The engine path against the CPU twin: the views `frame` fits for `receivers`, then three
+/// The engine path against the CPU twin: the views `frame` fits for `receivers`, then two
 /// frames through [`FrameEstimator::encode`](shadow_map_core::gpu::frame::FrameEstimator)
 /// (each its own encoder and submit, nothing read between them) from a caller's casters,
 /// receiver buffer and V buffer; V read back once after the last. Panics (naming `label`) unless
@@ -628,7 +628,7 @@ fn frames_compared(
     let rig = crate::frame_run::FrameRig::new(ctx, frame, scene, receivers)
         .unwrap_or_else(|e| panic!("{label}: {e}"));
     let (views, inputs, n) = (&rig.views, rig.inputs(), receivers.len() as u64);
-    for _ in 0..3 {
+    for _ in 0..2 {
         rig.submit(ctx, frame)
             .unwrap_or_else(|e| panic!("{label}: encode: {e}"));
     }

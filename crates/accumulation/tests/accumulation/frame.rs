@@ -51,7 +51,7 @@ fn table(kv: &[(&str, &str)]) -> Params {
     param_table(accumulation::settings::SPECS, kv)
 }
 
-/// One scene through the conformance suite's three frames (`case`), then one more frame with
+/// One scene through the conformance suite's two frames (`case`), then one more frame with
 /// its maps read back, judged on those maps.
 fn check_scene(ctx: &GpuContext, case: SettingsCase<'_, AccumulationFrame>) {
     let SettingsCase {

@@ -1,7 +1,7 @@
 //! Backprojection's engine path ([`backprojection::BackprojectionFrame`]) through the
 //! conformance suite's `frames_match_the_cpu_twin` ([`frames_over_settings`]): depth peeling,
 //! midpoints, the MSSM, the layout copies and the kernel recorded into the caller's command
-//! encoder three frames running, V read back once, against the CPU twin in the same view, on a
+//! encoder two frames running, V read back once, against the CPU twin in the same view, on a
 //! rect light (bunny), a disk light and a low sun; and bit for bit the registry's GPU estimator's
 //! `build` + `estimate` (the frame run by the core's `FrameTwin`: receivers uploaded, one frame,
 //! V read back).

@@ -1,7 +1,7 @@
 //! Deep-shadow's engine path ([`deep_shadow::DeepShadowFrame`]) through the
 //! conformance suite's `frames_match_the_cpu_twin` (over tables of settings,
 //! [`frames_over_settings`]): the core's raster pass, the head copy, the per-receiver queries
-//! and lookups recorded into the caller's command encoder three frames
+//! and lookups recorded into the caller's command encoder two frames
 //! running, V read back once, against the CPU twin in the same views, on a rect light (bunny),
 //! a disk light and a low sun; at the defaults (pcss, one view) and with 2 x 2 sub-lights and
 //! each of the other filters; and on semi-transparent casters (lists), where a full element

@@ -1,7 +1,7 @@
 //! Packet-hsm's engine path ([`packet_hsm::PacketHsmFrame`]) through the conformance
 //! suite's [`frames_match_the_cpu_twin`]: the core's raster, midpoint and MSSM passes, the padded
 //! dual-grid MSSM, the per-receiver set-up and the kernel's `prepare` and `pixels` passes
-//! recorded into the caller's command encoder three frames running, V read back once, against
+//! recorded into the caller's command encoder two frames running, V read back once, against
 //! the CPU twin's per-pixel path in the same view, on a rect light (bunny), a disk light, a
 //! low sun and a sphere light (the silhouette disk set up per receiver on the GPU); at the defaults (midpoints, receiver plane, hierarchy), with the flat traversal, and
 //! with a plain bias.
