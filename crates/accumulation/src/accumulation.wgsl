@@ -359,11 +359,22 @@ struct State {
     s_add: f32,
 }
 
-// The per-cell body of Accumulator::shadowing; true when every bit is set.
-fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f: Front, i0: i32, i1: i32, j0: i32, j1: i32) -> bool {
+// The casters the cells hold, queued before their terms are summed: on lavapipe a loop's body
+// costs as much on a trip where no lane needs it (docs/gpu.md, "Accumulation's kernel"), so the
+// loop over the cells only finds casters, and the costly terms run in a loop of their own, once
+// per caster. HITS casters queued at most before a flush; a cell adds one per layer (at most 4).
+const HITS: u32 = 16u;
+struct Casters {
+    // Per caster: its footprint's centre on the plane z = n (lr) and half sizes (hx, hy).
+    c: array<vec4<f32>, 20>,
+    n: u32,
+}
+
+// The casters of cell [i0, i1) x [j0, j1), one per layer (math::caster; its footprint's centre
+// on the plane z = n and half sizes, (lr, hx, hy)), appended to q: the ring loop's cheap body.
+fn queue_casters(q: ptr<function, Casters>, r: vec3<f32>, rp: ReceiverPlane, i0: i32, i1: i32, j0: i32, j1: i32) {
     let delta = view.delta;
     let n = view.n;
-    let r2 = vec2<f32>(r.x, r.y);
     let ic = i0 + (i1 - i0 - 1) / 2;
     let jc = j0 + (j1 - j0 - 1) / 2;
     let l = view.window_min + vec2<f32>(f32(i0 + i1), f32(j0 + j1)) * (0.5 * delta);
@@ -391,63 +402,83 @@ fn visit(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
         } else {
             let gap = max(r.z - cz, 1e-7 * r.z);
             size = ((r.z - n) / gap) * (cz / n);
-            lr = r2 * ((n - cz) / gap) + l * size;
+            lr = vec2<f32>(r.x, r.y) * ((n - cz) / gap) + l * size;
         }
         if !is_finite(size) || !is_finite(lr.x) || !is_finite(lr.y) {
             continue;
         }
-        let hx = 0.5 * f32(i1 - i0) * delta * size;
-        let hy = 0.5 * f32(j1 - j0) * delta * size;
-        if acc.variant != VARIANT_EXACT {
-            if acc.overlap != 0u {
-                (*st).s_add += overlap_term(p, r, lr, hx, hy, f);
-            } else {
-                (*st).s_add += additive_term(p, r, lr, 4.0 * hx * hy, f);
-            }
-            continue;
+        let h = 0.5 * delta * size * vec2<f32>(f32(i1 - i0), f32(j1 - j0));
+        (*q).c[(*q).n] = vec4<f32>(lr, h);
+        (*q).n += 1u;
+    }
+}
+
+// The costly part: one queued caster's term (additive) or occlusion bits (exact); true when
+// every bit is set.
+fn caster_term(st: ptr<function, State>, p: Patch, r: vec3<f32>, f: Front, c: vec4<f32>) -> bool {
+    let lr = c.xy;
+    let hx = c.z;
+    let hy = c.w;
+    if acc.variant != VARIANT_EXACT {
+        if acc.overlap != 0u {
+            (*st).s_add += overlap_term(p, r, lr, hx, hy, f);
+        } else {
+            (*st).s_add += additive_term(p, r, lr, 4.0 * hx * hy, f);
         }
-        // Footprint::caster_quad.
-        var q: array<vec2<f32>, 4>;
-        var ok = true;
-        for (var c4 = 0u; c4 < 4u; c4++) {
-            let lc = to_patch(p, r, lr + vec2<f32>(SX[c4] * hx, SY[c4] * hy));
-            ok = ok && lc.valid;
-            q[c4] = lc.p;
+        return false;
+    }
+    // Footprint::caster_quad.
+    var q: array<vec2<f32>, 4>;
+    for (var c4 = 0u; c4 < 4u; c4++) {
+        let lc = to_patch(p, r, lr + vec2<f32>(SX[c4] * hx, SY[c4] * hy));
+        if !lc.valid {
+            return false;
         }
-        if !ok {
-            continue;
+        q[c4] = lc.p;
+    }
+    let flat = p.a.x == 0.0 && p.a.y == 0.0 && p.a.z == 1.0;
+    // BitMask::set_in_quad (on a local copy: naga's SPIR-V backend rejects a pointer to a
+    // member through a pointer argument).
+    var m = (*st).mask;
+    for (var k = 0u; k < acc.nbits; k++) {
+        if !bitmask_is_set(&m, k) && bitmask_quad_contains(q, flat, tables[HULL_SLOTS + k]) {
+            bitmask_set(&m, k);
         }
-        let flat = p.a.x == 0.0 && p.a.y == 0.0 && p.a.z == 1.0;
-        // BitMask::set_in_quad (on a local copy: naga's SPIR-V backend rejects a pointer to a
-        // member through a pointer argument).
-        var m = (*st).mask;
-        for (var k = 0u; k < acc.nbits; k++) {
-            if !bitmask_is_set(&m, k) && bitmask_quad_contains(q, flat, tables[HULL_SLOTS + k]) {
-                bitmask_set(&m, k);
-            }
-        }
-        (*st).mask = m;
-        if m.n_set == acc.nbits {
+    }
+    (*st).mask = m;
+    return m.n_set == acc.nbits;
+}
+
+// The terms of the queued casters in queue order; true when every bit is set (the rest are
+// then left unsummed, as the CPU stops there).
+fn flush(st: ptr<function, State>, p: Patch, r: vec3<f32>, f: Front, q: ptr<function, Casters>) -> bool {
+    for (var k = 0u; k < (*q).n; k++) {
+        if caster_term(st, p, r, f, (*q).c[k]) {
+            (*q).n = 0u;
             return true;
         }
     }
+    (*q).n = 0u;
     return false;
-}
-
-fn floor_to(x: i32, a: i32) -> i32 {
-    return select(x / a, -((-x + a - 1) / a), x < 0) * a;
-}
-
-fn ceil_to(x: i32, a: i32) -> i32 {
-    return -floor_to(-x, a);
 }
 
 fn covers(rr: vec4<i32>, b: vec4<i32>) -> bool {
     return rr.x <= b.x && rr.y <= b.y && rr.z >= b.z && rr.w >= b.w;
 }
 
-// cpu::for_each_ring_cell over visit: in lattice indices (map index + phase, cpu::ring_phase),
-// the cells handed to visit in map indices.
+// cpu.rs floor_to and ceil_to for a = 2^k (arithmetic shifts round towards -inf).
+fn floor_sh(x: i32, k: u32) -> i32 {
+    return (x >> k) << k;
+}
+
+fn ceil_sh(x: i32, k: u32) -> i32 {
+    return -floor_sh(-x, k);
+}
+
+// cpu::for_each_ring_cell over the cells, in lattice indices (map index + phase, cpu::ring_phase),
+// the cells handed on in map indices. One cell per trip of a flat loop (the level's set-up, its
+// rows and columns as state), which stops to flush whenever HITS casters are queued: the ring
+// loop's body stays small, and the casters' terms run once per caster (see Casters).
 fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f: Front, bound_map: vec4<i32>, c_map: vec2<i32>) {
     let ph = vec2<i32>(acc.phase_x, acc.phase_y);
     let bound = bound_map + vec4<i32>(ph, ph);
@@ -455,17 +486,41 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
     let m = i32(max((acc.k + 3u) / 4u, 1u));
     var raw = vec4<i32>(c.x - m, c.y - m, c.x + m, c.y + m);
     var inner = vec4<i32>(c.x, c.y, c.x, c.y);
-    var s = 1;
-    for (var lvl = 0; lvl < 32; lvl++) {
-        let last = covers(raw, bound);
-        let a = select(2 * s, s, last);
-        let outer = vec4<i32>(floor_to(raw.x, a), floor_to(raw.y, a), ceil_to(raw.z, a), ceil_to(raw.w, a));
-        let x0 = max(outer.x, floor_to(bound.x, s));
-        let x1 = min(outer.z, bound.z);
-        let y0 = max(outer.y, floor_to(bound.y, s));
-        let y1 = min(outer.w, bound.w);
-        for (var y = y0; y < y1; y += s) {
-            for (var x = x0; x < x1; x += s) {
+    // The level: its cell side s = 2^sh, and whether its set-up is still to do.
+    var lvl = 0;
+    var sh = 0u;
+    var fresh = true;
+    var last = false;
+    var outer = vec4<i32>(0);
+    var x0 = 0;
+    var x1 = 0;
+    var y1 = 0;
+    var x = 0;
+    var y = 0;
+    var done = false;
+    var q: Casters;
+    q.n = 0u;
+    loop {
+        loop {
+            if done || q.n >= HITS {
+                break;
+            }
+            let s = 1 << sh;
+            if fresh {
+                last = covers(raw, bound);
+                let ash = select(sh + 1u, sh, last);
+                outer = vec4<i32>(floor_sh(raw.x, ash), floor_sh(raw.y, ash), ceil_sh(raw.z, ash), ceil_sh(raw.w, ash));
+                x0 = max(outer.x, floor_sh(bound.x, sh));
+                x1 = min(outer.z, bound.z);
+                y = max(outer.y, floor_sh(bound.y, sh));
+                y1 = min(outer.w, bound.w);
+                x = x0;
+                if x0 >= x1 {
+                    y = y1;
+                }
+                fresh = false;
+            }
+            if y < y1 {
                 let in_inner = x >= inner.x && x + s <= inner.z && y >= inner.y && y + s <= inner.w;
                 if !in_inner {
                     let i0 = max(x, bound.x);
@@ -473,19 +528,31 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
                     let j0 = max(y, bound.y);
                     let j1 = min(y + s, bound.w);
                     if i0 < i1 && j0 < j1 {
-                        if visit(st, p, r, rp, f, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y) {
-                            return;
-                        }
+                        queue_casters(&q, r, rp, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y);
                     }
+                }
+                x += s;
+                if x >= x1 {
+                    x = x0;
+                    y += s;
+                }
+            }
+            if y >= y1 {
+                if last || covers(outer, bound) || lvl >= 31 {
+                    done = true;
+                } else {
+                    inner = outer;
+                    sh += 1u;
+                    let s2 = 1 << sh;
+                    raw = vec4<i32>(outer.x - m * s2, outer.y - m * s2, outer.z + m * s2, outer.w + m * s2);
+                    lvl++;
+                    fresh = true;
                 }
             }
         }
-        if last || covers(outer, bound) {
+        if flush(st, p, r, f, &q) || done {
             return;
         }
-        inner = outer;
-        s *= 2;
-        raw = vec4<i32>(outer.x - m * s, outer.y - m * s, outer.z + m * s, outer.w + m * s);
     }
 }
 
@@ -522,21 +589,32 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     if kr.rings {
         rings(&st, p, r, rp, f, kr.rect, kr.centre);
     } else {
+        // Blocks of step x step lexels (at most K x K), row by row, their casters queued as in
+        // rings.
         let rect = kr.rect;
         let step = kr.step;
         let bx = (u32(rect.z - rect.x) + step - 1u) / step;
-        let by = (u32(rect.w - rect.y) + step - 1u) / step;
-        var full = false;
-        for (var b = 0u; b < by && !full; b++) {
-            let j0 = rect.y + i32(b * step);
-            let j1 = min(j0 + i32(step), rect.w);
-            for (var a = 0u; a < bx; a++) {
-                let i0 = rect.x + i32(a * step);
-                let i1 = min(i0 + i32(step), rect.z);
-                if visit(&st, p, r, rp, f, i0, i1, j0, j1) {
-                    full = true;
+        let by = select(0u, (u32(rect.w - rect.y) + step - 1u) / step, bx > 0u);
+        var q: Casters;
+        q.n = 0u;
+        var a = 0u;
+        var b = 0u;
+        loop {
+            loop {
+                if b >= by || q.n >= HITS {
                     break;
                 }
+                let j0 = rect.y + i32(b * step);
+                let i0 = rect.x + i32(a * step);
+                queue_casters(&q, r, rp, i0, min(i0 + i32(step), rect.z), j0, min(j0 + i32(step), rect.w));
+                a++;
+                if a >= bx {
+                    a = 0u;
+                    b++;
+                }
+            }
+            if flush(&st, p, r, f, &q) || b >= by {
+                break;
             }
         }
     }
