@@ -528,13 +528,12 @@ mod tests {
     /// edges), nearly horizontal edges, slivers and coordinates far outside the map.
     #[test]
     fn row_windows_change_no_texel() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
+        use proptest::{
+            prelude::Rng,
+            test_runner::{RngAlgorithm, TestRng},
         };
+        let mut rng = TestRng::deterministic_rng(RngAlgorithm::ChaCha);
+        let mut next = move || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
         let r = 64usize;
         let (mut rows, mut sure_texels, mut covered_texels) = (0, 0usize, 0usize);
         for t in 0..4000 {
