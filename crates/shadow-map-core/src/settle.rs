@@ -264,13 +264,12 @@ mod tests {
     /// boxes scattered around a tilted light, receivers on the ground.
     #[test]
     fn culled_traversal_matches_testing_every_triangle() {
-        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 40) as f32 / (1u64 << 24) as f32
+        use proptest::{
+            prelude::Rng,
+            test_runner::{RngAlgorithm, TestRng},
         };
+        let mut rng = TestRng::deterministic_rng(RngAlgorithm::ChaCha);
+        let mut next = move || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
         let mut tris = ground();
         for _ in 0..60 {
             let c = Vec3::new(next() * 20.0 - 10.0, next() * 3.0, next() * 20.0 - 10.0);

@@ -122,14 +122,11 @@ fn forced_chunking_is_bit_identical() -> TestResult {
         return Ok(());
     };
     let align = ctx.limits().min_storage_buffer_offset_alignment as u64;
-    // xorshift64: deterministic values without another dev-dependency.
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    // Deterministic values (proptest's seeded generator).
+    let mut rng = proptest::test_runner::TestRng::deterministic_rng(
+        proptest::test_runner::RngAlgorithm::ChaCha,
+    );
+    let mut next = move || proptest::prelude::Rng::next_u64(&mut rng);
     for &(size, cap_rows) in &[(67u32, 1u64), (67, 5), (128, 3), (33, 2), (1, 1)] {
         let depth: Vec<f32> = (0..size * size)
             .map(|_| {
