@@ -8,10 +8,12 @@
 //! uniforms written in the encoder's order ([`GpuContext::write_in`]):
 //! 1. the core's raster, midpoint and MSSM passes ([`GpuLayersFrame::encode_slot`]): layer 0
 //!    of the casters of at least the level's opacity (the caster buffer's w), its midpoints when
-//!    the classification takes them, the anchored MSSM of layer 0;
+//!    the classification takes them, the anchored MSSM of layer 0 (only the levels the view's
+//!    kernels read, [`SubView::levels`]: each level costs a pass over r^2 texels);
 //! 2. the classification layer copied into the interior of an `(r + 2)^2` map whose one-texel
 //!    ring holds +inf (written once at `prepare`), and the core's dual-grid MSSM pass over it:
-//!    the padded dual-grid MSSM of [`crate::cpu::extract::PaddedDualMssm`], on the GPU;
+//!    the padded dual-grid MSSM of [`crate::cpu::extract::PaddedDualMssm`], on the GPU (its
+//!    levels likewise);
 //! 3. `frame_maps` (`packet_hsm_frame.wgsl`): the depth and classification layers as the row-major buffers
 //!    `packet_hsm.wgsl` reads; the MSSM levels the view needs ([`SubView::levels`]) copied level
 //!    after level into one buffer each;
@@ -19,7 +21,9 @@
 //!    [`crate::cpu::setup_receiver`] (light-space transform, the sub-light's facing fraction, a
 //!    sphere light's silhouette disk, projection, bias or receiver plane);
 //! 5. the kernel's `prepare` and `pixels` passes ([`kernel`]: the per-pixel GBP07 with
-//!    Yang's hierarchy; receivers in a buffer carry no image layout, so no packets);
+//!    Yang's hierarchy; receivers in a buffer carry no image layout, so no packets): `prepare`
+//!    queues the penumbra receivers, the queue's header is copied into the indirect dispatch
+//!    arguments of `pixels`, which runs over the queue alone;
 //! 6. `frame_finish`: the view's V (facing x the kernel's V, or what the set-up settled) times
 //!    the view's weight (`1 / S^2` times the level's) added to each receiver's sum; after the
 //!    last view, V = the sum clamped to [0, 1], as [`crate::cpu::SubLights::finish`] does.
@@ -50,7 +54,10 @@ use crate::cpu::{
 use crate::math::sublight_centre;
 use crate::settings::Config;
 use bytemuck::{Pod, Zeroable};
-use kernel::{hsm_uniform, HsmUniform, Kernel, PrepGpu, RecIn, SubLightShape, WORKGROUP};
+use kernel::{
+    hsm_uniform, HsmUniform, Kernel, PrepGpu, RecIn, SubLightShape, QUEUE_ARGS_OFFSET, QUEUE_HEADER,
+    WORKGROUP,
+};
 use shadow_map_core::{
     gpu::{
         depth_map::write_planes,
@@ -156,6 +163,10 @@ pub struct PacketHsmFrame {
     setup: wgpu::Buffer,
     out: wgpu::Buffer,
     prep: wgpu::Buffer,
+    /// The penumbra receivers `prepare` queues for `pixels` (kernel.rs [`QUEUE_HEADER`]), and
+    /// the indirect dispatch's arguments copied from its header.
+    queue: wgpu::Buffer,
+    args: wgpu::Buffer,
     hsm: wgpu::Buffer,
     light: wgpu::Buffer,
     frame: wgpu::Buffer,
@@ -280,6 +291,18 @@ impl PacketHsmFrame {
                 range * size_of::<PrepGpu>() as u64,
                 storage,
             ),
+            queue: buffer(
+                &ctx,
+                "packet-hsm frame penumbra queue",
+                4 * (QUEUE_HEADER + range),
+                storage | wgpu::BufferUsages::COPY_SRC,
+            ),
+            args: buffer(
+                &ctx,
+                "packet-hsm frame pixels dispatch",
+                12,
+                wgpu::BufferUsages::INDIRECT,
+            ),
             hsm: buffer(
                 &ctx,
                 "packet-hsm frame kernel uniform",
@@ -389,6 +412,7 @@ impl PacketHsmFrame {
             self.scratch(&self.recs, range, size_of::<RecIn>()),
             self.scratch(&self.out, range, 8),
             self.scratch(&self.prep, range, size_of::<PrepGpu>()),
+            self.queue.as_entire_binding(),
         ])
     }
 
@@ -418,13 +442,15 @@ fn run(
 
 impl PacketHsmFrame {
     /// Records the maps of view `slot` (steps 1 and 2 of the module docs): the layers, their
-    /// midpoints and MSSM, and the padded dual-grid MSSM of the classification layer.
+    /// midpoints and MSSM, and the padded dual-grid MSSM of the classification layer; with
+    /// `shape`, only the MSSM levels its kernels read (else every level prepared).
     fn encode_maps(
         &self,
         enc: &mut wgpu::CommandEncoder,
         inputs: &FrameInputs<'_>,
         (slot, view): (usize, &LightView),
         level: &OpacityLevel,
+        shape: Option<&SubLightShape>,
     ) -> Result<()> {
         let ctx = &self.kernel.ctx;
         let cfg = &self.cfg;
@@ -433,6 +459,7 @@ impl PacketHsmFrame {
             max_bias: cfg.shadow.midpoint_clamp(view).unwrap_or(0.0),
             min_opacity: level.min_opacity,
             slot,
+            mssm_levels: shape.map(|s| s.mssm_levels),
         };
         self.layers
             .encode_slot(ctx, enc, inputs.casters, &layers)?;
@@ -456,7 +483,8 @@ impl PacketHsmFrame {
                 depth_or_array_layers: 1,
             },
         );
-        self.dual_pass.record(enc);
+        self.dual_pass
+            .record_levels(enc, shape.map_or(u32::MAX, |s| s.dual_levels));
         Ok(())
     }
 
@@ -474,7 +502,7 @@ impl PacketHsmFrame {
         let half = self.sub_half(inputs.light);
         let shape = self.shape(view, inputs.light, half);
         let r = view.r;
-        self.encode_maps(enc, inputs, (slot, view), level)?;
+        self.encode_maps(enc, inputs, (slot, view), level, Some(&shape))?;
         // The levels the view needs, each after the last, as packet_hsm.wgsl reads them.
         let mssm = self
             .layers
@@ -532,9 +560,18 @@ impl PacketHsmFrame {
             let n = range.count as u64;
             // No stale kernel state from the last view or range for receivers the set-up settles.
             enc.clear_buffer(&self.prep, 0, Some(n * size_of::<PrepGpu>() as u64));
+            enc.clear_buffer(&self.queue, 0, Some(4 * QUEUE_HEADER));
             run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
             run(enc, "packet-hsm prepare", &self.kernel.prepare, kernel, n);
-            run(enc, "packet-hsm pixels", &self.kernel.pixels, kernel, n);
+            enc.copy_buffer_to_buffer(&self.queue, QUEUE_ARGS_OFFSET, &self.args, 0, 12);
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("packet-hsm pixels"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.kernel.pixels);
+            pass.set_bind_group(0, kernel, &[]);
+            pass.dispatch_workgroups_indirect(&self.args, 0);
+            drop(pass);
             run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         }
         inputs.mark(enc, "estimate");
@@ -588,7 +625,7 @@ impl PacketHsmFrame {
             inputs.views.get(slot).copied().flatten().ok_or_else(|| {
                 Error::LightView(format!("no view {slot} of {}", inputs.views.len()))
             })?;
-        self.encode_maps(enc, inputs, (slot, &view), &levels[slot % levels.len()])
+        self.encode_maps(enc, inputs, (slot, &view), &levels[slot % levels.len()], None)
     }
 
     /// The maps the last submitted [`encode`](FrameEstimator::encode) rendered for its last view

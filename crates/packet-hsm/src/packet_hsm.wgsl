@@ -1,9 +1,9 @@
-// Twin of crates/packet-hsm/src/contour.rs (per-pixel GBP07, hierarchical extraction with an
-// explicit stack, Yang 2009 Algorithm 3) and of cpu.rs's kernel_cells and trivial
+// Twin of crates/packet-hsm/src/math/contour.rs (per-pixel GBP07, hierarchical extraction, Yang
+// 2009 Algorithm 3, walked without a stack) and of cpu.rs's kernel_cells and trivial
 // classification, in f32. Two entry points (packet_hsm_passes.wgsl), dispatched in order after
-// the frame's set-up pass (packet_hsm_frame.wgsl `frame_setup`) wrote each receiver's RecIn: `prepare` (one
-// invocation per receiver: kernel, lit / umbra, centre status), `pixels` (one per receiver:
-// per-pixel GBP07 for every penumbra receiver).
+// the frame's set-up pass (packet_hsm_frame.wgsl `frame_setup`) wrote each receiver's RecIn:
+// `prepare` (one invocation per receiver: kernel, lit / umbra, centre status; penumbra receivers
+// queued), `pixels` (one per queued receiver: per-pixel GBP07).
 //
 // Prepended: the core's disk_edge.wgsl (edge_disk_area, disk_wedge) and silhouette.wgsl
 // (silhouette_carry).
@@ -69,6 +69,12 @@ const STATE_PENUMBRA: u32 = 2u;
 // Per receiver: V before the facing factor, nodes visited.
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;
 @group(0) @binding(8) var<storage, read_write> prep: array<PrepGpu>;
+// The penumbra receivers `prepare` leaves for `pixels`: their count, the indirect dispatch's
+// workgroups (x, y, z; copied into the argument buffer between the passes), their indices.
+@group(0) @binding(9) var<storage, read_write> queue: array<atomic<u32>>;
+const QUEUE_COUNT: u32 = 0u;
+const QUEUE_ARGS: u32 = 1u;
+const QUEUE_LIST: u32 = 4u;
 
 // Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
 // once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), which would
@@ -85,13 +91,8 @@ fn loop_limit_hit() -> bool {
 
 const TRUNCATED: f32 = -1.0;
 
-// Set when a node could not be pushed (cannot happen with <= 4 roots and 3 pushes per level, but
-// never silently): the work is flagged like a loop-limit cut.
-var<private> stack_overflow: bool = false;
-
 const F32_MAX: f32 = 3.40282347e38;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
-const STACK: u32 = 64u;
 
 fn pos_inf() -> f32 {
     return bitcast<f32>(0x7f800000u);
@@ -336,16 +337,37 @@ fn true_min(class_min: f32, s: vec4<i32>) -> f32 {
     return mssm_query_min(s.x, s.y, s.z + 1, s.w + 1);
 }
 
+// A lower bound of true_min over the samples of traversal node s (inclusive, side 2^l + 1),
+// without a loop: four taps of the anchored MSSM's level l at the node's corner and one texel
+// further, clamped into the map, cover every sample of the node inside the map (a superset, so
+// the bound may be lower than true_min: a node is pruned less often, never wrongly, and the
+// cells that are then visited have no contour and add nothing).
+fn node_true_min(class_min: f32, s: vec4<i32>, l: u32) -> f32 {
+    if u.class_is_depth != 0u {
+        return class_min;
+    }
+    if l >= u.mssm_levels {
+        return -pos_inf();
+    }
+    let hi = i32(u.r) - 1;
+    let x0 = u32(clamp(s.x, 0, hi));
+    let x1 = u32(clamp(s.x + 1, 0, hi));
+    let y0 = u32(clamp(s.y, 0, hi)) * u.r + l * u.r * u.r;
+    let y1 = u32(clamp(s.y + 1, 0, hi)) * u.r + l * u.r * u.r;
+    return min(min(mssm_min[y0 + x0], mssm_min[y0 + x1]), min(mssm_min[y1 + x0], mssm_min[y1 + x1]));
+}
+
 // contour::Planes::prunable's plane part, given the node's classification range mm, the
-// threshold range [tmin, tmax], the threshold range th (widened) over the node's samples s.
-fn plane_prunable(mm: vec2<f32>, tmin: f32, tmax: f32, th: vec2<f32>, s: vec4<i32>) -> bool {
+// threshold range [tmin, tmax], the threshold range th (widened) over the node's samples and a
+// lower bound true_lo of their true depths.
+fn plane_prunable(mm: vec2<f32>, tmin: f32, tmax: f32, th: vec2<f32>, true_lo: f32) -> bool {
     if !(mm.x < tmax) {
         return true;
     }
     if mm.y < tmin && mm.y < th.x {
         return true;
     }
-    return true_min(mm.x, s) >= th.y;
+    return true_lo >= th.y;
 }
 
 struct Edge {
@@ -374,7 +396,10 @@ fn side_mid(i: i32, j: i32, s: u32) -> vec2<f32> {
     return vec2<f32>(f32(i), f32(j)) + d;
 }
 
-// contour::cell_edges with the corners' occluder flags (bit k = corner k) and depths.
+// contour::cell_edges with the corners' occluder flags (bit k = corner k) and depths, without a
+// loop (on lavapipe every loop trip counts against the invocation's budget): side s runs from
+// corner s to corner s + 1, an edge starts on the side going occluder -> free and ends on the
+// side going free -> occluder (a saddle: on the next side), edges in the order of their start.
 fn cell_edges(i: i32, j: i32, occ: u32, z: vec4<f32>) -> Cell {
     var c: Cell;
     c.n = 0u;
@@ -383,37 +408,34 @@ fn cell_edges(i: i32, j: i32, occ: u32, z: vec4<f32>) -> Cell {
     if nocc == 0u || nocc == 4u {
         return c;
     }
+    // Bit s: corner s + 1's flag.
+    let next = ((occ >> 1u) | (occ << 3u)) & 15u;
+    let starts = occ & ~next;
+    let ends = ~occ & next & 15u;
     let saddle = nocc == 2u && (occ == 5u || occ == 10u);
-    for (var s = 0u; s < 4u; s++) {
-        let s1 = (s + 1u) % 4u;
-        let os = (occ >> s) & 1u;
-        let os1 = (occ >> s1) & 1u;
-        if os == 1u && os1 == 0u {
-            var e = s1;
-            if !saddle {
-                for (var t = 0u; t < 4u; t++) {
-                    let t1 = (t + 1u) % 4u;
-                    if ((occ >> t) & 1u) == 0u && ((occ >> t1) & 1u) == 1u {
-                        e = t;
-                        break;
-                    }
-                }
-            }
-            var ed: Edge;
-            ed.a = side_mid(i, j, s);
-            ed.za = z[s];
-            ed.b = side_mid(i, j, e);
-            // The occluder corner of side e is e + 1 (free -> occluder).
-            ed.zb = z[(e + 1u) % 4u];
-            if c.n == 0u {
-                c.e0 = ed;
-            } else {
-                c.e1 = ed;
-            }
-            c.n += 1u;
-        }
+    let s0 = firstTrailingBit(starts);
+    var e0 = firstTrailingBit(ends);
+    if saddle {
+        e0 = (s0 + 1u) % 4u;
+    }
+    c.e0 = cell_edge(i, j, s0, e0, z);
+    c.n = 1u;
+    if saddle {
+        let s1 = firstLeadingBit(starts);
+        c.e1 = cell_edge(i, j, s1, (s1 + 1u) % 4u, z);
+        c.n = 2u;
     }
     return c;
+}
+
+// The edge from side s's midpoint to side e's; the occluder corner of side e is e + 1.
+fn cell_edge(i: i32, j: i32, s: u32, e: u32, z: vec4<f32>) -> Edge {
+    var ed: Edge;
+    ed.a = side_mid(i, j, s);
+    ed.za = z[s];
+    ed.b = side_mid(i, j, e);
+    ed.zb = z[(e + 1u) % 4u];
+    return ed;
 }
 
 fn cell_at(i: i32, j: i32, rec: RecIn) -> Cell {
@@ -484,7 +506,9 @@ fn backproject(p: vec2<f32>, zs: f32, q: vec2<f32>, zp: f32) -> vec2<f32> {
     return (p - q) * s;
 }
 
-// contour::sector_rect.
+// contour::sector_rect, without a loop: the rect's corners inside the sweep from a to b, sorted
+// by their angle from a (ties by corner index, as the CPU's selection takes them), summed in
+// that order.
 fn sector_rect(a: vec2<f32>, b: vec2<f32>) -> f32 {
     let dth = atan2(cross2(a, b), dot(a, b));
     if dth == 0.0 || all(a == vec2<f32>(0.0)) || all(b == vec2<f32>(0.0)) {
@@ -494,46 +518,63 @@ fn sector_rect(a: vec2<f32>, b: vec2<f32>) -> f32 {
     let ar = a / max(abs(a.x) / h.x, abs(a.y) / h.y);
     let br = b / max(abs(b.x) / h.x, abs(b.y) / h.y);
     let tha = atan2(a.y, a.x);
-    let tau = 6.28318530717958647;
-    var cs = array<vec2<f32>, 4>(
-        vec2<f32>(h.x, h.y),
-        vec2<f32>(-h.x, h.y),
-        vec2<f32>(-h.x, -h.y),
-        vec2<f32>(h.x, -h.y),
-    );
-    var off = array<f32, 4>(-1.0, -1.0, -1.0, -1.0);
-    for (var i = 0u; i < 4u; i++) {
-        let thc = atan2(cs[i].y, cs[i].x);
-        var o: f32;
-        if dth > 0.0 {
-            o = thc - tha;
-        } else {
-            o = tha - thc;
-        }
-        o = o - tau * floor(o / tau);
-        if o > 0.0 && o < abs(dth) {
-            off[i] = o;
-        }
-    }
+    // (angle from a or +inf outside the sweep, corner index, corner).
+    var c0 = swept_corner(vec2<f32>(h.x, h.y), 0.0, tha, dth);
+    var c1 = swept_corner(vec2<f32>(-h.x, h.y), 1.0, tha, dth);
+    var c2 = swept_corner(vec2<f32>(-h.x, -h.y), 2.0, tha, dth);
+    var c3 = swept_corner(vec2<f32>(h.x, -h.y), 3.0, tha, dth);
+    sort_pair(&c0, &c1);
+    sort_pair(&c2, &c3);
+    sort_pair(&c0, &c2);
+    sort_pair(&c1, &c3);
+    sort_pair(&c1, &c2);
     var prev = ar;
     var twice = 0.0;
-    var used = array<bool, 4>(false, false, false, false);
-    for (var n = 0u; n < 4u; n++) {
-        var best = 4u;
-        for (var i = 0u; i < 4u; i++) {
-            if off[i] > 0.0 && !used[i] && (best == 4u || off[i] < off[best]) {
-                best = i;
-            }
-        }
-        if best == 4u {
-            break;
-        }
-        used[best] = true;
-        twice += cross2(prev, cs[best]);
-        prev = cs[best];
-    }
+    twice += swept_term(&prev, c0);
+    twice += swept_term(&prev, c1);
+    twice += swept_term(&prev, c2);
+    twice += swept_term(&prev, c3);
     twice += cross2(prev, br);
     return 0.5 * twice;
+}
+
+// A rect corner c (index k) as sector_rect sorts it: its angle from a in the sweep's direction,
+// +inf unless strictly inside the sweep.
+fn swept_corner(c: vec2<f32>, k: f32, tha: f32, dth: f32) -> vec4<f32> {
+    let tau = 6.28318530717958647;
+    let thc = atan2(c.y, c.x);
+    var o: f32;
+    if dth > 0.0 {
+        o = thc - tha;
+    } else {
+        o = tha - thc;
+    }
+    o = o - tau * floor(o / tau);
+    var key = pos_inf();
+    if o > 0.0 && o < abs(dth) {
+        key = o;
+    }
+    return vec4<f32>(key, k, c);
+}
+
+// Orders two swept corners by (angle, index).
+fn sort_pair(a: ptr<function, vec4<f32>>, b: ptr<function, vec4<f32>>) {
+    let x = *a;
+    let y = *b;
+    if y.x < x.x || (y.x == x.x && y.y < x.y) {
+        *a = y;
+        *b = x;
+    }
+}
+
+// One swept corner's term of sector_rect's sum (none outside the sweep).
+fn swept_term(prev: ptr<function, vec2<f32>>, c: vec4<f32>) -> f32 {
+    if !(c.x < pos_inf()) {
+        return 0.0;
+    }
+    let t = cross2(*prev, c.zw);
+    *prev = c.zw;
+    return t;
 }
 
 // kernel.rs SHAPE_*.
@@ -554,32 +595,37 @@ fn clip_rect(a: vec2<f32>, b: vec2<f32>, h: vec2<f32>) -> Clipped {
     out.ok = false;
     out.ends = vec4<f32>(0.0);
     let d = b - a;
-    var t0 = 0.0;
-    var t1 = 1.0;
-    let ps = array<f32, 4>(-d.x, d.x, -d.y, d.y);
-    let qs = array<f32, 4>(a.x + h.x, h.x - a.x, a.y + h.y, h.y - a.y);
-    for (var i = 0u; i < 4u; i++) {
-        let p = ps[i];
-        let qq = qs[i];
-        if p == 0.0 {
-            if qq < 0.0 {
-                return out;
-            }
-        } else {
-            let r = qq / p;
-            if p < 0.0 {
-                t0 = max(t0, r);
-            } else {
-                t1 = min(t1, r);
-            }
-        }
-    }
-    if !(t0 <= t1) {
+    // (t0, t1, 1 once the segment is outside a side it runs parallel to).
+    var t = vec3<f32>(0.0, 1.0, 0.0);
+    t = clip_side(t, -d.x, a.x + h.x);
+    t = clip_side(t, d.x, h.x - a.x);
+    t = clip_side(t, -d.y, a.y + h.y);
+    t = clip_side(t, d.y, h.y - a.y);
+    if t.z != 0.0 || !(t.x <= t.y) {
         return out;
     }
-    out.ends = vec4<f32>(a + d * t0, a + d * t1);
+    out.ends = vec4<f32>(a + d * t.x, a + d * t.y);
     out.ok = true;
     return out;
+}
+
+// One side of Liang-Barsky's clip: p the segment's component against the side, qq the start's
+// distance inside it.
+fn clip_side(t: vec3<f32>, p: f32, qq: f32) -> vec3<f32> {
+    var o = t;
+    if p == 0.0 {
+        if qq < 0.0 {
+            o.z = 1.0;
+        }
+    } else {
+        let r = qq / p;
+        if p < 0.0 {
+            o.x = max(o.x, r);
+        } else {
+            o.y = min(o.y, r);
+        }
+    }
+    return o;
 }
 
 // contour::disk_edge_term: clipped to the disk's bounding square, then the core's

@@ -4,6 +4,10 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     if idx >= arrayLength(&prep) {
         return;
     }
+    if idx == 0u {
+        atomicStore(&queue[QUEUE_ARGS + 1u], 1u);
+        atomicStore(&queue[QUEUE_ARGS + 2u], 1u);
+    }
     var p: PrepGpu;
     p.state = STATE_DONE;
     p.centre = 0u;
@@ -64,6 +68,14 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     prep[idx] = p;
     v_out[idx] = vec2<f32>(0.0, 0.0);
+    // Queued for `pixels`, which runs over the queue alone (its dispatch counts a workgroup per
+    // WG receivers queued): the penumbra receivers are a few of all, and lanes of a workgroup
+    // that have no penumbra to walk would wait on those that have.
+    let slot = atomicAdd(&queue[QUEUE_COUNT], 1u);
+    atomicStore(&queue[QUEUE_LIST + slot], idx);
+    if slot % WG == 0u {
+        atomicAdd(&queue[QUEUE_ARGS], 1u);
+    }
 }
 
 // contour::visibility_from_area (A_L = 4 hx hy, or pi R^2 for a disk and a sphere's silhouette:
@@ -84,13 +96,14 @@ fn finish(sum: f32, centre: u32) -> f32 {
     return v;
 }
 
-// Per-pixel GBP07 for every penumbra receiver `prepare` left.
+// Per-pixel GBP07 for every penumbra receiver `prepare` queued (dispatched indirectly, one
+// invocation per queued receiver).
 @compute @workgroup_size(WG)
 fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let idx = gid.x;
-    if idx >= arrayLength(&prep) {
+    if gid.x >= atomicLoad(&queue[QUEUE_COUNT]) {
         return;
     }
+    let idx = atomicLoad(&queue[QUEUE_LIST + gid.x]);
     let p = prep[idx];
     if p.state != STATE_PENUMBRA {
         return;
@@ -117,40 +130,73 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         complete = kk >= total;
     } else {
-        var stack: array<vec3<i32>, STACK>;
-        var sp = push_roots(&stack, cr);
+        // Yang's Algorithm 3 without a stack: the nodes in the CPU's order (roots row-major,
+        // children row-major), each root's subtree walked along its Morton code c at level l:
+        // after a node that is pruned or a cell, c steps past its subtree and the next node is
+        // at the highest level c is aligned to. Nodes starting outside the kernel are skipped.
+        let top = u.dual_levels - 1u;
+        let span = u32(max(cr.z - cr.x, cr.w - cr.y));
+        var want = 0u;
+        if span > 1u {
+            want = 32u - countLeadingZeros(span - 1u);
+        }
+        let l0 = min(want, top);
+        let step = i32(1u << l0);
         let x1 = cr.z + 1;
         let y1 = cr.w + 1;
+        let nx = max((cr.z - cr.x + step - 1) / step, 0);
+        let roots = nx * max((cr.w - cr.y + step - 1) / step, 0);
+        let end = 1u << (2u * l0);
+        var root = 0;
+        var c = 0u;
+        var l = l0;
+        var live = roots > 0;
         loop {
-            if sp == 0u {
+            if !live {
                 break;
             }
-            sp -= 1u;
-            let nd = stack[sp];
-            visited += 1u;
-            let l = u32(nd.z);
-            let mm = node(nd);
-            // Fig. 6 cases 4 and 5: no contour below this node.
-            if u.receiver_plane == 0u {
-                if mm.y < rec.t || !(mm.x < rec.t) {
-                    continue;
+            let nd = vec3<i32>(
+                cr.x + 1 + (root % nx) * step + i32(even_bits(c)),
+                cr.y + 1 + (root / nx) * step + i32(even_bits(c >> 1u)),
+                i32(l),
+            );
+            var down = false;
+            if nd.x < x1 && nd.y < y1 {
+                visited += 1u;
+                let mm = node(nd);
+                // Fig. 6 cases 4 and 5: no contour below this node.
+                var pruned = mm.y < rec.t || !(mm.x < rec.t);
+                if u.receiver_plane != 0u {
+                    let span = i32(1u << l);
+                    let ns = vec4<i32>(nd.x - 1, nd.y - 1, nd.x - 1 + span, nd.y - 1 + span);
+                    let lo = node_true_min(mm.x, ns, l);
+                    pruned = plane_prunable(mm, rec.t, rec.t, widen(threshold_range(rec, ns)), lo);
                 }
+                if !pruned {
+                    if l == 0u {
+                        sum += cell_area(nd.x - 1, nd.y - 1, rec, q, rec.zp);
+                    } else {
+                        down = true;
+                    }
+                }
+            }
+            if down {
+                l -= 1u;
             } else {
-                let span = i32(1u << l);
-                let ns = vec4<i32>(nd.x - 1, nd.y - 1, nd.x - 1 + span, nd.y - 1 + span);
-                if plane_prunable(mm, rec.t, rec.t, widen(threshold_range(rec, ns)), ns) {
-                    continue;
+                c += 1u << (2u * l);
+                if c >= end {
+                    c = 0u;
+                    l = l0;
+                    root += 1;
+                    live = root < roots;
+                } else {
+                    l = min(countTrailingZeros(c) / 2u, l0);
                 }
             }
-            if l == 0u {
-                sum += cell_area(nd.x - 1, nd.y - 1, rec, q, rec.zp);
-                continue;
-            }
-            sp = push_children(&stack, sp, nd, x1, y1);
         }
-        complete = sp == 0u;
+        complete = !live;
     }
-    if !complete || stack_overflow || loop_limit_hit() {
+    if !complete || loop_limit_hit() {
         v_out[idx] = vec2<f32>(0.0, TRUNCATED);
         return;
     }
@@ -166,46 +212,11 @@ fn node(nd: vec3<i32>) -> vec2<f32> {
     return vec2<f32>(pos_inf(), -pos_inf());
 }
 
-// The start nodes of contour::extract: the lowest level covering the kernel from its top-left
-// corner (tiled with top-level nodes above the top level). Returns the stack size.
-fn push_roots(stack: ptr<function, array<vec3<i32>, STACK>>, cr: vec4<i32>) -> u32 {
-    var sp = 0u;
-    let top = u.dual_levels - 1u;
-    let span = u32(max(cr.z - cr.x, cr.w - cr.y));
-    var want = 0u;
-    if span > 1u {
-        want = 32u - countLeadingZeros(span - 1u);
-    }
-    let l0 = min(want, top);
-    let step = i32(1u << l0);
-    for (var y = cr.y + 1; y < cr.w + 1; y += step) {
-        for (var x = cr.x + 1; x < cr.z + 1; x += step) {
-            if sp < STACK {
-                (*stack)[sp] = vec3<i32>(x, y, i32(l0));
-                sp += 1u;
-            } else {
-                stack_overflow = true;
-            }
-        }
-    }
-    return sp;
-}
-
-fn push_children(stack: ptr<function, array<vec3<i32>, STACK>>, sp0: u32, nd: vec3<i32>, x1: i32, y1: i32) -> u32 {
-    var sp = sp0;
-    let h = i32(1u << (u32(nd.z) - 1u));
-    let kids = array<vec2<i32>, 4>(vec2<i32>(h, h), vec2<i32>(0, h), vec2<i32>(h, 0), vec2<i32>(0, 0));
-    for (var c = 0u; c < 4u; c++) {
-        let cx = nd.x + kids[c].x;
-        let cy = nd.y + kids[c].y;
-        if cx < x1 && cy < y1 {
-            if sp < STACK {
-                (*stack)[sp] = vec3<i32>(cx, cy, nd.z - 1);
-                sp += 1u;
-            } else {
-                stack_overflow = true;
-            }
-        }
-    }
-    return sp;
+// The even bits of v packed (a Morton code's x; of v >> 1, its y).
+fn even_bits(v: u32) -> u32 {
+    var x = v & 0x55555555u;
+    x = (x | (x >> 1u)) & 0x33333333u;
+    x = (x | (x >> 2u)) & 0x0f0f0f0fu;
+    x = (x | (x >> 4u)) & 0x00ff00ffu;
+    return (x | (x >> 8u)) & 0x0000ffffu;
 }

@@ -1,9 +1,25 @@
 //! The kernel the engine path ([`crate::gpu`]) runs after its set-up pass, the twin of
 //! [`crate::cpu::pixel_value`] in f32 (`packet_hsm.wgsl`, `packet_hsm_passes.wgsl`): `prepare`
 //! (one invocation per receiver: the tight kernel from the MSSM, the fully lit / fully occluded
-//! classification over the padded dual-grid MSSM, the centre status), then `pixels` (per-pixel
-//! GBP07 for every penumbra receiver: flat scan, or Yang's Algorithm 3 with an explicit stack
-//! when `hierarchy`). Receivers in a buffer carry no image layout, so the GPU has no packets.
+//! classification over the padded dual-grid MSSM, the centre status; a penumbra receiver is
+//! queued), then `pixels`, dispatched indirectly with one invocation per queued receiver
+//! (per-pixel GBP07: flat scan, or Yang's Algorithm 3 when `hierarchy`). Receivers in a buffer
+//! carry no image layout, so the GPU has no packets.
+//!
+//! Work per receiver, beside the CPU twin's ([`crate::cpu`]): the same kernel search, trivial
+//! classification and centre status; a penumbra receiver then visits the nodes the CPU's
+//! per-pixel walk visits, in the same order (roots row-major, children row-major), and sums the
+//! same cells' edge terms in that order. Where the CPU walks with a stack, the kernel walks
+//! without one, along each root's Morton code (a node after a pruned subtree or a cell is the
+//! next code at the highest level it is aligned to), so a lane holds three integers, not a
+//! stack in private memory. Nodes starting outside the kernel cost a step and no fetch. The
+//! pruning bound on a node's true depths is four taps of the anchored MSSM at the node's level,
+//! which may be lower than the CPU's exact query: a node is then walked into and its cells
+//! add nothing (V unchanged). A cell's contour edges, the Liang-Barsky clip and a rect sector's
+//! corner order take no loop (on lavapipe every loop trip costs its full price, needed by a
+//! lane or not, and counts against the invocation's budget, [`LOOP_LIMIT`]). The CPU groups
+//! pixels into packets (Yang §4.1) and extracts a coherent packet's contour once; the GPU does
+//! not, so it walks more nodes per receiver than the CPU's `visited_per_penumbra_pixel` says.
 //!
 //! Known differences from the CPU: f32 light-plane geometry and sums (f64 on the CPU), a
 //! backprojection gap floored at `1e-7 z_p` (CPU: `1e-12 z_p`), the cell-boundary nudge added
@@ -133,6 +149,12 @@ pub struct RecIn {
     pub sil_clip: [f32; 4],
 }
 
+/// Words before the queue's list: its count and the indirect dispatch's `(x, y, z)`, which
+/// start at byte [`QUEUE_ARGS_OFFSET`].
+pub(crate) const QUEUE_HEADER: u64 = 4;
+/// Byte offset of the `pixels` dispatch's workgroup counts in the queue.
+pub(crate) const QUEUE_ARGS_OFFSET: u64 = 4;
+
 /// Threads per workgroup of every pass (the core's `WG` override).
 pub(crate) const WORKGROUP: u32 = 64;
 
@@ -163,7 +185,7 @@ impl Kernel {
         let layout = ctx.scoped(LABEL, || {
             let mut bindings = vec![Binding::Uniform];
             bindings.extend([Binding::Storage; 6]);
-            bindings.extend([Binding::StorageRw; 2]);
+            bindings.extend([Binding::StorageRw; 3]);
             bind_group_layout(&ctx, LABEL, &bindings)
         })?;
         let constants = [("WG", WORKGROUP as f64)];
@@ -179,9 +201,10 @@ impl Kernel {
     }
 
     /// A bind group over `bufs`, bound in order from 0: the uniform, depth, classification,
-    /// MSSM, dual min, dual max, receivers, V out, prep (the last three one range of receivers:
-    /// the passes run over `arrayLength(&prep)`).
-    pub fn group(&self, bufs: [wgpu::BindingResource<'_>; 9]) -> wgpu::BindGroup {
+    /// MSSM, dual min, dual max, receivers, V out, prep (these three one range of receivers:
+    /// the passes run over `arrayLength(&prep)`), the queue of penumbra receivers
+    /// ([`QUEUE_HEADER`] words, then one per receiver of the range).
+    pub fn group(&self, bufs: [wgpu::BindingResource<'_>; 10]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = bufs
             .into_iter()
             .enumerate()

@@ -239,6 +239,8 @@ struct Dispatch {
     texture: Option<wgpu::TextureView>,
     buffers: Vec<(u32, Range)>,
     groups: (u32, u32),
+    /// The index of the level it builds in its structure's level list.
+    level: u32,
 }
 
 /// Plans the dispatches of one build: buffers are created while planning, bind groups and the
@@ -250,6 +252,8 @@ struct Recorder<'a> {
     /// Storage-buffer offset alignment, bytes.
     align: u64,
     dispatches: Vec<Dispatch>,
+    /// The level index the next dispatches build.
+    level: u32,
 }
 
 /// `floor(log2(n))` for `n >= 1`.
@@ -371,6 +375,7 @@ impl<'a> Recorder<'a> {
                     out_size.div_ceil(MSSM_WORKGROUP),
                     rows.div_ceil(MSSM_WORKGROUP),
                 ),
+                level: self.level,
             });
             row0 += rows;
         }
@@ -526,7 +531,7 @@ impl<'a> Recorder<'a> {
                     layout,
                     entries: &entries,
                 });
-                (d.kind, group, d.groups)
+                (d.kind, group, d.groups, d.level)
             })
             .collect();
         GpuMinMaxPass {
@@ -542,13 +547,21 @@ impl<'a> Recorder<'a> {
 #[derive(Debug)]
 pub struct GpuMinMaxPass {
     builder: GpuMssmBuilder,
-    dispatches: Vec<(Kind, wgpu::BindGroup, (u32, u32))>,
+    /// Kind, bind group, workgroups, and the index of the level built.
+    dispatches: Vec<(Kind, wgpu::BindGroup, (u32, u32), u32)>,
 }
 
 impl GpuMinMaxPass {
     /// Records the pass into `encoder` (nothing when no structure was requested).
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
-        if self.dispatches.is_empty() {
+        self.record_levels(encoder, u32::MAX);
+    }
+
+    /// Records the dispatches that build each structure's first `levels` levels (level 0 is
+    /// the depth map, or the dual-grid MSSM's first level): a view whose kernels are small
+    /// reads no more, and the higher levels are the same cost each as the first.
+    pub fn record_levels(&self, encoder: &mut wgpu::CommandEncoder, levels: u32) {
+        if self.dispatches.iter().all(|d| d.3 >= levels) {
             return;
         }
         let b = &self.builder;
@@ -556,7 +569,7 @@ impl GpuMinMaxPass {
             label: Some("mssm"),
             timestamp_writes: None,
         });
-        for (kind, group, (x, y)) in &self.dispatches {
+        for (kind, group, (x, y), _) in self.dispatches.iter().filter(|d| d.3 < levels) {
             pass.set_pipeline(match kind {
                 Kind::Load => &b.load,
                 Kind::Step => &b.step,
@@ -703,6 +716,7 @@ impl GpuMssmBuilder {
             limit: self.binding_limit(ctx),
             align: ctx.limits().min_storage_buffer_offset_alignment.max(4) as u64,
             dispatches: Vec::new(),
+            level: 0,
         };
         let s = depth.size;
         let top = floor_log2(s);
@@ -712,15 +726,18 @@ impl GpuMssmBuilder {
             let mut levels = vec![base.clone()];
             for l in 0..max_level.min(top) {
                 let Some(prev) = levels.last() else { break };
+                rec.level = l + 1;
                 let next = rec.step(prev, 1 << l, &format!("mssm.level{}", l + 1))?;
                 levels.push(next);
             }
             set.mssm = Some(GpuMssm { size: s, levels });
         }
         if let Some(max_level) = req.dual_mssm_levels {
+            rec.level = 0;
             let mut levels = vec![rec.step(&base, 1, "dual_mssm.level0")?];
             for l in 0..max_level.min(top) {
                 let Some(prev) = levels.last() else { break };
+                rec.level = l + 1;
                 let next = rec.step(prev, 1 << l, &format!("dual_mssm.level{}", l + 1))?;
                 levels.push(next);
             }
@@ -732,6 +749,7 @@ impl GpuMssmBuilder {
                 if prev.size <= 1 {
                     break;
                 }
+                rec.level = levels.len() as u32;
                 let next = rec.reduce(prev, &format!("pyramid.level{}", levels.len()))?;
                 levels.push(next);
             }

@@ -128,6 +128,7 @@ fn layer_slots_render_each_opacity_level_in_its_own_view() -> Result<(), Error> 
             max_bias: 0.0,
             min_opacity: level.min_opacity,
             slot: k,
+            mssm_levels: None,
         };
         frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
         enc.copy_texture_to_texture(

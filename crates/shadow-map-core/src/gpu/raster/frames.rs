@@ -94,6 +94,8 @@ pub struct LayersSlot<'a> {
     pub min_opacity: f32,
     /// The slot, below the `slots` the frame was prepared with.
     pub slot: usize,
+    /// The MSSM levels to build (level 0 the depth map itself; `None`: every level prepared).
+    pub mssm_levels: Option<u32>,
 }
 
 /// A [`GpuLayersFrame`]'s view slots and its raster parameters at opacity 0.
@@ -194,6 +196,7 @@ impl GpuLayersFrame {
             max_bias,
             min_opacity: 0.0,
             slot: 0,
+            mssm_levels: None,
         };
         self.encode_slot(ctx, enc, casters, &slot)
     }
@@ -254,7 +257,8 @@ impl GpuLayersFrame {
         if let Some(p) = &self.midpoint_pass {
             p.record(ctx, enc, slot.max_bias);
         }
-        self.mssm_pass.record(enc);
+        self.mssm_pass
+            .record_levels(enc, slot.mssm_levels.unwrap_or(u32::MAX));
         Ok(())
     }
 
