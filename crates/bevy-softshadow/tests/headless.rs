@@ -65,8 +65,8 @@ fn check(scene: &Scene, methods: &[Method]) {
         if !(c.frac_below_half > 0.01 && c.mean_v < 0.99) {
             failures.push(format!("{name}: no shadow ({c:?})"));
         }
-        // Receivers cut by the device's loop budget (lavapipe cuts 5% of packet-hsm's under
-        // the sphere light) stay NaN: the composite leaves them lit. Counted, bounded.
+        // Receivers cut by the device's loop budget stay NaN: the composite leaves them lit.
+        // Counted, bounded.
         if c.nan * 10 > c.receivers {
             failures.push(format!("{name}: {} of {} NaN", c.nan, c.receivers));
         }
