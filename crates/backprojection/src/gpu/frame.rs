@@ -11,7 +11,7 @@ use shadow_map_core::{
         },
         layout::{GpuLayout, KernelMaps},
         light_space::GpuLightSpace,
-        raster::{GpuLayersFrame, GpuShadowMapper},
+        raster::{GpuLayersFrame, GpuShadowMapper, LayersSlot},
         GpuContext,
     },
     light_view::LightView,
@@ -178,13 +178,25 @@ impl FrameEstimator for BackprojectionFrame {
                 let settings = self.cpu.settings();
         let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
         inputs.mark(enc, "start");
-        self.layers
-            .encode(ctx, enc, inputs.casters, view, clamp)?;
+        // The MSSM levels the widest kernel of this view needs (crate::cpu::request's rule): the
+        // levels above only speed up queries no kernel makes, and each costs a pass over r^2.
+        let planes = crate::cpu::request(settings, view, inputs.light.half_extent())
+            .mssm_levels
+            .map_or(u32::MAX, |l| l + 1);
+        let slot = LayersSlot {
+            view,
+            max_bias: clamp,
+            min_opacity: 0.0,
+            slot: 0,
+            mssm_levels: Some(planes),
+        };
+        self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
         inputs.mark(enc, "layers");
         let semi = !inputs.casters.is_opaque();
         self.km.record(enc, semi);
         inputs.mark(enc, "layout");
-        let (eu, bpu, table) = uniforms(settings, &self.km, semi, inputs.light);
+        let (eu, mut bpu, table) = uniforms(settings, &self.km, semi, inputs.light);
+        bpu.mssm_levels = bpu.mssm_levels.min(planes);
         ctx.write_in(enc, &self.bufs.est, 0, bytemuck::bytes_of(&eu));
         ctx.write_in(enc, &self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
         ctx.write_in(enc, &self.bufs.bits, 0, bytemuck::bytes_of(&table));

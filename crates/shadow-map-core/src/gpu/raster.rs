@@ -525,6 +525,7 @@ impl GpuShadowMapper {
                 layers,
                 opacity,
                 wrote_opacity: Default::default(),
+                mssm_built: u32::MAX.into(),
                 midpoints,
                 set,
                 depth_test,

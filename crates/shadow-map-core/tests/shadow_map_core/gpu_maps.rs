@@ -694,3 +694,53 @@ fn gpu_layers_and_midpoints_match_cpu_on_random_scenes() -> TestResult {
     assert!(cases > 0, "no case ran");
     Ok(())
 }
+
+/// A frame told to build fewer MSSM levels than it was prepared for (`LayersSlot::mssm_levels`)
+/// hands out those levels alone, each bit for bit the CPU's over the same layer; told nothing
+/// again, it hands out every level.
+#[test]
+fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
+    let Some((ctx, mapper)) = gpu("a_frame_building_fewer_mssm_levels_hands_out_only_those")?
+    else {
+        return Ok(());
+    };
+    use shadow_map_core::gpu::LayersSlot;
+    let mut tris = quad_uv(2.5, 1.5, 9.5, 6.0, 3.0);
+    tris.extend(quad_uv(10.25, 8.0, 14.75, 13.5, 2.0));
+    let scene = scene_of(unit_light(), tris)?;
+    let req = LightSpaceRequest {
+        mssm_levels: Some(4),
+        ..LightSpaceRequest::single(16)
+    };
+    let view = unit_view(16);
+    let frame = mapper.layers_frame_slots(&ctx, 16, &req, 1)?;
+    let casters = GpuScene::upload(&ctx, &scene)?;
+    // Each level's (min, max) planes.
+    type Planes = Vec<(Vec<f32>, Vec<f32>)>;
+    let levels_after = |cap: Option<u32>| -> Result<Planes, Error> {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let slot = LayersSlot {
+            view: &view,
+            max_bias: 0.0,
+            min_opacity: 0.0,
+            slot: 0,
+            mssm_levels: cap,
+        };
+        frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
+        ctx.queue.submit([enc.finish()]);
+        let ls = frame.light_space(&view);
+        ls.mssm.expect("an MSSM").read_levels(&ctx)
+    };
+    let all = levels_after(None)?;
+    assert_eq!(all.len(), 5, "levels 0 to 4");
+    let l0 = frame.light_space(&view).to_cpu(&ctx)?.layers[0].clone();
+    let cpu = Mssm::build(&l0.depth, l0.size, 4);
+    let three = levels_after(Some(3))?;
+    assert_eq!(three.len(), 3);
+    for (l, (mn, mx)) in three.iter().enumerate() {
+        let (cmn, cmx) = cpu.level(l as u32);
+        assert!(same_bits(mn, cmn) && same_bits(mx, cmx), "level {l}");
+    }
+    assert_eq!(levels_after(None)?.len(), 5);
+    Ok(())
+}

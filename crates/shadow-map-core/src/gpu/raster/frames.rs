@@ -125,6 +125,8 @@ pub struct GpuLayersFrame {
     pub(super) opacity: Vec<GpuDepthMap>,
     /// Whether the last `encode` wrote the opacity planes (semi-transparent casters).
     pub(super) wrote_opacity: std::sync::atomic::AtomicBool,
+    /// The MSSM levels the last `encode` built ([`LayersSlot::mssm_levels`]; `u32::MAX`: all).
+    pub(super) mssm_built: std::sync::atomic::AtomicU32,
     pub(super) midpoints: Vec<GpuDepthMap>,
     pub(super) set: crate::gpu::mssm::GpuMinMaxSet,
     pub(super) depth_test: wgpu::TextureView,
@@ -257,17 +259,25 @@ impl GpuLayersFrame {
         if let Some(p) = &self.midpoint_pass {
             p.record(ctx, enc, slot.max_bias);
         }
-        self.mssm_pass
-            .record_levels(enc, slot.mssm_levels.unwrap_or(u32::MAX));
+        let levels = slot.mssm_levels.unwrap_or(u32::MAX);
+        self.mssm_pass.record_levels(enc, levels);
+        self.mssm_built
+            .store(levels, std::sync::atomic::Ordering::Relaxed);
         Ok(())
     }
 
     /// The maps as a [`GpuLightSpace`] in `view` (sharing this frame's textures and buffers),
-    /// the opacity planes included when the last `encode` wrote them.
+    /// the opacity planes included when the last `encode` wrote them, the MSSM's levels those
+    /// it built.
     pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
         let wrote = self
             .wrote_opacity
             .load(std::sync::atomic::Ordering::Relaxed);
+        let built = self.mssm_built.load(std::sync::atomic::Ordering::Relaxed);
+        let mut mssm = self.set.mssm.clone();
+        if let Some(m) = &mut mssm {
+            m.levels.truncate(built.max(1) as usize);
+        }
         GpuLightSpace {
             view: *view,
             fit: FitReport::default(),
@@ -279,7 +289,7 @@ impl GpuLayersFrame {
                 Vec::new()
             },
             midpoints: self.midpoints.clone(),
-            mssm: self.set.mssm.clone(),
+            mssm,
             dual_mssm: self.set.dual_mssm.clone(),
             pyramid: self.set.pyramid.clone(),
         }
