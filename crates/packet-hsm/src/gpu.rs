@@ -22,8 +22,10 @@
 //!    sphere light's silhouette disk, projection, bias or receiver plane);
 //! 5. the kernel's `prepare` and `pixels` passes ([`kernel`]: the per-pixel GBP07 with
 //!    Yang's hierarchy; receivers in a buffer carry no image layout, so no packets): `prepare`
-//!    queues the penumbra receivers, the queue's header is copied into the indirect dispatch
-//!    arguments of `pixels`, which runs over the queue alone;
+//!    queues the penumbra receivers; each round of `pixels` (as many as the view's widest
+//!    kernel can need, `SubLightShape::rounds` in [`kernel`]) runs over the last queue alone (its
+//!    header copied into the indirect dispatch's arguments), walking at most
+//!    [`kernel::WALK_BUDGET`] steps per receiver and queueing those with more for the next;
 //! 6. `frame_finish`: the view's V (facing x the kernel's V, or what the set-up settled) times
 //!    the view's weight (`1 / S^2` times the level's) added to each receiver's sum; after the
 //!    last view, V = the sum clamped to [0, 1], as [`crate::cpu::SubLights::finish`] does.
@@ -39,7 +41,8 @@
 //!
 //! The status buffer (three u32, cleared by each `encode`): `[0]` receivers projecting outside
 //! a view (summed over views; V = facing there), `[1]` non-finite V written as 0, `[2]`
-//! receivers the device's loop budget cut short in some view ([`crate::gpu::kernel::LOOP_LIMIT`]): V
+//! receivers cut short in some view, by the device's loop budget or by a walk longer than
+//! [`kernel::MAX_ROUNDS`] rounds ([`crate::gpu::kernel::LOOP_LIMIT`]; none on the fixtures): V
 //! left NaN for the caller to redo (the CLI and the registry's estimator redo NaN actives with
 //! the CPU twin in the same views).
 //!
@@ -165,7 +168,7 @@ pub struct PacketHsmFrame {
     prep: wgpu::Buffer,
     /// The penumbra receivers `prepare` queues for `pixels` (kernel.rs [`QUEUE_HEADER`]), and
     /// the indirect dispatch's arguments copied from its header.
-    queue: wgpu::Buffer,
+    queues: [wgpu::Buffer; 2],
     args: wgpu::Buffer,
     hsm: wgpu::Buffer,
     light: wgpu::Buffer,
@@ -178,13 +181,16 @@ pub struct PacketHsmFrame {
     setup_pipe: wgpu::ComputePipeline,
     finish_pipe: wgpu::ComputePipeline,
     max_receivers: u32,
+    /// Steps of a walk a round of `pixels` takes ([`kernel::WALK_BUDGET`]).
+    walk_budget: u32,
 }
 
 /// A frame's bind groups: the per-texel pass's, and per range of receivers the frame passes'
 /// and the kernel's.
 struct RangeGroups {
     maps: wgpu::BindGroup,
-    ranges: Vec<(ReceiverRange, wgpu::BindGroup, wgpu::BindGroup)>,
+    /// Per range: the frame passes' group, and the kernel's reading queue 0 and queue 1.
+    ranges: Vec<(ReceiverRange, wgpu::BindGroup, [wgpu::BindGroup; 2])>,
 }
 
 fn buffer(ctx: &GpuContext, label: &str, bytes: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -291,12 +297,14 @@ impl PacketHsmFrame {
                 range * size_of::<PrepGpu>() as u64,
                 storage,
             ),
-            queue: buffer(
-                &ctx,
-                "packet-hsm frame penumbra queue",
-                4 * (QUEUE_HEADER + range),
-                storage | wgpu::BufferUsages::COPY_SRC,
-            ),
+            queues: ["packet-hsm frame penumbra queue", "packet-hsm frame walk queue"].map(|l| {
+                buffer(
+                    &ctx,
+                    l,
+                    4 * (QUEUE_HEADER + range),
+                    storage | wgpu::BufferUsages::COPY_SRC,
+                )
+            }),
             args: buffer(
                 &ctx,
                 "packet-hsm frame pixels dispatch",
@@ -334,6 +342,7 @@ impl PacketHsmFrame {
             setup_pipe,
             finish_pipe,
             max_receivers,
+            walk_budget: kernel::WALK_BUDGET,
         })
     }
 
@@ -355,6 +364,7 @@ impl PacketHsmFrame {
             mssm_levels: levels.min(floor_log2(r)) + 1,
             dual_levels: dual_max.min(floor_log2(p)) + 1,
             class_is_depth: !self.cfg.shadow.midpoint(),
+            max_cells,
         }
     }
 
@@ -400,8 +410,9 @@ impl PacketHsmFrame {
                 ])
     }
 
-    /// The kernel's bind group over `range` (its scratch from the start).
-    fn kernel_group(&self, range: ReceiverRange) -> wgpu::BindGroup {
+    /// The kernel's bind group over `range` (its scratch from the start), reading queue `from`
+    /// and filling the other.
+    fn kernel_group(&self, range: ReceiverRange, from: usize) -> wgpu::BindGroup {
         self.kernel.group([
             self.hsm.as_entire_binding(),
             self.depth.as_entire_binding(),
@@ -412,7 +423,8 @@ impl PacketHsmFrame {
             self.scratch(&self.recs, range, size_of::<RecIn>()),
             self.scratch(&self.out, range, 8),
             self.scratch(&self.prep, range, size_of::<PrepGpu>()),
-            self.queue.as_entire_binding(),
+            self.queues[from].as_entire_binding(),
+            self.queues[1 - from].as_entire_binding(),
         ])
     }
 
@@ -531,7 +543,11 @@ impl PacketHsmFrame {
             enc.copy_buffer_to_buffer(&level.min, 0, &self.dual_min, at, pplane);
             enc.copy_buffer_to_buffer(&level.max, 0, &self.dual_max, at, pplane);
         }
-        let hu = hsm_uniform(&shape, cfg);
+        let hu = HsmUniform {
+            walk_budget: self.walk_budget,
+            ..hsm_uniform(&shape, cfg)
+        };
+        let rounds = shape.rounds(cfg.hierarchy, hu.walk_budget);
         ctx.write_in(enc, &self.hsm, 0, bytemuck::bytes_of(&hu));
         let mut eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
         if let LightShape::Rect { .. } = inputs.light.shape {
@@ -560,18 +576,22 @@ impl PacketHsmFrame {
             let n = range.count as u64;
             // No stale kernel state from the last view or range for receivers the set-up settles.
             enc.clear_buffer(&self.prep, 0, Some(n * size_of::<PrepGpu>() as u64));
-            enc.clear_buffer(&self.queue, 0, Some(4 * QUEUE_HEADER));
+            enc.clear_buffer(&self.queues[0], 0, Some(4 * QUEUE_HEADER));
             run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
-            run(enc, "packet-hsm prepare", &self.kernel.prepare, kernel, n);
-            enc.copy_buffer_to_buffer(&self.queue, QUEUE_ARGS_OFFSET, &self.args, 0, 12);
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("packet-hsm pixels"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.kernel.pixels);
-            pass.set_bind_group(0, kernel, &[]);
-            pass.dispatch_workgroups_indirect(&self.args, 0);
-            drop(pass);
+            run(enc, "packet-hsm prepare", &self.kernel.prepare, &kernel[0], n);
+            // Rounds of `pixels`, each over the queue the last one left.
+            for round in 0..rounds {
+                let from = round as usize % 2;
+                enc.clear_buffer(&self.queues[1 - from], 0, Some(4 * QUEUE_HEADER));
+                enc.copy_buffer_to_buffer(&self.queues[from], QUEUE_ARGS_OFFSET, &self.args, 0, 12);
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("packet-hsm pixels"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.kernel.pixels);
+                pass.set_bind_group(0, &kernel[from], &[]);
+                pass.dispatch_workgroups_indirect(&self.args, 0);
+            }
             run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         }
         inputs.mark(enc, "estimate");
@@ -580,6 +600,13 @@ impl PacketHsmFrame {
 }
 
 impl PacketHsmFrame {
+    /// Sets the steps of a receiver's walk one round of `pixels` takes (default
+    /// [`kernel::WALK_BUDGET`]; at least 1): V is the same at any budget, only the rounds
+    /// differ (up to [`kernel::MAX_ROUNDS`] a view). For tests and tools.
+    pub fn set_walk_budget(&mut self, steps: u32) {
+        self.walk_budget = steps.max(1);
+    }
+
     /// [`FrameEstimator::encode`]'s checks of `inputs`: the receiver count (returned), the light,
     /// one present view per sub-light and opacity level; and the levels the frame renders.
     fn checked(&self, inputs: &FrameInputs<'_>) -> Result<(u64, Vec<OpacityLevel>)> {
@@ -787,7 +814,10 @@ impl FrameEstimator for PacketHsmFrame {
             maps: self.group(inputs, ranges.first().copied().unwrap_or(ReceiverRange { first: 0, count: 1 })),
             ranges: ranges
                 .iter()
-                .map(|&r| (r, self.group(inputs, r), self.kernel_group(r)))
+                .map(|&r| {
+                    let kernel = [self.kernel_group(r, 0), self.kernel_group(r, 1)];
+                    (r, self.group(inputs, r), kernel)
+                })
                 .collect(),
         };
         for (slot, view) in views.iter().flatten().enumerate() {

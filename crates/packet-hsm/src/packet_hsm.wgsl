@@ -27,7 +27,8 @@ struct HsmUniform {
     hierarchy: u32,
     hx: f32,
     hy: f32,
-    _pad0: u32,
+    // Steps of a receiver's walk a round of `pixels` takes at most.
+    walk_budget: u32,
     // Always 2: the trip count of the loop-limit probe (a uniform, so it is not unrolled).
     probe: u32,
     // 1: receiver-plane rejection (RecIn's plane); 0: the classic test c_s < t_p.
@@ -48,6 +49,9 @@ struct PrepGpu {
     // STATE_*.
     state: u32,
     centre: u32,
+    // The walk's place between rounds of `pixels` (packet_hsm_passes.wgsl) and the nodes or
+    // cells visited so far (w).
+    walk: vec4<u32>,
 }
 
 const STATE_DONE: u32 = 0u;
@@ -69,9 +73,11 @@ const STATE_PENUMBRA: u32 = 2u;
 // Per receiver: V before the facing factor, nodes visited.
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;
 @group(0) @binding(8) var<storage, read_write> prep: array<PrepGpu>;
-// The penumbra receivers `prepare` leaves for `pixels`: their count, the indirect dispatch's
-// workgroups (x, y, z; copied into the argument buffer between the passes), their indices.
+// The penumbra receivers `prepare` leaves for `pixels`, or those a round of `pixels` walks:
+// their count, the indirect dispatch's workgroups (x, y, z; copied into the argument buffer
+// between the passes), their indices. `requeue`: the same for the next round.
 @group(0) @binding(9) var<storage, read_write> queue: array<atomic<u32>>;
+@group(0) @binding(10) var<storage, read_write> requeue: array<atomic<u32>>;
 const QUEUE_COUNT: u32 = 0u;
 const QUEUE_ARGS: u32 = 1u;
 const QUEUE_LIST: u32 = 4u;

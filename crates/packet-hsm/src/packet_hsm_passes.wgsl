@@ -66,16 +66,42 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
         v_out[idx] = vec2<f32>(0.0, TRUNCATED);
         return;
     }
+    p.walk = vec4<u32>(0u, 0u, walk_top(cr), 0u);
     prep[idx] = p;
     v_out[idx] = vec2<f32>(0.0, 0.0);
-    // Queued for `pixels`, which runs over the queue alone (its dispatch counts a workgroup per
-    // WG receivers queued): the penumbra receivers are a few of all, and lanes of a workgroup
-    // that have no penumbra to walk would wait on those that have.
+    // Queued for `pixels`, which runs over the queue alone: the penumbra receivers are a few of
+    // all, and lanes of a workgroup that have no penumbra to walk would wait on those that have.
+    enqueue_prepared(idx);
+}
+
+// Appends receiver idx to the queue `prepare` fills, counting a workgroup of the indirect
+// dispatch per WG receivers.
+fn enqueue_prepared(idx: u32) {
     let slot = atomicAdd(&queue[QUEUE_COUNT], 1u);
     atomicStore(&queue[QUEUE_LIST + slot], idx);
     if slot % WG == 0u {
         atomicAdd(&queue[QUEUE_ARGS], 1u);
     }
+}
+
+// Appends receiver idx to the queue of the next round of `pixels`.
+fn requeue_walk(idx: u32) {
+    let slot = atomicAdd(&requeue[QUEUE_COUNT], 1u);
+    atomicStore(&requeue[QUEUE_LIST + slot], idx);
+    if slot % WG == 0u {
+        atomicAdd(&requeue[QUEUE_ARGS], 1u);
+    }
+}
+
+// The level of the walk's roots for kernel cells cr: the lowest covering the kernel from its
+// top-left corner, or the dual-grid MSSM's top.
+fn walk_top(cr: vec4<i32>) -> u32 {
+    let span = u32(max(cr.z - cr.x, cr.w - cr.y));
+    var want = 0u;
+    if span > 1u {
+        want = 32u - countLeadingZeros(span - 1u);
+    }
+    return min(want, u.dual_levels - 1u);
 }
 
 // contour::visibility_from_area (A_L = 4 hx hy, or pi R^2 for a disk and a sphere's silhouette:
@@ -96,10 +122,18 @@ fn finish(sum: f32, centre: u32) -> f32 {
     return v;
 }
 
-// Per-pixel GBP07 for every penumbra receiver `prepare` queued (dispatched indirectly, one
-// invocation per queued receiver).
+// Per-pixel GBP07 for the penumbra receivers of `queue` (dispatched indirectly, one invocation
+// per queued receiver), each walking at most `u.walk_budget` steps a round: a receiver whose
+// walk is left goes on the next round's queue (`requeue`) with its place (prep's walk) and its
+// sum so far (v_out.x; v_out.y = TRUNCATED until it is done, so a receiver the last round
+// leaves is counted as cut, never returned as V). No invocation comes near a device's loop
+// budget, and the long walks run in later rounds with full workgroups.
 @compute @workgroup_size(WG)
 fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x == 0u {
+        atomicStore(&requeue[QUEUE_ARGS + 1u], 1u);
+        atomicStore(&requeue[QUEUE_ARGS + 2u], 1u);
+    }
     if gid.x >= atomicLoad(&queue[QUEUE_COUNT]) {
         return;
     }
@@ -111,53 +145,54 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
     let rec = recs[idx];
     let cr = p.cr;
     let q = p.q;
-    var sum = 0.0;
-    var visited = 0u;
-    var complete = true;
+    var sum = v_out[idx].x;
+    var visited = p.walk.w;
+    var steps = 0u;
+    // Flat: the next cell (walk.x); hierarchy: the root (walk.x), the Morton code c (walk.y)
+    // and the level l (walk.z) of the next node.
+    var w = p.walk;
+    var live = true;
     if u.hierarchy == 0u {
         let wc = max(cr.z - cr.x, 1);
-        let total = max(cr.z - cr.x, 0) * max(cr.w - cr.y, 0);
-        var kk = 0;
+        let total = u32(max(cr.z - cr.x, 0) * max(cr.w - cr.y, 0));
+        var kk = w.x;
         loop {
-            if kk >= total {
+            if kk >= total || steps >= u.walk_budget {
                 break;
             }
-            let i = cr.x + kk % wc;
-            let j = cr.y + kk / wc;
+            steps += 1u;
+            let i = cr.x + i32(kk) % wc;
+            let j = cr.y + i32(kk) / wc;
             visited += 1u;
             sum += cell_area(i, j, rec, q, rec.zp);
-            kk += 1;
+            kk += 1u;
         }
-        complete = kk >= total;
+        live = kk < total;
+        w.x = kk;
     } else {
         // Yang's Algorithm 3 without a stack: the nodes in the CPU's order (roots row-major,
         // children row-major), each root's subtree walked along its Morton code c at level l:
         // after a node that is pruned or a cell, c steps past its subtree and the next node is
         // at the highest level c is aligned to. Nodes starting outside the kernel are skipped.
-        let top = u.dual_levels - 1u;
-        let span = u32(max(cr.z - cr.x, cr.w - cr.y));
-        var want = 0u;
-        if span > 1u {
-            want = 32u - countLeadingZeros(span - 1u);
-        }
-        let l0 = min(want, top);
+        let l0 = walk_top(cr);
         let step = i32(1u << l0);
         let x1 = cr.z + 1;
         let y1 = cr.w + 1;
         let nx = max((cr.z - cr.x + step - 1) / step, 0);
-        let roots = nx * max((cr.w - cr.y + step - 1) / step, 0);
+        let roots = u32(nx * max((cr.w - cr.y + step - 1) / step, 0));
         let end = 1u << (2u * l0);
-        var root = 0;
-        var c = 0u;
-        var l = l0;
-        var live = roots > 0;
+        var root = w.x;
+        var c = w.y;
+        var l = w.z;
+        live = root < roots;
         loop {
-            if !live {
+            if !live || steps >= u.walk_budget {
                 break;
             }
+            steps += 1u;
             let nd = vec3<i32>(
-                cr.x + 1 + (root % nx) * step + i32(even_bits(c)),
-                cr.y + 1 + (root / nx) * step + i32(even_bits(c >> 1u)),
+                cr.x + 1 + (i32(root) % nx) * step + i32(even_bits(c)),
+                cr.y + 1 + (i32(root) / nx) * step + i32(even_bits(c >> 1u)),
                 i32(l),
             );
             var down = false;
@@ -187,20 +222,29 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if c >= end {
                     c = 0u;
                     l = l0;
-                    root += 1;
+                    root += 1u;
                     live = root < roots;
                 } else {
                     l = min(countTrailingZeros(c) / 2u, l0);
                 }
             }
         }
-        complete = !live;
+        w = vec4<u32>(root, c, l, 0u);
     }
-    if !complete || loop_limit_hit() {
+    if loop_limit_hit() {
+        // The device's own budget ran out mid-round (never with walk_budget well below it):
+        // the place saved would be wrong, so the receiver is left cut.
         v_out[idx] = vec2<f32>(0.0, TRUNCATED);
         return;
     }
-    v_out[idx] = vec2<f32>(finish(sum, p.centre), v_out[idx].y + f32(visited));
+    if live {
+        w.w = visited;
+        prep[idx].walk = w;
+        v_out[idx] = vec2<f32>(sum, TRUNCATED);
+        requeue_walk(idx);
+        return;
+    }
+    v_out[idx] = vec2<f32>(finish(sum, p.centre), f32(visited));
 }
 
 // Min/max of a padded dual-MSSM node (x, y, level); EMPTY outside.

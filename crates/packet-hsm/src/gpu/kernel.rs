@@ -17,7 +17,9 @@
 //! which may be lower than the CPU's exact query: a node is then walked into and its cells
 //! add nothing (V unchanged). A cell's contour edges, the Liang-Barsky clip and a rect sector's
 //! corner order take no loop (on lavapipe every loop trip costs its full price, needed by a
-//! lane or not, and counts against the invocation's budget, [`LOOP_LIMIT`]). The CPU groups
+//! lane or not, and counts against the invocation's budget, [`LOOP_LIMIT`]). A walk takes at
+//! most [`WALK_BUDGET`] steps a round; a longer one is re-queued with its place for the next
+//! round, so the long tail runs in later rounds with full workgroups. The CPU groups
 //! pixels into packets (Yang §4.1) and extracts a coherent packet's contour once; the GPU does
 //! not, so it walks more nodes per receiver than the CPU's `visited_per_penumbra_pixel` says.
 //!
@@ -86,8 +88,8 @@ pub struct HsmUniform {
     pub hx: f32,
     /// Sub-light half extent y.
     pub hy: f32,
-    /// Padding (the passes' receiver count is the bound range's, `arrayLength(&prep)`).
-    pub _pad0: u32,
+    /// Steps of a receiver's walk one round of `pixels` takes at most ([`WALK_BUDGET`]).
+    pub walk_budget: u32,
     /// Always 2: the trip count of the shader's loop-limit probe.
     pub probe: u32,
     /// 1: receiver-plane rejection (`receiver_plane=true`, [`RecIn`]'s plane).
@@ -104,7 +106,8 @@ pub struct HsmUniform {
 }
 
 /// Per-receiver state between the passes (mirrors `PrepGpu`): kernel cells, nudged texel
-/// coordinates, state (0 done, 2 penumbra still to evaluate), centre status.
+/// coordinates, state (0 done, 2 penumbra still to evaluate), centre status, and the walk's
+/// place between rounds of `pixels`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct PrepGpu {
@@ -116,6 +119,9 @@ pub struct PrepGpu {
     pub state: u32,
     /// Centre status.
     pub centre: u32,
+    /// Flat: the next cell; hierarchy: the root, Morton code and level of the next node; then
+    /// the nodes or cells visited so far.
+    pub walk: [u32; 4],
 }
 
 /// One receiver as the kernel reads it and the frame's set-up pass writes it (mirrors `RecIn`
@@ -149,6 +155,14 @@ pub struct RecIn {
     pub sil_clip: [f32; 4],
 }
 
+/// Steps of a receiver's walk (nodes, or cells of a flat scan) one round of `pixels` takes at
+/// most: half of llvmpipe's loop budget ([`LOOP_LIMIT`]), so no invocation is cut; a longer
+/// walk goes on in the next round.
+pub const WALK_BUDGET: u32 = 1 << 15;
+/// Rounds of `pixels` a view records at most: a receiver whose walk is longer than this many
+/// budgets is left NaN and counted as cut.
+pub const MAX_ROUNDS: u32 = 64;
+
 /// Words before the queue's list: its count and the indirect dispatch's `(x, y, z)`, which
 /// start at byte [`QUEUE_ARGS_OFFSET`].
 pub(crate) const QUEUE_HEADER: u64 = 4;
@@ -158,13 +172,14 @@ pub(crate) const QUEUE_ARGS_OFFSET: u64 = 4;
 /// Threads per workgroup of every pass (the core's `WG` override).
 pub(crate) const WORKGROUP: u32 = 64;
 
-/// Why a receiver can come back cut: some devices bound the loop iterations of one shader
-/// invocation (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run:
-/// gallivm's `LP_MAX_TGSI_LOOP_ITERATIONS`), which would silently truncate a long contour scan
-/// (a large kernel without the hierarchy). The kernel detects it (a loop that did not finish,
-/// and a two-trip probe loop with a uniform bound that trips once when the budget is spent) and
-/// flags the receiver; the frame leaves its V NaN and counts it, for the caller to redo with
-/// the CPU twin in the same views (`frame_cpu_redo` in the registry estimator's report).
+/// Why a long walk is split: some devices bound the loop iterations of one shader invocation
+/// (llvmpipe, i.e. lavapipe, ends every loop once 65535 iterations in all have run: gallivm's
+/// `LP_MAX_TGSI_LOOP_ITERATIONS`), which would silently truncate a long contour walk. `pixels`
+/// takes at most [`WALK_BUDGET`] steps of a walk a round and re-queues the rest for the next
+/// round (up to [`MAX_ROUNDS`] a view, as many as the view's widest kernel can need), so no
+/// invocation nears it. A two-trip probe loop with a uniform bound still checks each round
+/// (it trips once when the budget is spent); a receiver it catches, or one whose walk outlasts
+/// the rounds, is left NaN and counted as cut (status word 2), never returned as V.
 pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 
 /// The kernel's bind group layout and its two pipelines, compiled once.
@@ -185,7 +200,7 @@ impl Kernel {
         let layout = ctx.scoped(LABEL, || {
             let mut bindings = vec![Binding::Uniform];
             bindings.extend([Binding::Storage; 6]);
-            bindings.extend([Binding::StorageRw; 3]);
+            bindings.extend([Binding::StorageRw; 4]);
             bind_group_layout(&ctx, LABEL, &bindings)
         })?;
         let constants = [("WG", WORKGROUP as f64)];
@@ -202,9 +217,10 @@ impl Kernel {
 
     /// A bind group over `bufs`, bound in order from 0: the uniform, depth, classification,
     /// MSSM, dual min, dual max, receivers, V out, prep (these three one range of receivers:
-    /// the passes run over `arrayLength(&prep)`), the queue of penumbra receivers
-    /// ([`QUEUE_HEADER`] words, then one per receiver of the range).
-    pub fn group(&self, bufs: [wgpu::BindingResource<'_>; 10]) -> wgpu::BindGroup {
+    /// the passes run over `arrayLength(&prep)`), the queue of penumbra receivers `prepare`
+    /// fills and a round of `pixels` reads, and the next round's ([`QUEUE_HEADER`] words, then
+    /// one per receiver of the range).
+    pub fn group(&self, bufs: [wgpu::BindingResource<'_>; 11]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = bufs
             .into_iter()
             .enumerate()
@@ -231,6 +247,20 @@ pub(crate) struct SubLightShape {
     pub dual_levels: u32,
     /// The classification depths are the true depths.
     pub class_is_depth: bool,
+    /// The widest kernel of the view, in cells ([`crate::cpu::SubView::levels`]).
+    pub max_cells: u32,
+}
+
+impl SubLightShape {
+    /// The rounds of `pixels` that finish every walk of the view at `budget` steps a round
+    /// (at most [`MAX_ROUNDS`]): a flat scan visits at most `max_cells^2` cells, the hierarchy
+    /// at most 4/3 of the cells as nodes inside the kernel, and up to 3 siblings outside it
+    /// per node walked into, so `6 (max_cells + 2)^2` steps.
+    pub fn rounds(&self, hierarchy: bool, budget: u32) -> u32 {
+        let m = self.max_cells as u64 + 2;
+        let steps = if hierarchy { 6 * m * m } else { m * m };
+        steps.div_ceil(budget.max(1) as u64).clamp(1, MAX_ROUNDS as u64) as u32
+    }
 }
 
 /// The kernel's uniform for the view `sv`.
@@ -247,7 +277,7 @@ pub(crate) fn hsm_uniform(sv: &SubLightShape, cfg: &Config) -> HsmUniform {
         hierarchy: cfg.hierarchy as u32,
         hx: sv.half.x,
         hy: sv.half.y,
-        _pad0: 0,
+        walk_budget: WALK_BUDGET,
         probe: 2,
         receiver_plane: cfg.shadow.receiver_plane as u32,
         class_is_depth: sv.class_is_depth as u32,
@@ -280,7 +310,7 @@ mod tests {
                 hierarchy,
                 hx,
                 hy,
-                _pad0,
+                walk_budget,
                 probe,
                 receiver_plane,
                 class_is_depth,
@@ -295,6 +325,7 @@ mod tests {
                 q,
                 state,
                 centre,
+                walk,
             }
         );
         test_support::assert_wgsl_layout!(

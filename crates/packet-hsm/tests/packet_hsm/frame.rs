@@ -19,6 +19,7 @@ use test_support::{
         frames_match_the_cpu_twin_with_cuts, frames_over_settings, FrameComparison, SettingsCase,
     },
     fixtures::{bunny_under_three_lights, fixture, rmse},
+    frame_run::run_frame,
     gpu,
 };
 
@@ -71,9 +72,15 @@ fn packet_hsm_frames_match_the_cpu_twin() {
     let check = |case: SettingsCase<'_, PacketHsmFrame>| {
         let (label, c) = (&case.label, &case.c);
         assert_eq!(c.status.nonfinite, 0, "{label}: {:?}", c.status);
-        // Receivers the device's loop budget cuts short are left NaN and counted (the caller
-        // redoes them; on lavapipe 15 to 23 of ~2580 at the defaults, 229 with the flat
-        // traversal); the rest must agree: 1% beyond 1e-4 (hardware raster ties), RMSE a tenth
+        // No receiver is cut: a walk longer than a round's budget goes on in the next round
+        // (before the kernel lost its inner loops and split its walks in rounds, lavapipe's
+        // loop budget cut 15 to 23 of ~2580 at the defaults, 229 with the flat traversal).
+        assert_eq!(
+            c.status.left_nan, 0,
+            "{label}: cut receivers ({:?})",
+            c.status
+        );
+        // The rest must agree: 1% beyond 1e-4 (hardware raster ties), RMSE a tenth
         // of the engine path's 2e-3. Under the sphere light half of it: its silhouette kernels
         // span more texels of the device-rastered maps (the set-up on the device is bit for bit
         // the CPU's: read back and compared while porting it; on the frame's own maps the CPU
@@ -186,4 +193,39 @@ fn packet_hsm_frames_warn_when_levels_are_capped() {
     assert_eq!(frame.fit_views(&scene, &rec).unwrap().len(), 1);
     let c = frames_match_the_cpu_twin_with_cuts("hair capped", &ctx, &frame, &scene, &rec, 2);
     assert!(c.rmse <= 2e-3, "hair capped: rmse {}", c.rmse);
+}
+
+/// A receiver's walk split over rounds of `pixels` (at r = 64, 97 steps a round: the flat
+/// scans take up to 45 rounds, the hierarchy's walks several, each re-queued with its place and
+/// sum) gives V bit for bit that of the default budget (one round for every walk here), with
+/// the hierarchy and with the flat scan, and leaves nothing cut.
+#[test]
+fn packet_hsm_walks_split_over_rounds_give_the_same_v() {
+    let Some(ctx) = gpu("packet_hsm_walks_split_over_rounds_give_the_same_v") else {
+        return;
+    };
+    let (_, scene, rec) = bunny_under_three_lights(32, 24).swap_remove(0);
+    for kv in [
+        &[("resolution", "64")][..],
+        &[("resolution", "64"), ("hierarchy", "false")][..],
+    ] {
+        let run = |budget: Option<u32>| {
+            let mut frame = PacketHsmFrame::prepare(ctx.clone(), &table_of(kv), 32 * 24).unwrap();
+            if let Some(b) = budget {
+                frame.set_walk_budget(b);
+            }
+            run_frame(&ctx, &frame, &scene, &rec).unwrap().1
+        };
+        let (whole, split) = (run(None), run(Some(97)));
+        let status = split.status.expect("a status");
+        assert_eq!(status.left_nan, 0, "{kv:?}: {status:?}");
+        let penumbra = whole.v.iter().filter(|v| **v > 0.0 && **v < 1.0).count();
+        assert!(penumbra > 20, "{kv:?}: {penumbra} penumbra receivers");
+        let same = whole
+            .v
+            .iter()
+            .zip(&split.v)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "{kv:?}: V differs when walks are split over rounds");
+    }
 }
