@@ -69,7 +69,7 @@ use shadow_map_core::{
             WORKGROUP_SIZE,
         },
         frame::{Views, 
-            check_prepared_inputs, compute_pass, range_capacity, receiver_ranges_binding, status_buffer, FrameEstimator, ReceiverRange,
+            check_prepared_inputs, compute_pass, compute_pass_indirect, range_capacity, receiver_ranges_binding, status_buffer, FrameEstimator, ReceiverRange,
             FrameInputs,
         },
         kernel::{bind_group_layout_at, compute_pipeline, shader_module, BindGroupCache, Binding},
@@ -576,21 +576,17 @@ impl PacketHsmFrame {
             let n = range.count as u64;
             // No stale kernel state from the last view or range for receivers the set-up settles.
             enc.clear_buffer(&self.prep, 0, Some(n * size_of::<PrepGpu>() as u64));
+            // `prepare` fills queue 0 (the requeue of the group reading queue 1), then rounds of
+            // `pixels`, each over the queue the last one left.
             enc.clear_buffer(&self.queues[0], 0, Some(4 * QUEUE_HEADER));
             run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
-            run(enc, "packet-hsm prepare", &self.kernel.prepare, &kernel[0], n);
-            // Rounds of `pixels`, each over the queue the last one left.
+            run(enc, "packet-hsm prepare", &self.kernel.prepare, &kernel[1], n);
             for round in 0..rounds {
                 let from = round as usize % 2;
                 enc.clear_buffer(&self.queues[1 - from], 0, Some(4 * QUEUE_HEADER));
                 enc.copy_buffer_to_buffer(&self.queues[from], QUEUE_ARGS_OFFSET, &self.args, 0, 12);
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("packet-hsm pixels"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.kernel.pixels);
-                pass.set_bind_group(0, &kernel[from], &[]);
-                pass.dispatch_workgroups_indirect(&self.args, 0);
+                let (pixels, group) = (&self.kernel.pixels, &kernel[from]);
+                compute_pass_indirect(enc, "packet-hsm pixels", pixels, group, &self.args);
             }
             run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
         }

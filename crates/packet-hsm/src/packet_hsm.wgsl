@@ -73,9 +73,9 @@ const STATE_PENUMBRA: u32 = 2u;
 // Per receiver: V before the facing factor, nodes visited.
 @group(0) @binding(7) var<storage, read_write> v_out: array<vec2<f32>>;
 @group(0) @binding(8) var<storage, read_write> prep: array<PrepGpu>;
-// The penumbra receivers `prepare` leaves for `pixels`, or those a round of `pixels` walks:
-// their count, the indirect dispatch's workgroups (x, y, z; copied into the argument buffer
-// between the passes), their indices. `requeue`: the same for the next round.
+// The penumbra receivers a round of `pixels` walks: their count, the indirect dispatch's
+// workgroups (x, y, z; copied into the argument buffer between the passes), their indices.
+// `requeue`: the same for the next round (`prepare` fills the first round's).
 @group(0) @binding(9) var<storage, read_write> queue: array<atomic<u32>>;
 @group(0) @binding(10) var<storage, read_write> requeue: array<atomic<u32>>;
 const QUEUE_COUNT: u32 = 0u;

@@ -4,10 +4,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     if idx >= arrayLength(&prep) {
         return;
     }
-    if idx == 0u {
-        atomicStore(&queue[QUEUE_ARGS + 1u], 1u);
-        atomicStore(&queue[QUEUE_ARGS + 2u], 1u);
-    }
+    open_requeue(idx);
     var p: PrepGpu;
     p.state = STATE_DONE;
     p.centre = 0u;
@@ -69,22 +66,22 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     p.walk = vec4<u32>(0u, 0u, walk_top(cr), 0u);
     prep[idx] = p;
     v_out[idx] = vec2<f32>(0.0, 0.0);
-    // Queued for `pixels`, which runs over the queue alone: the penumbra receivers are a few of
-    // all, and lanes of a workgroup that have no penumbra to walk would wait on those that have.
-    enqueue_prepared(idx);
+    // Queued for `pixels` (prepare fills `requeue`, the first round's queue), which runs over
+    // the queue alone: the penumbra receivers are a few of all, and lanes of a workgroup that
+    // have no penumbra to walk would wait on those that have.
+    requeue_walk(idx);
 }
 
-// Appends receiver idx to the queue `prepare` fills, counting a workgroup of the indirect
-// dispatch per WG receivers.
-fn enqueue_prepared(idx: u32) {
-    let slot = atomicAdd(&queue[QUEUE_COUNT], 1u);
-    atomicStore(&queue[QUEUE_LIST + slot], idx);
-    if slot % WG == 0u {
-        atomicAdd(&queue[QUEUE_ARGS], 1u);
+// Invocation 0 sets the y and z workgroup counts of the indirect dispatch over `requeue`.
+fn open_requeue(i: u32) {
+    if i == 0u {
+        atomicStore(&requeue[QUEUE_ARGS + 1u], 1u);
+        atomicStore(&requeue[QUEUE_ARGS + 2u], 1u);
     }
 }
 
-// Appends receiver idx to the queue of the next round of `pixels`.
+// Appends receiver idx to the queue of the next round of `pixels`, counting a workgroup of its
+// indirect dispatch per WG receivers.
 fn requeue_walk(idx: u32) {
     let slot = atomicAdd(&requeue[QUEUE_COUNT], 1u);
     atomicStore(&requeue[QUEUE_LIST + slot], idx);
@@ -130,18 +127,12 @@ fn finish(sum: f32, centre: u32) -> f32 {
 // budget, and the long walks run in later rounds with full workgroups.
 @compute @workgroup_size(WG)
 fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x == 0u {
-        atomicStore(&requeue[QUEUE_ARGS + 1u], 1u);
-        atomicStore(&requeue[QUEUE_ARGS + 2u], 1u);
-    }
+    open_requeue(gid.x);
     if gid.x >= atomicLoad(&queue[QUEUE_COUNT]) {
         return;
     }
     let idx = atomicLoad(&queue[QUEUE_LIST + gid.x]);
     let p = prep[idx];
-    if p.state != STATE_PENUMBRA {
-        return;
-    }
     let rec = recs[idx];
     let cr = p.cr;
     let q = p.q;

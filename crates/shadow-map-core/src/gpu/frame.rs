@@ -581,6 +581,24 @@ pub fn compute_pass(
     pass.dispatch_workgroups(x, y, z);
 }
 
+/// [`compute_pass`] with its workgroup counts read from `args` (three u32 at byte 0, written on
+/// the device: a pass over a queue an earlier pass filled).
+pub fn compute_pass_indirect(
+    enc: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipe: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    args: &wgpu::Buffer,
+) {
+    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipe);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups_indirect(args, 0);
+}
+
 /// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame
 /// writes for the caller to read when it likes (cleared by each `encode`).
 pub fn status_buffer(ctx: &GpuContext, label: &str, words: u64) -> wgpu::Buffer {
