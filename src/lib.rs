@@ -221,29 +221,6 @@ mod tests {
         assert!(backends("nope").is_empty());
     }
 
-    /// Every key a report setting names is in the method's table and its value parses, so a
-    /// renamed parameter fails here and not halfway through a report.
-    #[test]
-    fn every_setting_is_a_valid_assignment() {
-        for m in METHODS {
-            let e = estimator(m.name(), Backend::Cpu).expect("estimator");
-            for quick in [true, false] {
-                let sweep = m.sweep(quick);
-                if m.name() != "reference" {
-                    assert!(!sweep.is_empty(), "{}: no settings to sweep", m.name());
-                }
-                for s in sweep {
-                    let mut p = e.params().clone();
-                    for (k, v) in &s {
-                        if let Err(err) = p.set(k, v) {
-                            panic!("{}: {k}={v}: {err}", m.name());
-                        }
-                    }
-                }
-            }
-        }
-    }
-
     /// The lists derived from the registry: every name once, the engine paths a subset in the
     /// same order, and (in a GPU build) every method but the reference with both GPU paths.
     #[test]

@@ -33,9 +33,9 @@ use glam::Vec3;
 use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES},
-        frame::{Views, 
-            check_buffers, compute_pass, receiver_ranges, cpu_twin_v, single_view, status_buffer,
-            FrameEstimator, FrameInputs,
+        frame::{
+            check_buffers, compute_pass, cpu_twin_v, receiver_ranges, single_view, status_buffer,
+            FrameEstimator, FrameInputs, Views,
         },
         kernel::{BindGroupCache, Binding, Kernel},
         layout::{GpuLayout, KernelMaps},
@@ -358,7 +358,7 @@ impl FrameEstimator for AccumulationFrame {
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.ctx;
         self.groups.next_encode();
-                inputs.mark(enc, "start");
+        inputs.mark(enc, "start");
         self.layers.encode(ctx, enc, inputs.casters, view, 0.0)?;
         inputs.mark(enc, "layers");
         self.km.record(enc, false);
@@ -394,7 +394,13 @@ impl FrameEstimator for AccumulationFrame {
                     self.status.as_entire_binding(),
                 ],
             );
-            compute_pass(enc, LABEL, &self.kernel.pipeline, &group, range.workgroups());
+            compute_pass(
+                enc,
+                LABEL,
+                &self.kernel.pipeline,
+                &group,
+                range.workgroups(),
+            );
         }
         inputs.mark(enc, "estimate");
         Ok(())

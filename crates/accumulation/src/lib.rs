@@ -3,8 +3,6 @@
 // `!(a > b)` is deliberate: true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use shadow_map_core::method::Sweep;
-
 // The modules (settings, math, cpu, gpu), the re-exports and `DESCRIPTOR`: see
 // `shadow_map_core::method_crate!`.
 shadow_map_core::method_crate! {
@@ -12,12 +10,8 @@ shadow_map_core::method_crate! {
     /// GPU estimator, run by the core's `FrameTwin`).
     "accumulation": CpuAccumulation,
     AccumulationFrame = |ctx, params, _| AccumulationFrame::prepare(ctx, params),
-    SWEEP
-}
-
-/// The report's settings: the kernel size K (Aszodi section 3), the exact variant, a fixed
-/// kernel, and the resolution.
-const SWEEP: Sweep = Sweep {
+    // The report's settings: the kernel size K (Aszodi section 3), the exact variant, a fixed
+    // kernel, and the resolution.
     quick: "resolution=256; variant=exact",
     full: "k=3; k=5; k=15; variant=exact; kernel=fixed; resolution=256; resolution=2048",
-};
+}

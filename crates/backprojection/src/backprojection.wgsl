@@ -1,8 +1,8 @@
 // Twin of crates/backprojection/src/cpu.rs and math.rs, in f32 and in the CPU's operation order.
 // Rect, disk and sphere lights (est.light_shape): the overlap of B_s with the light is the core's
 // overlap.wgsl on a disk, on the sphere's silhouette disk after the central projection from p.
-// Prepended: the core's SHARED_WGSL, the baselines' shared.wgsl and common.wgsl (receiver bias,
-// light frames, front_fraction_world).
+// Prepended: the parts before it in gpu.rs SHADER_PARTS (the core's estimate head, cells.wgsl for
+// the Kahan `Sum`, the silhouette set-up, the receivers and the bit mask).
 //
 // Known difference: the CPU sums area(B_s ∩ L) in f64 (each term from f64 differences of f32
 // bounds); here each term is f32 and the sum is Kahan-compensated f32 (about 1e-7 of the light
@@ -399,18 +399,6 @@ fn block_opacity(ic: i32, jc: i32, m: i32, zp: f32) -> f32 {
         }
     }
     return 1.0 - tr;
-}
-
-// Kahan-compensated f32 sum.
-struct Sum {
-    s: f32,
-    c: f32,
-}
-
-fn sum_add(a: Sum, x: f32) -> Sum {
-    let y = x - a.c;
-    let t = a.s + y;
-    return Sum(t, (t - a.s) - y);
 }
 
 // cpu::Setup::visibility: visibility before the facing factor, in [0, 1].

@@ -16,7 +16,8 @@ use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
         estimate::{
-            EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL,
+            EstimateUniform, BITMASK_WGSL, CELLS_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES,
+            SILHOUETTE_SETUP_WGSL,
         },
         frame::{compute_pass, receiver_ranges},
         kernel::{BindGroupCache, Binding, Kernel},
@@ -33,9 +34,10 @@ pub use frame::BackprojectionFrame;
 /// The estimator's own WGSL (appended after the parts in [`SHADER_PARTS`]' head).
 pub const BACKPROJECTION_WGSL: &str = include_str!("backprojection.wgsl");
 
-/// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 5] = [
+/// The WGSL parts of the kernel, in order (the Kahan `Sum` comes from the core's cells part).
+pub const SHADER_PARTS: [&str; 6] = [
     ESTIMATE_HEAD_WGSL,
+    CELLS_WGSL,
     SILHOUETTE_SETUP_WGSL,
     RECEIVERS_WGSL,
     BITMASK_WGSL,
@@ -173,7 +175,13 @@ impl BpKernel {
                     bufs.bits.as_entire_binding(),
                 ],
             );
-            compute_pass(enc, LABEL, &self.kernel.pipeline, &group, range.workgroups());
+            compute_pass(
+                enc,
+                LABEL,
+                &self.kernel.pipeline,
+                &group,
+                range.workgroups(),
+            );
         }
     }
 }

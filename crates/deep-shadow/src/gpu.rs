@@ -50,9 +50,9 @@ use shadow_map_core::{
     gpu::{
         depth_map::DEPTH_MAP_FORMAT,
         estimate::{EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES},
-        frame::{Views, 
+        frame::{
             check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v, receiver_ranges,
-            status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
+            status_buffer, FrameEstimator, FrameInputs, ReceiverRange, Views,
         },
         kernel::{
             bind_group_layout_at, compute_pipeline, shader_module, uniform_buffer, BindGroupCache,
@@ -295,7 +295,13 @@ impl Lists {
         if let Some(start) = &*self.counter_start.lock().expect("counter start") {
             enc.copy_buffer_to_buffer(start, 0, &self.counters, 0, COUNTER_BYTES);
         }
-        run(enc, "deep-shadow frame clear", &self.clear, group, texels);
+        compute_pass(
+            enc,
+            "deep-shadow frame clear",
+            &self.clear,
+            group,
+            workgroups(texels),
+        );
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("deep-shadow frame insert"),
@@ -321,14 +327,20 @@ impl Lists {
                 pass.draw(0..3 * casters.triangles, 0..1);
             }
         }
-        run(
+        compute_pass(
             enc,
             "deep-shadow frame process",
             &self.process,
             group,
-            texels,
+            workgroups(texels),
         );
-        run(enc, "deep-shadow frame link", &self.link, group, texels);
+        compute_pass(
+            enc,
+            "deep-shadow frame link",
+            &self.link,
+            group,
+            workgroups(texels),
+        );
     }
 }
 
@@ -510,33 +522,25 @@ impl DeepShadowFrame {
     ) -> wgpu::BindGroup {
         let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         self.groups.get(
-&self.ctx, "deep-shadow frame", &self.layout, &[
-                    e(0, ds.as_entire_binding()),
-                    e(3, self.head.as_entire_binding()),
-                    e(4, nodes.as_entire_binding()),
-                    e(5, self.lists.counters.as_entire_binding()),
-                    e(8, view.as_entire_binding()),
-                    e(9, light.as_entire_binding()),
-                    e(10, wgpu::BindingResource::TextureView(&self.map.layer.view)),
-                    e(11, range.receivers(inputs.receivers)),
-                    e(12, range.words(&self.acc)),
-                    e(13, range.words(inputs.v)),
-                    e(14, self.status.as_entire_binding()),
-                    e(15, self.frame.as_entire_binding()),
-                ])
+            &self.ctx,
+            "deep-shadow frame",
+            &self.layout,
+            &[
+                e(0, ds.as_entire_binding()),
+                e(3, self.head.as_entire_binding()),
+                e(4, nodes.as_entire_binding()),
+                e(5, self.lists.counters.as_entire_binding()),
+                e(8, view.as_entire_binding()),
+                e(9, light.as_entire_binding()),
+                e(10, wgpu::BindingResource::TextureView(&self.map.layer.view)),
+                e(11, range.receivers(inputs.receivers)),
+                e(12, range.words(&self.acc)),
+                e(13, range.words(inputs.v)),
+                e(14, self.status.as_entire_binding()),
+                e(15, self.frame.as_entire_binding()),
+            ],
+        )
     }
-}
-
-/// One compute pass over `threads` invocations (`dispatch`'s 2-D grid past 65535 workgroups,
-/// which the entry points' `linear_id` reads).
-fn run(
-    enc: &mut wgpu::CommandEncoder,
-    label: &str,
-    pipe: &wgpu::ComputePipeline,
-    group: &wgpu::BindGroup,
-    threads: u64,
-) {
-    compute_pass(enc, label, pipe, group, workgroups(threads));
 }
 
 impl FrameEstimator for DeepShadowFrame {
@@ -603,7 +607,8 @@ impl FrameEstimator for DeepShadowFrame {
         // Semi-transparent casters: lists (the insert pass), else the opaque path's heads.
         let lists = !inputs.casters.is_opaque();
         self.last_lists.store(lists, Ordering::Relaxed);
-        ctx.write_in(enc, 
+        ctx.write_in(
+            enc,
             &self.light,
             0,
             bytemuck::bytes_of(&EstimateUniform::new(light, s.bias, s.slope_bias)),
@@ -638,7 +643,11 @@ impl FrameEstimator for DeepShadowFrame {
                 })
                 .collect();
             self.groups.get(
-&self.ctx, "deep-shadow insert lists", &self.lists.layout, &entries)
+                &self.ctx,
+                "deep-shadow insert lists",
+                &self.lists.layout,
+                &entries,
+            )
         });
         inputs.mark(enc, "start");
         for (slot, (view, bufs)) in views.iter().zip(&self.slots).enumerate() {
@@ -652,7 +661,8 @@ impl FrameEstimator for DeepShadowFrame {
             }
             ctx.write_in(enc, &bufs.ds, 0, bytemuck::bytes_of(&u));
             let vl = view_light(light, view, s.sublights);
-            ctx.write_in(enc, 
+            ctx.write_in(
+                enc,
                 &bufs.light,
                 0,
                 bytemuck::bytes_of(&EstimateUniform::new(&vl, s.bias, s.slope_bias)),
@@ -672,7 +682,8 @@ impl FrameEstimator for DeepShadowFrame {
                 .collect();
             let group = &groups[0];
             if let Some(list_group) = &list_group {
-                ctx.write_in(enc, 
+                ctx.write_in(
+                    enc,
                     self.map.view_uniform(slot),
                     0,
                     bytemuck::bytes_of(&LightViewUniform::from(*view)),
@@ -689,22 +700,22 @@ impl FrameEstimator for DeepShadowFrame {
             } else {
                 self.map.encode(ctx, enc, inputs.casters, view, slot)?;
                 inputs.mark(enc, "raster");
-                run(
+                compute_pass(
                     enc,
                     "deep-shadow frame head",
                     &self.head_pipe,
                     group,
-                    texels,
+                    workgroups(texels),
                 );
                 inputs.mark(enc, "heads");
             }
             for (range, group) in ranges.iter().zip(&groups) {
-                run(
+                compute_pass(
                     enc,
                     "deep-shadow frame lookup",
                     &self.lookup_pipe,
                     group,
-                    range.count as u64,
+                    workgroups(range.count as u64),
                 );
             }
             inputs.mark(enc, "lookup");
@@ -718,12 +729,12 @@ impl FrameEstimator for DeepShadowFrame {
                 inputs,
                 range,
             );
-            run(
+            compute_pass(
                 enc,
                 "deep-shadow frame finish",
                 &self.finish_pipe,
                 &group,
-                range.count as u64,
+                workgroups(range.count as u64),
             );
         }
         inputs.mark(enc, "finish");

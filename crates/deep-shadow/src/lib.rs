@@ -3,8 +3,6 @@
 // `!(a > b)` is deliberate: true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use shadow_map_core::method::Sweep;
-
 // The modules (settings, math, cpu, gpu), the re-exports and `DESCRIPTOR`: see
 // `shadow_map_core::method_crate!`.
 shadow_map_core::method_crate! {
@@ -12,12 +10,8 @@ shadow_map_core::method_crate! {
     /// its GPU estimator, the core's `FrameTwin`).
     "deep-shadow": CpuDeepShadow,
     DeepShadowFrame = DeepShadowFrame::prepare,
-    SWEEP
-}
-
-/// The report's settings: the filters (none, PCF, EDSM; Fuerst's lookups), the tap cap,
-/// sub-lights and the resolution.
-const SWEEP: Sweep = Sweep {
+    // The report's settings: the filters (none, PCF, EDSM; Fuerst's lookups), the tap cap,
+    // sub-lights and the resolution.
     quick: "resolution=256; sublights=2",
     full: "filter=none; max_taps=16; filter=pcf kernel=5; filter=edsm kernel=5; sublights=2; sublights=3; sublights=2 filter=pcf kernel=3; resolution=256; resolution=512",
-};
+}

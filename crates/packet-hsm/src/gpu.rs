@@ -58,8 +58,8 @@ use crate::math::sublight_centre;
 use crate::settings::Config;
 use bytemuck::{Pod, Zeroable};
 use kernel::{
-    hsm_uniform, HsmUniform, Kernel, PrepGpu, RecIn, SubLightShape, QUEUE_ARGS_OFFSET, QUEUE_HEADER,
-    WORKGROUP,
+    hsm_uniform, HsmUniform, Kernel, PrepGpu, RecIn, SubLightShape, QUEUE_ARGS_OFFSET,
+    QUEUE_HEADER, WORKGROUP,
 };
 use shadow_map_core::{
     gpu::{
@@ -68,9 +68,10 @@ use shadow_map_core::{
             EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL, SILHOUETTE_WGSL,
             WORKGROUP_SIZE,
         },
-        frame::{Views, 
-            check_prepared_inputs, compute_pass, compute_pass_indirect, range_capacity, receiver_ranges_binding, status_buffer, FrameEstimator, ReceiverRange,
-            FrameInputs,
+        frame::{
+            check_prepared_inputs, compute_pass, compute_pass_indirect, range_capacity,
+            receiver_ranges_binding, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
+            Views,
         },
         kernel::{bind_group_layout_at, compute_pipeline, shader_module, BindGroupCache, Binding},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
@@ -297,7 +298,11 @@ impl PacketHsmFrame {
                 range * size_of::<PrepGpu>() as u64,
                 storage,
             ),
-            queues: ["packet-hsm frame penumbra queue", "packet-hsm frame walk queue"].map(|l| {
+            queues: [
+                "packet-hsm frame penumbra queue",
+                "packet-hsm frame walk queue",
+            ]
+            .map(|l| {
                 buffer(
                     &ctx,
                     l,
@@ -389,25 +394,29 @@ impl PacketHsmFrame {
             _ => &self.layers.layers()[0].view,
         };
         self.groups.get(
-&self.kernel.ctx, "packet-hsm frame", &self.layout, &[
-                    e(0, self.layers.view_uniform().as_entire_binding()),
-                    e(1, self.light.as_entire_binding()),
-                    e(2, self.frame.as_entire_binding()),
-                    e(3, range.receivers(inputs.receivers)),
-                    e(4, self.scratch(&self.recs, range, size_of::<RecIn>())),
-                    e(5, self.scratch(&self.setup, range, 8)),
-                    e(6, self.scratch(&self.out, range, 8)),
-                    e(7, range.words(inputs.v)),
-                    e(8, self.status.as_entire_binding()),
-                    e(
-                        9,
-                        wgpu::BindingResource::TextureView(&self.layers.layers()[0].view),
-                    ),
-                    e(10, wgpu::BindingResource::TextureView(class)),
-                    e(11, self.depth.as_entire_binding()),
-                    e(12, self.class.as_entire_binding()),
-                    e(13, range.bind(&self.acc, 8)),
-                ])
+            &self.kernel.ctx,
+            "packet-hsm frame",
+            &self.layout,
+            &[
+                e(0, self.layers.view_uniform().as_entire_binding()),
+                e(1, self.light.as_entire_binding()),
+                e(2, self.frame.as_entire_binding()),
+                e(3, range.receivers(inputs.receivers)),
+                e(4, self.scratch(&self.recs, range, size_of::<RecIn>())),
+                e(5, self.scratch(&self.setup, range, 8)),
+                e(6, self.scratch(&self.out, range, 8)),
+                e(7, range.words(inputs.v)),
+                e(8, self.status.as_entire_binding()),
+                e(
+                    9,
+                    wgpu::BindingResource::TextureView(&self.layers.layers()[0].view),
+                ),
+                e(10, wgpu::BindingResource::TextureView(class)),
+                e(11, self.depth.as_entire_binding()),
+                e(12, self.class.as_entire_binding()),
+                e(13, range.bind(&self.acc, 8)),
+            ],
+        )
     }
 
     /// The kernel's bind group over `range` (its scratch from the start), reading queue `from`
@@ -439,17 +448,10 @@ impl PacketHsmFrame {
     }
 }
 
-/// One compute pass over `threads` invocations in one row of workgroups (the kernel's entry
-/// points index by `global_invocation_id.x` alone).
-fn run(
-    enc: &mut wgpu::CommandEncoder,
-    label: &str,
-    pipe: &wgpu::ComputePipeline,
-    group: &wgpu::BindGroup,
-    threads: u64,
-) {
-    let x = threads.div_ceil(WORKGROUP as u64).max(1) as u32;
-    compute_pass(enc, label, pipe, group, [x, 1, 1]);
+/// The workgroups of one pass over `threads` invocations, in one row (the kernel's entry points
+/// index by `global_invocation_id.x` alone).
+fn workgroups(threads: u64) -> [u32; 3] {
+    [threads.div_ceil(WORKGROUP as u64).max(1) as u32, 1, 1]
 }
 
 impl PacketHsmFrame {
@@ -473,8 +475,7 @@ impl PacketHsmFrame {
             slot,
             mssm_levels: shape.map(|s| s.mssm_levels),
         };
-        self.layers
-            .encode_slot(ctx, enc, inputs.casters, &layers)?;
+        self.layers.encode_slot(ctx, enc, inputs.casters, &layers)?;
         // The classification layer into the padded map's interior, then its dual-grid MSSM.
         let class = match self.layers.midpoints().first() {
             Some(m) if cfg.shadow.midpoint() => m,
@@ -565,11 +566,19 @@ impl PacketHsmFrame {
             r,
             weight: (1.0 / s2) * level.weight,
             flags: if slot == 0 { FIRST_VIEW } else { 0 }
-                | if slot + 1 == views { LAST_VIEW } else { 0 },            ..Default::default()
+                | if slot + 1 == views { LAST_VIEW } else { 0 },
+            ..Default::default()
         };
         ctx.write_in(enc, &self.frame, 0, bytemuck::bytes_of(&fu));
         let texels = r as u64 * r as u64;
-        run(enc, "packet-hsm frame maps", &self.maps_pipe, &groups.maps, texels);
+        let maps = (&self.maps_pipe, &groups.maps);
+        compute_pass(
+            enc,
+            "packet-hsm frame maps",
+            maps.0,
+            maps.1,
+            workgroups(texels),
+        );
         // Two marks a view (a frame may render many): the maps, then the rest.
         inputs.mark(enc, "maps");
         for (range, group, kernel) in &groups.ranges {
@@ -579,8 +588,15 @@ impl PacketHsmFrame {
             // `prepare` fills queue 0 (the requeue of the group reading queue 1), then rounds of
             // `pixels`, each over the queue the last one left.
             enc.clear_buffer(&self.queues[0], 0, Some(4 * QUEUE_HEADER));
-            run(enc, "packet-hsm frame set-up", &self.setup_pipe, group, n);
-            run(enc, "packet-hsm prepare", &self.kernel.prepare, &kernel[1], n);
+            let wg = workgroups(n);
+            compute_pass(enc, "packet-hsm frame set-up", &self.setup_pipe, group, wg);
+            compute_pass(
+                enc,
+                "packet-hsm prepare",
+                &self.kernel.prepare,
+                &kernel[1],
+                wg,
+            );
             for round in 0..rounds {
                 let from = round as usize % 2;
                 enc.clear_buffer(&self.queues[1 - from], 0, Some(4 * QUEUE_HEADER));
@@ -588,7 +604,7 @@ impl PacketHsmFrame {
                 let (pixels, group) = (&self.kernel.pixels, &kernel[from]);
                 compute_pass_indirect(enc, "packet-hsm pixels", pixels, group, &self.args);
             }
-            run(enc, "packet-hsm frame finish", &self.finish_pipe, group, n);
+            compute_pass(enc, "packet-hsm frame finish", &self.finish_pipe, group, wg);
         }
         inputs.mark(enc, "estimate");
         Ok(())
@@ -648,7 +664,13 @@ impl PacketHsmFrame {
             inputs.views.get(slot).copied().flatten().ok_or_else(|| {
                 Error::LightView(format!("no view {slot} of {}", inputs.views.len()))
             })?;
-        self.encode_maps(enc, inputs, (slot, &view), &levels[slot % levels.len()], None)
+        self.encode_maps(
+            enc,
+            inputs,
+            (slot, &view),
+            &levels[slot % levels.len()],
+            None,
+        )
     }
 
     /// The maps the last submitted [`encode`](FrameEstimator::encode) rendered for its last view
@@ -807,7 +829,13 @@ impl FrameEstimator for PacketHsmFrame {
         let ranges = receiver_ranges_binding(&self.kernel.ctx, n as u32, size_of::<RecIn>() as u64);
         let groups = RangeGroups {
             // The per-texel pass reads no receivers: any range's group (one receiver for none).
-            maps: self.group(inputs, ranges.first().copied().unwrap_or(ReceiverRange { first: 0, count: 1 })),
+            maps: self.group(
+                inputs,
+                ranges
+                    .first()
+                    .copied()
+                    .unwrap_or(ReceiverRange { first: 0, count: 1 }),
+            ),
             ranges: ranges
                 .iter()
                 .map(|&r| {

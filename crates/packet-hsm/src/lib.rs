@@ -3,8 +3,6 @@
 // `!(a > b)` is deliberate: true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use shadow_map_core::method::Sweep;
-
 // The modules (settings, math, cpu, gpu), the re-exports and `DESCRIPTOR`: see
 // `shadow_map_core::method_crate!`.
 shadow_map_core::method_crate! {
@@ -12,12 +10,8 @@ shadow_map_core::method_crate! {
     /// and its engine path (also its GPU estimator, through the core's frame twin).
     "packet-hsm": CpuPacketHsm,
     PacketHsmFrame = PacketHsmFrame::prepare,
-    SWEEP
-}
-
-/// The report's settings: sub-lights (Yang section 5), packet sizes (Algorithm 2) and the
-/// resolution; hierarchy and coherence change only the time, so the report runs their defaults.
-const SWEEP: Sweep = Sweep {
+    // The report's settings: sub-lights (Yang section 5), packet sizes (Algorithm 2) and the
+    // resolution; hierarchy and coherence change only the time, so the report runs their defaults.
     quick: "resolution=256; sublights=2",
     full: "sublights=2; sublights=4; packet=1x1; packet=4x4; resolution=256; resolution=512",
-};
+}

@@ -177,14 +177,16 @@ fn parse_setting(line: &'static str) -> Setting {
 /// `settings` (typed parameters), `math` (pure, paper-cited), `cpu` (the CPU twin) and, with
 /// the crate's `gpu` feature, `gpu` (the frame); the re-exports of its CPU estimator and frame;
 /// and its registry entry `DESCRIPTOR`: the name, the CPU estimator's `new`, the frame's
-/// constructor `(ctx, params, max_receivers)` and the report's [`Sweep`].
+/// constructor `(ctx, params, max_receivers)` and the report's [`Sweep`], given as an
+/// expression or as its `quick:` and `full:` strings.
 ///
 /// ```ignore
 /// shadow_map_core::method_crate! {
 ///     /// Shadow accumulation in the registry.
 ///     "accumulation": CpuAccumulation,
 ///     AccumulationFrame = |ctx, params, _| AccumulationFrame::prepare(ctx, params),
-///     SWEEP
+///     quick: "resolution=256",
+///     full: "k=3; k=5",
 /// }
 /// ```
 #[macro_export]
@@ -194,6 +196,23 @@ macro_rules! method_crate {
         $name:literal: $cpu:ident,
         $frame:ident = $prepare:expr,
         $sweep:expr $(,)?
+    ) => {
+        $crate::method_crate!(@emit $(#[$meta])* $name: $cpu, $frame = $prepare, $sweep);
+    };
+    (
+        $(#[$meta:meta])*
+        $name:literal: $cpu:ident,
+        $frame:ident = $prepare:expr,
+        quick: $quick:literal,
+        full: $full:literal $(,)?
+    ) => {
+        $crate::method_crate!(
+            @emit $(#[$meta])* $name: $cpu, $frame = $prepare,
+            $crate::method::Sweep { quick: $quick, full: $full }
+        );
+    };
+    (
+        @emit $(#[$meta:meta])* $name:literal: $cpu:ident, $frame:ident = $prepare:expr, $sweep:expr
     ) => {
         pub mod cpu;
         #[cfg(feature = "gpu")]

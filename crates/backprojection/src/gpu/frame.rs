@@ -5,9 +5,9 @@ use crate::cpu::{plan, CpuBackprojection};
 use shadow_map_core::{
     gpu::{
         estimate::EstimateUniform,
-        frame::{Views, 
-            check_buffers, cpu_twin_v, single_view, status_buffer, FrameEstimator,
-            FrameInputs,
+        frame::{
+            check_buffers, cpu_twin_v, single_view, status_buffer, FrameEstimator, FrameInputs,
+            Views,
         },
         layout::{GpuLayout, KernelMaps},
         light_space::GpuLightSpace,
@@ -175,7 +175,7 @@ impl FrameEstimator for BackprojectionFrame {
         let n = inputs.count as u64;
         check_buffers(&self.ctx, inputs.receivers, inputs.v, n)?;
         let ctx = &*self.ctx;
-                let settings = self.cpu.settings();
+        let settings = self.cpu.settings();
         let clamp = settings.shadow.midpoint_clamp(view).unwrap_or(0.0);
         inputs.mark(enc, "start");
         // The MSSM levels the widest kernel of this view needs (crate::cpu::request's rule): the

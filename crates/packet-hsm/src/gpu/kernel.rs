@@ -229,8 +229,8 @@ impl Kernel {
                 resource,
             })
             .collect();
-        self.groups.get(
-&self.ctx, "packet-hsm kernel", &self.layout, &entries)
+        self.groups
+            .get(&self.ctx, "packet-hsm kernel", &self.layout, &entries)
     }
 }
 
@@ -259,7 +259,9 @@ impl SubLightShape {
     pub fn rounds(&self, hierarchy: bool, budget: u32) -> u32 {
         let m = self.max_cells as u64 + 2;
         let steps = if hierarchy { 6 * m * m } else { m * m };
-        steps.div_ceil(budget.max(1) as u64).clamp(1, MAX_ROUNDS as u64) as u32
+        steps
+            .div_ceil(budget.max(1) as u64)
+            .clamp(1, MAX_ROUNDS as u64) as u32
     }
 }
 
