@@ -36,10 +36,20 @@ struct AccUniform {
     _pad0: u32,
 }
 
+// The uniform's switches as override constants (gpu.rs `specialization`, the same values as
+// AccUniform's fields of the same meaning, which the kernel does not read): the pipeline is
+// compiled per combination, without the branches it does not take.
+override PATCH_RECT: bool = true;
+override SUN: bool = false;
+override SPHERE_CONTRACT: bool = false;
+override EXACT: bool = false;
+override OVERLAP: bool = true;
+override KERNEL_MODE: u32 = 1u;
+override LAYERS: u32 = 1u;
+
 const KERNEL_FIXED: u32 = 0u;
 const KERNEL_ADAPTIVE: u32 = 1u;
 const KERNEL_LEXELS: u32 = 2u;
-const VARIANT_EXACT: u32 = 1u;
 const HULL_SLOTS: u32 = 16u;
 const REFINE_ROUNDS: i32 = 16;
 // Corner signs of Footprint::caster_quad (counter-clockwise on the plane).
@@ -63,7 +73,7 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 
 
 // The footprint's frame (math::Footprint): in perspective the view's own (fp_n = view.n); for
-// the sun (acc.sun = 1) math::SunFrame, the receiver at (0, 0, L) (L = acc.lift) and the
+// the sun (SUN) math::SunFrame, the receiver at (0, 0, L) (L = acc.lift) and the
 // footprint's plane at L / 2, view point (x, y, z) at (x - fp_o.x, y - fp_o.y, z - fp_dz). Set
 // per receiver by estimate_receiver.
 var<private> fp_n: f32;
@@ -80,7 +90,7 @@ struct Patch {
 // LightPatch::for_receiver.
 fn patch_for(r: vec3<f32>) -> Patch {
     var p = Patch(vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0));
-    if acc.sphere_contract != 0u {
+    if SPHERE_CONTRACT {
         let rcp = valid_rcp(r);
         if rcp != 0.0 {
             let a = r * rcp;
@@ -98,7 +108,7 @@ fn embed(p: Patch, l: vec2<f32>) -> vec3<f32> {
 
 // LightPatch::contains.
 fn patch_contains(l: vec2<f32>) -> bool {
-    if acc.patch_rect != 0u {
+    if PATCH_RECT {
         return abs(l.x) <= acc.half.x && abs(l.y) <= acc.half.y;
     }
     return dot2(l, l) <= acc.half.x * acc.half.x;
@@ -106,7 +116,7 @@ fn patch_contains(l: vec2<f32>) -> bool {
 
 // LightPatch::max_z.
 fn patch_max_z(p: Patch) -> f32 {
-    if acc.patch_rect != 0u {
+    if PATCH_RECT {
         return acc.half.x * abs(p.e1.z) + acc.half.y * abs(p.e2.z);
     }
     return acc.half.x * sqrt(max(1.0 - p.a.z * p.a.z, 0.0));
@@ -142,7 +152,7 @@ fn front_new(p: Patch, r: vec3<f32>, nrm: vec3<f32>) -> Front {
     if !whole {
         let pl = vec3<f32>(dot3(r, p.e1), dot3(r, p.e2), dot3(r, p.a));
         let nl = vec3<f32>(a.x, a.y, dot3(nrm, p.a));
-        if acc.patch_rect != 0u {
+        if PATCH_RECT {
             fraction = front_fraction(LIGHT_RECT, 2.0 * acc.half, pl, nl);
         } else {
             fraction = front_fraction(LIGHT_DISK, acc.half, pl, nl);
@@ -215,7 +225,7 @@ fn to_patch(p: Patch, r: vec3<f32>, pt: vec2<f32>) -> Local {
 // Footprint::overlap_term_front.
 fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32, f: Front) -> f32 {
     var area = 0.0;
-    if acc.patch_rect != 0u {
+    if PATCH_RECT {
         let lc = to_patch(p, r, lr);
         if !lc.valid {
             return 0.0;
@@ -257,7 +267,7 @@ fn kernel_bounds(p: Patch, r: vec3<f32>, c_in: f32) -> vec4<i32> {
     // The sun: view depth c is c - fp_dz in the footprint's frame, and a point's view (x, y) is
     // its frame (x, y) + fp_o.
     var c_view = c_in;
-    if acc.sun != 0u {
+    if SUN {
         c_view = c_in - fp_dz;
     }
     let c = max(c_view, F32_MIN_POSITIVE);
@@ -266,7 +276,7 @@ fn kernel_bounds(p: Patch, r: vec3<f32>, c_in: f32) -> vec4<i32> {
     for (var k = 0u; k < acc.n_hull; k++) {
         let at = at_depth(r, embed(p, tables[k]), c);
         var y = at * (view.n / c);
-        if acc.sun != 0u {
+        if SUN {
             y = at + fp_o;
         }
         let t = (y - view.window_min) / view.delta;
@@ -313,14 +323,14 @@ struct Kernel {
 // Accumulator::kernel.
 fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, rp: ReceiverPlane) -> Kernel {
     let none = vec2<i32>(0);
-    if acc.kernel == KERNEL_LEXELS {
+    if KERNEL_MODE == KERNEL_LEXELS {
         let i0 = fixed_kernel_start(uv.x, acc.k);
         let j0 = fixed_kernel_start(uv.y, acc.k);
         let k = i32(acc.k);
         return Kernel(vec4<i32>(i0, j0, i0 + k, j0 + k), 1u, false, false, none);
     }
     var rect = kernel_bounds(p, r, view.n);
-    if acc.kernel == KERNEL_ADAPTIVE {
+    if KERNEL_MODE == KERNEL_ADAPTIVE {
         var zm = view.n;
         for (var it = 0; it < REFINE_ROUNDS; it++) {
             let zmin = mssm_min(rect);
@@ -345,7 +355,7 @@ fn kernel(p: Patch, r: vec3<f32>, uv: vec2<f32>, rp: ReceiverPlane) -> Kernel {
     if nx == 0u || ny == 0u {
         return Kernel(rect, 1u, true, false, none);
     }
-    if acc.kernel == KERNEL_ADAPTIVE {
+    if KERNEL_MODE == KERNEL_ADAPTIVE {
         let c = vec2<i32>(i32(floor(uv.x + 0.5)), i32(floor(uv.y + 0.5)));
         return Kernel(rect, 1u, false, true, c);
     }
@@ -378,7 +388,7 @@ fn queue_casters(q: ptr<function, Casters>, r: vec3<f32>, rp: ReceiverPlane, i0:
     let ic = i0 + (i1 - i0 - 1) / 2;
     let jc = j0 + (j1 - j0 - 1) / 2;
     let l = view.window_min + vec2<f32>(f32(i0 + i1), f32(j0 + j1)) * (0.5 * delta);
-    for (var layer = 0u; layer < acc.layers; layer++) {
+    for (var layer = 0u; layer < LAYERS; layer++) {
         let cz = depth_at(ic, jc, layer);
         // The receiver-plane test of the sample (cpu.rs: deeper layers fail too).
         if !plane_caster(rp, ic, jc, cz) {
@@ -390,7 +400,7 @@ fn queue_casters(q: ptr<function, Casters>, r: vec3<f32>, rp: ReceiverPlane, i0:
         }
         var size: f32;
         var lr: vec2<f32>;
-        if acc.sun != 0u {
+        if SUN {
             // Footprint::caster for the sun: the lexel (l - o, cz - dz) of the footprint's frame.
             let c = cz - fp_dz;
             if !(c > 0.0) || !(c < r.z) {
@@ -419,8 +429,8 @@ fn caster_term(st: ptr<function, State>, p: Patch, r: vec3<f32>, f: Front, c: ve
     let lr = c.xy;
     let hx = c.z;
     let hy = c.w;
-    if acc.variant != VARIANT_EXACT {
-        if acc.overlap != 0u {
+    if !EXACT {
+        if OVERLAP {
             (*st).s_add += overlap_term(p, r, lr, hx, hy, f);
         } else {
             (*st).s_add += additive_term(p, r, lr, 4.0 * hx * hy, f);
@@ -561,7 +571,7 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
 // position (Footprint::receiver).
 fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     var rv = r;
-    if acc.sun != 0u {
+    if SUN {
         rv = r + vec3<f32>(fp_o, fp_dz);
     }
     let rp = plane_new(est.receiver_plane != 0u, view, rv, nrm, acc.b0, acc.b1, 0.0);
@@ -576,7 +586,7 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     var st = State(bitmask_new(), 0.0);
     // The exact variant: bits behind the tangent plane set from the start, never counted.
     var behind = 0u;
-    if acc.variant == VARIANT_EXACT && !f.whole {
+    if EXACT && !f.whole {
         var m0 = bitmask_new();
         for (var k = 0u; k < acc.nbits; k++) {
             if !front_of(f, tables[HULL_SLOTS + k]) {
@@ -618,7 +628,7 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
             }
         }
     }
-    if acc.variant == VARIANT_EXACT {
+    if EXACT {
         if st.mask.n_set == acc.nbits {
             return 1.0;
         }
@@ -641,7 +651,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     // Footprint::for_light: the sun's frame puts the receiver at (0, 0, L).
     var r = rv;
     fp_n = view.n;
-    if acc.sun != 0u {
+    if SUN {
         r = vec3<f32>(0.0, 0.0, acc.lift);
         fp_n = 0.5 * acc.lift;
         fp_o = vec2<f32>(rv.x, rv.y);

@@ -37,7 +37,7 @@ use shadow_map_core::{
             check_buffers, compute_pass, cpu_twin_v, receiver_ranges, single_view, status_buffer,
             FrameEstimator, FrameInputs, Views,
         },
-        kernel::{BindGroupCache, Binding, Kernel},
+        kernel::{BindGroupCache, Binding, SpecializedKernel},
         layout::{GpuLayout, KernelMaps},
         raster::{GpuLayersFrame, GpuShadowMapper},
         receivers::RECEIVERS_WGSL,
@@ -118,6 +118,28 @@ pub struct AccUniform {
     pub _pad: u32,
 }
 
+/// The kernel's override constants (`accumulation.wgsl`'s `PATCH_RECT` to `LAYERS`) for the
+/// switches of `u`: the kernel branches on these, never on the uniform's fields.
+pub fn specialization(u: &AccUniform) -> [(&'static str, f64); 7] {
+    [
+        ("PATCH_RECT", u.patch_rect as f64),
+        ("SUN", u.sun as f64),
+        ("SPHERE_CONTRACT", u.sphere_contract as f64),
+        ("EXACT", u.variant as f64),
+        ("OVERLAP", u.overlap as f64),
+        ("KERNEL_MODE", u.kernel as f64),
+        ("LAYERS", u.layers as f64),
+    ]
+}
+
+fn kernel_mode(k: KernelMode) -> u32 {
+    match k {
+        KernelMode::Fixed => 0,
+        KernelMode::Adaptive => 1,
+        KernelMode::Lexels => 2,
+    }
+}
+
 /// The uniform and the point tables (hull points padded to [`HULL_SLOTS`], then `B^2` bits) for
 /// maps in `view` with `layers` peeled layers and an MSSM of `(levels, size)`, if any.
 pub fn uniform_and_tables(
@@ -156,11 +178,7 @@ pub fn uniform_and_tables(
         bits,
         nbits: bits * bits,
         k: s.k,
-        kernel: match s.kernel {
-            KernelMode::Fixed => 0,
-            KernelMode::Adaptive => 1,
-            KernelMode::Lexels => 2,
-        },
+        kernel: kernel_mode(s.kernel),
         variant: u32::from(s.variant == Variant::Exact),
         layers: (s.peeled_layers() as usize).min(layers).max(1) as u32,
         sphere_contract: u32::from(
@@ -206,7 +224,7 @@ pub struct AccumulationFrame {
     /// The parameters, as the CPU twin holds them (validated by it at `prepare`).
     params: Params,
     settings: Settings,
-    kernel: Kernel,
+    kernel: SpecializedKernel,
     layers: GpuLayersFrame,
     km: KernelMaps,
     acc: wgpu::Buffer,
@@ -224,7 +242,7 @@ impl AccumulationFrame {
         let mut cpu = CpuAccumulation::new()?;
         shadow_map_core::estimator::configure(&mut cpu, params)?;
         let s = cpu.settings();
-        let kernel = Kernel::new(
+        let kernel = SpecializedKernel::new(
             &ctx,
             LABEL,
             &SHADER_PARTS,
@@ -376,6 +394,7 @@ impl FrameEstimator for AccumulationFrame {
         if n == 0 {
             return Ok(());
         }
+        let pipeline = self.kernel.pipeline(ctx, &specialization(&au))?;
         // One dispatch per range of receivers (a 4K view is two under the default limits).
         for range in receiver_ranges(ctx, inputs.count) {
             let group = self.groups.get_dense(
@@ -394,13 +413,7 @@ impl FrameEstimator for AccumulationFrame {
                     self.status.as_entire_binding(),
                 ],
             );
-            compute_pass(
-                enc,
-                LABEL,
-                &self.kernel.pipeline,
-                &group,
-                range.workgroups(),
-            );
+            compute_pass(enc, LABEL, &pipeline, &group, range.workgroups());
         }
         inputs.mark(enc, "estimate");
         Ok(())

@@ -1,5 +1,5 @@
 // Twin of crates/backprojection/src/cpu.rs and math.rs, in f32 and in the CPU's operation order.
-// Rect, disk and sphere lights (est.light_shape): the overlap of B_s with the light is the core's
+// Rect, disk and sphere lights (SHAPE): the overlap of B_s with the light is the core's
 // overlap.wgsl on a disk, on the sphere's silhouette disk after the central projection from p.
 // Prepended: the parts before it in gpu.rs SHADER_PARTS (the core's estimate head, cells.wgsl for
 // the Kahan `Sum`, the silhouette set-up, the receivers and the bit mask).
@@ -8,6 +8,18 @@
 // bounds); here each term is f32 and the sum is Kahan-compensated f32 (about 1e-7 of the light
 // area apart). Per-block occluder depths are recomputed for the gap-filling neighbours instead of
 // being stored (same values).
+
+// The uniforms' switches as override constants (gpu.rs `specialization`: the values of the
+// uniform fields of the same meaning, which the kernel does not read): the pipeline is compiled
+// per combination, without the branches it does not take.
+override SHAPE: u32 = 0u;
+override BITMASK: bool = true;
+override MIDPOINT: bool = true;
+override GAP_FILLING: bool = true;
+override FIRST_NONZERO: bool = true;
+override OPACITY: bool = false;
+override PLANE_ON: bool = true;
+override LAYERS: u32 = 3u;
 
 // Settings of the estimate (mirrors gpu.rs BpUniform field for field).
 struct BpUniform {
@@ -147,12 +159,12 @@ fn sil_kernel(s: Sil, p: vec3<f32>, z_m: f32) -> vec4<i32> {
 // math::Emitter::of: a disk light and the sun (its disk of directions at unit distance, radius
 // light_size_x = tan(angle / 2)) are both Emitter::Disk.
 fn disk_emitter() -> bool {
-    return est.light_shape == LIGHT_DISK || est.light_shape == LIGHT_DIRECTIONAL;
+    return SHAPE == LIGHT_DISK || SHAPE == LIGHT_DIRECTIONAL;
 }
 
 // math::Emitter::overlap: area(B_s ∩ L) (rect: f64 on the CPU).
 fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
-    if est.light_shape == LIGHT_RECT {
+    if SHAPE == LIGHT_RECT {
         let dx = max(min(x1, bp.half.x) - max(x0, -bp.half.x), 0.0);
         let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
         return dx * dy;
@@ -169,7 +181,7 @@ fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
 
 // math::Emitter::contributes (CONTRIBUTION_REL = 1e-6).
 fn light_contributes(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> bool {
-    if est.light_shape == LIGHT_RECT {
+    if SHAPE == LIGHT_RECT {
         return light_overlap(x0, y0, x1, y1, s) > 0.0;
     }
     if disk_emitter() {
@@ -245,7 +257,7 @@ fn bit_point(k: u32) -> vec2<f32> {
 // cpu.rs occlusion=bitmask: sets the bits B_s contains (BitMask::set_in_rect on the light plane;
 // a sphere: Silhouette::carry_rect then BitMask::set_in_quad on the silhouette disk).
 fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) {
-    if est.light_shape == LIGHT_SPHERE {
+    if SHAPE == LIGHT_SPHERE {
         if !s.ok {
             return;
         }
@@ -270,7 +282,7 @@ fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1:
     }
     let lo = vec2<f32>(x0, y0);
     let hi = vec2<f32>(x1, y1);
-    if est.light_shape == LIGHT_RECT {
+    if SHAPE == LIGHT_RECT {
         // BitMask::set_in_lattice: the x ranks X = i side + j with lo.x <= x <= hi.x and the
         // bits k with lo.y <= y <= hi.y (bitmask::lattice_ranges), then one run per row.
         let n = i32(bp.nbits);
@@ -302,7 +314,7 @@ fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1:
 // The kernel at occluder depths >= zm: cpu.rs kernel_rect for rect and disk lights, the
 // silhouette's for a sphere.
 fn kernel_at(p: vec3<f32>, uv: vec2<f32>, zm: f32, s: Sil) -> vec4<i32> {
-    if est.light_shape == LIGHT_SPHERE {
+    if SHAPE == LIGHT_SPHERE {
         return sil_kernel(s, p, zm);
     }
     return kernel_rect(uv, view_kernel_texels(view, 2.0 * bp.half.x, zm, p.z), view_kernel_texels(view, 2.0 * bp.half.y, zm, p.z));
@@ -324,7 +336,7 @@ struct Kernel {
 // plane_max_threshold (ReceiverPlane::max_threshold) is core's, in math.wgsl.
 
 // The receiver as the kernel's caster test sees it: depth, bias (bias mode, plane off), texel
-// coordinates and the receiver plane (est.receiver_plane != 0).
+// coordinates and the receiver plane (PLANE_ON).
 struct Rec {
     zp: f32,
     eps: f32,
@@ -344,16 +356,16 @@ fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> vec2<f32> {
     let i0 = kr.rect.x + i32(a * kr.step);
     let i1 = min(i0 + i32(kr.step), kr.rect.z);
     let ic = i0 + (i1 - i0 - 1) / 2;
-    let on = est.receiver_plane != 0u;
-    let first_nonzero = bp.first_nonzero != 0u && bp.area > 0.0;
+    let on = PLANE_ON;
+    let first_nonzero = FIRST_NONZERO && bp.area > 0.0;
     let k = micropatch_k();
-    for (var mm = i32(bp.layers) - 1; mm >= 0; mm--) {
+    for (var mm = i32(LAYERS) - 1; mm >= 0; mm--) {
         let z = textureLoad(maps, vec2<i32>(ic, jc), mm, 0).x;
         var occludes = false;
-        if bp.midpoint != 0u {
+        if MIDPOINT {
             var cls = z;
             if u32(mm) < bp.midpoints {
-                cls = textureLoad(maps, vec2<i32>(ic, jc), i32(bp.layers) + mm, 0).x;
+                cls = textureLoad(maps, vec2<i32>(ic, jc), i32(LAYERS) + mm, 0).x;
             }
             if on {
                 occludes = cls < zp && plane_caster(rc.plane, ic, jc, z);
@@ -388,10 +400,10 @@ fn block_occluder(kr: Kernel, a: u32, b: u32, rc: Rec) -> vec2<f32> {
 // product of their transmittances (opacity planes follow the midpoints in `maps`); 1 for an
 // opaque scene (bp.opacity = 0).
 fn block_opacity(ic: i32, jc: i32, m: i32, zp: f32) -> f32 {
-    if bp.opacity == 0u {
+    if !OPACITY {
         return 1.0;
     }
-    let base = i32(bp.layers + bp.midpoints);
+    let base = i32(LAYERS + bp.midpoints);
     var tr = 1.0;
     for (var mm = 0; mm <= m; mm++) {
         if textureLoad(maps, vec2<i32>(ic, jc), mm, 0).x < zp {
@@ -405,10 +417,10 @@ fn block_opacity(ic: i32, jc: i32, m: i32, zp: f32) -> f32 {
 fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     let zp = p.z;
     var eps = 0.0;
-    if bp.midpoint == 0u {
+    if !MIDPOINT {
         eps = receiver_bias(view, p, n, bp.b0, bp.b1);
     }
-    let on = est.receiver_plane != 0u;
+    let on = PLANE_ON;
     // The plane test when on (plane_new's classic form is unused: the plane-off tests are
     // written out as cpu.rs has them).
     let rc = Rec(zp, eps, uv, plane_new(on, view, p, n, bp.b0, bp.b1, 0.0), sil);
@@ -471,7 +483,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
             var x1 = bound(f32(i1), uv.x, s);
             let y0 = bound(f32(j0), uv.y, s);
             var y1 = bound(f32(j1), uv.y, s);
-            if bp.gap_filling != 0u {
+            if GAP_FILLING {
                 if a + 1u < bx {
                     let zt = block_occluder(kr, a + 1u, b, rc).x;
                     if is_finite(zt) {
@@ -493,7 +505,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
                     }
                 }
             }
-            if bp.nbits > 0u {
+            if BITMASK {
                 set_bits(&mask, side, x0, y0, x1, y1, sil);
                 if mask.n_set == bp.nbits {
                     return 1.0 - f32(mask.n_set) / f32(bp.nbits);
@@ -503,7 +515,7 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
             a_occ = sum_add(a_occ, occ.y * light_overlap(x0, y0, x1, y1, sil));
         }
     }
-    if bp.nbits > 0u {
+    if BITMASK {
         return 1.0 - f32(mask.n_set) / f32(bp.nbits);
     }
     if !(bp.area > 0.0) {
@@ -521,7 +533,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     let facing = front_fraction_world(est, pw, nw);
     let p = view_to_light(view, pw);
     // A sphere's silhouette disk seen from p (ok = false: it reaches p's depth).
-    let sphere = est.light_shape == LIGHT_SPHERE;
+    let sphere = SHAPE == LIGHT_SPHERE;
     var sil: Sil;
     sil.ok = false;
     if sphere && p.z > 0.0 {

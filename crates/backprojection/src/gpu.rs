@@ -20,7 +20,7 @@ use shadow_map_core::{
             SILHOUETTE_SETUP_WGSL,
         },
         frame::{compute_pass, receiver_ranges},
-        kernel::{BindGroupCache, Binding, Kernel},
+        kernel::{BindGroupCache, Binding, SpecializedKernel},
         layout::KernelMaps,
         receivers::RECEIVERS_WGSL,
         GpuContext,
@@ -109,16 +109,16 @@ pub struct BpUniform {
 /// The kernel's pipeline (`backprojection.wgsl`, one invocation per receiver) and how one
 /// dispatch of it is bound and recorded.
 struct BpKernel {
-    kernel: Kernel,
+    kernel: SpecializedKernel,
     groups: BindGroupCache,
 }
 
 const LABEL: &str = "backprojection estimate";
 
 impl BpKernel {
-    /// Compiles the kernel on `ctx`'s device.
+    /// Compiles the kernel's module on `ctx`'s device (its pipelines at their first encode).
     fn new(ctx: &GpuContext) -> Result<Self> {
-        let kernel = Kernel::new(
+        let kernel = SpecializedKernel::new(
             ctx,
             LABEL,
             &SHADER_PARTS,
@@ -144,19 +144,22 @@ impl BpKernel {
 
     /// Records the kernel's passes into `enc`: one dispatch per [`receiver_ranges`] range of the
     /// first `count` receivers of `receivers`, V bits into `v`, the counters added to
-    /// `counters` (nothing dispatched for no receivers).
+    /// `counters` (nothing dispatched for no receivers), with the pipeline specialised for
+    /// `switches`.
     #[allow(clippy::too_many_arguments)]
     fn encode(
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
+        switches: &[(&str, f64)],
         bufs: &KernelUniforms,
         maps: &KernelMaps,
         receivers: &wgpu::Buffer,
         v: &wgpu::Buffer,
         count: u32,
         counters: &wgpu::Buffer,
-    ) {
+    ) -> Result<()> {
+        let pipeline = self.kernel.pipeline(ctx, switches)?;
         self.groups.next_encode();
         for range in receiver_ranges(ctx, count) {
             let group = self.groups.get_dense(
@@ -175,15 +178,26 @@ impl BpKernel {
                     bufs.bits.as_entire_binding(),
                 ],
             );
-            compute_pass(
-                enc,
-                LABEL,
-                &self.kernel.pipeline,
-                &group,
-                range.workgroups(),
-            );
+            compute_pass(enc, LABEL, &pipeline, &group, range.workgroups());
         }
+        Ok(())
     }
+}
+
+/// The kernel's override constants (`backprojection.wgsl`'s `SHAPE` to `LAYERS`) for the
+/// switches of `eu` and `bpu`: the kernel branches on these, never on the uniforms' fields.
+fn specialization(eu: &EstimateUniform, bpu: &BpUniform) -> [(&'static str, f64); 8] {
+    let flag = |b: bool| f64::from(u8::from(b));
+    [
+        ("SHAPE", eu.light_shape as f64),
+        ("BITMASK", flag(bpu.nbits > 0)),
+        ("MIDPOINT", bpu.midpoint as f64),
+        ("GAP_FILLING", bpu.gap_filling as f64),
+        ("FIRST_NONZERO", bpu.first_nonzero as f64),
+        ("OPACITY", bpu.opacity as f64),
+        ("PLANE_ON", eu.receiver_plane as f64),
+        ("LAYERS", bpu.layers as f64),
+    ]
 }
 
 /// The kernel's four uniforms: the light view, the estimate uniform, [`BpUniform`], the

@@ -1,6 +1,6 @@
 //! The engine path: [`BackprojectionFrame`], recorded into the caller's command encoder.
 
-use super::{uniforms, BitTable, BpKernel, BpUniform, KernelUniforms};
+use super::{specialization, uniforms, BitTable, BpKernel, BpUniform, KernelUniforms};
 use crate::cpu::{plan, CpuBackprojection};
 use shadow_map_core::{
     gpu::{
@@ -75,7 +75,6 @@ impl BackprojectionFrame {
     pub fn prepare(ctx: Arc<GpuContext>, params: &shadow_map_core::Params) -> Result<Self> {
         let mut cpu = CpuBackprojection::new()?;
         shadow_map_core::estimator::configure(&mut cpu, params)?;
-        let kernel = BpKernel::new(&ctx)?;
         let s = cpu.settings();
         let r = s.resolution;
         let req = shadow_map_core::LightSpaceRequest {
@@ -98,6 +97,7 @@ impl BackprojectionFrame {
             layers.opacity(),
             layers.min_max().mssm.as_ref(),
         )?;
+        let kernel = BpKernel::new(&ctx)?;
         let uniform = |label, size: usize| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -204,13 +204,14 @@ impl FrameEstimator for BackprojectionFrame {
         self.kernel.encode(
             ctx,
             enc,
+            &specialization(&eu, &bpu),
             &self.bufs,
             &self.km,
             inputs.receivers,
             inputs.v,
             inputs.count,
             &self.status,
-        );
+        )?;
         inputs.mark(enc, "estimate");
         Ok(())
     }

@@ -203,6 +203,87 @@ impl Kernel {
     }
 }
 
+/// A kernel whose pipeline is specialised per frame: what it switches on per frame but never per
+/// receiver (the light's shape, a setting's variant) is a WGSL override constant rather than a
+/// uniform, so the driver's compiler drops the branches not taken. A lane-predicated device
+/// (lavapipe) pays for both sides of a uniform branch (docs/gpu.md, "Specialised kernels"); on
+/// other devices it saves registers. Each combination is compiled at its first
+/// [`pipeline`](Self::pipeline) call and kept.
+#[derive(Debug)]
+pub struct SpecializedKernel {
+    /// The layout of its one bind group.
+    pub layout: wgpu::BindGroupLayout,
+    label: String,
+    module: wgpu::ShaderModule,
+    entry: String,
+    constants: Vec<(String, f64)>,
+    /// Keyed by the switches' names and values (as bits).
+    pipelines:
+        std::sync::Mutex<std::collections::HashMap<Vec<(String, u64)>, wgpu::ComputePipeline>>,
+}
+
+impl SpecializedKernel {
+    /// Compiles `parts` (joined in order) and makes the layout of `bindings`; the pipelines of
+    /// `entry`, with the override `constants` set, come from [`pipeline`](Self::pipeline).
+    pub fn new(
+        ctx: &GpuContext,
+        label: &str,
+        parts: &[&str],
+        entry: &str,
+        bindings: &[Binding],
+        constants: &[(&str, f64)],
+    ) -> Result<Self> {
+        let module = shader_module(ctx, label, parts)?;
+        let layout = ctx.scoped(label, || bind_group_layout(ctx, label, bindings))?;
+        Ok(SpecializedKernel {
+            layout,
+            label: label.to_string(),
+            module,
+            entry: entry.to_string(),
+            constants: constants.iter().map(|&(k, v)| (k.to_string(), v)).collect(),
+            pipelines: Default::default(),
+        })
+    }
+
+    /// The pipeline with the override constants `switches` set besides those given at
+    /// [`new`](Self::new), compiled on the first call with these values.
+    pub fn pipeline(
+        &self,
+        ctx: &GpuContext,
+        switches: &[(&str, f64)],
+    ) -> Result<wgpu::ComputePipeline> {
+        let key: Vec<(String, u64)> = switches
+            .iter()
+            .map(|&(k, v)| (k.to_string(), v.to_bits()))
+            .collect();
+        let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = pipelines.get(&key) {
+            return Ok(p.clone());
+        }
+        let mut constants: Vec<(&str, f64)> = self
+            .constants
+            .iter()
+            .map(|(k, v)| (k.as_str(), *v))
+            .collect();
+        constants.extend_from_slice(switches);
+        let p = compute_pipeline(
+            ctx,
+            &self.label,
+            &self.module,
+            &self.layout,
+            &self.entry,
+            &constants,
+        )?;
+        pipelines.insert(key, p.clone());
+        Ok(p)
+    }
+
+    /// How many pipelines it has compiled.
+    pub fn compiled(&self) -> usize {
+        self.pipelines.lock().map_or(0, |p| p.len())
+    }
+}
+
 /// Encodes a group unused for this many encodes of its frame is kept through
 /// ([`BindGroupCache::next_encode`]): room for a few frames recorded in turn from other buffers
 /// (two lights, two cameras) without holding a caller's old buffers for long.

@@ -114,3 +114,53 @@ fn status_readback_takes_the_copied_words_without_waiting() {
     assert_eq!(rb.take(), Some(vec![1, 1, 1]));
     assert_eq!(ctx.readbacks(), 2);
 }
+
+/// A specialised kernel compiles one pipeline per combination of switches, at its first use, and
+/// each pipeline takes its branch: the override decides, not the default in the WGSL.
+#[test]
+fn a_specialized_kernel_compiles_each_combination_once() {
+    use shadow_map_core::gpu::{
+        frame::compute_pass,
+        kernel::{storage_buffer, Binding, SpecializedKernel},
+    };
+    let Some(ctx) =
+        context_for_tests("a_specialized_kernel_compiles_each_combination_once").unwrap()
+    else {
+        return;
+    };
+    let wgsl = "override FLAG: bool = false;\noverride SCALE: u32 = 1u;\n\
+        @group(0) @binding(0) var<storage, read_write> out: array<u32>;\n\
+        @compute @workgroup_size(1) fn main() { if FLAG { out[0] = 7u * SCALE; } else { out[0] = 3u * SCALE; } }";
+    let k = SpecializedKernel::new(
+        &ctx,
+        "switches",
+        &[wgsl],
+        "main",
+        &[Binding::StorageRw],
+        &[],
+    )
+    .unwrap();
+    assert_eq!(k.compiled(), 0, "nothing compiled before the first use");
+    let buf = storage_buffer(&ctx, "out", 4);
+    let group = shadow_map_core::gpu::kernel::bind_group(
+        &ctx,
+        "switches",
+        &k.layout,
+        &[buf.as_entire_binding()],
+    );
+    let run = |switches: &[(&str, f64)]| -> u32 {
+        let p = k.pipeline(&ctx, switches).unwrap();
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        compute_pass(&mut enc, "switches", &p, &group, [1, 1, 1]);
+        ctx.queue.submit([enc.finish()]);
+        ctx.read_buffer::<u32>(&buf, 4).unwrap()[0]
+    };
+    assert_eq!(run(&[("FLAG", 1.0), ("SCALE", 2.0)]), 14);
+    assert_eq!(run(&[("FLAG", 0.0), ("SCALE", 2.0)]), 6);
+    assert_eq!(run(&[("FLAG", 1.0), ("SCALE", 2.0)]), 14);
+    assert_eq!(
+        k.compiled(),
+        2,
+        "the repeated combination is the kept pipeline"
+    );
+}
