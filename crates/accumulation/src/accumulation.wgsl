@@ -241,8 +241,17 @@ fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32, f: Fron
         let dy = max(y1 - y0, 0.0);
         area = dx * dy;
         if !f.whole && area != 0.0 {
-            let q = array<vec2<f32>, 4>(vec2<f32>(x0, y0), vec2<f32>(x1, y0), vec2<f32>(x1, y1), vec2<f32>(x0, y1));
-            area = poly_area(front_clip(f, q));
+            // poly_area(front_clip(f, quad)), the clipped vertices streamed (math.wgsl Shoelace).
+            let c0 = vec2<f32>(x0, y0);
+            let c1 = vec2<f32>(x1, y0);
+            let c2 = vec2<f32>(x1, y1);
+            let c3 = vec2<f32>(x0, y1);
+            var sl = Shoelace(vec2<f32>(0.0), vec2<f32>(0.0), 0u, 0.0);
+            sl = shoelace_clip_edge(sl, f.a, f.c, c0, c1);
+            sl = shoelace_clip_edge(sl, f.a, f.c, c1, c2);
+            sl = shoelace_clip_edge(sl, f.a, f.c, c2, c3);
+            sl = shoelace_clip_edge(sl, f.a, f.c, c3, c0);
+            area = abs(0.5 * shoelace_close(sl));
         }
     } else {
         var q: array<vec2<f32>, 4>;

@@ -118,10 +118,12 @@ pub struct AccUniform {
     pub _pad: u32,
 }
 
-/// The kernel's override constants (`accumulation.wgsl`'s `PATCH_RECT` to `LAYERS`) for the
-/// switches of `u`: the kernel branches on these, never on the uniform's fields.
-pub fn specialization(u: &AccUniform) -> [(&'static str, f64); 7] {
+/// The kernel's override constants (the core's `LIGHT_SHAPE`, `accumulation.wgsl`'s
+/// `PATCH_RECT` to `LAYERS`) for the switches of `eu` and `u`: the kernel branches on these,
+/// never on the uniforms' fields.
+pub fn specialization(eu: &EstimateUniform, u: &AccUniform) -> [(&'static str, f64); 8] {
     [
+        eu.shape_switch(),
         ("PATCH_RECT", u.patch_rect as f64),
         ("SUN", u.sun as f64),
         ("SPHERE_CONTRACT", u.sphere_contract as f64),
@@ -394,7 +396,7 @@ impl FrameEstimator for AccumulationFrame {
         if n == 0 {
             return Ok(());
         }
-        let pipeline = self.kernel.pipeline(ctx, &specialization(&au))?;
+        let pipeline = self.kernel.pipeline(ctx, &specialization(&eu, &au))?;
         // One dispatch per range of receivers (a 4K view is two under the default limits).
         for range in receiver_ranges(ctx, inputs.count) {
             let group = self.groups.get_dense(

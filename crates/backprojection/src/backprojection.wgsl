@@ -1,5 +1,5 @@
 // Twin of crates/backprojection/src/cpu.rs and math.rs, in f32 and in the CPU's operation order.
-// Rect, disk and sphere lights (SHAPE): the overlap of B_s with the light is the core's
+// Rect, disk and sphere lights (LIGHT_SHAPE): the overlap of B_s with the light is the core's
 // overlap.wgsl on a disk, on the sphere's silhouette disk after the central projection from p.
 // Prepended: the parts before it in gpu.rs SHADER_PARTS (the core's estimate head, cells.wgsl for
 // the Kahan `Sum`, the silhouette set-up, the receivers and the bit mask).
@@ -9,10 +9,9 @@
 // area apart). Per-block occluder depths are recomputed for the gap-filling neighbours instead of
 // being stored (same values).
 
-// The uniforms' switches as override constants (gpu.rs `specialization`: the values of the
-// uniform fields of the same meaning, which the kernel does not read): the pipeline is compiled
-// per combination, without the branches it does not take.
-override SHAPE: u32 = 0u;
+// The uniforms' switches as override constants (gpu.rs `specialization`, with the core's
+// LIGHT_SHAPE: the values of the uniform fields of the same meaning, which the kernel does not
+// read): the pipeline is compiled per combination, without the branches it does not take.
 override BITMASK: bool = true;
 override MIDPOINT: bool = true;
 override GAP_FILLING: bool = true;
@@ -159,12 +158,12 @@ fn sil_kernel(s: Sil, p: vec3<f32>, z_m: f32) -> vec4<i32> {
 // math::Emitter::of: a disk light and the sun (its disk of directions at unit distance, radius
 // light_size_x = tan(angle / 2)) are both Emitter::Disk.
 fn disk_emitter() -> bool {
-    return SHAPE == LIGHT_DISK || SHAPE == LIGHT_DIRECTIONAL;
+    return LIGHT_SHAPE == LIGHT_DISK || LIGHT_SHAPE == LIGHT_DIRECTIONAL;
 }
 
 // math::Emitter::overlap: area(B_s ∩ L) (rect: f64 on the CPU).
 fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
-    if SHAPE == LIGHT_RECT {
+    if LIGHT_SHAPE == LIGHT_RECT {
         let dx = max(min(x1, bp.half.x) - max(x0, -bp.half.x), 0.0);
         let dy = max(min(y1, bp.half.y) - max(y0, -bp.half.y), 0.0);
         return dx * dy;
@@ -181,7 +180,7 @@ fn light_overlap(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> f32 {
 
 // math::Emitter::contributes (CONTRIBUTION_REL = 1e-6).
 fn light_contributes(x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) -> bool {
-    if SHAPE == LIGHT_RECT {
+    if LIGHT_SHAPE == LIGHT_RECT {
         return light_overlap(x0, y0, x1, y1, s) > 0.0;
     }
     if disk_emitter() {
@@ -257,7 +256,7 @@ fn bit_point(k: u32) -> vec2<f32> {
 // cpu.rs occlusion=bitmask: sets the bits B_s contains (BitMask::set_in_rect on the light plane;
 // a sphere: Silhouette::carry_rect then BitMask::set_in_quad on the silhouette disk).
 fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1: f32, s: Sil) {
-    if SHAPE == LIGHT_SPHERE {
+    if LIGHT_SHAPE == LIGHT_SPHERE {
         if !s.ok {
             return;
         }
@@ -282,7 +281,7 @@ fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1:
     }
     let lo = vec2<f32>(x0, y0);
     let hi = vec2<f32>(x1, y1);
-    if SHAPE == LIGHT_RECT {
+    if LIGHT_SHAPE == LIGHT_RECT {
         // BitMask::set_in_lattice: the x ranks X = i side + j with lo.x <= x <= hi.x and the
         // bits k with lo.y <= y <= hi.y (bitmask::lattice_ranges), then one run per row.
         let n = i32(bp.nbits);
@@ -314,7 +313,7 @@ fn set_bits(m: ptr<function, BitMask>, side: u32, x0: f32, y0: f32, x1: f32, y1:
 // The kernel at occluder depths >= zm: cpu.rs kernel_rect for rect and disk lights, the
 // silhouette's for a sphere.
 fn kernel_at(p: vec3<f32>, uv: vec2<f32>, zm: f32, s: Sil) -> vec4<i32> {
-    if SHAPE == LIGHT_SPHERE {
+    if LIGHT_SHAPE == LIGHT_SPHERE {
         return sil_kernel(s, p, zm);
     }
     return kernel_rect(uv, view_kernel_texels(view, 2.0 * bp.half.x, zm, p.z), view_kernel_texels(view, 2.0 * bp.half.y, zm, p.z));
@@ -533,7 +532,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     let facing = front_fraction_world(est, pw, nw);
     let p = view_to_light(view, pw);
     // A sphere's silhouette disk seen from p (ok = false: it reaches p's depth).
-    let sphere = SHAPE == LIGHT_SPHERE;
+    let sphere = LIGHT_SHAPE == LIGHT_SPHERE;
     var sil: Sil;
     sil.ok = false;
     if sphere && p.z > 0.0 {

@@ -184,12 +184,12 @@ impl BpKernel {
     }
 }
 
-/// The kernel's override constants (`backprojection.wgsl`'s `SHAPE` to `LAYERS`) for the
+/// The kernel's override constants (the core's `LIGHT_SHAPE`, `backprojection.wgsl`'s `BITMASK` to `LAYERS`) for the
 /// switches of `eu` and `bpu`: the kernel branches on these, never on the uniforms' fields.
 fn specialization(eu: &EstimateUniform, bpu: &BpUniform) -> [(&'static str, f64); 8] {
     let flag = |b: bool| f64::from(u8::from(b));
     [
-        ("SHAPE", eu.light_shape as f64),
+        eu.shape_switch(),
         ("BITMASK", flag(bpu.nbits > 0)),
         ("MIDPOINT", bpu.midpoint as f64),
         ("GAP_FILLING", bpu.gap_filling as f64),

@@ -49,14 +49,14 @@ use shadow_map_core::gpu::estimate::CELLS_WGSL;
 use shadow_map_core::{
     gpu::{
         depth_map::DEPTH_MAP_FORMAT,
-        estimate::{EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES},
+        estimate::{EstimateUniform, LIGHT_HEAD_WGSL, LIGHT_RECT, OVERRIDES},
         frame::{
             check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v, receiver_ranges,
             status_buffer, FrameEstimator, FrameInputs, ReceiverRange, Views,
         },
         kernel::{
-            bind_group_layout_at, compute_pipeline, shader_module, uniform_buffer, BindGroupCache,
-            Binding,
+            bind_group_layout_at, shader_module, uniform_buffer, BindGroupCache, Binding,
+            SpecializedKernel,
         },
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
         shared::LightViewUniform,
@@ -357,10 +357,9 @@ pub struct DeepShadowFrame {
     params: Params,
     settings: Settings,
     map: GpuMapFrame,
-    layout: wgpu::BindGroupLayout,
     head_pipe: wgpu::ComputePipeline,
-    lookup_pipe: wgpu::ComputePipeline,
-    finish_pipe: wgpu::ComputePipeline,
+    /// `frame_lookup` and `frame_finish`, specialised for the light's shape at each encode.
+    kernel: SpecializedKernel,
     lists: Lists,
     head: wgpu::Buffer,
     slots: Vec<Slot>,
@@ -410,14 +409,23 @@ impl DeepShadowFrame {
         let views = settings.sublights * settings.sublights;
         let map =
             GpuShadowMapper::new(&ctx)?.map_frame(&ctx, r, RasterOptions::default(), views)?;
-        let module = shader_module(&ctx, "deep-shadow frame", FRAME_SHADER_PARTS)?;
         let layout = ctx.scoped("deep-shadow frame layout", || {
             bind_group_layout_at(&ctx, "deep-shadow frame", BINDINGS)
         })?;
         let overrides: Vec<(&str, f64)> = OVERRIDES.iter().chain(OWN_OVERRIDES).copied().collect();
-        let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, &overrides);
-        let (head_pipe, lookup_pipe, finish_pipe) =
-            (mk("frame_head")?, mk("frame_lookup")?, mk("frame_finish")?);
+        let kernel = SpecializedKernel::with_layout(
+            &ctx,
+            "deep-shadow frame",
+            FRAME_SHADER_PARTS,
+            layout,
+            "frame_lookup",
+            &overrides,
+        )?;
+        // The per-texel passes read no light: their pipelines are made once, with the rect's
+        // shape code; `frame_lookup` and `frame_finish` are specialised per frame.
+        let texel_shape = [("LIGHT_SHAPE", LIGHT_RECT as f64)];
+        let mk = |entry: &str| kernel.entry_pipeline(&ctx, entry, &texel_shape);
+        let head_pipe = mk("frame_head")?;
         let lists = Lists::prepare(&ctx, &settings, &map, &mk)?;
         let ds_bytes = std::mem::size_of::<DsUniform>() as u64;
         let est_bytes = std::mem::size_of::<EstimateUniform>() as u64;
@@ -441,10 +449,8 @@ impl DeepShadowFrame {
             params: params.clone(),
             settings,
             map,
-            layout,
             head_pipe,
-            lookup_pipe,
-            finish_pipe,
+            kernel,
             lists,
             slots,
             max_receivers,
@@ -524,7 +530,7 @@ impl DeepShadowFrame {
         self.groups.get(
             &self.ctx,
             "deep-shadow frame",
-            &self.layout,
+            &self.kernel.layout,
             &[
                 e(0, ds.as_entire_binding()),
                 e(3, self.head.as_entire_binding()),
@@ -628,6 +634,9 @@ impl FrameEstimator for DeepShadowFrame {
         if n == 0 {
             return Ok(());
         }
+        let shape = [EstimateUniform::new(light, s.bias, s.slope_bias).shape_switch()];
+        let lookup_pipe = self.kernel.entry_pipeline(ctx, "frame_lookup", &shape)?;
+        let finish_pipe = self.kernel.entry_pipeline(ctx, "frame_finish", &shape)?;
         let texels = self.map.r as u64 * self.map.r as u64;
         // The per-receiver passes run once per range of receivers (its own bind group); the
         // per-texel passes bind the first range's group, whose receivers they do not read.
@@ -713,7 +722,7 @@ impl FrameEstimator for DeepShadowFrame {
                 compute_pass(
                     enc,
                     "deep-shadow frame lookup",
-                    &self.lookup_pipe,
+                    &lookup_pipe,
                     group,
                     workgroups(range.count as u64),
                 );
@@ -732,7 +741,7 @@ impl FrameEstimator for DeepShadowFrame {
             compute_pass(
                 enc,
                 "deep-shadow frame finish",
-                &self.finish_pipe,
+                &finish_pipe,
                 &group,
                 workgroups(range.count as u64),
             );

@@ -65,15 +65,15 @@ use shadow_map_core::{
     gpu::{
         depth_map::write_planes,
         estimate::{
-            EstimateUniform, LIGHT_HEAD_WGSL, OVERRIDES, SILHOUETTE_SETUP_WGSL, SILHOUETTE_WGSL,
-            WORKGROUP_SIZE,
+            EstimateUniform, LIGHT_HEAD_WGSL, LIGHT_RECT, OVERRIDES, SILHOUETTE_SETUP_WGSL,
+            SILHOUETTE_WGSL, WORKGROUP_SIZE,
         },
         frame::{
             check_prepared_inputs, compute_pass, compute_pass_indirect, range_capacity,
             receiver_ranges_binding, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
             Views,
         },
-        kernel::{bind_group_layout_at, compute_pipeline, shader_module, BindGroupCache, Binding},
+        kernel::{bind_group_layout_at, BindGroupCache, Binding, SpecializedKernel},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
     },
@@ -177,10 +177,9 @@ pub struct PacketHsmFrame {
     status: wgpu::Buffer,
     /// Per receiver: V summed over the views so far, and 1 once a view was cut.
     acc: wgpu::Buffer,
-    layout: wgpu::BindGroupLayout,
     maps_pipe: wgpu::ComputePipeline,
-    setup_pipe: wgpu::ComputePipeline,
-    finish_pipe: wgpu::ComputePipeline,
+    /// `frame_setup` and `frame_finish`, specialised for the light's shape at each encode.
+    frame_kernel: SpecializedKernel,
     max_receivers: u32,
     /// Steps of a walk a round of `pixels` takes ([`kernel::WALK_BUDGET`]).
     walk_budget: u32,
@@ -270,13 +269,24 @@ impl PacketHsmFrame {
         }
         let storage = wgpu::BufferUsages::STORAGE;
         let texels = 4 * r as u64 * r as u64;
-        let module = shader_module(&ctx, "packet-hsm frame", FRAME_SHADER_PARTS)?;
         let layout = ctx.scoped("packet-hsm frame layout", || {
             bind_group_layout_at(&ctx, "packet-hsm frame", &BINDINGS)
         })?;
-        let mk = |entry: &str| compute_pipeline(&ctx, entry, &module, &layout, entry, OVERRIDES);
-        let (maps_pipe, setup_pipe, finish_pipe) =
-            (mk("frame_maps")?, mk("frame_setup")?, mk("frame_finish")?);
+        let frame_kernel = SpecializedKernel::with_layout(
+            &ctx,
+            "packet-hsm frame",
+            FRAME_SHADER_PARTS,
+            layout,
+            "frame_setup",
+            OVERRIDES,
+        )?;
+        // `frame_maps` reads no light: its pipeline is made once, with the rect's shape code;
+        // `frame_setup` and `frame_finish` are specialised per frame.
+        let maps_pipe = frame_kernel.entry_pipeline(
+            &ctx,
+            "frame_maps",
+            &[("LIGHT_SHAPE", LIGHT_RECT as f64)],
+        )?;
         Ok(PacketHsmFrame {
             groups: BindGroupCache::default(),
             depth: buffer(&ctx, "packet-hsm frame depth", texels, storage),
@@ -342,10 +352,8 @@ impl PacketHsmFrame {
             padded,
             dual_pass,
             dual,
-            layout,
             maps_pipe,
-            setup_pipe,
-            finish_pipe,
+            frame_kernel,
             max_receivers,
             walk_budget: kernel::WALK_BUDGET,
         })
@@ -396,7 +404,7 @@ impl PacketHsmFrame {
         self.groups.get(
             &self.kernel.ctx,
             "packet-hsm frame",
-            &self.layout,
+            &self.frame_kernel.layout,
             &[
                 e(0, self.layers.view_uniform().as_entire_binding()),
                 e(1, self.light.as_entire_binding()),
@@ -557,6 +565,13 @@ impl PacketHsmFrame {
             eu.light_size_y = 2.0 * half.y;
         }
         ctx.write_in(enc, &self.light, 0, bytemuck::bytes_of(&eu));
+        let shape = [eu.shape_switch()];
+        let setup_pipe = self
+            .frame_kernel
+            .entry_pipeline(ctx, "frame_setup", &shape)?;
+        let finish_pipe = self
+            .frame_kernel
+            .entry_pipeline(ctx, "frame_finish", &shape)?;
         let s2 = (cfg.sublights * cfg.sublights) as f32;
         let fu = HsmFrameUniform {
             bias: cfg.shadow.bias,
@@ -589,7 +604,7 @@ impl PacketHsmFrame {
             // `pixels`, each over the queue the last one left.
             enc.clear_buffer(&self.queues[0], 0, Some(4 * QUEUE_HEADER));
             let wg = workgroups(n);
-            compute_pass(enc, "packet-hsm frame set-up", &self.setup_pipe, group, wg);
+            compute_pass(enc, "packet-hsm frame set-up", &setup_pipe, group, wg);
             compute_pass(
                 enc,
                 "packet-hsm prepare",
@@ -604,7 +619,7 @@ impl PacketHsmFrame {
                 let (pixels, group) = (&self.kernel.pixels, &kernel[from]);
                 compute_pass_indirect(enc, "packet-hsm pixels", pixels, group, &self.args);
             }
-            compute_pass(enc, "packet-hsm frame finish", &self.finish_pipe, group, wg);
+            compute_pass(enc, "packet-hsm frame finish", &finish_pipe, group, wg);
         }
         inputs.mark(enc, "estimate");
         Ok(())

@@ -98,7 +98,7 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
     var facing = 0.0;
     var sil: Sil;
     sil.ok = false;
-    if flight.light_shape == LIGHT_SPHERE {
+    if LIGHT_SHAPE == LIGHT_SPHERE {
         // Two-sided: the contract's silhouette disk in world space; a receiver behind the map's
         // plane or whose silhouette reaches its depth is outside every view (V = facing).
         facing = front_fraction_world(flight, pw, nw);
@@ -122,7 +122,7 @@ fn frame_setup(@builtin(global_invocation_id) gid: vec3<u32>) {
             settle(k, SETUP_SETTLED, 0.0);
             return;
         }
-        facing = front_fraction(flight.light_shape, size, p, n);
+        facing = front_fraction(LIGHT_SHAPE, size, p, n);
     }
     if !(facing > 0.0) {
         settle(k, SETUP_SETTLED, 0.0);

@@ -30,7 +30,7 @@ use shadow_map_core::{
             check_buffers, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
             receiver_ranges, single_view, status_buffer, Views,
         },
-        kernel::BindGroupCache,
+        kernel::{BindGroupCache, SpecializedKernel},
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
@@ -46,8 +46,8 @@ pub struct MapFrame<F: GpuFilter> {
     settings: MapSettings,
     filter: F,
     map: FrameMap,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    /// The estimate kernel, specialised for the light's shape.
+    kernel: SpecializedKernel,
     est: wgpu::Buffer,
     status: wgpu::Buffer,
     groups: BindGroupCache,
@@ -62,14 +62,14 @@ impl<F: GpuFilter> MapFrame<F> {
         let filter = F::from_params(params)?;
         let map = FrameMap::new(&ctx, &settings, 1)?;
         let label = format!("{} frame", F::NAME);
-        let module = shadow_map_core::gpu::kernel::shader_module(
+        let layout = kernel::map_layout(&ctx, &label, settings.depth);
+        let kernel = SpecializedKernel::with_layout(
             &ctx,
             &label,
             &shader_parts::<F>(settings.depth),
-        )?;
-        let layout = kernel::map_layout(&ctx, &label, settings.depth);
-        let pipeline = shadow_map_core::gpu::kernel::compute_pipeline(
-            &ctx, &label, &module, &layout, "estimate", OVERRIDES,
+            layout,
+            "estimate",
+            OVERRIDES,
         )?;
         let est = uniform_buffer(&ctx, "frame estimate uniform");
         let status = status_buffer(&ctx, "frame status", 4);
@@ -80,8 +80,7 @@ impl<F: GpuFilter> MapFrame<F> {
             settings,
             filter,
             map,
-            layout,
-            pipeline,
+            kernel,
             est,
             status,
         })
@@ -143,11 +142,12 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         if n == 0 {
             return Ok(());
         }
+        let pipeline = self.kernel.pipeline(&self.ctx, &[u.shape_switch()])?;
         for range in receiver_ranges(&self.ctx, inputs.count) {
             let group = self.groups.get_dense(
                 &self.ctx,
                 "frame estimate",
-                &self.layout,
+                &self.kernel.layout,
                 &[
                     self.map.raster.view_uniform(0).as_entire_binding(),
                     self.est.as_entire_binding(),
@@ -158,7 +158,7 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
                 ],
             );
             let wg = range.workgroups();
-            compute_pass(enc, "frame estimate", &self.pipeline, &group, wg);
+            compute_pass(enc, "frame estimate", &pipeline, &group, wg);
         }
         inputs.mark(enc, "estimate");
         Ok(())
@@ -402,6 +402,9 @@ impl FrameEstimator for MultiSampleFrame {
             return Ok(());
         }
         let k = &self.kernels;
+        let shape = [u.shape_switch()];
+        let accumulate = k.kernel.entry_pipeline(ctx, "accumulate", &shape)?;
+        let finalize = k.kernel.entry_pipeline(ctx, "finalize", &shape)?;
         let ranges = receiver_ranges(&self.ctx, inputs.count);
         // One pass of `pipe` per range of receivers, its bind group over the range's receivers,
         // sums and V.
@@ -417,7 +420,7 @@ impl FrameEstimator for MultiSampleFrame {
                 let group = self.groups.get_dense(
                     &self.ctx,
                     "multi-sample frame",
-                    &k.layout,
+                    &k.kernel.layout,
                     &[
                         view.as_entire_binding(),
                         est.as_entire_binding(),
@@ -449,7 +452,7 @@ impl FrameEstimator for MultiSampleFrame {
                 &self.est[0]
             };
             let at = (self.map.raster.view_uniform(slot), est, self.map.binding());
-            passes(enc, "multi-sample frame accumulate", &k.accumulate, at);
+            passes(enc, "multi-sample frame accumulate", &accumulate, at);
             inputs.mark(enc, "estimate");
         }
         // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
@@ -458,7 +461,7 @@ impl FrameEstimator for MultiSampleFrame {
             &self.est[0],
             k.placeholder.binding(),
         );
-        passes(enc, "multi-sample frame finalize", &k.finalize, at);
+        passes(enc, "multi-sample frame finalize", &finalize, at);
         inputs.mark(enc, "finalize");
         Ok(())
     }

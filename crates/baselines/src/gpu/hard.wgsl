@@ -4,7 +4,7 @@
 fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
     let behind = est.light_one_sided != 0u && dot3(p - est.light_frame.origin, est.light_frame.ez) <= 0.0;
     var towards = est.light_frame.origin - p;
-    if est.light_shape == LIGHT_DIRECTIONAL {
+    if LIGHT_SHAPE == LIGHT_DIRECTIONAL {
         towards = -est.light_frame.ez;
     }
     if behind || dot3(n, towards) <= 0.0 {

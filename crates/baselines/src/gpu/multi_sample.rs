@@ -5,6 +5,7 @@ use super::kernel;
 use shadow_map_core::{
     gpu::{
         estimate::{ESTIMATE_HEAD_WGSL, OVERRIDES},
+        kernel::SpecializedKernel,
         upload_depth_map, GpuContext, GpuDepthMap, GpuUnorm16Map,
     },
     DepthMap, DepthPrecision, Result, Unorm16Map,
@@ -22,11 +23,10 @@ pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 3] {
     ]
 }
 
-/// The kernels for one depth precision.
+/// The kernels for one depth precision: one module, its entry points `accumulate` and
+/// `finalize` specialised for the light's shape.
 pub(crate) struct Kernels {
-    pub(crate) layout: wgpu::BindGroupLayout,
-    pub(crate) accumulate: wgpu::ComputePipeline,
-    pub(crate) finalize: wgpu::ComputePipeline,
+    pub(crate) kernel: SpecializedKernel,
     /// A 1x1 map bound where a kernel reads none (`finalize`).
     pub(crate) placeholder: Placeholder,
 }
@@ -34,28 +34,17 @@ pub(crate) struct Kernels {
 impl Kernels {
     pub(crate) fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
         let label = "multi-sample";
-        let module = kernel::shader_module(ctx, label, &shader_parts(depth))?;
         let layout = kernel::map_layout(ctx, label, depth);
-        let accumulate = kernel::compute_pipeline(
+        let kernel = SpecializedKernel::with_layout(
             ctx,
-            "multi-sample accumulate",
-            &module,
-            &layout,
+            label,
+            &shader_parts(depth),
+            layout,
             "accumulate",
             OVERRIDES,
         )?;
-        let finalize = kernel::compute_pipeline(
-            ctx,
-            "multi-sample finalize",
-            &module,
-            &layout,
-            "finalize",
-            OVERRIDES,
-        )?;
         Ok(Kernels {
-            layout,
-            accumulate,
-            finalize,
+            kernel,
             placeholder: Placeholder::new(ctx, depth)?,
         })
     }

@@ -43,7 +43,7 @@ fn visibility(r: ReceiverSample) -> f32 {
     let z_avg = sum.s / count.s;
     // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
     let wf = pcss_filter_width(l, zr, z_avg, view.n, to_texels, view.ortho != 0u);
-    let disk = est.light_shape != LIGHT_RECT;
+    let disk = LIGHT_SHAPE != LIGHT_RECT;
     let rad = 0.5 * wf.x;
     let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
     let fx = cells_new(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, est.max_taps);

@@ -169,6 +169,13 @@ impl EstimateUniform {
             _pad: [0; 2],
         }
     }
+
+    /// The override constant `LIGHT_SHAPE` (`estimate.wgsl`) for this uniform's light: a switch
+    /// every pipeline of a module with the estimate head sets
+    /// ([`SpecializedKernel`](super::kernel::SpecializedKernel)).
+    pub fn shape_switch(&self) -> (&'static str, f64) {
+        ("LIGHT_SHAPE", self.light_shape as f64)
+    }
 }
 
 #[cfg(test)]

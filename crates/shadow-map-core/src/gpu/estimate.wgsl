@@ -8,6 +8,10 @@ override LIGHT_SPHERE: u32;
 override LIGHT_DIRECTIONAL: u32;
 override PLANE_ROUNDING: f32;
 override PLANE_SNAP: f32;
+// The light's shape code (one of the four above), a switch of the pipeline: every pipeline of a
+// module with this head sets it (EstimateUniform::shape_switch), so the light-geometry helpers
+// compile to the light's own branch. light_shape in the uniform holds the same value.
+override LIGHT_SHAPE: u32;
 
 struct EstimateUniform {
     light_frame: Frame,

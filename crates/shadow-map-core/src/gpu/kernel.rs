@@ -203,12 +203,12 @@ impl Kernel {
     }
 }
 
-/// A kernel whose pipeline is specialised per frame: what it switches on per frame but never per
-/// receiver (the light's shape, a setting's variant) is a WGSL override constant rather than a
-/// uniform, so the driver's compiler drops the branches not taken. A lane-predicated device
+/// A kernel whose pipelines are specialised per frame: what it switches on per frame but never
+/// per receiver (the light's shape, a setting's variant) is a WGSL override constant rather than
+/// a uniform, so the driver's compiler drops the branches not taken. A lane-predicated device
 /// (lavapipe) pays for both sides of a uniform branch (docs/gpu.md, "Specialised kernels"); on
-/// other devices it saves registers. Each combination is compiled at its first
-/// [`pipeline`](Self::pipeline) call and kept.
+/// other devices it saves registers. Each entry point and combination of switches is compiled at
+/// its first use and kept.
 #[derive(Debug)]
 pub struct SpecializedKernel {
     /// The layout of its one bind group.
@@ -217,14 +217,16 @@ pub struct SpecializedKernel {
     module: wgpu::ShaderModule,
     entry: String,
     constants: Vec<(String, f64)>,
-    /// Keyed by the switches' names and values (as bits).
-    pipelines:
-        std::sync::Mutex<std::collections::HashMap<Vec<(String, u64)>, wgpu::ComputePipeline>>,
+    /// Keyed by the entry point and the switches' names and values (as bits).
+    pipelines: std::sync::Mutex<std::collections::HashMap<PipelineKey, wgpu::ComputePipeline>>,
 }
+
+type PipelineKey = (String, Vec<(String, u64)>);
 
 impl SpecializedKernel {
     /// Compiles `parts` (joined in order) and makes the layout of `bindings`; the pipelines of
-    /// `entry`, with the override `constants` set, come from [`pipeline`](Self::pipeline).
+    /// `entry` (and of the module's other entry points), with the override `constants` set,
+    /// come from [`pipeline`](Self::pipeline) and [`entry_pipeline`](Self::entry_pipeline).
     pub fn new(
         ctx: &GpuContext,
         label: &str,
@@ -233,8 +235,20 @@ impl SpecializedKernel {
         bindings: &[Binding],
         constants: &[(&str, f64)],
     ) -> Result<Self> {
-        let module = shader_module(ctx, label, parts)?;
         let layout = ctx.scoped(label, || bind_group_layout(ctx, label, bindings))?;
+        Self::with_layout(ctx, label, parts, layout, entry, constants)
+    }
+
+    /// [`new`](Self::new) over a layout the caller made (bindings not numbered `0..n`).
+    pub fn with_layout(
+        ctx: &GpuContext,
+        label: &str,
+        parts: &[&str],
+        layout: wgpu::BindGroupLayout,
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> Result<Self> {
+        let module = shader_module(ctx, label, parts)?;
         Ok(SpecializedKernel {
             layout,
             label: label.to_string(),
@@ -245,17 +259,30 @@ impl SpecializedKernel {
         })
     }
 
-    /// The pipeline with the override constants `switches` set besides those given at
-    /// [`new`](Self::new), compiled on the first call with these values.
+    /// The pipeline of the kernel's entry point with the override constants `switches` set
+    /// besides those given at [`new`](Self::new), compiled on the first call with these values.
     pub fn pipeline(
         &self,
         ctx: &GpuContext,
         switches: &[(&str, f64)],
     ) -> Result<wgpu::ComputePipeline> {
-        let key: Vec<(String, u64)> = switches
-            .iter()
-            .map(|&(k, v)| (k.to_string(), v.to_bits()))
-            .collect();
+        self.entry_pipeline(ctx, &self.entry, switches)
+    }
+
+    /// [`pipeline`](Self::pipeline) of another entry point of the module.
+    pub fn entry_pipeline(
+        &self,
+        ctx: &GpuContext,
+        entry: &str,
+        switches: &[(&str, f64)],
+    ) -> Result<wgpu::ComputePipeline> {
+        let key: PipelineKey = (
+            entry.to_string(),
+            switches
+                .iter()
+                .map(|&(k, v)| (k.to_string(), v.to_bits()))
+                .collect(),
+        );
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = pipelines.get(&key) {
             return Ok(p.clone());
@@ -266,14 +293,12 @@ impl SpecializedKernel {
             .map(|(k, v)| (k.as_str(), *v))
             .collect();
         constants.extend_from_slice(switches);
-        let p = compute_pipeline(
-            ctx,
-            &self.label,
-            &self.module,
-            &self.layout,
-            &self.entry,
-            &constants,
-        )?;
+        let label = if entry == self.entry {
+            self.label.clone()
+        } else {
+            format!("{} {entry}", self.label)
+        };
+        let p = compute_pipeline(ctx, &label, &self.module, &self.layout, entry, &constants)?;
         pipelines.insert(key, p.clone());
         Ok(p)
     }

@@ -145,6 +145,52 @@ fn acos_f32(x: f32) -> f32 {
     return HALF_PI_F32 - asin_f32(x);
 }
 
+// The shoelace sum of a polygon whose vertices come one at a time (no vertex array: on
+// lavapipe a private array indexed by a per-lane count is a scatter and a gather): each vertex
+// after the first adds cross(previous, vertex), and shoelace_close adds the closing
+// cross(last, first), the terms in the order of the CPU's sum over (v_i, v_(i+1 mod m)).
+struct Shoelace {
+    first: vec2<f32>,
+    prev: vec2<f32>,
+    m: u32,
+    area: f32,
+}
+
+fn shoelace_add(s: Shoelace, v: vec2<f32>) -> Shoelace {
+    var o = s;
+    if s.m == 0u {
+        o.first = v;
+    } else {
+        o.area += s.prev.x * v.y - v.x * s.prev.y;
+    }
+    o.prev = v;
+    o.m = s.m + 1u;
+    return o;
+}
+
+fn shoelace_close(s: Shoelace) -> f32 {
+    if s.m == 0u {
+        return 0.0;
+    }
+    return s.area + (s.prev.x * s.first.y - s.first.x * s.prev.y);
+}
+
+// One edge p0 -> p1 of Sutherland-Hodgman against the half-plane a.y > c: p0 when inside, then
+// the crossing when the edge crosses, into the sum.
+fn shoelace_clip_edge(s: Shoelace, a: vec2<f32>, c: f32, p0: vec2<f32>, p1: vec2<f32>) -> Shoelace {
+    let f0 = dot2(a, p0) - c;
+    let f1 = dot2(a, p1) - c;
+    var o = s;
+    if f0 > 0.0 {
+        o = shoelace_add(o, p0);
+    }
+    if (f0 > 0.0) != (f1 > 0.0) {
+        let t = f0 / (f0 - f1);
+        o = shoelace_add(o, p0 + (p1 - p0) * t);
+    }
+    return o;
+}
+
 // shadow_map_core::light::front_fraction: fraction of the light (rect or disk in the plane z = 0
 // of the frame p and n are given in) strictly in front of the tangent plane {y : n.(y - p) > 0}.
 // `size`: rect (width, height); disk and sphere (radius, radius).
@@ -158,36 +204,18 @@ fn front_fraction(shape: u32, size: vec2<f32>, p: vec3<f32>, n: vec3<f32>) -> f3
         if la < 1e-12 {
             return select(0.0, 1.0, 0.0 > c);
         }
-        // Clip the rectangle polygon by the half-plane a.y > c (Sutherland-Hodgman, one edge).
-        var poly = array<vec2<f32>, 4>(
-            vec2<f32>(-hx, -hy),
-            vec2<f32>(hx, -hy),
-            vec2<f32>(hx, hy),
-            vec2<f32>(-hx, hy),
-        );
-        var clipped: array<vec2<f32>, 8>;
-        var m = 0u;
-        for (var i = 0u; i < 4u; i++) {
-            let p0 = poly[i];
-            let p1 = poly[(i + 1u) % 4u];
-            let f0 = dot2(a, p0) - c;
-            let f1 = dot2(a, p1) - c;
-            if f0 > 0.0 {
-                clipped[m] = p0;
-                m += 1u;
-            }
-            if (f0 > 0.0) != (f1 > 0.0) {
-                let t = f0 / (f0 - f1);
-                clipped[m] = p0 + (p1 - p0) * t;
-                m += 1u;
-            }
-        }
-        var area = 0.0;
-        for (var i = 0u; i < m; i++) {
-            let p0 = clipped[i];
-            let p1 = clipped[(i + 1u) % m];
-            area += p0.x * p1.y - p1.x * p0.y;
-        }
+        // Clip the rectangle polygon by the half-plane a.y > c (Sutherland-Hodgman, one edge),
+        // its vertices streamed into the shoelace sum (shoelace_clip_edge).
+        let c0 = vec2<f32>(-hx, -hy);
+        let c1 = vec2<f32>(hx, -hy);
+        let c2 = vec2<f32>(hx, hy);
+        let c3 = vec2<f32>(-hx, hy);
+        var sl = Shoelace(vec2<f32>(0.0), vec2<f32>(0.0), 0u, 0.0);
+        sl = shoelace_clip_edge(sl, a, c, c0, c1);
+        sl = shoelace_clip_edge(sl, a, c, c1, c2);
+        sl = shoelace_clip_edge(sl, a, c, c2, c3);
+        sl = shoelace_clip_edge(sl, a, c, c3, c0);
+        let area = shoelace_close(sl);
         let total = size.x * size.y;
         if total <= 0.0 {
             return select(0.0, 1.0, 0.0 > c);
@@ -210,18 +238,19 @@ fn front_fraction(shape: u32, size: vec2<f32>, p: vec3<f32>, n: vec3<f32>) -> f3
 // shadow_map_core::light::Light::front_fraction_world: the fraction of the light in front of the
 // tangent plane of world point p with unit normal n; 0 behind a one-sided emitter; for a sphere
 // over its silhouette disk (frame at the centre whose z axis points from the light towards p).
+// The shape is the pipeline's LIGHT_SHAPE (u's own light_shape is the same).
 fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let size = vec2<f32>(u.light_size_x, u.light_size_y);
-    if u.light_shape == LIGHT_DIRECTIONAL {
+    if LIGHT_SHAPE == LIGHT_DIRECTIONAL {
         // Light::front_fraction_world: the disk of directions one unit from p, facing it.
         return front_fraction(LIGHT_DISK, size, vec3<f32>(0.0, 0.0, 1.0), frame_dir_to_light(u.light_frame, n));
     }
-    if u.light_shape != LIGHT_SPHERE {
+    if LIGHT_SHAPE != LIGHT_SPHERE {
         let pl = frame_to_light(u.light_frame, p);
         if pl.z <= 0.0 {
             return 0.0;
         }
-        return front_fraction(u.light_shape, size, pl, frame_dir_to_light(u.light_frame, n));
+        return front_fraction(LIGHT_SHAPE, size, pl, frame_dir_to_light(u.light_frame, n));
     }
     let d = u.light_frame.origin - p;
     let md = -d;
@@ -232,7 +261,7 @@ fn front_fraction_world(u: EstimateUniform, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let dz = md * rcp;
     let ex = default_tangent(dz);
     let f = Frame(u.light_frame.origin, ex, cross3(dz, ex), dz);
-    return front_fraction(u.light_shape, size, frame_to_light(f, p), frame_dir_to_light(f, n));
+    return front_fraction(LIGHT_SHAPE, size, frame_to_light(f, p), frame_dir_to_light(f, n));
 }
 
 // shadow_map_core::mssm::kernel_width: the blocker-search kernel width in texels (Guennebaud's
