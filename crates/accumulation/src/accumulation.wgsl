@@ -46,6 +46,9 @@ override EXACT: bool = false;
 override OVERLAP: bool = true;
 override KERNEL_MODE: u32 = 1u;
 override LAYERS: u32 = 1u;
+// Derived: the casters' terms are queued (see Casters) unless the term is a rect patch's additive
+// overlap or centre test.
+override QUEUE_TERMS: bool = !PATCH_RECT || EXACT;
 
 const KERNEL_FIXED: u32 = 0u;
 const KERNEL_ADAPTIVE: u32 = 1u;
@@ -378,10 +381,13 @@ struct State {
     s_add: f32,
 }
 
-// The casters the cells hold, queued before their terms are summed: on lavapipe a loop's body
-// costs as much on a trip where no lane needs it (docs/gpu.md, "Accumulation's kernel"), so the
-// loop over the cells only finds casters, and the costly terms run in a loop of their own, once
-// per caster. HITS casters queued at most before a flush; a cell adds one per layer (at most 4).
+// The casters the cells hold, queued before their terms are summed (QUEUE_TERMS): on lavapipe a
+// loop's body costs as much on a trip where no lane needs it (docs/gpu.md, "Accumulation's
+// kernel"), so where a term is costly (a disk patch's clipped quad, the exact variant's bits) the
+// loop over the cells only finds casters, and the terms run in a loop of their own, once per
+// caster. A rect patch's additive term is cheaper than the queue's scatter and gather: it is
+// summed in place. HITS casters queued at most before a flush; a cell adds one per layer (at
+// most 4).
 const HITS: u32 = 16u;
 struct Casters {
     // Per caster: its footprint's centre on the plane z = n (lr) and half sizes (hx, hy).
@@ -391,7 +397,7 @@ struct Casters {
 
 // The casters of cell [i0, i1) x [j0, j1), one per layer (math::caster; its footprint's centre
 // on the plane z = n and half sizes, (lr, hx, hy)), appended to q: the ring loop's cheap body.
-fn queue_casters(q: ptr<function, Casters>, r: vec3<f32>, rp: ReceiverPlane, i0: i32, i1: i32, j0: i32, j1: i32) {
+fn queue_casters(q: ptr<function, Casters>, st: ptr<function, State>, p: Patch, f: Front, r: vec3<f32>, rp: ReceiverPlane, i0: i32, i1: i32, j0: i32, j1: i32) {
     let delta = view.delta;
     let n = view.n;
     let ic = i0 + (i1 - i0 - 1) / 2;
@@ -427,8 +433,13 @@ fn queue_casters(q: ptr<function, Casters>, r: vec3<f32>, rp: ReceiverPlane, i0:
             continue;
         }
         let h = 0.5 * delta * size * vec2<f32>(f32(i1 - i0), f32(j1 - j0));
-        (*q).c[(*q).n] = vec4<f32>(lr, h);
-        (*q).n += 1u;
+        let c = vec4<f32>(lr, h);
+        if QUEUE_TERMS {
+            (*q).c[(*q).n] = c;
+            (*q).n += 1u;
+        } else {
+            caster_term(st, p, r, f, c);
+        }
     }
 }
 
@@ -547,7 +558,7 @@ fn rings(st: ptr<function, State>, p: Patch, r: vec3<f32>, rp: ReceiverPlane, f:
                     let j0 = max(y, bound.y);
                     let j1 = min(y + s, bound.w);
                     if i0 < i1 && j0 < j1 {
-                        queue_casters(&q, r, rp, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y);
+                        queue_casters(&q, st, p, f, r, rp, i0 - ph.x, i1 - ph.x, j0 - ph.y, j1 - ph.y);
                     }
                 }
                 x += s;
@@ -625,7 +636,7 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
                 }
                 let j0 = rect.y + i32(b * step);
                 let i0 = rect.x + i32(a * step);
-                queue_casters(&q, r, rp, i0, min(i0 + i32(step), rect.z), j0, min(j0 + i32(step), rect.w));
+                queue_casters(&q, &st, p, f, r, rp, i0, min(i0 + i32(step), rect.z), j0, min(j0 + i32(step), rect.w));
                 a++;
                 if a >= bx {
                     a = 0u;
