@@ -13,10 +13,14 @@
 //! **Work per receiver**, the CPU twin's: the kernel's bounds refined on the MSSM (a receiver
 //! whose kernel holds no caster in front of it stops there), then the kernel's cells (rings,
 //! fixed or lexel blocks), each a depth fetch and a caster test per layer, and each caster found
-//! its term (overlap, centre or occlusion bits). The kernel walks the cells in one flat loop that
-//! only finds casters and queues up to 16, then sums their terms in a loop of its own in the same
+//! its term (overlap, centre or occlusion bits). The kernel walks the cells in one flat loop.
+//! Where a term is costly (a disk patch's clipped quad, the exact variant's bits) that loop only
+//! finds casters and queues up to 16, then sums their terms in a loop of its own in the same
 //! order: on lavapipe a loop's body costs as much on a trip no lane needs, so the costly terms
-//! are kept out of the loop over the cells (measured in docs/gpu.md). The light patch's hull and bit points are computed on the CPU
+//! are kept out of the loop over the cells; a rect patch's additive term is cheaper than the
+//! queue and is summed in place (`QUEUE_TERMS`). The settings and the light's shape are the
+//! pipeline's override constants ([`specialization`]), so the kernel holds only the branches it
+//! takes (measured in docs/gpu.md). The light patch's hull and bit points are computed on the CPU
 //! ([`crate::math::LightPatch::hull_local`], [`crate::math::LightPatch::bit_local`]) and uploaded,
 //! so no trigonometry differs from the CPU twin.
 //!
