@@ -226,11 +226,18 @@ fn lattice_partition(n: i32, side: u32, along_x: bool, bound: f32, upper: bool) 
     if guess == guess && abs(guess) <= 3.0e38 {
         r = i32(clamp(guess, 0.0, f32(n)));
     }
-    while r > 0 && lattice_pass(lattice_at(r - 1, side, along_x), bound, upper) {
-        r -= 1;
-    }
-    while r < n && !lattice_pass(lattice_at(r, side, along_x), bound, upper) {
-        r += 1;
+    // The CPU's two walks (down while the rank below passes, then up while this one fails) as
+    // one loop: a step down lands on a rank that passes and a step up leaves one that fails, so
+    // the loop never turns back and ends where the CPU's walks do. Lavapipe pays for each loop
+    // however few trips it takes, and the guess is almost always right.
+    loop {
+        if r > 0 && lattice_pass(lattice_at(r - 1, side, along_x), bound, upper) {
+            r -= 1;
+        } else if r < n && !lattice_pass(lattice_at(r, side, along_x), bound, upper) {
+            r += 1;
+        } else {
+            break;
+        }
     }
     return r;
 }
