@@ -41,7 +41,7 @@ use shadow_map_core::{
             check_buffers, compute_pass, cpu_twin_v, receiver_ranges, single_view, status_buffer,
             FrameEstimator, FrameInputs, Views,
         },
-        kernel::{BindGroupCache, Binding, SpecializedKernel},
+        kernel::{bind_group_layout, BindGroupCache, Binding, SpecializedKernel},
         layout::{GpuLayout, KernelMaps},
         raster::{GpuLayersFrame, GpuShadowMapper},
         receivers::RECEIVERS_WGSL,
@@ -248,24 +248,25 @@ impl AccumulationFrame {
         let mut cpu = CpuAccumulation::new()?;
         shadow_map_core::estimator::configure(&mut cpu, params)?;
         let s = cpu.settings();
-        let kernel = SpecializedKernel::new(
-            &ctx,
-            LABEL,
-            &SHADER_PARTS,
-            "estimate",
-            &[
-                Binding::Uniform,
-                Binding::Uniform,
-                Binding::Uniform,
-                Binding::Texture2dArray,
-                Binding::Texture2dArray,
-                Binding::Storage,
-                Binding::Storage,
-                Binding::StorageRw,
-                Binding::StorageRw,
-            ],
-            OVERRIDES,
-        )?;
+        let layout = ctx.scoped(LABEL, || {
+            bind_group_layout(
+                &ctx,
+                LABEL,
+                &[
+                    Binding::Uniform,
+                    Binding::Uniform,
+                    Binding::Uniform,
+                    Binding::Texture2dArray,
+                    Binding::Texture2dArray,
+                    Binding::Storage,
+                    Binding::Storage,
+                    Binding::StorageRw,
+                    Binding::StorageRw,
+                ],
+            )
+        })?;
+        let kernel =
+            SpecializedKernel::new(&ctx, LABEL, &SHADER_PARTS, layout, "estimate", OVERRIDES)?;
         let r = s.resolution;
         let levels = (r as f32)
             .log2()

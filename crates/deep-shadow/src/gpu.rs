@@ -413,7 +413,7 @@ impl DeepShadowFrame {
             bind_group_layout_at(&ctx, "deep-shadow frame", BINDINGS)
         })?;
         let overrides: Vec<(&str, f64)> = OVERRIDES.iter().chain(OWN_OVERRIDES).copied().collect();
-        let kernel = SpecializedKernel::with_layout(
+        let kernel = SpecializedKernel::new(
             &ctx,
             "deep-shadow frame",
             FRAME_SHADER_PARTS,

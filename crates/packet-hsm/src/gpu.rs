@@ -272,7 +272,7 @@ impl PacketHsmFrame {
         let layout = ctx.scoped("packet-hsm frame layout", || {
             bind_group_layout_at(&ctx, "packet-hsm frame", &BINDINGS)
         })?;
-        let frame_kernel = SpecializedKernel::with_layout(
+        let frame_kernel = SpecializedKernel::new(
             &ctx,
             "packet-hsm frame",
             FRAME_SHADER_PARTS,

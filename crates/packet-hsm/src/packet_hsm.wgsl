@@ -121,73 +121,77 @@ fn kernel_width(alpha: f32, l: f32, z_m: f32, z_p: f32) -> f32 {
     return F32_MAX;
 }
 
+// The anchors an MSSM query over samples [x0, x1) x [y0, y1) (clamped to [0, side]) reads: level
+// l = min(floor(log2(shorter side)), levels - 1), anchors h = 2^l apart from (x0, y0), the last
+// column and row at x1 - h and y1 - h (Mssm::query and PaddedDualMssm::query alike). `first` is
+// the first anchor, `last` the last; `ok` false for an empty rectangle.
+struct Anchors {
+    first: vec2<i32>,
+    last: vec2<i32>,
+    h: i32,
+    off: u32,
+    side: u32,
+    ok: bool,
+}
+
+fn anchors(ax0: i32, ay0: i32, ax1: i32, ay1: i32, side: u32, levels: u32) -> Anchors {
+    let s = i32(side);
+    let lo = clamp(vec2<i32>(ax0, ay0), vec2<i32>(0), vec2<i32>(s));
+    let hi = clamp(vec2<i32>(ax1, ay1), vec2<i32>(0), vec2<i32>(s));
+    let ok = lo.x < hi.x && lo.y < hi.y;
+    let m = u32(max(min(hi.x - lo.x, hi.y - lo.y), 1));
+    let l = min(floor_log2(m), levels - 1u);
+    let h = i32(1u << l);
+    return Anchors(lo, max(hi - vec2<i32>(h), lo), h, l * side * side, side, ok);
+}
+
+// The element of anchor p in its level.
+fn anchor_index(a: Anchors, p: vec2<i32>) -> u32 {
+    return a.off + u32(p.y) * a.side + u32(p.x);
+}
+
+// The anchor after p, row by row (the CPU's order): one loop over the anchors instead of a loop
+// per row (on lavapipe each loop costs however few trips it takes).
+fn anchor_next(a: Anchors, p: vec2<i32>) -> vec2<i32> {
+    if p.x < a.last.x {
+        return vec2<i32>(min(p.x + a.h, a.last.x), p.y);
+    }
+    return vec2<i32>(a.first.x, min(p.y + a.h, a.last.y));
+}
+
 // Mssm::query (min only) over samples [x0, x1) x [y0, y1), clamped.
 fn mssm_query_min(ax0: i32, ay0: i32, ax1: i32, ay1: i32) -> f32 {
-    let s = i32(u.r);
-    let x0 = clamp(ax0, 0, s);
-    let y0 = clamp(ay0, 0, s);
-    let x1 = clamp(ax1, 0, s);
-    let y1 = clamp(ay1, 0, s);
-    if !(x0 < x1 && y0 < y1) {
-        return pos_inf();
-    }
-    let m = u32(min(x1 - x0, y1 - y0));
-    let l = min(floor_log2(m), u.mssm_levels - 1u);
-    let h = i32(1u << l);
-    let lastx = max(x1 - h, x0);
-    let lasty = max(y1 - h, y0);
-    let off = l * u.r * u.r;
+    let a = anchors(ax0, ay0, ax1, ay1, u.r, u.mssm_levels);
     var acc = pos_inf();
-    var y = y0;
+    if !a.ok {
+        return acc;
+    }
+    var p = a.first;
     loop {
-        var x = x0;
-        loop {
-            acc = min(acc, mssm_min[off + u32(y) * u.r + u32(x)]);
-            if x >= lastx {
-                break;
-            }
-            x = min(x + h, lastx);
-        }
-        if y >= lasty {
+        acc = min(acc, mssm_min[anchor_index(a, p)]);
+        if all(p >= a.last) {
             break;
         }
-        y = min(y + h, lasty);
+        p = anchor_next(a, p);
     }
     return acc;
 }
 
 // PaddedDualMssm::query over cells cr (unpadded anchors): exact min/max of the touched samples.
 fn dual_query(cr: vec4<i32>) -> vec2<f32> {
-    let s = i32(u.padded);
-    let x0 = clamp(cr.x + 1, 0, s);
-    let y0 = clamp(cr.y + 1, 0, s);
-    let x1 = clamp(cr.z + 1, 0, s);
-    let y1 = clamp(cr.w + 1, 0, s);
-    if !(x0 < x1 && y0 < y1) {
-        return vec2<f32>(pos_inf(), -pos_inf());
-    }
-    let m = u32(min(x1 - x0, y1 - y0));
-    let l = min(floor_log2(m), u.dual_levels - 1u);
-    let h = i32(1u << l);
-    let lastx = max(x1 - h, x0);
-    let lasty = max(y1 - h, y0);
-    let off = l * u.padded * u.padded;
+    let a = anchors(cr.x + 1, cr.y + 1, cr.z + 1, cr.w + 1, u.padded, u.dual_levels);
     var acc = vec2<f32>(pos_inf(), -pos_inf());
-    var y = y0;
+    if !a.ok {
+        return acc;
+    }
+    var p = a.first;
     loop {
-        var x = x0;
-        loop {
-            let k = off + u32(y) * u.padded + u32(x);
-            acc = vec2<f32>(min(acc.x, dual_min[k]), max(acc.y, dual_max[k]));
-            if x >= lastx {
-                break;
-            }
-            x = min(x + h, lastx);
-        }
-        if y >= lasty {
+        let k = anchor_index(a, p);
+        acc = vec2<f32>(min(acc.x, dual_min[k]), max(acc.y, dual_max[k]));
+        if all(p >= a.last) {
             break;
         }
-        y = min(y + h, lasty);
+        p = anchor_next(a, p);
     }
     return acc;
 }

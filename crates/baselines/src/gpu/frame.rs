@@ -63,7 +63,7 @@ impl<F: GpuFilter> MapFrame<F> {
         let map = FrameMap::new(&ctx, &settings, 1)?;
         let label = format!("{} frame", F::NAME);
         let layout = kernel::map_layout(&ctx, &label, settings.depth);
-        let kernel = SpecializedKernel::with_layout(
+        let kernel = SpecializedKernel::new(
             &ctx,
             &label,
             &shader_parts::<F>(settings.depth),

@@ -35,7 +35,7 @@ impl Kernels {
     pub(crate) fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
         let label = "multi-sample";
         let layout = kernel::map_layout(ctx, label, depth);
-        let kernel = SpecializedKernel::with_layout(
+        let kernel = SpecializedKernel::new(
             ctx,
             label,
             &shader_parts(depth),

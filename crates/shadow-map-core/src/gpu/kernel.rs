@@ -224,23 +224,11 @@ pub struct SpecializedKernel {
 type PipelineKey = (String, Vec<(String, u64)>);
 
 impl SpecializedKernel {
-    /// Compiles `parts` (joined in order) and makes the layout of `bindings`; the pipelines of
-    /// `entry` (and of the module's other entry points), with the override `constants` set,
-    /// come from [`pipeline`](Self::pipeline) and [`entry_pipeline`](Self::entry_pipeline).
+    /// Compiles `parts` (joined in order) for bind groups of `layout` (for example
+    /// [`bind_group_layout`] of a binding list); the pipelines of `entry` (and of the module's
+    /// other entry points), with the override `constants` set, come from
+    /// [`pipeline`](Self::pipeline) and [`entry_pipeline`](Self::entry_pipeline).
     pub fn new(
-        ctx: &GpuContext,
-        label: &str,
-        parts: &[&str],
-        entry: &str,
-        bindings: &[Binding],
-        constants: &[(&str, f64)],
-    ) -> Result<Self> {
-        let layout = ctx.scoped(label, || bind_group_layout(ctx, label, bindings))?;
-        Self::with_layout(ctx, label, parts, layout, entry, constants)
-    }
-
-    /// [`new`](Self::new) over a layout the caller made (bindings not numbered `0..n`).
-    pub fn with_layout(
         ctx: &GpuContext,
         label: &str,
         parts: &[&str],

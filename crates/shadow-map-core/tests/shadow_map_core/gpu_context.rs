@@ -121,7 +121,7 @@ fn status_readback_takes_the_copied_words_without_waiting() {
 fn a_specialized_kernel_compiles_each_combination_once() {
     use shadow_map_core::gpu::{
         frame::compute_pass,
-        kernel::{storage_buffer, Binding, SpecializedKernel},
+        kernel::{bind_group_layout, storage_buffer, Binding, SpecializedKernel},
     };
     let Some(ctx) =
         context_for_tests("a_specialized_kernel_compiles_each_combination_once").unwrap()
@@ -131,15 +131,8 @@ fn a_specialized_kernel_compiles_each_combination_once() {
     let wgsl = "override FLAG: bool = false;\noverride SCALE: u32 = 1u;\n\
         @group(0) @binding(0) var<storage, read_write> out: array<u32>;\n\
         @compute @workgroup_size(1) fn main() { if FLAG { out[0] = 7u * SCALE; } else { out[0] = 3u * SCALE; } }";
-    let k = SpecializedKernel::new(
-        &ctx,
-        "switches",
-        &[wgsl],
-        "main",
-        &[Binding::StorageRw],
-        &[],
-    )
-    .unwrap();
+    let layout = bind_group_layout(&ctx, "switches", &[Binding::StorageRw]);
+    let k = SpecializedKernel::new(&ctx, "switches", &[wgsl], layout, "main", &[]).unwrap();
     assert_eq!(k.compiled(), 0, "nothing compiled before the first use");
     let buf = storage_buffer(&ctx, "out", 4);
     let group = shadow_map_core::gpu::kernel::bind_group(
