@@ -41,9 +41,9 @@ use shadow_map_core::{
             check_buffers, compute_pass, cpu_twin_v, receiver_ranges, single_view, status_buffer,
             FrameEstimator, FrameInputs, Views,
         },
-        kernel::{bind_group_layout, BindGroupCache, Binding, SpecializedKernel},
+        kernel::{BindGroupCache, SpecializedKernel},
         layout::{GpuLayout, KernelMaps},
-        raster::{GpuLayersFrame, GpuShadowMapper},
+        raster::{GpuLayersFrame, GpuShadowMapper, LayersSlot},
         receivers::RECEIVERS_WGSL,
         GpuContext,
     },
@@ -248,25 +248,7 @@ impl AccumulationFrame {
         let mut cpu = CpuAccumulation::new()?;
         shadow_map_core::estimator::configure(&mut cpu, params)?;
         let s = cpu.settings();
-        let layout = ctx.scoped(LABEL, || {
-            bind_group_layout(
-                &ctx,
-                LABEL,
-                &[
-                    Binding::Uniform,
-                    Binding::Uniform,
-                    Binding::Uniform,
-                    Binding::Texture2dArray,
-                    Binding::Texture2dArray,
-                    Binding::Storage,
-                    Binding::Storage,
-                    Binding::StorageRw,
-                    Binding::StorageRw,
-                ],
-            )
-        })?;
-        let kernel =
-            SpecializedKernel::new(&ctx, LABEL, &SHADER_PARTS, layout, "estimate", OVERRIDES)?;
+        let kernel = SpecializedKernel::new(&ctx, LABEL, &SHADER_PARTS, "estimate", OVERRIDES)?;
         let r = s.resolution;
         let levels = (r as f32)
             .log2()
@@ -384,12 +366,32 @@ impl FrameEstimator for AccumulationFrame {
         let ctx = &*self.ctx;
         self.groups.next_encode();
         inputs.mark(enc, "start");
-        self.layers.encode(ctx, enc, inputs.casters, view, 0.0)?;
-        inputs.mark(enc, "layers");
-        self.km.record(enc, false);
-        inputs.mark(enc, "layout");
         let s = &self.settings;
-        let mssm = self.km.mssm_levels.map(|l| (l, self.km.mssm.size));
+        // The MSSM levels the widest kernel of this view needs (crate::cpu::request's rule):
+        // the levels above only speed up queries no kernel makes, and each costs a pass over
+        // r^2 to build and one to copy. The contract's sphere model widens the kernel by the
+        // receivers, which the frame does not see: it keeps every level prepared.
+        let planes = match (&inputs.light.shape, s.sphere) {
+            (LightShape::Sphere { .. }, SphereModel::Contract) => u32::MAX,
+            _ => crate::cpu::request(s, view, inputs.light.half_extent())
+                .mssm_levels
+                .map_or(u32::MAX, |l| l + 1),
+        };
+        let slot = LayersSlot {
+            view,
+            max_bias: 0.0,
+            min_opacity: 0.0,
+            slot: 0,
+            mssm_levels: Some(planes),
+        };
+        self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
+        inputs.mark(enc, "layers");
+        self.km.record(enc, false, planes);
+        inputs.mark(enc, "layout");
+        let mssm = self
+            .km
+            .mssm_levels
+            .map(|l| (l.min(planes), self.km.mssm.size));
         let (au, tables) =
             uniform_and_tables(s, &inputs.light.shape, view, self.km.layers as usize, mssm);
         let mut eu = EstimateUniform::new(inputs.light, s.bias, s.slope_bias);

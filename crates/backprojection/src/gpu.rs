@@ -20,7 +20,7 @@ use shadow_map_core::{
             SILHOUETTE_SETUP_WGSL,
         },
         frame::{compute_pass, receiver_ranges},
-        kernel::{bind_group_layout, BindGroupCache, Binding, SpecializedKernel},
+        kernel::{BindGroupCache, SpecializedKernel},
         layout::KernelMaps,
         receivers::RECEIVERS_WGSL,
         GpuContext,
@@ -118,25 +118,7 @@ const LABEL: &str = "backprojection estimate";
 impl BpKernel {
     /// Compiles the kernel's module on `ctx`'s device (its pipelines at their first encode).
     fn new(ctx: &GpuContext) -> Result<Self> {
-        let layout = ctx.scoped(LABEL, || {
-            bind_group_layout(
-                ctx,
-                LABEL,
-                &[
-                    Binding::Uniform,
-                    Binding::Uniform,
-                    Binding::Uniform,
-                    Binding::Texture2dArray,
-                    Binding::Texture2dArray,
-                    Binding::Storage,
-                    Binding::StorageRw,
-                    Binding::StorageRw,
-                    Binding::Uniform,
-                ],
-            )
-        })?;
-        let kernel =
-            SpecializedKernel::new(ctx, LABEL, &SHADER_PARTS, layout, "estimate", OVERRIDES)?;
+        let kernel = SpecializedKernel::new(ctx, LABEL, &SHADER_PARTS, "estimate", OVERRIDES)?;
         Ok(BpKernel {
             kernel,
             groups: BindGroupCache::default(),

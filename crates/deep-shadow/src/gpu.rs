@@ -54,10 +54,7 @@ use shadow_map_core::{
             check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v, receiver_ranges,
             status_buffer, FrameEstimator, FrameInputs, ReceiverRange, Views,
         },
-        kernel::{
-            bind_group_layout_at, shader_module, uniform_buffer, BindGroupCache, Binding,
-            SpecializedKernel,
-        },
+        kernel::{shader_module, uniform_buffer, BindGroupCache, Binding, SpecializedKernel},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
         shared::LightViewUniform,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
@@ -118,23 +115,6 @@ pub struct DsFrameUniform {
     /// Padding.
     pub _pad1: u32,
 }
-
-/// The bindings `frame.wgsl`'s entry points use: `deep_shadow.wgsl`'s uniform, head and
-/// elements, then the engine path's own.
-const BINDINGS: &[(u32, Binding)] = &[
-    (0, Binding::Uniform),
-    (3, Binding::StorageRw),
-    (4, Binding::StorageRw),
-    (5, Binding::StorageRw),
-    (8, Binding::Uniform),
-    (9, Binding::Uniform),
-    (10, Binding::Texture2d),
-    (11, Binding::Storage),
-    (12, Binding::StorageRw),
-    (13, Binding::StorageRw),
-    (14, Binding::StorageRw),
-    (15, Binding::Uniform),
-];
 
 /// The list path (semi-transparent casters): the insert pass, `clear`, `process` and `link`,
 /// the element buffer (allocated at the first semi-transparent frame, `capacity` elements) and
@@ -409,15 +389,11 @@ impl DeepShadowFrame {
         let views = settings.sublights * settings.sublights;
         let map =
             GpuShadowMapper::new(&ctx)?.map_frame(&ctx, r, RasterOptions::default(), views)?;
-        let layout = ctx.scoped("deep-shadow frame layout", || {
-            bind_group_layout_at(&ctx, "deep-shadow frame", BINDINGS)
-        })?;
         let overrides: Vec<(&str, f64)> = OVERRIDES.iter().chain(OWN_OVERRIDES).copied().collect();
         let kernel = SpecializedKernel::new(
             &ctx,
             "deep-shadow frame",
             FRAME_SHADER_PARTS,
-            layout,
             "frame_lookup",
             &overrides,
         )?;

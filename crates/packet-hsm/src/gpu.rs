@@ -73,7 +73,7 @@ use shadow_map_core::{
             receiver_ranges_binding, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
             Views,
         },
-        kernel::{bind_group_layout_at, BindGroupCache, Binding, SpecializedKernel},
+        kernel::{BindGroupCache, SpecializedKernel},
         mssm::{GpuDualMssm, GpuMinMaxPass, GpuMssmBuilder, MinMaxRequest},
         GpuContext, GpuDepthMap, GpuLayersFrame, GpuLightSpace, GpuShadowMapper, LayersSlot,
     },
@@ -127,24 +127,6 @@ pub struct HsmFrameUniform {
 pub const FIRST_VIEW: u32 = 1;
 /// [`HsmFrameUniform::flags`]: the frame's last view (V written from the sums).
 pub const LAST_VIEW: u32 = 2;
-
-/// `packet_hsm_frame.wgsl`'s bindings.
-const BINDINGS: [(u32, Binding); 14] = [
-    (0, Binding::Uniform),
-    (1, Binding::Uniform),
-    (2, Binding::Uniform),
-    (3, Binding::Storage),
-    (4, Binding::StorageRw),
-    (5, Binding::StorageRw),
-    (6, Binding::Storage),
-    (7, Binding::StorageRw),
-    (8, Binding::StorageRw),
-    (9, Binding::Texture2d),
-    (10, Binding::Texture2d),
-    (11, Binding::StorageRw),
-    (12, Binding::StorageRw),
-    (13, Binding::StorageRw),
-];
 
 /// Packet-hsm recorded into the caller's frame (module docs).
 pub struct PacketHsmFrame {
@@ -269,14 +251,10 @@ impl PacketHsmFrame {
         }
         let storage = wgpu::BufferUsages::STORAGE;
         let texels = 4 * r as u64 * r as u64;
-        let layout = ctx.scoped("packet-hsm frame layout", || {
-            bind_group_layout_at(&ctx, "packet-hsm frame", &BINDINGS)
-        })?;
         let frame_kernel = SpecializedKernel::new(
             &ctx,
             "packet-hsm frame",
             FRAME_SHADER_PARTS,
-            layout,
             "frame_setup",
             OVERRIDES,
         )?;

@@ -1,5 +1,5 @@
 //! The reference as a [`SoftShadowEstimator`] (`--algo reference`).
-use crate::trace::{visibility_cancellable, TraceOptions};
+use crate::trace::{visibility, TraceOptions};
 use shadow_map_core::{
     estimator::{Report, SoftShadowEstimator},
     Cancel, Configured, ParamSpec, Receivers, Result, Scene, SceneBvh,
@@ -101,7 +101,7 @@ impl SoftShadowEstimator for ReferenceEstimator {
         if let Some(bvh) = self.bvh.as_ref() {
             out = self.report.time("estimate", || {
                 let cancel = &self.cancel;
-                visibility_cancellable(scene, bvh, receivers, &opts, v, progress, cancel)
+                visibility(scene, bvh, receivers, &opts, v, progress, cancel)
             });
         }
         out?;

@@ -26,4 +26,4 @@ pub use oracle::{
     polygon_occluder_disk_visibility, rect_occluder_visibility, sphere_occluder_on_axis_visibility,
     union_area, RectOccluder,
 };
-pub use trace::{receiver_visibility, visibility, visibility_cancellable, TraceOptions};
+pub use trace::{receiver_visibility, visibility, TraceOptions};

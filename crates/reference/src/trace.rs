@@ -111,24 +111,13 @@ impl TraceOptions {
 /// a value in `[0, 1]` for active ones (see the [module documentation](self) for the definition).
 /// Runs in parallel over receivers (rayon). With `progress`, draws a progress bar on standard error
 /// when there are at least [`PROGRESS_MIN_RECEIVERS`] active receivers; never prints otherwise.
+/// Checks `cancel` before every receiver (one relaxed load next to its `s * s` shadow rays) and
+/// returns [`Error::Cancelled`] once it is set, V then incomplete; receivers finished are added
+/// to [`Cancel::progress`] per chunk of 64.
 ///
 /// Errors: `v`, the normals or the activity flags not matching the receiver count
 /// ([`Error::Receivers`]); `samples_per_side` out of range ([`Error::Param`]).
 pub fn visibility(
-    scene: &Scene,
-    bvh: &SceneBvh,
-    receivers: &Receivers,
-    opts: &TraceOptions,
-    v: &mut [f32],
-    progress: bool,
-) -> Result<()> {
-    visibility_cancellable(scene, bvh, receivers, opts, v, progress, &Cancel::new())
-}
-
-/// [`visibility`] that checks `cancel` before every receiver (one relaxed load next to its
-/// `s * s` shadow rays) and returns [`Error::Cancelled`] once it is set, V then incomplete.
-/// Receivers finished are added to [`Cancel::progress`] per chunk of 64.
-pub fn visibility_cancellable(
     scene: &Scene,
     bvh: &SceneBvh,
     receivers: &Receivers,

@@ -7,7 +7,7 @@ use reference::{
     sphere_occluder_on_axis_visibility, visibility, RectOccluder, ReferenceEstimator, TraceOptions,
 };
 use shadow_map_core::{
-    camera::Camera, run, Light, LightFrame, LightShape, Receivers, Scene, SceneBvh,
+    camera::Camera, run, Cancel, Light, LightFrame, LightShape, Receivers, Scene, SceneBvh,
     SoftShadowEstimator,
 };
 
@@ -82,7 +82,7 @@ fn far_triangle() -> Vec<[Vec3; 3]> {
 fn trace(scene: &Scene, receivers: &Receivers, opts: TraceOptions) -> Vec<f32> {
     let bvh = SceneBvh::new(scene);
     let mut v = vec![f32::NAN; receivers.len()];
-    visibility(scene, &bvh, receivers, &opts, &mut v, false).expect("trace");
+    visibility(scene, &bvh, receivers, &opts, &mut v, false, &Cancel::new()).expect("trace");
     v
 }
 
@@ -520,13 +520,22 @@ fn inactive_receivers_get_nan_and_lengths_are_checked() {
     assert_eq!(v[2], 1.0);
     let bvh = SceneBvh::new(&scene);
     let mut short = vec![0.0; 2];
-    assert!(visibility(&scene, &bvh, &r, &spp(16), &mut short, false).is_err());
+    assert!(visibility(
+        &scene,
+        &bvh,
+        &r,
+        &spp(16),
+        &mut short,
+        false,
+        &Cancel::new()
+    )
+    .is_err());
     let bad = TraceOptions {
         samples_per_side: 0,
         seed: 0,
     };
     let mut v = vec![0.0; 3];
-    assert!(visibility(&scene, &bvh, &r, &bad, &mut v, false).is_err());
+    assert!(visibility(&scene, &bvh, &r, &bad, &mut v, false, &Cancel::new()).is_err());
 }
 
 #[test]
@@ -538,8 +547,8 @@ fn camera_receivers_are_finite_in_range_and_deterministic() {
     let opts = spp(64);
     let mut a = vec![0.0; r.len()];
     let mut b = vec![0.0; r.len()];
-    visibility(&scene, &bvh, &r, &opts, &mut a, false).expect("trace");
-    visibility(&scene, &bvh, &r, &opts, &mut b, false).expect("trace");
+    visibility(&scene, &bvh, &r, &opts, &mut a, false, &Cancel::new()).expect("trace");
+    visibility(&scene, &bvh, &r, &opts, &mut b, false, &Cancel::new()).expect("trace");
     for (k, (x, y)) in a.iter().zip(&b).enumerate() {
         assert_eq!(x.to_bits(), y.to_bits(), "slot {k}");
         if r.active()[k] {

@@ -193,7 +193,7 @@ impl FrameEstimator for BackprojectionFrame {
         self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
         inputs.mark(enc, "layers");
         let semi = !inputs.casters.is_opaque();
-        self.km.record(enc, semi);
+        self.km.record(enc, semi, planes);
         inputs.mark(enc, "layout");
         let (eu, mut bpu, table) = uniforms(settings, &self.km, semi, inputs.light);
         bpu.mssm_levels = bpu.mssm_levels.min(planes);

@@ -13,7 +13,6 @@
 //! status, for the caller to redo (the registry's GPU estimator, the core's `FrameTwin`, redoes
 //! them with the CPU twin in the same views).
 use super::{
-    kernel,
     map_estimator::{shader_parts, GpuFilter},
     multi_sample::Kernels as MultiSampleKernels,
 };
@@ -62,12 +61,10 @@ impl<F: GpuFilter> MapFrame<F> {
         let filter = F::from_params(params)?;
         let map = FrameMap::new(&ctx, &settings, 1)?;
         let label = format!("{} frame", F::NAME);
-        let layout = kernel::map_layout(&ctx, &label, settings.depth);
         let kernel = SpecializedKernel::new(
             &ctx,
             &label,
             &shader_parts::<F>(settings.depth),
-            layout,
             "estimate",
             OVERRIDES,
         )?;

@@ -1,13 +1,14 @@
 //! What the baseline kernels add to the core's kernel layer ([`shadow_map_core::gpu::kernel`],
 //! whose shader, pipeline and bind-group constructors are re-exported here): the depth-access
-//! WGSL part per precision and the one bind-group layout they share.
+//! WGSL part per precision. Every baseline kernel binds 0 the light view (uniform), 1 the
+//! [`EstimateUniform`](shadow_map_core::gpu::EstimateUniform) (uniform), 2 the depth map
+//! (`texture_2d<f32>` under `depth=f32`, read-only storage of packed 16-bit codes under
+//! `depth=unorm16`), 3 the receivers, 4 and 5 read-write storage (V bits and counters, or
+//! accumulator and V bits); the layout is read from the WGSL.
 pub use shadow_map_core::gpu::kernel::{
     bind_group, compute_pipeline, shader_module, shader_source,
 };
-use shadow_map_core::{
-    gpu::{kernel, kernel::Binding, GpuContext},
-    DepthPrecision,
-};
+use shadow_map_core::DepthPrecision;
 
 /// WGSL of binding 2 and `fn depth_texel(i, j) -> f32` for an R32Float map (`depth=f32`).
 pub const DEPTH_F32_WGSL: &str = include_str!("depth_f32.wgsl");
@@ -20,32 +21,4 @@ pub const fn depth_wgsl(depth: DepthPrecision) -> &'static str {
         DepthPrecision::F32 => DEPTH_F32_WGSL,
         DepthPrecision::Unorm16 => DEPTH_UNORM16_WGSL,
     }
-}
-
-/// The bind-group layout of every baseline kernel:
-/// 0 light view (uniform), 1 [`EstimateUniform`](shadow_map_core::gpu::EstimateUniform) (uniform),
-/// 2 depth map (`texture_2d<f32>`, R32Float, under `depth=f32`; read-only storage of packed
-/// 16-bit codes under `depth=unorm16`), 3 receivers (read-only storage),
-/// 4 and 5 read-write storage (V bits and counters, or accumulator and V bits).
-pub(crate) fn map_layout(
-    ctx: &GpuContext,
-    label: &str,
-    depth: DepthPrecision,
-) -> wgpu::BindGroupLayout {
-    let map = match depth {
-        DepthPrecision::F32 => Binding::Texture2d,
-        DepthPrecision::Unorm16 => Binding::Storage,
-    };
-    kernel::bind_group_layout(
-        ctx,
-        label,
-        &[
-            Binding::Uniform,
-            Binding::Uniform,
-            map,
-            Binding::Storage,
-            Binding::StorageRw,
-            Binding::StorageRw,
-        ],
-    )
 }

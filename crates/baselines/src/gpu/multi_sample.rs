@@ -34,15 +34,8 @@ pub(crate) struct Kernels {
 impl Kernels {
     pub(crate) fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
         let label = "multi-sample";
-        let layout = kernel::map_layout(ctx, label, depth);
-        let kernel = SpecializedKernel::new(
-            ctx,
-            label,
-            &shader_parts(depth),
-            layout,
-            "accumulate",
-            OVERRIDES,
-        )?;
+        let kernel =
+            SpecializedKernel::new(ctx, label, &shader_parts(depth), "accumulate", OVERRIDES)?;
         Ok(Kernels {
             kernel,
             placeholder: Placeholder::new(ctx, depth)?,

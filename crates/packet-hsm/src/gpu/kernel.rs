@@ -32,7 +32,7 @@ use crate::settings::Config;
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
-        kernel::{bind_group_layout, compute_pipeline, shader_module, BindGroupCache, Binding},
+        kernel::{bind_group_layout_of, compute_pipeline, shader_module, BindGroupCache},
         GpuContext,
     },
     LightView, Result,
@@ -197,12 +197,7 @@ impl Kernel {
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
         const LABEL: &str = "packet-hsm kernel";
         let module = shader_module(&ctx, LABEL, &SHADER_PARTS)?;
-        let layout = ctx.scoped(LABEL, || {
-            let mut bindings = vec![Binding::Uniform];
-            bindings.extend([Binding::Storage; 6]);
-            bindings.extend([Binding::StorageRw; 4]);
-            bind_group_layout(&ctx, LABEL, &bindings)
-        })?;
+        let layout = bind_group_layout_of(&ctx, LABEL, &SHADER_PARTS)?;
         let constants = [("WG", WORKGROUP as f64)];
         let make = |entry: &str| compute_pipeline(&ctx, LABEL, &module, &layout, entry, &constants);
         let (prepare, pixels) = (make("prepare")?, make("pixels")?);

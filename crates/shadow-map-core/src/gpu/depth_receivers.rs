@@ -19,7 +19,7 @@
 //! measures it against the ray-traced G-buffer.
 use super::{
     depth_map::texture_desc,
-    kernel::{Binding, Kernel},
+    kernel::Kernel,
     shared::{ReceiverGpu, SHARED_WGSL},
     GpuContext,
 };
@@ -197,12 +197,6 @@ impl GpuDepthReceivers {
             "depth receivers",
             &[SHARED_WGSL, DEPTH_RECEIVERS_WGSL],
             "depth_receivers",
-            &[
-                Binding::Uniform,
-                Binding::TextureDepth2d,
-                Binding::Texture2d,
-                Binding::StorageRw,
-            ],
             &[],
         )?;
         let uniform = super::kernel::uniform_buffer(

@@ -1,21 +1,21 @@
 //! The compute-kernel layer every method's frame builds on: shader modules assembled from WGSL
-//! parts, bind-group layouts and bind groups from a binding list (binding `k` is entry `k`),
-//! compute pipelines with their override constants, all inside labelled error scopes; uniform
-//! buffers; planes in texture arrays.
+//! parts, bind-group layouts read from the WGSL itself ([`bindings_of`]: what the shader
+//! declares is what the layout holds, so the two cannot disagree), bind groups, compute
+//! pipelines with their override constants, all inside labelled error scopes; uniform buffers;
+//! planes in texture arrays.
 //!
-//! One kernel in three lines:
+//! One kernel in two lines:
 //!
 //! ```no_run
-//! use shadow_map_core::gpu::{kernel::{Binding, Kernel}, GpuContext};
+//! use shadow_map_core::gpu::{kernel::Kernel, GpuContext};
 //! # fn demo(ctx: &GpuContext, wgsl: &str) -> shadow_map_core::Result<()> {
-//! let k = Kernel::new(ctx, "my estimate", &[wgsl], "estimate",
-//!     &[Binding::Uniform, Binding::Storage, Binding::StorageRw], &[("WG", 64.0)])?;
+//! let k = Kernel::new(ctx, "my estimate", &[wgsl], "estimate", &[("WG", 64.0)])?;
 //! # let _ = k; Ok(()) }
 //! ```
 use super::{depth_map::texture_desc, GpuContext};
 use crate::Result;
 
-/// What one binding of a compute kernel is (its number is its position in the list).
+/// What one binding of a compute kernel is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Binding {
     /// `var<uniform>`.
@@ -108,6 +108,75 @@ pub fn wgsl_module(device: &wgpu::Device, label: &str, src: &str) -> wgpu::Shade
     })
 }
 
+/// The group-0 bindings `parts` (joined in order) declare, by binding number: what a compute
+/// kernel's layout holds. Errors: WGSL that does not parse, or a resource kind no kernel here
+/// uses ([`Error::Gpu`](crate::Error::Gpu), named after `label`).
+pub fn bindings_of(label: &str, parts: &[&str]) -> Result<Vec<(u32, Binding)>> {
+    use naga::{AddressSpace, ImageClass, ImageDimension, StorageAccess, TypeInner};
+    const R32: naga::StorageFormat = naga::StorageFormat::R32Float;
+    const WRITE: StorageAccess = StorageAccess::STORE;
+    let err = |reason: String| crate::Error::Gpu {
+        stage: label.to_string(),
+        reason,
+    };
+    let module = naga::front::wgsl::parse_str(&shader_source(parts))
+        .map_err(|e| err(format!("WGSL does not parse: {e}")))?;
+    let mut out = Vec::new();
+    for (_, var) in module.global_variables.iter() {
+        let Some(rb) = var.binding.as_ref().filter(|rb| rb.group == 0) else {
+            continue;
+        };
+        let inner = &module.types[var.ty].inner;
+        let kind = match (var.space, inner) {
+            (AddressSpace::Uniform, _) => Binding::Uniform,
+            (AddressSpace::Storage { access }, _) if access.contains(StorageAccess::STORE) => {
+                Binding::StorageRw
+            }
+            (AddressSpace::Storage { .. }, _) => Binding::Storage,
+            (
+                AddressSpace::Handle,
+                TypeInner::Image {
+                    dim: ImageDimension::D2,
+                    arrayed,
+                    class,
+                },
+            ) => match (class, arrayed) {
+                (ImageClass::Sampled { multi: false, .. }, false) => Binding::Texture2d,
+                (ImageClass::Sampled { multi: false, .. }, true) => Binding::Texture2dArray,
+                (ImageClass::Depth { multi: false }, false) => Binding::TextureDepth2d,
+                (
+                    ImageClass::Storage {
+                        format: R32,
+                        access,
+                    },
+                    arrayed,
+                ) if *access == WRITE => {
+                    if *arrayed {
+                        Binding::StorageTexture2dArrayR32Write
+                    } else {
+                        Binding::StorageTexture2dR32Write
+                    }
+                }
+                _ => return Err(err(format!("binding {}: {class:?}", rb.binding))),
+            },
+            (space, _) => return Err(err(format!("binding {}: {space:?}", rb.binding))),
+        };
+        out.push((rb.binding, kind));
+    }
+    out.sort_by_key(|&(k, _)| k);
+    Ok(out)
+}
+
+/// The bind-group layout of what `parts` declare ([`bindings_of`]).
+pub fn bind_group_layout_of(
+    ctx: &GpuContext,
+    label: &str,
+    parts: &[&str],
+) -> Result<wgpu::BindGroupLayout> {
+    let bindings = bindings_of(label, parts)?;
+    ctx.scoped(label, || bind_group_layout_at(ctx, label, &bindings))
+}
+
 /// The bind-group layout of `bindings` (binding `k` is `bindings[k]`).
 pub fn bind_group_layout(
     ctx: &GpuContext,
@@ -176,20 +245,22 @@ pub struct Kernel {
 }
 
 impl Kernel {
-    /// Compiles `parts` (joined in order) and makes the pipeline of `entry` over `bindings`,
-    /// with the override `constants` set; errors are typed and named after `label`.
+    /// Compiles `parts` (joined in order) and makes the pipeline of `entry` over the bindings
+    /// they declare ([`bindings_of`]), with the override `constants` set; errors are typed and
+    /// named after `label`.
     pub fn new(
         ctx: &GpuContext,
         label: &str,
         parts: &[&str],
         entry: &str,
-        bindings: &[Binding],
         constants: &[(&str, f64)],
     ) -> Result<Self> {
-        let module = shader_module(ctx, label, parts)?;
-        let layout = ctx.scoped(label, || bind_group_layout(ctx, label, bindings))?;
-        let pipeline = compute_pipeline(ctx, label, &module, &layout, entry, constants)?;
-        Ok(Kernel { layout, pipeline })
+        let k = SpecializedKernel::new(ctx, label, parts, entry, constants)?;
+        let pipeline = k.pipeline(ctx, &[])?;
+        Ok(Kernel {
+            layout: k.layout,
+            pipeline,
+        })
     }
 
     /// A bind group of this kernel's layout: `resources[k]` at binding `k`.
@@ -224,19 +295,19 @@ pub struct SpecializedKernel {
 type PipelineKey = (String, Vec<(String, u64)>);
 
 impl SpecializedKernel {
-    /// Compiles `parts` (joined in order) for bind groups of `layout` (for example
-    /// [`bind_group_layout`] of a binding list); the pipelines of `entry` (and of the module's
-    /// other entry points), with the override `constants` set, come from
-    /// [`pipeline`](Self::pipeline) and [`entry_pipeline`](Self::entry_pipeline).
+    /// Compiles `parts` (joined in order) for bind groups of the bindings they declare
+    /// ([`bindings_of`]); the pipelines of `entry` (and of the module's other entry points),
+    /// with the override `constants` set, come from [`pipeline`](Self::pipeline) and
+    /// [`entry_pipeline`](Self::entry_pipeline).
     pub fn new(
         ctx: &GpuContext,
         label: &str,
         parts: &[&str],
-        layout: wgpu::BindGroupLayout,
         entry: &str,
         constants: &[(&str, f64)],
     ) -> Result<Self> {
         let module = shader_module(ctx, label, parts)?;
+        let layout = bind_group_layout_of(ctx, label, parts)?;
         Ok(SpecializedKernel {
             layout,
             label: label.to_string(),

@@ -7,7 +7,7 @@
 //! frame on the engine path.
 use super::{
     depth_map::GpuDepthMap,
-    kernel::{plane_array, upload_planes, Binding, Kernel, PlaneArray},
+    kernel::{plane_array, upload_planes, Kernel, PlaneArray},
     mssm::GpuMssm,
     GpuContext,
 };
@@ -67,11 +67,6 @@ impl GpuLayout {
             "layout plane copy",
             &[PLANE_TO_LAYER_WGSL],
             "copy_plane",
-            &[
-                Binding::Uniform,
-                Binding::Storage,
-                Binding::StorageTexture2dArrayR32Write,
-            ],
             &[],
         )?;
         Ok(GpuLayout { copy })
@@ -168,8 +163,10 @@ impl GpuLayout {
 
 impl KernelMaps {
     /// Records the copies into `enc`: every plane, the opacity planes only when `opacity`
-    /// (semi-transparent casters; an opaque frame's kernel does not read them).
-    pub fn record(&self, enc: &mut wgpu::CommandEncoder, opacity: bool) {
+    /// (semi-transparent casters; an opaque frame's kernel does not read them), and the first
+    /// `mssm_planes` MSSM levels (those the frame built: each copy is a pass over the level, and
+    /// the kernel is told how many levels it may read).
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder, opacity: bool, mssm_planes: u32) {
         let skip = if opacity { 0 } else { self.opacity as usize };
         for (i, tex) in self.planes[..self.planes.len() - skip].iter().enumerate() {
             enc.copy_texture_to_texture(
@@ -200,7 +197,7 @@ impl KernelMaps {
         });
         pass.set_pipeline(&self.pipeline);
         let g = self.mssm.size.div_ceil(16);
-        for group in &self.groups {
+        for group in self.groups.iter().take(mssm_planes as usize) {
             pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(g, g, 1);
         }

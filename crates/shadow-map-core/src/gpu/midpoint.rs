@@ -4,7 +4,7 @@
 //! the same f32 order, so results are bit-identical for identical layers.
 use super::{
     depth_map::GpuDepthMap,
-    kernel::{buffer_init, Binding, Kernel},
+    kernel::{buffer_init, Kernel},
     GpuContext,
 };
 use crate::Result;
@@ -46,12 +46,6 @@ impl GpuMidpoints {
             "midpoint",
             &[MIDPOINT_WGSL],
             "midpoint_layer",
-            &[
-                Binding::Uniform,
-                Binding::Texture2d,
-                Binding::Texture2d,
-                Binding::StorageTexture2dR32Write,
-            ],
             &[("WG_X", wg), ("WG_Y", wg)],
         )?;
         Ok(GpuMidpoints { layout, pipeline })

@@ -8,7 +8,7 @@
 //! ```
 use super::{
     depth_map::{upload_len_error, GpuDepthMap},
-    kernel::{buffer_init, uniform_buffer, Binding, Kernel},
+    kernel::{buffer_init, uniform_buffer, Kernel},
     GpuContext,
 };
 use crate::{
@@ -140,7 +140,6 @@ impl GpuUnorm16Encoder {
             "unorm16 encode",
             &[PRECISION_WGSL],
             "encode_unorm16",
-            &[Binding::Uniform, Binding::Texture2d, Binding::StorageRw],
             &[("WG", ENCODE_WORKGROUP as f64)],
         )?;
         Ok(GpuUnorm16Encoder { kernel })

@@ -121,7 +121,7 @@ fn status_readback_takes_the_copied_words_without_waiting() {
 fn a_specialized_kernel_compiles_each_combination_once() {
     use shadow_map_core::gpu::{
         frame::compute_pass,
-        kernel::{bind_group_layout, storage_buffer, Binding, SpecializedKernel},
+        kernel::{storage_buffer, SpecializedKernel},
     };
     let Some(ctx) =
         context_for_tests("a_specialized_kernel_compiles_each_combination_once").unwrap()
@@ -131,8 +131,7 @@ fn a_specialized_kernel_compiles_each_combination_once() {
     let wgsl = "override FLAG: bool = false;\noverride SCALE: u32 = 1u;\n\
         @group(0) @binding(0) var<storage, read_write> out: array<u32>;\n\
         @compute @workgroup_size(1) fn main() { if FLAG { out[0] = 7u * SCALE; } else { out[0] = 3u * SCALE; } }";
-    let layout = bind_group_layout(&ctx, "switches", &[Binding::StorageRw]);
-    let k = SpecializedKernel::new(&ctx, "switches", &[wgsl], layout, "main", &[]).unwrap();
+    let k = SpecializedKernel::new(&ctx, "switches", &[wgsl], "main", &[]).unwrap();
     assert_eq!(k.compiled(), 0, "nothing compiled before the first use");
     let buf = storage_buffer(&ctx, "out", 4);
     let group = shadow_map_core::gpu::kernel::bind_group(
@@ -156,4 +155,39 @@ fn a_specialized_kernel_compiles_each_combination_once() {
         2,
         "the repeated combination is the kept pipeline"
     );
+}
+
+/// A kernel's layout is what its WGSL declares in group 0, by binding number, whatever the order
+/// of the declarations; a resource kind no kernel uses is a typed error naming the kernel.
+#[test]
+fn a_kernel_layout_is_read_from_its_wgsl() {
+    use shadow_map_core::gpu::kernel::{bindings_of, Binding};
+    let head =
+        "struct U { a: u32 }\n@group(0) @binding(3) var<storage, read_write> rw: array<u32>;\n";
+    let rest = "@group(0) @binding(0) var<uniform> u: U;\n\
+        @group(0) @binding(1) var<storage, read> ro: array<f32>;\n\
+        @group(0) @binding(2) var tex: texture_2d<f32>;\n\
+        @group(0) @binding(5) var arr: texture_2d_array<f32>;\n\
+        @group(0) @binding(6) var dep: texture_depth_2d;\n\
+        @group(0) @binding(7) var out: texture_storage_2d<r32float, write>;\n\
+        @group(0) @binding(8) var outs: texture_storage_2d_array<r32float, write>;\n\
+        @group(1) @binding(0) var<uniform> other: U;\n";
+    let got = bindings_of("layout", &[head, rest]).unwrap();
+    assert_eq!(
+        got,
+        [
+            (0, Binding::Uniform),
+            (1, Binding::Storage),
+            (2, Binding::Texture2d),
+            (3, Binding::StorageRw),
+            (5, Binding::Texture2dArray),
+            (6, Binding::TextureDepth2d),
+            (7, Binding::StorageTexture2dR32Write),
+            (8, Binding::StorageTexture2dArrayR32Write),
+        ]
+    );
+    let e = bindings_of("odd", &["@group(0) @binding(0) var s: sampler;\n"]).unwrap_err();
+    assert!(e.to_string().contains("odd"), "{e}");
+    let e = bindings_of("broken", &["@group(0) @binding(0) var<uniform> u: Nope;"]).unwrap_err();
+    assert!(e.to_string().contains("broken"), "{e}");
 }
