@@ -535,6 +535,7 @@ impl PacketHsmFrame {
             ..hsm_uniform(&shape, cfg)
         };
         let rounds = shape.rounds(cfg.hierarchy, hu.walk_budget);
+        let (prepare_pipe, pixels_pipe) = self.kernel.pipelines(&hu)?;
         ctx.write_in(enc, &self.hsm, 0, bytemuck::bytes_of(&hu));
         let mut eu = EstimateUniform::new(inputs.light, cfg.shadow.bias, cfg.shadow.slope_bias);
         if let LightShape::Rect { .. } = inputs.light.shape {
@@ -583,18 +584,12 @@ impl PacketHsmFrame {
             enc.clear_buffer(&self.queues[0], 0, Some(4 * QUEUE_HEADER));
             let wg = workgroups(n);
             compute_pass(enc, "packet-hsm frame set-up", &setup_pipe, group, wg);
-            compute_pass(
-                enc,
-                "packet-hsm prepare",
-                &self.kernel.prepare,
-                &kernel[1],
-                wg,
-            );
+            compute_pass(enc, "packet-hsm prepare", &prepare_pipe, &kernel[1], wg);
             for round in 0..rounds {
                 let from = round as usize % 2;
                 enc.clear_buffer(&self.queues[1 - from], 0, Some(4 * QUEUE_HEADER));
                 enc.copy_buffer_to_buffer(&self.queues[from], QUEUE_ARGS_OFFSET, &self.args, 0, 12);
-                let (pixels, group) = (&self.kernel.pixels, &kernel[from]);
+                let (pixels, group) = (&pixels_pipe, &kernel[from]);
                 compute_pass_indirect(enc, "packet-hsm pixels", pixels, group, &self.args);
             }
             compute_pass(enc, "packet-hsm frame finish", &finish_pipe, group, wg);

@@ -15,6 +15,13 @@
 // Mirrors kernel.rs HsmUniform field for field.
 // Threads per workgroup, set from Rust (kernel::WORKGROUP) as a pipeline override.
 override WG: u32;
+// The view's switches, `HsmUniform`'s fields of the same names passed as pipeline overrides
+// (kernel::switches): a lane-predicated device then runs no branch a view does not take.
+override HSM_SHAPE: u32 = 0u;
+override HSM_ORTHO: bool = false;
+override HSM_PLANE: bool = false;
+override HSM_CLASS_IS_DEPTH: bool = false;
+override HSM_HIERARCHY: bool = true;
 
 struct HsmUniform {
     r: u32,
@@ -199,7 +206,7 @@ fn dual_query(cr: vec4<i32>) -> vec2<f32> {
 // cpu.rs kernel_light: the light size of the kernel (a sphere's from its silhouette's clip
 // rectangle).
 fn kernel_light(rec: RecIn) -> vec2<f32> {
-    if u.shape == SHAPE_SPHERE {
+    if HSM_SHAPE == SHAPE_SPHERE {
         let c = rec.sil_clip;
         return 2.0 * vec2<f32>(max(abs(c.x), abs(c.z)), max(abs(c.y), abs(c.w)));
     }
@@ -244,7 +251,7 @@ fn kernel_cells(rec: RecIn, valid: ptr<function, bool>) -> vec4<i32> {
 
 // LightView::kernel_texels: Yang eq. 1, or for the sun l (z_p - z_m) / delta.
 fn kernel_texels(l: f32, zm: f32, zp: f32) -> f32 {
-    if u.ortho == 0u {
+    if !HSM_ORTHO {
         return kernel_width(u.alpha, l, zm, zp);
     }
     if !(zm < zp) {
@@ -287,7 +294,7 @@ fn occludes(rec: RecIn, i: i32, j: i32, s: vec2<f32>) -> bool {
     if !(s.y < rec.t) {
         return false;
     }
-    if u.receiver_plane == 0u {
+    if !HSM_PLANE {
         return true;
     }
     let gc = plane_gc(rec, vec2<f32>(f32(i) + 0.5, f32(j) + 0.5));
@@ -298,7 +305,7 @@ fn occludes(rec: RecIn, i: i32, j: i32, s: vec2<f32>) -> bool {
 // cv v) in an orthographic view (packet_hsm_frame.wgsl's set-up packs cu, cv where gu, gv go).
 fn plane_gc(rec: RecIn, uv: vec2<f32>) -> vec2<f32> {
     let lin = rec.gu * uv.x + rec.gv * uv.y;
-    if u.ortho != 0u {
+    if HSM_ORTHO {
         return vec2<f32>(rec.g0, rec.c + lin);
     }
     return vec2<f32>(rec.g0 + lin, rec.c);
@@ -341,7 +348,7 @@ fn widen(r: vec2<f32>) -> vec2<f32> {
 // contour::true_min: the smallest true depth over samples [s.x, s.z] x [s.y, s.w] (inclusive),
 // class_min when the classification depths are the true depths, else from the true-depth MSSM.
 fn true_min(class_min: f32, s: vec4<i32>) -> f32 {
-    if u.class_is_depth != 0u {
+    if HSM_CLASS_IS_DEPTH {
         return class_min;
     }
     return mssm_query_min(s.x, s.y, s.z + 1, s.w + 1);
@@ -353,7 +360,7 @@ fn true_min(class_min: f32, s: vec4<i32>) -> f32 {
 // the bound may be lower than true_min: a node is pruned less often, never wrongly, and the
 // cells that are then visited have no contour and add nothing).
 fn node_true_min(class_min: f32, s: vec4<i32>, l: u32) -> f32 {
-    if u.class_is_depth != 0u {
+    if HSM_CLASS_IS_DEPTH {
         return class_min;
     }
     if l >= u.mssm_levels {
@@ -510,7 +517,7 @@ fn backproject(p: vec2<f32>, zs: f32, q: vec2<f32>, zp: f32) -> vec2<f32> {
     let gap = max(max(zp - zs, 1e-7 * zp), F32_MIN_POSITIVE);
     // contour::backproject; the sun: onto its disk of directions, k / (z_p - z_s).
     var s = u.k * zs * (zp / gap);
-    if u.ortho != 0u {
+    if HSM_ORTHO {
         s = u.k / gap;
     }
     return (p - q) * s;
@@ -674,10 +681,10 @@ fn sphere_edge_term(a: vec2<f32>, b: vec2<f32>, rec: RecIn) -> f32 {
 fn edge_area(e: Edge, q: vec2<f32>, rec: RecIn) -> f32 {
     let a = backproject(e.a, e.za, q, rec.zp);
     let b = backproject(e.b, e.zb, q, rec.zp);
-    if u.shape == SHAPE_DISK {
+    if HSM_SHAPE == SHAPE_DISK {
         return disk_edge_term(a, b, u.hx);
     }
-    if u.shape == SHAPE_SPHERE {
+    if HSM_SHAPE == SHAPE_SPHERE {
         return sphere_edge_term(a, b, rec);
     }
     let c = clip_rect(a, b, vec2<f32>(u.hx, u.hy));

@@ -22,7 +22,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     // cpu.rs trivial: fully lit, fully occluded.
     var lit = !(mm.x < rec.t);
     var umbra = !lit && mm.y < rec.t;
-    if valid && !lit && u.receiver_plane != 0u {
+    if valid && !lit && HSM_PLANE {
         let th = widen(threshold_range(rec, cr));
         lit = true_min(mm.x, cr) >= th.y;
         umbra = !lit && mm.y < rec.t && mm.y < th.x;
@@ -105,7 +105,7 @@ fn walk_top(cr: vec4<i32>) -> u32 {
 // hx = R).
 fn finish(sum: f32, centre: u32) -> f32 {
     var al = 4.0 * u.hx * u.hy;
-    if u.shape != SHAPE_RECT {
+    if HSM_SHAPE != SHAPE_RECT {
         al = PI * u.hx * u.hx;
     }
     var a = sum;
@@ -143,7 +143,7 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
     // and the level l (walk.z) of the next node.
     var w = p.walk;
     var live = true;
-    if u.hierarchy == 0u {
+    if !HSM_HIERARCHY {
         let wc = max(cr.z - cr.x, 1);
         let total = u32(max(cr.z - cr.x, 0) * max(cr.w - cr.y, 0));
         var kk = w.x;
@@ -192,7 +192,7 @@ fn pixels(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let mm = node(nd);
                 // Fig. 6 cases 4 and 5: no contour below this node.
                 var pruned = mm.y < rec.t || !(mm.x < rec.t);
-                if u.receiver_plane != 0u {
+                if HSM_PLANE {
                     let span = i32(1u << l);
                     let ns = vec4<i32>(nd.x - 1, nd.y - 1, nd.x - 1 + span, nd.y - 1 + span);
                     let lo = node_true_min(mm.x, ns, l);

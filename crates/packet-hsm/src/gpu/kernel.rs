@@ -32,7 +32,7 @@ use crate::settings::Config;
 use bytemuck::{Pod, Zeroable};
 use shadow_map_core::{
     gpu::{
-        kernel::{bind_group_layout_of, compute_pipeline, shader_module, BindGroupCache},
+        kernel::{BindGroupCache, SpecializedKernel},
         GpuContext,
     },
     LightView, Result,
@@ -182,12 +182,11 @@ pub(crate) const WORKGROUP: u32 = 64;
 /// the rounds, is left NaN and counted as cut (status word 2), never returned as V.
 pub const LOOP_LIMIT: &str = "llvmpipe: 65535 loop iterations per invocation";
 
-/// The kernel's bind group layout and its two pipelines, compiled once.
+/// The kernel's module, its `prepare` and `pixels` pipelines specialised per view
+/// ([`switches`]) and compiled at their first use, and its bind groups.
 pub(crate) struct Kernel {
     pub ctx: Arc<GpuContext>,
-    pub layout: wgpu::BindGroupLayout,
-    pub prepare: wgpu::ComputePipeline,
-    pub pixels: wgpu::ComputePipeline,
+    pub kernel: SpecializedKernel,
     /// The bind groups [`group`](Self::group) made, kept while their buffers stay the same.
     pub groups: BindGroupCache,
 }
@@ -195,19 +194,31 @@ pub(crate) struct Kernel {
 impl Kernel {
     /// Compiles [`SHADER_PARTS`] on `ctx`'s device.
     pub fn new(ctx: Arc<GpuContext>) -> Result<Self> {
-        const LABEL: &str = "packet-hsm kernel";
-        let module = shader_module(&ctx, LABEL, &SHADER_PARTS)?;
-        let layout = bind_group_layout_of(&ctx, LABEL, &SHADER_PARTS)?;
         let constants = [("WG", WORKGROUP as f64)];
-        let make = |entry: &str| compute_pipeline(&ctx, LABEL, &module, &layout, entry, &constants);
-        let (prepare, pixels) = (make("prepare")?, make("pixels")?);
+        let kernel = SpecializedKernel::new(
+            &ctx,
+            "packet-hsm kernel",
+            &SHADER_PARTS,
+            "prepare",
+            &constants,
+        )?;
         Ok(Kernel {
             ctx,
-            layout,
-            prepare,
-            pixels,
+            kernel,
             groups: BindGroupCache::default(),
         })
+    }
+
+    /// The `prepare` and `pixels` pipelines of a view whose uniform is `u`.
+    pub fn pipelines(
+        &self,
+        u: &HsmUniform,
+    ) -> Result<(wgpu::ComputePipeline, wgpu::ComputePipeline)> {
+        let s = switches(u);
+        Ok((
+            self.kernel.entry_pipeline(&self.ctx, "prepare", &s)?,
+            self.kernel.entry_pipeline(&self.ctx, "pixels", &s)?,
+        ))
     }
 
     /// A bind group over `bufs`, bound in order from 0: the uniform, depth, classification,
@@ -224,8 +235,12 @@ impl Kernel {
                 resource,
             })
             .collect();
-        self.groups
-            .get(&self.ctx, "packet-hsm kernel", &self.layout, &entries)
+        self.groups.get(
+            &self.ctx,
+            "packet-hsm kernel",
+            &self.kernel.layout,
+            &entries,
+        )
     }
 }
 
@@ -258,6 +273,19 @@ impl SubLightShape {
             .div_ceil(budget.max(1) as u64)
             .clamp(1, MAX_ROUNDS as u64) as u32
     }
+}
+
+/// The view's switches the kernel takes as pipeline overrides (`HSM_*` in `packet_hsm.wgsl`):
+/// `u`'s light shape, projection, receiver plane, classification and hierarchy. The uniform
+/// keeps the same fields.
+pub(crate) fn switches(u: &HsmUniform) -> [(&'static str, f64); 5] {
+    [
+        ("HSM_SHAPE", u.shape as f64),
+        ("HSM_ORTHO", u.ortho as f64),
+        ("HSM_PLANE", u.receiver_plane as f64),
+        ("HSM_CLASS_IS_DEPTH", u.class_is_depth as f64),
+        ("HSM_HIERARCHY", u.hierarchy as f64),
+    ]
 }
 
 /// The kernel's uniform for the view `sv`.
