@@ -14,6 +14,12 @@
 
 // Set from Rust as a pipeline override (math::EDSM_CUTOFF; NIL and Node come from node.wgsl).
 override EDSM_CUTOFF: f32;
+// The lookup's switches, `DsUniform`'s fields of the same names passed as pipeline overrides
+// to `frame_lookup` (gpu::lookup_switches): a lane-predicated device then runs no filter, walk
+// or light shape the view does not use. The per-texel passes read none of them.
+override DS_FILTER: u32 = 4u;
+override DS_TRAVERSAL: u32 = 0u;
+override DS_DISK: bool = false;
 const SORT_LOCAL: u32 = 64u;
 const FILTER_FIRST: u32 = 0u;
 const FILTER_NONE: u32 = 1u;
@@ -335,7 +341,7 @@ fn region_sums(q0: vec4<f32>, q1: vec4<f32>, opaque: bool, width: vec2<f32>, sea
                 }
             } else {
                 var edge = 1.0;
-                if (P.disk != 0u && width.x > 1.0) {
+                if (DS_DISK && width.x > 1.0) {
                     let rad = 0.5 * width.x;
                     let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - uv;
                     edge = clamp(rad + 0.5 - sqrt(c.x * c.x + c.y * c.y), 0.0, 1.0);
@@ -378,7 +384,7 @@ fn first_tap(uv: vec2<f32>, n: i32) -> vec2<i32> {
 }
 
 fn kernel_side() -> i32 {
-    if (P.filter_mode == FILTER_PCF || P.filter_mode == FILTER_EDSM) { return i32(max(P.kernel, 1u)); }
+    if (DS_FILTER == FILTER_PCF || DS_FILTER == FILTER_EDSM) { return i32(max(P.kernel, 1u)); }
     return 1;
 }
 
@@ -386,7 +392,7 @@ fn kernel_side() -> i32 {
 // DeepShadowMap::transmittance_plane; its list steps added to counters.steps.
 fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
     if (q.w >= 0.0) { return q.w; }
-    if (P.filter_mode == FILTER_PCSS) {
+    if (DS_FILTER == FILTER_PCSS) {
         let tt = soft_transmittance(q, q1, false);
         atomicAdd(&counters.steps, tt.steps);
         return -q.w * tt.t;
@@ -415,13 +421,13 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
                 if (a == 0) { row_anchor = NIL; }
                 continue;
             }
-            if (P.filter_mode == FILTER_FIRST) {
+            if (DS_FILTER == FILTER_FIRST) {
                 steps++;
                 if (!q_caster(q, q1, i, j, nodes[hd].depth)) { sum += 1.0; }
                 continue;
             }
             var start = hd;
-            if (P.traversal == 0u) {
+            if (DS_TRAVERSAL == 0u) {
                 var src = anchor;
                 if (a == 0) { src = row_anchor; }
                 if (src != NIL) {
@@ -432,7 +438,7 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
             }
             var f: vec2<u32>;
             var d = 0.0;
-            if (P.filter_mode == FILTER_EDSM) {
+            if (DS_FILTER == FILTER_EDSM) {
                 d = q_threshold(q, q1, i, j);
                 f = find(start, d);
             } else {
@@ -440,7 +446,7 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
             }
             let k = f.x;
             steps += f.y;
-            if (P.filter_mode == FILTER_EDSM) {
+            if (DS_FILTER == FILTER_EDSM) {
                 sum += soft_tau(k, d);
             } else if (k != NIL) {
                 sum += nodes[k].tau;
@@ -460,7 +466,7 @@ fn list_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
 // math::transmittance_opaque_plane: head[] holds the nearest depth's bits (NIL: empty), no lists.
 fn opaque_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
     if (q.w >= 0.0) { return q.w; }
-    if (P.filter_mode == FILTER_PCSS) {
+    if (DS_FILTER == FILTER_PCSS) {
         return -q.w * soft_transmittance(q, q1, true).t;
     }
     let r = i32(P.r);
@@ -478,7 +484,7 @@ fn opaque_transmittance(q: vec4<f32>, q1: vec4<f32>) -> f32 {
                     let z = bitcast<f32>(bits);
                     if (q_caster(q, q1, i, j, z)) {
                         lit = 0.0;
-                        if (P.filter_mode == FILTER_EDSM) {
+                        if (DS_FILTER == FILTER_EDSM) {
                             let t = max((q_threshold(q, q1, i, j) - z) * P.c_world, 0.0);
                             if (t < EDSM_CUTOFF) { lit = exp(-t); }
                         }

@@ -79,6 +79,9 @@ fn frame_query(pw: vec3<f32>, nw: vec3<f32>) -> array<vec4<f32>, 2> {
     return q;
 }
 
+// Whether the frame's casters are in lists (`F.lists`, a pipeline override of `frame_lookup`).
+override DS_LISTS: bool = false;
+
 // One receiver per invocation: its transmittance in this view, added into acc.
 @compute @workgroup_size(WG)
 fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
@@ -89,7 +92,7 @@ fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
     if (bitcast<u32>(acc[k]) == CUT_BITS) { return; }
     let q = frame_query(receivers[k].position, receivers[k].normal);
     var t: f32;
-    if (F.lists != 0u) {
+    if (DS_LISTS) {
         // Lists short of fragments (the element buffer full, the counter wrapped) or left
         // unsorted (process or link cut by the loop budget): V left NaN and counted, for the
         // caller to redo.

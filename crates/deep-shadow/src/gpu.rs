@@ -71,7 +71,9 @@ mod kernel;
 #[cfg(test)]
 mod tests;
 
-use kernel::{capacity_cap, initial_capacity, lookup_uniform, workgroups, OWN_OVERRIDES};
+use kernel::{
+    capacity_cap, initial_capacity, lookup_switches, lookup_uniform, workgroups, OWN_OVERRIDES,
+};
 pub use kernel::{DsUniform, COUNTER_BYTES, DEEP_SHADOW_WGSL, NODE_WGSL};
 
 /// Every shader module of the crate as `(name, parts)` (validated with naga by a unit test).
@@ -611,7 +613,6 @@ impl FrameEstimator for DeepShadowFrame {
             return Ok(());
         }
         let shape = [EstimateUniform::new(light, s.bias, s.slope_bias).shape_switch()];
-        let lookup_pipe = self.kernel.entry_pipeline(ctx, "frame_lookup", &shape)?;
         let finish_pipe = self.kernel.entry_pipeline(ctx, "frame_finish", &shape)?;
         let texels = self.map.r as u64 * self.map.r as u64;
         // The per-receiver passes run once per range of receivers (its own bind group); the
@@ -645,6 +646,11 @@ impl FrameEstimator for DeepShadowFrame {
                 u.trunc_window = truncation_window(view, s);
             }
             ctx.write_in(enc, &bufs.ds, 0, bytemuck::bytes_of(&u));
+            let lookup_pipe = self.kernel.entry_pipeline(
+                ctx,
+                "frame_lookup",
+                &lookup_switches(&u, lists, shape[0]),
+            )?;
             let vl = view_light(light, view, s.sublights);
             ctx.write_in(
                 enc,

@@ -90,6 +90,23 @@ pub(crate) fn initial_capacity(s: &Settings, texels: u64, max_cap: u64) -> u64 {
     .max(1)
 }
 
+/// `frame_lookup`'s switches for a view whose uniform is `u` (`DS_*` in `deep_shadow.wgsl` and
+/// `frame.wgsl`): the filter, the list walk, a disk light, whether the casters are in lists,
+/// beside the light's `shape` switch. The uniform keeps the same fields.
+pub(crate) fn lookup_switches(
+    u: &DsUniform,
+    lists: bool,
+    shape: (&'static str, f64),
+) -> [(&'static str, f64); 5] {
+    [
+        ("DS_FILTER", u.filter_mode as f64),
+        ("DS_TRAVERSAL", u.traversal as f64),
+        ("DS_DISK", u.disk as f64),
+        ("DS_LISTS", f64::from(u8::from(lists))),
+        shape,
+    ]
+}
+
 /// The uniform of the lookups in an `r x r` map with element capacity `capacity` under `ls`
 /// (what `process` reads besides, the truncation, the caller sets).
 pub(crate) fn lookup_uniform(r: u32, capacity: u32, ls: &LookupSettings) -> DsUniform {
