@@ -57,6 +57,8 @@ pub struct KernelMaps {
     planes: Vec<wgpu::Texture>,
     pipeline: wgpu::ComputePipeline,
     groups: Vec<wgpu::BindGroup>,
+    /// The MSSM's level planes, copied by transfer when their rows are aligned for it.
+    level_planes: Vec<wgpu::Buffer>,
 }
 
 impl GpuLayout {
@@ -157,6 +159,7 @@ impl GpuLayout {
             planes,
             pipeline: self.copy.pipeline.clone(),
             groups,
+            level_planes: levels.iter().map(|l| l.min.clone()).collect(),
         })
     }
 }
@@ -189,6 +192,45 @@ impl KernelMaps {
             );
         }
         if self.groups.is_empty() {
+            return;
+        }
+        // A level whose rows are a multiple of COPY_BYTES_PER_ROW_ALIGNMENT (sides that are
+        // multiples of 64) is copied by transfer, a memory copy on every device; others by the
+        // compute pass (the WGSL's `copy_plane`).
+        let row = 4 * self.mssm.size;
+        if row.is_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) {
+            for (l, plane) in self
+                .level_planes
+                .iter()
+                .take(mssm_planes as usize)
+                .enumerate()
+            {
+                enc.copy_buffer_to_texture(
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: plane,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(row),
+                            rows_per_image: Some(self.mssm.size),
+                        },
+                    },
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.mssm.texture,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: l as u32,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: self.mssm.size,
+                        height: self.mssm.size,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
             return;
         }
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {

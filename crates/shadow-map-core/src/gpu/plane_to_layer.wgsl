@@ -1,7 +1,8 @@
 // Copies one row-major `size x size` f32 plane (an MSSM level in a storage buffer, as
 // `shadow_map_core::gpu::mssm` builds it) into layer `layer` of an R32Float texture array, the
-// layout `backprojection.wgsl` reads. A compute pass rather than `copy_buffer_to_texture`, whose
-// rows must be 256-byte aligned (sides that are multiples of 64 only).
+// layout `backprojection.wgsl` reads: for sides that are not multiples of 64, whose rows
+// `copy_buffer_to_texture` cannot copy (they must be 256-byte aligned; KernelMaps::record copies
+// the others by transfer).
 struct PlaneCopy {
     size: u32,
     layer: u32,
