@@ -373,9 +373,7 @@ impl FrameEstimator for AccumulationFrame {
         // receivers, which the frame does not see: it keeps every level prepared.
         let planes = match (&inputs.light.shape, s.sphere) {
             (LightShape::Sphere { .. }, SphereModel::Contract) => u32::MAX,
-            _ => crate::cpu::request(s, view, inputs.light.half_extent())
-                .mssm_levels
-                .map_or(u32::MAX, |l| l + 1),
+            _ => crate::cpu::request(s, view, inputs.light.half_extent()).mssm_planes(),
         };
         let slot = LayersSlot {
             view,

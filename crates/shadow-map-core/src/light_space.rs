@@ -61,6 +61,13 @@ pub fn check_host_bytes(what: &'static str, bytes: u64) -> Result<()> {
 }
 
 impl LightSpaceRequest {
+    /// The anchored MSSM's planes this request builds (its levels 0 to `mssm_levels`), as a
+    /// frame's `LayersSlot::mssm_levels` and `KernelMaps::record` take them; `u32::MAX`, every
+    /// level prepared, when it asks for no MSSM.
+    pub fn mssm_planes(&self) -> u32 {
+        self.mssm_levels.map_or(u32::MAX, |l| l + 1)
+    }
+
     /// Host bytes a build of this request at side `r` holds at its peak, from above: every
     /// peeled layer (the midpoints' extra one included), one opacity plane per layer when asked
     /// for, the midpoint layers, the anchored MSSM's levels, the dual-grid MSSM's two planes per

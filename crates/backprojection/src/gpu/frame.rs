@@ -180,9 +180,7 @@ impl FrameEstimator for BackprojectionFrame {
         inputs.mark(enc, "start");
         // The MSSM levels the widest kernel of this view needs (crate::cpu::request's rule): the
         // levels above only speed up queries no kernel makes, and each costs a pass over r^2.
-        let planes = crate::cpu::request(settings, view, inputs.light.half_extent())
-            .mssm_levels
-            .map_or(u32::MAX, |l| l + 1);
+        let planes = crate::cpu::request(settings, view, inputs.light.half_extent()).mssm_planes();
         let slot = LayersSlot {
             view,
             max_bias: clamp,

@@ -55,10 +55,19 @@ pub struct KernelMaps {
     pub mssm_levels: Option<u32>,
     r: u32,
     planes: Vec<wgpu::Texture>,
-    pipeline: wgpu::ComputePipeline,
-    groups: Vec<wgpu::BindGroup>,
-    /// The MSSM's level planes, copied by transfer when their rows are aligned for it.
-    level_planes: Vec<wgpu::Buffer>,
+    mssm_copy: MssmCopy,
+}
+
+/// How the MSSM's level planes reach [`KernelMaps::mssm`], chosen at `prepare`.
+#[derive(Debug)]
+enum MssmCopy {
+    /// No MSSM.
+    None,
+    /// Rows 256-byte aligned (sides that are multiples of 64): `copy_buffer_to_texture` of each
+    /// level's plane, a memory copy on every device.
+    Transfer(Vec<wgpu::Buffer>),
+    /// Other sides: `plane_to_layer.wgsl`'s compute copy, one bind group a level.
+    Compute(wgpu::ComputePipeline, Vec<wgpu::BindGroup>),
 }
 
 impl GpuLayout {
@@ -118,36 +127,44 @@ impl GpuLayout {
             }
             _ => upload_planes(ctx, &mssm_label, 1, &[&[f32::INFINITY]])?,
         };
-        let groups = ctx.scoped("layout", || {
-            levels
-                .iter()
-                .enumerate()
-                .map(|(l, level)| {
-                    let pc = PlaneCopy {
-                        size: mssm_array.size,
-                        layer: l as u32,
-                        _pad0: 0,
-                        _pad1: 0,
-                    };
-                    let u = ctx
-                        .device
-                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                            label: Some("layout plane copy"),
-                            contents: bytemuck::bytes_of(&pc),
-                            usage: wgpu::BufferUsages::UNIFORM,
-                        });
-                    self.copy.bind_group(
-                        ctx,
-                        "layout plane copy",
-                        &[
-                            u.as_entire_binding(),
-                            level.min.as_entire_binding(),
-                            wgpu::BindingResource::TextureView(&mssm_array.view),
-                        ],
-                    )
-                })
-                .collect()
-        })?;
+        let aligned = (4 * mssm_array.size).is_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let mssm_copy = if levels.is_empty() {
+            MssmCopy::None
+        } else if aligned {
+            MssmCopy::Transfer(levels.iter().map(|l| l.min.clone()).collect())
+        } else {
+            let groups = ctx.scoped("layout", || {
+                levels
+                    .iter()
+                    .enumerate()
+                    .map(|(l, level)| {
+                        let pc = PlaneCopy {
+                            size: mssm_array.size,
+                            layer: l as u32,
+                            _pad0: 0,
+                            _pad1: 0,
+                        };
+                        let u = ctx
+                            .device
+                            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                label: Some("layout plane copy"),
+                                contents: bytemuck::bytes_of(&pc),
+                                usage: wgpu::BufferUsages::UNIFORM,
+                            });
+                        self.copy.bind_group(
+                            ctx,
+                            "layout plane copy",
+                            &[
+                                u.as_entire_binding(),
+                                level.min.as_entire_binding(),
+                                wgpu::BindingResource::TextureView(&mssm_array.view),
+                            ],
+                        )
+                    })
+                    .collect()
+            })?;
+            MssmCopy::Compute(self.copy.pipeline.clone(), groups)
+        };
         Ok(KernelMaps {
             maps,
             mssm: mssm_array,
@@ -157,9 +174,7 @@ impl GpuLayout {
             mssm_levels: mssm.map(|m| m.levels()),
             r,
             planes,
-            pipeline: self.copy.pipeline.clone(),
-            groups,
-            level_planes: levels.iter().map(|l| l.min.clone()).collect(),
+            mssm_copy,
         })
     }
 }
@@ -191,57 +206,51 @@ impl KernelMaps {
                 },
             );
         }
-        if self.groups.is_empty() {
-            return;
-        }
-        // A level whose rows are a multiple of COPY_BYTES_PER_ROW_ALIGNMENT (sides that are
-        // multiples of 64) is copied by transfer, a memory copy on every device; others by the
-        // compute pass (the WGSL's `copy_plane`).
-        let row = 4 * self.mssm.size;
-        if row.is_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) {
-            for (l, plane) in self
-                .level_planes
-                .iter()
-                .take(mssm_planes as usize)
-                .enumerate()
-            {
-                enc.copy_buffer_to_texture(
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: plane,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some(row),
-                            rows_per_image: Some(self.mssm.size),
+        let take = mssm_planes as usize;
+        match &self.mssm_copy {
+            MssmCopy::None => {}
+            MssmCopy::Transfer(planes) => {
+                let size = self.mssm.size;
+                for (l, plane) in planes.iter().take(take).enumerate() {
+                    enc.copy_buffer_to_texture(
+                        wgpu::TexelCopyBufferInfo {
+                            buffer: plane,
+                            layout: wgpu::TexelCopyBufferLayout {
+                                offset: 0,
+                                bytes_per_row: Some(4 * size),
+                                rows_per_image: Some(size),
+                            },
                         },
-                    },
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &self.mssm.texture,
-                        mip_level: 0,
-                        origin: wgpu::Origin3d {
-                            x: 0,
-                            y: 0,
-                            z: l as u32,
+                        wgpu::TexelCopyTextureInfo {
+                            texture: &self.mssm.texture,
+                            mip_level: 0,
+                            origin: wgpu::Origin3d {
+                                x: 0,
+                                y: 0,
+                                z: l as u32,
+                            },
+                            aspect: wgpu::TextureAspect::All,
                         },
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    wgpu::Extent3d {
-                        width: self.mssm.size,
-                        height: self.mssm.size,
-                        depth_or_array_layers: 1,
-                    },
-                );
+                        wgpu::Extent3d {
+                            width: size,
+                            height: size,
+                            depth_or_array_layers: 1,
+                        },
+                    );
+                }
             }
-            return;
-        }
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("layout mssm copy"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.pipeline);
-        let g = self.mssm.size.div_ceil(16);
-        for group in self.groups.iter().take(mssm_planes as usize) {
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(g, g, 1);
+            MssmCopy::Compute(pipeline, groups) => {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("layout mssm copy"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                let g = self.mssm.size.div_ceil(16);
+                for group in groups.iter().take(take) {
+                    pass.set_bind_group(0, group, &[]);
+                    pass.dispatch_workgroups(g, g, 1);
+                }
+            }
         }
     }
 }
