@@ -8,8 +8,7 @@
 use accumulation::CpuAccumulation;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use shadow_map_core::SoftShadowEstimator;
-use std::hint::black_box;
-use test_support::fixtures::authored_fixture;
+use test_support::{bench, fixtures::authored_fixture};
 
 const MODES: [(&str, &str); 4] = [
     ("additive", "fixed"),
@@ -23,21 +22,17 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("accumulation");
     g.sample_size(10);
     g.throughput(Throughput::Elements(receivers.active_count() as u64));
-    let mut v = vec![0.0f32; receivers.len()];
     let mut cpu = CpuAccumulation::new().expect("cpu");
     for (variant, kernel) in MODES {
         cpu.set_param("variant", variant).expect("variant");
         cpu.set_param("kernel", kernel).expect("kernel");
-        g.bench_function(format!("cpu/build/{variant}-{kernel}"), |b| {
-            b.iter(|| cpu.build(black_box(&scene), &receivers).expect("build"))
-        });
-        cpu.build(&scene, &receivers).expect("build");
-        g.bench_function(format!("cpu/estimate/{variant}-{kernel}"), |b| {
-            b.iter(|| {
-                cpu.estimate(&scene, &receivers, black_box(&mut v))
-                    .expect("estimate")
-            })
-        });
+        bench::build_and_estimate(
+            &mut g,
+            &mut cpu,
+            &format!("{variant}-{kernel}"),
+            &scene,
+            &receivers,
+        );
     }
     #[cfg(feature = "gpu")]
     match shadow_map_core::gpu::GpuContext::shared() {
@@ -50,26 +45,27 @@ fn bench(c: &mut Criterion) {
 /// One frame of the engine path per iteration (encode, submit, wait), for each mode.
 #[cfg(feature = "gpu")]
 fn gpu_frames(
-    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    g: &mut bench::Group<'_>,
     ctx: &std::sync::Arc<shadow_map_core::gpu::GpuContext>,
     scene: &shadow_map_core::Scene,
     receivers: &shadow_map_core::Receivers,
 ) {
     use accumulation::AccumulationFrame;
-    use test_support::{fixtures::param_table, frame_run::FrameRig};
+    use test_support::fixtures::param_table;
     for (variant, kernel) in MODES {
         let params = param_table(
             accumulation::settings::SPECS,
             &[("variant", variant), ("kernel", kernel)],
         );
         let frame = AccumulationFrame::prepare(ctx.clone(), &params).expect("frame");
-        let rig = FrameRig::new(ctx, &frame, scene, receivers).expect("rig");
-        g.bench_function(format!("gpu/frame/{variant}-{kernel}"), |b| {
-            b.iter(|| {
-                black_box(&rig).submit(ctx, &frame).expect("frame");
-                ctx.wait().expect("wait");
-            })
-        });
+        bench::frame_row(
+            g,
+            ctx,
+            &frame,
+            &format!("{variant}-{kernel}"),
+            scene,
+            receivers,
+        );
     }
 }
 

@@ -392,36 +392,22 @@ impl CpuAccumulation {
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let taps = AtomicU64::new(0);
-        let nonfinite: usize = self.cancel.par_sum(v, |k, out| {
-            if !receivers.active()[k] {
-                *out = f32::NAN;
-                return 0;
-            }
-            let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
+        let nonfinite = receivers.estimate_each(&self.cancel, v, |pw, nw| {
             let facing = light.front_fraction_world(pw, nw);
             if !(facing > 0.0) {
-                *out = 0.0;
-                return 0;
+                return Some(0.0);
             }
             let p = view.frame.to_light(pw);
             let fp = Footprint::for_light(&light.shape, s.sphere, p, (view.n, view.far));
             let uv = view.project(p);
             if !fp.covered() || !view.contains(uv) {
                 outside.fetch_add(1, Ordering::Relaxed);
-                *out = f32::NAN;
-                return 0;
+                return None;
             }
             let mut st = TapStats::default();
             let sh = acc.shadowing(&fp, view.frame.dir_to_light(nw), uv, &mut st);
             taps.fetch_add(st.taps, Ordering::Relaxed);
-            let x = facing * (1.0 - sh);
-            if x.is_finite() {
-                *out = x.clamp(0.0, 1.0);
-                0
-            } else {
-                *out = 0.0;
-                1
-            }
+            Some(facing * (1.0 - sh))
         })?;
         let _ = outside.into_inner();
         if nonfinite > 0 {

@@ -42,8 +42,7 @@ use shadow_map_core::{
             FrameEstimator, FrameInputs, Views,
         },
         kernel::{BindGroupCache, SpecializedKernel},
-        layout::{GpuLayout, KernelMaps},
-        raster::{GpuLayersFrame, GpuShadowMapper, LayersSlot},
+        layout::ViewMaps,
         receivers::RECEIVERS_WGSL,
         GpuContext,
     },
@@ -231,8 +230,8 @@ pub struct AccumulationFrame {
     params: Params,
     settings: Settings,
     kernel: SpecializedKernel,
-    layers: GpuLayersFrame,
-    km: KernelMaps,
+    /// The layers and MSSM, laid out for the kernel.
+    maps: ViewMaps,
     acc: wgpu::Buffer,
     est: wgpu::Buffer,
     tables: wgpu::Buffer,
@@ -264,16 +263,7 @@ impl AccumulationFrame {
             raster: shadow_map_core::RasterOptions::default(),
             opacity: false,
         };
-        let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
-        let km = GpuLayout::new(&ctx)?.prepare(
-            &ctx,
-            "accumulation",
-            r,
-            layers.layers(),
-            &[],
-            &[],
-            layers.min_max().mssm.as_ref(),
-        )?;
+        let maps = ViewMaps::prepare(&ctx, "accumulation", &req)?;
         let buffer = |label, size: usize, usage| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -306,8 +296,7 @@ impl AccumulationFrame {
             params: cpu.params().clone(),
             settings: s,
             kernel,
-            layers,
-            km,
+            maps,
             acc,
             est,
             tables,
@@ -315,11 +304,11 @@ impl AccumulationFrame {
         })
     }
 
-    /// The maps the last submitted frame rendered, in `view` (the frame's): what a test reads
-    /// back ([`GpuLightSpace::to_cpu`](shadow_map_core::gpu::GpuLightSpace::to_cpu)) to run the
-    /// CPU twin on the very maps the kernel read.
-    pub fn light_space(&self, view: &LightView) -> shadow_map_core::gpu::GpuLightSpace {
-        self.layers.light_space(view)
+    /// The maps the last submitted frame rendered: what a test reads back
+    /// (`maps().layers.light_space(view).to_cpu(ctx)`) to run the CPU twin on the very maps the
+    /// kernel read.
+    pub fn maps(&self) -> &ViewMaps {
+        &self.maps
     }
 }
 
@@ -338,7 +327,7 @@ impl FrameEstimator for AccumulationFrame {
 
     /// The peeled layers' and the MSSM's device bytes.
     fn light_space_bytes(&self) -> usize {
-        self.layers.bytes()
+        self.maps.layers.bytes()
     }
 
     /// Three u32: lit receivers outside the light frustum (left NaN), non-finite results
@@ -375,23 +364,11 @@ impl FrameEstimator for AccumulationFrame {
             (LightShape::Sphere { .. }, SphereModel::Contract) => u32::MAX,
             _ => crate::cpu::request(s, view, inputs.light.half_extent()).mssm_planes(),
         };
-        let slot = LayersSlot {
-            view,
-            max_bias: 0.0,
-            min_opacity: 0.0,
-            slot: 0,
-            mssm_levels: Some(planes),
-        };
-        self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
-        inputs.mark(enc, "layers");
-        self.km.record(enc, false, planes);
-        inputs.mark(enc, "layout");
-        let mssm = self
-            .km
-            .mssm_levels
-            .map(|l| (l.min(planes), self.km.mssm.size));
+        self.maps.encode(ctx, enc, inputs, view, 0.0, planes)?;
+        let km = &self.maps.km;
+        let mssm = km.mssm_levels.map(|l| (l.min(planes), km.mssm.size));
         let (au, tables) =
-            uniform_and_tables(s, &inputs.light.shape, view, self.km.layers as usize, mssm);
+            uniform_and_tables(s, &inputs.light.shape, view, km.layers as usize, mssm);
         let mut eu = EstimateUniform::new(inputs.light, s.bias, s.slope_bias);
         eu.receiver_plane = u32::from(s.receiver_plane);
         ctx.write_in(enc, &self.est, 0, bytemuck::bytes_of(&eu));
@@ -409,11 +386,11 @@ impl FrameEstimator for AccumulationFrame {
                 LABEL,
                 &self.kernel.layout,
                 &[
-                    self.layers.view_uniform().as_entire_binding(),
+                    self.maps.layers.view_uniform().as_entire_binding(),
                     self.est.as_entire_binding(),
                     self.acc.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&self.km.maps.view),
-                    wgpu::BindingResource::TextureView(&self.km.mssm.view),
+                    wgpu::BindingResource::TextureView(&km.maps.view),
+                    wgpu::BindingResource::TextureView(&km.mssm.view),
                     self.tables.as_entire_binding(),
                     range.receivers(inputs.receivers),
                     range.words(inputs.v),
@@ -427,7 +404,7 @@ impl FrameEstimator for AccumulationFrame {
     }
 
     fn caster_passes(&self, _views: &Views) -> u32 {
-        self.layers.passes()
+        self.maps.layers.passes()
     }
 
     /// [`CpuAccumulation::build_in_view`], then its estimate (outside receivers settled).

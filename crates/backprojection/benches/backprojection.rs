@@ -9,8 +9,7 @@
 use backprojection::CpuBackprojection;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use shadow_map_core::SoftShadowEstimator;
-use std::hint::black_box;
-use test_support::fixtures::authored_fixture;
+use test_support::{bench, fixtures::authored_fixture};
 
 fn bench(c: &mut Criterion) {
     let (scene, receivers) = authored_fixture("bunny");
@@ -35,21 +34,16 @@ fn bench(c: &mut Criterion) {
             None
         }
     };
-    let mut v = vec![0.0f32; receivers.len()];
     for e in &mut estimators {
-        let backend = e.backend();
         for k in [1, 3] {
             e.set_param("layers", &k.to_string()).expect("layers");
-            g.bench_function(format!("{backend}/build/layers-{k}"), |b| {
-                b.iter(|| e.build(black_box(&scene), &receivers).expect("build"))
-            });
-            e.build(&scene, &receivers).expect("build");
-            g.bench_function(format!("{backend}/estimate/layers-{k}"), |b| {
-                b.iter(|| {
-                    e.estimate(&scene, &receivers, black_box(&mut v))
-                        .expect("estimate")
-                })
-            });
+            bench::build_and_estimate(
+                &mut g,
+                e.as_mut(),
+                &format!("layers-{k}"),
+                &scene,
+                &receivers,
+            );
         }
     }
     #[cfg(feature = "gpu")]
@@ -63,12 +57,12 @@ fn bench(c: &mut Criterion) {
 /// once, outside the timed loop).
 #[cfg(feature = "gpu")]
 fn frame_rows(
-    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    g: &mut bench::Group<'_>,
     ctx: &std::sync::Arc<shadow_map_core::gpu::GpuContext>,
     scene: &shadow_map_core::Scene,
     receivers: &shadow_map_core::Receivers,
 ) {
-    use test_support::{fixtures::param_table, frame_run::FrameRig};
+    use test_support::fixtures::param_table;
     for k in [1, 3] {
         let params = param_table(
             backprojection::settings::SPECS,
@@ -76,13 +70,7 @@ fn frame_rows(
         );
         let frame =
             backprojection::BackprojectionFrame::prepare(ctx.clone(), &params).expect("frame");
-        let rig = FrameRig::new(ctx, &frame, scene, receivers).expect("frame inputs");
-        g.bench_function(format!("gpu/frame/layers-{k}"), |b| {
-            b.iter(|| {
-                black_box(&rig).submit(ctx, &frame).expect("frame");
-                ctx.wait().expect("wait");
-            })
-        });
+        bench::frame_row(g, ctx, &frame, &format!("layers-{k}"), scene, receivers);
     }
 }
 

@@ -137,12 +137,7 @@ impl CpuBackprojection {
         let view = &ls.view;
         let outside = AtomicUsize::new(0);
         let t = std::time::Instant::now();
-        let nonfinite: usize = self.cancel.par_sum(v, |k, out| {
-            if !receivers.active()[k] {
-                *out = f32::NAN;
-                return 0;
-            }
-            let (pw, nw) = (receivers.position()[k], receivers.normal()[k]);
+        let nonfinite = receivers.estimate_each(&self.cancel, v, |pw, nw| {
             let facing = light.front_fraction_world(pw, nw);
             let p = view.frame.to_light(pw);
             // A sphere's silhouette disk seen from p (None: it reaches p's depth).
@@ -169,13 +164,7 @@ impl CpuBackprojection {
                     facing * setup.visibility(p, n, uv, sil.as_ref())
                 }
             };
-            if x.is_finite() {
-                *out = x.clamp(0.0, 1.0);
-                0
-            } else {
-                *out = 0.0;
-                1
-            }
+            Some(x)
         })?;
         self.report
             .stages

@@ -105,25 +105,19 @@ fn bench(c: &mut Criterion) {
 /// semi-transparent), encoded into its own encoder, submitted and waited for.
 #[cfg(feature = "gpu")]
 fn gpu_frame(
-    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    g: &mut test_support::bench::Group<'_>,
     ctx: &std::sync::Arc<shadow_map_core::gpu::GpuContext>,
     scene: &Scene,
     rec: &Receivers,
 ) {
     use deep_shadow::DeepShadowFrame;
-    use test_support::{fixtures::param_table, frame_run::FrameRig};
+    use test_support::fixtures::param_table;
     let params = param_table(
         deep_shadow::settings::SPECS,
         &[("resolution", "512"), ("filter", "edsm"), ("kernel", "7")],
     );
     let frame = DeepShadowFrame::prepare(ctx.clone(), &params, rec.len() as u32).unwrap();
-    let rig = FrameRig::new(ctx, &frame, scene, rec).unwrap();
-    g.bench_function("gpu/frame/edsm7", |b| {
-        b.iter(|| {
-            black_box(&rig).submit(ctx, &frame).unwrap();
-            ctx.wait().unwrap();
-        })
-    });
+    test_support::bench::frame_row(g, ctx, &frame, "edsm7", scene, rec);
 }
 
 criterion_group!(benches, bench);

@@ -4,7 +4,7 @@
 //! points and normals. Estimators never care where they came from; those that exploit screen-space
 //! coherence (pixel packets) use [`Receivers::layout`] when present and fall back to per-receiver
 //! work when it is absent.
-use crate::{bvh::SceneBvh, scene::Scene, Error, Result};
+use crate::{bvh::SceneBvh, cancel::Cancel, scene::Scene, Error, Result};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -40,6 +40,35 @@ pub struct Receivers {
 }
 
 impl Receivers {
+    /// Runs `f(position, normal)` for every active receiver in parallel into `v` (checked to hold
+    /// one value a receiver): inactive receivers and those `f` leaves unmodelled (`None`, for
+    /// the caller to settle) get NaN, results are clamped into [0, 1], and a non-finite result is
+    /// written as 0 and counted (the count returned; non-zero is a bug the caller reports).
+    /// Checks `cancel` between chunks of receivers ([`Cancel::par_sum`]).
+    pub fn estimate_each(
+        &self,
+        cancel: &Cancel,
+        v: &mut [f32],
+        f: impl Fn(Vec3, Vec3) -> Option<f32> + Sync + Send,
+    ) -> Result<usize> {
+        self.check_output(v)?;
+        cancel.par_sum(v, |k, out| {
+            let x = match self.active[k] {
+                true => f(self.position[k], self.normal[k]),
+                false => None,
+            };
+            match x {
+                None => *out = f32::NAN,
+                Some(x) if x.is_finite() => *out = x.clamp(0.0, 1.0),
+                Some(_) => {
+                    *out = 0.0;
+                    return 1;
+                }
+            }
+            0
+        })
+    }
+
     /// Receivers from a user's own arrays (no image layout). Normals are normalised; every value
     /// must be finite and normals non-zero.
     pub fn from_points(position: Vec<Vec3>, normal: Vec<Vec3>) -> Result<Self> {

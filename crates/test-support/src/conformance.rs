@@ -29,6 +29,19 @@ pub type BoxedEstimator = Box<dyn SoftShadowEstimator>;
 /// Parameters for both twins: `(key, value)`.
 pub type Params = Vec<(&'static str, String)>;
 
+/// [`Params`] from the fields of a settings value, each keyed by its field name and written with
+/// `Display`, then any `key => value` pairs:
+/// `params_of!(s; resolution, k; "bias" => bias)`.
+#[macro_export]
+macro_rules! params_of {
+    ($s:expr; $($field:ident),* $(; $($key:literal => $value:expr),* $(,)?)?) => {
+        vec![
+            $((stringify!($field), $s.$field.to_string()),)*
+            $($(($key, $value.to_string()),)*)?
+        ]
+    };
+}
+
 /// A boxed engine path, as [`TwinPair::frame`] hands it out.
 pub type BoxedFrame = Box<dyn shadow_map_core::gpu::frame::FrameEstimator>;
 

@@ -1,5 +1,7 @@
 //! What the workspace's integration tests share (`publish = false`, a dev-dependency only).
 //!
+//! - `bench` (feature `bench`): the criterion rows every method's bench shares (build and
+//!   estimate, one engine-path frame).
 //! - [`config`]: the number of random cases (`SOFTSHADOW_PROPTEST_CASES`) and the proptest
 //!   configuration, failures persisted beside the test file.
 //! - [`tolerance`]: the one twin tolerance ([`Tolerance`]): a per-receiver bound on |dV|, the
@@ -21,6 +23,8 @@
 //!   algorithm, in a module `twin::<algorithm>`, so that test names carry the algorithm.
 #![warn(missing_docs)]
 
+#[cfg(feature = "bench")]
+pub mod bench;
 pub mod config;
 #[cfg(feature = "gpu")]
 pub mod conformance;

@@ -116,20 +116,8 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
 }
 
 fn settings_kv(s: &Settings, bias: f32) -> Params {
-    vec![
-        ("resolution", s.resolution.to_string()),
-        ("k", s.k.to_string()),
-        ("variant", s.variant.to_string()),
-        ("kernel", s.kernel.to_string()),
-        ("bits", s.bits.to_string()),
-        ("layers", s.layers.to_string()),
-        ("sphere", s.sphere.to_string()),
-        ("coverage", s.coverage.to_string()),
-        ("bias", bias.to_string()),
-        ("slope_bias", s.slope_bias.to_string()),
-        ("fit", s.fit.to_string()),
-        ("nearfar", s.nearfar.to_string()),
-    ]
+    test_support::params_of!(s; resolution, k, variant, kernel, bits, layers, sphere, coverage,
+        slope_bias, fit, nearfar; "bias" => bias)
 }
 
 /// What the random run saw besides the judged comparison.

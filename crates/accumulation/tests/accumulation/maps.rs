@@ -60,7 +60,7 @@ pub fn run_frame(
     let view = rig.views[0].expect("accumulation fits one view");
     let status_buf = frame.status().expect("the frame keeps a status");
     let status: Vec<u32> = ctx.read_buffer(status_buf, status_buf.size())?;
-    let maps = frame.light_space(&view).to_cpu(ctx)?;
+    let maps = frame.maps().layers.light_space(&view).to_cpu(ctx)?;
     Ok(FrameRun {
         view,
         v: out.v,

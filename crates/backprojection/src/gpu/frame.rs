@@ -9,9 +9,7 @@ use shadow_map_core::{
             check_buffers, cpu_twin_v, single_view, status_buffer, FrameEstimator, FrameInputs,
             Views,
         },
-        layout::{GpuLayout, KernelMaps},
-        light_space::GpuLightSpace,
-        raster::{GpuLayersFrame, GpuShadowMapper, LayersSlot},
+        layout::ViewMaps,
         GpuContext,
     },
     light_view::LightView,
@@ -60,9 +58,8 @@ pub struct BackprojectionFrame {
     /// [`FrameEstimator::cpu_twin`]).
     cpu: CpuBackprojection,
     kernel: BpKernel,
-    layers: GpuLayersFrame,
-    /// The kernel's texture arrays and the copies that fill them from `layers`.
-    km: KernelMaps,
+    /// The layers, midpoints, opacity planes and MSSM, laid out for the kernel.
+    maps: ViewMaps,
     bufs: KernelUniforms,
     status: wgpu::Buffer,
 }
@@ -87,16 +84,7 @@ impl BackprojectionFrame {
             raster: shadow_map_core::RasterOptions::default(),
             opacity: true,
         };
-        let layers = GpuShadowMapper::new(&ctx)?.layers_frame(&ctx, r, &req)?;
-        let km = GpuLayout::new(&ctx)?.prepare(
-            &ctx,
-            "backprojection",
-            r,
-            layers.layers(),
-            layers.midpoints(),
-            layers.opacity(),
-            layers.min_max().mssm.as_ref(),
-        )?;
+        let maps = ViewMaps::prepare(&ctx, "backprojection", &req)?;
         let kernel = BpKernel::new(&ctx)?;
         let uniform = |label, size: usize| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -107,7 +95,7 @@ impl BackprojectionFrame {
             })
         };
         let bufs = KernelUniforms {
-            view: layers.view_uniform().clone(),
+            view: maps.layers.view_uniform().clone(),
             est: uniform("estimate uniform", std::mem::size_of::<EstimateUniform>()),
             bp: uniform("backprojection uniform", std::mem::size_of::<BpUniform>()),
             bits: uniform("backprojection bit table", std::mem::size_of::<BitTable>()),
@@ -117,20 +105,17 @@ impl BackprojectionFrame {
             ctx,
             cpu,
             kernel,
-            layers,
-            km,
+            maps,
             bufs,
             status,
         })
     }
-}
 
-impl BackprojectionFrame {
-    /// The maps the last submitted frame rendered, in `view` (the frame's), opacity planes
-    /// included for semi-transparent casters: what a test reads back
-    /// ([`GpuLightSpace::to_cpu`]) to run the CPU twin on the very maps the kernel read.
-    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
-        self.layers.light_space(view)
+    /// The maps the last submitted frame rendered: what a test reads back
+    /// (`maps().layers.light_space(view).to_cpu(ctx)`) to run the CPU twin on the very maps the
+    /// kernel read.
+    pub fn maps(&self) -> &ViewMaps {
+        &self.maps
     }
 }
 
@@ -147,7 +132,7 @@ impl FrameEstimator for BackprojectionFrame {
     }
 
     fn light_space_bytes(&self) -> usize {
-        self.layers.bytes()
+        self.maps.layers.bytes()
     }
 
     /// Three u32: receivers outside the light frustum, non-finite results (written as 0),
@@ -181,19 +166,8 @@ impl FrameEstimator for BackprojectionFrame {
         // The MSSM levels the widest kernel of this view needs (crate::cpu::request's rule): the
         // levels above only speed up queries no kernel makes, and each costs a pass over r^2.
         let planes = crate::cpu::request(settings, view, inputs.light.half_extent()).mssm_planes();
-        let slot = LayersSlot {
-            view,
-            max_bias: clamp,
-            min_opacity: 0.0,
-            slot: 0,
-            mssm_levels: Some(planes),
-        };
-        self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
-        inputs.mark(enc, "layers");
-        let semi = !inputs.casters.is_opaque();
-        self.km.record(enc, semi, planes);
-        inputs.mark(enc, "layout");
-        let (eu, mut bpu, table) = uniforms(settings, &self.km, semi, inputs.light);
+        let semi = self.maps.encode(ctx, enc, inputs, view, clamp, planes)?;
+        let (eu, mut bpu, table) = uniforms(settings, &self.maps.km, semi, inputs.light);
         bpu.mssm_levels = bpu.mssm_levels.min(planes);
         ctx.write_in(enc, &self.bufs.est, 0, bytemuck::bytes_of(&eu));
         ctx.write_in(enc, &self.bufs.bp, 0, bytemuck::bytes_of(&bpu));
@@ -204,7 +178,7 @@ impl FrameEstimator for BackprojectionFrame {
             enc,
             &specialization(&eu, &bpu),
             &self.bufs,
-            &self.km,
+            &self.maps.km,
             inputs.receivers,
             inputs.v,
             inputs.count,
@@ -215,7 +189,7 @@ impl FrameEstimator for BackprojectionFrame {
     }
 
     fn caster_passes(&self, _views: &Views) -> u32 {
-        self.layers.passes()
+        self.maps.layers.passes()
     }
 
     /// [`CpuBackprojection::build_in_view`], then its estimate.

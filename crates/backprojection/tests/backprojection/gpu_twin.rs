@@ -104,38 +104,14 @@ fn arb_settings() -> impl Strategy<Value = Settings> {
 }
 
 fn settings_kv(s: &Settings, bias: f32) -> Params {
-    vec![
-        ("resolution", s.resolution.to_string()),
-        ("layers", s.layers.to_string()),
-        (
-            "self_shadow",
-            if s.midpoint { "midpoint" } else { "bias" }.to_string(),
-        ),
-        ("gap_filling", s.gap_filling.to_string()),
-        ("bias", bias.to_string()),
-        ("slope_bias", s.slope_bias.to_string()),
-        ("max_nspp", s.max_nspp.to_string()),
-        ("receiver_plane", s.receiver_plane.to_string()),
-        (
-            "layer_rule",
-            if s.first_nonzero {
-                "first_nonzero"
-            } else {
-                "deepest"
-            }
-            .to_string(),
-        ),
-        (
-            "occlusion",
-            if s.bits.is_some() {
-                "bitmask"
-            } else {
-                "additive"
-            }
-            .to_string(),
-        ),
-        ("bits", s.bits.unwrap_or(8).to_string()),
-    ]
+    let pick = |c: bool, a: &'static str, b: &'static str| if c { a } else { b };
+    test_support::params_of!(s; resolution, layers, gap_filling, slope_bias, max_nspp,
+        receiver_plane;
+        "self_shadow" => pick(s.midpoint, "midpoint", "bias"),
+        "bias" => bias,
+        "layer_rule" => pick(s.first_nonzero, "first_nonzero", "deepest"),
+        "occlusion" => pick(s.bits.is_some(), "bitmask", "additive"),
+        "bits" => s.bits.unwrap_or(8))
 }
 
 /// The CPU twin's V on its own build.

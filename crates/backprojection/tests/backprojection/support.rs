@@ -52,6 +52,8 @@ pub fn frame_maps(
 ) -> Result<LightSpace, String> {
     let view = views.first().copied().flatten().ok_or("frame: no view")?;
     frame
+        .maps()
+        .layers
         .light_space(&view)
         .to_cpu(ctx)
         .map_err(|e| format!("maps: {e}"))

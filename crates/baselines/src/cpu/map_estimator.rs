@@ -1,6 +1,6 @@
 //! One shadow map at the light centre, filtered per receiver: the CPU twin shared by the hard,
 //! PCF and PCSS baselines. Each supplies only its [`Filter`].
-use crate::cpu::{encode_layer0, for_each_receiver};
+use crate::cpu::encode_layer0;
 use crate::settings::MapSettings;
 use glam::{Vec2, Vec3};
 use shadow_map_core::{
@@ -280,7 +280,7 @@ impl<F: Filter> FilterPass<'_, F> {
         let (view, light, filter) = (at.view, at.light, self.filter);
         let (on, biases) = self.test;
         let outside = AtomicUsize::new(0);
-        let nonfinite = for_each_receiver(self.cancel, self.receivers, v, |pw, nw| {
+        let at_receiver = |pw: Vec3, nw: Vec3| {
             let facing = filter.facing(light, pw, nw);
             if facing <= 0.0 {
                 return 0.0;
@@ -301,7 +301,9 @@ impl<F: Filter> FilterPass<'_, F> {
             }
             let plane = ReceiverPlane::new(on, view, p, n, biases, extra_eps);
             facing * filter.visibility(at, &ReceiverSample { p, n, uv, plane })
-        })?;
+        };
+        let nonfinite =
+            (self.receivers).estimate_each(self.cancel, v, |p, n| Some(at_receiver(p, n)))?;
         Ok((nonfinite, outside.into_inner()))
     }
 }

@@ -190,13 +190,7 @@ fn frame(w: Which, ctx: &Arc<GpuContext>, params: &Params, max_receivers: u32) -
 }
 
 fn settings_kv(w: Which, s: &Settings, bias: f32) -> Params {
-    let mut kv = vec![
-        ("resolution", s.resolution.to_string()),
-        ("bias", format!("{bias}")),
-        ("slope_bias", format!("{}", s.slope_bias)),
-        ("cull", s.cull.to_string()),
-        ("depth", s.depth.to_string()),
-    ];
+    let mut kv = test_support::params_of!(s; resolution, slope_bias, cull, depth; "bias" => bias);
     match w {
         Which::Pcf => kv.push(("kernel", s.kernel.to_string())),
         Which::Pcss => kv.push(("max_taps", s.max_taps.to_string())),

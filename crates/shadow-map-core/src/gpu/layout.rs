@@ -7,11 +7,14 @@
 //! frame on the engine path.
 use super::{
     depth_map::GpuDepthMap,
+    frame::FrameInputs,
     kernel::{plane_array, upload_planes, Kernel, PlaneArray},
     mssm::GpuMssm,
+    raster::{GpuLayersFrame, GpuShadowMapper, LayersSlot},
     GpuContext,
 };
 use crate::gpu::kernel::BufferInitExt;
+use crate::{light_view::LightView, LightSpaceRequest};
 use crate::{Error, Result};
 use bytemuck::{Pod, Zeroable};
 
@@ -176,6 +179,64 @@ impl GpuLayout {
             planes,
             mssm_copy,
         })
+    }
+}
+
+/// One view's peeled layers (with the midpoints and opacity planes its request asks for) and
+/// MSSM, rendered every frame and laid out in the texture arrays a kernel samples: the maps of
+/// backprojection's and accumulation's frames.
+#[derive(Debug)]
+pub struct ViewMaps {
+    /// The rendered maps.
+    pub layers: GpuLayersFrame,
+    /// Their texture arrays and the copies that fill them.
+    pub km: KernelMaps,
+}
+
+impl ViewMaps {
+    /// Allocates the maps `req` asks for (resolution, layers, midpoints, opacity planes, MSSM)
+    /// and their texture arrays (labels `{label} layers`, `{label} mssm`). Errors: device limits
+    /// ([`Error::Limit`]).
+    pub fn prepare(ctx: &GpuContext, label: &str, req: &LightSpaceRequest) -> Result<Self> {
+        let layers = GpuShadowMapper::new(ctx)?.layers_frame(ctx, req.resolution, req)?;
+        let km = GpuLayout::new(ctx)?.prepare(
+            ctx,
+            label,
+            req.resolution,
+            layers.layers(),
+            layers.midpoints(),
+            layers.opacity(),
+            layers.min_max().mssm.as_ref(),
+        )?;
+        Ok(ViewMaps { layers, km })
+    }
+
+    /// Records the maps of `view` over the frame's casters (midpoints under the clamp
+    /// `max_bias`, the first `mssm_planes` MSSM levels), marked `layers`, then their copies into
+    /// the arrays, marked `layout`. Returns whether the opacity planes were copied (prepared,
+    /// and the casters semi-transparent): what the kernel is told to read.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        view: &LightView,
+        max_bias: f32,
+        mssm_planes: u32,
+    ) -> Result<bool> {
+        let slot = LayersSlot {
+            view,
+            max_bias,
+            min_opacity: 0.0,
+            slot: 0,
+            mssm_levels: Some(mssm_planes),
+        };
+        self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
+        inputs.mark(enc, "layers");
+        let semi = self.km.opacity > 0 && !inputs.casters.is_opaque();
+        self.km.record(enc, semi, mssm_planes);
+        inputs.mark(enc, "layout");
+        Ok(semi)
     }
 }
 

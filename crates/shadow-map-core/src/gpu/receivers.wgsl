@@ -1,5 +1,5 @@
 // The per-receiver estimate entry point every such kernel shares (the CPU's
-// `for_each_receiver`), with its head and tail. The including shader declares
+// `Receivers::estimate_each`), with its head and tail. The including shader declares
 // `receivers: array<ReceiverGpu>`, `v_out: array<u32>` (V as f32 bits),
 // `counters: array<atomic<u32>, N>` with N >= 3 (`counters[1]`: non-finite results,
 // `counters[2]`: receivers cut by the loop budget), `fn estimate_receiver(p: vec3<f32>,
