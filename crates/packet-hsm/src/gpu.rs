@@ -460,6 +460,7 @@ impl PacketHsmFrame {
             min_opacity: level.min_opacity,
             slot,
             mssm_levels: shape.map(|s| s.mssm_levels),
+            mssm_max: true,
         };
         self.layers.encode_slot(ctx, enc, inputs.casters, &layers)?;
         // The classification layer into the padded map's interior, then its dual-grid MSSM.
@@ -483,7 +484,7 @@ impl PacketHsmFrame {
             },
         );
         self.dual_pass
-            .record_levels(enc, shape.map_or(u32::MAX, |s| s.dual_levels));
+            .record_levels(enc, shape.map_or(u32::MAX, |s| s.dual_levels), true);
         Ok(())
     }
 

@@ -230,6 +230,7 @@ impl ViewMaps {
             min_opacity: 0.0,
             slot: 0,
             mssm_levels: Some(mssm_planes),
+            mssm_max: false,
         };
         self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
         inputs.mark(enc, "layers");

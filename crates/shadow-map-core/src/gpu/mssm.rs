@@ -215,6 +215,8 @@ pub struct GpuMssmBuilder {
     reduce_layout: wgpu::BindGroupLayout,
     load: wgpu::ComputePipeline,
     step: wgpu::ComputePipeline,
+    /// `anchored_step` writing the min planes only (`MIN_ONLY`).
+    step_min: wgpu::ComputePipeline,
     reduce: wgpu::ComputePipeline,
     max_binding_bytes: Option<u64>,
 }
@@ -554,13 +556,15 @@ pub struct GpuMinMaxPass {
 impl GpuMinMaxPass {
     /// Records the pass into `encoder` (nothing when no structure was requested).
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
-        self.record_levels(encoder, u32::MAX);
+        self.record_levels(encoder, u32::MAX, true);
     }
 
     /// Records the dispatches that build each structure's first `levels` levels (level 0 is
     /// the depth map, or the dual-grid MSSM's first level): a view whose kernels are small
-    /// reads no more, and the higher levels are the same cost each as the first.
-    pub fn record_levels(&self, encoder: &mut wgpu::CommandEncoder, levels: u32) {
+    /// reads no more, and the higher levels are the same cost each as the first. Without `max`
+    /// the anchored MSSM's levels get their min planes only (for kernels that query no maximum:
+    /// half the traffic of each level; the max planes keep whatever they held).
+    pub fn record_levels(&self, encoder: &mut wgpu::CommandEncoder, levels: u32, max: bool) {
         if self.dispatches.iter().all(|d| d.3 >= levels) {
             return;
         }
@@ -572,7 +576,8 @@ impl GpuMinMaxPass {
         for (kind, group, (x, y), _) in self.dispatches.iter().filter(|d| d.3 < levels) {
             pass.set_pipeline(match kind {
                 Kind::Load => &b.load,
-                Kind::Step => &b.step,
+                Kind::Step if max => &b.step,
+                Kind::Step => &b.step_min,
                 Kind::Reduce => &b.reduce,
             });
             pass.set_bind_group(0, group, &[]);
@@ -632,7 +637,7 @@ impl GpuMssmBuilder {
                 ],
             );
             let wg = MSSM_WORKGROUP as f64;
-            let pipeline = |label: &str, bgl: &wgpu::BindGroupLayout| {
+            let pipeline = |label: &str, bgl: &wgpu::BindGroupLayout, min_only: bool| {
                 let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                     label: Some(label),
                     bind_group_layouts: &[Some(bgl)],
@@ -644,16 +649,21 @@ impl GpuMssmBuilder {
                     module: &module,
                     entry_point: label.strip_prefix("mssm."),
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &[("WG_X", wg), ("WG_Y", wg)],
+                        constants: &[
+                            ("WG_X", wg),
+                            ("WG_Y", wg),
+                            ("MIN_ONLY", f64::from(u8::from(min_only))),
+                        ],
                         ..Default::default()
                     },
                     cache: None,
                 })
             };
             GpuMssmBuilder {
-                load: pipeline("mssm.load_depth", &load_layout),
-                step: pipeline("mssm.anchored_step", &step_layout),
-                reduce: pipeline("mssm.reduce", &reduce_layout),
+                load: pipeline("mssm.load_depth", &load_layout, false),
+                step: pipeline("mssm.anchored_step", &step_layout, false),
+                step_min: pipeline("mssm.anchored_step", &step_layout, true),
+                reduce: pipeline("mssm.reduce", &reduce_layout, false),
                 load_layout,
                 step_layout,
                 reduce_layout,

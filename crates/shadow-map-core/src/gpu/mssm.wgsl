@@ -8,6 +8,9 @@
 
 override WG_X: u32;
 override WG_Y: u32;
+// anchored_step builds the min planes only (for kernels that query no maximum depth; the max
+// planes are neither read nor written).
+override MIN_ONLY: bool = false;
 
 // Mirrors gpu::mssm::MinMaxParams (checked by tests/layouts.rs).
 struct MinMaxParams {
@@ -79,25 +82,33 @@ fn anchored_step(@builtin(global_invocation_id) id: vec3<u32>) {
     let y = params.row0 + r;
     let right = x + h < s;
     let t = params.top_base + r * s + x;
+    let below = y + h < s;
+    let b = params.bot_base + r * s + x;
+    let o = params.out_base + r * s + x;
     var mn = top_min[t];
-    var mx = top_max[t];
     if right {
         mn = min(mn, top_min[t + h]);
+    }
+    if below {
+        mn = min(mn, bot_min[b]);
+        if right {
+            mn = min(mn, bot_min[b + h]);
+        }
+    }
+    out_min[o] = mn;
+    if MIN_ONLY {
+        return;
+    }
+    var mx = top_max[t];
+    if right {
         mx = max(mx, top_max[t + h]);
     }
-    if y + h < s {
-        let b = params.bot_base + r * s + x;
-        var bmn = bot_min[b];
-        var bmx = bot_max[b];
+    if below {
+        mx = max(mx, bot_max[b]);
         if right {
-            bmn = min(bmn, bot_min[b + h]);
-            bmx = max(bmx, bot_max[b + h]);
+            mx = max(mx, bot_max[b + h]);
         }
-        mn = min(mn, bmn);
-        mx = max(mx, bmx);
     }
-    let o = params.out_base + r * s + x;
-    out_min[o] = mn;
     out_max[o] = mx;
 }
 

@@ -697,7 +697,8 @@ fn gpu_layers_and_midpoints_match_cpu_on_random_scenes() -> TestResult {
 
 /// A frame told to build fewer MSSM levels than it was prepared for (`LayersSlot::mssm_levels`)
 /// hands out those levels alone, each bit for bit the CPU's over the same layer; told nothing
-/// again, it hands out every level.
+/// again, it hands out every level. Told to build the min planes only (`mssm_max: false`, what
+/// backprojection's and accumulation's frames do), its min planes are still the CPU's.
 #[test]
 fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
     let Some((ctx, mapper)) = gpu("a_frame_building_fewer_mssm_levels_hands_out_only_those")?
@@ -717,7 +718,7 @@ fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
     let casters = GpuScene::upload(&ctx, &scene)?;
     // Each level's (min, max) planes.
     type Planes = Vec<(Vec<f32>, Vec<f32>)>;
-    let levels_after = |cap: Option<u32>| -> Result<Planes, Error> {
+    let levels_after = |cap: Option<u32>, mssm_max: bool| -> Result<Planes, Error> {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         let slot = LayersSlot {
             view: &view,
@@ -725,22 +726,47 @@ fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
             min_opacity: 0.0,
             slot: 0,
             mssm_levels: cap,
+            mssm_max,
         };
         frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
         ctx.queue.submit([enc.finish()]);
         let ls = frame.light_space(&view);
         ls.mssm.expect("an MSSM").read_levels(&ctx)
     };
-    let all = levels_after(None)?;
+    let all = levels_after(None, true)?;
     assert_eq!(all.len(), 5, "levels 0 to 4");
     let l0 = frame.light_space(&view).to_cpu(&ctx)?.layers[0].clone();
     let cpu = Mssm::build(&l0.depth, l0.size, 4);
-    let three = levels_after(Some(3))?;
+    let three = levels_after(Some(3), true)?;
     assert_eq!(three.len(), 3);
     for (l, (mn, mx)) in three.iter().enumerate() {
         let (cmn, cmx) = cpu.level(l as u32);
         assert!(same_bits(mn, cmn) && same_bits(mx, cmx), "level {l}");
     }
-    assert_eq!(levels_after(None)?.len(), 5);
+    assert_eq!(levels_after(None, true)?.len(), 5);
+    // Min planes only: a scene with other casters, so that a level the pass skipped would keep
+    // the first scene's minima.
+    let mut tris = quad_uv(1.0, 1.0, 4.0, 4.0, 1.5);
+    tris.extend(quad_uv(8.0, 2.0, 15.0, 7.0, 2.5));
+    let casters = GpuScene::upload(&ctx, &scene_of(unit_light(), tris)?)?;
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let slot = LayersSlot {
+        view: &view,
+        max_bias: 0.0,
+        min_opacity: 0.0,
+        slot: 0,
+        mssm_levels: None,
+        mssm_max: false,
+    };
+    frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
+    ctx.queue.submit([enc.finish()]);
+    let l0 = frame.light_space(&view).to_cpu(&ctx)?.layers[0].clone();
+    let cpu = Mssm::build(&l0.depth, l0.size, 4);
+    let ls = frame.light_space(&view);
+    let mins = ls.mssm.expect("an MSSM").read_levels(&ctx)?;
+    assert_eq!(mins.len(), 5);
+    for (l, (mn, _)) in mins.iter().enumerate() {
+        assert!(same_bits(mn, cpu.level(l as u32).0), "min-only level {l}");
+    }
     Ok(())
 }

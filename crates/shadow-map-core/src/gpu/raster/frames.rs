@@ -96,6 +96,10 @@ pub struct LayersSlot<'a> {
     pub slot: usize,
     /// The MSSM levels to build (level 0 the depth map itself; `None`: every level prepared).
     pub mssm_levels: Option<u32>,
+    /// Whether the MSSM's levels get their max planes too (false: the min planes only, for
+    /// kernels that query no maximum; the max planes, and those of [`GpuLayersFrame::light_space`],
+    /// then keep stale values).
+    pub mssm_max: bool,
 }
 
 /// A [`GpuLayersFrame`]'s view slots and its raster parameters at opacity 0.
@@ -199,6 +203,7 @@ impl GpuLayersFrame {
             min_opacity: 0.0,
             slot: 0,
             mssm_levels: None,
+            mssm_max: true,
         };
         self.encode_slot(ctx, enc, casters, &slot)
     }
@@ -260,7 +265,7 @@ impl GpuLayersFrame {
             p.record(ctx, enc, slot.max_bias);
         }
         let levels = slot.mssm_levels.unwrap_or(u32::MAX);
-        self.mssm_pass.record_levels(enc, levels);
+        self.mssm_pass.record_levels(enc, levels, slot.mssm_max);
         self.mssm_built
             .store(levels, std::sync::atomic::Ordering::Relaxed);
         Ok(())
