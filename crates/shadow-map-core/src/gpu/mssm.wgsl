@@ -84,30 +84,21 @@ fn anchored_step(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = params.top_base + r * s + x;
     let below = y + h < s;
     let b = params.bot_base + r * s + x;
+    // The right anchors, or the left ones again outside the map (min and max are idempotent).
+    let tr = select(t, t + h, right);
+    let br = select(b, b + h, right);
     let o = params.out_base + r * s + x;
-    var mn = top_min[t];
-    if right {
-        mn = min(mn, top_min[t + h]);
-    }
+    var mn = min(top_min[t], top_min[tr]);
     if below {
-        mn = min(mn, bot_min[b]);
-        if right {
-            mn = min(mn, bot_min[b + h]);
-        }
+        mn = min(mn, min(bot_min[b], bot_min[br]));
     }
     out_min[o] = mn;
     if MIN_ONLY {
         return;
     }
-    var mx = top_max[t];
-    if right {
-        mx = max(mx, top_max[t + h]);
-    }
+    var mx = max(top_max[t], top_max[tr]);
     if below {
-        mx = max(mx, bot_max[b]);
-        if right {
-            mx = max(mx, bot_max[b + h]);
-        }
+        mx = max(mx, max(bot_max[b], bot_max[br]));
     }
     out_max[o] = mx;
 }

@@ -715,10 +715,8 @@ fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
     };
     let view = unit_view(16);
     let frame = mapper.layers_frame_slots(&ctx, 16, &req, 1)?;
-    let casters = GpuScene::upload(&ctx, &scene)?;
-    // Each level's (min, max) planes.
-    type Planes = Vec<(Vec<f32>, Vec<f32>)>;
-    let levels_after = |cap: Option<u32>, mssm_max: bool| -> Result<Planes, Error> {
+    // Renders `casters` into the frame, building `cap` MSSM levels (max planes too: `mssm_max`).
+    let build = |casters: &GpuScene, cap: Option<u32>, mssm_max: bool| -> Result<(), Error> {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         let slot = LayersSlot {
             view: &view,
@@ -728,38 +726,41 @@ fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
             mssm_levels: cap,
             mssm_max,
         };
-        frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
+        frame.encode_slot(&ctx, &mut enc, casters, &slot)?;
         ctx.queue.submit([enc.finish()]);
-        let ls = frame.light_space(&view);
-        ls.mssm.expect("an MSSM").read_levels(&ctx)
+        Ok(())
     };
-    let all = levels_after(None, true)?;
+    let casters = GpuScene::upload(&ctx, &scene)?;
+    // Each level's (min, max) planes.
+    type Planes = Vec<(Vec<f32>, Vec<f32>)>;
+    let levels_after = |cap: Option<u32>| -> Result<Planes, Error> {
+        build(&casters, cap, true)?;
+        frame
+            .light_space(&view)
+            .mssm
+            .expect("an MSSM")
+            .read_levels(&ctx)
+    };
+    let all = levels_after(None)?;
     assert_eq!(all.len(), 5, "levels 0 to 4");
     let l0 = frame.light_space(&view).to_cpu(&ctx)?.layers[0].clone();
     let cpu = Mssm::build(&l0.depth, l0.size, 4);
-    let three = levels_after(Some(3), true)?;
+    let three = levels_after(Some(3))?;
     assert_eq!(three.len(), 3);
     for (l, (mn, mx)) in three.iter().enumerate() {
         let (cmn, cmx) = cpu.level(l as u32);
         assert!(same_bits(mn, cmn) && same_bits(mx, cmx), "level {l}");
     }
-    assert_eq!(levels_after(None, true)?.len(), 5);
+    assert_eq!(levels_after(None)?.len(), 5);
     // Min planes only: a scene with other casters, so that a level the pass skipped would keep
     // the first scene's minima.
     let mut tris = quad_uv(1.0, 1.0, 4.0, 4.0, 1.5);
     tris.extend(quad_uv(8.0, 2.0, 15.0, 7.0, 2.5));
-    let casters = GpuScene::upload(&ctx, &scene_of(unit_light(), tris)?)?;
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    let slot = LayersSlot {
-        view: &view,
-        max_bias: 0.0,
-        min_opacity: 0.0,
-        slot: 0,
-        mssm_levels: None,
-        mssm_max: false,
-    };
-    frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
-    ctx.queue.submit([enc.finish()]);
+    build(
+        &GpuScene::upload(&ctx, &scene_of(unit_light(), tris)?)?,
+        None,
+        false,
+    )?;
     let l0 = frame.light_space(&view).to_cpu(&ctx)?.layers[0].clone();
     let cpu = Mssm::build(&l0.depth, l0.size, 4);
     let ls = frame.light_space(&view);
