@@ -6,8 +6,9 @@
 //
 // Known difference: the CPU sums area(B_s ∩ L) in f64 (each term from f64 differences of f32
 // bounds); here each term is f32 and the sum is Kahan-compensated f32 (about 1e-7 of the light
-// area apart). Per-block occluder depths are recomputed for the gap-filling neighbours instead of
-// being stored (same values).
+// area apart). Gap filling keeps one row of block occluders where the CPU keeps them all
+// (ROW_BUFFER), or, with rows that may exceed LINE blocks, computes the neighbours' again (same
+// values).
 
 // The uniforms' switches as override constants (gpu.rs `specialization`, with the core's
 // LIGHT_SHAPE: the values of the uniform fields of the same meaning, which the kernel does not
@@ -16,6 +17,10 @@ override BITMASK: bool = true;
 override MIDPOINT: bool = true;
 override GAP_FILLING: bool = true;
 override FIRST_NONZERO: bool = true;
+// Gap filling with rows of at most LINE blocks (max_nspp <= LINE, gpu.rs `specialization`):
+// `visibility` keeps one row of block occluders.
+override ROW_BUFFER: bool = false;
+const LINE: u32 = 128u;
 override OPACITY: bool = false;
 override PLANE_ON: bool = true;
 override LAYERS: u32 = 3u;
@@ -473,11 +478,44 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     while side * side < bp.nbits {
         side++;
     }
+    // Gap filling reads each block's right and lower neighbours' occluders. ROW_BUFFER keeps
+    // one row of them (row b's, each replaced by row b + 1's once read), so each block's
+    // occluder is computed once, as the CPU's per-block array holds it; without it (rows that
+    // may be longer than LINE) the neighbours' are computed again.
+    var row: array<vec2<f32>, LINE>;
+    if ROW_BUFFER {
+        for (var a = 0u; a < bx; a++) {
+            row[a] = block_occluder(kr, a, 0u, rc);
+        }
+    }
     for (var b = 0u; b < by; b++) {
         let j0 = rect.y + i32(b * step);
         let j1 = min(j0 + i32(step), rect.w);
         for (var a = 0u; a < bx; a++) {
-            let occ = block_occluder(kr, a, b, rc);
+            var occ: vec2<f32>;
+            // The right and lower neighbours' occluder depths (+inf: none, or not read).
+            var zr = pos_inf();
+            var zb = pos_inf();
+            if ROW_BUFFER {
+                occ = row[a];
+                if a + 1u < bx {
+                    zr = row[a + 1u].x;
+                }
+                if b + 1u < by {
+                    row[a] = block_occluder(kr, a, b + 1u, rc);
+                    zb = row[a].x;
+                }
+            } else {
+                occ = block_occluder(kr, a, b, rc);
+                if GAP_FILLING && is_finite(occ.x) {
+                    if a + 1u < bx {
+                        zr = block_occluder(kr, a + 1u, b, rc).x;
+                    }
+                    if b + 1u < by {
+                        zb = block_occluder(kr, a, b + 1u, rc).x;
+                    }
+                }
+            }
             let z = occ.x;
             if !is_finite(z) {
                 continue;
@@ -490,24 +528,18 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
             let y0 = bound(f32(j0), uv.y, s);
             var y1 = bound(f32(j1), uv.y, s);
             if GAP_FILLING {
-                if a + 1u < bx {
-                    let zt = block_occluder(kr, a + 1u, b, rc).x;
-                    if is_finite(zt) {
-                        let st = micropatch_scale(k, zt, zp);
-                        let d = f32(i1) - uv.x;
-                        if d != 0.0 && st > 0.0 {
-                            x1 = max(x1, clamp(d * st, -FAR_BOUND, FAR_BOUND));
-                        }
+                if is_finite(zr) {
+                    let st = micropatch_scale(k, zr, zp);
+                    let d = f32(i1) - uv.x;
+                    if d != 0.0 && st > 0.0 {
+                        x1 = max(x1, clamp(d * st, -FAR_BOUND, FAR_BOUND));
                     }
                 }
-                if b + 1u < by {
-                    let zt = block_occluder(kr, a, b + 1u, rc).x;
-                    if is_finite(zt) {
-                        let st = micropatch_scale(k, zt, zp);
-                        let d = f32(j1) - uv.y;
-                        if d != 0.0 && st > 0.0 {
-                            y1 = max(y1, clamp(d * st, -FAR_BOUND, FAR_BOUND));
-                        }
+                if is_finite(zb) {
+                    let st = micropatch_scale(k, zb, zp);
+                    let d = f32(j1) - uv.y;
+                    if d != 0.0 && st > 0.0 {
+                        y1 = max(y1, clamp(d * st, -FAR_BOUND, FAR_BOUND));
                     }
                 }
             }

@@ -169,19 +169,24 @@ impl BpKernel {
 
 /// The kernel's override constants (the core's `LIGHT_SHAPE`, `backprojection.wgsl`'s `BITMASK` to `LAYERS`) for the
 /// switches of `eu` and `bpu`: the kernel branches on these, never on the uniforms' fields.
-fn specialization(eu: &EstimateUniform, bpu: &BpUniform) -> [(&'static str, f64); 8] {
+fn specialization(eu: &EstimateUniform, bpu: &BpUniform) -> [(&'static str, f64); 9] {
     let flag = |b: bool| f64::from(u8::from(b));
     [
         eu.shape_switch(),
         ("BITMASK", flag(bpu.nbits > 0)),
         ("MIDPOINT", bpu.midpoint as f64),
         ("GAP_FILLING", bpu.gap_filling as f64),
+        // A row of blocks is at most max_nspp long at step 1 and ceil(sqrt(max_nspp)) past it.
+        ("ROW_BUFFER", flag(bpu.gap_filling != 0 && bpu.max_nspp <= ROW_BUFFER_LINE)),
         ("FIRST_NONZERO", bpu.first_nonzero as f64),
         ("OPACITY", bpu.opacity as f64),
         ("PLANE_ON", eu.receiver_plane as f64),
         ("LAYERS", bpu.layers as f64),
     ]
 }
+
+/// Blocks of one row `backprojection.wgsl` keeps under gap filling (its `LINE`).
+const ROW_BUFFER_LINE: u32 = 128;
 
 /// The kernel's four uniforms: the light view, the estimate uniform, [`BpUniform`], the
 /// [`BitTable`].
