@@ -265,11 +265,19 @@ fn overlap_term(p: Patch, r: vec3<f32>, lr: vec2<f32>, hx: f32, hy: f32, f: Fron
             }
             q[k] = lc.p;
         }
+        // quad_disk_area(q) when the whole patch is in front, else the front-clipped polygon's:
+        // one poly_disk_area call on either polygon (lavapipe runs both sides of a branch, and
+        // this call is most of a disk term's cost).
+        var pq: Poly;
         if f.whole {
-            area = quad_disk_area(q, acc.half.x);
+            pq.m = 4u;
+            for (var k = 0u; k < 4u; k++) {
+                pq.q[k] = q[k];
+            }
         } else {
-            area = poly_disk_area(front_clip(f, q), acc.half.x);
+            pq = front_clip(f, q);
         }
+        area = poly_disk_area(pq, acc.half.x);
     }
     return area * acc.inv_area;
 }
