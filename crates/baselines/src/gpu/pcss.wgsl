@@ -10,16 +10,14 @@ fn facing(p: vec3<f32>, n: vec3<f32>) -> f32 {
     return front_fraction_world(est, p, n);
 }
 
-fn visibility(r: ReceiverSample) -> f32 {
-    let zr = r.p.z;
-    let l = 2.0 * est.light_half_extent;
-    let to_texels = f32(view.r) / view.w;
-    // 1. Blocker search.
-    let ws = pcss_search_width(l, zr, view.n, to_texels, view.ortho != 0u);
-    let cy = cells_new(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, est.max_taps);
-    let cx = cells_new(r.uv.x - 0.5 * ws.x, r.uv.x + 0.5 * ws.x, est.max_taps);
-    var sum = Sum(0.0, 0.0);
-    var count = Sum(0.0, 0.0);
+// The weighted tap sums over the cells cy x cx, taps in the CPU's order: the blocker search's
+// (the casters' weighted depths, their weight), or with `filtering` the filter's (the lit taps'
+// weight, every tap's weight), each weight times the disk edge of radius `rad` when `soft_edge`
+// (baselines::math::disk_edge, one texel soft). `filtering` is constant at each call, so each
+// inlined copy keeps one side.
+fn tap_sums(r: ReceiverSample, cy: Cells, cx: Cells, filtering: bool, soft_edge: bool, rad: f32) -> array<Sum, 2> {
+    var a = Sum(0.0, 0.0);
+    var b = Sum(0.0, 0.0);
     for (var ky = 0u; ky < cy.count; ky++) {
         let cj = cell(cy, ky);
         if !cj.valid {
@@ -30,53 +28,54 @@ fn visibility(r: ReceiverSample) -> f32 {
             if !ci.valid {
                 continue;
             }
-            if caster(r, ci.i, cj.i) {
-                let w = ci.w * cj.w;
-                sum = sum_add(sum, w * depth_at(ci.i, cj.i));
-                count = sum_add(count, w);
-            }
-        }
-    }
-    if count.s <= 0.0 {
-        return 1.0;
-    }
-    let z_avg = sum.s / count.s;
-    // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
-    let wf = pcss_filter_width(l, zr, z_avg, view.n, to_texels, view.ortho != 0u);
-    let disk = LIGHT_SHAPE != LIGHT_RECT;
-    let rad = 0.5 * wf.x;
-    let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
-    let fx = cells_new(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, est.max_taps);
-    var lit_sum = Sum(0.0, 0.0);
-    var total = Sum(0.0, 0.0);
-    for (var ky = 0u; ky < fy.count; ky++) {
-        let cj = cell(fy, ky);
-        if !cj.valid {
-            continue;
-        }
-        for (var kx = 0u; kx < fx.count; kx++) {
-            let ci = cell(fx, kx);
-            if !ci.valid {
+            let w0 = ci.w * cj.w;
+            if !filtering {
+                if caster(r, ci.i, cj.i) {
+                    a = sum_add(a, w0 * depth_at(ci.i, cj.i));
+                    b = sum_add(b, w0);
+                }
                 continue;
             }
-            // Disk filter with a one-texel soft edge (baselines::math::disk_edge).
             var edge = 1.0;
-            if disk && wf.x > 1.0 {
+            if soft_edge {
                 let c = vec2<f32>(f32(ci.i) + 0.5, f32(cj.i) + 0.5) - r.uv;
                 edge = clamp(rad + 0.5 - sqrt(dot2(c, c)), 0.0, 1.0);
                 if edge <= 0.0 {
                     continue;
                 }
             }
-            let w = ci.w * cj.w * edge;
-            total = sum_add(total, w);
+            let w = w0 * edge;
+            b = sum_add(b, w);
             if !caster(r, ci.i, cj.i) {
-                lit_sum = sum_add(lit_sum, w);
+                a = sum_add(a, w);
             }
         }
     }
-    if total.s <= 0.0 {
+    return array<Sum, 2>(a, b);
+}
+
+fn visibility(r: ReceiverSample) -> f32 {
+    let zr = r.p.z;
+    let l = 2.0 * est.light_half_extent;
+    let to_texels = f32(view.r) / view.w;
+    // 1. Blocker search.
+    let ws = pcss_search_width(l, zr, view.n, to_texels, view.ortho != 0u);
+    let cy = cells_new(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, est.max_taps);
+    let cx = cells_new(r.uv.x - 0.5 * ws.x, r.uv.x + 0.5 * ws.x, est.max_taps);
+    let blockers = tap_sums(r, cy, cx, false, false, 0.0);
+    let count = blockers[1].s;
+    if count <= 0.0 {
         return 1.0;
     }
-    return lit_sum.s / total.s;
+    let z_avg = blockers[0].s / count;
+    // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
+    let wf = pcss_filter_width(l, zr, z_avg, view.n, to_texels, view.ortho != 0u);
+    let soft_edge = LIGHT_SHAPE != LIGHT_RECT && wf.x > 1.0;
+    let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
+    let fx = cells_new(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, est.max_taps);
+    let taps = tap_sums(r, fy, fx, true, soft_edge, 0.5 * wf.x);
+    if taps[1].s <= 0.0 {
+        return 1.0;
+    }
+    return taps[0].s / taps[1].s;
 }
