@@ -13,7 +13,10 @@
 //! `draw_indexed`. Transforms are affine (the last row is ignored). An index past the vertex
 //! buffer reads whatever wgpu's bounds checks give (a vertex of the buffer, or zero): never a
 //! fault, but a wrong triangle, as a draw call with that index would be.
-use super::{kernel::Kernel, GpuContext, GpuScene};
+use super::{
+    kernel::{Kernel, SpecializedKernel},
+    GpuContext, GpuScene,
+};
 use crate::{Error, Result};
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
@@ -116,7 +119,8 @@ impl GpuCasterBuilder {
     /// Compiles the pass and allocates room for `max_meshes` meshes and `max_instances`
     /// instances per frame.
     pub fn new(ctx: &GpuContext, max_meshes: u32, max_instances: u32) -> Result<Self> {
-        let kernel = Kernel::new(ctx, "casters", &[CASTERS_WGSL], "build_casters", &[])?;
+        let kernel = SpecializedKernel::new(ctx, "casters", &[CASTERS_WGSL], "build_casters", &[])?
+            .fixed(ctx)?;
         let limits = ctx.limits();
         let align = (limits.min_uniform_buffer_offset_alignment as u64).max(1);
         let params_stride = (std::mem::size_of::<CasterParams>() as u64).div_ceil(align) * align;

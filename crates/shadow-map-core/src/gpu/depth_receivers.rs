@@ -19,7 +19,7 @@
 //! measures it against the ray-traced G-buffer.
 use super::{
     depth_map::texture_desc,
-    kernel::Kernel,
+    kernel::{Kernel, SpecializedKernel},
     shared::{ReceiverGpu, SHARED_WGSL},
     GpuContext,
 };
@@ -192,13 +192,14 @@ pub struct GpuDepthReceivers {
 impl GpuDepthReceivers {
     /// Compiles the pass and allocates its uniform.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let kernel = Kernel::new(
+        let kernel = SpecializedKernel::new(
             ctx,
             "depth receivers",
             &[SHARED_WGSL, DEPTH_RECEIVERS_WGSL],
             "depth_receivers",
             &[],
-        )?;
+        )?
+        .fixed(ctx)?;
         let uniform = super::kernel::uniform_buffer(
             ctx,
             "depth receivers.params",

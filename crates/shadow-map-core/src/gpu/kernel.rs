@@ -4,12 +4,13 @@
 //! pipelines with their override constants, all inside labelled error scopes; uniform buffers;
 //! planes in texture arrays.
 //!
-//! One kernel in two lines:
+//! One kernel in three lines:
 //!
 //! ```no_run
-//! use shadow_map_core::gpu::{kernel::Kernel, GpuContext};
+//! use shadow_map_core::gpu::{kernel::SpecializedKernel, GpuContext};
 //! # fn demo(ctx: &GpuContext, wgsl: &str) -> shadow_map_core::Result<()> {
-//! let k = Kernel::new(ctx, "my estimate", &[wgsl], "estimate", &[("WG", 64.0)])?;
+//! let k = SpecializedKernel::new(ctx, "my estimate", &[wgsl], "estimate", &[("WG", 64.0)])?;
+//! let k = k.fixed(ctx)?; // one pipeline, no switch left
 //! # let _ = k; Ok(()) }
 //! ```
 use super::{depth_map::texture_desc, GpuContext};
@@ -245,24 +246,6 @@ pub struct Kernel {
 }
 
 impl Kernel {
-    /// Compiles `parts` (joined in order) and makes the pipeline of `entry` over the bindings
-    /// they declare ([`bindings_of`]), with the override `constants` set; errors are typed and
-    /// named after `label`.
-    pub fn new(
-        ctx: &GpuContext,
-        label: &str,
-        parts: &[&str],
-        entry: &str,
-        constants: &[(&str, f64)],
-    ) -> Result<Self> {
-        let k = SpecializedKernel::new(ctx, label, parts, entry, constants)?;
-        let pipeline = k.pipeline(ctx, &[])?;
-        Ok(Kernel {
-            layout: k.layout,
-            pipeline,
-        })
-    }
-
     /// A bind group of this kernel's layout: `resources[k]` at binding `k`.
     pub fn bind_group(
         &self,
@@ -315,6 +298,16 @@ impl SpecializedKernel {
             entry: entry.to_string(),
             constants: constants.iter().map(|&(k, v)| (k.to_string(), v)).collect(),
             pipelines: Default::default(),
+        })
+    }
+
+    /// The kernel with no switch left: the pipeline of its entry point with the constants given
+    /// at [`new`](Self::new), and its layout.
+    pub fn fixed(self, ctx: &GpuContext) -> Result<Kernel> {
+        let pipeline = self.pipeline(ctx, &[])?;
+        Ok(Kernel {
+            layout: self.layout,
+            pipeline,
         })
     }
 

@@ -8,7 +8,7 @@
 use super::{
     depth_map::GpuDepthMap,
     frame::FrameInputs,
-    kernel::{plane_array, upload_planes, Kernel, PlaneArray},
+    kernel::{plane_array, upload_planes, Kernel, PlaneArray, SpecializedKernel},
     mssm::GpuMssm,
     raster::{GpuLayersFrame, GpuShadowMapper, LayersSlot},
     GpuContext,
@@ -76,13 +76,14 @@ enum MssmCopy {
 impl GpuLayout {
     /// Compiles the plane copy (label `layout`).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let copy = Kernel::new(
+        let copy = SpecializedKernel::new(
             ctx,
             "layout plane copy",
             &[PLANE_TO_LAYER_WGSL],
             "copy_plane",
             &[],
-        )?;
+        )?
+        .fixed(ctx)?;
         Ok(GpuLayout { copy })
     }
 

@@ -4,7 +4,7 @@
 //! the same f32 order, so results are bit-identical for identical layers.
 use super::{
     depth_map::GpuDepthMap,
-    kernel::{buffer_init, Kernel},
+    kernel::{buffer_init, Kernel, SpecializedKernel},
     GpuContext,
 };
 use crate::Result;
@@ -41,13 +41,14 @@ impl GpuMidpoints {
     /// Compiles the pipeline (label `midpoint`).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let wg = MIDPOINT_WORKGROUP as f64;
-        let Kernel { layout, pipeline } = Kernel::new(
+        let Kernel { layout, pipeline } = SpecializedKernel::new(
             ctx,
             "midpoint",
             &[MIDPOINT_WGSL],
             "midpoint_layer",
             &[("WG_X", wg), ("WG_Y", wg)],
-        )?;
+        )?
+        .fixed(ctx)?;
         Ok(GpuMidpoints { layout, pipeline })
     }
 

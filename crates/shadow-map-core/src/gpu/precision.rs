@@ -8,7 +8,7 @@
 //! ```
 use super::{
     depth_map::{upload_len_error, GpuDepthMap},
-    kernel::{buffer_init, uniform_buffer, Kernel},
+    kernel::{buffer_init, uniform_buffer, Kernel, SpecializedKernel},
     GpuContext,
 };
 use crate::{
@@ -135,13 +135,14 @@ pub struct GpuUnorm16Encoder {
 impl GpuUnorm16Encoder {
     /// Compiles the pipeline (label `unorm16 encode`).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let kernel = Kernel::new(
+        let kernel = SpecializedKernel::new(
             ctx,
             "unorm16 encode",
             &[PRECISION_WGSL],
             "encode_unorm16",
             &[("WG", ENCODE_WORKGROUP as f64)],
-        )?;
+        )?
+        .fixed(ctx)?;
         Ok(GpuUnorm16Encoder { kernel })
     }
 
