@@ -177,7 +177,10 @@ fn specialization(eu: &EstimateUniform, bpu: &BpUniform) -> [(&'static str, f64)
         ("MIDPOINT", bpu.midpoint as f64),
         ("GAP_FILLING", bpu.gap_filling as f64),
         // A row of blocks is at most max_nspp long at step 1 and ceil(sqrt(max_nspp)) past it.
-        ("ROW_BUFFER", flag(bpu.gap_filling != 0 && bpu.max_nspp <= ROW_BUFFER_LINE)),
+        (
+            "ROW_BUFFER",
+            flag(bpu.gap_filling != 0 && bpu.max_nspp <= ROW_BUFFER_LINE),
+        ),
         ("FIRST_NONZERO", bpu.first_nonzero as f64),
         ("OPACITY", bpu.opacity as f64),
         ("PLANE_ON", eu.receiver_plane as f64),
