@@ -25,6 +25,21 @@ pub fn assert_shaders_valid<'a, S: AsRef<str>>(shaders: impl IntoIterator<Item =
     assert!(errors.is_empty(), "{}", errors.join("\n"));
 }
 
+/// The value of the WGSL `const NAME: u32 = <literal>;` in `src` (validated with naga), for a
+/// test that ties a Rust constant to the WGSL one it must equal; an error naming what is missing.
+pub fn u32_constant(src: &str, name: &str) -> Result<u32, String> {
+    let module = validate_wgsl(name, src)?;
+    let (_, c) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .ok_or_else(|| format!("no const `{name}` in the WGSL"))?;
+    match module.global_expressions[c.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => Ok(v),
+        ref e => Err(format!("const `{name}` is {e:?}, not a u32 literal")),
+    }
+}
+
 /// Checks a `#[repr(C)]` Rust mirror of a WGSL struct: `fields` are the Rust side's `(name,
 /// byte offset)` in declaration order (padding arrays spelled out as the WGSL names them) and
 /// `size` its `size_of`; the WGSL struct `name` in `src` must have the same member names at the

@@ -8,6 +8,13 @@ fn shader_validates_with_naga() {
     assert_shaders_valid([("backprojection", shader_source(&SHADER_PARTS))]);
 }
 
+/// `specialization` turns `ROW_BUFFER` on only where a row of blocks fits the WGSL's row array.
+#[test]
+fn the_row_buffer_bound_is_the_wgsl_one() {
+    let line = test_support::wgsl::u32_constant(&shader_source(&SHADER_PARTS), "LINE");
+    assert_eq!(line, Ok(ROW_BUFFER_LINE));
+}
+
 #[test]
 fn uniforms_match_the_wgsl() {
     test_support::assert_wgsl_layout!(

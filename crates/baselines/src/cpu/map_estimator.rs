@@ -302,8 +302,9 @@ impl<F: Filter> FilterPass<'_, F> {
             let plane = ReceiverPlane::new(on, view, p, n, biases, extra_eps);
             facing * filter.visibility(at, &ReceiverSample { p, n, uv, plane })
         };
-        let nonfinite =
-            (self.receivers).estimate_each(self.cancel, v, |p, n| Some(at_receiver(p, n)))?;
+        let nonfinite = self
+            .receivers
+            .estimate_each(self.cancel, v, |p, n| Some(at_receiver(p, n)))?;
         Ok((nonfinite, outside.into_inner()))
     }
 }

@@ -235,7 +235,7 @@ impl ViewMaps {
         };
         self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
         inputs.mark(enc, "layers");
-        let semi = self.km.opacity > 0 && !inputs.casters.is_opaque();
+        let semi = self.layers.writes_opacity(inputs.casters);
         self.km.record(enc, semi, mssm_planes);
         inputs.mark(enc, "layout");
         Ok(semi)

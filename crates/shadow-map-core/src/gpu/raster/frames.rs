@@ -164,6 +164,12 @@ impl GpuLayersFrame {
         self.groups.len() as u32
     }
 
+    /// Whether an `encode` over `casters` writes the opacity planes: prepared with them, and
+    /// the casters semi-transparent.
+    pub fn writes_opacity(&self, casters: &GpuScene) -> bool {
+        !casters.is_opaque() && !self.opacity.is_empty()
+    }
+
     /// The peeled layers the request asked for, nearest first.
     pub fn layers(&self) -> &[GpuDepthMap] {
         &self.layers[..self.layers_out]
@@ -244,7 +250,7 @@ impl GpuLayersFrame {
             ..st.base
         };
         ctx.write_in(enc, &self.params, 0, bytemuck::bytes_of(&params));
-        let with_opacity = !casters.is_opaque() && !self.opacity.is_empty();
+        let with_opacity = self.writes_opacity(casters);
         self.wrote_opacity
             .store(with_opacity, std::sync::atomic::Ordering::Relaxed);
         for (m, (pipelines, group)) in self.groups.iter().enumerate() {
