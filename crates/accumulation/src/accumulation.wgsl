@@ -73,6 +73,8 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 // [0]: lit receivers outside the frustum, [1]: non-finite V, [2]: receivers cut short by the
 // device's loop limit (flagged with CUT_BITS, for the caller to redo on the CPU).
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 3>;
+// The range's active list (the core's receivers::ActiveLists), read by the core's entry point.
+@group(0) @binding(9) var<storage, read> active_list: array<u32>;
 
 
 // The footprint's frame (math::Footprint): in perspective the view's own (fp_n = view.n); for

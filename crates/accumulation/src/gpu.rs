@@ -38,11 +38,12 @@ use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES},
         frame::{
-            check_buffers, compute_pass, cpu_twin_v, receiver_ranges, single_view, status_buffer,
-            FrameEstimator, FrameInputs, Views,
+            check_buffers, compute_pass_indirect, cpu_twin_v, receiver_ranges, single_view,
+            status_buffer, FrameEstimator, FrameInputs, Views,
         },
         kernel::{BindGroupCache, SpecializedKernel},
         layout::ViewMaps,
+        receivers::ActiveLists,
         receivers::RECEIVERS_WGSL,
         GpuContext,
     },
@@ -236,6 +237,8 @@ pub struct AccumulationFrame {
     est: wgpu::Buffer,
     tables: wgpu::Buffer,
     status: wgpu::Buffer,
+    /// Each range's active receivers, listed every frame: the kernel runs over them only.
+    active: ActiveLists,
     groups: BindGroupCache,
 }
 
@@ -291,6 +294,7 @@ impl AccumulationFrame {
         );
         let status = status_buffer(&ctx, "accumulation frame status", 3);
         Ok(AccumulationFrame {
+            active: ActiveLists::new(&ctx)?,
             groups: BindGroupCache::default(),
             ctx,
             params: cpu.params().clone(),
@@ -380,7 +384,10 @@ impl FrameEstimator for AccumulationFrame {
         }
         let pipeline = self.kernel.pipeline(ctx, &specialization(&eu, &au))?;
         // One dispatch per range of receivers (a 4K view is two under the default limits).
-        for range in receiver_ranges(ctx, inputs.count) {
+        for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
+            let list = self
+                .active
+                .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
             let group = self.groups.get_dense(
                 ctx,
                 LABEL,
@@ -395,9 +402,10 @@ impl FrameEstimator for AccumulationFrame {
                     range.receivers(inputs.receivers),
                     range.words(inputs.v),
                     self.status.as_entire_binding(),
+                    list.as_entire_binding(),
                 ],
             );
-            compute_pass(enc, LABEL, &pipeline, &group, range.workgroups());
+            compute_pass_indirect(enc, LABEL, &pipeline, &group, &list);
         }
         inputs.mark(enc, "estimate");
         Ok(())

@@ -66,6 +66,8 @@ struct BitTable {
 // budget and left NaN (gpu/frame.rs, BackprojectionFrame).
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 3>;
 @group(0) @binding(8) var<uniform> bits: BitTable;
+// The range's active list (the core's receivers::ActiveLists), read by the core's entry point.
+@group(0) @binding(9) var<storage, read> active_list: array<u32>;
 
 const FAR_BOUND: f32 = 1e30;
 

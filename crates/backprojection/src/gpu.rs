@@ -19,9 +19,10 @@ use shadow_map_core::{
             EstimateUniform, BITMASK_WGSL, CELLS_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES,
             SILHOUETTE_SETUP_WGSL,
         },
-        frame::{compute_pass, receiver_ranges},
+        frame::{compute_pass_indirect, receiver_ranges},
         kernel::{BindGroupCache, SpecializedKernel},
         layout::KernelMaps,
+        receivers::ActiveLists,
         receivers::RECEIVERS_WGSL,
         GpuContext,
     },
@@ -110,6 +111,8 @@ pub struct BpUniform {
 /// dispatch of it is bound and recorded.
 struct BpKernel {
     kernel: SpecializedKernel,
+    /// Each range's active receivers, listed every frame: the kernel runs over them only.
+    active: ActiveLists,
     groups: BindGroupCache,
 }
 
@@ -121,6 +124,7 @@ impl BpKernel {
         let kernel = SpecializedKernel::new(ctx, LABEL, &SHADER_PARTS, "estimate", OVERRIDES)?;
         Ok(BpKernel {
             kernel,
+            active: ActiveLists::new(ctx)?,
             groups: BindGroupCache::default(),
         })
     }
@@ -144,7 +148,8 @@ impl BpKernel {
     ) -> Result<()> {
         let pipeline = self.kernel.pipeline(ctx, switches)?;
         self.groups.next_encode();
-        for range in receiver_ranges(ctx, count) {
+        for (index, range) in receiver_ranges(ctx, count).into_iter().enumerate() {
+            let list = self.active.encode(ctx, enc, index, range, receivers, v)?;
             let group = self.groups.get_dense(
                 ctx,
                 LABEL,
@@ -159,9 +164,10 @@ impl BpKernel {
                     range.words(v),
                     counters.as_entire_binding(),
                     bufs.bits.as_entire_binding(),
+                    list.as_entire_binding(),
                 ],
             );
-            compute_pass(enc, LABEL, &pipeline, &group, range.workgroups());
+            compute_pass_indirect(enc, LABEL, &pipeline, &group, &list);
         }
         Ok(())
     }

@@ -26,10 +26,11 @@ use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, OVERRIDES},
         frame::{
-            check_buffers, check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v,
-            receiver_ranges, single_view, status_buffer, Views,
+            check_buffers, check_per_receiver, check_prepared_inputs, compute_pass_indirect,
+            cpu_twin_v, receiver_ranges, single_view, status_buffer, Views,
         },
         kernel::{BindGroupCache, SpecializedKernel},
+        receivers::ActiveLists,
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
@@ -49,6 +50,8 @@ pub struct MapFrame<F: GpuFilter> {
     kernel: SpecializedKernel,
     est: wgpu::Buffer,
     status: wgpu::Buffer,
+    /// Each range's active receivers, listed every frame: the kernel runs over them only.
+    active: ActiveLists,
     groups: BindGroupCache,
 }
 
@@ -71,6 +74,7 @@ impl<F: GpuFilter> MapFrame<F> {
         let est = uniform_buffer(&ctx, "frame estimate uniform");
         let status = status_buffer(&ctx, "frame status", 4);
         Ok(MapFrame {
+            active: ActiveLists::new(&ctx)?,
             groups: BindGroupCache::default(),
             ctx,
             params: params.clone(),
@@ -140,7 +144,10 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
             return Ok(());
         }
         let pipeline = self.kernel.pipeline(&self.ctx, &[u.shape_switch()])?;
-        for range in receiver_ranges(&self.ctx, inputs.count) {
+        for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
+            let list = self
+                .active
+                .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
             let group = self.groups.get_dense(
                 &self.ctx,
                 "frame estimate",
@@ -152,10 +159,10 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
                     range.receivers(inputs.receivers),
                     range.words(inputs.v),
                     self.status.as_entire_binding(),
+                    list.as_entire_binding(),
                 ],
             );
-            let wg = range.workgroups();
-            compute_pass(enc, "frame estimate", &pipeline, &group, wg);
+            compute_pass_indirect(enc, "frame estimate", &pipeline, &group, &list);
         }
         inputs.mark(enc, "estimate");
         Ok(())
@@ -265,6 +272,8 @@ pub struct MultiSampleFrame {
     est: Vec<wgpu::Buffer>,
     acc: wgpu::Buffer,
     max_receivers: u32,
+    /// Each range's active receivers, listed once per frame for every sub-light's pass.
+    active: ActiveLists,
     groups: BindGroupCache,
 }
 
@@ -293,6 +302,7 @@ impl MultiSampleFrame {
             mapped_at_creation: false,
         });
         Ok(MultiSampleFrame {
+            active: ActiveLists::new(&ctx)?,
             groups: BindGroupCache::default(),
             ctx,
             params: params.clone(),
@@ -402,9 +412,19 @@ impl FrameEstimator for MultiSampleFrame {
         let shape = [u.shape_switch()];
         let accumulate = k.kernel.entry_pipeline(ctx, "accumulate", &shape)?;
         let finalize = k.kernel.entry_pipeline(ctx, "finalize", &shape)?;
-        let ranges = receiver_ranges(&self.ctx, inputs.count);
-        // One pass of `pipe` per range of receivers, its bind group over the range's receivers,
-        // sums and V.
+        // Each range's active receivers, listed once for every pass (inactive ones NaN).
+        let ranges = receiver_ranges(ctx, inputs.count)
+            .into_iter()
+            .enumerate()
+            .map(|(index, range)| {
+                let list =
+                    self.active
+                        .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
+                Ok((range, list))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        // One pass of `pipe` per range of receivers over its active list, its bind group over
+        // the range's receivers, sums, V and list.
         let passes = |enc: &mut wgpu::CommandEncoder,
                       label: &str,
                       pipe: &wgpu::ComputePipeline,
@@ -413,7 +433,7 @@ impl FrameEstimator for MultiSampleFrame {
             &wgpu::Buffer,
             wgpu::BindingResource<'_>,
         )| {
-            for range in &ranges {
+            for (range, list) in &ranges {
                 let group = self.groups.get_dense(
                     &self.ctx,
                     "multi-sample frame",
@@ -425,9 +445,10 @@ impl FrameEstimator for MultiSampleFrame {
                         range.receivers(inputs.receivers),
                         range.words(&self.acc),
                         range.words(inputs.v),
+                        list.as_entire_binding(),
                     ],
                 );
-                compute_pass(enc, label, pipe, &group, range.workgroups());
+                compute_pass_indirect(enc, label, pipe, &group, list);
             }
         };
         inputs.mark(enc, "start");

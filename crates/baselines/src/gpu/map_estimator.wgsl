@@ -14,6 +14,8 @@
 // [0]: receivers outside the light frustum (the CPU's `outside`), [1]: non-finite results,
 // [2]: receivers cut short by the device's loop limit (written as CUT_BITS, redone on the CPU).
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 3>;
+// The range's active list (the core's receivers::ActiveLists), read by the core's entry point.
+@group(0) @binding(6) var<storage, read> active_list: array<u32>;
 
 
 // map_estimator::ReceiverSample.

@@ -6,6 +6,7 @@ use shadow_map_core::{
     gpu::{
         estimate::{ESTIMATE_HEAD_WGSL, OVERRIDES},
         kernel::SpecializedKernel,
+        receivers::ACTIVE_WGSL,
         upload_depth_map, GpuContext, GpuDepthMap, GpuUnorm16Map,
     },
     DepthMap, DepthPrecision, Result, Unorm16Map,
@@ -15,10 +16,11 @@ use shadow_map_core::{
 pub const MULTI_SAMPLE_WGSL: &str = include_str!("multi_sample.wgsl");
 
 /// The WGSL parts of the multi-sample kernels reading maps of precision `depth`, in order.
-pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 3] {
+pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 4] {
     [
         ESTIMATE_HEAD_WGSL,
         kernel::depth_wgsl(depth),
+        ACTIVE_WGSL,
         MULTI_SAMPLE_WGSL,
     ]
 }

@@ -1,6 +1,7 @@
 // Twin of crates/baselines/src/cpu/multi_sample.rs (Heckbert & Herf 1997, docs/methods.md §6):
 // `accumulate` adds one sub-light's hard test into a per-receiver count, once per sub-light map;
-// `finalize` divides by the number of sub-lights and applies the one-sided and inactive rules.
+// `finalize` divides by the number of sub-lights and applies the one-sided rule. Both run over the
+// active list (inactive receivers hold V = NaN from the compaction).
 // The view uniform is the sub-light's: its origin is the light point y_k (world), bit for bit
 // the CPU's `frame.to_world(y.extend(0.0))`.
 
@@ -13,6 +14,9 @@
 @group(0) @binding(4) var<storage, read_write> acc: array<f32>;
 // V per receiver as f32 bits (written by `finalize`).
 @group(0) @binding(5) var<storage, read_write> v_out: array<u32>;
+// The range's active list (the core's receivers::ActiveLists, active.wgsl): inactive receivers
+// already hold V = NaN.
+@group(0) @binding(6) var<storage, read> active_list: array<u32>;
 
 
 // No caster at texel (i, j) (ReceiverPlane::caster), texels outside the map +inf (always lit).
@@ -26,14 +30,11 @@ fn lit_at(rp: ReceiverPlane, i: i32, j: i32) -> bool {
 
 @compute @workgroup_size(WG)
 fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = gid.x;
-    if k >= arrayLength(&receivers) {
+    let k = listed_receiver(gid.x);
+    if k == NONE_LISTED {
         return;
     }
     let rec = receivers[k];
-    if rec.is_active == 0u {
-        return;
-    }
     let pw = rec.position;
     let nw = rec.normal;
     // The sun: the sub-light is a direction, the view's e_z (orthographic).
@@ -67,15 +68,11 @@ fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 @compute @workgroup_size(WG)
 fn finalize(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = gid.x;
-    if k >= arrayLength(&receivers) {
+    let k = listed_receiver(gid.x);
+    if k == NONE_LISTED {
         return;
     }
     let rec = receivers[k];
-    if rec.is_active == 0u {
-        v_out[k] = NAN_BITS;
-        return;
-    }
     let pl = frame_to_light(est.light_frame, rec.position);
     if est.light_one_sided != 0u && pl.z <= 0.0 {
         v_out[k] = 0u;

@@ -9,8 +9,6 @@
 
 const PI_F32: f32 = 3.14159265358979;
 const HALF_PI_F32: f32 = 1.57079632679490;
-// The quiet NaN every kernel writes for an inactive receiver.
-const NAN_BITS: u32 = 0x7fc00000u;
 const F32_MAX: f32 = 3.40282347e38;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 

@@ -69,6 +69,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("depth_receivers", depth_receivers::DEPTH_RECEIVERS_SOURCE),
     ("casters", casters::CASTERS_WGSL),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
+    ("compact", receivers::COMPACT_CHECK_WGSL),
     ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
 ];
 

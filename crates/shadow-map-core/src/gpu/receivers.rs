@@ -1,19 +1,154 @@
 //! Receivers on the GPU: a storage buffer of [`ReceiverGpu`] (32 bytes each), uploaded from
 //! [`Receivers`] or wrapped around a user's buffer (e.g. built from their own G-buffer).
 use super::{
-    kernel::buffer_init,
-    shared::{pack_receivers, ReceiverGpu},
+    frame::{compute_pass, ReceiverRange},
+    kernel::{buffer_init, BindGroupCache, SpecializedKernel},
+    shared::{pack_receivers, ReceiverGpu, SHARED_WGSL},
     GpuContext,
 };
 use crate::{receivers::Receivers, Error, Result};
 use std::num::NonZeroU64;
+use std::sync::Mutex;
 
-/// The per-receiver estimate entry point (`estimate`) every per-receiver kernel shares, with its
-/// head `active_receiver(k)` (inactive receivers get V = NaN) and tail `store_v(k, x)` (V clamped
+/// The per-receiver estimate entry point (`estimate`) every per-receiver kernel shares, one
+/// invocation per receiver of an [`ActiveLists`] list, with its tail `store_v(k, x)` (V clamped
 /// to [0, 1], non-finite results written as 0 and counted), and the loop-budget probe (a cut
 /// receiver flagged and counted): for kernels that declare `receivers`, `v_out`, `counters`,
-/// `estimate_receiver` and `receiver_probe` (see the file).
-pub const RECEIVERS_WGSL: &str = include_str!("receivers.wgsl");
+/// `active_list`, `estimate_receiver` and `receiver_probe` (see the file).
+pub const RECEIVERS_WGSL: &str =
+    concat!(include_str!("active.wgsl"), include_str!("receivers.wgsl"));
+
+/// WGSL reading an active list ([`ActiveLists`]): `listed_receiver(i)`, for kernels that
+/// declare `active_list` and do not use [`RECEIVERS_WGSL`], which holds it.
+pub const ACTIVE_WGSL: &str = include_str!("active.wgsl");
+
+/// WGSL of the compaction [`ActiveLists`] records (after the core's `SHARED_WGSL`).
+pub const COMPACT_WGSL: &str = include_str!("compact.wgsl");
+
+/// [`COMPACT_WGSL`] after what it expects, as [`super::SHADERS`] validates it.
+pub const COMPACT_CHECK_WGSL: &str =
+    concat!(include_str!("shared.wgsl"), include_str!("compact.wgsl"));
+
+/// Consecutive receiver slots one invocation of the compaction lists (at most 32, a bit each).
+pub const COMPACT_RUN: u32 = 32;
+
+/// Words before the indices of an active list: the indirect dispatch (x, y, z) of the kernel
+/// that reads it, then the count (`compact.wgsl`).
+pub const ACTIVE_HEAD_WORDS: u64 = 4;
+
+/// Per receiver range of a frame, the list of its active receivers, made on the device each
+/// frame (`compact.wgsl`): inactive slots get V = NaN there, and the per-receiver kernels run one
+/// invocation per listed receiver, dispatched indirectly from the list's head
+/// ([`compute_pass_indirect`](super::frame::compute_pass_indirect)). A kernel reading a list
+/// declares it as `active_list: array<u32>` and takes receiver `active_list[4 + i]` for invocation
+/// `i < active_list[3]`. One list per range index, grown to the range (never truncated), so a frame
+/// whose ranges are dispatched in turn keeps every range's list alive at once.
+#[derive(Debug)]
+pub struct ActiveLists {
+    kernel: SpecializedKernel,
+    compact: wgpu::ComputePipeline,
+    args: wgpu::ComputePipeline,
+    lists: Mutex<Vec<wgpu::Buffer>>,
+    groups: BindGroupCache,
+}
+
+impl ActiveLists {
+    /// Compiles the compaction.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let wg = [
+            ("WG", super::estimate::WORKGROUP_SIZE as f64),
+            ("RUN", COMPACT_RUN as f64),
+        ];
+        let kernel = SpecializedKernel::new(
+            ctx,
+            "active receivers",
+            &[SHARED_WGSL, COMPACT_WGSL],
+            "compact",
+            &wg,
+        )?;
+        let compact = kernel.pipeline(ctx, &[])?;
+        let args = kernel.entry_pipeline(ctx, "dispatch_args", &[])?;
+        Ok(ActiveLists {
+            kernel,
+            compact,
+            args,
+            lists: Mutex::new(Vec::new()),
+            groups: BindGroupCache::default(),
+        })
+    }
+
+    /// Records the compaction of `range`, the `index`-th range of a frame (index 0 starts a
+    /// frame's encode), of `receivers` with V into `v`: NaN into the inactive slots of the
+    /// range, and the list of its active receivers, returned to be bound and dispatched from.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        index: usize,
+        range: ReceiverRange,
+        receivers: &wgpu::Buffer,
+        v: &wgpu::Buffer,
+    ) -> Result<wgpu::Buffer> {
+        if index == 0 {
+            self.groups.next_encode();
+        }
+        let words = ACTIVE_HEAD_WORDS + range.count as u64;
+        let list = {
+            let mut lists = self.lists.lock().unwrap_or_else(|e| e.into_inner());
+            while lists.len() <= index {
+                lists.push(list_buffer(ctx, ACTIVE_HEAD_WORDS + 1));
+            }
+            if lists[index].size() < 4 * words {
+                // Grown to the range with room for a view a little larger next frame.
+                lists[index] = list_buffer(ctx, words + words / 4);
+            }
+            lists[index].clone()
+        };
+        enc.clear_buffer(&list, 0, Some(4 * ACTIVE_HEAD_WORDS));
+        let group = self.groups.get_dense(
+            ctx,
+            "active receivers",
+            &self.kernel.layout,
+            &[
+                range.receivers(receivers),
+                range.words(v),
+                list.as_entire_binding(),
+            ],
+        );
+        let groups = range
+            .count
+            .div_ceil(super::estimate::WORKGROUP_SIZE * COMPACT_RUN);
+        compute_pass(
+            enc,
+            "active receivers",
+            &self.compact,
+            &group,
+            [groups, 1, 1],
+        );
+        compute_pass(
+            enc,
+            "active receivers dispatch",
+            &self.args,
+            &group,
+            [1, 1, 1],
+        );
+        Ok(list)
+    }
+}
+
+/// An active list of `words` u32 (`STORAGE | INDIRECT | COPY_DST | COPY_SRC`, read back by
+/// tests).
+fn list_buffer(ctx: &GpuContext, words: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("active receivers"),
+        size: 4 * words,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::INDIRECT
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
 
 /// [`RECEIVERS_WGSL`] after the estimate head and the bindings it expects, as [`super::SHADERS`]
 /// validates it.
@@ -24,8 +159,10 @@ pub const RECEIVERS_CHECK_WGSL: &str = concat!(
     "@group(0) @binding(0) var<storage, read> receivers: array<ReceiverGpu>;\n",
     "@group(0) @binding(1) var<storage, read_write> v_out: array<u32>;\n",
     "@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>, 3>;\n",
+    "@group(0) @binding(3) var<storage, read> active_list: array<u32>;\n",
     "fn estimate_receiver(p: vec3<f32>, n: vec3<f32>) -> f32 { return dot(p, n); }\n",
     "fn receiver_probe() -> u32 { return 0u; }\n",
+    include_str!("active.wgsl"),
     include_str!("receivers.wgsl")
 );
 

@@ -1,22 +1,12 @@
 // The per-receiver estimate entry point every such kernel shares (the CPU's
-// `Receivers::estimate_each`), with its head and tail. The including shader declares
+// `Receivers::estimate_each`), with its tail. The including shader declares
 // `receivers: array<ReceiverGpu>`, `v_out: array<u32>` (V as f32 bits),
 // `counters: array<atomic<u32>, N>` with N >= 3 (`counters[1]`: non-finite results,
-// `counters[2]`: receivers cut by the loop budget), `fn estimate_receiver(p: vec3<f32>,
+// `counters[2]`: receivers cut by the loop budget), `active_list: array<u32>` (the range's active
+// list, compact.wgsl: inactive receivers already hold V = NaN; active.wgsl reads it, prepended),
+// `fn estimate_receiver(p: vec3<f32>,
 // n: vec3<f32>) -> f32` (V of one receiver; -1: a lit receiver left NaN for the host, counted by the
 // method) and `fn receiver_probe() -> u32` (its uniform's loop-budget probe).
-
-// Whether slot k holds an active receiver; an inactive one is given V = NaN.
-fn active_receiver(k: u32) -> bool {
-    if k >= arrayLength(&receivers) {
-        return false;
-    }
-    if receivers[k].is_active == 0u {
-        v_out[k] = NAN_BITS;
-        return false;
-    }
-    return true;
-}
 
 // V = x clamped to [0, 1] into slot k; a non-finite x is written as 0 and counted in counters[1].
 fn store_v(k: u32, x: f32) {
@@ -28,14 +18,14 @@ fn store_v(k: u32, x: f32) {
     }
 }
 
-// One invocation per receiver: inactive receivers NaN, V stored (clamped, non-finite as 0), V of
-// -1 or less (a lit receiver the method leaves to the host) NaN, and a receiver whose work ran
-// out of the device's loop budget (shared.wgsl's two-trip probe) flagged CUT_BITS and counted
-// in counters[2], for the host to redo.
+// One invocation per active receiver: V stored (clamped, non-finite as 0), V of -1 or less (a
+// lit receiver the method leaves to the host) NaN, and a receiver whose work ran out of the
+// device's loop budget (shared.wgsl's two-trip probe) flagged CUT_BITS and counted in
+// counters[2], for the host to redo.
 @compute @workgroup_size(WG)
 fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = gid.x;
-    if !active_receiver(k) {
+    let k = listed_receiver(gid.x);
+    if k == NONE_LISTED {
         return;
     }
     let x = estimate_receiver(receivers[k].position, receivers[k].normal);

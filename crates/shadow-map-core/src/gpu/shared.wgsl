@@ -63,3 +63,5 @@ fn loop_limit_hit(probe: u32) -> bool {
 }
 
 const CUT_BITS: u32 = 0x7fc0deadu;
+// The quiet NaN every kernel writes for an inactive receiver.
+const NAN_BITS: u32 = 0x7fc00000u;

@@ -4,6 +4,7 @@ mod common;
 mod depth_receivers;
 mod fuzz;
 mod gltf;
+mod gpu_active;
 mod gpu_casters;
 mod gpu_context;
 mod gpu_gbuffer;

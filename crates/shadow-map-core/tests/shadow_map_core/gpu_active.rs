@@ -1,0 +1,116 @@
+//! Active lists (`gpu::receivers::ActiveLists`), the compaction every per-receiver frame kernel
+//! runs over: each range's list holds each of its active receivers once (indices within the
+//! range), its head is the indirect dispatch of one invocation per listed receiver, inactive
+//! slots get V = NaN and active ones are left for the kernel. Two ranges of one frame keep two
+//! lists alive at once, and a list grows with its range from frame to frame.
+#![cfg(feature = "gpu")]
+
+use crate::common;
+
+use shadow_map_core::{
+    gpu::{
+        estimate::WORKGROUP_SIZE,
+        frame::ReceiverRange,
+        kernel::buffer_init,
+        receivers::{ActiveLists, ACTIVE_HEAD_WORDS},
+        shared::ReceiverGpu,
+    },
+    Error,
+};
+
+/// V's value before the frame: what an active slot keeps (the kernel writes it).
+const UNWRITTEN: u32 = 0x1234_5678;
+
+/// `n` receivers, active in an irregular pattern with a long inactive run (the sky), or none.
+fn receivers(n: u32, none_active: bool) -> Vec<ReceiverGpu> {
+    (0..n)
+        .map(|k| ReceiverGpu {
+            position: [k as f32, 0.0, 1.0],
+            active: u32::from(
+                !none_active && !(1000..1600).contains(&k) && (k.wrapping_mul(7919) % 13 > 3),
+            ),
+            normal: [0.0, 1.0, 0.0],
+            _pad0: 0.0,
+        })
+        .collect()
+}
+
+#[test]
+fn active_lists_hold_each_active_receiver_once() -> Result<(), Error> {
+    let Some(ctx) = common::context_for_tests("active_lists_hold_each_active_receiver_once")?
+    else {
+        return Ok(());
+    };
+    let lists = ActiveLists::new(&ctx)?;
+    for (n, none_active) in [
+        (1, false),
+        (7, false),
+        (64, true),
+        (517, false),
+        (10_000, false),
+    ] {
+        let recs = receivers(n, none_active);
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let rb = buffer_init(
+            &ctx.device,
+            "receivers",
+            bytemuck::cast_slice(&recs),
+            storage,
+        );
+        let v0 = vec![UNWRITTEN; n as usize];
+        let v = buffer_init(&ctx.device, "V", bytemuck::cast_slice(&v0), storage);
+        // Two ranges where the receivers hold more than one whole run of workgroups.
+        let split = n / 2 / WORKGROUP_SIZE * WORKGROUP_SIZE;
+        let ranges: Vec<ReceiverRange> = if split == 0 {
+            vec![ReceiverRange { first: 0, count: n }]
+        } else {
+            vec![
+                ReceiverRange {
+                    first: 0,
+                    count: split,
+                },
+                ReceiverRange {
+                    first: split,
+                    count: n - split,
+                },
+            ]
+        };
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let listed = ranges
+            .iter()
+            .enumerate()
+            .map(|(index, &range)| lists.encode(&ctx, &mut enc, index, range, &rb, &v))
+            .collect::<Result<Vec<_>, _>>()?;
+        ctx.queue.submit([enc.finish()]);
+        let bits: Vec<u32> = ctx.read_buffer(&v, 4 * n as u64)?;
+        for (range, list) in ranges.iter().zip(&listed) {
+            let words: Vec<u32> = ctx.read_buffer(list, list.size())?;
+            let count = words[3];
+            let mut got: Vec<u32> = words[ACTIVE_HEAD_WORDS as usize..][..count as usize]
+                .iter()
+                .map(|i| range.first + i)
+                .collect();
+            got.sort_unstable();
+            let want: Vec<u32> = (range.first..range.first + range.count)
+                .filter(|&k| recs[k as usize].active != 0)
+                .collect();
+            assert_eq!(got, want, "{n} receivers, range {range:?}: the listed ones");
+            assert_eq!(
+                &words[..3],
+                &[count.div_ceil(WORKGROUP_SIZE), 1, 1],
+                "{n} receivers: the dispatch"
+            );
+        }
+        for (k, (r, b)) in recs.iter().zip(&bits).enumerate() {
+            if r.active != 0 {
+                assert_eq!(*b, UNWRITTEN, "{n} receivers: active slot {k} written");
+            } else {
+                assert!(
+                    f32::from_bits(*b).is_nan(),
+                    "{n} receivers: inactive slot {k} not NaN"
+                );
+            }
+        }
+    }
+    Ok(())
+}
