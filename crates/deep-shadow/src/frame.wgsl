@@ -31,6 +31,9 @@ struct DsFrameUniform {
 // [0]: looked-up receivers whose texel lies outside the map (per view); [1]: non-finite V.
 @group(0) @binding(14) var<storage, read_write> status: array<atomic<u32>, 3>;
 @group(0) @binding(15) var<uniform> F: DsFrameUniform;
+// The range's active list (the core's receivers::ActiveLists, active.wgsl): frame_lookup and
+// frame_finish run one invocation per listed receiver; inactive ones already hold V = NaN.
+@group(0) @binding(16) var<storage, read> active_list: array<u32>;
 
 // The map's depth at texel t as the opaque path's head: its bits, NIL where empty.
 @compute @workgroup_size(WG)
@@ -86,8 +89,8 @@ override DS_LISTS: bool = false;
 @compute @workgroup_size(WG)
 fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_id) lid: vec3<u32>) {
-    let k = linear_id(wid, nwg, lid);
-    if (k >= arrayLength(&v_out) || receivers[k].is_active == 0u) { return; }
+    let k = listed_receiver(linear_id(wid, nwg, lid));
+    if (k == NONE_LISTED) { return; }
     // Cut short in an earlier view: stays cut.
     if (bitcast<u32>(acc[k]) == CUT_BITS) { return; }
     let q = frame_query(receivers[k].position, receivers[k].normal);
@@ -115,17 +118,13 @@ fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
     acc[k] += t;
 }
 
-// cpu.rs finish: V = acc / views clamped to [0, 1] (NaN for inactive receivers, 0 behind a
+// cpu.rs finish: V = acc / views clamped to [0, 1] (inactive receivers hold NaN from the compaction; 0 behind a
 // one-sided light); a non-finite V is written as 0 and counted.
 @compute @workgroup_size(WG)
 fn frame_finish(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_id) lid: vec3<u32>) {
-    let k = linear_id(wid, nwg, lid);
-    if (k >= arrayLength(&v_out)) { return; }
-    if (receivers[k].is_active == 0u) {
-        v_out[k] = NAN_BITS;
-        return;
-    }
+    let k = listed_receiver(linear_id(wid, nwg, lid));
+    if (k == NONE_LISTED) { return; }
     if (flight.light_one_sided != 0u && frame_to_light(flight.light_frame, receivers[k].position).z <= 0.0) {
         v_out[k] = 0u;
         return;

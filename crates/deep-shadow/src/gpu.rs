@@ -51,11 +51,13 @@ use shadow_map_core::{
         depth_map::DEPTH_MAP_FORMAT,
         estimate::{EstimateUniform, LIGHT_HEAD_WGSL, LIGHT_RECT, OVERRIDES},
         frame::{
-            check_per_receiver, check_prepared_inputs, compute_pass, cpu_twin_v, receiver_ranges,
-            status_buffer, FrameEstimator, FrameInputs, ReceiverRange, Views,
+            check_per_receiver, check_prepared_inputs, compute_pass, compute_pass_indirect,
+            cpu_twin_v, receiver_ranges, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
+            Views,
         },
         kernel::{shader_module, uniform_buffer, BindGroupCache, Binding, SpecializedKernel},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
+        receivers::{ActiveLists, ACTIVE_WGSL},
         shared::LightViewUniform,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
@@ -86,13 +88,14 @@ pub const SHADERS: &[(&str, &[&str])] = &[
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 
 /// The engine path's module, in order: the core's light head ([`LIGHT_HEAD_WGSL`]: shared
-/// structs, estimate uniform and math), the core's cells, the list element ([`NODE_WGSL`]), [`DEEP_SHADOW_WGSL`], then
-/// [`FRAME_WGSL`].
+/// structs, estimate uniform and math), the core's cells, the list element ([`NODE_WGSL`]), [`DEEP_SHADOW_WGSL`], the
+/// core's active-list reader ([`ACTIVE_WGSL`]), then [`FRAME_WGSL`].
 pub const FRAME_SHADER_PARTS: &[&str] = &[
     LIGHT_HEAD_WGSL,
     CELLS_WGSL,
     NODE_WGSL,
     DEEP_SHADOW_WGSL,
+    ACTIVE_WGSL,
     FRAME_WGSL,
 ];
 
@@ -349,6 +352,8 @@ pub struct DeepShadowFrame {
     frame: wgpu::Buffer,
     acc: wgpu::Buffer,
     status: wgpu::Buffer,
+    /// Each range's active receivers, listed every frame: the per-receiver passes run over them.
+    active: ActiveLists,
     max_receivers: u32,
     /// Whether the last `encode` built lists (semi-transparent casters), for [`Self::read_map`].
     last_lists: AtomicBool,
@@ -415,6 +420,7 @@ impl DeepShadowFrame {
             .collect();
         Ok(DeepShadowFrame {
             groups: BindGroupCache::default(),
+            active: ActiveLists::new(&ctx)?,
             head: storage_buffer(&ctx, "deep-shadow frame head", head_bytes),
             light: uniform_buffer(&ctx, "deep-shadow frame light", est_bytes),
             frame: uniform_buffer(
@@ -502,7 +508,7 @@ impl DeepShadowFrame {
         light: &wgpu::Buffer,
         nodes: &wgpu::Buffer,
         inputs: &FrameInputs<'_>,
-        range: ReceiverRange,
+        (range, list): (ReceiverRange, &wgpu::Buffer),
     ) -> wgpu::BindGroup {
         let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         self.groups.get(
@@ -522,6 +528,7 @@ impl DeepShadowFrame {
                 e(13, range.words(inputs.v)),
                 e(14, self.status.as_entire_binding()),
                 e(15, self.frame.as_entire_binding()),
+                e(16, list.as_entire_binding()),
             ],
         )
     }
@@ -617,7 +624,18 @@ impl FrameEstimator for DeepShadowFrame {
         let texels = self.map.r as u64 * self.map.r as u64;
         // The per-receiver passes run once per range of receivers (its own bind group); the
         // per-texel passes bind the first range's group, whose receivers they do not read.
-        let ranges = receiver_ranges(&self.ctx, inputs.count);
+        // Each range's active receivers, listed once for every view's lookup and the finish
+        // (inactive ones NaN).
+        let ranges = receiver_ranges(ctx, inputs.count)
+            .into_iter()
+            .enumerate()
+            .map(|(index, range)| {
+                let list =
+                    self.active
+                        .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
+                Ok((range, list))
+            })
+            .collect::<Result<Vec<_>>>()?;
         let nodes = self.lists.nodes(&self.ctx, lists)?;
         let list_group = lists.then(|| {
             let entries: Vec<_> = [&self.head, &nodes, &self.lists.counters]
@@ -660,14 +678,14 @@ impl FrameEstimator for DeepShadowFrame {
             );
             let groups: Vec<_> = ranges
                 .iter()
-                .map(|&r| {
+                .map(|(r, list)| {
                     self.group(
                         &bufs.ds,
                         self.map.view_uniform(slot),
                         &bufs.light,
                         &nodes,
                         inputs,
-                        r,
+                        (*r, list),
                     )
                 })
                 .collect();
@@ -700,33 +718,21 @@ impl FrameEstimator for DeepShadowFrame {
                 );
                 inputs.mark(enc, "heads");
             }
-            for (range, group) in ranges.iter().zip(&groups) {
-                compute_pass(
-                    enc,
-                    "deep-shadow frame lookup",
-                    &lookup_pipe,
-                    group,
-                    workgroups(range.count as u64),
-                );
+            for ((_, list), group) in ranges.iter().zip(&groups) {
+                compute_pass_indirect(enc, "deep-shadow frame lookup", &lookup_pipe, group, list);
             }
             inputs.mark(enc, "lookup");
         }
-        for &range in &ranges {
+        for (range, list) in &ranges {
             let group = self.group(
                 &self.slots[0].ds,
                 self.map.view_uniform(0),
                 &self.light,
                 &nodes,
                 inputs,
-                range,
+                (*range, list),
             );
-            compute_pass(
-                enc,
-                "deep-shadow frame finish",
-                &finish_pipe,
-                &group,
-                workgroups(range.count as u64),
-            );
+            compute_pass_indirect(enc, "deep-shadow frame finish", &finish_pipe, &group, list);
         }
         inputs.mark(enc, "finish");
         Ok(())

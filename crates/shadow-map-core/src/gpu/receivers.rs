@@ -30,7 +30,7 @@ pub const COMPACT_CHECK_WGSL: &str =
     concat!(include_str!("shared.wgsl"), include_str!("compact.wgsl"));
 
 /// Consecutive receiver slots one invocation of the compaction lists (at most 32, a bit each).
-pub const COMPACT_RUN: u32 = 32;
+pub const COMPACT_RUN: u32 = 8;
 
 /// Words before the indices of an active list: the indirect dispatch (x, y, z) of the kernel
 /// that reads it, then the count (`compact.wgsl`).
