@@ -49,6 +49,12 @@ override LAYERS: u32 = 1u;
 // Derived: the casters' terms are queued (see Casters) unless the term is a rect patch's additive
 // overlap or centre test.
 override QUEUE_TERMS: bool = !PATCH_RECT || EXACT;
+// The first of the frame's two passes: a receiver whose kernel holds cells to visit is deferred
+// (shadowing DEFERRED_S) to the second pass, which runs over those receivers only
+// (ActiveLists::encode_deferred), so a lit receiver's lane never runs the cells beside a
+// penumbra receiver's.
+override DEFER_CELLS: bool = false;
+const DEFERRED_S: f32 = -2.0;
 
 const KERNEL_FIXED: u32 = 0u;
 const KERNEL_ADAPTIVE: u32 = 1u;
@@ -613,6 +619,9 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
     if kr.empty {
         return 0.0;
     }
+    if DEFER_CELLS {
+        return DEFERRED_S;
+    }
     var st = State(bitmask_new(), 0.0);
     // The exact variant: bits behind the tangent plane set from the start, never counted.
     var behind = 0u;
@@ -695,6 +704,9 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
         return -1.0;
     }
     let s = shadowing(p, r, view_dir_to_light(view, nw), uv);
+    if s == DEFERRED_S {
+        return -2.0;
+    }
     return facing * (1.0 - s);
 }
 

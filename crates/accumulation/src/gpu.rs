@@ -382,30 +382,55 @@ impl FrameEstimator for AccumulationFrame {
         if n == 0 {
             return Ok(());
         }
-        let pipeline = self.kernel.pipeline(ctx, &specialization(&eu, &au))?;
-        // One dispatch per range of receivers (a 4K view is two under the default limits).
+        let switches = specialization(&eu, &au);
+        // Under the adaptive kernel, two passes over each range: the first finishes every
+        // receiver the MSSM test lights (or that lies outside, behind) and defers the rest,
+        // which the second runs over densely. The other kernels have no such test: one pass.
+        let mut first = switches.to_vec();
+        first.push(("DEFER_CELLS", 1.0));
+        let pipelines = if au.kernel == kernel_mode(KernelMode::Adaptive) {
+            vec![
+                self.kernel.pipeline(ctx, &first)?,
+                self.kernel.pipeline(ctx, &switches)?,
+            ]
+        } else {
+            vec![self.kernel.pipeline(ctx, &switches)?]
+        };
+        // Dispatches per range of receivers (a 4K view is two under the default limits).
         for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
-            let list = self
-                .active
-                .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
-            let group = self.groups.get_dense(
-                ctx,
-                LABEL,
-                &self.kernel.layout,
-                &[
-                    self.maps.layers.view_uniform().as_entire_binding(),
-                    self.est.as_entire_binding(),
-                    self.acc.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&km.maps.view),
-                    wgpu::BindingResource::TextureView(&km.mssm.view),
-                    self.tables.as_entire_binding(),
-                    range.receivers(inputs.receivers),
-                    range.words(inputs.v),
-                    self.status.as_entire_binding(),
-                    list.as_entire_binding(),
-                ],
-            );
-            compute_pass_indirect(enc, LABEL, &pipeline, &group, &list);
+            for (pass, pipeline) in pipelines.iter().enumerate() {
+                let list = if pass == 0 {
+                    self.active
+                        .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?
+                } else {
+                    self.active.encode_deferred(
+                        ctx,
+                        enc,
+                        index,
+                        range,
+                        inputs.receivers,
+                        inputs.v,
+                    )?
+                };
+                let group = self.groups.get_dense(
+                    ctx,
+                    LABEL,
+                    &self.kernel.layout,
+                    &[
+                        self.maps.layers.view_uniform().as_entire_binding(),
+                        self.est.as_entire_binding(),
+                        self.acc.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&km.maps.view),
+                        wgpu::BindingResource::TextureView(&km.mssm.view),
+                        self.tables.as_entire_binding(),
+                        range.receivers(inputs.receivers),
+                        range.words(inputs.v),
+                        self.status.as_entire_binding(),
+                        list.as_entire_binding(),
+                    ],
+                );
+                compute_pass_indirect(enc, LABEL, pipeline, &group, &list);
+            }
         }
         inputs.mark(enc, "estimate");
         Ok(())

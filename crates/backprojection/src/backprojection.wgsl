@@ -24,6 +24,12 @@ const LINE: u32 = 128u;
 override OPACITY: bool = false;
 override PLANE_ON: bool = true;
 override LAYERS: u32 = 3u;
+// The first of the frame's two passes: a receiver that reaches the block loop is deferred
+// (visibility DEFERRED_V) to the second pass, which runs over those receivers only
+// (ActiveLists::encode_deferred), so a lit receiver's lane never runs the loop beside a
+// penumbra receiver's.
+override DEFER_BLOCKS: bool = false;
+const DEFERRED_V: f32 = -2.0;
 
 // Settings of the estimate (mirrors gpu.rs BpUniform field for field).
 struct BpUniform {
@@ -465,6 +471,9 @@ fn visibility(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, sil: Sil) -> f32 {
     if nx == 0u || ny == 0u {
         return 1.0;
     }
+    if DEFER_BLOCKS {
+        return DEFERRED_V;
+    }
     var step = 1u;
     if nx * ny > bp.max_nspp {
         step = u32(max(ceil(f32(max(nx, ny)) / bp.sqrt_nspp), 1.0));
@@ -595,7 +604,11 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
         return facing;
     }
     let n = view_dir_to_light(view, nw);
-    return facing * visibility(p, n, uv, sil);
+    let vis = visibility(p, n, uv, sil);
+    if vis == DEFERRED_V {
+        return DEFERRED_V;
+    }
+    return facing * vis;
 }
 
 // The entry point is the core's (receivers.wgsl); its loop-budget probe is this uniform's.

@@ -146,28 +146,43 @@ impl BpKernel {
         count: u32,
         counters: &wgpu::Buffer,
     ) -> Result<()> {
-        let pipeline = self.kernel.pipeline(ctx, switches)?;
+        // Two passes over each range: the first finishes every receiver whose kernel holds no
+        // block loop (lit by the MSSM test, outside, behind) and defers the rest, which the
+        // second runs over densely.
+        let mut first = switches.to_vec();
+        first.push(("DEFER_BLOCKS", 1.0));
+        let pipelines = [
+            self.kernel.pipeline(ctx, &first)?,
+            self.kernel.pipeline(ctx, switches)?,
+        ];
         self.groups.next_encode();
         for (index, range) in receiver_ranges(ctx, count).into_iter().enumerate() {
-            let list = self.active.encode(ctx, enc, index, range, receivers, v)?;
-            let group = self.groups.get_dense(
-                ctx,
-                LABEL,
-                &self.kernel.layout,
-                &[
-                    bufs.view.as_entire_binding(),
-                    bufs.est.as_entire_binding(),
-                    bufs.bp.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&maps.maps.view),
-                    wgpu::BindingResource::TextureView(&maps.mssm.view),
-                    range.receivers(receivers),
-                    range.words(v),
-                    counters.as_entire_binding(),
-                    bufs.bits.as_entire_binding(),
-                    list.as_entire_binding(),
-                ],
-            );
-            compute_pass_indirect(enc, LABEL, &pipeline, &group, &list);
+            for (pass, pipeline) in pipelines.iter().enumerate() {
+                let list = if pass == 0 {
+                    self.active.encode(ctx, enc, index, range, receivers, v)?
+                } else {
+                    self.active
+                        .encode_deferred(ctx, enc, index, range, receivers, v)?
+                };
+                let group = self.groups.get_dense(
+                    ctx,
+                    LABEL,
+                    &self.kernel.layout,
+                    &[
+                        bufs.view.as_entire_binding(),
+                        bufs.est.as_entire_binding(),
+                        bufs.bp.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&maps.maps.view),
+                        wgpu::BindingResource::TextureView(&maps.mssm.view),
+                        range.receivers(receivers),
+                        range.words(v),
+                        counters.as_entire_binding(),
+                        bufs.bits.as_entire_binding(),
+                        list.as_entire_binding(),
+                    ],
+                );
+                compute_pass_indirect(enc, LABEL, pipeline, &group, &list);
+            }
         }
         Ok(())
     }

@@ -26,10 +26,10 @@ use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, OVERRIDES},
         frame::{
-            check_buffers, check_per_receiver, check_prepared_inputs, compute_pass_indirect,
-            cpu_twin_v, receiver_ranges, single_view, status_buffer, Views,
+            check_buffers, check_per_receiver, check_prepared_inputs, compute_pass,
+            compute_pass_indirect, cpu_twin_v, receiver_ranges, single_view, status_buffer, Views,
         },
-        kernel::{BindGroupCache, SpecializedKernel},
+        kernel::{storage_buffer, BindGroupCache, SpecializedKernel},
         receivers::ActiveLists,
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
@@ -50,8 +50,10 @@ pub struct MapFrame<F: GpuFilter> {
     kernel: SpecializedKernel,
     est: wgpu::Buffer,
     status: wgpu::Buffer,
-    /// Each range's active receivers, listed every frame: the kernel runs over them only.
-    active: ActiveLists,
+    /// Each range's active receivers, listed every frame, the kernel running over them only;
+    /// or, for a filter without ([`GpuFilter::ACTIVE_LIST`]), a placeholder bound in the list's
+    /// place while the kernel runs over every slot.
+    active: Result<ActiveLists, wgpu::Buffer>,
     groups: BindGroupCache,
 }
 
@@ -73,8 +75,12 @@ impl<F: GpuFilter> MapFrame<F> {
         )?;
         let est = uniform_buffer(&ctx, "frame estimate uniform");
         let status = status_buffer(&ctx, "frame status", 4);
+        let active = match F::ACTIVE_LIST {
+            true => Ok(ActiveLists::new(&ctx)?),
+            false => Err(storage_buffer(&ctx, "frame estimate: no active list", 16)),
+        };
         Ok(MapFrame {
-            active: ActiveLists::new(&ctx)?,
+            active,
             groups: BindGroupCache::default(),
             ctx,
             params: params.clone(),
@@ -143,11 +149,22 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         if n == 0 {
             return Ok(());
         }
-        let pipeline = self.kernel.pipeline(&self.ctx, &[u.shape_switch()])?;
+        let entry = match self.active {
+            Ok(_) => "estimate",
+            Err(_) => "estimate_slots",
+        };
+        let pipeline = self
+            .kernel
+            .entry_pipeline(&self.ctx, entry, &[u.shape_switch()])?;
         for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
-            let list = self
-                .active
-                .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
+            // The list to bind and dispatch from, or the placeholder and one invocation a slot.
+            let (list, listed) = match &self.active {
+                Ok(lists) => (
+                    lists.encode(ctx, enc, index, range, inputs.receivers, inputs.v)?,
+                    true,
+                ),
+                Err(placeholder) => (placeholder.clone(), false),
+            };
             let group = self.groups.get_dense(
                 &self.ctx,
                 "frame estimate",
@@ -162,7 +179,11 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
                     list.as_entire_binding(),
                 ],
             );
-            compute_pass_indirect(enc, "frame estimate", &pipeline, &group, &list);
+            if listed {
+                compute_pass_indirect(enc, "frame estimate", &pipeline, &group, &list);
+            } else {
+                compute_pass(enc, "frame estimate", &pipeline, &group, range.workgroups());
+            }
         }
         inputs.mark(enc, "estimate");
         Ok(())

@@ -23,6 +23,10 @@ pub use shadow_map_core::gpu::estimate::CELLS_WGSL;
 pub trait GpuFilter: Filter {
     /// The filter's WGSL (appended after [`MAP_ESTIMATOR_WGSL`]).
     const WGSL: &'static str;
+    /// Whether the frame lists the active receivers first and runs over them only
+    /// (`ActiveLists`). A filter whose per-receiver work is about what listing a slot costs
+    /// (the hard test's one tap) runs over every slot instead (the core's `estimate_slots`).
+    const ACTIVE_LIST: bool = true;
     /// Writes the filter's settings (as the CPU filter's own `from_params` read them).
     fn set_uniform(&self, _u: &mut EstimateUniform) {}
 }

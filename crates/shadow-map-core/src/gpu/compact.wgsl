@@ -3,17 +3,28 @@
 // other inactive slots: a lane-predicated device (lavapipe) pays a whole kernel for an inactive
 // lane as for an active one, and a GPU leaves it idle. Prepended by shared.wgsl.
 //
-// The list: words 0..3 the indirect dispatch of the kernel that reads it (x, 1, 1), word 3 the
-// count, then the indices (within the range) of the active receivers, in no particular order.
+// The list, in words: 0..3 the indirect dispatch of the kernel that reads it (x, 1, 1), 3 the
+// count, then from word 4 the indices (within the range) of the listed receivers in slot order,
+// then per workgroup of `count_runs` its first place in the list, then per invocation its run's
+// bits. Three passes make the order the slots' own on every device, so a kernel's lanes (and a
+// loop budget shared by a SIMD batch of them) see the same receivers every frame.
 
 override WG: u32;
+
+// Receivers one invocation compacts, a run of consecutive slots (receivers::COMPACT_RUN, at most
+// 32: one bit each).
+override RUN: u32;
+
+// Whether the list is of the receivers a first pass deferred (V = DEFER_BITS) rather than of the
+// active ones; it leaves V as it is.
+override DEFERRED: bool = false;
 
 struct ActiveList {
     x: u32,
     y: u32,
     z: u32,
-    count: atomic<u32>,
-    indices: array<u32>,
+    count: u32,
+    words: array<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> receivers: array<ReceiverGpu>;
@@ -21,53 +32,105 @@ struct ActiveList {
 @group(0) @binding(2) var<storage, read_write> list: ActiveList;
 
 var<workgroup> group_count: atomic<u32>;
-var<workgroup> group_base: u32;
+var<workgroup> lane_counts: array<u32, WG>;
+var<workgroup> chunk_bases: array<u32, WG>;
 
-// Receivers one invocation compacts, a run of consecutive slots (receivers::COMPACT_RUN): the
-// list keeps the slots' order within a run, and the barriers are paid once per run.
-override RUN: u32;
+// Workgroups of the passes over the slots.
+fn slot_groups() -> u32 {
+    return (arrayLength(&receivers) + WG * RUN - 1u) / (WG * RUN);
+}
 
-// One invocation per run of slots: an inactive receiver's V is NaN (as the CPU's); the run's
-// active ones take consecutive places in its workgroup's part of the list, which one atomic per
-// workgroup places.
+// Word of workgroup g's place (after the indices), and of invocation t's run bits.
+fn group_word(g: u32) -> u32 {
+    return arrayLength(&receivers) + g;
+}
+
+fn bits_word(t: u32) -> u32 {
+    return arrayLength(&receivers) + slot_groups() + t;
+}
+
+// Pass 1, one invocation per run of slots: an inactive receiver's V is NaN (as the CPU's); the
+// run's listed slots as bits, and the workgroup's count.
 @compute @workgroup_size(WG)
-fn compact(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+fn count_runs(@builtin(global_invocation_id) gid: vec3<u32>,
+              @builtin(workgroup_id) wid: vec3<u32>,
+              @builtin(local_invocation_index) lane: u32) {
     let first = gid.x * RUN;
     let slots = arrayLength(&receivers);
     var bits = 0u;
-    var count = 0u;
     for (var i = 0u; i < RUN; i++) {
         let k = first + i;
         if k < slots {
-            if receivers[k].is_active != 0u {
+            if DEFERRED {
+                if v_out[k] == DEFER_BITS {
+                    bits |= 1u << i;
+                }
+            } else if receivers[k].is_active != 0u {
                 bits |= 1u << i;
-                count += 1u;
             } else {
                 v_out[k] = NAN_BITS;
             }
         }
     }
-    var place = 0u;
-    if count > 0u {
-        place = atomicAdd(&group_count, count);
-    }
+    list.words[bits_word(gid.x)] = bits;
+    atomicAdd(&group_count, countOneBits(bits));
     workgroupBarrier();
     if lane == 0u {
-        group_base = atomicAdd(&list.count, atomicLoad(&group_count));
-    }
-    var at = workgroupUniformLoad(&group_base) + place;
-    for (var i = 0u; i < RUN; i++) {
-        if (bits & (1u << i)) != 0u {
-            list.indices[at] = first + i;
-            at += 1u;
-        }
+        list.words[group_word(wid.x)] = atomicLoad(&group_count);
     }
 }
 
-// The dispatch of one invocation per listed receiver.
-@compute @workgroup_size(1)
-fn dispatch_args() {
-    list.x = (atomicLoad(&list.count) + WG - 1u) / WG;
-    list.y = 1u;
-    list.z = 1u;
+// Pass 2, one workgroup: each workgroup's count replaced by its first place (an exclusive
+// scan, WG chunks in parallel), the total and the dispatch.
+@compute @workgroup_size(WG)
+fn scan_groups(@builtin(local_invocation_index) lane: u32) {
+    let groups = slot_groups();
+    let per = (groups + WG - 1u) / WG;
+    let g0 = min(lane * per, groups);
+    let g1 = min(g0 + per, groups);
+    var sum = 0u;
+    for (var g = g0; g < g1; g++) {
+        sum += list.words[group_word(g)];
+    }
+    lane_counts[lane] = sum;
+    workgroupBarrier();
+    if lane == 0u {
+        var run = 0u;
+        for (var l = 0u; l < WG; l++) {
+            chunk_bases[l] = run;
+            run += lane_counts[l];
+        }
+        list.count = run;
+        list.x = (run + WG - 1u) / WG;
+        list.y = 1u;
+        list.z = 1u;
+    }
+    workgroupBarrier();
+    var at = chunk_bases[lane];
+    for (var g = g0; g < g1; g++) {
+        let c = list.words[group_word(g)];
+        list.words[group_word(g)] = at;
+        at += c;
+    }
+}
+
+// Pass 3, one invocation per run of slots: the run's listed slots at their places, in order.
+@compute @workgroup_size(WG)
+fn place_runs(@builtin(global_invocation_id) gid: vec3<u32>,
+              @builtin(workgroup_id) wid: vec3<u32>,
+              @builtin(local_invocation_index) lane: u32) {
+    let bits = list.words[bits_word(gid.x)];
+    lane_counts[lane] = countOneBits(bits);
+    workgroupBarrier();
+    var at = list.words[group_word(wid.x)];
+    for (var l = 0u; l < lane; l++) {
+        at += lane_counts[l];
+    }
+    let first = gid.x * RUN;
+    for (var i = 0u; i < RUN; i++) {
+        if (bits & (1u << i)) != 0u {
+            list.words[at] = first + i;
+            at += 1u;
+        }
+    }
 }

@@ -29,7 +29,9 @@ pub const COMPACT_WGSL: &str = include_str!("compact.wgsl");
 pub const COMPACT_CHECK_WGSL: &str =
     concat!(include_str!("shared.wgsl"), include_str!("compact.wgsl"));
 
-/// Consecutive receiver slots one invocation of the compaction lists (at most 32, a bit each).
+/// Consecutive receiver slots one invocation of the compaction lists (at most 32, a bit each;
+/// a range's workgroups of them, at most 65,535 x 64 / 512 = 8,191, are scanned by one
+/// workgroup).
 pub const COMPACT_RUN: u32 = 8;
 
 /// Words before the indices of an active list: the indirect dispatch (x, y, z) of the kernel
@@ -37,7 +39,8 @@ pub const COMPACT_RUN: u32 = 8;
 pub const ACTIVE_HEAD_WORDS: u64 = 4;
 
 /// Per receiver range of a frame, the list of its active receivers, made on the device each
-/// frame (`compact.wgsl`): inactive slots get V = NaN there, and the per-receiver kernels run one
+/// frame (`compact.wgsl`, three passes, so the list is in slot order on every device):
+/// inactive slots get V = NaN there, and the per-receiver kernels run one
 /// invocation per listed receiver, dispatched indirectly from the list's head
 /// ([`compute_pass_indirect`](super::frame::compute_pass_indirect)). A kernel reading a list
 /// declares it as `active_list: array<u32>` and takes receiver `active_list[4 + i]` for invocation
@@ -46,9 +49,13 @@ pub const ACTIVE_HEAD_WORDS: u64 = 4;
 #[derive(Debug)]
 pub struct ActiveLists {
     kernel: SpecializedKernel,
-    compact: wgpu::ComputePipeline,
-    args: wgpu::ComputePipeline,
+    /// `count_runs` of the active receivers and of the deferred ones, `scan_groups`,
+    /// `place_runs`.
+    count: [wgpu::ComputePipeline; 2],
+    scan: wgpu::ComputePipeline,
+    place: wgpu::ComputePipeline,
     lists: Mutex<Vec<wgpu::Buffer>>,
+    deferred: Mutex<Vec<wgpu::Buffer>>,
     groups: BindGroupCache,
 }
 
@@ -63,16 +70,22 @@ impl ActiveLists {
             ctx,
             "active receivers",
             &[SHARED_WGSL, COMPACT_WGSL],
-            "compact",
+            "count_runs",
             &wg,
         )?;
-        let compact = kernel.pipeline(ctx, &[])?;
-        let args = kernel.entry_pipeline(ctx, "dispatch_args", &[])?;
+        let count = [
+            kernel.pipeline(ctx, &[])?,
+            kernel.pipeline(ctx, &[("DEFERRED", 1.0)])?,
+        ];
+        let scan = kernel.entry_pipeline(ctx, "scan_groups", &[])?;
+        let place = kernel.entry_pipeline(ctx, "place_runs", &[])?;
         Ok(ActiveLists {
             kernel,
-            compact,
-            args,
+            count,
+            scan,
+            place,
             lists: Mutex::new(Vec::new()),
+            deferred: Mutex::new(Vec::new()),
             groups: BindGroupCache::default(),
         })
     }
@@ -92,9 +105,51 @@ impl ActiveLists {
         if index == 0 {
             self.groups.next_encode();
         }
-        let words = ACTIVE_HEAD_WORDS + range.count as u64;
+        self.record(
+            ctx,
+            enc,
+            (&self.lists, &self.count[0]),
+            index,
+            range,
+            (receivers, v),
+        )
+    }
+
+    /// Records, after a first pass over [`encode`](Self::encode)'s list of the same range, the
+    /// list of the receivers that pass deferred (V = `DEFER_BITS`, `shared.wgsl`) to a second
+    /// pass: a kernel's long tail, run densely (a list of its own per range index).
+    pub fn encode_deferred(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        index: usize,
+        range: ReceiverRange,
+        receivers: &wgpu::Buffer,
+        v: &wgpu::Buffer,
+    ) -> Result<wgpu::Buffer> {
+        let pipes = (&self.deferred, &self.count[1]);
+        self.record(ctx, enc, pipes, index, range, (receivers, v))
+    }
+
+    fn record(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        (lists, count): (&Mutex<Vec<wgpu::Buffer>>, &wgpu::ComputePipeline),
+        index: usize,
+        range: ReceiverRange,
+        (receivers, v): (&wgpu::Buffer, &wgpu::Buffer),
+    ) -> Result<wgpu::Buffer> {
+        // The head, the indices, then per workgroup of the slot passes its place and per
+        // invocation its run's bits (`compact.wgsl`).
+        let groups = range
+            .count
+            .div_ceil(super::estimate::WORKGROUP_SIZE * COMPACT_RUN);
+        let words = ACTIVE_HEAD_WORDS
+            + range.count as u64
+            + groups as u64 * (1 + super::estimate::WORKGROUP_SIZE as u64);
         let list = {
-            let mut lists = self.lists.lock().unwrap_or_else(|e| e.into_inner());
+            let mut lists = lists.lock().unwrap_or_else(|e| e.into_inner());
             while lists.len() <= index {
                 lists.push(list_buffer(ctx, ACTIVE_HEAD_WORDS + 1));
             }
@@ -104,7 +159,6 @@ impl ActiveLists {
             }
             lists[index].clone()
         };
-        enc.clear_buffer(&list, 0, Some(4 * ACTIVE_HEAD_WORDS));
         let group = self.groups.get_dense(
             ctx,
             "active receivers",
@@ -115,22 +169,14 @@ impl ActiveLists {
                 list.as_entire_binding(),
             ],
         );
-        let groups = range
-            .count
-            .div_ceil(super::estimate::WORKGROUP_SIZE * COMPACT_RUN);
+        compute_pass(enc, "active receivers count", count, &group, [groups, 1, 1]);
+        compute_pass(enc, "active receivers scan", &self.scan, &group, [1, 1, 1]);
         compute_pass(
             enc,
-            "active receivers",
-            &self.compact,
+            "active receivers place",
+            &self.place,
             &group,
             [groups, 1, 1],
-        );
-        compute_pass(
-            enc,
-            "active receivers dispatch",
-            &self.args,
-            &group,
-            [1, 1, 1],
         );
         Ok(list)
     }

@@ -63,5 +63,8 @@ fn loop_limit_hit(probe: u32) -> bool {
 }
 
 const CUT_BITS: u32 = 0x7fc0deadu;
+// A receiver a kernel's first pass left for its second (receivers::ActiveLists::encode_deferred
+// lists them): a NaN payload the second pass overwrites.
+const DEFER_BITS: u32 = 0x7fc0defeu;
 // The quiet NaN every kernel writes for an inactive receiver.
 const NAN_BITS: u32 = 0x7fc00000u;

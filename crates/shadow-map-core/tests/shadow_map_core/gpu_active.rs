@@ -1,8 +1,10 @@
 //! Active lists (`gpu::receivers::ActiveLists`), the compaction every per-receiver frame kernel
-//! runs over: each range's list holds each of its active receivers once (indices within the
-//! range), its head is the indirect dispatch of one invocation per listed receiver, inactive
+//! runs over: each range's list holds each of its active receivers once, in slot order (indices
+//! within the range; the same order every frame, so a SIMD batch meets the same receivers), its
+//! head is the indirect dispatch of one invocation per listed receiver, inactive
 //! slots get V = NaN and active ones are left for the kernel. Two ranges of one frame keep two
-//! lists alive at once, and a list grows with its range from frame to frame.
+//! lists alive at once, and a list grows with its range from frame to frame. The deferred list
+//! of a range holds the receivers a first pass left `DEFER_BITS` in V, and leaves V as it is.
 #![cfg(feature = "gpu")]
 
 use crate::common;
@@ -20,6 +22,19 @@ use shadow_map_core::{
 
 /// V's value before the frame: what an active slot keeps (the kernel writes it).
 const UNWRITTEN: u32 = 0x1234_5678;
+
+/// `shared.wgsl`'s `DEFER_BITS`: what a first pass leaves for the second.
+const DEFER_BITS: u32 = 0x7fc0_defe;
+
+/// V as a first pass left it: every third active receiver deferred.
+fn first_pass(recs: &[ReceiverGpu]) -> Vec<u32> {
+    (0..recs.len())
+        .map(|k| match recs[k].active != 0 && k % 3 == 0 {
+            true => DEFER_BITS,
+            false => UNWRITTEN,
+        })
+        .collect()
+}
 
 /// `n` receivers, active in an irregular pattern with a long inactive run (the sky), or none.
 fn receivers(n: u32, none_active: bool) -> Vec<ReceiverGpu> {
@@ -57,7 +72,7 @@ fn active_lists_hold_each_active_receiver_once() -> Result<(), Error> {
             bytemuck::cast_slice(&recs),
             storage,
         );
-        let v0 = vec![UNWRITTEN; n as usize];
+        let v0 = first_pass(&recs);
         let v = buffer_init(&ctx.device, "V", bytemuck::cast_slice(&v0), storage);
         // Two ranges where the receivers hold more than one whole run of workgroups.
         let split = n / 2 / WORKGROUP_SIZE * WORKGROUP_SIZE;
@@ -79,31 +94,51 @@ fn active_lists_hold_each_active_receiver_once() -> Result<(), Error> {
         let listed = ranges
             .iter()
             .enumerate()
-            .map(|(index, &range)| lists.encode(&ctx, &mut enc, index, range, &rb, &v))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|(index, &range)| {
+                let active = lists.encode(&ctx, &mut enc, index, range, &rb, &v)?;
+                let deferred = lists.encode_deferred(&ctx, &mut enc, index, range, &rb, &v)?;
+                Ok((active, deferred))
+            })
+            .collect::<Result<Vec<_>, Error>>()?;
         ctx.queue.submit([enc.finish()]);
         let bits: Vec<u32> = ctx.read_buffer(&v, 4 * n as u64)?;
-        for (range, list) in ranges.iter().zip(&listed) {
-            let words: Vec<u32> = ctx.read_buffer(list, list.size())?;
-            let count = words[3];
-            let mut got: Vec<u32> = words[ACTIVE_HEAD_WORDS as usize..][..count as usize]
-                .iter()
-                .map(|i| range.first + i)
-                .collect();
-            got.sort_unstable();
-            let want: Vec<u32> = (range.first..range.first + range.count)
-                .filter(|&k| recs[k as usize].active != 0)
-                .collect();
-            assert_eq!(got, want, "{n} receivers, range {range:?}: the listed ones");
-            assert_eq!(
-                &words[..3],
-                &[count.div_ceil(WORKGROUP_SIZE), 1, 1],
-                "{n} receivers: the dispatch"
-            );
+        for (range, (active, deferred)) in ranges.iter().zip(&listed) {
+            let slots = range.first..range.first + range.count;
+            for (list, what, want) in [
+                (
+                    active,
+                    "active",
+                    slots
+                        .clone()
+                        .filter(|&k| recs[k as usize].active != 0)
+                        .collect::<Vec<u32>>(),
+                ),
+                (
+                    deferred,
+                    "deferred",
+                    slots
+                        .clone()
+                        .filter(|&k| v0[k as usize] == DEFER_BITS)
+                        .collect(),
+                ),
+            ] {
+                let words: Vec<u32> = ctx.read_buffer(list, list.size())?;
+                let count = words[3];
+                let got: Vec<u32> = words[ACTIVE_HEAD_WORDS as usize..][..count as usize]
+                    .iter()
+                    .map(|i| range.first + i)
+                    .collect();
+                assert_eq!(got, want, "{n} receivers, range {range:?}: the {what} list");
+                assert_eq!(
+                    &words[..3],
+                    &[count.div_ceil(WORKGROUP_SIZE), 1, 1],
+                    "{n} receivers: the {what} list's dispatch"
+                );
+            }
         }
         for (k, (r, b)) in recs.iter().zip(&bits).enumerate() {
             if r.active != 0 {
-                assert_eq!(*b, UNWRITTEN, "{n} receivers: active slot {k} written");
+                assert_eq!(*b, v0[k], "{n} receivers: active slot {k} written");
             } else {
                 assert!(
                     f32::from_bits(*b).is_nan(),
