@@ -52,7 +52,7 @@ use shadow_map_core::{
         estimate::{EstimateUniform, LIGHT_HEAD_WGSL, LIGHT_RECT, OVERRIDES},
         frame::{
             check_per_receiver, check_prepared_inputs, compute_pass, compute_pass_indirect,
-            cpu_twin_v, receiver_ranges, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
+            cpu_twin_v, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
             Views,
         },
         kernel::{shader_module, uniform_buffer, BindGroupCache, Binding, SpecializedKernel},
@@ -626,16 +626,9 @@ impl FrameEstimator for DeepShadowFrame {
         // per-texel passes bind the first range's group, whose receivers they do not read.
         // Each range's active receivers, listed once for every view's lookup and the finish
         // (inactive ones NaN).
-        let ranges = receiver_ranges(ctx, inputs.count)
-            .into_iter()
-            .enumerate()
-            .map(|(index, range)| {
-                let list =
-                    self.active
-                        .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
-                Ok((range, list))
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let ranges =
+            self.active
+                .encode_ranges(ctx, enc, inputs.count, inputs.receivers, inputs.v)?;
         let nodes = self.lists.nodes(&self.ctx, lists)?;
         let list_group = lists.then(|| {
             let entries: Vec<_> = [&self.head, &nodes, &self.lists.counters]

@@ -434,16 +434,9 @@ impl FrameEstimator for MultiSampleFrame {
         let accumulate = k.kernel.entry_pipeline(ctx, "accumulate", &shape)?;
         let finalize = k.kernel.entry_pipeline(ctx, "finalize", &shape)?;
         // Each range's active receivers, listed once for every pass (inactive ones NaN).
-        let ranges = receiver_ranges(ctx, inputs.count)
-            .into_iter()
-            .enumerate()
-            .map(|(index, range)| {
-                let list =
-                    self.active
-                        .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?;
-                Ok((range, list))
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let ranges =
+            self.active
+                .encode_ranges(ctx, enc, inputs.count, inputs.receivers, inputs.v)?;
         // One pass of `pipe` per range of receivers over its active list, its bind group over
         // the range's receivers, sums, V and list.
         let passes = |enc: &mut wgpu::CommandEncoder,

@@ -30,8 +30,8 @@ pub const COMPACT_CHECK_WGSL: &str =
     concat!(include_str!("shared.wgsl"), include_str!("compact.wgsl"));
 
 /// Consecutive receiver slots one invocation of the compaction lists (at most 32, a bit each;
-/// a range's workgroups of them, at most 65,535 x 64 / 512 = 8,191, are scanned by one
-/// workgroup).
+/// a range's workgroups of them, at most 65,535 x 64 / 512 rounded up = 8,192, are scanned by
+/// one workgroup).
 pub const COMPACT_RUN: u32 = 8;
 
 /// Words before the indices of an active list: the indirect dispatch (x, y, z) of the kernel
@@ -113,6 +113,24 @@ impl ActiveLists {
             range,
             (receivers, v),
         )
+    }
+
+    /// [`encode`](Self::encode) for each of the [`receiver_ranges`](super::frame::receiver_ranges)
+    /// of `count` receivers, in order: every range with its list, for a frame whose passes each
+    /// run over all of them.
+    pub fn encode_ranges(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        count: u32,
+        receivers: &wgpu::Buffer,
+        v: &wgpu::Buffer,
+    ) -> Result<Vec<(ReceiverRange, wgpu::Buffer)>> {
+        super::frame::receiver_ranges(ctx, count)
+            .into_iter()
+            .enumerate()
+            .map(|(index, range)| Ok((range, self.encode(ctx, enc, index, range, receivers, v)?)))
+            .collect()
     }
 
     /// Records, after a first pass over [`encode`](Self::encode)'s list of the same range, the
