@@ -52,8 +52,7 @@ use shadow_map_core::{
         estimate::{EstimateUniform, LIGHT_HEAD_WGSL, LIGHT_RECT, OVERRIDES},
         frame::{
             check_per_receiver, check_prepared_inputs, compute_pass, compute_pass_indirect,
-            cpu_twin_v, status_buffer, FrameEstimator, FrameInputs, ReceiverRange,
-            Views,
+            cpu_twin_v, status_buffer, FrameEstimator, FrameInputs, ReceiverRange, Views,
         },
         kernel::{shader_module, uniform_buffer, BindGroupCache, Binding, SpecializedKernel},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
