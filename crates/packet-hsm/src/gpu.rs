@@ -461,6 +461,7 @@ impl PacketHsmFrame {
             slot,
             mssm_levels: shape.map(|s| s.mssm_levels),
             mssm_max: true,
+            timestamps: inputs.timestamps,
         };
         self.layers.encode_slot(ctx, enc, inputs.casters, &layers)?;
         // The classification layer into the padded map's interior, then its dual-grid MSSM.

@@ -232,9 +232,9 @@ impl ViewMaps {
             slot: 0,
             mssm_levels: Some(mssm_planes),
             mssm_max: false,
+            timestamps: inputs.timestamps,
         };
         self.layers.encode_slot(ctx, enc, inputs.casters, &slot)?;
-        inputs.mark(enc, "layers");
         let semi = self.layers.writes_opacity(inputs.casters);
         self.km.record(enc, semi, mssm_planes);
         inputs.mark(enc, "layout");

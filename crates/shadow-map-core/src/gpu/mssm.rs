@@ -34,6 +34,16 @@ pub const MSSM_WGSL: &str = include_str!("mssm.wgsl");
 /// Workgroup size (x and y) of every MSSM dispatch, passed as WGSL overrides `WG_X`, `WG_Y`.
 pub const MSSM_WORKGROUP: u32 = 16;
 
+/// Outputs per axis of one `anchored_block` invocation (WGSL `BLOCK`).
+pub const BLOCK: u32 = 4;
+
+/// Invocations per axis of an `anchored_block` dispatch over a level of side `s` with window
+/// offset `h`: each of the `h` phases of the axis takes `ceil(s / (h BLOCK))` blocks.
+pub fn block_invocations(s: u32, h: u32) -> u32 {
+    let h = h.max(1);
+    h.saturating_mul(s.div_ceil(h.saturating_mul(BLOCK)))
+}
+
 /// Uniform of one MSSM dispatch (one chunk of rows of one level); mirrors `MinMaxParams` in
 /// `mssm.wgsl`.
 #[repr(C)]
@@ -217,6 +227,9 @@ pub struct GpuMssmBuilder {
     step: wgpu::ComputePipeline,
     /// `anchored_step` writing the min planes only (`MIN_ONLY`).
     step_min: wgpu::ComputePipeline,
+    /// `anchored_block`: the step over a level bound whole, both planes and min only.
+    block: wgpu::ComputePipeline,
+    block_min: wgpu::ComputePipeline,
     reduce: wgpu::ComputePipeline,
     max_binding_bytes: Option<u64>,
 }
@@ -225,6 +238,8 @@ pub struct GpuMssmBuilder {
 enum Kind {
     Load,
     Step,
+    /// An anchored step over a level bound whole, by `anchored_block`.
+    Block,
     Reduce,
 }
 
@@ -373,10 +388,16 @@ impl<'a> Recorder<'a> {
                 params,
                 texture,
                 buffers,
-                groups: (
-                    out_size.div_ceil(MSSM_WORKGROUP),
-                    rows.div_ceil(MSSM_WORKGROUP),
-                ),
+                groups: match kind {
+                    Kind::Block => {
+                        let n = block_invocations(out_size, params.h).div_ceil(MSSM_WORKGROUP);
+                        (n, n)
+                    }
+                    _ => (
+                        out_size.div_ceil(MSSM_WORKGROUP),
+                        rows.div_ceil(MSSM_WORKGROUP),
+                    ),
+                },
                 level: self.level,
             });
             row0 += rows;
@@ -436,7 +457,15 @@ impl<'a> Recorder<'a> {
                 (7, outmin),
                 (8, outmax),
             ];
-            (Kind::Step, params, None, buffers)
+            // A level bound whole (one chunk) is stepped in blocks (whose rows reach beyond the
+            // chunk's) while a block's lattice fits in the level; wider offsets leave most of a
+            // block outside, and the plain step does less work there.
+            let kind = if row0 == 0 && rows == s && h.saturating_mul(BLOCK) <= s {
+                Kind::Block
+            } else {
+                Kind::Step
+            };
+            (kind, params, None, buffers)
         })?;
         Ok(GpuMinMaxLevel {
             size: s,
@@ -525,7 +554,7 @@ impl<'a> Recorder<'a> {
                 }
                 let layout = match d.kind {
                     Kind::Load => &b.load_layout,
-                    Kind::Step => &b.step_layout,
+                    Kind::Step | Kind::Block => &b.step_layout,
                     Kind::Reduce => &b.reduce_layout,
                 };
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -578,6 +607,8 @@ impl GpuMinMaxPass {
                 Kind::Load => &b.load,
                 Kind::Step if max => &b.step,
                 Kind::Step => &b.step_min,
+                Kind::Block if max => &b.block,
+                Kind::Block => &b.block_min,
                 Kind::Reduce => &b.reduce,
             });
             pass.set_bind_group(0, group, &[]);
@@ -663,6 +694,8 @@ impl GpuMssmBuilder {
                 load: pipeline("mssm.load_depth", &load_layout, false),
                 step: pipeline("mssm.anchored_step", &step_layout, false),
                 step_min: pipeline("mssm.anchored_step", &step_layout, true),
+                block: pipeline("mssm.anchored_block", &step_layout, false),
+                block_min: pipeline("mssm.anchored_block", &step_layout, true),
                 reduce: pipeline("mssm.reduce", &reduce_layout, false),
                 load_layout,
                 step_layout,

@@ -725,6 +725,7 @@ fn a_frame_building_fewer_mssm_levels_hands_out_only_those() -> TestResult {
             slot: 0,
             mssm_levels: cap,
             mssm_max,
+            timestamps: None,
         };
         frame.encode_slot(&ctx, &mut enc, casters, &slot)?;
         ctx.queue.submit([enc.finish()]);

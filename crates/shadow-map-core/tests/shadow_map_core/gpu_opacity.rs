@@ -130,6 +130,7 @@ fn layer_slots_render_each_opacity_level_in_its_own_view() -> Result<(), Error> 
             slot: k,
             mssm_levels: None,
             mssm_max: true,
+            timestamps: None,
         };
         frame.encode_slot(&ctx, &mut enc, &casters, &slot)?;
         enc.copy_texture_to_texture(

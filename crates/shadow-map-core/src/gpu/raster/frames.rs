@@ -100,6 +100,8 @@ pub struct LayersSlot<'a> {
     /// kernels that query no maximum; the max planes, and those of [`GpuLayersFrame::light_space`],
     /// then keep stale values).
     pub mssm_max: bool,
+    /// Timestamps the passes are marked in (`raster`, `midpoints`, `mssm`), if any.
+    pub timestamps: Option<&'a crate::gpu::frame::FrameTimestamps>,
 }
 
 /// A [`GpuLayersFrame`]'s view slots and its raster parameters at opacity 0.
@@ -210,6 +212,7 @@ impl GpuLayersFrame {
             slot: 0,
             mssm_levels: None,
             mssm_max: true,
+            timestamps: None,
         };
         self.encode_slot(ctx, enc, casters, &slot)
     }
@@ -267,11 +270,19 @@ impl GpuLayersFrame {
                 pass.draw(0..3 * casters.triangles, 0..1);
             }
         }
+        let mark = |enc: &mut wgpu::CommandEncoder, stage| {
+            if let Some(t) = slot.timestamps {
+                t.mark(enc, stage);
+            }
+        };
+        mark(enc, "raster");
         if let Some(p) = &self.midpoint_pass {
             p.record(ctx, enc, slot.max_bias);
+            mark(enc, "midpoints");
         }
         let levels = slot.mssm_levels.unwrap_or(u32::MAX);
         self.mssm_pass.record_levels(enc, levels, slot.mssm_max);
+        mark(enc, "mssm");
         self.mssm_built
             .store(levels, std::sync::atomic::Ordering::Relaxed);
         Ok(())
