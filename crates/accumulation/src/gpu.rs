@@ -38,8 +38,8 @@ use shadow_map_core::{
     gpu::{
         estimate::{EstimateUniform, BITMASK_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES},
         frame::{
-            check_buffers, compute_pass_indirect, cpu_twin_v, receiver_ranges, single_view,
-            status_buffer, FrameEstimator, FrameInputs, Views,
+            check_buffers, cpu_twin_v, single_view, status_buffer, FrameEstimator, FrameInputs,
+            Views,
         },
         kernel::{BindGroupCache, SpecializedKernel},
         layout::ViewMaps,
@@ -388,31 +388,23 @@ impl FrameEstimator for AccumulationFrame {
         // which the second runs over densely. The other kernels have no such test: one pass.
         let mut first = switches.to_vec();
         first.push(("DEFER_CELLS", 1.0));
-        let pipelines = if au.kernel == kernel_mode(KernelMode::Adaptive) {
-            vec![
-                self.kernel.pipeline(ctx, &first)?,
-                self.kernel.pipeline(ctx, &switches)?,
-            ]
+        let second = self.kernel.pipeline(ctx, &switches)?;
+        let passes = if au.kernel == kernel_mode(KernelMode::Adaptive) {
+            vec![self.kernel.pipeline(ctx, &first)?, second]
         } else {
-            vec![self.kernel.pipeline(ctx, &switches)?]
+            vec![second]
         };
+        let passes: Vec<&wgpu::ComputePipeline> = passes.iter().collect();
         // Dispatches per range of receivers (a 4K view is two under the default limits).
-        for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
-            for (pass, pipeline) in pipelines.iter().enumerate() {
-                let list = if pass == 0 {
-                    self.active
-                        .encode(ctx, enc, index, range, inputs.receivers, inputs.v)?
-                } else {
-                    self.active.encode_deferred(
-                        ctx,
-                        enc,
-                        index,
-                        range,
-                        inputs.receivers,
-                        inputs.v,
-                    )?
-                };
-                let group = self.groups.get_dense(
+        self.active.dispatch_passes(
+            ctx,
+            enc,
+            LABEL,
+            &passes,
+            inputs.count,
+            (inputs.receivers, inputs.v),
+            |range, list| {
+                self.groups.get_dense(
                     ctx,
                     LABEL,
                     &self.kernel.layout,
@@ -428,10 +420,9 @@ impl FrameEstimator for AccumulationFrame {
                         self.status.as_entire_binding(),
                         list.as_entire_binding(),
                     ],
-                );
-                compute_pass_indirect(enc, LABEL, pipeline, &group, &list);
-            }
-        }
+                )
+            },
+        )?;
         inputs.mark(enc, "estimate");
         Ok(())
     }

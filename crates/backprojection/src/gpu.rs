@@ -19,7 +19,6 @@ use shadow_map_core::{
             EstimateUniform, BITMASK_WGSL, CELLS_WGSL, ESTIMATE_HEAD_WGSL, OVERRIDES,
             SILHOUETTE_SETUP_WGSL,
         },
-        frame::{compute_pass_indirect, receiver_ranges},
         kernel::{BindGroupCache, SpecializedKernel},
         layout::KernelMaps,
         receivers::ActiveLists,
@@ -129,7 +128,8 @@ impl BpKernel {
         })
     }
 
-    /// Records the kernel's passes into `enc`: one dispatch per [`receiver_ranges`] range of the
+    /// Records the kernel's passes into `enc`: one dispatch per
+    /// [`receiver_ranges`](shadow_map_core::gpu::frame::receiver_ranges) range of the
     /// first `count` receivers of `receivers`, V bits into `v`, the counters added to
     /// `counters` (nothing dispatched for no receivers), with the pipeline specialised for
     /// `switches`.
@@ -151,20 +151,18 @@ impl BpKernel {
         // second runs over densely.
         let mut first = switches.to_vec();
         first.push(("DEFER_BLOCKS", 1.0));
-        let pipelines = [
-            self.kernel.pipeline(ctx, &first)?,
-            self.kernel.pipeline(ctx, switches)?,
-        ];
+        let first = self.kernel.pipeline(ctx, &first)?;
+        let second = self.kernel.pipeline(ctx, switches)?;
         self.groups.next_encode();
-        for (index, range) in receiver_ranges(ctx, count).into_iter().enumerate() {
-            for (pass, pipeline) in pipelines.iter().enumerate() {
-                let list = if pass == 0 {
-                    self.active.encode(ctx, enc, index, range, receivers, v)?
-                } else {
-                    self.active
-                        .encode_deferred(ctx, enc, index, range, receivers, v)?
-                };
-                let group = self.groups.get_dense(
+        self.active.dispatch_passes(
+            ctx,
+            enc,
+            LABEL,
+            &[&first, &second],
+            count,
+            (receivers, v),
+            |range, list| {
+                self.groups.get_dense(
                     ctx,
                     LABEL,
                     &self.kernel.layout,
@@ -180,10 +178,9 @@ impl BpKernel {
                         bufs.bits.as_entire_binding(),
                         list.as_entire_binding(),
                     ],
-                );
-                compute_pass_indirect(enc, LABEL, pipeline, &group, &list);
-            }
-        }
+                )
+            },
+        )?;
         Ok(())
     }
 }

@@ -30,7 +30,7 @@ use shadow_map_core::{
             compute_pass_indirect, cpu_twin_v, receiver_ranges, single_view, status_buffer, Views,
         },
         kernel::{storage_buffer, BindGroupCache, SpecializedKernel},
-        receivers::ActiveLists,
+        receivers::{ActiveLists, ListKind},
         GpuContext, GpuLightSpace, GpuMapFrame, GpuShadowMapper, GpuUnorm16Frame,
     },
     light_space::point_frame,
@@ -38,6 +38,15 @@ use shadow_map_core::{
     DepthPrecision, Error, Params, Receivers, Result, Scene, SoftShadowEstimator,
 };
 use std::sync::Arc;
+
+/// How a map frame's estimate kernel covers the receivers (one per frame, held inline).
+#[allow(clippy::large_enum_variant)]
+enum Slots {
+    /// Each range's active receivers, listed every frame, the kernel dispatched over the list.
+    Listed(ActiveLists),
+    /// One invocation per slot (`estimate_slots`), this placeholder bound in the list's place.
+    Every(wgpu::Buffer),
+}
 
 /// Hard, PCF or PCSS (`F`) on the engine path (module documentation).
 pub struct MapFrame<F: GpuFilter> {
@@ -50,10 +59,8 @@ pub struct MapFrame<F: GpuFilter> {
     kernel: SpecializedKernel,
     est: wgpu::Buffer,
     status: wgpu::Buffer,
-    /// Each range's active receivers, listed every frame, the kernel running over them only;
-    /// or, for a filter without ([`GpuFilter::ACTIVE_LIST`]), a placeholder bound in the list's
-    /// place while the kernel runs over every slot.
-    active: Result<ActiveLists, wgpu::Buffer>,
+    /// How the estimate kernel covers the receivers ([`GpuFilter::ACTIVE_LIST`]).
+    slots: Slots,
     groups: BindGroupCache,
 }
 
@@ -75,12 +82,12 @@ impl<F: GpuFilter> MapFrame<F> {
         )?;
         let est = uniform_buffer(&ctx, "frame estimate uniform");
         let status = status_buffer(&ctx, "frame status", 4);
-        let active = match F::ACTIVE_LIST {
-            true => Ok(ActiveLists::new(&ctx)?),
-            false => Err(storage_buffer(&ctx, "frame estimate: no active list", 16)),
+        let slots = match F::ACTIVE_LIST {
+            true => Slots::Listed(ActiveLists::new(&ctx)?),
+            false => Slots::Every(storage_buffer(&ctx, "frame estimate: no active list", 16)),
         };
         Ok(MapFrame {
-            active,
+            slots,
             groups: BindGroupCache::default(),
             ctx,
             params: params.clone(),
@@ -149,21 +156,29 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         if n == 0 {
             return Ok(());
         }
-        let entry = match self.active {
-            Ok(_) => "estimate",
-            Err(_) => "estimate_slots",
+        let entry = match self.slots {
+            Slots::Listed(_) => "estimate",
+            Slots::Every(_) => "estimate_slots",
         };
         let pipeline = self
             .kernel
             .entry_pipeline(&self.ctx, entry, &[u.shape_switch()])?;
         for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
             // The list to bind and dispatch from, or the placeholder and one invocation a slot.
-            let (list, listed) = match &self.active {
-                Ok(lists) => (
-                    lists.encode(ctx, enc, index, range, inputs.receivers, inputs.v)?,
+            let (list, listed) = match &self.slots {
+                Slots::Listed(lists) => (
+                    lists.encode(
+                        ctx,
+                        enc,
+                        ListKind::Active,
+                        index,
+                        range,
+                        inputs.receivers,
+                        inputs.v,
+                    )?,
                     true,
                 ),
-                Err(placeholder) => (placeholder.clone(), false),
+                Slots::Every(placeholder) => (placeholder.clone(), false),
             };
             let group = self.groups.get_dense(
                 &self.ctx,

@@ -38,6 +38,15 @@ pub const COMPACT_RUN: u32 = 8;
 /// that reads it, then the count (`compact.wgsl`).
 pub const ACTIVE_HEAD_WORDS: u64 = 4;
 
+/// Which of a range's lists [`ActiveLists::encode`] records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ListKind {
+    /// The range's active receivers.
+    Active,
+    /// The receivers a first pass over the active list deferred to a second (V = `DEFER_BITS`).
+    Deferred,
+}
+
 /// Per receiver range of a frame, the list of its active receivers, made on the device each
 /// frame (`compact.wgsl`, three passes, so the list is in slot order on every device):
 /// inactive slots get V = NaN there, and the per-receiver kernels run one
@@ -90,34 +99,38 @@ impl ActiveLists {
         })
     }
 
-    /// Records the compaction of `range`, the `index`-th range of a frame (index 0 starts a
-    /// frame's encode), of `receivers` with V into `v`: NaN into the inactive slots of the
-    /// range, and the list of its active receivers, returned to be bound and dispatched from.
+    /// Records the list `kind` of `range`, the `index`-th range of a frame, of `receivers`
+    /// with V into `v`, and returns it to be bound and dispatched from: the range's active
+    /// receivers ([`ListKind::Active`], which also writes NaN into its inactive slots; index 0
+    /// starts a frame's encode), or, after a first pass over that list, the receivers the pass
+    /// deferred ([`ListKind::Deferred`], V = `DEFER_BITS`, `shared.wgsl`) to a second: a kernel's
+    /// long tail, run densely. One list per kind and range index.
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
+        kind: ListKind,
         index: usize,
         range: ReceiverRange,
         receivers: &wgpu::Buffer,
         v: &wgpu::Buffer,
     ) -> Result<wgpu::Buffer> {
-        if index == 0 {
-            self.groups.next_encode();
-        }
-        self.record(
-            ctx,
-            enc,
-            (&self.lists, &self.count[0]),
-            index,
-            range,
-            (receivers, v),
-        )
+        let pipes = match kind {
+            ListKind::Active => {
+                if index == 0 {
+                    self.groups.next_encode();
+                }
+                (&self.lists, &self.count[0])
+            }
+            ListKind::Deferred => (&self.deferred, &self.count[1]),
+        };
+        self.record(ctx, enc, pipes, index, range, (receivers, v))
     }
 
-    /// [`encode`](Self::encode) for each of the [`receiver_ranges`](super::frame::receiver_ranges)
-    /// of `count` receivers, in order: every range with its list, for a frame whose passes each
-    /// run over all of them.
+    /// The active list ([`encode`](Self::encode)) of each of the
+    /// [`receiver_ranges`](super::frame::receiver_ranges) of `count` receivers, in order: every
+    /// range with its list, for a frame whose passes each run over all of them.
     pub fn encode_ranges(
         &self,
         ctx: &GpuContext,
@@ -129,24 +142,42 @@ impl ActiveLists {
         super::frame::receiver_ranges(ctx, count)
             .into_iter()
             .enumerate()
-            .map(|(index, range)| Ok((range, self.encode(ctx, enc, index, range, receivers, v)?)))
+            .map(|(index, range)| {
+                let list = self.encode(ctx, enc, ListKind::Active, index, range, receivers, v)?;
+                Ok((range, list))
+            })
             .collect()
     }
 
-    /// Records, after a first pass over [`encode`](Self::encode)'s list of the same range, the
-    /// list of the receivers that pass deferred (V = `DEFER_BITS`, `shared.wgsl`) to a second
-    /// pass: a kernel's long tail, run densely (a list of its own per range index).
-    pub fn encode_deferred(
+    /// Records a kernel's passes over each of the [`receiver_ranges`](super::frame::receiver_ranges)
+    /// of `count` receivers, dispatched indirectly from the range's lists: `passes[0]` over its
+    /// active receivers, then, when given, `passes[1]` over those the first deferred (a first
+    /// pass that finishes the receivers its cheap test settles and leaves `DEFER_BITS` for the
+    /// rest, and the whole kernel over the long tail alone). `group(range, list)` makes the bind
+    /// group of a pass over `list`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn dispatch_passes(
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
-        index: usize,
-        range: ReceiverRange,
-        receivers: &wgpu::Buffer,
-        v: &wgpu::Buffer,
-    ) -> Result<wgpu::Buffer> {
-        let pipes = (&self.deferred, &self.count[1]);
-        self.record(ctx, enc, pipes, index, range, (receivers, v))
+        label: &str,
+        passes: &[&wgpu::ComputePipeline],
+        count: u32,
+        (receivers, v): (&wgpu::Buffer, &wgpu::Buffer),
+        mut group: impl FnMut(ReceiverRange, &wgpu::Buffer) -> wgpu::BindGroup,
+    ) -> Result<()> {
+        let kinds = [ListKind::Active, ListKind::Deferred];
+        for (index, range) in super::frame::receiver_ranges(ctx, count)
+            .into_iter()
+            .enumerate()
+        {
+            for (pipeline, &kind) in passes.iter().zip(&kinds) {
+                let list = self.encode(ctx, enc, kind, index, range, receivers, v)?;
+                let bind = group(range, &list);
+                super::frame::compute_pass_indirect(enc, label, pipeline, &bind, &list);
+            }
+        }
+        Ok(())
     }
 
     fn record(

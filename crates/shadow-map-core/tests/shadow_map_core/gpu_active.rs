@@ -14,7 +14,11 @@ use shadow_map_core::{
         estimate::WORKGROUP_SIZE,
         frame::ReceiverRange,
         kernel::buffer_init,
-        receivers::{ActiveLists, ACTIVE_HEAD_WORDS},
+        receivers::{
+            ActiveLists,
+            ListKind::{Active, Deferred},
+            ACTIVE_HEAD_WORDS,
+        },
         shared::ReceiverGpu,
     },
     Error,
@@ -95,8 +99,8 @@ fn active_lists_hold_each_active_receiver_once() -> Result<(), Error> {
             .iter()
             .enumerate()
             .map(|(index, &range)| {
-                let active = lists.encode(&ctx, &mut enc, index, range, &rb, &v)?;
-                let deferred = lists.encode_deferred(&ctx, &mut enc, index, range, &rb, &v)?;
+                let active = lists.encode(&ctx, &mut enc, Active, index, range, &rb, &v)?;
+                let deferred = lists.encode(&ctx, &mut enc, Deferred, index, range, &rb, &v)?;
                 Ok((active, deferred))
             })
             .collect::<Result<Vec<_>, Error>>()?;
