@@ -327,7 +327,8 @@ fn run(
     ctx.wait()?;
     // One more frame with timestamps between its passes: GPU ms per stage.
     let mut stages = Vec::new();
-    if let Some(ts) = FrameTimestamps::new(ctx, 256)? {
+    // Room for five marks a view at the most views a frame takes (16 x 16 for packet-hsm).
+    if let Some(ts) = FrameTimestamps::new(ctx, 2048)? {
         ts.reset();
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         path.encode(
@@ -340,6 +341,14 @@ fn run(
         ts.resolve(&mut enc);
         ctx.queue.submit([enc.finish()]);
         stages = ts.read(ctx)?;
+        if ts.dropped() > 0 {
+            // The stage times would be short: say so rather than print them.
+            return Err(shadow_map_core::Error::Limit {
+                what: "timestamps per frame (marks dropped for want of room)",
+                requested: 2048 + u64::from(ts.dropped()),
+                max: 2048,
+            });
+        }
     }
     Ok(Measured {
         host_ms: host / frames.saturating_sub(1).max(1) as f64,
