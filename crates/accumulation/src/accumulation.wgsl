@@ -77,10 +77,13 @@ const SY = array<f32, 4>(-1.0, -1.0, 1.0, 1.0);
 @group(0) @binding(6) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(7) var<storage, read_write> v_out: array<u32>;
 // [0]: lit receivers outside the frustum, [1]: non-finite V, [2]: receivers cut short by the
-// device's loop limit (flagged with CUT_BITS, for the caller to redo on the CPU).
-@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 3>;
+// device's loop limit (flagged with CUT_BITS, for the caller to redo on the CPU), [3]: outside
+// receivers the settle passes could not prove unshadowed (left NaN).
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
 // The range's active list (the core's receivers::ActiveLists), read by the core's entry point.
 @group(0) @binding(9) var<storage, read> active_list: array<u32>;
+// The range's open list (the core's gpu::settle): the outside receivers, for the settle passes.
+@group(0) @binding(10) var<storage, read_write> open_list: array<atomic<u32>>;
 
 
 // The footprint's frame (math::Footprint): in perspective the view's own (fp_n = view.n); for
@@ -680,7 +683,7 @@ fn shadowing(p: Patch, r: vec3<f32>, nrm: vec3<f32>, uv: vec2<f32>) -> f32 {
 }
 
 // CpuAccumulation::estimate_with, per receiver; -1 for a lit receiver outside the frustum
-// (counted).
+// (counted, and listed for the settle passes, the CPU's settle_outside).
 fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     let facing = front_fraction_world(est, pw, nw);
     if !(facing > 0.0) {
@@ -701,6 +704,7 @@ fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
     let covered = r.z > fp_n && patch_max_z(p) < r.z * (1.0 - 1e-4);
     if !covered || !view_contains(view, uv) {
         atomicAdd(&counters[0], 1u);
+        leave_open(current_receiver);
         return -1.0;
     }
     let s = shadowing(p, r, view_dir_to_light(view, nw), uv);

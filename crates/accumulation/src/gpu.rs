@@ -45,6 +45,7 @@ use shadow_map_core::{
         layout::ViewMaps,
         receivers::ActiveLists,
         receivers::RECEIVERS_WGSL,
+        settle::{GpuSettler, OPEN_WGSL},
         GpuContext,
     },
     light_view::LightView,
@@ -56,11 +57,12 @@ use std::sync::Arc;
 pub const ACCUMULATION_WGSL: &str = include_str!("accumulation.wgsl");
 
 /// The WGSL parts of the kernel, in order.
-pub const SHADER_PARTS: [&str; 4] = [
+pub const SHADER_PARTS: [&str; 5] = [
     ESTIMATE_HEAD_WGSL,
     RECEIVERS_WGSL,
     BITMASK_WGSL,
     ACCUMULATION_WGSL,
+    OPEN_WGSL,
 ];
 
 /// Hull-point slots at the head of the tables buffer (WGSL `HULL_SLOTS`).
@@ -220,11 +222,13 @@ const LABEL: &str = "accumulation estimate";
 /// layer 0 for the adaptive kernel (every level up to `ceil(log2 r)`, at most
 /// [`MAX_MSSM_LEVEL`](crate::cpu::MAX_MSSM_LEVEL), allocated once: the minimum query is exact
 /// whatever the number of levels), the copies into the kernel's texture arrays
-/// ([`shadow_map_core::gpu::layout`]) and the kernel over `count` receivers in one dispatch. The
-/// status holds the kernel's three counters: lit receivers outside the light frustum (left NaN:
-/// the CPU twin settles them by ray casting, which the frame path cannot; fit the view to the
-/// receivers, or to bounds holding them, and there are none), non-finite results (written as 0),
-/// receivers cut by the device's loop budget (`CUT_BITS` in V, left for the caller to redo).
+/// ([`shadow_map_core::gpu::layout`]), the kernel over each range's active receivers, and the
+/// settle passes over the lit receivers outside the light frustum ([`GpuSettler`]: the facing
+/// fraction where no caster triangle lies in the receiver's light pyramid, as the CPU twin's
+/// `settle_outside`). The status holds four counters: lit receivers outside the frustum,
+/// non-finite results (written as 0), receivers cut by the device's loop budget (`CUT_BITS` in
+/// V, left for the caller to redo), outside receivers something may shadow (left NaN: the CPU
+/// twin refuses them).
 pub struct AccumulationFrame {
     ctx: Arc<GpuContext>,
     /// The parameters, as the CPU twin holds them (validated by it at `prepare`).
@@ -239,6 +243,8 @@ pub struct AccumulationFrame {
     status: wgpu::Buffer,
     /// Each range's active receivers, listed every frame: the kernel runs over them only.
     active: ActiveLists,
+    /// The outside receivers' settle passes.
+    settler: GpuSettler,
     groups: BindGroupCache,
 }
 
@@ -292,9 +298,10 @@ impl AccumulationFrame {
             8 * max_points,
             wgpu::BufferUsages::STORAGE,
         );
-        let status = status_buffer(&ctx, "accumulation frame status", 3);
+        let status = status_buffer(&ctx, "accumulation frame status", 4);
         Ok(AccumulationFrame {
             active: ActiveLists::new(&ctx)?,
+            settler: GpuSettler::new(&ctx)?,
             groups: BindGroupCache::default(),
             ctx,
             params: cpu.params().clone(),
@@ -334,20 +341,20 @@ impl FrameEstimator for AccumulationFrame {
         self.maps.layers.bytes()
     }
 
-    /// Three u32: lit receivers outside the light frustum (left NaN), non-finite results
-    /// (written as 0), receivers cut by the device's loop budget (`CUT_BITS` in V).
+    /// Four u32: lit receivers outside the light frustum, non-finite results (written as 0),
+    /// receivers cut by the device's loop budget (`CUT_BITS` in V), outside receivers left NaN.
     fn status(&self) -> Option<&wgpu::Buffer> {
         Some(&self.status)
     }
 
-    /// Receivers outside the one frustum are left NaN (for the caller to settle or redo), as
-    /// are those the loop budget cut.
+    /// Receivers outside the one frustum are settled (their facing fraction) or left NaN when
+    /// something may shadow them, as are those the loop budget cut.
     fn decode_status(&self, words: &[u32]) -> shadow_map_core::gpu::frame::FrameStatus {
         let w = |k: usize| words.get(k).copied().unwrap_or(0);
         shadow_map_core::gpu::frame::FrameStatus {
-            outside: 0,
+            outside: w(0).saturating_sub(w(3)),
             nonfinite: w(1),
-            left_nan: w(0) + w(2),
+            left_nan: w(2) + w(3),
         }
     }
 
@@ -395,6 +402,12 @@ impl FrameEstimator for AccumulationFrame {
             vec![second]
         };
         let passes: Vec<&wgpu::ComputePipeline> = passes.iter().collect();
+        let ranges = shadow_map_core::gpu::frame::receiver_ranges(ctx, inputs.count);
+        let open: Vec<wgpu::Buffer> = ranges
+            .iter()
+            .enumerate()
+            .map(|(index, &range)| self.settler.open_list(ctx, enc, index, range))
+            .collect();
         // Dispatches per range of receivers (a 4K view is two under the default limits).
         self.active.dispatch_passes(
             ctx,
@@ -419,11 +432,26 @@ impl FrameEstimator for AccumulationFrame {
                         range.words(inputs.v),
                         self.status.as_entire_binding(),
                         list.as_entire_binding(),
+                        open[ranges.iter().position(|r| *r == range).unwrap_or(0)]
+                            .as_entire_binding(),
                     ],
                 )
             },
         )?;
         inputs.mark(enc, "estimate");
+        for (range, list) in ranges.into_iter().zip(&open) {
+            self.settler.encode(
+                ctx,
+                enc,
+                (&eu, &self.est),
+                inputs.casters,
+                range,
+                list,
+                (inputs.receivers, inputs.v),
+                (&self.status, 3),
+            )?;
+        }
+        inputs.mark(enc, "settle");
         Ok(())
     }
 

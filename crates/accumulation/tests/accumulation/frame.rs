@@ -8,10 +8,13 @@
 
 use super::maps::{judge_on_maps, run_frame};
 use accumulation::AccumulationFrame;
-use shadow_map_core::{gpu::GpuContext, Params};
+use glam::Vec3;
+use shadow_map_core::{
+    camera::Camera, gpu::GpuContext, Light, LightShape, Params, Receivers, Scene,
+};
 use test_support::{
     conformance::{frames_over_settings, SettingsCase},
-    fixtures::{bunny_under_three_lights, param_table},
+    fixtures::{bunny_under_three_lights, cuboid, param_table},
     gpu,
 };
 
@@ -98,4 +101,78 @@ fn check_scene(ctx: &GpuContext, case: SettingsCase<'_, AccumulationFrame>) {
     // centre lies on an edge to within f32 (shadow-map-core's gpu_maps.rs): at most 1% of
     // the receivers beyond 1e-4.
     c.assert_close(&label, 100, f64::INFINITY);
+}
+
+/// Lit receivers outside the one frustum (ground 105 to 195 m from under a downward rect light 5 m
+/// up, beyond 87 degrees off its axis) on both sides of a wall 1 m high at 150 m: the frame's
+/// settle passes give those in the open their facing fraction and leave those the wall may
+/// shadow NaN, counted, as the CPU's settle test decides (`judge_on_maps`), while the receivers
+/// under the light are estimated from the map as usual.
+#[test]
+fn outside_receivers_are_settled_on_the_device() {
+    let Some(ctx) = gpu("outside_receivers_are_settled_on_the_device") else {
+        return;
+    };
+    let light = Light {
+        shape: LightShape::Rect { size: [1.0, 1.0] },
+        center: Vec3::new(0.0, 5.0, 0.0),
+        normal: -Vec3::Y,
+        tangent: Vec3::X,
+    };
+    let g = 250.0;
+    let mut tris = vec![
+        [
+            Vec3::new(-g, 0.0, -g),
+            Vec3::new(g, 0.0, g),
+            Vec3::new(g, 0.0, -g),
+        ],
+        [
+            Vec3::new(-g, 0.0, -g),
+            Vec3::new(-g, 0.0, g),
+            Vec3::new(g, 0.0, g),
+        ],
+    ];
+    tris.extend(cuboid(Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 1.5, 1.0)));
+    tris.extend(cuboid(
+        Vec3::new(150.0, 0.0, -40.0),
+        Vec3::new(151.0, 1.0, 40.0),
+    ));
+    let camera = Camera {
+        eye: Vec3::new(0.0, 20.0, 30.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 45.0,
+        width: 8,
+        height: 8,
+    };
+    let scene = Scene::from_meshes("outside", camera, light, vec![(tris, 1.0)]).unwrap();
+    let mut p = Vec::new();
+    for i in -4..=4 {
+        for j in -4..=4 {
+            p.push(Vec3::new(i as f32, 0.0, j as f32));
+        }
+    }
+    for i in 0..30 {
+        for z in [-20.0, 0.0, 20.0] {
+            p.push(Vec3::new(105.0 + 3.0 * i as f32, 0.0, z));
+        }
+    }
+    let rec = Receivers::from_points(p.clone(), vec![Vec3::Y; p.len()]).unwrap();
+    let params = table(&[]);
+    let frame = AccumulationFrame::prepare(ctx.clone(), &params).unwrap();
+    let run = run_frame(&ctx, &frame, &scene, &rec).unwrap();
+    let (_, st, left) =
+        judge_on_maps("outside", &run, &scene, &rec, &params).unwrap_or_else(|e| panic!("{e}"));
+    println!(
+        "outside: {} receivers outside the frustum, {} left NaN ({} settled by the CPU's test); \
+         the {} under the light: max |dV| {:.2e}",
+        left.outside, left.unsettled, left.unsettled_gpu_only, st.receivers, st.max_dv
+    );
+    assert_eq!(left.outside, 90, "receivers beyond 87 degrees");
+    // Behind the wall from about 151 to 185 m: both outcomes occur.
+    assert!(
+        left.unsettled >= 15 && left.unsettled <= 45,
+        "{} of 90 left NaN",
+        left.unsettled
+    );
 }

@@ -41,7 +41,8 @@ pub struct FrameRun {
     pub view: LightView,
     /// V as the frame wrote it (NaN for inactive receivers, outside ones and cut ones).
     pub v: Vec<f32>,
-    /// The status words: lit receivers outside the frustum, non-finite results, cut receivers.
+    /// The status words: lit receivers outside the frustum, non-finite results, cut receivers,
+    /// outside receivers left NaN.
     pub status: Vec<u32>,
     /// The maps the frame rendered (layers, and the MSSM rebuilt from layer 0).
     pub maps: LightSpace,
@@ -91,8 +92,14 @@ pub fn cpu_on(
 /// What [`judge_on_maps`] counted besides the comparison.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Left {
-    /// Active receivers both left NaN (outside the one frustum: the caller settles them).
+    /// Active receivers outside the one frustum (left NaN by the CPU twin's estimate on the
+    /// maps, for its `settle_outside`; the frame's settle passes settle them or leave NaN).
     pub outside: usize,
+    /// Among them, those the frame left NaN (something may shadow them).
+    pub unsettled: usize,
+    /// Among those, the ones the CPU's settle test settles (a triangle touching the pyramid to
+    /// within f32 rounding: the frame's test is the stricter).
+    pub unsettled_gpu_only: usize,
     /// Active receivers the frame cut at the device's loop budget (`CUT_BITS`: the caller
     /// redoes them on the CPU).
     pub cut: usize,
@@ -127,7 +134,9 @@ pub fn no_front_bit(
 
 /// The frame's V against the CPU twin on the frame's own maps (`run.maps`), judged by
 /// [`Tolerance::judge`] with the depth and sampling tie explainers on the same maps. Receivers
-/// outside the frustum must be the same on both and counted in status word 0, cut receivers
+/// outside the frustum (NaN in the CPU twin's estimate) are counted in status word 0 and hold
+/// what the CPU's settle test gives them (the facing fraction, or NaN counted in word 3, where
+/// the GPU may also leave NaN for one of them, or 1 in 500, that the CPU settles), cut receivers
 /// (`CUT_BITS`) counted in word 2, no non-finite result (word 1); both kinds are left out of the
 /// comparison, and receivers with [`no_front_bit`] are checked by their rule (GPU V = 0, CPU V
 /// = 0 or the facing fraction). Returns the CPU's V, the case's counts and what was left out.
@@ -146,6 +155,7 @@ pub fn judge_on_maps(
     let s = twin.settings();
     let mut left = Left::default();
     let mut compared = rec.active().to_vec();
+    let mut settler = None;
     for k in 0..rec.len() {
         let (c, g) = (v_cpu[k], run.v[k]);
         if !rec.active()[k] {
@@ -154,14 +164,31 @@ pub fn judge_on_maps(
         if g.to_bits() == CUT_BITS {
             left.cut += 1;
             compared[k] = false;
-        } else if g.is_nan() || c.is_nan() {
-            if !(g.is_nan() && c.is_nan()) {
-                return Err(format!(
-                    "{label}: receiver {k} outside the frustum on one side only: cpu {c}, gpu {g}"
-                ));
-            }
+        } else if c.is_nan() {
+            let settler =
+                settler.get_or_insert_with(|| shadow_map_core::settle::Settler::new(scene));
+            let (pw, nw) = (rec.position()[k], rec.normal()[k]);
+            let settled = settler.unshadowed(pw, nw);
+            let facing = scene.light().front_fraction_world(pw, nw).clamp(0.0, 1.0);
             left.outside += 1;
             compared[k] = false;
+            if g.is_nan() {
+                left.unsettled += 1;
+                left.unsettled_gpu_only += usize::from(settled);
+            } else if !settled || (g - facing).abs() > 1e-5 {
+                return Err(format!(
+                    "{label}: receiver {k} outside the frustum: gpu {g}, cpu settle test {}",
+                    if settled {
+                        format!("settles it, V {facing}")
+                    } else {
+                        "does not settle it".to_string()
+                    }
+                ));
+            }
+        } else if g.is_nan() {
+            return Err(format!(
+                "{label}: receiver {k} left NaN by the frame only (cpu {c})"
+            ));
         } else if no_front_bit(&maps.view, scene, rec, &s, k) {
             let (pw, nw) = (rec.position()[k], rec.normal()[k]);
             let facing = scene.light().front_fraction_world(pw, nw).clamp(0.0, 1.0);
@@ -177,10 +204,16 @@ pub fn judge_on_maps(
         }
     }
     let w = |k: usize| run.status.get(k).copied().unwrap_or(0) as usize;
-    if (w(0), w(1), w(2)) != (left.outside, 0, left.cut) {
+    if (w(0), w(1), w(2), w(3)) != (left.outside, 0, left.cut, left.unsettled) {
         return Err(format!(
-            "{label}: status {:?}, but {} outside and {} cut receivers left NaN",
-            run.status, left.outside, left.cut
+            "{label}: status {:?}, but {} outside ({} left NaN) and {} cut receivers",
+            run.status, left.outside, left.unsettled, left.cut
+        ));
+    }
+    if left.unsettled_gpu_only > (left.outside / 500).max(1) {
+        return Err(format!(
+            "{label}: {} of {} outside receivers settled by the CPU's test only",
+            left.unsettled_gpu_only, left.outside
         ));
     }
     let masked = |v: &[f32]| -> Vec<f32> {

@@ -123,8 +123,8 @@ pub struct FrameStatus {
     /// Receivers whose V came out non-finite, written as 0.
     pub nonfinite: u32,
     /// Active receivers left NaN for the caller to redo (cut by the device's loop budget, or
-    /// outside the one view accumulation uses): a composite that does not redo them draws them
-    /// fully lit.
+    /// outside the one view accumulation uses with something that may shadow them): a
+    /// composite that does not redo them draws them fully lit.
     pub left_nan: u32,
 }
 
@@ -590,13 +590,25 @@ pub fn compute_pass_indirect(
     group: &wgpu::BindGroup,
     args: &wgpu::Buffer,
 ) {
+    compute_pass_indirect_at(enc, label, pipe, group, args, 0);
+}
+
+/// [`compute_pass_indirect`] with the three u32 at byte `offset` of `args`.
+pub fn compute_pass_indirect_at(
+    enc: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipe: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    args: &wgpu::Buffer,
+    offset: u64,
+) {
     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
         timestamp_writes: None,
     });
     pass.set_pipeline(pipe);
     pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups_indirect(args, 0);
+    pass.dispatch_workgroups_indirect(args, offset);
 }
 
 /// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame

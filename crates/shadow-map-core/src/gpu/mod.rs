@@ -15,6 +15,7 @@
 //! | [`precision`] (`precision.wgsl`) | [`GpuUnorm16Encoder`], [`GpuUnorm16Map`]: 16-bit maps | [`crate::precision`] |
 //! | [`light_space`] | [`GpuLightSpace`] | [`crate::LightSpace`] |
 //! | [`receivers`] | [`GpuReceivers`] | [`crate::Receivers`] |
+//! | [`settle`] (`settle.wgsl`) | [`settle::GpuSettler`]: receivers settled without a map | [`crate::settle::Settler`] |
 //! | [`gbuffer`] (`gbuffer.wgsl`) | [`GpuGBuffer`]: camera G-buffer | [`crate::Receivers::from_camera`] |
 //! | [`shared`] (`shared.wgsl`) | structs both sides read | |
 //! | [`estimate`] (`estimate.wgsl`, `math.wgsl`) | [`EstimateUniform`]: the light and bias every estimate kernel reads, f32 light math | [`crate::light`], [`crate::LightView::receiver_bias`] |
@@ -38,6 +39,7 @@ pub mod mssm;
 pub mod precision;
 pub mod raster;
 pub mod receivers;
+pub mod settle;
 pub mod shared;
 
 pub use depth_map::{read_depth_map, upload_depth_map, GpuDepthMap};
@@ -70,6 +72,8 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("casters", casters::CASTERS_WGSL),
     ("receivers", receivers::RECEIVERS_CHECK_WGSL),
     ("compact", receivers::COMPACT_CHECK_WGSL),
+    ("settle", settle::SETTLE_CHECK_WGSL),
+    ("settle_args", settle::SETTLE_ARGS_CHECK_WGSL),
     ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
 ];
 
@@ -220,12 +224,18 @@ impl GpuContext {
         let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) else {
             return;
         };
+        if self.check_lost().is_err() {
+            return;
+        }
         let mut belt = self.belt.lock().unwrap_or_else(|e| e.into_inner());
         let align = wgpu::BufferSize::new(wgpu::COPY_BUFFER_ALIGNMENT).expect("non-zero");
         let slice = belt.allocate(size, align);
         // A device lost or destroyed gives no mapping: nothing is written (nothing recorded on
-        // it will run; `check_lost` and the submit report the loss).
+        // it will run). The loss is recorded at once, so that no later write touches the belt,
+        // whose chunk made on the lost device cannot even be unmapped; `check_lost` reports it.
         let Ok(mut view) = slice.get_mapped_range_mut() else {
+            drop(belt);
+            self.report_device_lost("a staging buffer could not be mapped: the device is lost");
             return;
         };
         view.copy_from_slice(bytes);

@@ -8,6 +8,10 @@
 // n: vec3<f32>) -> f32` (V of one receiver; -1: a lit receiver left NaN for the host, counted by the
 // method; -2: deferred to the kernel's second pass over ActiveLists::encode_deferred's list) and `fn receiver_probe() -> u32` (its uniform's loop-budget probe).
 
+// The receiver estimate_receiver is estimating, for a method that lists it (gpu::settle's
+// leave_open).
+var<private> current_receiver: u32;
+
 // V = x clamped to [0, 1] into slot k; a non-finite x is written as 0 and counted in counters[1].
 fn store_v(k: u32, x: f32) {
     if is_finite(x) {
@@ -49,6 +53,7 @@ fn estimate(@builtin(global_invocation_id) gid: vec3<u32>) {
 // (shared.wgsl's two-trip probe) flagged CUT_BITS and counted in counters[2], for the host to
 // redo.
 fn estimate_one(k: u32) {
+    current_receiver = k;
     let x = estimate_receiver(receivers[k].position, receivers[k].normal);
     if loop_limit_hit(receiver_probe()) {
         v_out[k] = CUT_BITS;

@@ -8,6 +8,7 @@ use shadow_map_core::{
         midpoint::MidpointParams,
         mssm::MinMaxParams,
         raster::RasterParams,
+        settle::SettleUniform,
         shared::{FrameGpu, LightViewUniform, ReceiverGpu},
     },
     LightFrame,
@@ -80,4 +81,14 @@ fn minmax_params_match_wgsl() {
         "top_base" => top_base, "bot_base" => bot_base, "out_base" => out_base,
         "empty_depth" => empty_depth, "_pad0" => _pad0, "_pad1" => _pad1, "_pad2" => _pad2,
     ]);
+}
+
+#[test]
+fn settle_uniform_matches_wgsl() {
+    check_layout!(
+        "settle",
+        "SettleUniform",
+        SettleUniform,
+        [triangles, rows, unsettled_word, _pad,]
+    );
 }

@@ -11,6 +11,7 @@ mod gpu_gbuffer;
 mod gpu_maps;
 mod gpu_opacity;
 mod gpu_precision;
+mod gpu_settle;
 mod layouts;
 mod raster;
 mod scene_errors;
