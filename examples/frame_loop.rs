@@ -327,8 +327,7 @@ fn run(
     ctx.wait()?;
     // One more frame with timestamps between its passes: GPU ms per stage.
     let mut stages = Vec::new();
-    // Room for five marks a view at the most views a frame takes (16 x 16 for packet-hsm).
-    if let Some(ts) = FrameTimestamps::new(ctx, 2048)? {
+    if let Some(ts) = FrameTimestamps::new(ctx, FrameTimestamps::FRAME_CAPACITY)? {
         ts.reset();
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         path.encode(
@@ -345,8 +344,8 @@ fn run(
             // The stage times would be short: say so rather than print them.
             return Err(shadow_map_core::Error::Limit {
                 what: "timestamps per frame (marks dropped for want of room)",
-                requested: 2048 + u64::from(ts.dropped()),
-                max: 2048,
+                requested: u64::from(FrameTimestamps::FRAME_CAPACITY + ts.dropped()),
+                max: u64::from(FrameTimestamps::FRAME_CAPACITY),
             });
         }
     }

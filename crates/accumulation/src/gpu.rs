@@ -347,17 +347,6 @@ impl FrameEstimator for AccumulationFrame {
         Some(&self.status)
     }
 
-    /// Receivers outside the one frustum are settled (their facing fraction) or left NaN when
-    /// something may shadow them, as are those the loop budget cut.
-    fn decode_status(&self, words: &[u32]) -> shadow_map_core::gpu::frame::FrameStatus {
-        let w = |k: usize| words.get(k).copied().unwrap_or(0);
-        shadow_map_core::gpu::frame::FrameStatus {
-            outside: w(0).saturating_sub(w(3)),
-            nonfinite: w(1),
-            left_nan: w(2) + w(3),
-        }
-    }
-
     /// The layers (and MSSM) rendered in the one view, laid out, then the kernel.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, inputs: &FrameInputs<'_>) -> Result<()> {
         let view = single_view(inputs.views)?;
@@ -395,13 +384,15 @@ impl FrameEstimator for AccumulationFrame {
         // which the second runs over densely. The other kernels have no such test: one pass.
         let mut first = switches.to_vec();
         first.push(("DEFER_CELLS", 1.0));
-        let second = self.kernel.pipeline(ctx, &switches)?;
-        let passes = if au.kernel == kernel_mode(KernelMode::Adaptive) {
-            vec![self.kernel.pipeline(ctx, &first)?, second]
-        } else {
-            vec![second]
+        let whole = self.kernel.pipeline(ctx, &switches)?;
+        let deferring = match au.kernel == kernel_mode(KernelMode::Adaptive) {
+            true => Some(self.kernel.pipeline(ctx, &first)?),
+            false => None,
         };
-        let passes: Vec<&wgpu::ComputePipeline> = passes.iter().collect();
+        let passes = match &deferring {
+            Some(first) => (first, Some(&whole)),
+            None => (&whole, None),
+        };
         let ranges = shadow_map_core::gpu::frame::receiver_ranges(ctx, inputs.count);
         let open: Vec<wgpu::Buffer> = ranges
             .iter()
@@ -413,10 +404,10 @@ impl FrameEstimator for AccumulationFrame {
             ctx,
             enc,
             LABEL,
-            &passes,
+            passes,
             inputs.count,
             (inputs.receivers, inputs.v),
-            |range, list| {
+            |index, range, list| {
                 self.groups.get_dense(
                     ctx,
                     LABEL,
@@ -432,8 +423,7 @@ impl FrameEstimator for AccumulationFrame {
                         range.words(inputs.v),
                         self.status.as_entire_binding(),
                         list.as_entire_binding(),
-                        open[ranges.iter().position(|r| *r == range).unwrap_or(0)]
-                            .as_entire_binding(),
+                        open[index].as_entire_binding(),
                     ],
                 )
             },

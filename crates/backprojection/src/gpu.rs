@@ -158,10 +158,10 @@ impl BpKernel {
             ctx,
             enc,
             LABEL,
-            &[&first, &second],
+            (&first, Some(&second)),
             count,
             (receivers, v),
-            |range, list| {
+            |_, range, list| {
                 self.groups.get_dense(
                     ctx,
                     LABEL,

@@ -28,12 +28,16 @@ struct DsFrameUniform {
 @group(0) @binding(11) var<storage, read> receivers: array<ReceiverGpu>;
 @group(0) @binding(12) var<storage, read_write> acc: array<f32>;
 @group(0) @binding(13) var<storage, read_write> v_out: array<u32>;
-// [0]: looked-up receivers whose texel lies outside the map (per view); [1]: non-finite V.
-@group(0) @binding(14) var<storage, read_write> status: array<atomic<u32>, 3>;
+// [0]: receivers looked up outside some view's map (each once); [1]: non-finite V; [2]: cut
+// receivers; [3]: of [0], those the settle passes left NaN (gpu::settle).
+@group(0) @binding(14) var<storage, read_write> status: array<atomic<u32>, 4>;
 @group(0) @binding(15) var<uniform> F: DsFrameUniform;
 // The range's active list (the core's receivers::ActiveLists, active.wgsl): frame_lookup and
 // frame_finish run one invocation per listed receiver; inactive ones already hold V = NaN.
 @group(0) @binding(16) var<storage, read> active_list: array<u32>;
+// The range's open list (the core's gpu::settle): receivers no view's map holds, settled after
+// frame_finish as the CPU's settle_outside settles them.
+@group(0) @binding(17) var<storage, read_write> open_list: array<atomic<u32>>;
 
 // The map's depth at texel t as the opaque path's head: its bits, NIL where empty.
 @compute @workgroup_size(WG)
@@ -78,7 +82,6 @@ fn frame_query(pw: vec3<f32>, nw: vec3<f32>) -> array<vec4<f32>, 2> {
     } else {
         q[1] = vec4<f32>(rp.g0, rp.gu, rp.gv, rp.c);
     }
-    if (!view_contains(fview, uv)) { atomicAdd(&status[0], 1u); }
     return q;
 }
 
@@ -91,9 +94,16 @@ fn frame_lookup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
                 @builtin(local_invocation_id) lid: vec3<u32>) {
     let k = listed_receiver(linear_id(wid, nwg, lid));
     if (k == NONE_LISTED) { return; }
-    // Cut short in an earlier view: stays cut.
-    if (bitcast<u32>(acc[k]) == CUT_BITS) { return; }
+    // Cut short in an earlier view: stays cut. Outside an earlier view's map: settled at the end.
+    if (bitcast<u32>(acc[k]) == CUT_BITS || bitcast<u32>(acc[k]) == OPEN_BITS) { return; }
     let q = frame_query(receivers[k].position, receivers[k].normal);
+    // Looked up (fixed < 0) outside the map: no map holds its casters (cpu.rs mark_outside).
+    if (q[0].w < 0.0 && !view_contains(fview, q[0].xy)) {
+        acc[k] = bitcast<f32>(OPEN_BITS);
+        atomicAdd(&status[0], 1u);
+        leave_open(k);
+        return;
+    }
     var t: f32;
     if (DS_LISTS) {
         // Lists short of fragments (the element buffer full, the counter wrapped) or left
@@ -129,7 +139,7 @@ fn frame_finish(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
         v_out[k] = 0u;
         return;
     }
-    if (bitcast<u32>(acc[k]) == CUT_BITS) {
+    if (bitcast<u32>(acc[k]) == CUT_BITS || bitcast<u32>(acc[k]) == OPEN_BITS) {
         v_out[k] = NAN_BITS;
         return;
     }

@@ -30,10 +30,15 @@
 //!
 //! Then `frame_finish` writes `V = sum / views` ([`crate::cpu::finish`]).
 //!
-//! The status buffer (three u32, cleared by each `encode`): `[0]` receivers looked up at a texel
-//! outside their view's map (summed over views), `[1]` non-finite V written as 0, `[2]`
-//! receivers the device's loop budget cut short (`loop_limit_hit`, lavapipe's 65535 loop
-//! iterations per invocation: PCSS's blocker search and filter at large kernels): V left NaN,
+//! Receivers looked up outside some view's map (no map holds their casters, [`crate::cpu::mark_outside`])
+//! skip the later views and go to the core's settle passes ([`shadow_map_core::gpu::settle`]),
+//! which give them their facing fraction where no caster triangle lies in their light pyramid
+//! and leave them NaN elsewhere, as the CPU twin's `settle_outside` settles or refuses them.
+//!
+//! The status buffer (four u32, cleared by each `encode`): `[0]` receivers looked up outside
+//! some view's map (each once), `[1]` non-finite V written as 0, `[2]` receivers the device's
+//! loop budget cut short (`loop_limit_hit`, lavapipe's 65535 loop iterations per invocation:
+//! PCSS's blocker search and filter at large kernels), `[3]` of `[0]`, those left NaN: V left NaN,
 //! for the caller to redo (the CLI redoes NaN actives with the CPU twin in the same views).
 //!
 //! The registry's GPU estimator is this frame run by the core's `FrameTwin` (receivers uploaded,
@@ -57,6 +62,7 @@ use shadow_map_core::{
         kernel::{shader_module, uniform_buffer, BindGroupCache, Binding, SpecializedKernel},
         raster::{RASTER_WGSL, VERTEX_BUFFERS},
         receivers::{ActiveLists, ACTIVE_WGSL},
+        settle::{GpuSettler, OPEN_WGSL},
         shared::LightViewUniform,
         GpuContext, GpuMapFrame, GpuScene, GpuShadowMapper,
     },
@@ -95,6 +101,7 @@ pub const FRAME_SHADER_PARTS: &[&str] = &[
     NODE_WGSL,
     DEEP_SHADOW_WGSL,
     ACTIVE_WGSL,
+    OPEN_WGSL,
     FRAME_WGSL,
 ];
 
@@ -353,6 +360,8 @@ pub struct DeepShadowFrame {
     status: wgpu::Buffer,
     /// Each range's active receivers, listed every frame: the per-receiver passes run over them.
     active: ActiveLists,
+    /// The settle passes over the receivers no view's map holds.
+    settler: GpuSettler,
     max_receivers: u32,
     /// Whether the last `encode` built lists (semi-transparent casters), for [`Self::read_map`].
     last_lists: AtomicBool,
@@ -420,6 +429,7 @@ impl DeepShadowFrame {
         Ok(DeepShadowFrame {
             groups: BindGroupCache::default(),
             active: ActiveLists::new(&ctx)?,
+            settler: GpuSettler::new(&ctx)?,
             head: storage_buffer(&ctx, "deep-shadow frame head", head_bytes),
             light: uniform_buffer(&ctx, "deep-shadow frame light", est_bytes),
             frame: uniform_buffer(
@@ -428,7 +438,7 @@ impl DeepShadowFrame {
                 std::mem::size_of::<DsFrameUniform>() as u64,
             ),
             acc: storage_buffer(&ctx, "deep-shadow frame sums", 4 * max_receivers as u64),
-            status: status_buffer(&ctx, "deep-shadow frame status", 3),
+            status: status_buffer(&ctx, "deep-shadow frame status", 4),
             params: params.clone(),
             settings,
             map,
@@ -507,7 +517,7 @@ impl DeepShadowFrame {
         light: &wgpu::Buffer,
         nodes: &wgpu::Buffer,
         inputs: &FrameInputs<'_>,
-        (range, list): (ReceiverRange, &wgpu::Buffer),
+        (range, list, open): (ReceiverRange, &wgpu::Buffer, &wgpu::Buffer),
     ) -> wgpu::BindGroup {
         let e = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         self.groups.get(
@@ -528,6 +538,7 @@ impl DeepShadowFrame {
                 e(14, self.status.as_entire_binding()),
                 e(15, self.frame.as_entire_binding()),
                 e(16, list.as_entire_binding()),
+                e(17, open.as_entire_binding()),
             ],
         )
     }
@@ -628,6 +639,11 @@ impl FrameEstimator for DeepShadowFrame {
         let ranges =
             self.active
                 .encode_ranges(ctx, enc, inputs.count, inputs.receivers, inputs.v)?;
+        let open: Vec<wgpu::Buffer> = ranges
+            .iter()
+            .enumerate()
+            .map(|(index, (range, _))| self.settler.open_list(ctx, enc, index, *range))
+            .collect();
         let nodes = self.lists.nodes(&self.ctx, lists)?;
         let list_group = lists.then(|| {
             let entries: Vec<_> = [&self.head, &nodes, &self.lists.counters]
@@ -670,14 +686,15 @@ impl FrameEstimator for DeepShadowFrame {
             );
             let groups: Vec<_> = ranges
                 .iter()
-                .map(|(r, list)| {
+                .zip(&open)
+                .map(|((r, list), open)| {
                     self.group(
                         &bufs.ds,
                         self.map.view_uniform(slot),
                         &bufs.light,
                         &nodes,
                         inputs,
-                        (*r, list),
+                        (*r, list, open),
                     )
                 })
                 .collect();
@@ -715,18 +732,34 @@ impl FrameEstimator for DeepShadowFrame {
             }
             inputs.mark(enc, "lookup");
         }
-        for (range, list) in &ranges {
+        for ((range, list), open) in ranges.iter().zip(&open) {
             let group = self.group(
                 &self.slots[0].ds,
                 self.map.view_uniform(0),
                 &self.light,
                 &nodes,
                 inputs,
-                (*range, list),
+                (*range, list, open),
             );
             compute_pass_indirect(enc, "deep-shadow frame finish", &finish_pipe, &group, list);
         }
         inputs.mark(enc, "finish");
+        // The receivers no view's map holds: their facing fraction where no caster can shadow
+        // them, else NaN (status word 3), as the CPU twin's settle_outside.
+        let eu = EstimateUniform::new(light, s.bias, s.slope_bias);
+        for ((range, _), open) in ranges.iter().zip(&open) {
+            self.settler.encode(
+                ctx,
+                enc,
+                (&eu, &self.light),
+                inputs.casters,
+                *range,
+                open,
+                (inputs.receivers, inputs.v),
+                (&self.status, 3),
+            )?;
+        }
+        inputs.mark(enc, "settle");
         Ok(())
     }
 

@@ -595,9 +595,8 @@ fn timestamped_frame_matches(
     bits: &[u32],
 ) {
     use shadow_map_core::gpu::frame::{FrameInputs, FrameTimestamps};
-    // Room for every mark of the largest frame: packet-hsm's 16 sub-lights x 16 opacity levels,
-    // five marks a view (raster, midpoints, mssm, maps, estimate), and the start.
-    let Some(ts) = FrameTimestamps::new(ctx, 2048).unwrap_or_else(|e| panic!("{label}: {e}"))
+    let Some(ts) = FrameTimestamps::new(ctx, FrameTimestamps::FRAME_CAPACITY)
+        .unwrap_or_else(|e| panic!("{label}: {e}"))
     else {
         eprintln!("SKIPPED (no timestamp queries on this adapter): {label}: frame timestamps");
         return;

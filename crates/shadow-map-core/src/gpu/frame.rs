@@ -60,13 +60,14 @@ pub trait FrameEstimator: Send + Sync {
     fn status(&self) -> Option<&wgpu::Buffer>;
 
     /// The words of [`status`](Self::status) as named counts. The default reads the layout most
-    /// estimators write: `[outside, nonfinite, left_nan]` (missing words count 0).
+    /// estimators write: `[outside, nonfinite, cut, unsettled]`, where `unsettled` counts the
+    /// outside receivers the settle passes ([`super::settle`]) left NaN (missing words count 0).
     fn decode_status(&self, words: &[u32]) -> FrameStatus {
         let w = |k: usize| words.get(k).copied().unwrap_or(0);
         FrameStatus {
-            outside: w(0),
+            outside: w(0).saturating_sub(w(3)),
             nonfinite: w(1),
-            left_nan: w(2),
+            left_nan: w(2) + w(3),
         }
     }
 
@@ -292,6 +293,11 @@ impl FrameTimestamps {
     /// The features timestamps between passes need.
     pub const FEATURES: wgpu::Features =
         wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
+
+    /// Room for every mark of the largest frame any estimator here records: packet-hsm's 16 x 16
+    /// views (sub-lights x opacity levels) at five marks a view, and the start (1,281), rounded
+    /// up to a power of two.
+    pub const FRAME_CAPACITY: u32 = 2048;
 
     /// A query set of `capacity` timestamps (2 to `wgpu::QUERY_SET_MAX_QUERIES`, else
     /// [`Error::Limit`]); `None` when the device lacks [`Self::FEATURES`].

@@ -150,30 +150,33 @@ impl ActiveLists {
     }
 
     /// Records a kernel's passes over each of the [`receiver_ranges`](super::frame::receiver_ranges)
-    /// of `count` receivers, dispatched indirectly from the range's lists: `passes[0]` over its
-    /// active receivers, then, when given, `passes[1]` over those the first deferred (a first
+    /// of `count` receivers, dispatched indirectly from the range's lists: `over_active` over its
+    /// active receivers, then, when given, `over_deferred` over those the first deferred (a first
     /// pass that finishes the receivers its cheap test settles and leaves `DEFER_BITS` for the
-    /// rest, and the whole kernel over the long tail alone). `group(range, list)` makes the bind
-    /// group of a pass over `list`.
+    /// rest, and the whole kernel over the long tail alone). `group(index, range, list)` makes
+    /// the bind group of a pass over `list`, the list of the `index`-th range.
     #[allow(clippy::too_many_arguments)]
     pub fn dispatch_passes(
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
         label: &str,
-        passes: &[&wgpu::ComputePipeline],
+        (over_active, over_deferred): (&wgpu::ComputePipeline, Option<&wgpu::ComputePipeline>),
         count: u32,
         (receivers, v): (&wgpu::Buffer, &wgpu::Buffer),
-        mut group: impl FnMut(ReceiverRange, &wgpu::Buffer) -> wgpu::BindGroup,
+        mut group: impl FnMut(usize, ReceiverRange, &wgpu::Buffer) -> wgpu::BindGroup,
     ) -> Result<()> {
-        let kinds = [ListKind::Active, ListKind::Deferred];
         for (index, range) in super::frame::receiver_ranges(ctx, count)
             .into_iter()
             .enumerate()
         {
-            for (pipeline, &kind) in passes.iter().zip(&kinds) {
+            let passes = [
+                Some((ListKind::Active, over_active)),
+                over_deferred.map(|p| (ListKind::Deferred, p)),
+            ];
+            for (kind, pipeline) in passes.into_iter().flatten() {
                 let list = self.encode(ctx, enc, kind, index, range, receivers, v)?;
-                let bind = group(range, &list);
+                let bind = group(index, range, &list);
                 super::frame::compute_pass_indirect(enc, label, pipeline, &bind, &list);
             }
         }

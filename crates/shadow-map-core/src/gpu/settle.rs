@@ -1,7 +1,7 @@
 //! Receivers settled without a map, on the device: the GPU twin of
 //! [`Settler::unshadowed`](crate::settle::Settler::unshadowed) (docs/methods.md §1 "Receivers
 //! outside every view"), for the lit receivers a frame's kernel leaves open because no map it
-//! has holds them (accumulation's one frustum).
+//! has holds them (accumulation's one frustum, a deep-shadow sub-light view).
 //!
 //! The kernel appends each open receiver of a range to that range's open list
 //! ([`GpuSettler::open_list`]: word 0 the count, then the indices, room for the whole range so
@@ -51,8 +51,12 @@ pub const SETTLE_ARGS_CHECK_WGSL: &str = concat!(
 );
 
 /// WGSL a kernel includes to append receiver `k` to its range's open list, bound as
-/// `open_list: array<atomic<u32>>` ([`GpuSettler::open_list`]): `fn leave_open(k: u32)`.
+/// `open_list: array<atomic<u32>>` ([`GpuSettler::open_list`]): `fn leave_open(k: u32)`, and
+/// `OPEN_BITS`, a NaN payload a kernel that sums over views may keep for a receiver it opened.
 pub const OPEN_WGSL: &str = "
+// A receiver already in the open list, for a kernel that sums over views (not read here).
+const OPEN_BITS: u32 = 0x7fc00be4u;
+
 // Appends receiver k to the range's open list (gpu::settle): its V stays NaN for the settle
 // passes. The list holds the whole range, so no receiver is ever dropped.
 fn leave_open(k: u32) {
