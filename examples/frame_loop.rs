@@ -27,10 +27,11 @@
 //!
 //! ```text
 //! WGPU_BACKEND=vulkan cargo run --release --example frame_loop -- [--json] [--frames N]
-//!     [--timed-frames N] [--size WxH] [--resolution R] [--algo NAME] [--small-only] [SCENE.toml]
+//!     [--timed-frames N] [--size WxH] [--resolution R] [--param NAME=VALUE]... [--algo NAME]
+//!     [--small-only] [SCENE.toml]
 //!
 //! `--size` sets the camera's image (the receivers), `--resolution` every estimator's shadow-map
-//! resolution, `--algo` runs one estimator only, `--small-only` the scene as loaded only (one
+//! resolution, `--param` one of the estimator's parameters (with `--algo`), `--algo` runs one estimator only, `--small-only` the scene as loaded only (one
 //! JSON line per estimator: a 3840 x 2160 view in minutes on lavapipe).
 //! ```
 use cpu_time::ThreadTime;
@@ -94,11 +95,11 @@ fn frame_path(
     ctx: &Arc<GpuContext>,
     algo: &str,
     scene: &Scene,
-    resolution: Option<u32>,
+    settings: &[(String, String)],
 ) -> Result<Path> {
     let mut params = softshadow::method(algo)?.cpu()?.params().clone();
-    if let Some(r) = resolution {
-        params.set("resolution", &r.to_string())?;
+    for (k, v) in settings {
+        params.set(k, v)?;
     }
     let pixels = scene.camera().width * scene.camera().height;
     let path =
@@ -374,7 +375,8 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
     let mut frames = 60u32;
     let mut timed = TIMED_FRAMES;
     let mut path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny/bunny.toml").to_string();
-    let (mut size, mut resolution, mut only) = (None, None, None);
+    let (mut size, mut only) = (None, None);
+    let mut settings: Vec<(String, String)> = Vec::new();
     let mut small_only = false;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -388,7 +390,12 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
                     return Err("--timed-frames: at least 1".into());
                 }
             }
-            "--resolution" => resolution = Some(value()?.parse::<u32>()?),
+            "--resolution" => settings.push(("resolution".into(), value()?)),
+            "--param" => {
+                let v = value()?;
+                let (k, x) = v.split_once('=').ok_or("--param takes NAME=VALUE")?;
+                settings.push((k.into(), x.into()));
+            }
             "--algo" => only = Some(value()?),
             "--small-only" => small_only = true,
             "--size" => {
@@ -425,7 +432,7 @@ fn main() -> std::result::Result<(), Box<dyn std::error::Error>> {
         let measure = |scene: &Scene| {
             run(
                 &ctx,
-                frame_path(&ctx, algo, scene, resolution)?,
+                frame_path(&ctx, algo, scene, &settings)?,
                 scene,
                 frames,
                 timed,

@@ -43,8 +43,8 @@ use shadow_map_core::{
         },
         kernel::{BindGroupCache, SpecializedKernel},
         layout::ViewMaps,
-        receivers::ActiveLists,
         receivers::RECEIVERS_WGSL,
+        receivers::{ActiveLists, ListKind},
         settle::{GpuSettler, OPEN_WGSL},
         GpuContext,
     },
@@ -390,7 +390,7 @@ impl FrameEstimator for AccumulationFrame {
             false => None,
         };
         let passes = match &deferring {
-            Some(first) => (first, Some(&whole)),
+            Some(first) => (first, Some((ListKind::Deferred, &whole))),
             None => (&whole, None),
         };
         let ranges = shadow_map_core::gpu::frame::receiver_ranges(ctx, inputs.count);

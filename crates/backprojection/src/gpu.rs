@@ -21,8 +21,8 @@ use shadow_map_core::{
         },
         kernel::{BindGroupCache, SpecializedKernel},
         layout::KernelMaps,
-        receivers::ActiveLists,
         receivers::RECEIVERS_WGSL,
+        receivers::{ActiveLists, ListKind},
         GpuContext,
     },
     Light, Result,
@@ -158,7 +158,7 @@ impl BpKernel {
             ctx,
             enc,
             LABEL,
-            (&first, Some(&second)),
+            (&first, Some((ListKind::Deferred, &second))),
             count,
             (receivers, v),
             |_, range, list| {

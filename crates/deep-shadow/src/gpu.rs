@@ -608,12 +608,8 @@ impl FrameEstimator for DeepShadowFrame {
         // Semi-transparent casters: lists (the insert pass), else the opaque path's heads.
         let lists = !inputs.casters.is_opaque();
         self.last_lists.store(lists, Ordering::Relaxed);
-        ctx.write_in(
-            enc,
-            &self.light,
-            0,
-            bytemuck::bytes_of(&EstimateUniform::new(light, s.bias, s.slope_bias)),
-        );
+        let eu = EstimateUniform::new(light, s.bias, s.slope_bias);
+        ctx.write_in(enc, &self.light, 0, bytemuck::bytes_of(&eu));
         let fu = DsFrameUniform {
             bias: s.bias,
             slope_bias: s.slope_bias,
@@ -629,7 +625,7 @@ impl FrameEstimator for DeepShadowFrame {
         if n == 0 {
             return Ok(());
         }
-        let shape = [EstimateUniform::new(light, s.bias, s.slope_bias).shape_switch()];
+        let shape = [eu.shape_switch()];
         let finish_pipe = self.kernel.entry_pipeline(ctx, "frame_finish", &shape)?;
         let texels = self.map.r as u64 * self.map.r as u64;
         // The per-receiver passes run once per range of receivers (its own bind group); the
@@ -746,7 +742,6 @@ impl FrameEstimator for DeepShadowFrame {
         inputs.mark(enc, "finish");
         // The receivers no view's map holds: their facing fraction where no caster can shadow
         // them, else NaN (status word 3), as the CPU twin's settle_outside.
-        let eu = EstimateUniform::new(light, s.bias, s.slope_bias);
         for ((range, _), open) in ranges.iter().zip(&open) {
             self.settler.encode(
                 ctx,

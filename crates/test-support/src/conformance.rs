@@ -162,6 +162,15 @@ pub trait TwinPair {
             self.label()
         );
     }
+
+    /// Check: work that one invocation could not finish within a device's loop budget is split
+    /// across invocations, never cut: nothing left for the CPU to redo, V as the CPU twin's.
+    fn long_work_is_split_not_cut(&self, _ctx: &Arc<GpuContext>) {
+        panic!(
+            "{}: no long-work check in this method's suite",
+            self.label()
+        );
+    }
 }
 
 /// Instantiates the conformance suite for each `algorithm => pair` (a [`TwinPair`]): a module
@@ -174,7 +183,8 @@ pub trait TwinPair {
 ///
 /// and one test per optional check listed in brackets after the algorithm, named as the
 /// [`TwinPair`] method it calls (`cli_path_matches_the_cpu_twin`,
-/// `loop_limit_is_detected_and_redone`, `frame_path_matches_the_cpu_twin`). Each test passes the
+/// `loop_limit_is_detected_and_redone`, `long_work_is_split_not_cut`,
+/// `frame_path_matches_the_cpu_twin`). Each test passes the
 /// GPU gate first ([`gpu`](crate::gpu)). Needs the `gpu` feature; the invoking file must see
 /// every name that the pair expressions use.
 ///

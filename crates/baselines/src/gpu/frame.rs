@@ -27,7 +27,8 @@ use shadow_map_core::{
         estimate::{EstimateUniform, OVERRIDES},
         frame::{
             check_buffers, check_per_receiver, check_prepared_inputs, compute_pass,
-            compute_pass_indirect, cpu_twin_v, receiver_ranges, single_view, status_buffer, Views,
+            compute_pass_indirect, cpu_twin_v, receiver_ranges, single_view, status_buffer,
+            ReceiverRange, Views,
         },
         kernel::{storage_buffer, BindGroupCache, SpecializedKernel},
         receivers::{ActiveLists, ListKind},
@@ -107,7 +108,33 @@ impl<F: GpuFilter> MapFrame<F> {
     pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
         self.map.light_space(0, view)
     }
+
+    /// The estimate kernel's bind group over `range` of the frame's receivers, reading `list`.
+    fn estimate_group(
+        &self,
+        inputs: &FrameInputs<'_>,
+        range: ReceiverRange,
+        list: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        self.groups.get_dense(
+            &self.ctx,
+            LABEL,
+            &self.kernel.layout,
+            &[
+                self.map.raster.view_uniform(0).as_entire_binding(),
+                self.est.as_entire_binding(),
+                self.map.binding(),
+                range.receivers(inputs.receivers),
+                range.words(inputs.v),
+                self.status.as_entire_binding(),
+                list.as_entire_binding(),
+            ],
+        )
+    }
 }
+
+/// The label of a map frame's estimate passes.
+const LABEL: &str = "frame estimate";
 
 impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
     fn name(&self) -> &'static str {
@@ -156,50 +183,46 @@ impl<F: GpuFilter> FrameEstimator for MapFrame<F> {
         if n == 0 {
             return Ok(());
         }
-        let entry = match self.slots {
-            Slots::Listed(_) => "estimate",
-            Slots::Every(_) => "estimate_slots",
-        };
-        let pipeline = self
-            .kernel
-            .entry_pipeline(&self.ctx, entry, &[u.shape_switch()])?;
-        for (index, range) in receiver_ranges(ctx, inputs.count).into_iter().enumerate() {
-            // The list to bind and dispatch from, or the placeholder and one invocation a slot.
-            let (list, listed) = match &self.slots {
-                Slots::Listed(lists) => (
-                    lists.encode(
-                        ctx,
-                        enc,
-                        ListKind::Active,
-                        index,
-                        range,
-                        inputs.receivers,
-                        inputs.v,
-                    )?,
-                    true,
-                ),
-                Slots::Every(placeholder) => (placeholder.clone(), false),
-            };
-            let group = self.groups.get_dense(
-                &self.ctx,
-                "frame estimate",
-                &self.kernel.layout,
-                &[
-                    self.map.raster.view_uniform(0).as_entire_binding(),
-                    self.est.as_entire_binding(),
-                    self.map.binding(),
-                    range.receivers(inputs.receivers),
-                    range.words(inputs.v),
-                    self.status.as_entire_binding(),
-                    list.as_entire_binding(),
-                ],
-            );
-            if listed {
-                compute_pass_indirect(enc, "frame estimate", &pipeline, &group, &list);
-            } else {
-                compute_pass(enc, "frame estimate", &pipeline, &group, range.workgroups());
+        let shape = u.shape_switch();
+        let lists = match &self.slots {
+            Slots::Listed(lists) => lists,
+            Slots::Every(placeholder) => {
+                // One invocation per slot, the placeholder bound in the list's place.
+                let pipeline = self
+                    .kernel
+                    .entry_pipeline(ctx, "estimate_slots", &[shape])?;
+                for range in receiver_ranges(ctx, inputs.count) {
+                    let group = self.estimate_group(inputs, range, placeholder);
+                    compute_pass(enc, LABEL, &pipeline, &group, range.workgroups());
+                }
+                inputs.mark(enc, "estimate");
+                return Ok(());
             }
-        }
+        };
+        // Over the active list; a filter with a wide pass defers its receivers of wide regions
+        // to it, a workgroup each.
+        let (first, wide) = match self.filter.wide_cells() {
+            Some(cells) => {
+                let switches = [shape, ("WIDE_CELLS", cells as f64)];
+                (
+                    self.kernel.entry_pipeline(ctx, "estimate", &switches)?,
+                    Some(
+                        self.kernel
+                            .entry_pipeline(ctx, "estimate_wide", &switches)?,
+                    ),
+                )
+            }
+            None => (self.kernel.entry_pipeline(ctx, "estimate", &[shape])?, None),
+        };
+        lists.dispatch_passes(
+            ctx,
+            enc,
+            LABEL,
+            (&first, wide.as_ref().map(|p| (ListKind::DeferredWide, p))),
+            inputs.count,
+            (inputs.receivers, inputs.v),
+            |_, range, list| self.estimate_group(inputs, range, list),
+        )?;
         inputs.mark(enc, "estimate");
         Ok(())
     }

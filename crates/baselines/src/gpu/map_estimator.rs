@@ -27,6 +27,13 @@ pub trait GpuFilter: Filter {
     /// (`ActiveLists`). A filter whose per-receiver work is about what listing a slot costs
     /// (the hard test's one tap) runs over every slot instead (the core's `estimate_slots`).
     const ACTIVE_LIST: bool = true;
+    /// When the filter's WGSL has a wide pass and its settings may need it: the override
+    /// `WIDE_CELLS`, past which `visibility` defers (-2) a receiver whose region holds more
+    /// cells, and the entry point `estimate_wide` runs it with a whole workgroup
+    /// (`ListKind::DeferredWide`).
+    fn wide_cells(&self) -> Option<u32> {
+        None
+    }
     /// Writes the filter's settings (as the CPU filter's own `from_params` read them).
     fn set_uniform(&self, _u: &mut EstimateUniform) {}
 }

@@ -47,30 +47,59 @@ fn lit(i: i32, j: i32, r: ReceiverSample) -> f32 {
 
 // `Cells`, `cell` and the Kahan `Sum` come from cells.wgsl (an earlier part).
 
-// The frame of MapEstimator::estimate for one active receiver: tangent-plane factor, light-space
-// transform, the near-plane and out-of-frustum rules, the receiver bias, then the filter.
-fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
+// Where a receiver stands before the filter (`Prepared::kind`): facing away (V 0), nearer than
+// the map's near plane (V the facing fraction; counted as outside when behind the light's plane),
+// outside the map's window (the facing fraction, counted), or sampled for the filter.
+const AWAY: u32 = 0u;
+const NEAR: u32 = 1u;
+const BEHIND: u32 = 2u;
+const OUTSIDE: u32 = 3u;
+const SAMPLED: u32 = 4u;
+
+struct Prepared {
+    kind: u32,
+    fac: f32,
+    s: ReceiverSample,
+}
+
+// The frame of MapEstimator::estimate for one active receiver up to the filter: tangent-plane
+// factor, light-space transform, the near-plane and out-of-frustum rules, the receiver bias.
+fn prepare(pw: vec3<f32>, nw: vec3<f32>) -> Prepared {
+    var none: ReceiverSample;
     let fac = facing(pw, nw);
     if fac <= 0.0 {
-        return 0.0;
+        return Prepared(AWAY, 0.0, none);
     }
     let p = view_to_light(view, pw);
     let n = view_dir_to_light(view, nw);
     if p.z <= view.n {
         // Nearer than anything the map records (or behind a sphere light's frustum).
-        if p.z <= 0.0 {
-            atomicAdd(&counters[0], 1u);
-        }
-        return fac;
+        return Prepared(select(NEAR, BEHIND, p.z <= 0.0), fac, none);
     }
     let uv = project(view, p);
     if !view_contains(view, uv) {
-        atomicAdd(&counters[0], 1u);
-        return fac;
+        return Prepared(OUTSIDE, fac, none);
     }
     // Half a code step more under depth=unorm16 (depth_step = 0 for f32 maps).
     let plane = plane_new(est.receiver_plane != 0u, view, p, n, est.bias, est.slope_bias, 0.5 * est.depth_step);
-    return fac * visibility(ReceiverSample(p, n, uv, plane));
+    return Prepared(SAMPLED, fac, ReceiverSample(p, n, uv, plane));
+}
+
+// MapEstimator::estimate for one active receiver: `prepare`, the receivers outside the frustum
+// counted, then the filter (a filter's -2, deferred to its wide pass, passed on).
+fn estimate_receiver(pw: vec3<f32>, nw: vec3<f32>) -> f32 {
+    let r = prepare(pw, nw);
+    if r.kind == BEHIND || r.kind == OUTSIDE {
+        atomicAdd(&counters[0], 1u);
+    }
+    if r.kind != SAMPLED {
+        return r.fac;
+    }
+    let vis = visibility(r.s);
+    if vis <= -2.0 {
+        return vis;
+    }
+    return r.fac * vis;
 }
 
 // The entry point is the core's (receivers.wgsl); its loop-budget probe is this uniform's.

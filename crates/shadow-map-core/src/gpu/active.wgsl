@@ -12,3 +12,9 @@ fn listed_receiver(i: u32) -> u32 {
     }
     return active_list[4u + i];
 }
+
+// The receiver of workgroup wid of a dispatch of one workgroup per listed receiver (a list kind
+// made for it, compact.wgsl's PER_RECEIVER_GROUP), or NONE_LISTED past the list's end.
+fn listed_receiver_of_group(wid: vec3<u32>) -> u32 {
+    return listed_receiver(wid.x + wid.y * 65535u);
+}

@@ -3,7 +3,7 @@
 // other inactive slots: a lane-predicated device (lavapipe) pays a whole kernel for an inactive
 // lane as for an active one, and a GPU leaves it idle. Prepended by shared.wgsl.
 //
-// The list, in words: 0..3 the indirect dispatch of the kernel that reads it (x, 1, 1), 3 the
+// The list, in words: 0..3 the indirect dispatch of the kernel that reads it (x, y, 1), 3 the
 // count, then from word 4 the indices (within the range) of the listed receivers in slot order,
 // then per workgroup of `count_runs` its first place in the list, then per invocation its run's
 // bits. Three passes make the order the slots' own on every device, so a kernel's lanes (and a
@@ -18,6 +18,13 @@ override RUN: u32;
 // Whether the list is of the receivers a first pass deferred (V = DEFER_BITS) rather than of the
 // active ones; it leaves V as it is.
 override DEFERRED: bool = false;
+
+// Whether the kernel reading the list takes a whole workgroup per listed receiver (a wide pass
+// over a long tail): the dispatch is then (min(count, MAX_GROUPS), ceil(count / MAX_GROUPS), 1)
+// workgroups instead of (ceil(count / WG), 1, 1), and workgroup (x, y) takes item x + y MAX_GROUPS.
+override PER_RECEIVER_GROUP: bool = false;
+// Workgroups per dimension of a dispatch (wgpu's default maxComputeWorkgroupsPerDimension).
+const MAX_GROUPS: u32 = 65535u;
 
 struct ActiveList {
     x: u32,
@@ -101,8 +108,13 @@ fn scan_groups(@builtin(local_invocation_index) lane: u32) {
             run += lane_counts[l];
         }
         list.count = run;
-        list.x = (run + WG - 1u) / WG;
-        list.y = 1u;
+        if PER_RECEIVER_GROUP {
+            list.x = min(run, MAX_GROUPS);
+            list.y = (run + MAX_GROUPS - 1u) / MAX_GROUPS;
+        } else {
+            list.x = (run + WG - 1u) / WG;
+            list.y = 1u;
+        }
         list.z = 1u;
     }
     workgroupBarrier();

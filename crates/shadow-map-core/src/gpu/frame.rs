@@ -577,14 +577,24 @@ pub fn compute_pass(
     group: &wgpu::BindGroup,
     workgroups: [u32; 3],
 ) {
+    let [x, y, z] = workgroups;
+    begin(enc, label, pipe, group).dispatch_workgroups(x, y, z);
+}
+
+/// A compute pass labelled `label` with `pipe` and `group` (at group 0) set.
+fn begin<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    pipe: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+) -> wgpu::ComputePass<'e> {
     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
         timestamp_writes: None,
     });
     pass.set_pipeline(pipe);
     pass.set_bind_group(0, group, &[]);
-    let [x, y, z] = workgroups;
-    pass.dispatch_workgroups(x, y, z);
+    pass
 }
 
 /// [`compute_pass`] with its workgroup counts read from `args` (three u32 at byte 0, written on
@@ -608,13 +618,7 @@ pub fn compute_pass_indirect_at(
     args: &wgpu::Buffer,
     offset: u64,
 ) {
-    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(pipe);
-    pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups_indirect(args, offset);
+    begin(enc, label, pipe, group).dispatch_workgroups_indirect(args, offset);
 }
 
 /// A zeroed status buffer of `words` u32 (`STORAGE | COPY_SRC | COPY_DST`): the counters a frame

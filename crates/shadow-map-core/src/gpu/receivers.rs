@@ -45,6 +45,10 @@ pub enum ListKind {
     Active,
     /// The receivers a first pass over the active list deferred to a second (V = `DEFER_BITS`).
     Deferred,
+    /// The same receivers for a second pass that takes a whole workgroup per receiver (a long
+    /// tail whose work its lanes share): dispatched as `(min(count, 65535), ⌈count / 65535⌉, 1)`
+    /// workgroups, workgroup `(x, y)` taking item `x + 65535 y` (`listed_receiver_of_group`).
+    DeferredWide,
 }
 
 /// Per receiver range of a frame, the list of its active receivers, made on the device each
@@ -58,10 +62,10 @@ pub enum ListKind {
 #[derive(Debug)]
 pub struct ActiveLists {
     kernel: SpecializedKernel,
-    /// `count_runs` of the active receivers and of the deferred ones, `scan_groups`,
-    /// `place_runs`.
+    /// `count_runs` of the active receivers and of the deferred ones, `scan_groups` for a
+    /// workgroup per `WG` receivers and per receiver, `place_runs`.
     count: [wgpu::ComputePipeline; 2],
-    scan: wgpu::ComputePipeline,
+    scan: [wgpu::ComputePipeline; 2],
     place: wgpu::ComputePipeline,
     lists: Mutex<Vec<wgpu::Buffer>>,
     deferred: Mutex<Vec<wgpu::Buffer>>,
@@ -86,7 +90,10 @@ impl ActiveLists {
             kernel.pipeline(ctx, &[])?,
             kernel.pipeline(ctx, &[("DEFERRED", 1.0)])?,
         ];
-        let scan = kernel.entry_pipeline(ctx, "scan_groups", &[])?;
+        let scan = [
+            kernel.entry_pipeline(ctx, "scan_groups", &[])?,
+            kernel.entry_pipeline(ctx, "scan_groups", &[("PER_RECEIVER_GROUP", 1.0)])?,
+        ];
         let place = kernel.entry_pipeline(ctx, "place_runs", &[])?;
         Ok(ActiveLists {
             kernel,
@@ -104,7 +111,8 @@ impl ActiveLists {
     /// receivers ([`ListKind::Active`], which also writes NaN into its inactive slots; index 0
     /// starts a frame's encode), or, after a first pass over that list, the receivers the pass
     /// deferred ([`ListKind::Deferred`], V = `DEFER_BITS`, `shared.wgsl`) to a second: a kernel's
-    /// long tail, run densely. One list per kind and range index.
+    /// long tail, run densely ([`ListKind::DeferredWide`]: a workgroup per receiver). One list
+    /// per range index for the active receivers, one for the deferred.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
@@ -121,9 +129,10 @@ impl ActiveLists {
                 if index == 0 {
                     self.groups.next_encode();
                 }
-                (&self.lists, &self.count[0])
+                (&self.lists, &self.count[0], &self.scan[0])
             }
-            ListKind::Deferred => (&self.deferred, &self.count[1]),
+            ListKind::Deferred => (&self.deferred, &self.count[1], &self.scan[0]),
+            ListKind::DeferredWide => (&self.deferred, &self.count[1], &self.scan[1]),
         };
         self.record(ctx, enc, pipes, index, range, (receivers, v))
     }
@@ -151,9 +160,9 @@ impl ActiveLists {
 
     /// Records a kernel's passes over each of the [`receiver_ranges`](super::frame::receiver_ranges)
     /// of `count` receivers, dispatched indirectly from the range's lists: `over_active` over its
-    /// active receivers, then, when given, `over_deferred` over those the first deferred (a first
-    /// pass that finishes the receivers its cheap test settles and leaves `DEFER_BITS` for the
-    /// rest, and the whole kernel over the long tail alone). `group(index, range, list)` makes
+    /// active receivers, then, when given, `over_deferred` over those the first deferred, listed
+    /// as its kind says (a first pass that finishes the receivers its cheap test settles and
+    /// leaves `DEFER_BITS` for the rest, and the whole kernel over the long tail alone). `group(index, range, list)` makes
     /// the bind group of a pass over `list`, the list of the `index`-th range.
     #[allow(clippy::too_many_arguments)]
     pub fn dispatch_passes(
@@ -161,7 +170,10 @@ impl ActiveLists {
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
         label: &str,
-        (over_active, over_deferred): (&wgpu::ComputePipeline, Option<&wgpu::ComputePipeline>),
+        (over_active, over_deferred): (
+            &wgpu::ComputePipeline,
+            Option<(ListKind, &wgpu::ComputePipeline)>,
+        ),
         count: u32,
         (receivers, v): (&wgpu::Buffer, &wgpu::Buffer),
         mut group: impl FnMut(usize, ReceiverRange, &wgpu::Buffer) -> wgpu::BindGroup,
@@ -170,10 +182,7 @@ impl ActiveLists {
             .into_iter()
             .enumerate()
         {
-            let passes = [
-                Some((ListKind::Active, over_active)),
-                over_deferred.map(|p| (ListKind::Deferred, p)),
-            ];
+            let passes = [Some((ListKind::Active, over_active)), over_deferred];
             for (kind, pipeline) in passes.into_iter().flatten() {
                 let list = self.encode(ctx, enc, kind, index, range, receivers, v)?;
                 let bind = group(index, range, &list);
@@ -187,7 +196,11 @@ impl ActiveLists {
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
-        (lists, count): (&Mutex<Vec<wgpu::Buffer>>, &wgpu::ComputePipeline),
+        (lists, count, scan): (
+            &Mutex<Vec<wgpu::Buffer>>,
+            &wgpu::ComputePipeline,
+            &wgpu::ComputePipeline,
+        ),
         index: usize,
         range: ReceiverRange,
         (receivers, v): (&wgpu::Buffer, &wgpu::Buffer),
@@ -222,7 +235,7 @@ impl ActiveLists {
             ],
         );
         compute_pass(enc, "active receivers count", count, &group, [groups, 1, 1]);
-        compute_pass(enc, "active receivers scan", &self.scan, &group, [1, 1, 1]);
+        compute_pass(enc, "active receivers scan", scan, &group, [1, 1, 1]);
         compute_pass(
             enc,
             "active receivers place",

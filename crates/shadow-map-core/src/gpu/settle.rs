@@ -264,3 +264,34 @@ impl GpuSettler {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{BLOCK_TRIANGLES, SETTLE_ARGS_CHECK_WGSL, SETTLE_CHECK_WGSL, SPAN_TRIANGLES};
+    use test_support::wgsl::u32_constant;
+
+    /// The hierarchy's sizes agree on all three sides: settle.wgsl's runs, blocks and span,
+    /// settle_args.wgsl's dispatch and this module's buffer sizes.
+    #[test]
+    fn hierarchy_sizes_agree_with_the_wgsl() {
+        let c = |src, name| u32_constant(src, name).unwrap_or_else(|e| panic!("{e}"));
+        let (run, runs, blocks) = (
+            c(SETTLE_CHECK_WGSL, "RUN"),
+            c(SETTLE_CHECK_WGSL, "RUNS"),
+            c(SETTLE_CHECK_WGSL, "BLOCKS"),
+        );
+        assert_eq!(run * runs, BLOCK_TRIANGLES, "settle.wgsl RUN * RUNS");
+        assert_eq!(run * runs * blocks, SPAN_TRIANGLES, "settle.wgsl's span");
+        assert_eq!(run, 8, "box_bytes counts a box per run of 8");
+        for (name, rust) in [
+            ("BLOCK_TRIANGLES", BLOCK_TRIANGLES),
+            ("SPAN_TRIANGLES", SPAN_TRIANGLES),
+        ] {
+            assert_eq!(
+                c(SETTLE_ARGS_CHECK_WGSL, name),
+                rust,
+                "settle_args.wgsl {name}"
+            );
+        }
+    }
+}

@@ -36,7 +36,8 @@ const MAX_PLANES: u32 = 10u;
 const MAX_CLIP: u32 = 13u;
 
 // Triangles per run, runs per block, blocks per invocation of settle_test (the Rust side's
-// BLOCK_TRIANGLES and SPAN_TRIANGLES are RUN * RUNS and RUN * RUNS * BLOCKS).
+// BLOCK_TRIANGLES and SPAN_TRIANGLES are RUN * RUNS and RUN * RUNS * BLOCKS; gpu::settle's
+// tests tie the three sides).
 const RUN: u32 = 8u;
 const RUNS: u32 = 8u;
 const BLOCKS: u32 = 4u;

@@ -4,7 +4,8 @@
 //! head is the indirect dispatch of one invocation per listed receiver, inactive
 //! slots get V = NaN and active ones are left for the kernel. Two ranges of one frame keep two
 //! lists alive at once, and a list grows with its range from frame to frame. The deferred list
-//! of a range holds the receivers a first pass left `DEFER_BITS` in V, and leaves V as it is.
+//! of a range holds the receivers a first pass left `DEFER_BITS` in V, and leaves V as it is;
+//! listed for a wide pass, it holds the same receivers and dispatches a workgroup for each.
 #![cfg(feature = "gpu")]
 
 use crate::common;
@@ -16,7 +17,7 @@ use shadow_map_core::{
         kernel::buffer_init,
         receivers::{
             ActiveLists,
-            ListKind::{Active, Deferred},
+            ListKind::{Active, Deferred, DeferredWide},
             ACTIVE_HEAD_WORDS,
         },
         shared::ReceiverGpu,
@@ -29,6 +30,9 @@ const UNWRITTEN: u32 = 0x1234_5678;
 
 /// `shared.wgsl`'s `DEFER_BITS`: what a first pass leaves for the second.
 const DEFER_BITS: u32 = 0x7fc0_defe;
+
+/// Receivers whose two ranges each defer more than 65,535 (`first_pass`, `receivers`).
+const TWO_ROWS: u32 = 700_000;
 
 /// V as a first pass left it: every third active receiver deferred.
 fn first_pass(recs: &[ReceiverGpu]) -> Vec<u32> {
@@ -67,6 +71,8 @@ fn active_lists_hold_each_active_receiver_once() -> Result<(), Error> {
         (64, true),
         (517, false),
         (10_000, false),
+        // More than 65,535 deferred in each range: a wide dispatch of two rows.
+        (TWO_ROWS, false),
     ] {
         let recs = receivers(n, none_active);
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
@@ -100,13 +106,45 @@ fn active_lists_hold_each_active_receiver_once() -> Result<(), Error> {
             .enumerate()
             .map(|(index, &range)| {
                 let active = lists.encode(&ctx, &mut enc, Active, index, range, &rb, &v)?;
+                // The deferred list with a workgroup per receiver, copied before the deferred
+                // list, which shares its buffer, is made again.
+                let wide = lists.encode(&ctx, &mut enc, DeferredWide, index, range, &rb, &v)?;
+                let wide_copy = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("wide list copy"),
+                    size: wide.size(),
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                enc.copy_buffer_to_buffer(&wide, 0, &wide_copy, 0, wide.size());
                 let deferred = lists.encode(&ctx, &mut enc, Deferred, index, range, &rb, &v)?;
-                Ok((active, deferred))
+                Ok((active, deferred, wide_copy))
             })
             .collect::<Result<Vec<_>, Error>>()?;
         ctx.queue.submit([enc.finish()]);
         let bits: Vec<u32> = ctx.read_buffer(&v, 4 * n as u64)?;
-        for (range, (active, deferred)) in ranges.iter().zip(&listed) {
+        for (range, (active, deferred, wide)) in ranges.iter().zip(&listed) {
+            // The wide list: the deferred receivers, a workgroup each.
+            let words: Vec<u32> = ctx.read_buffer(wide, wide.size())?;
+            let deferred_words: Vec<u32> = ctx.read_buffer(deferred, deferred.size())?;
+            let count = words[3];
+            assert_eq!(
+                count, deferred_words[3],
+                "{n} receivers: the wide list's count"
+            );
+            assert!(
+                n != TWO_ROWS || count > 65_535,
+                "{n} receivers: {count} deferred"
+            );
+            assert_eq!(
+                &words[ACTIVE_HEAD_WORDS as usize..][..count as usize],
+                &deferred_words[ACTIVE_HEAD_WORDS as usize..][..count as usize],
+                "{n} receivers: the wide list"
+            );
+            assert_eq!(
+                &words[..3],
+                &[count.min(65_535), count.div_ceil(65_535), 1],
+                "{n} receivers: the wide list's dispatch"
+            );
             let slots = range.first..range.first + range.count;
             for (list, what, want) in [
                 (

@@ -35,38 +35,11 @@ const UNTOUCHED: u32 = 0x1234_5678;
 /// A ground of 60 m and 40 random boxes (12 triangles each) within 12 m of the origin.
 fn casters(next: &mut impl FnMut() -> f32) -> Vec<[Vec3; 3]> {
     let g = 30.0;
-    let mut tris = vec![
-        [
-            Vec3::new(-g, 0.0, -g),
-            Vec3::new(g, 0.0, -g),
-            Vec3::new(g, 0.0, g),
-        ],
-        [
-            Vec3::new(-g, 0.0, -g),
-            Vec3::new(g, 0.0, g),
-            Vec3::new(-g, 0.0, g),
-        ],
-    ];
+    let mut tris = test_support::fixtures::quad(-g, -g, g, g, 0.0);
     for _ in 0..40 {
         let c = Vec3::new(next() * 24.0 - 12.0, next() * 3.0, next() * 24.0 - 12.0);
         let h = Vec3::new(0.1 + next() * 0.6, 0.1 + next() * 0.6, 0.1 + next() * 0.6);
-        for (a, b, d) in [(0usize, 1usize, 2usize), (1, 2, 0), (2, 0, 1)] {
-            for s in [-1.0f32, 1.0] {
-                let mut q = [Vec3::ZERO; 4];
-                for (k, (u, v)) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let mut o = [0.0f32; 3];
-                    o[a] = s * h[a];
-                    o[b] = u * h[b];
-                    o[d] = v * h[d];
-                    q[k] = c + Vec3::from(o);
-                }
-                tris.push([q[0], q[1], q[2]]);
-                tris.push([q[0], q[2], q[3]]);
-            }
-        }
+        tris.extend(test_support::fixtures::cuboid(c - h, c + h));
     }
     tris
 }
