@@ -402,8 +402,13 @@ impl DeepShadowFrame {
             max_receivers,
         )?;
         let views = settings.sublights * settings.sublights;
-        let map =
-            GpuShadowMapper::new(&ctx)?.map_frame(&ctx, r, RasterOptions::default(), views)?;
+        let map = GpuShadowMapper::new(&ctx)?.map_frame(
+            &ctx,
+            r,
+            RasterOptions::default(),
+            views,
+            false,
+        )?;
         let overrides: Vec<(&str, f64)> = OVERRIDES.iter().chain(OWN_OVERRIDES).copied().collect();
         let kernel = SpecializedKernel::new(
             &ctx,

@@ -13,6 +13,7 @@
 //! status, for the caller to redo (the registry's GPU estimator, the core's `FrameTwin`, redoes
 //! them with the CPU twin in the same views).
 use super::{
+    kernel,
     map_estimator::{shader_parts, GpuFilter},
     multi_sample::Kernels as MultiSampleKernels,
 };
@@ -72,7 +73,7 @@ impl<F: GpuFilter> MapFrame<F> {
     pub fn prepare(ctx: Arc<GpuContext>, params: &Params) -> Result<Self> {
         let settings = MapSettings::from_params(params)?;
         let filter = F::from_params(params)?;
-        let map = FrameMap::new(&ctx, &settings, 1)?;
+        let map = FrameMap::new(&ctx, &settings, 1, F::FEW_TAPS)?;
         let label = format!("{} frame", F::NAME);
         let kernel = SpecializedKernel::new(
             &ctx,
@@ -101,12 +102,13 @@ impl<F: GpuFilter> MapFrame<F> {
         })
     }
 
-    /// The map the last submitted frame rendered, in `view` (the frame's; the f32 layer, from
-    /// which the frame encodes its codes under `depth=unorm16`): what a test reads back
+    /// The map the last submitted frame rendered, in `view` (the frame's; as linear depths: the
+    /// depth test written into the layer under `depth=f32`, the layer from which the frame
+    /// encodes its codes under `depth=unorm16`): what a test reads back
     /// ([`GpuLightSpace::to_cpu`]) to run the CPU filter on the very map the kernel read
     /// ([`MapEstimator::set_light_space`]).
-    pub fn light_space(&self, view: &LightView) -> GpuLightSpace {
-        self.map.light_space(0, view)
+    pub fn light_space(&self, view: &LightView) -> Result<GpuLightSpace> {
+        self.map.light_space(&self.ctx, 0, view)
     }
 
     /// The estimate kernel's bind group over `range` of the frame's receivers, reading `list`.
@@ -254,10 +256,20 @@ struct FrameMap {
 }
 
 impl FrameMap {
-    /// The map at `settings`' resolution, raster options and precision, with `views` slots.
-    fn new(ctx: &GpuContext, settings: &MapSettings, views: u32) -> Result<Self> {
+    /// The map at `settings`' resolution, raster options and precision, with `views` slots,
+    /// read by kernels of `few_taps` per receiver or not ([`kernel::map_is_depth_test`]: then
+    /// the depth test itself, the pass without a fragment stage; else the linear layer the
+    /// fragment stage writes, from which the 16-bit codes are encoded).
+    fn new(ctx: &GpuContext, settings: &MapSettings, views: u32, few_taps: bool) -> Result<Self> {
         let mapper = GpuShadowMapper::new(ctx)?;
-        let raster = mapper.map_frame(ctx, settings.resolution, settings.raster(), views)?;
+        let depth_only = kernel::map_is_depth_test(settings.depth, few_taps);
+        let raster = mapper.map_frame(
+            ctx,
+            settings.resolution,
+            settings.raster(),
+            views,
+            depth_only,
+        )?;
         let unorm16 = match settings.depth {
             DepthPrecision::F32 => None,
             DepthPrecision::Unorm16 => {
@@ -276,14 +288,21 @@ impl FrameMap {
     fn binding(&self) -> wgpu::BindingResource<'_> {
         match &self.unorm16 {
             Some(codes) => codes.binding(),
+            None if self.raster.depth_only() => self.raster.depth_binding(),
             None => wgpu::BindingResource::TextureView(&self.raster.layer.view),
         }
     }
 
     /// The layer as light-space data in `view` (sharing the frame's texture), with the view
-    /// uniform of `slot`.
-    fn light_space(&self, slot: usize, view: &LightView) -> GpuLightSpace {
-        GpuLightSpace {
+    /// uniform of `slot`: a depth-only map's layer written from its depth test first (submitted).
+    fn light_space(
+        &self,
+        ctx: &GpuContext,
+        slot: usize,
+        view: &LightView,
+    ) -> Result<GpuLightSpace> {
+        self.raster.fill_layer(ctx, slot)?;
+        Ok(GpuLightSpace {
             view: *view,
             fit: FitReport::default(),
             view_uniform: self.raster.view_uniform(slot).clone(),
@@ -293,7 +312,7 @@ impl FrameMap {
             mssm: None,
             dual_mssm: None,
             pyramid: None,
-        }
+        })
     }
 }
 
@@ -349,7 +368,7 @@ impl MultiSampleFrame {
             "multi-sample frame counts bytes (max_storage_buffer_binding_size)",
             max_receivers,
         )?;
-        let map = FrameMap::new(&ctx, &settings, own.sublights * own.sublights)?;
+        let map = FrameMap::new(&ctx, &settings, own.sublights * own.sublights, true)?;
         let kernels = MultiSampleKernels::new(&ctx, settings.depth)?;
         let est = (0..map.raster.slots())
             .map(|_| uniform_buffer(&ctx, "multi-sample frame uniform"))
@@ -380,13 +399,18 @@ impl MultiSampleFrame {
     /// view present. Recorded with one sub-light's view present, that sub-light's map: what a
     /// test reads back ([`GpuLightSpace::to_cpu`]) to run the CPU twin on
     /// ([`MultiSample::estimate_in_light_spaces`]).
-    pub fn light_space(&self, views: &Views) -> Option<GpuLightSpace> {
-        let (slot, view) = views
+    pub fn light_space(&self, views: &Views) -> Result<Option<GpuLightSpace>> {
+        let last = views
             .iter()
             .enumerate()
             .rev()
-            .find_map(|(slot, v)| v.as_ref().map(|v| (slot, v)))?;
-        (slot < self.map.raster.slots()).then(|| self.map.light_space(slot, view))
+            .find_map(|(slot, v)| v.as_ref().map(|v| (slot, v)));
+        match last {
+            Some((slot, view)) if slot < self.map.raster.slots() => {
+                self.map.light_space(&self.ctx, slot, view).map(Some)
+            }
+            _ => Ok(None),
+        }
     }
 }
 
@@ -525,11 +549,11 @@ impl FrameEstimator for MultiSampleFrame {
             passes(enc, "multi-sample frame accumulate", &accumulate, at);
             inputs.mark(enc, "estimate");
         }
-        // The finalize kernel reads no view or map: slot 0 and the placeholder fill the layout.
+        // The finalize kernel reads no view or map: slot 0 and the map fill the layout.
         let at = (
             self.map.raster.view_uniform(0),
             &self.est[0],
-            k.placeholder.binding(),
+            self.map.binding(),
         );
         passes(enc, "multi-sample frame finalize", &finalize, at);
         inputs.mark(enc, "finalize");

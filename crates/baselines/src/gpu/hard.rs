@@ -8,4 +8,5 @@ pub const HARD_WGSL: &str = include_str!("hard.wgsl");
 impl GpuFilter for Hard {
     const WGSL: &'static str = HARD_WGSL;
     const ACTIVE_LIST: bool = false;
+    const FEW_TAPS: bool = true;
 }

@@ -27,6 +27,9 @@ pub trait GpuFilter: Filter {
     /// (`ActiveLists`). A filter whose per-receiver work is about what listing a slot costs
     /// (the hard test's one tap) runs over every slot instead (the core's `estimate_slots`).
     const ACTIVE_LIST: bool = true;
+    /// Whether the filter takes few taps per receiver, so that its map is best read as the
+    /// raster's depth test under `depth=f32` ([`kernel::map_is_depth_test`]).
+    const FEW_TAPS: bool = false;
     /// When the filter's WGSL has a wide pass and its settings may need it: the override
     /// `WIDE_CELLS`, past which `visibility` defers (-2) a receiver whose region holds more
     /// cells, and the entry point `estimate_wide` runs it with a whole workgroup
@@ -43,7 +46,7 @@ pub const fn shader_parts<F: GpuFilter>(depth: DepthPrecision) -> [&'static str;
     [
         ESTIMATE_HEAD_WGSL,
         RECEIVERS_WGSL,
-        kernel::depth_wgsl(depth),
+        kernel::depth_wgsl(depth, F::FEW_TAPS),
         CELLS_WGSL,
         MAP_ESTIMATOR_WGSL,
         F::WGSL,

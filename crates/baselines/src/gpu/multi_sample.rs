@@ -7,9 +7,9 @@ use shadow_map_core::{
         estimate::{ESTIMATE_HEAD_WGSL, OVERRIDES},
         kernel::SpecializedKernel,
         receivers::ACTIVE_WGSL,
-        upload_depth_map, GpuContext, GpuDepthMap, GpuUnorm16Map,
+        GpuContext,
     },
-    DepthMap, DepthPrecision, Result, Unorm16Map,
+    DepthPrecision, Result,
 };
 
 /// WGSL of the multi-sample kernels (`accumulate`, `finalize`).
@@ -19,7 +19,7 @@ pub const MULTI_SAMPLE_WGSL: &str = include_str!("multi_sample.wgsl");
 pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 4] {
     [
         ESTIMATE_HEAD_WGSL,
-        kernel::depth_wgsl(depth),
+        kernel::depth_wgsl(depth, true),
         ACTIVE_WGSL,
         MULTI_SAMPLE_WGSL,
     ]
@@ -29,8 +29,6 @@ pub const fn shader_parts(depth: DepthPrecision) -> [&'static str; 4] {
 /// `finalize` specialised for the light's shape.
 pub(crate) struct Kernels {
     pub(crate) kernel: SpecializedKernel,
-    /// A 1x1 map bound where a kernel reads none (`finalize`).
-    pub(crate) placeholder: Placeholder,
 }
 
 impl Kernels {
@@ -38,37 +36,6 @@ impl Kernels {
         let label = "multi-sample";
         let kernel =
             SpecializedKernel::new(ctx, label, &shader_parts(depth), "accumulate", OVERRIDES)?;
-        Ok(Kernels {
-            kernel,
-            placeholder: Placeholder::new(ctx, depth)?,
-        })
-    }
-}
-
-/// An empty 1x1 map in the binding a precision's kernels declare (binding 2): an R32Float
-/// texture, or packed 16-bit codes.
-pub(crate) enum Placeholder {
-    F32(GpuDepthMap),
-    Unorm16(GpuUnorm16Map),
-}
-
-impl Placeholder {
-    fn new(ctx: &GpuContext, depth: DepthPrecision) -> Result<Self> {
-        let empty = DepthMap::empty(1);
-        Ok(match depth {
-            DepthPrecision::F32 => Placeholder::F32(upload_depth_map(ctx, &empty)?),
-            DepthPrecision::Unorm16 => Placeholder::Unorm16(GpuUnorm16Map::upload(
-                ctx,
-                &Unorm16Map::encode(&empty, 1.0, 2.0),
-            )?),
-        })
-    }
-
-    /// The binding of binding 2.
-    pub(crate) fn binding(&self) -> wgpu::BindingResource<'_> {
-        match self {
-            Placeholder::F32(t) => wgpu::BindingResource::TextureView(&t.view),
-            Placeholder::Unorm16(m) => m.buffer.as_entire_binding(),
-        }
+        Ok(Kernels { kernel })
     }
 }

@@ -38,7 +38,7 @@ pub fn run_map_frame<F: GpuFilter>(
         .views
         .iter()
         .map(|view| {
-            view.map(|view| frame.light_space(&view).to_cpu(ctx))
+            view.map(|view| frame.light_space(&view)?.to_cpu(ctx))
                 .transpose()
         })
         .collect::<Result<_>>()?;
@@ -72,7 +72,7 @@ pub fn run_multi_sample_frame(
             .collect();
         rig.run(ctx, frame)?;
         let ls = frame
-            .light_space(&rig.views)
+            .light_space(&rig.views)?
             .ok_or_else(|| Error::LightView(format!("no map for sub-light {k}")))?;
         maps.push(Some(ls.to_cpu(ctx)?));
     }

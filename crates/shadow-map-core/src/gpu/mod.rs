@@ -75,6 +75,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("settle", settle::SETTLE_CHECK_WGSL),
     ("settle_args", settle::SETTLE_ARGS_CHECK_WGSL),
     ("plane_to_layer", layout::PLANE_TO_LAYER_WGSL),
+    ("linear_layer", raster::LINEAR_LAYER_CHECK_WGSL),
 ];
 
 /// Redoes the receivers a kernel flagged with [`shared::CUT_BITS`] (cut short by the device's

@@ -3,7 +3,10 @@
 //!
 //! **Storage.** Layers are `R32Float` textures ([`GpuDepthMap`]) of linear light-space z, +inf
 //! where empty (the colour target is cleared to `f64::INFINITY`). Textures rather than buffers
-//! because they are render targets; later stages read them with `textureLoad`.
+//! because they are render targets; later stages read them with `textureLoad`. A map frame may
+//! instead be depth only ([`GpuShadowMapper::map_frame`]): no fragment stage runs, the depth
+//! test is the map, and its kernels read `n / z` and invert it (`linear_depth` in `shared.wgsl`;
+//! docs/gpu.md, "Depth-only maps").
 //!
 //! **Fill rule.** The GPU's: a texel is covered when its centre is inside the projected
 //! triangle, with the rasteriser's tie rule (top-left on Vulkan), after snapping vertices to its
@@ -56,6 +59,13 @@ use std::sync::Mutex;
 mod frames;
 use frames::LayersStage;
 pub use frames::{GpuLayersFrame, GpuMapFrame, LayersSlot};
+
+/// `linear_layer.wgsl` (the pass of [`GpuMapFrame::fill_layer`]) after the core's `shared.wgsl`, as
+/// [`super::SHADERS`] validates it.
+pub const LINEAR_LAYER_CHECK_WGSL: &str = concat!(
+    include_str!("shared.wgsl"),
+    include_str!("linear_layer.wgsl")
+);
 
 /// WGSL source of the rasteriser: `shared.wgsl` followed by `raster.wgsl`.
 pub const RASTER_WGSL: &str = concat!(include_str!("shared.wgsl"), include_str!("raster.wgsl"));
@@ -222,7 +232,8 @@ impl GpuScene {
 }
 
 /// Pipeline variant: culling, peeling pass (m >= 1), bias, opacity target.
-type PipelineKey = (u8, bool, bool, bool);
+/// (cull, peel, biased, opacity, depth only: no fragment stage, the depth test the map).
+type PipelineKey = (u8, bool, bool, bool, bool);
 
 /// The GPU shadow-map core of one context: raster pipelines (created on first use per variant
 /// and cached), the midpoint pipeline and the MSSM builder.
@@ -314,13 +325,14 @@ impl GpuShadowMapper {
         if let Some(p) = cache.get(&key) {
             return Ok(p.clone());
         }
-        let (cull, peel, biased, opacity) = key;
+        let (cull, peel, biased, opacity, depth_only) = key;
         let label = format!(
-            "raster.{}{}{}{}",
+            "raster.{}{}{}{}{}",
             ["cull_none", "cull_back", "cull_front"][cull as usize % 3],
             if peel { ".peel" } else { ".first" },
             if biased { ".biased" } else { "" },
-            if opacity { ".opacity" } else { "" }
+            if opacity { ".opacity" } else { "" },
+            if depth_only { ".depth_only" } else { "" }
         );
         let target = Some(wgpu::ColorTargetState {
             format: DEPTH_MAP_FORMAT,
@@ -358,7 +370,8 @@ impl GpuShadowMapper {
                     },
                     depth_stencil: Some(nearest_surface_test()),
                     multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
+                    // Depth only: the rasteriser's n / z is the map, no fragment stage runs.
+                    fragment: (!depth_only).then_some(wgpu::FragmentState {
                         module: &self.module,
                         entry_point: Some(match (biased, opacity) {
                             (false, false) => "fs_layer",
@@ -458,9 +471,9 @@ impl GpuShadowMapper {
         // Per pass: the depth-only pipeline, and the one that also writes opacity when asked.
         let pipelines = |peel: bool| -> Result<LayerPipelines> {
             Ok(LayerPipelines {
-                opaque: self.pipeline(ctx, (cull, peel, biased, false))?,
+                opaque: self.pipeline(ctx, (cull, peel, biased, false, false))?,
                 opacity: if req.opacity {
-                    Some(self.pipeline(ctx, (cull, peel, biased, true))?)
+                    Some(self.pipeline(ctx, (cull, peel, biased, true, false))?)
                 } else {
                     None
                 },
@@ -472,7 +485,7 @@ impl GpuShadowMapper {
             let device = &ctx.device;
             let (view_uniform, params) =
                 create_raster_uniforms(device, &LightView::placeholder(r), bias);
-            let depth_test = create_depth_test(device, r);
+            let depth_test = create_depth_test(device, r, wgpu::TextureUsages::RENDER_ATTACHMENT);
             let mut layers = Vec::with_capacity(k as usize);
             let mut opacity = Vec::new();
             for m in 0..k {
@@ -539,18 +552,27 @@ impl GpuShadowMapper {
     /// The resources of a shadow map rendered every frame into the caller's command encoder
     /// ([`GpuMapFrame`], the engine path): an `r x r` layer and its depth test, `views` view
     /// uniforms (one per view a frame renders in turn, at least 1) with the bias uniform, and the
-    /// first-layer pipeline of `raster`, all allocated here, once.
+    /// first-layer pipeline of `raster`, all allocated here, once. With `depth_only` (and no
+    /// bias, whose stored depth needs the fragment stage) the pass writes the depth test alone,
+    /// which is then the map ([`GpuMapFrame::depth_only`]).
     pub fn map_frame(
         &self,
         ctx: &GpuContext,
         r: u32,
         raster: RasterOptions,
         views: u32,
+        depth_only: bool,
     ) -> Result<GpuMapFrame> {
         check_size(ctx, r)?;
         let bias = raster.bias;
         let biased = bias.constant != 0.0 || bias.slope != 0.0;
-        let pipeline = self.pipeline(ctx, (cull_key(raster.cull), false, biased, false))?;
+        let depth_only = depth_only && !biased;
+        let key = (cull_key(raster.cull), false, biased, false, depth_only);
+        let pipeline = self.pipeline(ctx, key)?;
+        let linear = match depth_only {
+            true => Some(frames::LinearLayer::new(ctx)?),
+            false => None,
+        };
         ctx.scoped("raster.frame", || -> Result<GpuMapFrame> {
             let device = &ctx.device;
             let placeholder = LightView::placeholder(r);
@@ -562,12 +584,17 @@ impl GpuShadowMapper {
                     (view_uniform, group)
                 })
                 .collect();
+            let mut usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
+            if depth_only {
+                usage |= wgpu::TextureUsages::TEXTURE_BINDING;
+            }
             Ok(GpuMapFrame {
                 r,
                 layer: GpuDepthMap::new(ctx, r, "raster.frame.layer0")?,
-                depth_test: create_depth_test(device, r),
+                depth_test: create_depth_test(device, r, usage),
                 slots,
                 pipeline,
+                linear,
             })
         })?
     }
@@ -623,7 +650,11 @@ fn create_raster_uniforms(
 }
 
 /// Creates the `r` x `r` depth attachment of the nearest-surface test (`raster.depth_test`).
-fn create_depth_test(device: &wgpu::Device, r: u32) -> wgpu::TextureView {
+fn create_depth_test(
+    device: &wgpu::Device,
+    r: u32,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureView {
     device
         .create_texture(&texture_desc(
             "raster.depth_test",
@@ -631,7 +662,7 @@ fn create_depth_test(device: &wgpu::Device, r: u32) -> wgpu::TextureView {
             r,
             1,
             DEPTH_TEST_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
+            usage,
         ))
         .create_view(&Default::default())
 }
@@ -676,8 +707,9 @@ pub(crate) fn nearest_surface_test() -> wgpu::DepthStencilState {
 }
 
 /// Begins the render pass `label` into `targets`, each cleared to its colour and stored, with
-/// the nearest-surface test `depth_test` (a [`DEPTH_TEST_FORMAT`] attachment cleared to 0 and
-/// discarded after the pass).
+/// the nearest-surface test `depth_test` (a [`DEPTH_TEST_FORMAT`] attachment cleared to 0,
+/// discarded after the pass unless there are no targets: then the depth test is the pass's
+/// product).
 pub(crate) fn begin_depth_tested_pass<'e>(
     enc: &'e mut wgpu::CommandEncoder,
     label: &str,
@@ -705,7 +737,10 @@ pub(crate) fn begin_depth_tested_pass<'e>(
             view: depth_test,
             depth_ops: Some(wgpu::Operations {
                 load: wgpu::LoadOp::Clear(0.0),
-                store: wgpu::StoreOp::Discard,
+                store: match targets.is_empty() {
+                    true => wgpu::StoreOp::Store,
+                    false => wgpu::StoreOp::Discard,
+                },
             }),
             stencil_ops: None,
         }),

@@ -88,8 +88,7 @@ fn light_clip(world: vec4<f32>) -> VsOut {
 // at n + 2 (far - n), beyond all geometry the window holds, so the rasteriser clips only
 // z < n, as the CPU does), and dz/du is z's own screen-space difference.
 fn ortho_depth(z: f32) -> f32 {
-    let s = max(2.0 * (view.far - view.n), 1e-3 * view.n);
-    return 1.0 - (z - view.n) / s;
+    return 1.0 - (z - view.n) / ortho_depth_span(view);
 }
 
 fn stored_depth(frag: vec4<f32>, z: f32) -> f32 {

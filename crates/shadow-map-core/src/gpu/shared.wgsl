@@ -49,6 +49,25 @@ fn project(v: LightViewUniform, p: vec3<f32>) -> vec2<f32> {
     return (vec2<f32>(p.x, p.y) * (v.n / p.z) - v.window_min) / v.delta;
 }
 
+// The depth span s of an orthographic view's depth test (raster.wgsl's ortho_depth, 1 at the
+// near plane falling linearly to 0 at n + s): beyond all geometry the window holds.
+fn ortho_depth_span(v: LightViewUniform) -> f32 {
+    return max(2.0 * (v.far - v.n), 1e-3 * v.n);
+}
+
+// The linear light-space depth z of a raster depth-test value d (the attachment a depth-only
+// map pass leaves: n / z reversed, or an orthographic view's 1 - (z - n) / s), +inf where no
+// fragment landed (d = 0, the clear value).
+fn linear_depth(v: LightViewUniform, d: f32) -> f32 {
+    if !(d > 0.0) {
+        return bitcast<f32>(0x7f800000u);
+    }
+    if v.ortho != 0u {
+        return v.n + (1.0 - d) * ortho_depth_span(v);
+    }
+    return v.n / d;
+}
+
 // Some devices bound the loop iterations of one invocation: llvmpipe (lavapipe) ends every loop
 // once 65535 iterations in all have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), silently. Called
 // at the end of a kernel with a uniform `probe` = 2 (gpu::shared::LOOP_PROBE), this two-trip loop

@@ -1,9 +1,14 @@
 //! The engine path's raster resources, allocated once by [`GpuShadowMapper`](super::GpuShadowMapper) and recorded every
 //! frame into the caller's command encoder: one map ([`GpuMapFrame`]) or the peeled layers,
 //! midpoints and MSSM family ([`GpuLayersFrame`], several views in turn through [`LayersSlot`]).
-use super::{begin_layer_pass, GpuScene, LayerPipelines, RasterParams};
+use super::{begin_depth_tested_pass, begin_layer_pass, GpuScene, LayerPipelines, RasterParams};
 use crate::gpu::{
-    depth_map::GpuDepthMap, light_space::GpuLightSpace, shared::LightViewUniform, GpuContext,
+    depth_map::GpuDepthMap,
+    frame::compute_pass,
+    kernel::{Kernel, SpecializedKernel},
+    light_space::GpuLightSpace,
+    shared::{LightViewUniform, SHARED_WGSL},
+    GpuContext,
 };
 use crate::{
     light_view::{FitReport, LightView},
@@ -26,7 +31,30 @@ pub struct GpuMapFrame {
     /// Per view slot: the view uniform ([`LightViewUniform`]) and the raster bind group.
     pub(super) slots: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
     pub(super) pipeline: wgpu::RenderPipeline,
+    /// Depth only: the pass writing [`layer`](Self::layer) from the depth test, on request.
+    pub(super) linear: Option<LinearLayer>,
 }
+
+/// The compute pass that writes a depth-only map's depth test into its linear layer
+/// (`linear_layer.wgsl`), for read-back.
+#[derive(Debug)]
+pub(super) struct LinearLayer(Kernel);
+
+impl LinearLayer {
+    pub(super) fn new(ctx: &GpuContext) -> Result<Self> {
+        let kernel = SpecializedKernel::new(
+            ctx,
+            "raster.linear_layer",
+            &[SHARED_WGSL, LINEAR_LAYER_WGSL],
+            "linear_layer",
+            &[],
+        )?;
+        Ok(LinearLayer(kernel.fixed(ctx)?))
+    }
+}
+
+/// WGSL of [`GpuMapFrame::fill_layer`]'s pass (after the core's `shared.wgsl`).
+pub const LINEAR_LAYER_WGSL: &str = include_str!("../linear_layer.wgsl");
 
 impl GpuMapFrame {
     /// The view uniform of `slot` ([`LightViewUniform`]), for estimate kernels to bind.
@@ -38,6 +66,49 @@ impl GpuMapFrame {
     /// Number of view slots.
     pub fn slots(&self) -> usize {
         self.slots.len()
+    }
+
+    /// Whether the pass writes its depth test alone (no fragment stage): the map is then the
+    /// depth test ([`depth_binding`](Self::depth_binding): n / z reversed, or an orthographic
+    /// view's `1 - (z - n) / s`, 0 where empty; `linear_depth` in the core's `shared.wgsl`), and
+    /// [`layer`](Self::layer) holds it only after [`fill_layer`](Self::fill_layer).
+    pub fn depth_only(&self) -> bool {
+        self.linear.is_some()
+    }
+
+    /// The depth test, for kernels of a depth-only map to bind as `texture_depth_2d`.
+    pub fn depth_binding(&self) -> wgpu::BindingResource<'_> {
+        wgpu::BindingResource::TextureView(&self.depth_test)
+    }
+
+    /// For read-back (tests and tools, not per frame): writes the depth test the last submitted
+    /// frame left, in the view of `slot`, into [`layer`](Self::layer) as linear depth (what the
+    /// kernels read), and submits. Nothing to do for a map that renders its layer itself.
+    pub fn fill_layer(&self, ctx: &GpuContext, slot: usize) -> Result<()> {
+        let Some(LinearLayer(kernel)) = &self.linear else {
+            return Ok(());
+        };
+        let uniform = &self.view_uniform(slot);
+        let group = kernel.bind_group(
+            ctx,
+            "raster.linear_layer",
+            &[
+                uniform.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&self.depth_test),
+                wgpu::BindingResource::TextureView(&self.layer.view),
+            ],
+        );
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let groups = self.r.div_ceil(8);
+        compute_pass(
+            &mut enc,
+            "raster.linear_layer",
+            &kernel.pipeline,
+            &group,
+            [groups, groups, 1],
+        );
+        ctx.queue.submit([enc.finish()]);
+        ctx.check_lost()
     }
 
     /// Stages `view` (its resolution must be this map's) in `slot` and records the pass
@@ -70,7 +141,10 @@ impl GpuMapFrame {
             0,
             bytemuck::bytes_of(&LightViewUniform::from(view)),
         );
-        let mut pass = begin_layer_pass(enc, 0, &self.layer.view, None, &self.depth_test);
+        let mut pass = match self.linear {
+            Some(_) => begin_depth_tested_pass(enc, "raster.depth_only", &[], &self.depth_test),
+            None => begin_layer_pass(enc, 0, &self.layer.view, None, &self.depth_test),
+        };
         if casters.triangles > 0 {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, group, &[]);
