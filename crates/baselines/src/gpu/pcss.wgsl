@@ -67,32 +67,57 @@ override WIDE_CELLS: u32 = 0xffffffffu;
 // The value `visibility` returns for a receiver it defers (receivers.wgsl's -2).
 const DEFERRED: f32 = -2.0;
 
-fn visibility(r: ReceiverSample) -> f32 {
-    let zr = r.p.z;
+// One region of `visibility`: its cells per axis, and the disk edge its taps take (`soft_edge`,
+// of radius `rad`; the filter's under a disk or sphere light, never the search's).
+struct Region {
+    cy: Cells,
+    cx: Cells,
+    soft_edge: bool,
+    rad: f32,
+}
+
+// The cells of a region `w` texels wide around the receiver, max_taps a side at most.
+fn region_cells(r: ReceiverSample, w: vec2<f32>, soft_edge: bool) -> Region {
+    let cy = cells_new(r.uv.y - 0.5 * w.y, r.uv.y + 0.5 * w.y, est.max_taps);
+    let cx = cells_new(r.uv.x - 0.5 * w.x, r.uv.x + 0.5 * w.x, est.max_taps);
+    return Region(cy, cx, soft_edge, 0.5 * w.x);
+}
+
+// 1. The blocker search's region (W_search on the plane z = n).
+fn search_region(r: ReceiverSample) -> Region {
     let l = 2.0 * est.light_half_extent;
     let to_texels = f32(view.r) / view.w;
-    // 1. Blocker search.
-    let ws = pcss_search_width(l, zr, view.n, to_texels, view.ortho != 0u);
-    let cy = cells_new(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, est.max_taps);
-    let cx = cells_new(r.uv.x - 0.5 * ws.x, r.uv.x + 0.5 * ws.x, est.max_taps);
-    if cy.count * cx.count > WIDE_CELLS {
+    return region_cells(r, pcss_search_width(l, r.p.z, view.n, to_texels, view.ortho != 0u), false);
+}
+
+// 3, 4. The filter's region for the blockers' mean depth z_avg: the penumbra at the receiver
+// carried to the plane (W_filter), with the disk edge for disk and sphere lights.
+fn filter_region(r: ReceiverSample, z_avg: f32) -> Region {
+    let l = 2.0 * est.light_half_extent;
+    let to_texels = f32(view.r) / view.w;
+    let wf = pcss_filter_width(l, r.p.z, z_avg, view.n, to_texels, view.ortho != 0u);
+    return region_cells(r, wf, LIGHT_SHAPE != LIGHT_RECT && wf.x > 1.0);
+}
+
+fn region_taps(g: Region) -> u32 {
+    return g.cy.count * g.cx.count;
+}
+
+fn visibility(r: ReceiverSample) -> f32 {
+    let search = search_region(r);
+    if region_taps(search) > WIDE_CELLS {
         return DEFERRED;
     }
-    let blockers = tap_sums(r, cy, cx, false, false, 0.0);
+    let blockers = tap_sums(r, search.cy, search.cx, false, false, 0.0);
     let count = blockers[1].s;
     if count <= 0.0 {
         return 1.0;
     }
-    let z_avg = blockers[0].s / count;
-    // 3. Penumbra width at the receiver, 4. filter width on the plane (texels).
-    let wf = pcss_filter_width(l, zr, z_avg, view.n, to_texels, view.ortho != 0u);
-    let soft_edge = LIGHT_SHAPE != LIGHT_RECT && wf.x > 1.0;
-    let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
-    let fx = cells_new(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, est.max_taps);
-    if fy.count * fx.count > WIDE_CELLS {
+    let kernel = filter_region(r, blockers[0].s / count);
+    if region_taps(kernel) > WIDE_CELLS {
         return DEFERRED;
     }
-    let taps = tap_sums(r, fy, fx, true, soft_edge, 0.5 * wf.x);
+    let taps = tap_sums(r, kernel.cy, kernel.cx, true, kernel.soft_edge, kernel.rad);
     if taps[1].s <= 0.0 {
         return 1.0;
     }
@@ -109,15 +134,15 @@ fn visibility(r: ReceiverSample) -> f32 {
 var<workgroup> lane_sums: array<array<Sum, 2>, WG>;
 var<workgroup> wide_receiver: Prepared;
 
-// The sums over cy x cx of every lane's taps (`taps` of them), in lane 0's lane_sums[0] after
-// the tree (the other entries are spent).
-fn wide_sums(r: ReceiverSample, cy: Cells, cx: Cells, filtering: bool, soft_edge: bool, rad: f32, taps: u32, lane: u32) -> array<Sum, 2> {
+// The sums over region g of every lane's taps (`taps` of them; 0 for none), added in a tree in
+// lane_sums, every lane returning the total.
+fn wide_sums(r: ReceiverSample, g: Region, filtering: bool, taps: u32, lane: u32) -> array<Sum, 2> {
     var acc = array<Sum, 2>(Sum(0.0, 0.0), Sum(0.0, 0.0));
     for (var t = lane; t < taps; t += WG) {
-        let ci = cell(cx, t % cx.count);
-        let cj = cell(cy, t / cx.count);
+        let ci = cell(g.cx, t % g.cx.count);
+        let cj = cell(g.cy, t / g.cx.count);
         if ci.valid && cj.valid {
-            acc = tap(r, ci, cj, filtering, soft_edge, rad, acc);
+            acc = tap(r, ci, cj, filtering, g.soft_edge, g.rad, acc);
         }
     }
     lane_sums[lane] = acc;
@@ -149,20 +174,12 @@ fn estimate_wide(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocatio
     let pr = wide_receiver;
     let sampled = listed && pr.kind == SAMPLED;
     let r = pr.s;
-    let l = 2.0 * est.light_half_extent;
-    let to_texels = f32(view.r) / view.w;
-    let ws = pcss_search_width(l, r.p.z, view.n, to_texels, view.ortho != 0u);
-    let cy = cells_new(r.uv.y - 0.5 * ws.y, r.uv.y + 0.5 * ws.y, est.max_taps);
-    let cx = cells_new(r.uv.x - 0.5 * ws.x, r.uv.x + 0.5 * ws.x, est.max_taps);
-    let blockers = wide_sums(r, cy, cx, false, false, 0.0, select(0u, cy.count * cx.count, sampled), lane);
+    let search = search_region(r);
+    let blockers = wide_sums(r, search, false, select(0u, region_taps(search), sampled), lane);
     let count = blockers[1].s;
-    let z_avg = blockers[0].s / count;
-    let wf = pcss_filter_width(l, r.p.z, z_avg, view.n, to_texels, view.ortho != 0u);
-    let soft_edge = LIGHT_SHAPE != LIGHT_RECT && wf.x > 1.0;
-    let fy = cells_new(r.uv.y - 0.5 * wf.y, r.uv.y + 0.5 * wf.y, est.max_taps);
-    let fx = cells_new(r.uv.x - 0.5 * wf.x, r.uv.x + 0.5 * wf.x, est.max_taps);
+    let kernel = filter_region(r, blockers[0].s / count);
     let filtered = sampled && count > 0.0;
-    let taps = wide_sums(r, fy, fx, true, soft_edge, 0.5 * wf.x, select(0u, fy.count * fx.count, filtered), lane);
+    let taps = wide_sums(r, kernel, true, select(0u, region_taps(kernel), filtered), lane);
     if lane != 0u || !listed {
         return;
     }
